@@ -1,0 +1,1 @@
+"""Dataset readers (KITTI tracking, raw, odometry) and synthetic scenes."""

@@ -1,0 +1,196 @@
+"""Readers for box files: KITTI tracking labels, PointRCNN detections, and the slopedist CSV.
+
+Every reader returns a :class:`~slopedist.detections.boxes.BoxTable` and fails with an
+:class:`~slopedist.errors.InputFileError` naming the file, line and field of a malformed value.
+
+The slopedist box CSV (for user boxes) has a header row and these columns::
+
+    frame,left,top,right,bottom[,track_id][,score][,class]
+
+``frame`` is the 0-based frame index (int); ``left, top, right, bottom`` are pixels of the image
+the calibration belongs to (origin top-left); ``track_id`` is an int (-1 or empty = unknown);
+``score`` a float (empty = unknown); ``class`` a name such as ``Car`` (empty = ``Car``).
+Other columns are ignored.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.errors import InputFileError, MissingInputError
+
+CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
+CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")
+
+KITTI_LABEL_FIELDS = (
+    "frame", "track_id", "type", "truncated", "occluded", "alpha", "left", "top", "right",
+    "bottom", "height", "width", "length", "x", "y", "z", "rotation_y",
+)
+POINTRCNN_FIELDS = (
+    "frame", "type", "x1", "y1", "x2", "y2", "score", "h", "w", "l", "x", "y", "z",
+    "rotation_y", "alpha",
+)
+
+
+def _open_lines(path: str | Path, what: str) -> Iterator[tuple[int, str]]:
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"{what} not found: {path}")
+    with path.open(newline="") as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            line = raw.strip()
+            if line and not line.startswith("#"):
+                yield lineno, line
+
+
+def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[str], object]):
+    try:
+        value = kind(tok)
+    except ValueError:
+        kind_name = "an integer" if kind is int else "a number"
+        raise InputFileError(path, f"'{tok}' is not {kind_name}", line=lineno, field=name) from None
+    return value
+
+
+def _int(tok: str) -> int:
+    """Parse an integer, also written as a float with no fraction (``3.0``)."""
+    try:
+        return int(tok)
+    except ValueError:
+        value = float(tok)
+        if not value.is_integer():
+            raise
+        return int(value)
+
+
+def read_kitti_labels(path: str | Path) -> BoxTable:
+    """KITTI tracking label file (17 fields per line; an 18th ``score`` is allowed).
+
+    Extra columns: ``z`` (longitudinal distance of the box's bottom centre, m, camera 2),
+    ``x``, ``y``, ``truncated`` (int), ``occluded`` (int), ``dims_hwl`` ((N, 3), m),
+    ``rotation_y`` (rad).
+    """
+    frames, tids, types, boxes, trunc, occl, dims, xyz, ry, scores = ([] for _ in range(10))
+    for lineno, line in _open_lines(path, "KITTI label file"):
+        tok = line.split()
+        if len(tok) not in (17, 18):
+            raise InputFileError(path, f"expected 17 fields, found {len(tok)}", line=lineno)
+        f = dict(zip(KITTI_LABEL_FIELDS, tok))
+        frames.append(_parse(path, lineno, "frame", f["frame"], _int))
+        tids.append(_parse(path, lineno, "track_id", f["track_id"], _int))
+        types.append(f["type"])
+        trunc.append(_parse(path, lineno, "truncated", f["truncated"], float))
+        occl.append(_parse(path, lineno, "occluded", f["occluded"], _int))
+        _parse(path, lineno, "alpha", f["alpha"], float)
+        boxes.append([_parse(path, lineno, k, f[k], float) for k in ("left", "top", "right",
+                                                                       "bottom")])
+        dims.append([_parse(path, lineno, k, f[k], float) for k in ("height", "width", "length")])
+        xyz.append([_parse(path, lineno, k, f[k], float) for k in ("x", "y", "z")])
+        ry.append(_parse(path, lineno, "rotation_y", f["rotation_y"], float))
+        scores.append(_parse(path, lineno, "score", tok[17], float) if len(tok) == 18 else np.nan)
+    xyz_a = np.asarray(xyz, dtype=float).reshape(-1, 3)
+    return BoxTable.build(
+        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), tids, scores, types,
+        truncated=np.asarray(trunc, dtype=float), occluded=np.asarray(occl, dtype=np.int64),
+        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3), x=xyz_a[:, 0], y=xyz_a[:, 1],
+        z=xyz_a[:, 2], rotation_y=np.asarray(ry, dtype=float),
+    )
+
+
+def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable:
+    """PointRCNN detection file: ``frame,type(2=car),x1,y1,x2,y2,score,h,w,l,x,y,z,ry,alpha``.
+
+    Rows with ``score < min_score`` are dropped when ``min_score`` is given. Extra columns: ``z``
+    (the detector's 3D distance, m; not ground truth) and ``dims_hwl``.
+    """
+    frames, boxes, scores, dims, zs = [], [], [], [], []
+    for lineno, line in _open_lines(path, "PointRCNN detection file"):
+        tok = [t.strip() for t in line.split(",")]
+        if len(tok) != len(POINTRCNN_FIELDS):
+            raise InputFileError(
+                path, f"expected {len(POINTRCNN_FIELDS)} comma-separated fields, found {len(tok)}",
+                line=lineno,
+            )
+        f = dict(zip(POINTRCNN_FIELDS, tok))
+        frame = _parse(path, lineno, "frame", f["frame"], _int)
+        score = _parse(path, lineno, "score", f["score"], float)
+        box = [_parse(path, lineno, k, f[k], float) for k in ("x1", "y1", "x2", "y2")]
+        dim = [_parse(path, lineno, k, f[k], float) for k in ("h", "w", "l")]
+        z = _parse(path, lineno, "z", f["z"], float)
+        if min_score is not None and score < min_score:  # type: ignore[operator]
+            continue
+        frames.append(frame)
+        boxes.append(box)
+        scores.append(score)
+        dims.append(dim)
+        zs.append(z)
+    return BoxTable.build(
+        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), None, scores,
+        np.full(len(frames), "Car", dtype=object),
+        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3), z=np.asarray(zs, dtype=float),
+    )
+
+
+def read_box_csv(path: str | Path) -> BoxTable:
+    """The slopedist box CSV (see the module docstring for its columns)."""
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"box CSV not found: {path}")
+    frames, boxes, tids, scores, classes = [], [], [], [], []
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in CSV_REQUIRED if c not in header]
+        if missing:
+            raise InputFileError(
+                path, f"header lacks column(s) {', '.join(missing)}; expected "
+                f"{','.join(CSV_BOX_COLUMNS)}", line=1,
+            )
+        reader.fieldnames = header
+        for row in reader:
+            lineno = reader.line_num
+            frame = _parse(path, lineno, "frame", (row["frame"] or "").strip(), _int)
+            if frame < 0:  # type: ignore[operator]
+                raise InputFileError(path, "frame index must be ≥ 0", line=lineno, field="frame")
+            frames.append(frame)
+            boxes.append([
+                _parse(path, lineno, k, (row[k] or "").strip(), float)
+                for k in ("left", "top", "right", "bottom")
+            ])
+            tid = (row.get("track_id") or "").strip()
+            tids.append(_parse(path, lineno, "track_id", tid, _int) if tid else NO_TRACK)
+            sc = (row.get("score") or "").strip()
+            scores.append(_parse(path, lineno, "score", sc, float) if sc else np.nan)
+            classes.append((row.get("class") or "").strip() or "Car")
+    return BoxTable.build(
+        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), tids, scores,
+        np.asarray(classes, dtype=object),
+    )
+
+
+def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
+    """Read boxes from a file of any supported layout, chosen by its content.
+
+    A first line with a ``frame`` header is the slopedist CSV; 15 comma-separated fields is
+    PointRCNN; 17–18 space-separated fields is a KITTI label file.
+    """
+    path = Path(path)
+    first = next(iter(_open_lines(path, "box file")), (0, ""))[1]
+    if first.replace(" ", "").lower().startswith("frame,"):
+        table = read_box_csv(path)
+        if min_score is not None:
+            table = table.select(~(table.score < min_score))
+        return table
+    if len(first.split(",")) == len(POINTRCNN_FIELDS):
+        return read_pointrcnn(path, min_score)
+    if len(first.split()) in (17, 18):
+        return read_kitti_labels(path)
+    raise InputFileError(
+        path, "unrecognised box file layout (expected the slopedist CSV with a 'frame,left,top,"
+        "right,bottom' header, PointRCNN or KITTI labels)", line=1,
+    )

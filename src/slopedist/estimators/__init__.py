@@ -1,0 +1,69 @@
+"""Distance estimators behind one small interface, selectable by name."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from enum import Enum
+from typing import Any
+
+from slopedist.camera import Camera
+from slopedist.errors import ConfigurationError
+from slopedist.estimators.base import (
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    MissingReason,
+    ReferencePoint,
+)
+from slopedist.estimators.ground_contact import (
+    EgoGradientEstimator,
+    FlatGroundEstimator,
+    PaperEstimator,
+)
+
+
+class Method(str, Enum):
+    """Estimator names accepted by the command line and :func:`make_estimator`."""
+
+    FLAT = "flat"
+    EGO = "ego"
+    PAPER = "paper"
+
+
+ESTIMATORS: dict[str, Callable[..., Estimator]] = {
+    Method.FLAT.value: FlatGroundEstimator,
+    Method.EGO.value: EgoGradientEstimator,
+    Method.PAPER.value: PaperEstimator,
+}
+
+
+def available_methods() -> list[str]:
+    """Names of every registered estimator."""
+    return list(ESTIMATORS)
+
+
+def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
+    """Build the estimator registered as ``name`` for ``camera``."""
+    try:
+        factory = ESTIMATORS[str(getattr(name, "value", name))]
+    except KeyError:
+        raise ConfigurationError(
+            f"unknown method '{name}'; choose from {', '.join(available_methods())}"
+        ) from None
+    return factory(camera, **options)
+
+
+__all__ = [
+    "ESTIMATORS",
+    "EgoGradientEstimator",
+    "Estimator",
+    "FlatGroundEstimator",
+    "FrameEstimates",
+    "FrameInput",
+    "Method",
+    "MissingReason",
+    "PaperEstimator",
+    "ReferencePoint",
+    "available_methods",
+    "make_estimator",
+]

@@ -1,0 +1,108 @@
+"""The ground-contact estimators: flat ground, ego gradient only, and the paper's method.
+
+All three read eq. 1 ``d = f·h/(u − v)``; they differ in the vanishing-line row ``v``:
+``flat`` puts it at ``c_y`` (a level road, θ = θ0 = 0); ``ego`` moves it with the ego road
+gradient θ (eq. 5); ``paper`` additionally raises θ per target by the steps of eq. 7.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist import geometry as geo
+from slopedist.camera import Camera
+from slopedist.estimators.base import (
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    MissingReason,
+    ReferencePoint,
+    unusable_box_reasons,
+)
+
+
+def ground_contact_estimates(
+    camera: Camera,
+    theta_rad: NDArray[np.float64],
+    theta_adj_rad: NDArray[np.float64],
+    boxes: NDArray[np.float64],
+    prior_reasons: NDArray[np.object_],
+) -> FrameEstimates:
+    """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians).
+
+    ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ.
+    """
+    v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
+    delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)
+    v = geo.vanishing_line_row(theta_adj_rad, camera.f, camera.c_y)
+    d = geo.ground_contact_distance(camera.f, camera.height_m, geo.box_bottom_row(boxes), v)
+    reasons = prior_reasons.copy()
+    reasons[(reasons == "") & ~np.isfinite(d)] = MissingReason.BELOW_HORIZON.value
+    d = np.where(reasons == "", d, np.nan)
+    n = boxes.shape[0]
+    return FrameEstimates(
+        theta_rad=np.broadcast_to(theta_rad, (n,)).astype(float),
+        theta_adj_rad=np.broadcast_to(theta_adj_rad, (n,)).astype(float),
+        delta_y_px=np.broadcast_to(delta_y, (n,)).astype(float),
+        v_px=np.broadcast_to(v, (n,)).astype(float),
+        distance_m=d,
+        reason=reasons,
+        reference=np.full(n, ReferencePoint.CONTACT.value, dtype=object),
+    )
+
+
+class FlatGroundEstimator(Estimator):
+    """Classic pinhole model on a level road: eq. 1 with the vanishing line of a camera at rest.
+
+    θ is eq. 4 with no rotation (``ΔR_prev = ΔR_curr = I``), which is ``−θ0``; with θ0 = 0 the
+    vanishing line is the principal-point row ``c_y``.
+    """
+
+    name: ClassVar[str] = "flat"
+    needs_rotation: ClassVar[bool] = False
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        boxes = frame.boxes.boxes
+        theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
+        theta = np.full(len(boxes), theta_rest)
+        return ground_contact_estimates(
+            self.camera, theta, theta, boxes, unusable_box_reasons(frame, False)
+        )
+
+
+class EgoGradientEstimator(Estimator):
+    """The paper's ablation "before updating": eq. 1 with v from the ego gradient θ (eq. 4–5)."""
+
+    name: ClassVar[str] = "ego"
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        boxes = frame.boxes.boxes
+        theta = np.full(len(boxes), frame.theta_rad)
+        return ground_contact_estimates(
+            self.camera, theta, theta, boxes, unusable_box_reasons(frame, True)
+        )
+
+
+class PaperEstimator(Estimator):
+    """The paper's method: ego gradient plus the per-target adjustment of eq. 6–7."""
+
+    name: ClassVar[str] = "paper"
+
+    def __init__(
+        self, camera: Camera, adjustment: geo.GradientAdjustment | None = None
+    ) -> None:
+        super().__init__(camera)
+        self.adjustment = adjustment or geo.GradientAdjustment()
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        boxes = frame.boxes.boxes
+        theta = np.full(len(boxes), frame.theta_rad)
+        v = geo.vanishing_line_row(theta, self.camera.f, self.camera.c_y)
+        delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v)
+        theta_adj = geo.adjusted_gradient(theta, delta_y, self.adjustment)
+        return ground_contact_estimates(
+            self.camera, theta, theta_adj, boxes, unusable_box_reasons(frame, True)
+        )

@@ -1,0 +1,18 @@
+"""Rotation sources: pose files, OXTS/IMU, and visual odometry from pixels."""
+
+from slopedist.odometry.base import RotationTrack, lookback_indices
+from slopedist.odometry.posefiles import (
+    read_kitti_poses,
+    read_oxts_rotations,
+    read_pose_file,
+    read_tum_poses,
+)
+
+__all__ = [
+    "RotationTrack",
+    "lookback_indices",
+    "read_kitti_poses",
+    "read_oxts_rotations",
+    "read_pose_file",
+    "read_tum_poses",
+]

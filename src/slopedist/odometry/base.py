@@ -1,0 +1,79 @@
+"""Time-stamped camera rotations and the one-second look-back.
+
+Convention: rotations are 3×3 camera-to-world matrices relative to the first frame
+(camera frame x right, y down, z forward); timestamps are float64 seconds, increasing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from slopedist.errors import DataMismatchError
+
+LOOKBACK_S = 1.0
+"""Default look-back of the ego gradient, seconds (the paper's one second)."""
+
+TIME_EPS_S = 1e-6
+"""Tolerance when comparing timestamps (k × 0.1 s is not exact in binary floating point)."""
+
+
+def lookback_indices(
+    timestamps_s: ArrayLike, lookback_s: float = LOOKBACK_S
+) -> NDArray[np.intp]:
+    """Index of the look-back frame for every frame.
+
+    The look-back frame of frame i is the latest frame j with ``t_j ≤ t_i − lookback``; frames with
+    less history than that look back to the earliest frame (index 0).
+
+    Args:
+        timestamps_s: increasing timestamps, seconds, shape ``(N,)``.
+        lookback_s: look-back interval, seconds.
+    """
+    t = np.asarray(timestamps_s, dtype=float)
+    j = np.searchsorted(t, t - lookback_s + TIME_EPS_S, side="right") - 1
+    return np.maximum(j, 0).astype(np.intp)
+
+
+@dataclass(frozen=True)
+class RotationTrack:
+    """Camera-to-world rotations of a sequence.
+
+    Attributes:
+        timestamps_s: ``(N,)`` seconds, strictly increasing.
+        R_world_cam: ``(N, 3, 3)`` camera-to-world rotations relative to the first frame.
+        valid: ``(N,)`` bool; False where the source has no rotation for that frame (e.g. visual
+            odometry not initialised or lost).
+    """
+
+    timestamps_s: NDArray[np.float64]
+    R_world_cam: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+
+    @classmethod
+    def from_arrays(
+        cls, timestamps_s: ArrayLike, R_world_cam: ArrayLike, valid: ArrayLike | None = None
+    ) -> RotationTrack:
+        """Validate and build a track (timestamps increasing, rotations ``(N, 3, 3)``)."""
+        t = np.asarray(timestamps_s, dtype=float)
+        R = np.asarray(R_world_cam, dtype=float)
+        if R.ndim != 3 or R.shape[1:] != (3, 3) or R.shape[0] != t.shape[0]:
+            raise DataMismatchError(
+                f"rotations must be (N, 3, 3) with N = {t.shape[0]} timestamps, got {R.shape}"
+            )
+        if t.size > 1 and np.any(np.diff(t) <= 0):
+            k = int(np.argmax(np.diff(t) <= 0)) + 1
+            raise DataMismatchError(
+                f"timestamps must increase: frame {k} at {t[k]} s follows {t[k - 1]} s"
+            )
+        v = np.ones(t.shape, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+        return cls(t, R, v)
+
+    def __len__(self) -> int:
+        return int(self.timestamps_s.shape[0])
+
+    def with_frame_period(self, frame_period_s: float) -> RotationTrack:
+        """Same rotations, timestamps replaced by ``index × frame_period_s``."""
+        return RotationTrack(np.arange(len(self)) * frame_period_s, self.R_world_cam, self.valid)

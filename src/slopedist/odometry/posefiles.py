@@ -1,0 +1,173 @@
+"""Readers for pose files: KITTI 3×4 per line, TUM ``t x y z qx qy qz qw``, and OXTS/IMU poses.
+
+Every reader returns a :class:`~slopedist.odometry.base.RotationTrack` of camera-to-world
+rotations relative to the first frame (camera frame x right, y down, z forward).
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from slopedist.camera import read_kitti_calib
+from slopedist.errors import InputFileError, MissingInputError
+from slopedist.odometry.base import RotationTrack
+
+KITTI_FRAME_PERIOD_S = 0.1
+"""KITTI records at 10 Hz."""
+
+R_CAM_VEHICLE_NOMINAL = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+"""Nominal rotation from the vehicle frame (x forward, y left, z up) to the camera frame."""
+
+
+class PoseFormat(str, Enum):
+    """Layout of a pose file."""
+
+    KITTI = "kitti"
+    TUM = "tum"
+
+
+def _read_numeric_rows(path: str | Path, n_fields: int, names: list[str]) -> NDArray[np.float64]:
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"pose file not found: {path}")
+    rows: list[list[float]] = []
+    with path.open() as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            line = raw.strip()
+            if not line or line.startswith("#"):
+                continue
+            tokens = line.replace(",", " ").split()
+            if len(tokens) != n_fields:
+                raise InputFileError(
+                    path, f"expected {n_fields} numbers, found {len(tokens)}", line=lineno
+                )
+            row = []
+            for name, tok in zip(names, tokens):
+                try:
+                    value = float(tok)
+                except ValueError:
+                    raise InputFileError(
+                        path, f"'{tok}' is not a number", line=lineno, field=name
+                    ) from None
+                if not np.isfinite(value):
+                    raise InputFileError(path, f"non-finite value {tok}", line=lineno, field=name)
+                row.append(value)
+            rows.append(row)
+    if not rows:
+        raise InputFileError(path, "file has no poses")
+    return np.asarray(rows)
+
+
+KITTI_POSE_FIELDS = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in range(4)]
+TUM_POSE_FIELDS = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
+
+
+def _check_rotations(path: str | Path, R: NDArray[np.float64], first_line: int = 1) -> None:
+    err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = np.flatnonzero((err > 1e-3) | (det < 0))
+    if bad.size:
+        raise InputFileError(
+            path, "rotation part is not a rotation matrix", line=int(bad[0]) + first_line,
+            field="r00..r22",
+        )
+
+
+def read_kitti_poses(
+    path: str | Path, frame_period_s: float = KITTI_FRAME_PERIOD_S
+) -> RotationTrack:
+    """KITTI pose file: 12 numbers per line, row-major 3×4 camera-to-world ``[R | t]``.
+
+    Frame k gets timestamp ``k × frame_period_s``. Rotations are made relative to the first pose.
+    """
+    data = _read_numeric_rows(path, 12, KITTI_POSE_FIELDS)
+    R = data.reshape(-1, 3, 4)[:, :, :3]
+    _check_rotations(path, R)
+    R = R[0].T @ R
+    return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
+
+
+def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    data = _read_numeric_rows(path, 8, TUM_POSE_FIELDS)
+    q = data[:, 4:8]
+    norms = np.linalg.norm(q, axis=1)
+    bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-2)
+    if bad.size:
+        raise InputFileError(
+            path, f"quaternion norm {norms[bad[0]]:.4f} is not 1", line=int(bad[0]) + 1,
+            field="qx qy qz qw",
+        )
+    R = Rotation.from_quat(q / norms[:, None]).as_matrix()
+    return data[:, 0], R
+
+
+def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> RotationTrack:
+    """TUM pose file: ``t x y z qx qy qz qw`` per line, camera-to-world.
+
+    Timestamps come from the ``t`` column, or are ``index × frame_period_s`` when that is given.
+    """
+    t, R = _tum_rotations(path)
+    R = R[0].T @ R
+    if frame_period_s is not None:
+        t = np.arange(len(R)) * frame_period_s
+    return RotationTrack.from_arrays(t, R)
+
+
+def read_pose_file(
+    path: str | Path, fmt: PoseFormat | None = None, frame_period_s: float = KITTI_FRAME_PERIOD_S
+) -> RotationTrack:
+    """Read a KITTI or TUM pose file; the layout is detected from the field count if not given."""
+    if fmt is None:
+        path = Path(path)
+        if not path.is_file():
+            raise MissingInputError(f"pose file not found: {path}")
+        with path.open() as fh:
+            first = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
+        fmt = PoseFormat.TUM if len(first.replace(",", " ").split()) == 8 else PoseFormat.KITTI
+    if fmt is PoseFormat.TUM:
+        return read_tum_poses(path)
+    return read_kitti_poses(path, frame_period_s)
+
+
+def camera_from_imu_rotation(calib_path: str | Path | None) -> NDArray[np.float64]:
+    """Rotation ``R_cam_imu`` from the IMU/vehicle frame to the rectified camera frame.
+
+    From a KITTI tracking calib: ``R0_rect · R_velo_to_cam · R_imu_to_velo``. Without a calib the
+    nominal axes swap (x forward, y left, z up → x right, y down, z forward) is used.
+    """
+    if calib_path is None:
+        return R_CAM_VEHICLE_NOMINAL.copy()
+    calib = read_kitti_calib(calib_path)
+    needed = ("R0_rect", "Tr_velo_to_cam", "Tr_imu_to_velo")
+    missing = [k for k in needed if k not in calib]
+    if missing:
+        raise InputFileError(calib_path, f"missing {', '.join(missing)} needed for OXTS rotations")
+    R_rect = calib["R0_rect"].reshape(3, 3)
+    R_cam_velo = calib["Tr_velo_to_cam"].reshape(3, 4)[:, :3]
+    R_velo_imu = calib["Tr_imu_to_velo"].reshape(3, 4)[:, :3]
+    R = R_rect @ R_cam_velo @ R_velo_imu
+    u, _, vt = np.linalg.svd(R)  # re-orthonormalise the product of rounded matrices
+    return np.asarray(u @ vt)
+
+
+def read_oxts_rotations(
+    path: str | Path,
+    calib_path: str | Path | None = None,
+    frame_period_s: float = KITTI_FRAME_PERIOD_S,
+) -> RotationTrack:
+    """Camera rotations from OXTS (GPS/IMU) vehicle poses in TUM layout.
+
+    The file holds vehicle-to-world poses in the IMU frame (x forward, y left, z up) relative to
+    frame 0. Each rotation is carried into the camera frame: ``R_cam = R_cam_imu · R_imu ·
+    R_cam_imuᵀ``. Timestamps are ``line index × frame_period_s`` (the shared files' ``t`` column
+    was written with a wrong step, so it is ignored).
+    """
+    _, R_imu = _tum_rotations(path)
+    R_cam_imu = camera_from_imu_rotation(calib_path)
+    R_cam = R_cam_imu @ (R_imu[0].T @ R_imu) @ R_cam_imu.T
+    return RotationTrack.from_arrays(np.arange(len(R_cam)) * frame_period_s, R_cam)
