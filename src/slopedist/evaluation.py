@@ -178,3 +178,46 @@ class Stopwatch:
 
     def __exit__(self, *exc: object) -> None:
         self.seconds += time.perf_counter() - self._t0
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """Plain-text table with right-aligned columns (floats to 2 decimals, NaN as ``-``)."""
+
+    def cell(v: Any) -> str:
+        if isinstance(v, float):
+            return "-" if not math.isfinite(v) else f"{v:.2f}"
+        return str(v)
+
+    cells = [[cell(v) for v in r] for r in rows]
+    widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(headers)]
+    line = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
+    body = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in cells]
+    return "\n".join([line, "-" * len(line), *body])
+
+
+def format_report_tables(report: dict[str, Any]) -> str:
+    """The RMSE table (sequence × method) and the overall extended-metrics table of a report."""
+    methods = list(report["methods"])
+    seqs = list(next(iter(report["methods"].values()))["sequences"]) if methods else []
+    rmse_rows: list[list[Any]] = []
+    for s in seqs:
+        first = report["methods"][methods[0]]["sequences"][s]
+        rmse_rows.append([s, first["n"], *(report["methods"][m]["sequences"][s]["rmse"]
+                                           for m in methods)])
+    n_all = report["methods"][methods[0]]["overall"]["n"] if methods else 0
+    rmse_rows.append(["overall", n_all, *(report["methods"][m]["overall"]["rmse"]
+                                          for m in methods)])
+    out = ["RMSE (m) per sequence", format_table(["sequence", "n", *methods], rmse_rows)]
+    keys = ["n", "rmse", "mae", "abs_rel", "sq_rel", "rmse_log", "delta_1.25"]
+    has_recall = "recall" in report["methods"][methods[0]]["overall"] if methods else False
+    if has_recall:
+        keys.append("recall")
+    keys.append("ms_per_frame")
+    rows = [[m, *(report["methods"][m]["overall"][k] for k in keys)] for m in methods]
+    out += ["", "Overall (pooled)", format_table(["method", *keys], rows)]
+    bins = list(report["methods"][methods[0]]["overall"]["bins"]) if methods else []
+    bin_rows = [[m, *(report["methods"][m]["overall"]["bins"][b]["rmse"] for b in bins)]
+                for m in methods]
+    out += ["", "RMSE (m) per ground-truth distance bin (m)",
+            format_table(["method", *bins], bin_rows)]
+    return "\n".join(out)

@@ -1,0 +1,88 @@
+"""``slopedist estimate``: one sequence of precomputed rotations and boxes → per-target CSV."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import click
+import numpy as np
+
+from slopedist.camera import Camera
+from slopedist.cli.options import (
+    alphas_option,
+    check_methods,
+    height_option,
+    lookback_option,
+    mount_option,
+    paper_options,
+    thresholds_option,
+)
+from slopedist.detections.readers import read_box_file
+from slopedist.errors import DataMismatchError
+from slopedist.estimators import make_estimator
+from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
+from slopedist.pipeline import RecordWriter, StreamingEstimator, iter_records
+
+
+@click.command("estimate")
+@click.option("--calib", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="KITTI calib file (P2 is used; P0 for odometry calib.txt).")
+@click.option("--poses", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).")
+@click.option("--boxes", "boxes_path", required=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Boxes: slopedist CSV, KITTI labels or PointRCNN file.")
+@click.option("--method", default="paper", show_default=True, help="Estimator name.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the records CSV here (default: standard output).")
+@click.option("--pose-format", type=click.Choice(["auto", "kitti", "tum", "oxts"]),
+              default="auto", show_default=True,
+              help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).")
+@click.option("--frame-period", type=click.FloatRange(min=0, min_open=True), default=0.1,
+              show_default=True, help="Seconds between frames (KITTI and OXTS poses).")
+@click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE.")
+@height_option
+@mount_option
+@lookback_option
+@alphas_option
+@thresholds_option
+def estimate(
+    calib: Path, poses: Path, boxes_path: Path, method: str, out: Path | None, pose_format: str,
+    frame_period: float, score: float | None, height_m: float, mount_angle_deg: float,
+    lookback_s: float, alphas: str, thresholds: str,
+) -> None:
+    """Estimate per-target distances for one sequence, streaming frame by frame."""
+    check_methods([method])
+    camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
+    if pose_format == "oxts":
+        track = read_oxts_rotations(poses, calib, frame_period)
+    elif pose_format == "auto":
+        track = read_pose_file(poses, None, frame_period)
+    else:
+        track = read_pose_file(poses, PoseFormat(pose_format), frame_period)
+    boxes = read_box_file(boxes_path, score)
+    if len(boxes) and int(boxes.frame.max()) >= len(track):
+        raise DataMismatchError(
+            f"{poses}: {len(track)} poses do not cover the boxes of {boxes_path}, which go up "
+            f"to frame {int(boxes.frame.max())}"
+        )
+    options = paper_options(alphas, thresholds) if method == "paper" else {}
+    stream = StreamingEstimator(make_estimator(method, camera, **options), lookback_s)
+    by_frame = boxes.frame_index()
+    empty = boxes.select(np.zeros(len(boxes), dtype=bool))
+    writer = RecordWriter.open(out) if out else RecordWriter(sys.stdout)
+    n = 0
+    try:
+        for k in range(len(track)):
+            R = track.R_world_cam[k] if track.valid[k] else None
+            frame_boxes = by_frame.get(k, empty)
+            est = stream.update(k, float(track.timestamps_s[k]), R, frame_boxes)
+            writer.write(iter_records(frame_boxes, track.timestamps_s, est, method))
+            n += len(frame_boxes)
+    finally:
+        if out:
+            writer.close()
+    if out:
+        click.echo(f"wrote {n} records to {out}", err=True)

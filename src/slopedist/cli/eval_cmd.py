@@ -1,0 +1,77 @@
+"""``slopedist eval``: evaluations against ground truth."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import click
+
+from slopedist.cli.options import (
+    alphas_option,
+    check_methods,
+    height_option,
+    lookback_option,
+    mount_option,
+    paper_options,
+    split_list,
+    thresholds_option,
+)
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.evaluation import format_report_tables
+from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+
+
+@click.group("eval")
+def eval_group() -> None:
+    """Evaluate estimators against ground truth."""
+
+
+@eval_group.command("kitti-tracking")
+@click.argument("data_dir", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--sequences", help="Comma-separated sequence names, e.g. 0000,0004 (default: all).")
+@click.option("--methods", default="flat,ego,paper", show_default=True,
+              help="Comma-separated estimator names.")
+@click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
+              default=RotationSource.ORBSLAM3.value, show_default=True,
+              help="Camera rotation source.")
+@click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
+              default=BoxSource.GT.value, show_default=True,
+              help="Ground-truth boxes or PointRCNN detections.")
+@click.option("--score", type=float, default=None,
+              help="Keep detections with score >= SCORE (PointRCNN boxes).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the full report as JSON here.")
+@height_option
+@mount_option
+@lookback_option
+@alphas_option
+@thresholds_option
+def kitti_tracking(
+    data_dir: Path, sequences: str | None, methods: str, rotation: str, boxes: str,
+    score: float | None, json_out: Path | None, height_m: float, mount_angle_deg: float,
+    lookback_s: float, alphas: str, thresholds: str,
+) -> None:
+    """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
+    names = check_methods(split_list(methods) or [])
+    cfg = KittiEvalConfig(
+        sequences=split_list(sequences), methods=names, rotation=RotationSource(rotation),
+        boxes=BoxSource(boxes), min_score=score, height_m=height_m,
+        mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
+        method_options={"paper": paper_options(alphas, thresholds)},
+    )
+    report = evaluate_kitti_tracking(
+        data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
+    )
+    click.echo(format_report_tables(report))
+    if json_out is not None:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+        json_out.write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
+        click.echo(f"wrote {json_out}", err=True)
+
+
+def _json_default(value: object) -> object:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

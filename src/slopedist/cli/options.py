@@ -1,0 +1,74 @@
+"""Option parsing helpers shared by the commands (degrees at the edge, lists, enums)."""
+
+from __future__ import annotations
+
+import click
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.estimators import available_methods
+
+
+def split_list(value: str | None) -> list[str] | None:
+    """``"a,b , c"`` → ``["a", "b", "c"]``; None or empty → None."""
+    if not value:
+        return None
+    return [v.strip() for v in value.split(",") if v.strip()]
+
+
+def check_methods(names: list[str]) -> list[str]:
+    """Fail with a usage error on an unknown method name."""
+    known = available_methods()
+    bad = [n for n in names if n not in known]
+    if bad:
+        raise click.BadParameter(
+            f"unknown method(s) {', '.join(bad)}; choose from {', '.join(known)}",
+            param_hint="--methods/--method",
+        )
+    return names
+
+
+height_option = click.option(
+    "--height", "height_m", type=float, default=KITTI_CAMERA_HEIGHT_M, show_default=True,
+    help="Camera height above the road, metres.",
+)
+mount_option = click.option(
+    "--mount-angle", "mount_angle_deg", type=float, default=0.0, show_default=True,
+    help="Camera mount angle θ0 in the yz plane, degrees (paper eq. 2).",
+)
+lookback_option = click.option(
+    "--lookback", "lookback_s", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
+    show_default=True, help="Look-back of the ego road gradient, seconds.",
+)
+alphas_option = click.option(
+    "--alphas", default="3,5,6", show_default=True,
+    help="Paper method: angle steps α1,α2,α3 in degrees (eq. 7).",
+)
+thresholds_option = click.option(
+    "--thresholds", default="0,-10,-20", show_default=True,
+    help="Paper method: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
+)
+
+
+def parse_triple(value: str, name: str) -> tuple[float, float, float]:
+    """Parse ``"a,b,c"`` into three floats or fail with a usage error naming ``name``."""
+    parts = split_list(value) or []
+    try:
+        nums = tuple(float(p) for p in parts)
+    except ValueError:
+        raise click.BadParameter(f"'{value}' is not three comma-separated numbers",
+                                 param_hint=name) from None
+    if len(nums) != 3:
+        raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
+    return nums  # type: ignore[return-value]
+
+
+def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
+    """Constructor options of the ``paper`` estimator from the command-line strings."""
+    from slopedist.geometry import GradientAdjustment
+
+    a = parse_triple(alphas, "--alphas")
+    t = parse_triple(thresholds, "--thresholds")
+    if not (t[0] > t[1] > t[2]):
+        raise click.BadParameter("thresholds must decrease (t1 > t2 > t3)",
+                                 param_hint="--thresholds")
+    return {"adjustment": GradientAdjustment.from_degrees(a, t)}
