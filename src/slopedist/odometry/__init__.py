@@ -1,6 +1,12 @@
 """Rotation sources: pose files, OXTS/IMU, and visual odometry from pixels."""
 
-from slopedist.odometry.base import RotationTrack, lookback_indices
+from slopedist.odometry.base import (
+    OdometryResult,
+    OdometryState,
+    RotationOdometry,
+    RotationTrack,
+    lookback_indices,
+)
 from slopedist.odometry.posefiles import (
     read_kitti_poses,
     read_oxts_rotations,
@@ -9,6 +15,9 @@ from slopedist.odometry.posefiles import (
 )
 
 __all__ = [
+    "OdometryResult",
+    "OdometryState",
+    "RotationOdometry",
     "RotationTrack",
     "lookback_indices",
     "read_kitti_poses",

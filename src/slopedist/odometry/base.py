@@ -7,6 +7,8 @@ Convention: rotations are 3×3 camera-to-world matrices relative to the first fr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -77,3 +79,46 @@ class RotationTrack:
     def with_frame_period(self, frame_period_s: float) -> RotationTrack:
         """Same rotations, timestamps replaced by ``index × frame_period_s``."""
         return RotationTrack(np.arange(len(self)) * frame_period_s, self.R_world_cam, self.valid)
+
+
+class OdometryState(str, Enum):
+    """Per-frame state of a visual-odometry backend."""
+
+    OK = "ok"
+    NOT_INITIALISED = "not_initialised"
+    LOST = "lost"
+
+
+@dataclass(frozen=True)
+class OdometryResult:
+    """What a visual-odometry backend reports for one frame.
+
+    Attributes:
+        R_world_cam: camera-to-world rotation ``(3, 3)`` relative to the first frame, or None
+            when the state is not ``OK``.
+        state: :class:`OdometryState`.
+        inliers: number of inlier correspondences behind the estimate (0 if none).
+    """
+
+    R_world_cam: NDArray[np.float64] | None
+    state: OdometryState
+    inliers: int = 0
+
+
+class RotationOdometry(Protocol):
+    """Interface of rotation sources that work from pixels (built-in VO, ORB-SLAM3).
+
+    ``process`` is fed frames in time order (grey ``H×W`` uint8 images, timestamps in seconds,
+    optional ``(N, 4)`` boxes (left, top, right, bottom) of moving vehicles to mask out of the
+    features) and returns the frame's :class:`OdometryResult`. Memory must not grow with the
+    number of frames.
+    """
+
+    def process(
+        self,
+        image_gray: NDArray[np.uint8],
+        timestamp_s: float,
+        mask_boxes: NDArray[np.float64] | None = None,
+    ) -> OdometryResult: ...
+
+    def reset(self) -> None: ...
