@@ -1,0 +1,36 @@
+"""Shared fixtures: the real KITTI data in ../shared/data (skipped when absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
+
+
+def shared_data_path(*parts: str) -> Path:
+    """Path under ../shared/data, or skip the test with a message when it is absent."""
+    path = SHARED_DATA.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"real KITTI data not found at {path} (a fresh clone has no ../shared)")
+    return path
+
+
+@pytest.fixture
+def kitti_tracking_dir() -> Path:
+    """../shared/data/kitti_tracking, or skip."""
+    return shared_data_path("kitti_tracking")
+
+
+@pytest.fixture
+def kitti_odometry_dir() -> Path:
+    """../shared/data/kitti_odometry, or skip."""
+    return shared_data_path("kitti_odometry")
+
+
+@pytest.fixture
+def kitti_raw_lead_dir() -> Path:
+    """../shared/data/kitti_raw_lead, or skip."""
+    return shared_data_path("kitti_raw_lead")
