@@ -1,0 +1,67 @@
+"""Camera construction and the KITTI calib reader."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from slopedist.camera import Camera, read_kitti_calib
+from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+
+P2 = "7.2e+02 0 6.1e+02 44.8 0 7.2e+02 1.73e+02 0.2 0 0 1 0.003"
+
+
+def test_from_kitti_calib_reads_p2(tmp_path: Path) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text(f"P0: {P2}\nP2: {P2}\nR0_rect: 1 0 0 0 1 0 0 0 1\n")
+    cam = Camera.from_kitti_calib(path)
+    assert (cam.f, cam.c_x, cam.c_y, cam.height_m) == (720.0, 610.0, 173.0, 1.65)
+
+
+def test_odometry_calib_of_bare_numbers_uses_first_line(tmp_path: Path) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text(f"{P2}\n{P2}\n")
+    assert Camera.from_kitti_calib(path).f == 720.0
+
+
+def test_from_values_converts_degrees() -> None:
+    cam = Camera.from_values(700, 600, 180, 1.2, mount_angle_deg=2.0)
+    assert cam.mount_angle_rad == pytest.approx(math.radians(2.0))
+
+
+def test_bad_field_names_file_line_and_field(tmp_path: Path) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text(f"P0: {P2}\nP2: 7.2e+02 0 abc 44.8 0 7.2e+02 1.73e+02 0.2 0 0 1 0.003\n")
+    with pytest.raises(InputFileError, match=r"calib.txt, line 2, field 'P2\[2\]'"):
+        read_kitti_calib(path)
+
+
+def test_wrong_count_is_reported(tmp_path: Path) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text("P2: 1 2 3\n")
+    with pytest.raises(InputFileError, match="line 1.*expected 12 numbers, found 3"):
+        read_kitti_calib(path)
+
+
+def test_missing_file_and_missing_key(tmp_path: Path) -> None:
+    with pytest.raises(MissingInputError, match="nope.txt"):
+        Camera.from_kitti_calib(tmp_path / "nope.txt")
+    path = tmp_path / "calib.txt"
+    path.write_text(f"P1: {P2}\n")
+    with pytest.raises(InputFileError, match="no 'P2:' line"):
+        Camera.from_kitti_calib(path)
+
+
+@pytest.mark.parametrize("kwargs", [{"f": -1.0}, {"height_m": 0.0}, {"c_y": float("nan")}])
+def test_invalid_values_rejected(kwargs: dict[str, float]) -> None:
+    values = {"f": 700.0, "c_x": 600.0, "c_y": 180.0, **kwargs}
+    with pytest.raises(ConfigurationError):
+        Camera(**values)
+
+
+def test_real_kitti_calib(kitti_tracking_dir: Path) -> None:
+    cam = Camera.from_kitti_calib(kitti_tracking_dir / "calib" / "0000.txt")
+    assert cam.f == pytest.approx(721.5377)
+    assert cam.c_y == pytest.approx(172.854)
