@@ -1,0 +1,136 @@
+"""Box readers: round trips under hypothesis, clear errors naming file, line and field."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from slopedist.detections import (
+    BoxTable,
+    box_problems,
+    iou_matrix,
+    read_box_csv,
+    read_box_file,
+    read_kitti_labels,
+    read_pointrcnn,
+)
+from slopedist.errors import InputFileError, MissingInputError
+
+coord = st.floats(-2000, 4000, allow_nan=False, allow_infinity=False)
+row = st.tuples(st.integers(0, 10_000), coord, coord, coord, coord, st.integers(-1, 500),
+                st.floats(0, 100, allow_nan=False), st.sampled_from(["Car", "Van", "Truck"]))
+TMP = settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_examples=40)
+
+
+@TMP
+@given(rows=st.lists(row, max_size=20))
+def test_csv_round_trip(tmp_path: Path, rows: list[tuple]) -> None:
+    path = tmp_path / "boxes.csv"
+    lines = ["frame,left,top,right,bottom,track_id,score,class"]
+    lines += [f"{f},{a!r},{b!r},{c!r},{d!r},{t},{s!r},{k}" for f, a, b, c, d, t, s, k in rows]
+    path.write_text("\n".join(lines) + "\n")
+    table = read_box_csv(path)
+    assert len(table) == len(rows)
+    for i, (f, a, b, c, d, t, s, k) in enumerate(rows):
+        assert table.frame[i] == f and table.track_id[i] == t and table.cls[i] == k
+        assert list(table.boxes[i]) == [a, b, c, d] and table.score[i] == s
+
+
+@TMP
+@given(bad=st.text(alphabet="abcxyz!?", min_size=1, max_size=5), col=st.sampled_from(
+    ["left", "top", "right", "bottom"]))
+def test_csv_bad_number_names_line_and_field(tmp_path: Path, bad: str, col: str) -> None:
+    path = tmp_path / "boxes.csv"
+    values = {"left": "1", "top": "2", "right": "30", "bottom": "40", col: bad}
+    path.write_text("frame,left,top,right,bottom\n0,1,2,3,4\n1,{left},{top},{right},{bottom}\n"
+                    .format(**values))
+    with pytest.raises(InputFileError, match=rf"line 3, field '{col}'"):
+        read_box_csv(path)
+
+
+def test_csv_optional_columns_and_header_error(tmp_path: Path) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text("frame,left,top,right,bottom,track_id,score,class\n3,1,2,3,4,,,\n")
+    t = read_box_csv(path)
+    assert t.track_id[0] == -1 and math.isnan(t.score[0]) and t.cls[0] == "Car"
+    path.write_text("frame,x1,y1\n0,1,2\n")
+    with pytest.raises(InputFileError, match="header lacks column"):
+        read_box_csv(path)
+
+
+def test_csv_nan_box_is_read_then_rejected_per_box(tmp_path: Path) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text("frame,left,top,right,bottom\n0,nan,2,3,4\n0,10,20,5,40\n0,1,2,3,4\n")
+    t = read_box_csv(path)
+    assert list(box_problems(t.boxes)) == ["non_finite_box", "inverted_box", ""]
+
+
+LABEL = ("0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12")
+
+
+def test_kitti_labels(tmp_path: Path) -> None:
+    path = tmp_path / "0000.txt"
+    path.write_text(LABEL + "\n" + LABEL.replace("0 3 Car", "1 -1 DontCare") + "\n")
+    t = read_kitti_labels(path)
+    assert list(t.frame) == [0, 1] and t.track_id[0] == 3 and t.extra["z"][0] == 13.41
+    assert t.extra["occluded"][0] == 1 and t.cls[1] == "DontCare"
+    assert read_box_file(path).extra["z"][0] == 13.41
+
+
+@pytest.mark.parametrize(
+    ("replacement", "match"),
+    [("0 3 Car 0 1 -1.79 296.74 oops", "expected 17 fields"),
+     ("0 3 Car 0 x -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12",
+      "line 2, field 'occluded'"),
+     ("0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 z13 -2.12",
+      "line 2, field 'z'")],
+)
+def test_kitti_label_errors(tmp_path: Path, replacement: str, match: str) -> None:
+    path = tmp_path / "0000.txt"
+    path.write_text(LABEL + "\n" + replacement + "\n")
+    with pytest.raises(InputFileError, match=match):
+        read_kitti_labels(path)
+
+
+def test_pointrcnn_score_filter_and_error(tmp_path: Path) -> None:
+    path = tmp_path / "0000.txt"
+    path.write_text("0,2,298.3,165.2,458.2,293.4,8.3,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.79\n"
+                    "0,2,364.7,137.9,453.8,172.6,-0.45,1.48,1.6,3.87,-9.09,-0.01,32.8,-1.0,-0.8\n")
+    assert len(read_pointrcnn(path)) == 2
+    kept = read_box_file(path, min_score=2.0)
+    assert len(kept) == 1 and kept.score[0] == pytest.approx(8.3)
+    path.write_text("0,2,298.3,165.2,458.2,bad,8.3,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.79\n")
+    with pytest.raises(InputFileError, match="line 1, field 'y2'"):
+        read_pointrcnn(path)
+
+
+def test_missing_and_unrecognised_files(tmp_path: Path) -> None:
+    with pytest.raises(MissingInputError, match="not found"):
+        read_box_file(tmp_path / "none.csv")
+    path = tmp_path / "weird.txt"
+    path.write_text("1 2 3\n")
+    with pytest.raises(InputFileError, match="unrecognised box file layout"):
+        read_box_file(path)
+
+
+def test_iou_hand_computed() -> None:
+    a = np.array([[0, 0, 10, 10]])
+    b = np.array([[5, 0, 15, 10], [20, 20, 30, 30], [0, 0, 10, 10]])
+    np.testing.assert_allclose(iou_matrix(a, b), [[50 / 150, 0.0, 1.0]])
+
+
+def test_box_table_by_frame_groups_in_order() -> None:
+    t = BoxTable.build([2, 0, 2, 1], np.arange(16.0).reshape(4, 4))
+    groups = dict(t.by_frame())
+    assert list(groups) == [0, 1, 2]
+    np.testing.assert_array_equal(groups[2].boxes, [[0, 1, 2, 3], [8, 9, 10, 11]])
+
+
+def test_real_labels_parse(kitti_tracking_dir: Path) -> None:
+    t = read_kitti_labels(kitti_tracking_dir / "label_02" / "0000.txt")
+    assert t.frame.max() == 153 and "Van" in set(t.cls)
