@@ -1,0 +1,87 @@
+"""Metrics against hand-computed values, the cap rule and detection matching."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from slopedist.detections import BoxTable
+from slopedist.evaluation import (
+    binned_metrics,
+    cap_estimates,
+    distance_metrics,
+    format_table,
+    match_boxes,
+    match_by_frame,
+)
+
+
+def test_metrics_hand_computed() -> None:
+    m = distance_metrics([10.0, 22.0], [10.0, 20.0])
+    assert m["n"] == 2
+    assert m["rmse"] == pytest.approx(math.sqrt(2.0))  # sqrt((0 + 4) / 2)
+    assert m["mae"] == pytest.approx(1.0)
+    assert m["abs_rel"] == pytest.approx(0.05)  # (0 + 2/20) / 2
+    assert m["sq_rel"] == pytest.approx(0.1)  # (0 + 4/20) / 2
+    assert m["rmse_log"] == pytest.approx(math.sqrt(math.log(1.1) ** 2 / 2))
+    assert m["delta_1.25"] == 1.0
+    m2 = distance_metrics([30.0, 38.0], [20.0, 20.0])  # ratios 1.5 and 1.9
+    assert (m2["delta_1.25"], m2["delta_1.25^2"], m2["delta_1.25^3"]) == (0.0, 0.5, 1.0)
+
+
+def test_empty_metrics() -> None:
+    m = distance_metrics([], [])
+    assert m["n"] == 0 and math.isnan(m["rmse"])
+
+
+def test_bins_split_by_truth() -> None:
+    b = binned_metrics([5.0, 15.0, 45.0], [5.0, 10.0, 50.0])
+    assert b["0-10"]["n"] == 2 and b["0-10"]["rmse"] == pytest.approx(math.sqrt(12.5))
+    assert b["40-80"]["n"] == 1 and b["10-20"]["n"] == 0
+
+
+def test_cap_rule() -> None:
+    d, ok = cap_estimates([10.0, 120.0, np.nan, np.nan], ["", "", "below_horizon",
+                                                           "no_rotation"], 80.0)
+    np.testing.assert_array_equal(d[:3], [10.0, 80.0, 80.0])
+    assert list(ok) == [True, True, True, False]
+
+
+def test_greedy_matching_best_pair_first() -> None:
+    gt = np.array([[0, 0, 10, 10], [8, 0, 18, 10]])
+    det = np.array([[1, 0, 11, 10], [0, 0, 10, 10]])
+    d, g = match_boxes(det, gt)
+    # det 1 = gt 0 exactly (IoU 1) is taken first; det 0 then overlaps gt 1 with IoU < 0.5
+    assert list(zip(d, g)) == [(1, 0)]
+
+
+def test_match_by_frame_never_crosses_frames() -> None:
+    gt = BoxTable.build([0, 1], [[0, 0, 10, 10], [0, 0, 10, 10]])
+    det = BoxTable.build([1, 1], [[0, 0, 10, 10], [0, 0, 10, 11]])
+    d, g = match_by_frame(det, gt)
+    assert list(d) == [0] and list(g) == [1]
+
+
+@given(st.lists(st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30),
+                          st.floats(1, 30)), max_size=8),
+       st.lists(st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30),
+                          st.floats(1, 30)), max_size=8))
+def test_matching_is_one_to_one_and_above_threshold(a: list, b: list) -> None:
+    det = np.array([[x, y, x + w, y + h] for x, y, w, h in a]).reshape(-1, 4)
+    gt = np.array([[x, y, x + w, y + h] for x, y, w, h in b]).reshape(-1, 4)
+    d, g = match_boxes(det, gt, 0.5)
+    assert len(set(d)) == len(d) and len(set(g)) == len(g)
+    from slopedist.detections import iou_matrix
+
+    if len(d):
+        assert np.all(iou_matrix(det, gt)[d, g] >= 0.5)
+
+
+def test_format_table() -> None:
+    text = format_table(["a", "b"], [["x", 1.234], ["yy", float("nan")]])
+    assert text.splitlines()[2].split() == ["x", "1.23"]
+    assert text.splitlines()[3].split() == ["yy", "-"]
