@@ -1,0 +1,101 @@
+"""The command line: eval and estimate, and user mistakes ending in exit code 2."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from slopedist.cli import main
+
+P2 = "721.5 0 609.6 44.9 0 721.5 172.9 0.2 0 0 1 0.003"
+
+
+@pytest.fixture
+def small_sequence(tmp_path: Path) -> dict[str, Path]:
+    calib = tmp_path / "calib.txt"
+    calib.write_text(f"P2: {P2}\n")
+    poses = tmp_path / "poses.txt"
+    poses.write_text("".join("1 0 0 0 0 1 0 0 0 0 1 %.1f\n" % k for k in range(5)))
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom,track_id\n0,500,150,600,250,7\n"
+                     "3,500,40,600,90,7\n4,10,20,5,30,8\n")
+    return {"calib": calib, "poses": poses, "boxes": boxes}
+
+
+def test_estimate_writes_records(small_sequence: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "out" / "records.csv"
+    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
+                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"]),
+                 "--method", "paper", "--out", str(out)])
+    assert code == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [r["frame"] for r in rows] == ["0", "3", "4"]
+    assert float(rows[0]["distance_m"]) == pytest.approx(721.5 * 1.65 / (250 - 172.9), rel=1e-5)
+    assert rows[0]["track_id"] == "7" and rows[0]["status"] == "ok"
+    assert rows[1]["status"] == "missing" and rows[1]["reason"] == "below_horizon"
+    assert rows[2]["reason"] == "inverted_box"
+
+
+def test_estimate_to_stdout(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture
+                            ) -> None:
+    assert main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
+                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])]) == 0
+    assert capsys.readouterr().out.startswith("frame,timestamp_s")
+
+
+def test_poses_not_covering_boxes(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture
+                                  ) -> None:
+    small_sequence["poses"].write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
+    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
+                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "1 poses do not cover" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("which", "content", "message"),
+    [("calib", "P2: 1 2 x 4 5 6 7 8 9 10 11 12\n", "line 1, field 'P2[2]'"),
+     ("poses", "1 0 0 0 0 1 0 0 0 0 1\n", "line 1: expected 12 numbers"),
+     ("boxes", "frame,left,top,right,bottom\n0,1,2,3\n", "line 2, field 'bottom'")],
+)
+def test_malformed_inputs_exit_2(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture,
+                                 which: str, content: str, message: str) -> None:
+    small_sequence[which].write_text(content)
+    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
+                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and str(small_sequence[which]) in err
+
+
+def test_unknown_method_is_a_usage_error(small_sequence: dict[str, Path]) -> None:
+    assert main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
+                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"]),
+                 "--method", "magic"]) == 2
+
+
+def test_eval_missing_data_dir(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["eval", "kitti-tracking", str(tmp_path / "none")]) == 2
+    assert "no KITTI tracking data" in capsys.readouterr().err
+
+
+def test_eval_json_shape(kitti_tracking_dir: Path, tmp_path: Path,
+                         capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "r.json"
+    code = main(["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0000,0004",
+                 "--methods", "flat,paper", "--json", str(out)])
+    assert code == 0
+    report = json.loads(out.read_text())
+    assert set(report) == {"protocol", "methods"}
+    seq = report["methods"]["paper"]["sequences"]["0004"]
+    for key in ("n", "rmse", "mae", "abs_rel", "delta_1.25"):
+        assert key in seq and key in report["methods"]["paper"]["overall"]
+    pooled_n = sum(report["methods"]["flat"]["sequences"][s]["n"] for s in ("0000", "0004"))
+    assert report["methods"]["flat"]["overall"]["n"] == pooled_n
+    printed = capsys.readouterr().out
+    assert "overall" in printed and "0004" in printed
+    assert np.isfinite(seq["rmse"])

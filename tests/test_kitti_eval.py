@@ -1,0 +1,62 @@
+"""The reproduction figures of the paper's method on the shared KITTI tracking data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.errors import MissingInputError
+from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+
+EXPECTED_POOLED = {"flat": 10.03, "ego": 10.71, "paper": 10.07}
+EXPECTED_SEQUENCES = {
+    "0001": (7.95, 8.16, 6.88),
+    "0009": (13.32, 13.42, 11.17),
+    "0018": (13.85, 14.37, 12.31),
+}
+
+
+def test_reproduces_the_published_figures(kitti_tracking_dir: Path) -> None:
+    report = evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig())
+    for method, rmse in EXPECTED_POOLED.items():
+        overall = report["methods"][method]["overall"]
+        assert overall["n"] == 12335
+        assert overall["rmse"] == pytest.approx(rmse, abs=0.05), method
+    for seq, figures in EXPECTED_SEQUENCES.items():
+        for method, rmse in zip(("flat", "ego", "paper"), figures):
+            got = report["methods"][method]["sequences"][seq]["rmse"]
+            assert got == pytest.approx(rmse, abs=0.05), (seq, method)
+    assert "80" in report["protocol"]["cap_rule"] and "vanishing line" in report["protocol"][
+        "cap_rule"]
+    assert set(report["methods"]["paper"]["overall"]["bins"]) == {
+        "0-10", "10-20", "20-30", "30-40", "40-80"}
+
+
+def test_oxts_rotations_run_on_sequences_with_imu(kitti_tracking_dir: Path) -> None:
+    cfg = KittiEvalConfig(sequences=["0000", "0001"], rotation=RotationSource.OXTS)
+    report = evaluate_kitti_tracking(kitti_tracking_dir, cfg)
+    orb = evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["0000", "0001"]))
+    for m in ("ego", "paper"):
+        # the IMU and ORB-SLAM3 gradients agree to < 0.1°, so the errors must be close
+        assert report["methods"][m]["overall"]["rmse"] == pytest.approx(
+            orb["methods"][m]["overall"]["rmse"], abs=0.5)
+
+
+def test_oxts_missing_for_a_sequence_is_reported(kitti_tracking_dir: Path) -> None:
+    cfg = KittiEvalConfig(sequences=["0014"], rotation=RotationSource.OXTS)
+    with pytest.raises(MissingInputError, match="0014: no oxts poses"):
+        evaluate_kitti_tracking(kitti_tracking_dir, cfg)
+
+
+def test_detections_report_recall(kitti_tracking_dir: Path) -> None:
+    cfg = KittiEvalConfig(boxes=BoxSource.POINTRCNN, min_score=2.0)
+    overall = evaluate_kitti_tracking(kitti_tracking_dir, cfg)["methods"]["paper"]["overall"]
+    assert overall["recall"] == pytest.approx(0.88, abs=0.01)
+    assert overall["n"] < 12335
+
+
+def test_unknown_sequence(kitti_tracking_dir: Path) -> None:
+    with pytest.raises(MissingInputError, match="9999"):
+        evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["9999"]))
