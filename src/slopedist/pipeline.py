@@ -130,11 +130,15 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
         e = np.zeros(0)
         o = np.zeros(0, dtype=object)
         return FrameEstimates(e, e, e, e, e, o, o)
-    keys = set().union(*(p.extra for p in parts))
+    keys: set[str] = set().union(*(p.extra for p in parts))
+
+    def cat(name: str) -> NDArray:
+        return np.concatenate([getattr(p, name) for p in parts])
+
     return FrameEstimates(
-        *(np.concatenate([getattr(p, name) for p in parts]) for name in (
-            "theta_rad", "theta_adj_rad", "delta_y_px", "v_px", "distance_m", "reason",
-            "reference")),
+        theta_rad=cat("theta_rad"), theta_adj_rad=cat("theta_adj_rad"),
+        delta_y_px=cat("delta_y_px"), v_px=cat("v_px"), distance_m=cat("distance_m"),
+        reason=cat("reason"), reference=cat("reference"),
         extra={k: np.concatenate([p.extra.get(k, np.full(len(p), np.nan)) for p in parts])
                for k in sorted(keys)},
     )

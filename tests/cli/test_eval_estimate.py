@@ -19,7 +19,7 @@ def small_sequence(tmp_path: Path) -> dict[str, Path]:
     calib = tmp_path / "calib.txt"
     calib.write_text(f"P2: {P2}\n")
     poses = tmp_path / "poses.txt"
-    poses.write_text("".join("1 0 0 0 0 1 0 0 0 0 1 %.1f\n" % k for k in range(5)))
+    poses.write_text("".join(f"1 0 0 0 0 1 0 0 0 0 1 {k:.1f}\n" for k in range(5)))
     boxes = tmp_path / "boxes.csv"
     boxes.write_text("frame,left,top,right,bottom,track_id\n0,500,150,600,250,7\n"
                      "3,500,40,600,90,7\n4,10,20,5,30,8\n")

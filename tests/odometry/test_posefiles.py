@@ -52,7 +52,7 @@ def test_kitti_pose_bad_field(tmp_path: Path) -> None:
 def test_kitti_pose_not_a_rotation(tmp_path: Path) -> None:
     path = tmp_path / "poses.txt"
     path.write_text("1 0 0 0 0 1 0 0 0 0 1 0\n2 0 0 0 0 1 0 0 0 0 1 0\n")
-    with pytest.raises(InputFileError, match="line 2.*not a rotation"):
+    with pytest.raises(InputFileError, match=r"line 2.*not a rotation"):
         read_kitti_poses(path)
 
 

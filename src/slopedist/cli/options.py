@@ -59,7 +59,7 @@ def parse_triple(value: str, name: str) -> tuple[float, float, float]:
                                  param_hint=name) from None
     if len(nums) != 3:
         raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
-    return nums  # type: ignore[return-value]
+    return nums[0], nums[1], nums[2]
 
 
 def paper_options(alphas: str, thresholds: str) -> dict[str, object]:

@@ -92,7 +92,7 @@ class KittiTrackingSequence:
     @property
     def timestamps_s(self) -> NDArray[np.float64]:
         """``k × 0.1 s`` for every frame k."""
-        return np.arange(self.n_frames) * KITTI_FRAME_PERIOD_S
+        return np.arange(self.n_frames, dtype=np.float64) * KITTI_FRAME_PERIOD_S
 
     @property
     def calib_path(self) -> Path:

@@ -122,7 +122,7 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         box = [_parse(path, lineno, k, f[k], float) for k in ("x1", "y1", "x2", "y2")]
         dim = [_parse(path, lineno, k, f[k], float) for k in ("h", "w", "l")]
         z = _parse(path, lineno, "z", f["z"], float)
-        if min_score is not None and score < min_score:  # type: ignore[operator]
+        if min_score is not None and score < min_score:
             continue
         frames.append(frame)
         boxes.append(box)
@@ -155,7 +155,7 @@ def read_box_csv(path: str | Path) -> BoxTable:
         for row in reader:
             lineno = reader.line_num
             frame = _parse(path, lineno, "frame", (row["frame"] or "").strip(), _int)
-            if frame < 0:  # type: ignore[operator]
+            if frame < 0:
                 raise InputFileError(path, "frame index must be ≥ 0", line=lineno, field="frame")
             frames.append(frame)
             boxes.append([

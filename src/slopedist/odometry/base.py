@@ -78,7 +78,9 @@ class RotationTrack:
 
     def with_frame_period(self, frame_period_s: float) -> RotationTrack:
         """Same rotations, timestamps replaced by ``index × frame_period_s``."""
-        return RotationTrack(np.arange(len(self)) * frame_period_s, self.R_world_cam, self.valid)
+        return RotationTrack(
+            np.arange(len(self), dtype=np.float64) * frame_period_s, self.R_world_cam, self.valid
+        )
 
 
 class OdometryState(str, Enum):

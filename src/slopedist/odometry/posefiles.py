@@ -114,7 +114,7 @@ def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> Rot
     t, R = _tum_rotations(path)
     R = R[0].T @ R
     if frame_period_s is not None:
-        t = np.arange(len(R)) * frame_period_s
+        return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
     return RotationTrack.from_arrays(t, R)
 
 
