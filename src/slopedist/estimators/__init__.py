@@ -15,11 +15,13 @@ from slopedist.estimators.base import (
     MissingReason,
     ReferencePoint,
 )
+from slopedist.estimators.depthmap import DepthMapEstimator
 from slopedist.estimators.ground_contact import (
     EgoGradientEstimator,
     FlatGroundEstimator,
     PaperEstimator,
 )
+from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 
 
 class Method(str, Enum):
@@ -28,12 +30,18 @@ class Method(str, Enum):
     FLAT = "flat"
     EGO = "ego"
     PAPER = "paper"
+    IMU = "imu"
+    IMU_EGO = "imu-ego"
+    DEPTHMAP = "depthmap"
 
 
 ESTIMATORS: dict[str, Callable[..., Estimator]] = {
     Method.FLAT.value: FlatGroundEstimator,
     Method.EGO.value: EgoGradientEstimator,
     Method.PAPER.value: PaperEstimator,
+    Method.IMU.value: ImuEstimator,
+    Method.IMU_EGO.value: ImuEgoEstimator,
+    Method.DEPTHMAP.value: DepthMapEstimator,
 }
 
 
@@ -55,11 +63,14 @@ def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
 
 __all__ = [
     "ESTIMATORS",
+    "DepthMapEstimator",
     "EgoGradientEstimator",
     "Estimator",
     "FlatGroundEstimator",
     "FrameEstimates",
     "FrameInput",
+    "ImuEgoEstimator",
+    "ImuEstimator",
     "Method",
     "MissingReason",
     "PaperEstimator",

@@ -28,6 +28,8 @@ class MissingReason(str, Enum):
     INVERTED_BOX = "inverted_box"
     NO_DEPTH = "no_depth"
     """A depth map had no valid value at the sampled pixels."""
+    NO_SCALE = "no_scale"
+    """Median scaling of a scale-less depth map had no reference yet (first frames)."""
 
 
 class ReferencePoint(str, Enum):
@@ -97,12 +99,16 @@ class Estimator:
 
     Subclasses implement :meth:`estimate`; stateful ones (tracking) also :meth:`reset`.
     ``needs_rotation`` tells the pipeline whether a frame without a rotation can still be
-    estimated; ``needs_depth`` whether a depth map must come with each frame.
+    estimated; ``needs_depth`` whether a depth map must come with each frame;
+    ``rotation_source`` which rotation source the method is defined on, if any.
     """
 
     name: ClassVar[str] = ""
     needs_rotation: ClassVar[bool] = True
     needs_depth: ClassVar[bool] = False
+    rotation_source: ClassVar[str | None] = None
+    """Rotation source this method must be fed (e.g. ``"oxts"`` for the IMU baseline), or None
+    for whichever source the caller uses; evaluations honour it per method."""
 
     def __init__(self, camera: Camera) -> None:
         self.camera = camera
