@@ -1,0 +1,219 @@
+"""The depth-map baseline: the distance of a target is a depth map's value at its 2D box.
+
+This is the protocol the paper uses for DORN and Monodepth2: the depth at the centre pixel of
+the target's box. Options:
+
+Sampling (:class:`DepthSample`):
+    ``centre``: the single pixel nearest to the box centre ``((l+r)/2, (t+b)/2)`` (the paper);
+    ``window``: median of the valid pixels of a ``window_px × window_px`` square around it
+    (robust to holes and noise, and usable on sparse LiDAR maps);
+    ``lower``: median of the valid pixels of the box's lower part: the bottom
+    ``lower_fraction`` of its rows and the central half of its columns (the vehicle's rear
+    and wheels, away from the background seen beside and above it).
+    Pixels of value NaN, ±inf or ≤ 0 are "no value"; no valid pixel → reason ``no_depth``.
+
+Median scaling (:class:`DepthScaling`) for scale-less monocular models, per frame, as in the
+depth-evaluation literature (Monodepth2 scales each image by ``median(truth)/median(pred)``):
+    ``none``: depths are used as they are (metric models, LiDAR, files in metres);
+    ``contact``: scale ``s = median(d_contact) / median(d_raw)`` over the frame's targets that
+    have both, where ``d_contact = f·h/(u − c_y − f·tan θ0)`` is the flat-ground distance of
+    eq. 1 with the camera at rest (needs only the camera height; no ground truth);
+    ``truth``: ``s = median(g) / median(d_raw)`` with ``g`` the supplied ground-truth distance
+    of each target, read from the box column ``truth_column`` (default ``gt_distance_m``,
+    metres, NaN = unknown). This is an oracle protocol, for comparison with published numbers.
+    A frame without any reference pair reuses the last frame's scale; before the first scale of
+    a sequence, targets are missing with reason ``no_scale``.
+
+Cap: after scaling, depths are clipped to ``[min_depth_m, max_depth_m]`` (default
+``[1e-3, 80]`` m, the KITTI protocol; ``max_depth_m=None`` disables the upper cap).
+
+Extra output columns: ``depth_raw_m`` (sampled depth before scaling and cap) and ``depth_scale``.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import Enum
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist import geometry as geo
+from slopedist.camera import Camera
+from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.estimators.base import (
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    MissingReason,
+    ReferencePoint,
+    unusable_box_reasons,
+)
+
+DEFAULT_MAX_DEPTH_M = 80.0
+DEFAULT_MIN_DEPTH_M = 1e-3
+TRUTH_COLUMN = "gt_distance_m"
+"""Box column read by the ``truth`` scaling: ground-truth distance per target, metres."""
+
+
+class DepthSample(str, Enum):
+    """Which pixels of the box give its depth (see the module docstring)."""
+
+    CENTRE = "centre"
+    WINDOW = "window"
+    LOWER = "lower"
+
+
+class DepthScaling(str, Enum):
+    """Per-frame median scaling of scale-less depth (see the module docstring)."""
+
+    NONE = "none"
+    CONTACT = "contact"
+    TRUTH = "truth"
+
+
+def _median_valid(patch: NDArray[np.floating]) -> float:
+    values = patch[np.isfinite(patch) & (patch > 0)]
+    return float(np.median(values)) if values.size else math.nan
+
+
+def sample_box_depth(
+    depth_m: NDArray[np.floating],
+    boxes: NDArray[np.float64],
+    sample: DepthSample = DepthSample.CENTRE,
+    window_px: int = 5,
+    lower_fraction: float = 1.0 / 3.0,
+) -> NDArray[np.float64]:
+    """Depth (metres) of every box ``(left, top, right, bottom)`` sampled from ``depth_m``.
+
+    Pixel ``(row i, column j)`` is centred on image coordinates ``(y = i, x = j)``. Boxes that
+    reach past the image are clipped to it; NaN where no valid pixel is sampled.
+    """
+    d = np.asarray(depth_m)
+    h, w = d.shape
+    out = np.full(len(boxes), np.nan)
+    for k, (left, top, right, bottom) in enumerate(np.asarray(boxes, dtype=float)):
+        if sample is DepthSample.LOWER:
+            r0 = math.floor(bottom - lower_fraction * (bottom - top) + 0.5)
+            r1 = math.floor(bottom + 0.5) + 1
+            quarter = 0.25 * (right - left)
+            c0 = math.floor(left + quarter + 0.5)
+            c1 = math.floor(right - quarter + 0.5) + 1
+        else:
+            row = math.floor(0.5 * (top + bottom) + 0.5)
+            col = math.floor(0.5 * (left + right) + 0.5)
+            half = window_px // 2 if sample is DepthSample.WINDOW else 0
+            r0, r1, c0, c1 = row - half, row + half + 1, col - half, col + half + 1
+        r0, r1, c0, c1 = max(r0, 0), min(r1, h), max(c0, 0), min(c1, w)
+        if r0 < r1 and c0 < c1:
+            out[k] = _median_valid(d[r0:r1, c0:c1])
+    return out
+
+
+class DepthMapEstimator(Estimator):
+    """Depth-map baseline: depth at the target's box (the paper's DORN/Monodepth2 protocol).
+
+    Args:
+        camera: the camera (used for the image size check and the ``contact`` scaling).
+        sample: :class:`DepthSample` (or its name).
+        window_px: side of the ``window`` square, pixels (odd; ≥ 1).
+        lower_fraction: share of the box height used by ``lower`` (0 < x ≤ 1).
+        scaling: :class:`DepthScaling` (or its name).
+        max_depth_m: upper cap, metres (None = no cap).
+        min_depth_m: lower clip, metres.
+        truth_column: box column holding ground-truth distances for ``truth`` scaling.
+    """
+
+    name: ClassVar[str] = "depthmap"
+    needs_rotation: ClassVar[bool] = False
+    needs_depth: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        camera: Camera,
+        sample: DepthSample | str = DepthSample.CENTRE,
+        window_px: int = 5,
+        lower_fraction: float = 1.0 / 3.0,
+        scaling: DepthScaling | str = DepthScaling.NONE,
+        max_depth_m: float | None = DEFAULT_MAX_DEPTH_M,
+        min_depth_m: float = DEFAULT_MIN_DEPTH_M,
+        truth_column: str = TRUTH_COLUMN,
+    ) -> None:
+        super().__init__(camera)
+        try:
+            self.sample = DepthSample(sample)
+            self.scaling = DepthScaling(scaling)
+        except ValueError as exc:
+            raise ConfigurationError(f"depthmap: {exc}") from None
+        if window_px < 1 or window_px % 2 == 0:
+            raise ConfigurationError(f"depthmap: window must be an odd number ≥ 1 of pixels, "
+                                     f"got {window_px}")
+        if not 0 < lower_fraction <= 1:
+            raise ConfigurationError(f"depthmap: lower fraction must be in (0, 1], "
+                                     f"got {lower_fraction}")
+        if max_depth_m is not None and not max_depth_m > min_depth_m:
+            raise ConfigurationError(f"depthmap: cap {max_depth_m} m must exceed the minimum "
+                                     f"depth {min_depth_m} m")
+        self.window_px = int(window_px)
+        self.lower_fraction = float(lower_fraction)
+        self.max_depth_m = max_depth_m
+        self.min_depth_m = float(min_depth_m)
+        self.truth_column = truth_column
+        self._last_scale = math.nan
+
+    def reset(self) -> None:
+        self._last_scale = math.nan
+
+    def _reference(self, frame: FrameInput) -> NDArray[np.float64]:
+        boxes = frame.boxes.boxes
+        if self.scaling is DepthScaling.TRUTH:
+            if self.truth_column not in frame.boxes.extra:
+                raise ConfigurationError(
+                    f"depthmap scaling 'truth' needs a ground-truth distance column "
+                    f"'{self.truth_column}' (metres) in the boxes of frame {frame.frame_index}"
+                )
+            return np.asarray(frame.boxes.extra[self.truth_column], dtype=float)
+        theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
+        v = geo.vanishing_line_row(theta_rest, self.camera.f, self.camera.c_y)
+        return geo.ground_contact_distance(self.camera.f, self.camera.height_m,
+                                           geo.box_bottom_row(boxes), v)
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        boxes = frame.boxes.boxes
+        n = len(boxes)
+        reasons = unusable_box_reasons(frame, False)
+        raw = np.full(n, np.nan)
+        if frame.depth_m is not None:
+            cam = self.camera
+            if cam.image_width is not None and cam.image_height is not None and (
+                    frame.depth_m.shape != (cam.image_height, cam.image_width)):
+                raise DataMismatchError(
+                    f"frame {frame.frame_index}: depth map is {frame.depth_m.shape[1]}×"
+                    f"{frame.depth_m.shape[0]} pixels, the camera's image "
+                    f"{cam.image_width}×{cam.image_height}"
+                )
+            ok = reasons == ""
+            raw[ok] = sample_box_depth(frame.depth_m, boxes[ok], self.sample, self.window_px,
+                                       self.lower_fraction)
+        reasons[(reasons == "") & ~np.isfinite(raw)] = MissingReason.NO_DEPTH.value
+        scale = 1.0
+        if self.scaling is not DepthScaling.NONE and n:
+            ref = self._reference(frame)
+            pair = (reasons == "") & np.isfinite(ref) & (ref > 0)
+            if pair.any():
+                self._last_scale = float(np.median(ref[pair]) / np.median(raw[pair]))
+            scale = self._last_scale
+            if not math.isfinite(scale):
+                reasons[reasons == ""] = MissingReason.NO_SCALE.value
+        d = raw * scale
+        d = np.clip(d, self.min_depth_m, self.max_depth_m if self.max_depth_m else np.inf)
+        d = np.where(reasons == "", d, np.nan)
+        theta = np.full(n, frame.theta_rad, dtype=float)
+        nan = np.full(n, np.nan)
+        return FrameEstimates(
+            theta_rad=theta, theta_adj_rad=theta.copy(), delta_y_px=nan, v_px=nan.copy(),
+            distance_m=d, reason=reasons,
+            reference=np.full(n, ReferencePoint.BOX_CENTRE_PIXEL.value, dtype=object),
+            extra={"depth_raw_m": raw, "depth_scale": np.full(n, scale, dtype=float)},
+        )
