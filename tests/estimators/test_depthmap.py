@@ -1,0 +1,145 @@
+"""The depth-map baseline on analytic scenes: a flat road plus box-shaped cars, exact depth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.camera import Camera
+from slopedist.detections.boxes import BoxTable
+from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.estimators import DepthMapEstimator, FrameInput, make_estimator
+from slopedist.estimators.depthmap import DepthSample, sample_box_depth
+
+W, H = 1240, 375
+CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(W, H)
+CAR_W, CAR_H = 1.6, 1.5
+
+
+def car_box(x_m: float, z_m: float, cam: Camera = CAMERA) -> np.ndarray:
+    """Pixel box of a car's rear face (1.6 m × 1.5 m) standing on the road at (x, z)."""
+    return np.array([
+        cam.c_x + cam.f * (x_m - CAR_W / 2) / z_m, cam.c_y + cam.f * (cam.height_m - CAR_H) / z_m,
+        cam.c_x + cam.f * (x_m + CAR_W / 2) / z_m, cam.c_y + cam.f * cam.height_m / z_m,
+    ])
+
+
+def render(cars: list[tuple[float, float]], cam: Camera = CAMERA) -> np.ndarray:
+    """True depth (metres, float32 H×W) of a level road plus the cars' rear faces; sky = NaN."""
+    rows = np.arange(H, dtype=float)[:, None]
+    with np.errstate(divide="ignore"):
+        road = np.where(rows > cam.c_y, cam.f * cam.height_m / (rows - cam.c_y), np.nan)
+    depth = np.broadcast_to(road, (H, W)).copy()
+    for x, z in sorted(cars, key=lambda c: -c[1]):  # far first, near cars overwrite
+        left, top, right, bottom = car_box(x, z, cam)
+        r0, r1 = max(math.ceil(top), 0), min(math.floor(bottom) + 1, H)
+        c0, c1 = max(math.ceil(left), 0), min(math.floor(right) + 1, W)
+        depth[r0:r1, c0:c1] = z
+    return depth.astype(np.float32)
+
+
+def frame_of(cars: list[tuple[float, float]], depth: np.ndarray | None, k: int = 0,
+             **extra: np.ndarray) -> FrameInput:
+    boxes = np.array([car_box(x, z) for x, z in cars]).reshape(-1, 4)
+    return FrameInput(k, 0.1 * k, 0.0, BoxTable.build(np.full(len(boxes), k), boxes, **extra),
+                      depth_m=depth)
+
+
+CARS = [(-3.0, 9.0), (0.0, 21.5), (3.5, 44.0)]
+
+
+@pytest.mark.parametrize("sample", ["centre", "window", "lower"])
+def test_true_depth_gives_the_true_distance(sample: str) -> None:
+    out = DepthMapEstimator(CAMERA, sample=sample).estimate(frame_of(CARS, render(CARS)))
+    assert list(out.reason) == ["", "", ""]
+    np.testing.assert_allclose(out.distance_m, [z for _, z in CARS], rtol=1e-6)
+    assert set(out.reference) == {"box_centre_pixel"}
+    np.testing.assert_allclose(out.extra["depth_scale"], 1.0)
+
+
+def test_is_registered_and_needs_depth_not_rotation() -> None:
+    est = make_estimator("depthmap", CAMERA)
+    assert isinstance(est, DepthMapEstimator)
+    assert est.needs_depth and not est.needs_rotation
+    frame = FrameInput(0, 0.0, math.nan, BoxTable.build([0], [car_box(0, 10)]),
+                       depth_m=render([(0, 10)]))
+    assert est.estimate(frame).distance_m[0] == pytest.approx(10.0)
+
+
+def test_window_median_is_robust_to_noise_and_holes() -> None:
+    rng = np.random.default_rng(4)
+    depth = render(CARS) * rng.normal(1.0, 0.05, (H, W)).astype(np.float32)
+    for _, z in CARS:  # punch a hole at each box centre
+        b = car_box(_, z)
+        depth[round((b[1] + b[3]) / 2), round((b[0] + b[2]) / 2)] = np.nan
+    centre = DepthMapEstimator(CAMERA, sample="centre").estimate(frame_of(CARS, depth))
+    assert list(centre.reason) == ["no_depth"] * 3 and np.all(np.isnan(centre.distance_m))
+    window = DepthMapEstimator(CAMERA, sample="window", window_px=7).estimate(
+        frame_of(CARS, depth))
+    np.testing.assert_allclose(window.distance_m, [z for _, z in CARS], rtol=0.03)
+
+
+def test_missing_depth_map_and_boxes_outside_the_image() -> None:
+    out = DepthMapEstimator(CAMERA).estimate(frame_of(CARS, None))
+    assert list(out.reason) == ["no_depth"] * 3
+    frame = FrameInput(0, 0.0, 0.0, BoxTable.build([0, 0], [[2000, 10, 2100, 50],
+                                                           [5, 50, 3, 60]]),
+                       depth_m=render([]))
+    assert list(DepthMapEstimator(CAMERA).estimate(frame).reason) == ["no_depth",
+                                                                       "inverted_box"]
+
+
+def test_contact_median_scaling_recovers_scale_less_depth() -> None:
+    """A relative-depth model (depth × 0.37) is rescaled by the flat-ground distances."""
+    est = DepthMapEstimator(CAMERA, scaling="contact")
+    out = est.estimate(frame_of(CARS, 0.37 * render(CARS)))
+    np.testing.assert_allclose(out.distance_m, [z for _, z in CARS], rtol=1e-5)
+    np.testing.assert_allclose(out.extra["depth_scale"], 1 / 0.37, rtol=1e-5)
+    np.testing.assert_allclose(out.extra["depth_raw_m"], [0.37 * z for _, z in CARS],
+                               rtol=1e-5)
+
+
+def test_truth_scaling_uses_the_supplied_column_and_carries_the_scale() -> None:
+    est = DepthMapEstimator(CAMERA, scaling="truth")
+    cars = [(0.0, 12.0), (3.0, 30.0)]
+    gt = np.array([12.0, 30.0])
+    out = est.estimate(frame_of(cars, 3.0 * render(cars), gt_distance_m=gt))
+    np.testing.assert_allclose(out.distance_m, gt, rtol=1e-5)
+    # next frame has no truth: the last scale is reused
+    out2 = est.estimate(frame_of(cars, 3.0 * render(cars), k=1,
+                                 gt_distance_m=np.full(2, np.nan)))
+    np.testing.assert_allclose(out2.distance_m, gt, rtol=1e-5)
+    est.reset()
+    out3 = est.estimate(frame_of(cars, render(cars), k=0, gt_distance_m=np.full(2, np.nan)))
+    assert list(out3.reason) == ["no_scale", "no_scale"]
+    with pytest.raises(ConfigurationError, match="gt_distance_m"):
+        est.estimate(frame_of(cars, render(cars)))
+
+
+def test_cap_at_80_m_and_no_cap() -> None:
+    cars = [(0.0, 100.0)]
+    capped = DepthMapEstimator(CAMERA).estimate(frame_of(cars, render(cars)))
+    assert capped.distance_m[0] == 80.0 and capped.extra["depth_raw_m"][0] == pytest.approx(100)
+    free = DepthMapEstimator(CAMERA, max_depth_m=None).estimate(frame_of(cars, render(cars)))
+    assert free.distance_m[0] == pytest.approx(100.0)
+
+
+def test_bad_options_and_depth_size() -> None:
+    for kw in ({"sample": "middle"}, {"scaling": "magic"}, {"window_px": 4},
+               {"lower_fraction": 0.0}, {"max_depth_m": 0.0}):
+        with pytest.raises(ConfigurationError, match="depthmap"):
+            DepthMapEstimator(CAMERA, **kw)  # type: ignore[arg-type]
+    with pytest.raises(DataMismatchError, match=r"depth map is 10×5 pixels"):
+        DepthMapEstimator(CAMERA).estimate(frame_of(CARS, np.ones((5, 10), np.float32)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(5.0, 75.0), st.floats(-4.0, 4.0), st.sampled_from(list(DepthSample)))
+def test_any_car_on_a_flat_road(z: float, x: float, sample: DepthSample) -> None:
+    depth = render([(x, z)])
+    got = sample_box_depth(depth, car_box(x, z)[None], sample)
+    assert got[0] == pytest.approx(z, rel=1e-6)
