@@ -9,7 +9,7 @@ from __future__ import annotations
 import csv
 import math
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -163,6 +163,7 @@ def estimate_sequence(
     timestamps_s: NDArray[np.float64],
     track: RotationTrack | None,
     lookback_s: float = LOOKBACK_S,
+    depth: Callable[[int], NDArray[np.float32] | None] | None = None,
 ) -> SequenceEstimates:
     """Batch use: all frames' θ at once (vectorised), then the estimator frame by frame.
 
@@ -171,6 +172,8 @@ def estimate_sequence(
         boxes: boxes of the sequence; frame indices index ``timestamps_s`` and ``track``.
         timestamps_s: timestamp of every frame, seconds.
         track: rotations of every frame (``len(track) == len(timestamps_s)``), or None.
+        depth: depth map (metres) of a frame index, called for the frames with boxes when the
+            estimator ``needs_depth`` (e.g. :meth:`slopedist.depth.DepthSource.depth`).
     """
     if track is not None and len(track) < len(timestamps_s):
         raise DataMismatchError(
@@ -187,8 +190,10 @@ def estimate_sequence(
             raise DataMismatchError(
                 f"boxes refer to frame {k}, but the sequence has frames 0..{len(timestamps_s) - 1}"
             )
+        depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         est_parts.append(estimator.estimate(
-            FrameInput(k, float(timestamps_s[k]), float(theta[k]), frame_boxes)))
+            FrameInput(k, float(timestamps_s[k]), float(theta[k]), frame_boxes,
+                       depth_m=depth_m)))
         box_parts.append(frame_boxes)
     return SequenceEstimates(
         concat_boxes(box_parts), np.asarray(timestamps_s), concat_estimates(est_parts),
