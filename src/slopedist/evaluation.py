@@ -195,6 +195,27 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return "\n".join([line, "-" * len(line), *body])
 
 
+def compact_names(names: Sequence[str]) -> str:
+    """``["0000", "0001", "0002", "0005"]`` → ``"0000-0002, 0005"`` (runs of consecutive
+    numbered names collapsed; other names kept as they are)."""
+    parts: list[str] = []
+    run: list[str] = []
+
+    def flush() -> None:
+        if run:
+            parts.append(run[0] if len(run) == 1 else f"{run[0]}-{run[-1]}")
+            run.clear()
+
+    for name in names:
+        if run and name.isdigit() and run[-1].isdigit() and int(name) == int(run[-1]) + 1:
+            run.append(name)
+            continue
+        flush()
+        run.append(name)
+    flush()
+    return ", ".join(parts)
+
+
 def format_report_tables(report: dict[str, Any]) -> str:
     """The RMSE table (sequence × method) and the overall extended-metrics table of a report."""
     methods = list(report["methods"])
@@ -207,7 +228,22 @@ def format_report_tables(report: dict[str, Any]) -> str:
     n_all = report["methods"][methods[0]]["overall"]["n"] if methods else 0
     rmse_rows.append(["overall", n_all, *(report["methods"][m]["overall"]["rmse"]
                                           for m in methods)])
+    common = report.get("overall_common")
+    if common is not None:
+        first = common["methods"][methods[0]]
+        rmse_rows.append(["common", first["n"], *(common["methods"][m]["rmse"]
+                                                  for m in methods)])
     out = ["RMSE (m) per sequence", format_table(["sequence", "n", *methods], rmse_rows)]
+    for m in methods:
+        missing = {s: v["missing"] for s, v in report["methods"][m]["sequences"].items()
+                   if v.get("missing")}
+        if missing:
+            out.append(f"{m}: no result on {', '.join(missing)} "
+                       f"({next(iter(missing.values()))}); its overall pools "
+                       f"{compact_names(report['methods'][m].get('pooled_sequences', []))}")
+    if common is not None:
+        out.append(f"common: every method pooled over the sequences all of them ran on "
+                   f"({compact_names(common['sequences'])})")
     keys = ["n", "rmse", "mae", "abs_rel", "sq_rel", "rmse_log", "delta_1.25"]
     has_recall = "recall" in report["methods"][methods[0]]["overall"] if methods else False
     if has_recall:

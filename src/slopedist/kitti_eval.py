@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import (
@@ -29,12 +30,14 @@ from slopedist.datasets.kitti_tracking import (
     load_sequence,
     protocol_mask,
 )
+from slopedist.depth.files import FileDepthSource
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
-from slopedist.estimators import make_estimator
+from slopedist.estimators import ESTIMATORS, make_estimator
+from slopedist.estimators.depthmap import TRUTH_COLUMN
 from slopedist.evaluation import ScoredSet, Stopwatch, cap_estimates, match_by_frame, pool
-from slopedist.odometry.base import LOOKBACK_S
-from slopedist.pipeline import estimate_sequence
+from slopedist.odometry.base import LOOKBACK_S, RotationTrack
+from slopedist.pipeline import ego_gradients, estimate_sequence
 
 
 @dataclass
@@ -52,6 +55,16 @@ class KittiEvalConfig:
     lookback_s: float = LOOKBACK_S
     min_iou: float = 0.5
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    depth_dir: Path | None = None
+    """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
+
+    def rotation_of(self, method: str) -> str | None:
+        """Rotation source ``method`` is fed: the one it declares, else :attr:`rotation`; None
+        for methods that use no rotation."""
+        factory = ESTIMATORS.get(method)
+        if not getattr(factory, "needs_rotation", True):
+            return None
+        return getattr(factory, "rotation_source", None) or RotationSource(self.rotation).value
 
     def protocol(self) -> dict[str, Any]:
         """The protocol block of the JSON report."""
@@ -77,7 +90,11 @@ class KittiEvalConfig:
             "cap_rule": (f"estimates above {self.cap_m:g} m are set to {self.cap_m:g} m; a target "
                          f"whose box bottom is at or above the vanishing line (u <= v) counts as "
                          f"{self.cap_m:g} m"),
-            "overall": "pooled over all targets of all sequences",
+            "overall": ("pooled over all targets of the sequences each method ran on "
+                        "(pooled_sequences); overall_common pools every method over the "
+                        "sequences all of them ran on, when those differ"),
+            "rotation_per_method": {m: self.rotation_of(m) for m in self.methods},
+            "depth_dir": str(self.depth_dir) if self.depth_dir is not None else None,
             "sequences": list(self.sequences) if self.sequences is not None else None,
             "methods": list(self.methods),
         }
@@ -89,36 +106,201 @@ def _boxes_for(seq: KittiTrackingSequence, cfg: KittiEvalConfig, gt: BoxTable) -
     return seq.detections(cfg.min_score)
 
 
+@dataclass
+class MethodRun:
+    """One method on one sequence, per fed box (rows of :attr:`SequenceRun.boxes`).
+
+    Attributes:
+        method: method name.
+        rotation: rotation source it was fed (``"orbslam3"``, ``"oxts"``), None if none.
+        distance_m: capped estimate per box (metres; NaN where not scorable).
+        scorable: per box, whether the estimate counts (see ``cap_rule``).
+        theta_rad: ego gradient per box, radians (NaN without rotation).
+        reason: missing reason per box (``""`` when estimated).
+        seconds: estimation wall time (depth-map loading excluded), seconds.
+        depth_seconds: time spent producing depth maps (file reading or inference), seconds.
+        missing: why the method has no result on this sequence (``""`` when it ran).
+    """
+
+    method: str
+    rotation: str | None
+    distance_m: NDArray[np.float64]
+    scorable: NDArray[np.bool_]
+    theta_rad: NDArray[np.float64]
+    reason: NDArray[np.object_]
+    seconds: float = 0.0
+    depth_seconds: float = 0.0
+    missing: str = ""
+
+
+@dataclass
+class SequenceRun:
+    """Every method on one sequence, with what is needed to score them and plot them.
+
+    Attributes:
+        name: sequence name.
+        n_frames: frames of the sequence.
+        gt: ground-truth boxes kept by the protocol (``extra["z"]`` = distance, metres).
+        boxes: the boxes fed to the estimators (``gt`` itself, or detections).
+        det_rows, gt_rows: pairs of rows of ``boxes`` and ``gt`` that are scored together.
+        runs: per method.
+        theta_rad: ego gradient θ per frame (radians) of each rotation source that was loaded.
+    """
+
+    name: str
+    n_frames: int
+    gt: BoxTable
+    boxes: BoxTable
+    det_rows: NDArray[np.intp]
+    gt_rows: NDArray[np.intp]
+    runs: dict[str, MethodRun]
+    theta_rad: dict[str, NDArray[np.float64]]
+
+    def scored(self, method: str) -> ScoredSet:
+        """The :class:`ScoredSet` of ``method`` (``info["missing"]`` says why, if absent)."""
+        run = self.runs[method]
+        if run.missing:
+            return ScoredSet(np.zeros(0), np.zeros(0), n_gt=len(self.gt), frames=0,
+                             info={"missing": run.missing})
+        ok = run.scorable[self.det_rows]
+        return ScoredSet(
+            pred_m=run.distance_m[self.det_rows][ok], gt_m=self.gt.extra["z"][self.gt_rows][ok],
+            n_gt=len(self.gt), n_unscored=int((~ok).sum()), seconds=run.seconds,
+            frames=self.n_frames, info={"depth_seconds": run.depth_seconds},
+        )
+
+
+def _check_depth(cfg: KittiEvalConfig, methods: Sequence[str]) -> None:
+    needing = [m for m in methods if getattr(ESTIMATORS.get(m), "needs_depth", False)]
+    if needing and cfg.depth_dir is None:
+        raise ConfigurationError(
+            f"method(s) {', '.join(needing)} need depth maps: give a depth folder "
+            f"(--depth-dir DIR with DIR/<sequence>/<frame>.png or .npy)"
+        )
+
+
+def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRun:
+    """Run every method of ``cfg`` on one sequence.
+
+    Each method is fed the rotation source it declares (``Estimator.rotation_source``, e.g. the
+    IMU baseline's OXTS poses), else ``cfg.rotation``. A declared source, or a depth folder,
+    that the sequence lacks makes that method missing for the sequence (with the reason); a
+    missing ``cfg.rotation`` file is an error, as before.
+    """
+    gt = seq.labels.select(protocol_mask(seq.labels))
+    boxes = _boxes_for(seq, cfg, gt)
+    with_detections = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
+    det_rows, gt_rows = (match_by_frame(boxes, gt, cfg.min_iou) if with_detections
+                         else (np.arange(len(gt)), np.arange(len(gt))))
+    truth = np.full(len(boxes), np.nan)
+    truth[det_rows] = gt.extra["z"][gt_rows]
+    boxes = BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
+                     {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth})
+    tracks: dict[str, RotationTrack | str] = {}
+    theta: dict[str, NDArray[np.float64]] = {}
+
+    def track_for(source: RotationSource, declared: bool) -> RotationTrack | str:
+        if source.value not in tracks:
+            if declared and not seq.has_rotations(source):
+                tracks[source.value] = (f"no {source.value} poses for sequence {seq.name} "
+                                        f"(expected {seq.rotation_path(source)})")
+            else:
+                track = seq.rotations(source)
+                tracks[source.value] = track
+                theta[source.value] = ego_gradients(track, seq.camera.mount_angle_rad,
+                                                    cfg.lookback_s)[:seq.n_frames]
+        return tracks[source.value]
+
+    runs: dict[str, MethodRun] = {}
+    n = len(boxes)
+    for name in cfg.methods:
+        estimator = make_estimator(name, seq.camera, **cfg.method_options.get(name, {}))
+        declared = estimator.rotation_source is not None
+        source = RotationSource(estimator.rotation_source or cfg.rotation)
+        track = track_for(source, declared) if estimator.needs_rotation else None
+        depth_source = None
+        missing = track if isinstance(track, str) else ""
+        if estimator.needs_depth and not missing and cfg.depth_dir is not None:
+            folder = Path(cfg.depth_dir) / seq.name
+            if folder.is_dir():
+                depth_source = FileDepthSource(folder, missing_ok=True)
+            else:
+                missing = f"no depth maps for sequence {seq.name} (expected folder {folder})"
+        if missing:
+            nan = np.full(n, np.nan)
+            runs[name] = MethodRun(name, source.value if estimator.needs_rotation else None,
+                                   nan, np.zeros(n, bool), nan,
+                                   np.full(n, "missing", dtype=object), missing=missing)
+            continue
+        with Stopwatch() as watch:
+            result = estimate_sequence(
+                estimator, boxes, seq.timestamps_s,
+                track if isinstance(track, RotationTrack) else None, cfg.lookback_s,
+                depth=depth_source.depth if depth_source is not None else None)
+        capped, scorable = cap_estimates(result.estimates.distance_m, result.estimates.reason,
+                                         cfg.cap_m)
+        rows = result.boxes.extra["row"]
+        run = MethodRun(name, source.value if estimator.needs_rotation else None,
+                        np.empty(n), np.empty(n, dtype=bool), np.empty(n),
+                        np.empty(n, dtype=object))
+        run.distance_m[rows] = capped
+        run.scorable[rows] = scorable
+        run.theta_rad[rows] = result.estimates.theta_rad
+        run.reason[rows] = result.estimates.reason
+        run.depth_seconds = depth_source.seconds if depth_source is not None else 0.0
+        run.seconds = watch.seconds - run.depth_seconds
+        runs[name] = run
+    return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, theta)
+
+
 def evaluate_sequence(
     seq: KittiTrackingSequence, cfg: KittiEvalConfig
 ) -> dict[str, ScoredSet]:
     """Score every method of ``cfg`` on one sequence."""
-    gt = seq.labels.select(protocol_mask(seq.labels))
-    boxes = _boxes_for(seq, cfg, gt)
-    boxes = BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
-                     {**boxes.extra, "row": np.arange(len(boxes))})
-    needs_track = any(make_estimator(m, seq.camera).needs_rotation for m in cfg.methods)
-    track = seq.rotations(cfg.rotation) if needs_track else None
-    with_detections = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
-    det_rows, gt_rows = (match_by_frame(boxes, gt, cfg.min_iou) if with_detections
-                         else (np.arange(len(gt)), np.arange(len(gt))))
-    out: dict[str, ScoredSet] = {}
-    for name in cfg.methods:
-        estimator = make_estimator(name, seq.camera, **cfg.method_options.get(name, {}))
-        with Stopwatch() as watch:
-            result = estimate_sequence(estimator, boxes, seq.timestamps_s, track, cfg.lookback_s)
-        capped, scorable = cap_estimates(result.estimates.distance_m, result.estimates.reason,
-                                         cfg.cap_m)
-        by_row = np.empty(len(boxes))
-        ok_by_row = np.empty(len(boxes), dtype=bool)
-        by_row[result.boxes.extra["row"]] = capped
-        ok_by_row[result.boxes.extra["row"]] = scorable
-        ok = ok_by_row[det_rows]
-        out[name] = ScoredSet(
-            pred_m=by_row[det_rows][ok], gt_m=gt.extra["z"][gt_rows][ok], n_gt=len(gt),
-            n_unscored=int((~ok).sum()), seconds=watch.seconds, frames=seq.n_frames,
-        )
+    run = run_sequence(seq, cfg)
+    return {name: run.scored(name) for name in cfg.methods}
+
+
+def summarise(sets: Sequence[ScoredSet], with_recall: bool) -> dict[str, Any]:
+    """:meth:`ScoredSet.summary` of the pooled ``sets``, with the depth-map time per frame
+    (``depth_ms_per_frame``) and, for a single missing set, its ``missing`` reason."""
+    present = [s for s in sets if not s.info.get("missing")]
+    pooled = pool(present)
+    out = pooled.summary(with_recall)
+    depth_s = sum(s.info.get("depth_seconds", 0.0) for s in present)
+    out["depth_ms_per_frame"] = 1000.0 * depth_s / pooled.frames if pooled.frames else math.nan
+    if len(sets) == 1 and not present:
+        out["missing"] = sets[0].info["missing"]
     return out
+
+
+def build_report(
+    cfg: KittiEvalConfig, names: Sequence[str], per_seq: dict[str, dict[str, ScoredSet]]
+) -> dict[str, Any]:
+    """The JSON-ready report of scored sets ``per_seq[sequence][method]``.
+
+    Each method's ``overall`` pools the sequences it ran on (listed as ``pooled_sequences``);
+    when those differ between methods, ``overall_common`` pools every method over the
+    sequences all of them ran on, so that the methods are compared on the same targets.
+    """
+    with_recall = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
+    cfg_for_json = KittiEvalConfig(**{**asdict(cfg), "sequences": list(names)})
+    report: dict[str, Any] = {"protocol": cfg_for_json.protocol(), "methods": {}}
+    ran = {m: [s for s in names if not per_seq[s][m].info.get("missing")] for m in cfg.methods}
+    for method in cfg.methods:
+        report["methods"][method] = {
+            "overall": summarise([per_seq[s][method] for s in ran[method]], with_recall),
+            "pooled_sequences": ran[method],
+            "sequences": {s: summarise([per_seq[s][method]], with_recall) for s in names},
+        }
+    if len({tuple(r) for r in ran.values()}) > 1:
+        common = [s for s in names if all(s in ran[m] for m in cfg.methods)]
+        report["overall_common"] = {
+            "sequences": common,
+            "methods": {m: summarise([per_seq[s][m] for s in common], with_recall)
+                        for m in cfg.methods},
+        }
+    return report
 
 
 def evaluate_kitti_tracking(
@@ -138,19 +320,11 @@ def evaluate_kitti_tracking(
         )
     if not cfg.methods:
         raise ConfigurationError("no methods to evaluate")
+    _check_depth(cfg, cfg.methods)
     per_seq: dict[str, dict[str, ScoredSet]] = {}
     for name in names:
         if on_sequence is not None:
             on_sequence(name)
         per_seq[name] = evaluate_sequence(load_sequence(root, name, cfg.height_m,
                                                         cfg.mount_angle_rad), cfg)
-    with_recall = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
-    cfg_for_json = KittiEvalConfig(**{**asdict(cfg), "sequences": names})
-    report: dict[str, Any] = {"protocol": cfg_for_json.protocol(), "methods": {}}
-    for method in cfg.methods:
-        sets = [per_seq[s][method] for s in names]
-        report["methods"][method] = {
-            "overall": pool(sets).summary(with_recall),
-            "sequences": {s: per_seq[s][method].summary(with_recall) for s in names},
-        }
-    return report
+    return build_report(cfg, names, per_seq)

@@ -59,7 +59,7 @@ def kitti_tracking(
         sequences=split_list(sequences), methods=names, rotation=RotationSource(rotation),
         boxes=BoxSource(boxes), min_score=score, height_m=height_m,
         mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
-        method_options={"paper": paper_options(alphas, thresholds)},
+        method_options={m: paper_options(alphas, thresholds) for m in ("paper", "imu")},
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
