@@ -1,0 +1,111 @@
+"""``slopedist report``: the comparison report (Tables 1 and 2, metrics, figures) of a KITTI
+tracking folder or of ``slopedist run`` outputs, as Markdown, HTML and CSV."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from slopedist.cli.options import (
+    alphas_option,
+    check_methods,
+    height_option,
+    lookback_option,
+    mount_option,
+    paper_options,
+    split_list,
+    thresholds_option,
+)
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.kitti_eval import KittiEvalConfig
+from slopedist.report import (
+    ReportOptions,
+    SourceKind,
+    detect_source,
+    format_text,
+    report_data,
+    write_report,
+)
+
+
+def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
+    """``"0001:12,0009:3"`` → ``[("0001", 12), ("0009", 3)]``."""
+    out = []
+    for item in split_list(value) or []:
+        seq, sep, tid = item.partition(":")
+        if not sep or not tid.strip().lstrip("-").isdigit():
+            raise click.BadParameter(f"'{item}' is not SEQUENCE:TRACK_ID", param_hint="--tracks")
+        out.append((seq.strip(), int(tid)))
+    return out or None
+
+
+@click.command("report")
+@click.argument("source", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("slopedist_report"), show_default=True,
+              help="Output folder: report.md, report.html, figures/, CSV (and Parquet).")
+@click.option("--methods", help="Comma-separated methods [default: every method that can run; "
+                                "depthmap when --depth-dir is given].")
+@click.option("--sequences", help="KITTI: comma-separated sequences (default: all).")
+@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
+                   "depth PNG, uint16/256 m) or .npy (float metres).")
+@click.option("--depth-sample", type=click.Choice([s.value for s in DepthSample]),
+              default=DepthSample.CENTRE.value, show_default=True,
+              help="depthmap: box centre pixel, a window around it, or the box's lower part.")
+@click.option("--depth-window", type=int, default=5, show_default=True,
+              help="depthmap: window side in pixels (odd) for --depth-sample window.")
+@click.option("--depth-scaling", type=click.Choice([s.value for s in DepthScaling]),
+              default=DepthScaling.NONE.value, show_default=True,
+              help="depthmap: per-frame median scaling for scale-less depth (contact = flat-"
+                   "ground distances, truth = ground truth; see the README).")
+@click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
+              default=RotationSource.ORBSLAM3.value, show_default=True,
+              help="KITTI: rotation source of the visual-odometry methods (imu always uses oxts).")
+@click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
+              default=BoxSource.GT.value, show_default=True,
+              help="KITTI: ground-truth boxes or PointRCNN detections.")
+@click.option("--score", type=float, default=None,
+              help="KITTI: keep detections with score >= SCORE (PointRCNN boxes).")
+@click.option("--tracks", help="Tracks to plot over time, SEQUENCE:TRACK_ID,... "
+                               "[default: the longest tracks].")
+@click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
+@height_option
+@mount_option
+@lookback_option
+@alphas_option
+@thresholds_option
+def report(
+    source: Path, out_dir: Path, methods: str | None, sequences: str | None,
+    depth_dir: Path | None, depth_sample: str, depth_window: int, depth_scaling: str,
+    rotation: str, boxes: str, score: float | None, tracks: str | None, no_parquet: bool,
+    height_m: float, mount_angle_deg: float, lookback_s: float, alphas: str, thresholds: str,
+) -> None:
+    """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
+    output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
+    names = check_methods(split_list(methods) or [])
+    kind = detect_source(source)
+    paper = paper_options(alphas, thresholds)
+    cfg = KittiEvalConfig(
+        sequences=split_list(sequences), methods=tuple(names),
+        rotation=RotationSource(rotation), boxes=BoxSource(boxes), min_score=score,
+        height_m=height_m, mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
+        method_options={"paper": paper, "imu": paper, "depthmap": {
+            "sample": depth_sample, "window_px": depth_window, "scaling": depth_scaling}},
+        depth_dir=depth_dir,
+    )
+    opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))
+    data = report_data(source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...",
+                                                                      err=True))
+    written = write_report(data, out_dir, opts.tracks, opts.n_tracks,
+                           parquet=False if no_parquet else None)
+    for t in written.tables:
+        if t.key in ("table1_rmse", "table2_time"):
+            click.echo(format_text(t) + "\n")
+    if kind is SourceKind.RUN and not data.has_truth:
+        click.echo("no ground truth in the records: Table 1 is not available", err=True)
+    click.echo(f"wrote {out_dir / 'report.html'}, {out_dir / 'report.md'} and "
+               f"{len(written.files) - 2} other files", err=True)
