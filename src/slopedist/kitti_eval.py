@@ -170,13 +170,31 @@ class SequenceRun:
         )
 
 
-def _check_depth(cfg: KittiEvalConfig, methods: Sequence[str]) -> None:
-    needing = [m for m in methods if getattr(ESTIMATORS.get(m), "needs_depth", False)]
+def check_run(root: str | Path, cfg: KittiEvalConfig) -> list[str]:
+    """The sequences ``cfg`` names (all under ``root`` when none), after checking that they
+    exist, that there are methods, and that methods needing depth maps have a depth folder.
+
+    Raises:
+        MissingInputError: a named sequence is not under ``root``.
+        ConfigurationError: no methods, or depth maps needed and ``cfg.depth_dir`` not given.
+    """
+    available = list_sequences(root)
+    names = list(cfg.sequences) if cfg.sequences else available
+    unknown = [s for s in names if s not in available]
+    if unknown:
+        raise MissingInputError(
+            f"sequence(s) {', '.join(unknown)} not found under {root} "
+            f"(available: {', '.join(available)})"
+        )
+    if not cfg.methods:
+        raise ConfigurationError("no methods to evaluate")
+    needing = [m for m in cfg.methods if getattr(ESTIMATORS.get(m), "needs_depth", False)]
     if needing and cfg.depth_dir is None:
         raise ConfigurationError(
             f"method(s) {', '.join(needing)} need depth maps: give a depth folder "
             f"(--depth-dir DIR with DIR/<sequence>/<frame>.png or .npy)"
         )
+    return names
 
 
 def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRun:
@@ -310,17 +328,7 @@ def evaluate_kitti_tracking(
 ) -> dict[str, Any]:
     """Run the evaluation; returns the JSON-ready report
     ``{"protocol": {...}, "methods": {name: {"overall": {...}, "sequences": {...}}}}``."""
-    available = list_sequences(root)
-    names = list(cfg.sequences) if cfg.sequences else available
-    unknown = [s for s in names if s not in available]
-    if unknown:
-        raise MissingInputError(
-            f"sequence(s) {', '.join(unknown)} not found under {root} "
-            f"(available: {', '.join(available)})"
-        )
-    if not cfg.methods:
-        raise ConfigurationError("no methods to evaluate")
-    _check_depth(cfg, cfg.methods)
+    names = check_run(root, cfg)
     per_seq: dict[str, dict[str, ScoredSet]] = {}
     for name in names:
         if on_sequence is not None:

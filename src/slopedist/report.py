@@ -44,7 +44,6 @@ import numpy as np
 from slopedist.datasets.kitti_tracking import (
     BoxSource,
     RotationSource,
-    list_sequences,
     load_sequence,
 )
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
@@ -56,7 +55,13 @@ from slopedist.evaluation import (
     compact_names,
     format_table,
 )
-from slopedist.kitti_eval import KittiEvalConfig, SequenceRun, build_report, run_sequence
+from slopedist.kitti_eval import (
+    KittiEvalConfig,
+    SequenceRun,
+    build_report,
+    check_run,
+    run_sequence,
+)
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
@@ -197,16 +202,7 @@ def kitti_report_data(
         raise ConfigurationError(f"unknown method(s) {', '.join(unknown)}; choose from "
                                  f"{', '.join(available_methods())}")
     cfg = KittiEvalConfig(**{**cfg.__dict__, "methods": tuple(methods)})
-    available = list_sequences(root)
-    names = list(cfg.sequences) if cfg.sequences else available
-    missing = [s for s in names if s not in available]
-    if missing:
-        raise MissingInputError(f"sequence(s) {', '.join(missing)} not found under {root} "
-                                f"(available: {', '.join(available)})")
-    needing = [m for m in methods if getattr(ESTIMATORS[m], "needs_depth", False)]
-    if needing and cfg.depth_dir is None:
-        raise ConfigurationError(f"method(s) {', '.join(needing)} need depth maps: give "
-                                 f"--depth-dir DIR (DIR/<sequence>/<frame>.png or .npy)")
+    names = check_run(root, cfg)
     runs: dict[str, SequenceRun] = {}
     for name in names:
         if on_sequence is not None:
