@@ -14,6 +14,7 @@ import click
 from slopedist import __version__
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
+from slopedist.cli.report_cmd import report
 from slopedist.errors import SlopedistError
 
 
@@ -25,6 +26,7 @@ def cli() -> None:
 
 cli.add_command(eval_group)
 cli.add_command(estimate)
+cli.add_command(report)
 
 
 def main(argv: list[str] | None = None) -> int:
