@@ -15,6 +15,7 @@ from slopedist import __version__
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
 from slopedist.cli.report_cmd import report
+from slopedist.cli.run_cmd import run
 from slopedist.errors import SlopedistError
 
 
@@ -27,6 +28,7 @@ def cli() -> None:
 cli.add_command(eval_group)
 cli.add_command(estimate)
 cli.add_command(report)
+cli.add_command(run)
 
 
 def main(argv: list[str] | None = None) -> int:

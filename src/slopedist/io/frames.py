@@ -1,0 +1,428 @@
+"""Frame sources: an image folder or a video file, read lazily one frame at a time.
+
+Convention: images are BGR ``H×W×3`` uint8 (grey files are expanded to three channels), origin
+top-left; timestamps are float64 seconds. Memory holds one frame at a time, whatever the length.
+
+Frame numbering:
+
+- Image folder: files ``*.png``, ``*.jpg``, ``*.jpeg`` (any case). When every file name is an
+  integer (``0000000000.png``, ``000123.jpg``), that integer is the frame index, and a gap in the
+  numbering yields frames of status ``missing``; otherwise the frames are numbered 0, 1, ... in
+  sorted name order.
+- Video file: frames are numbered 0, 1, ... in decoding order.
+
+Timestamps: ``index / fps`` (``fps`` 10 by default for folders, the container's frame rate for
+videos), or line ``index`` of a timestamps file (:func:`read_timestamps`).
+
+A frame that cannot be used is yielded with a :class:`FrameStatus` other than ``ok`` and no image,
+so a long run records it and goes on.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import datetime
+from enum import Enum
+from pathlib import Path
+from typing import Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.camera import Camera
+from slopedist.errors import (
+    ConfigurationError,
+    DataMismatchError,
+    InputFileError,
+    MissingInputError,
+)
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+"""File name endings an image folder is read from (case-insensitive)."""
+
+DEFAULT_FPS = 10.0
+"""Frame rate assumed for image folders without a timestamps file (KITTI's 10 Hz)."""
+
+MAX_PRINCIPAL_POINT_OFFSET = 0.25
+"""Largest accepted distance of the principal point from the image centre, as a fraction of the
+image width (for c_x) or height (for c_y); beyond it the calibration is taken to belong to
+other (resized or cropped) frames."""
+
+_KITTI_TIME = re.compile(r"^(\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2})(\.\d+)?$")
+
+
+class FrameStatus(str, Enum):
+    """Whether a frame's pixels could be used."""
+
+    OK = "ok"
+    MISSING = "missing"
+    """No file for this index (a gap in a numbered image folder)."""
+    UNREADABLE = "unreadable"
+    """The file exists but does not decode as an image (or the video stopped decoding)."""
+    SIZE_CHANGED = "size_changed"
+    """The image size differs from the first frame's."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of a source.
+
+    Attributes:
+        index: frame index (see the module docstring), the ``frame`` of box files.
+        timestamp_s: seconds.
+        image: BGR ``H×W×3`` uint8, or None when ``status`` is not ``ok``.
+        status: :class:`FrameStatus`.
+        source: file name (folders) or ``"<video name>#<index>"`` (videos), for messages.
+        detail: why the frame is not ``ok`` ("" when it is).
+    """
+
+    index: int
+    timestamp_s: float
+    image: NDArray[np.uint8] | None
+    status: FrameStatus
+    source: str
+    detail: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status is FrameStatus.OK
+
+
+class FrameSource(Protocol):
+    """What the runner needs of a frame source."""
+
+    path: Path
+
+    def __iter__(self) -> Iterator[Frame]: ...
+
+    def expected_frames(self) -> int | None:
+        """Number of frames the source will yield, if known in advance (progress bars)."""
+        ...
+
+    def frame_size(self) -> tuple[int, int]:
+        """``(width, height)`` in pixels of the first readable frame."""
+        ...
+
+
+def read_timestamps(path: str | Path) -> NDArray[np.float64]:
+    """Timestamps file → seconds, one per frame (line k, counting non-empty lines from 0, is
+    frame k).
+
+    A line is either a number of seconds or a KITTI raw date-time
+    (``2011-09-26 13:02:25.964389445``; turned into seconds after the first line). Lines starting
+    with ``#`` are ignored. Timestamps must increase strictly.
+
+    Raises:
+        MissingInputError: no such file.
+        InputFileError: a line that is neither form, or a timestamp that does not increase
+            (naming the line).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"timestamps file not found: {path}")
+    values: list[float] = []
+    t0: datetime | None = None
+    prev_line = 0
+    with path.open() as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            line = raw.strip()
+            if not line or line.startswith("#"):
+                continue
+            value = _parse_time(line, t0)
+            if value is None:
+                raise InputFileError(
+                    path, f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
+                    line=lineno, field="timestamp",
+                )
+            if isinstance(value, datetime):
+                t0 = t0 or value
+                seconds = (value - t0).total_seconds()
+            else:
+                seconds = value
+            if values and not seconds > values[-1]:
+                raise InputFileError(
+                    path, f"timestamp {seconds} s does not increase (line {prev_line} has "
+                    f"{values[-1]} s)", line=lineno, field="timestamp",
+                )
+            values.append(seconds)
+            prev_line = lineno
+    if not values:
+        raise InputFileError(path, "no timestamps in file")
+    return np.asarray(values, dtype=float)
+
+
+def _parse_time(text: str, t0: datetime | None) -> float | datetime | None:
+    try:
+        value = float(text)
+    except ValueError:
+        pass
+    else:
+        return value if math.isfinite(value) else None
+    m = _KITTI_TIME.match(text)
+    if not m:
+        return None
+    try:
+        whole = datetime.strptime(m.group(1).replace("T", " "), "%Y-%m-%d %H:%M:%S")
+    except ValueError:
+        return None
+    frac = float(m.group(2) or 0.0)
+    # microsecond precision is enough at video frame rates; the nanoseconds are rounded
+    return whole.replace(microsecond=min(round(frac * 1e6), 999_999))
+
+
+def check_calibration(camera: Camera, width: int, height: int, where: str = "frames") -> None:
+    """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
+
+    Checks the image size the camera knows (if any), that the principal point lies inside the
+    image and that it is within :data:`MAX_PRINCIPAL_POINT_OFFSET` of the image centre.
+
+    Raises:
+        DataMismatchError: naming the sizes and the offending value.
+    """
+    if camera.image_width is not None and camera.image_height is not None and (
+        (camera.image_width, camera.image_height) != (width, height)
+    ):
+        raise DataMismatchError(
+            f"{where}: images are {width}×{height} px but the calibration is for "
+            f"{camera.image_width}×{camera.image_height} px"
+        )
+    for name, c, size in (("c_x", camera.c_x, width), ("c_y", camera.c_y, height)):
+        if not 0.0 <= c <= size:
+            raise DataMismatchError(
+                f"{where}: the calibration's principal point {name} = {c:.1f} px lies outside "
+                f"the {width}×{height} px images; does the calibration belong to these frames?"
+            )
+        if abs(c - size / 2) > MAX_PRINCIPAL_POINT_OFFSET * size:
+            raise DataMismatchError(
+                f"{where}: the calibration's principal point {name} = {c:.1f} px is far from the "
+                f"centre ({size / 2:.1f} px) of the {width}×{height} px images; were the frames "
+                "resized or cropped after calibration?"
+            )
+
+
+class _Timing:
+    """Timestamp of a frame index from a frame rate or a timestamps array."""
+
+    def __init__(self, fps: float, timestamps_s: NDArray[np.float64] | None,
+                 timestamps_name: str) -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise ConfigurationError(f"frame rate must be > 0 frames per second, got {fps}")
+        self.fps = fps
+        self.timestamps_s = timestamps_s
+        self.timestamps_name = timestamps_name
+
+    def __call__(self, index: int) -> float:
+        if self.timestamps_s is None:
+            return index / self.fps
+        if index >= len(self.timestamps_s):
+            raise DataMismatchError(
+                f"{self.timestamps_name} has {len(self.timestamps_s)} timestamps, but there is a "
+                f"frame {index}"
+            )
+        return float(self.timestamps_s[index])
+
+
+class _SizeCheck:
+    """Marks frames whose size differs from the first readable frame's."""
+
+    def __init__(self) -> None:
+        self.size: tuple[int, int] | None = None
+
+    def __call__(self, image: np.ndarray) -> str:
+        size = (int(image.shape[1]), int(image.shape[0]))
+        if self.size is None:
+            self.size = size
+            return ""
+        if size != self.size:
+            return (f"image is {size[0]}×{size[1]} px, the first frame was "
+                    f"{self.size[0]}×{self.size[1]} px")
+        return ""
+
+
+def _as_bgr(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    if image.ndim == 2:
+        return np.asarray(cv2.cvtColor(image, cv2.COLOR_GRAY2BGR))
+    if image.shape[2] == 4:
+        return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGRA2BGR))
+    return image
+
+
+class ImageFolderSource:
+    """Frames from the image files of a folder (see the module docstring for numbering).
+
+    Args:
+        path: the folder.
+        fps: frames per second used for timestamps when no timestamps file is given
+            (:data:`DEFAULT_FPS` when None).
+        timestamps_s: one timestamp per frame index, seconds (e.g. from :func:`read_timestamps`).
+        timestamps_name: where the timestamps came from, for messages.
+
+    Raises:
+        MissingInputError: the folder does not exist or holds no image files.
+        InputFileError: two files with the same frame number.
+        DataMismatchError: fewer timestamps than frames.
+    """
+
+    def __init__(self, path: str | Path, fps: float | None = None,
+                 timestamps_s: NDArray[np.float64] | None = None,
+                 timestamps_name: str = "timestamps") -> None:
+        self.path = Path(path)
+        if not self.path.is_dir():
+            raise MissingInputError(f"frame folder not found: {self.path}")
+        files = sorted(p for p in self.path.iterdir()
+                       if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise MissingInputError(
+                f"no image files ({', '.join(IMAGE_SUFFIXES)}) in frame folder {self.path}"
+            )
+        self.timing = _Timing(DEFAULT_FPS if fps is None else fps, timestamps_s, timestamps_name)
+        self.numbered = all(p.stem.isdigit() for p in files)
+        self.files: dict[int, Path] = {}
+        if self.numbered:
+            for p in files:
+                k = int(p.stem)
+                if k in self.files:
+                    raise InputFileError(p, f"frame number {k} also used by {self.files[k].name}")
+                self.files[k] = p
+        else:
+            self.files = dict(enumerate(files))
+        self.first = min(self.files)
+        self.last = max(self.files)
+        if timestamps_s is not None and len(timestamps_s) <= self.last:
+            raise DataMismatchError(
+                f"{timestamps_name} has {len(timestamps_s)} timestamps, but {self.path} has "
+                f"frames up to {self.last}"
+            )
+
+    def expected_frames(self) -> int:
+        return self.last - self.first + 1
+
+    def frame_size(self) -> tuple[int, int]:
+        for k in sorted(self.files):
+            image = cv2.imread(str(self.files[k]), cv2.IMREAD_UNCHANGED)
+            if image is not None:
+                return int(image.shape[1]), int(image.shape[0])
+        raise InputFileError(self.path, "none of the image files could be read")
+
+    def __iter__(self) -> Iterator[Frame]:
+        size_check = _SizeCheck()
+        for k in range(self.first, self.last + 1):
+            t = self.timing(k)
+            path = self.files.get(k)
+            if path is None:
+                yield Frame(k, t, None, FrameStatus.MISSING, f"frame {k}",
+                            f"no image file numbered {k} in {self.path}")
+                continue
+            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if image is None:
+                yield Frame(k, t, None, FrameStatus.UNREADABLE, path.name,
+                            f"{path} could not be decoded as an image")
+                continue
+            problem = size_check(image)
+            if problem:
+                yield Frame(k, t, None, FrameStatus.SIZE_CHANGED, path.name, f"{path}: {problem}")
+                continue
+            yield Frame(k, t, _as_bgr(np.asarray(image)), FrameStatus.OK, path.name)
+
+
+class VideoSource:
+    """Frames decoded from a video file with OpenCV (``cv2.VideoCapture``).
+
+    Args:
+        path: the video file.
+        fps: frames per second for timestamps; None uses the container's frame rate (or
+            :data:`DEFAULT_FPS` when the container reports none).
+        timestamps_s: one timestamp per frame, seconds; overrides ``fps``.
+
+    Raises:
+        MissingInputError: no such file.
+        InputFileError: the file cannot be opened as a video.
+    """
+
+    def __init__(self, path: str | Path, fps: float | None = None,
+                 timestamps_s: NDArray[np.float64] | None = None,
+                 timestamps_name: str = "timestamps") -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise MissingInputError(f"video file not found: {self.path}")
+        cap = self._open()
+        try:
+            self.container_fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        finally:
+            cap.release()
+        self.frame_count = count if count > 0 else None
+        if fps is None:
+            fps = self.container_fps if (math.isfinite(self.container_fps)
+                                         and self.container_fps > 0) else DEFAULT_FPS
+        self.timing = _Timing(fps, timestamps_s, timestamps_name)
+
+    def _open(self) -> cv2.VideoCapture:
+        cap = cv2.VideoCapture(str(self.path))
+        if not cap.isOpened():
+            cap.release()
+            raise InputFileError(
+                self.path, "cannot be opened as a video (not a video file, or a codec OpenCV "
+                "lacks); give a video file or a folder of PNG/JPG frames"
+            )
+        return cap
+
+    def expected_frames(self) -> int | None:
+        return self.frame_count
+
+    def frame_size(self) -> tuple[int, int]:
+        cap = self._open()
+        try:
+            ok, image = cap.read()
+        finally:
+            cap.release()
+        if not ok or image is None:
+            raise InputFileError(self.path, "the video has no decodable frame")
+        return int(image.shape[1]), int(image.shape[0])
+
+    def __iter__(self) -> Iterator[Frame]:
+        cap = self._open()
+        size_check = _SizeCheck()
+        try:
+            k = 0
+            while True:
+                ok, image = cap.read()
+                name = f"{self.path.name}#{k}"
+                if not ok or image is None:
+                    if self.frame_count is not None and k < self.frame_count:
+                        yield Frame(k, self.timing(k), None, FrameStatus.UNREADABLE, name,
+                                    f"decoding stopped at frame {k} of the {self.frame_count} "
+                                    "the container announces")
+                    return
+                t = self.timing(k)
+                problem = size_check(image)
+                if problem:
+                    yield Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, problem)
+                else:
+                    yield Frame(k, t, _as_bgr(np.asarray(image)), FrameStatus.OK, name)
+                k += 1
+        finally:
+            cap.release()
+
+
+def open_frames(path: str | Path, fps: float | None = None,
+                timestamps: str | Path | None = None) -> ImageFolderSource | VideoSource:
+    """A folder of images or a video file, chosen by what ``path`` is.
+
+    Args:
+        path: image folder or video file.
+        fps: frames per second (None: 10 for folders, the container's rate for videos).
+        timestamps: optional timestamps file (:func:`read_timestamps`); overrides ``fps``.
+    """
+    path = Path(path)
+    ts = read_timestamps(timestamps) if timestamps is not None else None
+    name = str(timestamps) if timestamps is not None else "timestamps"
+    if path.is_dir():
+        return ImageFolderSource(path, fps, ts, name)
+    if path.is_file():
+        return VideoSource(path, fps, ts, name)
+    raise MissingInputError(f"frames not found: {path} (expected an image folder or a video file)")

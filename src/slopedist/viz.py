@@ -1,0 +1,122 @@
+"""Overlays and plots.
+
+Convention: images are BGR ``H×W×3`` uint8 (OpenCV order), origin top-left, rows downwards;
+boxes ``(left, top, right, bottom)`` pixels; θ in radians.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist import geometry as geo
+from slopedist.camera import Camera
+from slopedist.detections.boxes import BoxTable
+from slopedist.estimators.base import FrameEstimates
+
+# --- Fig. 3 overlay (paper style) -------------------------------------------------------------
+
+FIG3_GREEN = (0, 255, 0)
+"""BGR colour of the vanishing line."""
+FIG3_YELLOW = (0, 255, 255)
+"""BGR colour of the dashed line at each box's vertical centre."""
+FIG3_BOX = (255, 160, 0)
+"""BGR colour of the boxes (blue)."""
+FIG3_MISSING = (0, 0, 255)
+"""BGR colour of boxes and text of targets without a distance (red)."""
+FIG3_TEXT = (255, 255, 255)
+"""BGR colour of the labels."""
+
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def dashed_hline(image: NDArray[np.uint8], row: int, x0: int, x1: int,
+                 colour: tuple[int, int, int], dash_px: int = 12, gap_px: int = 8,
+                 thickness: int = 1) -> None:
+    """Draw a dashed horizontal line at ``row`` from column ``x0`` to ``x1`` (in place)."""
+    x = x0
+    while x < x1:
+        cv2.line(image, (x, row), (min(x + dash_px, x1), row), colour, thickness, cv2.LINE_8)
+        x += dash_px + gap_px
+
+
+def _label(image: NDArray[np.uint8], lines: list[str], box: NDArray[np.float64],
+           colour: tuple[int, int, int]) -> None:
+    """Write ``lines`` beside ``box``: right of it, or left of it when there is no room."""
+    scale, thick = 0.45, 1
+    sizes = [cv2.getTextSize(t, _FONT, scale, thick)[0] for t in lines]
+    width = max(s[0] for s in sizes) + 4
+    line_h = max(s[1] for s in sizes) + 6
+    left, top, right, _ = (round(float(c)) for c in box)
+    x = right + 4 if right + 4 + width <= image.shape[1] else max(left - 4 - width, 0)
+    y = max(top, 0) + line_h
+    for text in lines:
+        # dark outline first, so the text reads on bright and dark backgrounds
+        cv2.putText(image, text, (x, y), _FONT, scale, (0, 0, 0), thick + 2, cv2.LINE_AA)
+        cv2.putText(image, text, (x, y), _FONT, scale, colour, thick, cv2.LINE_AA)
+        y += line_h
+
+
+def draw_fig3_overlay(
+    image: NDArray[np.uint8],
+    camera: Camera,
+    boxes: BoxTable,
+    estimates: FrameEstimates,
+    theta_rad: float | None = None,
+    header: str | None = None,
+) -> NDArray[np.uint8]:
+    """Annotate a frame in the style of the paper's Fig. 3; returns a new image.
+
+    Draws each box, a dashed yellow line at each box's vertical centre ``b_y`` (across the box
+    and half its width to either side),
+    beside each box its distance (m) and Δy (px, eq. 6) — or ``missing: reason`` — and, last and
+    on top, the vanishing line of the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green
+    line across the full width. Hershey fonts have no Greek letters, so Δy is written ``dy``.
+
+    Args:
+        image: BGR ``H×W×3`` (or grey ``H×W``) uint8 frame; not modified.
+        camera: the frame's camera (``f``, ``c_y``).
+        boxes: the frame's boxes.
+        estimates: the estimates of those boxes (same order).
+        theta_rad: ego road gradient θ of the frame, radians. None takes it from
+            ``estimates.theta_rad`` (first finite value). No green line when θ is unknown.
+        header: optional text written at the top left (e.g. frame number and θ).
+    """
+    out = np.asarray(cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy(),
+                     dtype=np.uint8)
+    h, w = out.shape[:2]
+    if theta_rad is None:
+        finite = estimates.theta_rad[np.isfinite(estimates.theta_rad)]
+        theta_rad = float(finite[0]) if finite.size else math.nan
+    for i in range(len(boxes)):
+        box = boxes.boxes[i]
+        if not np.all(np.isfinite(box)):
+            continue
+        ok = estimates.reason[i] == ""
+        b_y = round(float(geo.box_centre_row(box)))
+        left, top, right, bottom = (round(float(c)) for c in box)
+        if 0 <= b_y < h:
+            reach = max((right - left) // 2, 20)
+            dashed_hline(out, b_y, max(left - reach, 0), min(right + reach, w - 1), FIG3_YELLOW)
+        cv2.rectangle(out, (left, top), (right, bottom), FIG3_BOX if ok else FIG3_MISSING, 2)
+        dy = float(estimates.delta_y_px[i])
+        dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
+        if ok:
+            lines = [f"{float(estimates.distance_m[i]):.1f} m", dy_text]
+            colour = FIG3_TEXT
+        else:
+            lines = [f"missing: {estimates.reason[i]}", dy_text]
+            colour = FIG3_MISSING
+        _label(out, lines, box, colour)
+    if header:
+        cv2.putText(out, header, (8, 20), _FONT, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(out, header, (8, 20), _FONT, 0.55, FIG3_TEXT, 1, cv2.LINE_AA)
+    if math.isfinite(theta_rad):
+        v = float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y))
+        row = round(v)
+        if 0 <= row < h:
+            cv2.line(out, (0, row), (w - 1, row), FIG3_GREEN, 2, cv2.LINE_8)
+    return out
