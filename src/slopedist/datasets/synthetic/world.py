@@ -1,0 +1,278 @@
+"""The static world around the road, as planar polygons the renderer draws.
+
+Convention: world frame of :mod:`~slopedist.datasets.synthetic.road` (X forward at ``s = 0``,
+Y left, Z up, metres). Every surface is a planar convex quadrilateral with a texture frame: a
+point ``X`` of the polygon has texture coordinates ``u = u0 + (X − o)·a`` and
+``v = (X − o)·b`` (metres), with ``a``, ``b`` unit axes in its plane.
+
+Content:
+
+- the ground: the road surface extended across the verge to the roadside structures, as strips
+  between consecutive cross-sections (``GROUND_STEP_M`` apart); its texture frame is the road's
+  (``u`` = distance driven along the centreline, ``v`` = lateral offset ``w``), so the renderer
+  can draw the lane markings and tell asphalt from verge per pixel;
+- roadside structures on both sides (building fronts and tree lines of random height), vertical
+  walls at the corridor's edge (``u`` along the road, ``v`` height above the segment's base);
+- delineator posts on both edges of the carriageway and random roadside objects (bushes,
+  cabinets, sign boxes), as boxes standing on the ground.
+
+Everything random comes from ``numpy.random.default_rng(seed)`` and depends only on the seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.datasets.synthetic.road import Road
+
+FloatArray = NDArray[np.float64]
+
+GROUND_STEP_M = 0.5
+"""Length of the ground strips along the road, metres."""
+
+
+class Material(IntEnum):
+    """How a polygon is shaded (the renderer's per-pixel rules)."""
+
+    SKY = 0
+    GROUND = 1
+    BUILDING = 2
+    TREES = 3
+    POST = 4
+    OBJECT = 5
+    VEHICLE = 6
+
+
+class Layer(IntEnum):
+    """Drawing priority among polygons with the same painter key (lower first)."""
+
+    GROUND = 0
+    STRUCTURE = 1
+    OBJECT = 2
+    VEHICLE = 3
+
+
+@dataclass
+class Polygons:
+    """A set of planar quads with everything the renderer needs (``P`` polygons).
+
+    Attributes:
+        verts: ``(P, 4, 3)`` corners in order around the polygon, world frame.
+        normal: ``(P, 3)`` unit normal on the visible side (faces with ``(C − X)·n ≤ 0`` are
+            culled).
+        origin, axis_u, axis_v: ``(P, 3)`` texture frame; u0: ``(P,)`` offset of ``u``.
+        key: ``(P,)`` painter key, the plan distance ``s`` that orders drawing (larger first);
+            layer: ``(P,)`` :class:`Layer` among equal keys.
+        s_lo, s_hi: ``(P,)`` plan-distance extent, to select what is near the camera.
+        material: ``(P,)`` :class:`Material`; colour: ``(P, 3)`` BGR in [0, 1].
+        owner: ``(P,)`` index of the target vehicle the polygon belongs to, −1 for the world.
+        two_sided: ``(P,)`` bool: never culled.
+    """
+
+    verts: FloatArray
+    normal: FloatArray
+    origin: FloatArray
+    axis_u: FloatArray
+    axis_v: FloatArray
+    u0: FloatArray
+    key: FloatArray
+    layer: NDArray[np.int64]
+    s_lo: FloatArray
+    s_hi: FloatArray
+    material: NDArray[np.int64]
+    colour: FloatArray
+    owner: NDArray[np.int64]
+    two_sided: NDArray[np.bool_]
+
+    def __len__(self) -> int:
+        return int(self.verts.shape[0])
+
+    @classmethod
+    def concat(cls, parts: list[Polygons]) -> Polygons:
+        """Concatenate polygon sets."""
+        names = list(cls.__dataclass_fields__)
+        return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names})
+
+    def select(self, idx: NDArray) -> Polygons:
+        """A subset (mask or indices)."""
+        return Polygons(**{n: getattr(self, n)[idx] for n in self.__dataclass_fields__})
+
+
+def box_polygons(
+    bottom_centre: FloatArray, R_world_box: FloatArray, size_lwh: FloatArray,
+    colour: FloatArray, material: NDArray[np.int64] | int, s_near: FloatArray, s_far: FloatArray,
+    layer: Layer, owner: NDArray[np.int64] | int = -1, with_bottom: bool = False,
+) -> Polygons:
+    """The faces of ``N`` boxes (rear, front, right, left, top; bottom optional).
+
+    Args:
+        bottom_centre: ``(N, 3)`` centre of each box's bottom face, world frame.
+        R_world_box: ``(N, 3, 3)`` columns = the box's forward, left, up axes.
+        size_lwh: ``(N, 3)`` length, width, height, metres.
+        colour: ``(N, 3)`` BGR in [0, 1].
+        s_near, s_far: ``(N,)`` plan-distance extent (painter key = ``s_near``).
+    """
+    n = bottom_centre.shape[0]
+    f, lft, up = R_world_box[:, :, 0], R_world_box[:, :, 1], R_world_box[:, :, 2]
+    hl, hw, h = (0.5 * size_lwh[:, 0])[:, None], (0.5 * size_lwh[:, 1])[:, None], \
+        size_lwh[:, 2][:, None]
+    c = bottom_centre
+
+    def corner(sx: float, sy: float, sz: float) -> FloatArray:
+        return c + sx * hl * f + sy * hw * lft + sz * h * up
+
+    # face: (corners, outward normal, u axis)
+    faces = [
+        ([corner(-1, -1, 0), corner(-1, 1, 0), corner(-1, 1, 1), corner(-1, -1, 1)], -f, lft),
+        ([corner(1, 1, 0), corner(1, -1, 0), corner(1, -1, 1), corner(1, 1, 1)], f, -lft),
+        ([corner(1, -1, 0), corner(-1, -1, 0), corner(-1, -1, 1), corner(1, -1, 1)], -lft, -f),
+        ([corner(-1, 1, 0), corner(1, 1, 0), corner(1, 1, 1), corner(-1, 1, 1)], lft, f),
+        ([corner(-1, -1, 1), corner(-1, 1, 1), corner(1, 1, 1), corner(1, -1, 1)], up, lft),
+    ]
+    if with_bottom:
+        faces.append(([corner(-1, -1, 0), corner(1, -1, 0), corner(1, 1, 0), corner(-1, 1, 0)],
+                      -up, lft))
+    parts = []
+    mat = np.broadcast_to(np.asarray(material, dtype=np.int64), (n,))
+    own = np.broadcast_to(np.asarray(owner, dtype=np.int64), (n,))
+    for verts, normal, axis_u in faces:
+        v = np.stack(verts, axis=1)
+        parts.append(Polygons(
+            verts=v, normal=normal.copy(), origin=v[:, 0].copy(), axis_u=axis_u.copy(),
+            axis_v=up.copy(), u0=np.zeros(n), key=s_near.copy(),
+            layer=np.full(n, int(layer), np.int64), s_lo=s_near.copy(), s_hi=s_far.copy(),
+            material=mat.copy(), colour=colour.copy(), owner=own.copy(),
+            two_sided=np.zeros(n, bool),
+        ))
+    return Polygons.concat(parts)
+
+
+def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP_M) -> Polygons:
+    """Ground strips across ``±half_width_m`` between cross-sections ``step_m`` apart."""
+    s = np.arange(road.s[0] + 1.0, road.s[-1] - 1.0, step_m)
+    a, b = s[:-1], s[1:]
+    n = a.shape[0]
+    w = np.full(n, half_width_m)
+    verts = np.stack([road.point(a, -w), road.point(a, w), road.point(b, w), road.point(b, -w)],
+                     axis=1)
+    mid = 0.5 * (a + b)
+    t = road.tangent(mid)
+    lft = road.left(mid)
+    normal = np.cross(t, lft)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    grey = np.ones((n, 3))
+    return Polygons(
+        verts=verts, normal=normal, origin=road.centre(mid), axis_u=t, axis_v=lft,
+        u0=road.driven_distance(mid), key=b.copy(), layer=np.full(n, int(Layer.GROUND)),
+        s_lo=a.copy(), s_hi=b.copy(), material=np.full(n, int(Material.GROUND)), colour=grey,
+        owner=np.full(n, -1), two_sided=np.ones(n, bool),
+    )
+
+
+BUILDING_COLOURS = np.array([
+    [0.62, 0.70, 0.78], [0.55, 0.60, 0.72], [0.70, 0.72, 0.70], [0.45, 0.50, 0.62],
+    [0.60, 0.62, 0.55], [0.75, 0.78, 0.82], [0.50, 0.55, 0.60],
+])
+"""BGR colours of building fronts (light plaster, brick, concrete)."""
+TREE_COLOURS = np.array([[0.20, 0.42, 0.28], [0.18, 0.36, 0.30], [0.25, 0.45, 0.35]])
+OBJECT_COLOURS = np.array([
+    [0.18, 0.45, 0.25], [0.22, 0.38, 0.30], [0.55, 0.55, 0.55], [0.30, 0.40, 0.55],
+    [0.65, 0.60, 0.30], [0.20, 0.30, 0.50],
+])
+
+
+def structure_polygons(road: Road, half_width_m: float, height_range: tuple[float, float],
+                       length_range: tuple[float, float], rng: np.random.Generator) -> Polygons:
+    """Walls of buildings and tree lines at lateral offsets ``±half_width_m``."""
+    parts = []
+    for side in (-1.0, 1.0):
+        edges = [road.s[0] + 1.0]
+        while edges[-1] < road.s[-1] - 1.0:
+            edges.append(edges[-1] + rng.uniform(*length_range))
+        e = np.minimum(np.asarray(edges), road.s[-1] - 1.0)
+        a, b = e[:-1], e[1:]
+        keep = b > a + 0.1
+        a, b = a[keep], b[keep]
+        n = a.shape[0]
+        w = np.full(n, side * half_width_m)
+        pa, pb = road.point(a, w), road.point(b, w)
+        height = rng.uniform(*height_range, n)
+        trees = rng.random(n) < 0.35
+        up = np.array([0.0, 0.0, 1.0])
+        top_a, top_b = pa + height[:, None] * up, pb + height[:, None] * up
+        verts = np.stack([pa, pb, top_b, top_a], axis=1)
+        along = pb - pa
+        along /= np.linalg.norm(along, axis=1, keepdims=True)
+        normal = -side * road.left(0.5 * (a + b))  # inward: from the wall to the road
+        colour = np.where(trees[:, None], TREE_COLOURS[rng.integers(0, len(TREE_COLOURS), n)],
+                          BUILDING_COLOURS[rng.integers(0, len(BUILDING_COLOURS), n)])
+        colour = colour * rng.uniform(0.85, 1.15, (n, 1))
+        parts.append(Polygons(
+            verts=verts, normal=normal, origin=pa, axis_u=along,
+            axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=road.driven_distance(a),
+            key=a.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
+            material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
+            colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
+        ))
+    return Polygons.concat(parts)
+
+
+def _level_boxes_on_road(road: Road, s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Bottom centres and level, road-aligned orientations of boxes standing at ``(s, w)``."""
+    psi = road.heading_at(s)
+    f = np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], axis=1)
+    lft = np.stack([-np.sin(psi), np.cos(psi), np.zeros_like(psi)], axis=1)
+    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), f.shape)
+    return road.point(s, w), np.stack([f, lft, up], axis=2)
+
+
+def roadside_polygons(road: Road, carriageway_half_m: float, corridor_half_m: float,
+                      post_spacing_m: float, object_spacing_m: float,
+                      rng: np.random.Generator) -> Polygons:
+    """Delineator posts on both edges and random objects in the verges."""
+    s0, s1 = road.s[0] + 2.0, road.s[-1] - 2.0
+    # posts
+    sp = np.arange(s0 + rng.uniform(0, post_spacing_m), s1, post_spacing_m)
+    s_post = np.concatenate([sp, sp])
+    w_post = np.concatenate([np.full(sp.shape, carriageway_half_m + 0.8),
+                             np.full(sp.shape, -(carriageway_half_m + 0.8))])
+    c, R = _level_boxes_on_road(road, s_post, w_post)
+    n = s_post.shape[0]
+    size = np.tile([0.12, 0.12, 1.0], (n, 1))
+    posts = box_polygons(c, R, size, np.tile([0.92, 0.92, 0.92], (n, 1)), int(Material.POST),
+                         s_post - 0.06, s_post + 0.06, Layer.OBJECT)
+    # objects
+    count = int((s1 - s0) / object_spacing_m * 2)
+    s_obj = rng.uniform(s0, s1, count)
+    side = np.where(rng.random(count) < 0.5, -1.0, 1.0)
+    lo, hi = carriageway_half_m + 1.6, corridor_half_m - 0.8
+    size = np.stack([rng.uniform(0.4, 2.5, count), rng.uniform(0.4, 1.5, count),
+                     rng.uniform(0.4, 2.8, count)], axis=1)
+    w_obj = side * np.clip(rng.uniform(lo, hi, count), lo + 0.5 * size[:, 1],
+                           hi - 0.5 * size[:, 1])
+    c, R = _level_boxes_on_road(road, s_obj, w_obj)
+    colour = OBJECT_COLOURS[rng.integers(0, len(OBJECT_COLOURS), count)] * rng.uniform(
+        0.8, 1.2, (count, 1))
+    objects = box_polygons(c, R, size, np.clip(colour, 0, 1), int(Material.OBJECT),
+                           s_obj - 0.5 * size[:, 0], s_obj + 0.5 * size[:, 0], Layer.OBJECT)
+    return Polygons.concat([posts, objects])
+
+
+def static_world(road: Road, corridor_half_m: float, carriageway_half_m: float,
+                 structure_height_m: tuple[float, float],
+                 structure_segment_m: tuple[float, float], post_spacing_m: float,
+                 object_spacing_m: float, seed: int) -> Polygons:
+    """All static polygons of the world, in painter order (far to near, ground first)."""
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x5EED])
+    polys = Polygons.concat([
+        ground_polygons(road, corridor_half_m),
+        structure_polygons(road, corridor_half_m, structure_height_m, structure_segment_m, rng),
+        roadside_polygons(road, carriageway_half_m, corridor_half_m, post_spacing_m,
+                          object_spacing_m, rng),
+    ])
+    order = np.lexsort((polys.layer, -polys.key))
+    return polys.select(order)
