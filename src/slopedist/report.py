@@ -488,7 +488,7 @@ def table1(data: ReportData) -> Table:
         notes.append("overall: pooled over all targets of "
                      + compact_names(data.sequences) + ".")
     return Table("table1_rmse", "Table 1: RMSE (m) per sequence and method",
-                 ["sequence", "n", *data.methods], rows, bold, " ".join(notes), {1: "d"})
+                 ["sequence", "n", *data.methods], rows, bold, "\n".join(notes), {1: "d"})
 
 
 EXT_KEYS = (("n", "n", None), ("rmse", "RMSE", False), ("mae", "MAE", False),
@@ -629,7 +629,7 @@ def format_markdown(table: Table) -> str:
     lines += ["| " + " | ".join(md(i, j) for j in range(len(table.headers))) + " |"
               for i in range(len(table.rows))]
     if table.note:
-        lines += ["", table.note]
+        lines += ["", *(f"{n}  " for n in table.note.splitlines())]
     return "\n".join(lines)
 
 
@@ -642,7 +642,8 @@ def format_html(table: Table) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in table.headers)
     body = "\n".join("<tr>" + "".join(td(i, j) for j in range(len(table.headers))) + "</tr>"
                      for i in range(len(table.rows)))
-    note = f'<p class="note">{html.escape(table.note)}</p>' if table.note else ""
+    note = ('<p class="note">' + "<br>".join(html.escape(n) for n in table.note.splitlines())
+            + "</p>") if table.note else ""
     return (f'<section id="{table.key}"><h2>{html.escape(table.title)}</h2>\n'
             f'<table><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>{note}'
             f"</section>")
