@@ -41,6 +41,8 @@ def eval_group() -> None:
               help="Ground-truth boxes or PointRCNN detections.")
 @click.option("--score", type=float, default=None,
               help="Keep detections with score >= SCORE (PointRCNN boxes).")
+@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Depth maps of the depthmap method: DIR/<sequence>/<frame>.png|.npy.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the full report as JSON here.")
 @height_option
@@ -50,8 +52,8 @@ def eval_group() -> None:
 @thresholds_option
 def kitti_tracking(
     data_dir: Path, sequences: str | None, methods: str, rotation: str, boxes: str,
-    score: float | None, json_out: Path | None, height_m: float, mount_angle_deg: float,
-    lookback_s: float, alphas: str, thresholds: str,
+    score: float | None, depth_dir: Path | None, json_out: Path | None, height_m: float,
+    mount_angle_deg: float, lookback_s: float, alphas: str, thresholds: str,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
@@ -60,6 +62,7 @@ def kitti_tracking(
         boxes=BoxSource(boxes), min_score=score, height_m=height_m,
         mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
         method_options={m: paper_options(alphas, thresholds) for m in ("paper", "imu")},
+        depth_dir=depth_dir,
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
