@@ -1,0 +1,214 @@
+"""The streaming run from frames to records: outputs, per-frame states, crashes keep records,
+overlay, and the ``slopedist run`` command."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from slopedist.camera import Camera
+from slopedist.cli import main, run_cmd
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.writers import write_box_csv
+from slopedist.errors import DataMismatchError, InputFileError
+from slopedist.estimators import make_estimator
+from slopedist.io.frames import open_frames
+from slopedist.odometry.base import OdometryResult, OdometryState
+from slopedist.runner import RunAbortedError, run_frames
+
+W, H = 320, 200
+CAM = Camera(500.0, 160.0, 100.0, height_m=1.5)
+PITCH_RATE = 0.01  # rad per second of camera pitch: θ over a 1 s look-back = 0.01 rad
+
+
+def rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+class ScriptedOdometry:
+    """Test double of the odometry protocol: pitch ``PITCH_RATE·t``; not initialised on the first
+    frame; optionally fails at one frame."""
+
+    def __init__(self, fail_at: float | None = None, error: Exception | None = None) -> None:
+        self.calls: list[tuple[float, np.ndarray | None]] = []
+        self.fail_at = fail_at
+        self.error = error or RuntimeError("boom")
+
+    def process(self, image_gray: np.ndarray, timestamp_s: float,
+                mask_boxes: np.ndarray | None = None) -> OdometryResult:
+        assert image_gray.ndim == 2 and image_gray.dtype == np.uint8
+        if self.fail_at is not None and timestamp_s >= self.fail_at:
+            raise self.error
+        self.calls.append((timestamp_s, mask_boxes))
+        if len(self.calls) == 1:
+            return OdometryResult(None, OdometryState.NOT_INITIALISED, 0)
+        return OdometryResult(rot_x(PITCH_RATE * timestamp_s), OdometryState.OK, 123)
+
+    def reset(self) -> None:
+        self.calls.clear()
+
+
+def make_frames(root: Path, n: int, skip: tuple[int, ...] = ()) -> Path:
+    root.mkdir(parents=True, exist_ok=True)
+    for k in range(n):
+        if k not in skip:
+            cv2.imwrite(str(root / f"{k:06d}.png"), np.full((H, W, 3), 40 + k, np.uint8))
+    return root
+
+
+def boxes_every_frame(n: int) -> BoxTable:
+    frames = np.repeat(np.arange(n), 2)
+    boxes = np.tile([[100.0, 110.0, 150.0, 150.0], [200.0, 105.0, 230.0, 125.0]], (n, 1))
+    return BoxTable.build(frames, boxes, np.tile([0, 1], n))
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_records_and_frame_log_match_hand_computed_distances(tmp_path: Path) -> None:
+    n = 15
+    odo = ScriptedOdometry()
+    result = run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
+                        odo, make_estimator("ego", CAM), tmp_path / "out", progress=False)
+    assert result.frames == n and result.records == 2 * n and result.estimated == 2 * (n - 1)
+    assert result.odometry_states == {"not_initialised": 1, "ok": n - 1}
+    # the frame's boxes are masked out of the odometry's features
+    assert odo.calls[0][1] is not None and odo.calls[0][1].shape == (2, 4)
+    frames = read_csv(tmp_path / "out" / "frames.csv")
+    assert [r["frame"] for r in frames] == [str(k) for k in range(n)]
+    assert frames[0]["odometry_state"] == "not_initialised" and frames[0]["theta_deg"] == ""
+    assert frames[1]["inliers"] == "123" and float(frames[1]["odometry_ms"]) >= 0
+    # frame 12 (t = 1.2 s) looks back to frame 2 (t = 0.2 s): θ = 0.01 rad
+    assert float(frames[12]["theta_deg"]) == pytest.approx(math.degrees(PITCH_RATE), rel=1e-4)
+    rows = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "12"]
+    v = CAM.c_y - CAM.f * math.tan(PITCH_RATE)
+    assert float(rows[0]["distance_m"]) == pytest.approx(CAM.f * CAM.height_m / (150 - v),
+                                                         rel=1e-5)
+    first = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "0"]
+    assert [r["reason"] for r in first] == ["no_rotation", "no_rotation"]
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["frames"] == n and summary["error"] is None
+
+
+def test_missing_frame_is_logged_and_the_run_goes_on(tmp_path: Path) -> None:
+    n = 8
+    result = run_frames(open_frames(make_frames(tmp_path / "f", n, skip=(4,))), CAM,
+                        boxes_every_frame(n), ScriptedOdometry(), make_estimator("paper", CAM),
+                        tmp_path / "out", progress=False)
+    assert result.frames == n and result.frame_status == {"ok": n - 1, "missing": 1}
+    frames = read_csv(tmp_path / "out" / "frames.csv")
+    assert frames[4]["frame_status"] == "missing" and frames[4]["odometry_state"] == ""
+    assert frames[5]["odometry_state"] == "ok"
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert {r["reason"] for r in rows if r["frame"] == "4"} == {"no_rotation"}
+    assert {r["status"] for r in rows if r["frame"] == "5"} == {"ok"}
+
+
+def test_crash_halfway_keeps_the_records_written_before(tmp_path: Path) -> None:
+    n = 10
+    with pytest.raises(RuntimeError, match="boom"):
+        run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
+                   ScriptedOdometry(fail_at=0.55), make_estimator("ego", CAM), tmp_path / "out",
+                   progress=False)
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert sorted({int(r["frame"]) for r in rows}) == [0, 1, 2, 3, 4, 5]
+    assert len(read_csv(tmp_path / "out" / "frames.csv")) == 6
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["failed_frame"] == 6 and "boom" in summary["error"]
+
+
+def test_user_error_halfway_names_the_frame_and_the_kept_records(tmp_path: Path) -> None:
+    n = 6
+    err = InputFileError("x.png", "bad pixels")
+    with pytest.raises(RunAbortedError, match=r"frame 3 \(000003\.png\).*records of the 3 frames"):
+        run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
+                   ScriptedOdometry(fail_at=0.25, error=err), make_estimator("ego", CAM),
+                   tmp_path / "out", progress=False)
+    assert len(read_csv(tmp_path / "out" / "records.csv")) == 6
+
+
+def test_calibration_mismatch_fails_before_writing(tmp_path: Path) -> None:
+    far = Camera(500.0, 700.0, 100.0)
+    with pytest.raises(DataMismatchError, match=r"c_x = 700\.0 px lies outside"):
+        run_frames(open_frames(make_frames(tmp_path / "f", 3)), far, boxes_every_frame(3),
+                   ScriptedOdometry(), make_estimator("ego", far), tmp_path / "out",
+                   progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("target", ["overlay", "overlay.mp4"])
+def test_overlay_png_folder_and_mp4(tmp_path: Path, target: str) -> None:
+    n = 6
+    run_frames(open_frames(make_frames(tmp_path / "f", n, skip=(2,))), CAM, boxes_every_frame(n),
+               ScriptedOdometry(), make_estimator("ego", CAM), tmp_path / "out",
+               overlay=tmp_path / "out" / target, progress=False)
+    if target == "overlay":
+        pngs = sorted((tmp_path / "out" / "overlay").glob("*.png"))
+        assert [p.name for p in pngs] == [f"{k:06d}.png" for k in (0, 1, 3, 4, 5)]
+        image = cv2.imread(str(pngs[-1]))
+        v = round(CAM.c_y - CAM.f * math.tan(PITCH_RATE * 0.5))  # frame 5 looks back to 0
+        assert (image[v] == (0, 255, 0)).all(axis=-1).all()
+    else:
+        cap = cv2.VideoCapture(str(tmp_path / "out" / target))
+        assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == n  # placeholder for the missing frame
+        cap.release()
+
+
+def _cli_setup(tmp_path: Path, n: int = 5) -> tuple[Path, Path, Path]:
+    frames = make_frames(tmp_path / "f", n)
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 500 0 160 0 0 500 100 0 0 0 1 0\n")
+    boxes = write_box_csv(boxes_every_frame(n), tmp_path / "boxes.csv")
+    return frames, calib, boxes
+
+
+def test_cli_run_writes_outputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    frames, calib, boxes = _cli_setup(tmp_path)
+    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    out = tmp_path / "out"
+    code = main(["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--method",
+                 "paper", "--out", str(out), "--quiet", "--overlay", "--overlay-format", "png"])
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "wrote 10 records" in err and "frames/s" in err
+    assert len(read_csv(out / "records.csv")) == 10
+    assert len(list((out / "overlay").glob("*.png"))) == 5
+
+
+def test_cli_bad_inputs_exit_2_with_a_message(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    frames, calib, boxes = _cli_setup(tmp_path)
+    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    video = tmp_path / "clip.mp4"
+    video.write_text("garbage")
+    base = ["--calib", str(calib), "--boxes", str(boxes), "--out", str(tmp_path / "o"), "--quiet"]
+    assert main(["run", str(video), *base]) == 2
+    assert "cannot be opened as a video" in capsys.readouterr().err
+    ts = tmp_path / "t.txt"
+    ts.write_text("0\n0.1\n0.1\n0.3\n0.4\n")
+    assert main(["run", str(frames), *base, "--timestamps", str(ts)]) == 2
+    assert "line 3" in capsys.readouterr().err
+    wide = tmp_path / "wide.txt"
+    wide.write_text("P2: 500 0 600 0 0 500 100 0 0 0 1 0\n")
+    assert main(["run", str(frames), "--calib", str(wide), *base[2:]]) == 2
+    assert "principal point" in capsys.readouterr().err
+    assert main(["run", str(frames), *base, "--method", "imu"]) == 2
+    assert "defined on 'oxts' rotations" in capsys.readouterr().err
+    assert main(["run", str(frames), *base, "--method", "depthmap"]) == 2
+    assert "needs depth maps" in capsys.readouterr().err
+
+
+def test_default_method_is_ours_once_registered() -> None:
+    from slopedist.estimators import available_methods
+
+    assert run_cmd.default_method() == ("ours" if "ours" in available_methods() else "paper")

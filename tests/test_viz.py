@@ -1,0 +1,71 @@
+"""Fig. 3 overlay: the green vanishing line at the row of eq. 5, boxes, labels, dashed centres."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from slopedist import viz
+from slopedist.camera import Camera
+from slopedist.detections.boxes import BoxTable
+from slopedist.estimators import make_estimator
+from slopedist.estimators.base import FrameInput
+
+CAM = Camera(500.0, 160.0, 100.0)
+GREEN = np.array(viz.FIG3_GREEN)
+YELLOW = np.array(viz.FIG3_YELLOW)
+
+
+def _frame(boxes: list[list[float]], theta: float) -> tuple[BoxTable, object]:
+    table = BoxTable.build(np.zeros(len(boxes), int), np.asarray(boxes, float).reshape(-1, 4))
+    est = make_estimator("ego", CAM).estimate(FrameInput(0, 0.0, theta, table))
+    return table, est
+
+
+def _is(colour: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    return np.all(pixels == colour, axis=-1)
+
+
+def test_green_line_at_the_vanishing_row_across_the_full_width() -> None:
+    theta = 0.02  # v = 100 − 500·tan(0.02) = 89.9987 → row 90
+    image = np.full((200, 320, 3), 90, np.uint8)
+    boxes, est = _frame([[100, 80, 180, 140]], theta)
+    out = viz.draw_fig3_overlay(image, CAM, boxes, est, theta)
+    assert _is(GREEN, out[90]).all()
+    assert not _is(GREEN, out[80]).any() and not _is(GREEN, out[100]).any()
+    assert (image == 90).all(), "input image must not be modified"
+
+
+def test_theta_taken_from_the_estimates_when_not_given() -> None:
+    theta = -0.04  # v = 100 + 500·tan(0.04) = 120.01 → row 120
+    boxes, est = _frame([[100, 130, 180, 170]], theta)
+    out = viz.draw_fig3_overlay(np.zeros((200, 320), np.uint8), CAM, boxes, est)
+    assert out.shape == (200, 320, 3)
+    assert _is(GREEN, out[120]).all()
+
+
+def test_dashed_yellow_line_at_the_box_centre_and_box_drawn() -> None:
+    boxes, est = _frame([[100, 120, 160, 160]], 0.0)  # b_y = 140
+    out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, 0.0)
+    row = _is(YELLOW, out[140])
+    assert 0.4 < row[60:200].mean() < 0.9, "dashed: partly yellow around the box"
+    assert not row[250:].any(), "the dashes stop half a box width beside the box"
+    assert _is(np.array(viz.FIG3_BOX), out[120:161, 100]).mean() > 0.9  # left edge of the box
+    # text beside the box (right of it): white pixels there
+    assert _is(np.array(viz.FIG3_TEXT), out[120:160, 165:260]).any()
+
+
+def test_missing_target_in_red_and_no_line_without_rotation() -> None:
+    boxes, est = _frame([[100, 120, 160, 160]], math.nan)
+    assert est.reason[0] == "no_rotation"
+    out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, math.nan)
+    assert not _is(GREEN, out).any()
+    red = _is(np.array(viz.FIG3_MISSING), out)
+    assert red[120:161, 100].mean() > 0.9 and red[100:170, 165:].any()
+
+
+def test_line_outside_the_image_is_not_drawn() -> None:
+    boxes, est = _frame([], 0.5)  # v = 100 − 500·tan(0.5) < 0
+    out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, 0.5)
+    assert not _is(GREEN, out).any()
