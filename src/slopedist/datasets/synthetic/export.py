@@ -1,0 +1,211 @@
+"""Writing a synthetic sequence in the layouts the other commands read (``slopedist simulate``).
+
+Layout of the output folder (every file written as the frames are rendered)::
+
+    scenario.toml      the scenario's TOML (copy it to make your own)
+    calib.txt          KITTI calib, one line ``P2: f 0 c_x 0 0 f c_y 0 0 0 1 0``
+                       (read by Camera.from_kitti_calib; the camera height is in info.json)
+    info.json          camera height (m), mount angle (deg), frame rate, image size, counts
+    poses.txt          KITTI poses: 12 numbers per line, 3×4 camera-to-world [R | t]
+                       relative to the first frame (camera x right, y down, z forward)
+    times.txt          timestamp of each frame, seconds (KITTI odometry layout)
+    boxes.csv          noisy detector boxes, slopedist box CSV with track ids
+    boxes_exact.csv    exact boxes of every target in view (+ z, truncation, visible_share)
+    truth.csv          per frame and target: distances, boxes, gradients (see TRUTH_FIELDS)
+    frames.csv         per frame: ego position, gradient, pitch, true θ of eq. 4
+    image_02/NNNNNN.png    the rendered frames (BGR PNG)
+    depth/NNNNNN.png       true depth, KITTI depth PNG (uint16, metres × 256, 0 = sky or
+                           beyond 255.99 m), or depth/NNNNNN.npy (float32 metres, inf = sky)
+
+Convention: distances in metres, angles in degrees in the files (radians inside), grades in
+percent, timestamps in seconds, boxes ``(left, top, right, bottom)`` pixels.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Callable
+from enum import Enum
+from pathlib import Path
+from typing import IO, Any
+
+import cv2
+import numpy as np
+
+from slopedist.datasets.synthetic.scene import Scenario, SceneTruth
+from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
+from slopedist.depth.files import write_kitti_depth_png
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.readers import CSV_BOX_COLUMNS
+from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.geometry import ego_road_gradient
+from slopedist.odometry.base import lookback_indices
+
+TRUTH_FIELDS = (
+    "frame", "timestamp_s", "track_id", "class", "in_view", "detected", "z_m", "z_centre_m",
+    "z_rear_m", "x_m", "y_m", "distance_m", "left", "top", "right", "bottom", "truncation",
+    "visible_share", "target_grade_pct", "target_pitch_deg", "ego_grade_pct", "ego_pitch_deg",
+)
+"""Columns of ``truth.csv``. ``z_m`` is KITTI's label z: camera z of the 3D box's bottom
+centre (the distance scored); ``z_centre_m`` the camera z of the box centre; ``z_rear_m`` that
+of the middle of the rear bottom edge (the contact point eq. 1 sees); ``distance_m`` the
+Euclidean distance to the bottom centre; the box is the exact one (projection of the 8
+corners, clipped to the image)."""
+
+FRAME_FIELDS = ("frame", "timestamp_s", "ego_s_m", "ego_grade_pct", "ego_pitch_deg",
+                "camera_pitch_deg", "theta_true_deg")
+"""Columns of ``frames.csv``; ``theta_true_deg`` is eq. 4 on the true rotations (1 s look-back)."""
+
+
+class DepthFormat(str, Enum):
+    """How ``slopedist simulate`` stores the true depth maps."""
+
+    PNG = "png"
+    NPY = "npy"
+    NONE = "none"
+
+
+def _fmt(value: Any) -> Any:
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return "" if not math.isfinite(value) else f"{float(value):.6g}"
+    return value
+
+
+class CsvStream:
+    """A CSV file written row by row (flushed after every frame)."""
+
+    def __init__(self, path: Path, fields: tuple[str, ...] | list[str]) -> None:
+        self.path = path
+        self._fh: IO[str] = path.open("w", newline="")
+        self._writer = csv.writer(self._fh)
+        self._writer.writerow(fields)
+
+    def rows(self, rows: list[list[Any]]) -> None:
+        self._writer.writerows([[_fmt(v) for v in r] for r in rows])
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def box_rows(boxes: BoxTable, extra: tuple[str, ...] = ()) -> list[list[Any]]:
+    """Rows of the slopedist box CSV (``CSV_BOX_COLUMNS`` then ``extra`` columns)."""
+    return [[int(boxes.frame[i]), *boxes.boxes[i], int(boxes.track_id[i]), boxes.score[i],
+             boxes.cls[i], *(boxes.extra[k][i] for k in extra)] for i in range(len(boxes))]
+
+
+def kitti_calib_line(scenario: Scenario) -> str:
+    """The ``P2:`` line of the scenario's camera."""
+    c = scenario.camera
+    P = [c.f, 0.0, c.c_x, 0.0, 0.0, c.f, c.c_y, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return "P2: " + " ".join(f"{v:.12e}" for v in P)
+
+
+def true_theta(truth: SceneTruth, mount_angle_rad: float) -> np.ndarray:
+    """θ of eq. 4 (radians) from the true camera rotations, 1 s look-back."""
+    R = truth.poses_cam0()[:, :, :3]
+    ref = lookback_indices(truth.timestamps_s)
+    return np.asarray(ego_road_gradient(R[ref], R, mount_angle_rad))
+
+
+def truth_rows(seq: SyntheticSequence, frame: SyntheticFrame) -> list[list[Any]]:
+    """Rows of ``truth.csv`` for one frame (every target, in view or not)."""
+    tr, k = seq.truth, frame.index
+    detected = set(frame.detections.track_id.tolist())
+    rows = []
+    for m, spec in enumerate(seq.scenario.targets):
+        rows.append([
+            k, frame.timestamp_s, spec.track_id, spec.cls, bool(tr.in_view[k, m]),
+            spec.track_id in detected, tr.z_m[k, m], tr.z_centre_m[k, m], tr.z_rear_m[k, m],
+            tr.x_m[k, m], tr.y_m[k, m], tr.distance_m[k, m], *tr.box[k, m],
+            tr.truncation[k, m], frame.visible_share[m], 100.0 * tr.target_grade[k, m],
+            math.degrees(tr.target_pitch_rad[k, m]), 100.0 * tr.ego_grade[k],
+            math.degrees(tr.ego_pitch_rad[k]),
+        ])
+    return rows
+
+
+def write_simulation(
+    seq: SyntheticSequence,
+    out_dir: str | Path,
+    scenario_text: str,
+    *,
+    depth: DepthFormat = DepthFormat.PNG,
+    images: bool = True,
+    max_frames: int | None = None,
+    on_frame: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
+    """Render ``seq`` and write it to ``out_dir`` (see the module docstring); returns info.json."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sc = seq.scenario
+    n = len(seq) if max_frames is None else min(len(seq), max_frames)
+    if n < 1:
+        raise ConfigurationError("nothing to simulate: the frame limit must be ≥ 1")
+    (out / "scenario.toml").write_text(scenario_text, encoding="utf-8")
+    (out / "calib.txt").write_text(kitti_calib_line(sc) + "\n")
+    poses = seq.truth.poses_cam0()[:n]
+    np.savetxt(out / "poses.txt", poses.reshape(n, 12), fmt="%.9e")
+    np.savetxt(out / "times.txt", seq.truth.timestamps_s[:n], fmt="%.6f")
+    img_dir, depth_dir = out / "image_02", out / "depth"
+    if images:
+        img_dir.mkdir(exist_ok=True)
+    if depth is not DepthFormat.NONE:
+        depth_dir.mkdir(exist_ok=True)
+    theta = true_theta(seq.truth, sc.camera.rig.mount_angle_rad)
+    tr = seq.truth
+    streams = {
+        "boxes": CsvStream(out / "boxes.csv", CSV_BOX_COLUMNS),
+        "exact": CsvStream(out / "boxes_exact.csv",
+                           (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share")),
+        "truth": CsvStream(out / "truth.csv", TRUTH_FIELDS),
+        "frames": CsvStream(out / "frames.csv", FRAME_FIELDS),
+    }
+    n_det = 0
+    try:
+        for k in range(n):
+            f = seq.frame(k)
+            if images:
+                path = img_dir / f"{k:06d}.png"
+                if not cv2.imwrite(str(path), f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+                    raise InputFileError(path, "could not be written as PNG")
+            if depth is DepthFormat.PNG:
+                write_kitti_depth_png(depth_dir / f"{k:06d}.png", f.depth_m)
+            elif depth is DepthFormat.NPY:
+                np.save(depth_dir / f"{k:06d}.npy", f.depth_m)
+            streams["boxes"].rows(box_rows(f.detections))
+            streams["exact"].rows(box_rows(f.exact, ("z", "truncation", "visible_share")))
+            streams["truth"].rows(truth_rows(seq, f))
+            streams["frames"].rows([[k, f.timestamp_s, tr.ego_s[k], 100.0 * tr.ego_grade[k],
+                                     math.degrees(tr.ego_pitch_rad[k]),
+                                     math.degrees(tr.camera_pitch_rad[k]),
+                                     math.degrees(theta[k])]])
+            n_det += len(f.detections)
+            if on_frame is not None:
+                on_frame(k)
+    finally:
+        for s in streams.values():
+            s.close()
+    info = {
+        "scenario": sc.name,
+        "source": sc.source,
+        "frames": n,
+        "frame_rate_hz": sc.frame_rate_hz,
+        "image_width": sc.camera.image_width,
+        "image_height": sc.camera.image_height,
+        "camera_height_m": sc.camera.rig.height_m,
+        "mount_angle_deg": math.degrees(sc.camera.rig.mount_angle_rad),
+        "targets": [t.track_id for t in sc.targets],
+        "detections": n_det,
+        "distance_scored": "z_m of truth.csv: camera z of the 3D box's bottom centre (KITTI z)",
+        "depth": depth.value,
+        "images": images,
+    }
+    (out / "info.json").write_text(json.dumps(info, indent=2) + "\n")
+    return info
