@@ -16,6 +16,7 @@ from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
 from slopedist.cli.report_cmd import report
 from slopedist.cli.run_cmd import run
+from slopedist.cli.simulate_cmd import simulate
 from slopedist.errors import SlopedistError
 
 
@@ -29,6 +30,7 @@ cli.add_command(eval_group)
 cli.add_command(estimate)
 cli.add_command(report)
 cli.add_command(run)
+cli.add_command(simulate)
 
 
 def main(argv: list[str] | None = None) -> int:
