@@ -1,0 +1,135 @@
+"""Distances from pixels against LiDAR ground truth on ../shared/data/kitti_raw_lead.
+
+What it does, as a new user would with ``slopedist run``:
+
+1. LiDAR ground truth: vehicle boxes and their distances from the Velodyne scans
+   (:func:`slopedist.datasets.kitti_raw.lidar_vehicle_boxes`; distance = longitudinal z of the
+   cluster's nearest face), written to ``OUT/lidar_boxes.csv`` (slopedist box CSV + ``z``).
+2. For each method (flat, ego, paper, and ours when registered): the streaming run of
+   ``slopedist run FRAMES --calib calib.txt --boxes OUT/lidar_boxes.csv --method M`` with the
+   built-in visual odometry, written to ``OUT/<method>/``.
+3. RMSE of each method against the LiDAR z over the boxes that are scored: not cut by the image
+   border (a box whose bottom is cut has no ground-contact row; the ground under a car closer
+   than about 5.9 m is below this camera's image) and z ≤ ``--max-z``; also for the lead car (the
+   nearest cluster in the ego lane in frame 0) alone.
+
+Usage::
+
+    python benchmarks/kitti_raw_lead.py [--data ../shared/data/kitti_raw_lead]
+        [--out bench_out/kitti_raw_lead] [--odometry builtin|orbslam3] [--vocab ORBvoc.txt]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from slopedist.cli.run_cmd import build_odometry
+from slopedist.datasets.kitti_raw import KittiRawDrive
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.writers import write_box_csv
+from slopedist.estimators import available_methods, make_estimator
+from slopedist.io.frames import open_frames
+from slopedist.runner import RECORDS_NAME, run_frames
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
+IMAGE_SIZE = (1242, 375)
+METHODS = ("flat", "ego", "paper", "ours")
+
+
+def lead_track(boxes: BoxTable) -> int:
+    """Track id of the nearest cluster within 1 m of the camera's axis in the first frame."""
+    first = boxes.select((boxes.frame == boxes.frame.min()) & (np.abs(boxes.extra["x"]) < 1.0))
+    return int(first.track_id[int(np.argmin(first.extra["z"]))])
+
+
+def read_estimates(path: Path) -> dict[tuple[int, int], float]:
+    """``{(frame, track_id): distance_m}`` of a records CSV (NaN when missing)."""
+    out = {}
+    with path.open(newline="") as fh:
+        for row in csv.DictReader(fh):
+            d = row["distance_m"]
+            out[(int(row["frame"]), int(row["track_id"]))] = float(d) if d else math.nan
+    return out
+
+
+def rmse(errors: list[float]) -> float:
+    return float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "kitti_raw_lead")
+    parser.add_argument("--odometry", default="builtin", choices=("builtin", "orbslam3"))
+    parser.add_argument("--vocab", type=Path, default=None)
+    parser.add_argument("--max-z", type=float, default=40.0,
+                        help="score boxes with LiDAR z up to this, metres")
+    args = parser.parse_args(argv)
+    if not args.data.is_dir():
+        print(f"kitti_raw_lead data not found at {args.data}", file=sys.stderr)
+        return 2
+
+    drive = KittiRawDrive.open(args.data)
+    t0 = time.perf_counter()
+    truth = drive.lidar_boxes(IMAGE_SIZE)
+    lidar_s = time.perf_counter() - t0
+    boxes_csv = write_box_csv(truth, args.out / "lidar_boxes.csv",
+                              ("z", "z_median", "x", "n_points", "truncated"))
+    lead = lead_track(truth)
+    scored = (truth.extra["truncated"] == 0) & (truth.extra["z"] <= args.max_z)
+    key = list(zip(truth.frame.tolist(), truth.track_id.tolist()))
+    z = truth.extra["z"]
+    print(f"LiDAR boxes: {len(truth)} in {len(drive.frames())} frames ({lidar_s:.1f} s), "
+          f"{int(scored.sum())} scored (not cut by the image border, z <= {args.max_z:g} m); "
+          f"lead car track {lead}: {int(np.sum(scored & (truth.track_id == lead)))} scored "
+          f"frames, z {z[truth.track_id == lead].max():.2f} → "
+          f"{z[truth.track_id == lead].min():.2f} m")
+    print(f"boxes written to {boxes_csv}")
+
+    camera = drive.calib.camera()
+    methods = [m for m in METHODS if m in available_methods()]
+    rows = []
+    for method in methods:
+        out = args.out / method
+        result = run_frames(
+            open_frames(drive.image_dir), camera, truth,
+            build_odometry(args.odometry, camera, args.vocab), make_estimator(method, camera),
+            out, progress=False)
+        est = read_estimates(out / RECORDS_NAME)
+        all_err, lead_err, missing = [], [], 0
+        for i, k in enumerate(key):
+            if not scored[i]:
+                continue
+            d = est.get(k, math.nan)
+            if not math.isfinite(d):
+                missing += 1
+                continue
+            all_err.append(d - z[i])
+            if truth.track_id[i] == lead:
+                lead_err.append(d - z[i])
+        rows.append((method, rmse(all_err), len(all_err), float(np.mean(all_err)),
+                     rmse(lead_err), len(lead_err), missing, result.odometry_ms_mean,
+                     result.frames_per_s))
+        print(f"  ran {method}: {result.records} records, odometry "
+              f"{result.odometry_states} → {out}", file=sys.stderr)
+
+    print()
+    print(f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels:")
+    print(f"{'method':8s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
+          f"{'lead n':>7s} {'missing':>8s} {'VO ms':>7s} {'frames/s':>9s}")
+    for m, r, n, b, lr, ln, miss, vo_ms, fps in rows:
+        print(f"{m:8s} {r:8.2f} {n:5d} {b:+8.2f} {lr:10.2f} {ln:7d} {miss:8d} {vo_ms:7.1f} "
+              f"{fps:9.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
