@@ -237,3 +237,21 @@ def test_depthmap_needs_a_depth_folder_and_unknown_tracks(tmp_path: Path) -> Non
                                                                  methods=("flat",))))
     with pytest.raises(ConfigurationError, match="track 999 of sequence 0000"):
         write_report(data, tmp_path / "o", tracks=[("0000", 999)], parquet=False)
+
+
+def test_runs_of_different_methods_on_one_sequence_are_grouped(tmp_path: Path) -> None:
+    frames = [{"frame": 0, "estimation_ms": 1.0}]
+    for method, d in (("paper", 10.0), ("flat", 12.0)):
+        rec = _record(0, d, 11.0)
+        rec["method"] = method
+        write_run(tmp_path / f"run_{method}", [rec], frames)
+        (tmp_path / f"run_{method}" / "run.json").write_text('{"sequence": "lead"}')
+    data = report_data(tmp_path, ReportOptions())
+    assert data.sequences == ["lead"] and data.methods == ["flat", "paper"]
+    assert data.summaries["lead"]["flat"]["rmse"] == pytest.approx(1.0)
+    assert data.common is None
+    rec = _record(0, 9.0, 11.0)
+    write_run(tmp_path / "again", [rec], frames)
+    (tmp_path / "again" / "run.json").write_text('{"sequence": "lead"}')
+    with pytest.raises(ConfigurationError, match="method paper appears twice for sequence lead"):
+        report_data(tmp_path, ReportOptions())

@@ -8,7 +8,8 @@ Sources:
   overall); the ``imu`` rows are fed OXTS rotations and are missing where a sequence has none;
   ``depthmap`` runs when a depth folder is given;
 - a ``slopedist run`` output folder (``records.csv`` + ``frames.csv``), or a folder of such
-  folders (one per sequence): the records are read back; they are scored when they carry a
+  folders (one per sequence and method; the sequence is ``run.json``'s ``"sequence"``, else the
+  folder name): the records are read back; they are scored when they carry a
   ground-truth column (:data:`TRUTH_COLUMNS`), and ``frames.csv``'s per-frame times give Table 2.
   A synthetic-suite output written in the same layout (records with ground truth) is read the
   same way.
@@ -295,6 +296,20 @@ def _read_csv(path: Path, required: Sequence[str]) -> tuple[list[str], list[dict
         return header, list(reader)
 
 
+def run_sequence_name(folder: Path) -> str:
+    """Sequence a run folder belongs to: ``run.json``'s ``"sequence"`` when present, else the
+    folder name (runs of different methods on one sequence share the name there)."""
+    summary = folder / "run.json"
+    if summary.is_file():
+        try:
+            value = json.loads(summary.read_text()).get("sequence")
+        except (json.JSONDecodeError, AttributeError):
+            raise InputFileError(summary, "not a JSON object") from None
+        if value:
+            return str(value)
+    return folder.name
+
+
 def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
     """Read one ``slopedist run`` output folder, or a folder of them (one per sequence)."""
     root = Path(root)
@@ -308,8 +323,9 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
     theta_truth = False
     names: list[str] = []
     for folder in folders:
-        seq = folder.name
-        names.append(seq)
+        seq = run_sequence_name(folder)
+        if seq not in names:
+            names.append(seq)
         path = folder / "records.csv"
         header, rows = _read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
         truth_col = next((c for c in TRUTH_COLUMNS if c in header), None)
@@ -332,8 +348,12 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
                         method=method, rotation="", distance_m=d, gt_distance_m=g,
                         scored=False, reason=reason,
                         theta_deg=_float(row.get("theta_deg", ""), path, lineno, "theta_deg"))
-        sets[seq] = {}
+        sets.setdefault(seq, {})
         for method, vals in by_method.items():
+            if method in sets[seq]:
+                raise ConfigurationError(
+                    f"method {method} appears twice for sequence {seq} (another run folder "
+                    f"besides {folder} has it): give one run per method and sequence")
             dist = np.array([v[0] for v in vals])
             gt = np.array([v[1] for v in vals])
             capped, ok = cap_estimates(dist, np.array([v[2] for v in vals], dtype=object))
