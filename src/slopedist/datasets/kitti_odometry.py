@@ -1,0 +1,147 @@
+"""KITTI-odometry-style sequence folders: grey frames, ground-truth poses, calibration.
+
+Layout of one sequence folder::
+
+    image_l/000000.png ...   grey frames of the left camera (cam 0), in name order
+    poses.txt                ground truth, one row-major 3×4 camera-to-world [R | t] per line
+    calib.txt                first line P0 (12 numbers, with or without a ``P0:`` name)
+    times.txt                optional: one timestamp in seconds per frame
+
+Without ``times.txt`` frame k has timestamp ``k × 0.1 s`` (KITTI records at 10 Hz).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.camera import Camera
+from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.odometry.base import RotationTrack
+from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
+
+
+@dataclass(frozen=True)
+class KittiOdometrySequence:
+    """One KITTI-odometry-style sequence.
+
+    Attributes:
+        root: the sequence folder.
+        camera: intrinsics of ``P0``, with the image size of the first frame.
+        image_paths: frame files in time order.
+        timestamps_s: ``(N,)`` seconds, increasing.
+        ground_truth: camera-to-world rotations relative to the first frame, or None when the
+            folder has no ``poses.txt``.
+    """
+
+    root: Path
+    camera: Camera
+    image_paths: tuple[Path, ...]
+    timestamps_s: NDArray[np.float64]
+    ground_truth: RotationTrack | None
+
+    def __len__(self) -> int:
+        return len(self.image_paths)
+
+    def frames(self) -> Iterator[tuple[int, float, NDArray[np.uint8]]]:
+        """Yield ``(index, timestamp_s, grey image)`` in time order, decoding one at a time."""
+        for k, path in enumerate(self.image_paths):
+            yield k, float(self.timestamps_s[k]), read_gray_image(path)
+
+
+def read_gray_image(path: str | Path) -> NDArray[np.uint8]:
+    """Decode an image file as 8-bit grey ``(H, W)``.
+
+    Raises:
+        MissingInputError: the file does not exist.
+        InputFileError: it cannot be decoded as an image.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"image not found: {path}")
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InputFileError(path, "cannot be decoded as an image")
+    return np.asarray(image, dtype=np.uint8)
+
+
+def _read_times(path: Path, n: int) -> NDArray[np.float64]:
+    values: list[float] = []
+    with path.open() as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            line = raw.strip()
+            if not line:
+                continue
+            try:
+                value = float(line)
+            except ValueError:
+                raise InputFileError(path, f"'{line}' is not a number", line=lineno,
+                                     field="time") from None
+            if not np.isfinite(value):
+                raise InputFileError(path, "non-finite time", line=lineno, field="time")
+            if values and value <= values[-1]:
+                raise InputFileError(path, f"time {value} s does not follow {values[-1]} s",
+                                     line=lineno, field="time")
+            values.append(value)
+    if len(values) < n:
+        raise DataMismatchError(f"{path} has {len(values)} timestamps for {n} frames")
+    return np.asarray(values[:n])
+
+
+def read_kitti_odometry(
+    root: str | Path, frame_period_s: float = KITTI_FRAME_PERIOD_S, require_poses: bool = True
+) -> KittiOdometrySequence:
+    """Open a KITTI-odometry-style sequence folder (see the module docstring for the layout).
+
+    Frames are listed, not decoded; the first frame is decoded to learn the image size.
+
+    Raises:
+        MissingInputError: the folder, ``image_l/``, its frames, ``calib.txt`` or (when
+            ``require_poses``) ``poses.txt`` is missing.
+        InputFileError: a malformed line in ``calib.txt``, ``poses.txt`` or ``times.txt``.
+        DataMismatchError: fewer poses or timestamps than frames, or a principal point outside
+            the frames.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise MissingInputError(f"sequence folder not found: {root}")
+    image_dir = root / "image_l"
+    if not image_dir.is_dir():
+        raise MissingInputError(f"no image_l/ folder in {root} (expected grey frames there)")
+    paths = tuple(sorted(p for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
+    if not paths:
+        raise MissingInputError(f"no image files (.png, .jpg, ...) in {image_dir}")
+    calib_path = root / "calib.txt"
+    camera = Camera.from_kitti_calib(calib_path, key="P0")
+    first = read_gray_image(paths[0])
+    height, width = first.shape
+    if not (0 < camera.c_x < width and 0 < camera.c_y < height):
+        raise DataMismatchError(
+            f"{calib_path}: principal point ({camera.c_x:.1f}, {camera.c_y:.1f}) px lies outside "
+            f"the {width}×{height} frames of {image_dir}: calibration and frames do not match"
+        )
+    camera = camera.with_image_size(width, height)
+    times_path = root / "times.txt"
+    if times_path.is_file():
+        timestamps = _read_times(times_path, len(paths))
+    else:
+        timestamps = np.arange(len(paths), dtype=np.float64) * frame_period_s
+    poses_path = root / "poses.txt"
+    ground_truth: RotationTrack | None = None
+    if poses_path.is_file():
+        track = read_kitti_poses(poses_path)
+        if len(track) < len(paths):
+            raise DataMismatchError(
+                f"{poses_path} has {len(track)} poses for {len(paths)} frames in {image_dir}"
+            )
+        ground_truth = RotationTrack.from_arrays(timestamps, track.R_world_cam[: len(paths)])
+    elif require_poses:
+        raise MissingInputError(f"ground-truth poses not found: {poses_path}")
+    return KittiOdometrySequence(root, camera, paths, timestamps, ground_truth)
