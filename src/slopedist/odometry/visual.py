@@ -273,7 +273,7 @@ class BuiltinVisualOdometry:
         self._add_features(image, boxes)
         if len(self._ids) < self.config.min_inliers:
             state = OdometryState.NOT_INITIALISED if self._last_R is None else OdometryState.LOST
-            return OdometryResult(None, state, 0)
+            return OdometryResult(None, state, 0, self._segment)
         if self._last_R is None:
             R = np.eye(3)
         else:  # restart after a loss: continue from the last known rotation
@@ -284,7 +284,7 @@ class BuiltinVisualOdometry:
         self._omega = np.zeros(3)
         self._moving = False
         self._commit(image, t, R)
-        return OdometryResult(R.copy(), OdometryState.OK, 0)
+        return OdometryResult(R.copy(), OdometryState.OK, 0, self._segment)
 
     # ------------------------------------------------------------------ tracking
     def _track(self, image: NDArray[np.uint8], t: float, boxes: FloatArray) -> OdometryResult:
@@ -293,7 +293,7 @@ class BuiltinVisualOdometry:
         c = self.config
         assert self._prev_image is not None
         if len(self._pts) == 0:
-            return OdometryResult(None, OdometryState.LOST, 0)
+            return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         p0 = self._pts.reshape(-1, 1, 2)
         if self._moving:
             guess = (self._pts + self._vel * dt).astype(np.float32).reshape(-1, 1, 2)
@@ -320,7 +320,7 @@ class BuiltinVisualOdometry:
 
         estimate = self._estimate(ids, pts, t)
         if estimate is None:
-            return OdometryResult(None, OdometryState.LOST, 0)
+            return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         R_world_cam, fit, fit_ids, ref = estimate
         cov = _rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
         good = ~np.isin(ids, fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True)
@@ -349,7 +349,8 @@ class BuiltinVisualOdometry:
         self._ids, self._pts, self._vel = ids, pts.astype(np.float32), vel.astype(np.float32)
         self._add_features(image, boxes)
         self._commit(image, t, R_world_cam)
-        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers)
+        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers,
+                              self._segment)
 
     def _lookback_position(self, t: float) -> int:
         """Index in the history of the look-back frame of time ``t`` (0 without enough history)."""

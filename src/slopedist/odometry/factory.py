@@ -1,0 +1,55 @@
+"""Rotation sources from pixels by name: ``make_odometry("builtin", camera, **options)``.
+
+Backends register a factory in :data:`ODOMETRY_BACKENDS`; heavy or optional ones import their
+dependencies inside the factory, so listing the names costs nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import fields
+from typing import Any
+
+from slopedist.camera import Camera
+from slopedist.errors import ConfigurationError
+from slopedist.odometry.base import RotationOdometry
+
+OdometryFactory = Callable[..., RotationOdometry]
+
+
+def _builtin(camera: Camera, **options: Any) -> RotationOdometry:
+    """The built-in OpenCV visual odometry; options are fields of ``VisualOdometryConfig``."""
+    from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
+
+    known = {f.name for f in fields(VisualOdometryConfig)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise ConfigurationError(
+            f"unknown option(s) {', '.join(unknown)} of the builtin visual odometry; "
+            f"known: {', '.join(sorted(known))}"
+        )
+    return BuiltinVisualOdometry(camera, VisualOdometryConfig(**options))
+
+
+ODOMETRY_BACKENDS: dict[str, OdometryFactory] = {"builtin": _builtin}
+"""Name → factory ``(camera, **options) → RotationOdometry``."""
+
+
+def available_odometry() -> list[str]:
+    """Names accepted by :func:`make_odometry`."""
+    return list(ODOMETRY_BACKENDS)
+
+
+def make_odometry(name: str, camera: Camera, **options: Any) -> RotationOdometry:
+    """Create the visual-odometry backend ``name`` for ``camera``.
+
+    Raises:
+        ConfigurationError: unknown backend name or option.
+        OptionalDependencyError: the backend needs an optional package that is not installed.
+    """
+    factory = ODOMETRY_BACKENDS.get(name)
+    if factory is None:
+        raise ConfigurationError(
+            f"unknown odometry backend '{name}'; choose from {', '.join(ODOMETRY_BACKENDS)}"
+        )
+    return factory(camera, **options)
