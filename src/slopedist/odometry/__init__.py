@@ -7,6 +7,7 @@ from slopedist.odometry.base import (
     RotationTrack,
     lookback_indices,
 )
+from slopedist.odometry.factory import available_odometry, make_odometry
 from slopedist.odometry.posefiles import (
     read_kitti_poses,
     read_oxts_rotations,
@@ -19,7 +20,9 @@ __all__ = [
     "OdometryState",
     "RotationOdometry",
     "RotationTrack",
+    "available_odometry",
     "lookback_indices",
+    "make_odometry",
     "read_kitti_poses",
     "read_oxts_rotations",
     "read_pose_file",
