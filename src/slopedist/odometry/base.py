@@ -100,11 +100,16 @@ class OdometryResult:
             when the state is not ``OK``.
         state: :class:`OdometryState`.
         inliers: number of inlier correspondences behind the estimate (0 if none).
+        segment: counts the restarts of the backend after it was lost for good (0 until the
+            first). Rotations of different segments are not related: a consumer should not
+            look back across a change of segment (the new segment starts from the last known
+            rotation, i.e. assumes no rotation during the gap).
     """
 
     R_world_cam: NDArray[np.float64] | None
     state: OdometryState
     inliers: int = 0
+    segment: int = 0
 
 
 class RotationOdometry(Protocol):
