@@ -14,6 +14,7 @@ import click
 from slopedist import __version__
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
+from slopedist.cli.odometry_cmd import odometry_group
 from slopedist.cli.report_cmd import report
 from slopedist.cli.run_cmd import run
 from slopedist.cli.simulate_cmd import simulate
@@ -28,6 +29,7 @@ def cli() -> None:
 
 cli.add_command(eval_group)
 cli.add_command(estimate)
+cli.add_command(odometry_group)
 cli.add_command(report)
 cli.add_command(run)
 cli.add_command(simulate)
