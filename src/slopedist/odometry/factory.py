@@ -31,7 +31,24 @@ def _builtin(camera: Camera, **options: Any) -> RotationOdometry:
     return BuiltinVisualOdometry(camera, VisualOdometryConfig(**options))
 
 
-ODOMETRY_BACKENDS: dict[str, OdometryFactory] = {"builtin": _builtin}
+def _orbslam3(camera: Camera, **options: Any) -> RotationOdometry:
+    """Monocular ORB-SLAM3 (optional extra ``orbslam3``); options are the keyword arguments of
+    ``OrbSlam3Odometry`` (``vocabulary``, ``fps``, ``n_features``, ``realtime``)."""
+    import inspect
+
+    from slopedist.odometry.orbslam3 import OrbSlam3Odometry
+
+    known = set(inspect.signature(OrbSlam3Odometry).parameters) - {"camera"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise ConfigurationError(
+            f"unknown option(s) {', '.join(unknown)} of the orbslam3 backend; "
+            f"known: {', '.join(sorted(known))}"
+        )
+    return OrbSlam3Odometry(camera, **options)
+
+
+ODOMETRY_BACKENDS: dict[str, OdometryFactory] = {"builtin": _builtin, "orbslam3": _orbslam3}
 """Name → factory ``(camera, **options) → RotationOdometry``."""
 
 
