@@ -10,9 +10,9 @@ Outputs under the output folder:
 
 - ``records.csv``: one row per target (the columns of ``slopedist estimate``,
   :data:`~slopedist.pipeline.RECORD_FIELDS`).
-- ``frames.csv``: one row per frame (:data:`FRAME_FIELDS`): frame status, odometry state and
-  inliers, ego gradient θ (degrees), number of boxes and of estimated distances, odometry and
-  estimation time (ms).
+- ``frames.csv``: one row per frame (:data:`FRAME_FIELDS`): frame status, odometry state,
+  inliers and segment (restarts of the odometry; θ never looks back across one), ego gradient
+  θ (degrees), number of boxes and of estimated distances, odometry and estimation time (ms).
 - ``run.json``: a summary, also written when the run stops on an error.
 - optionally an overlay (PNG folder or MP4, :func:`slopedist.viz.draw_fig3_overlay`).
 
@@ -50,7 +50,7 @@ SUMMARY_NAME = "run.json"
 
 FRAME_FIELDS = (
     "frame", "timestamp_s", "source", "frame_status", "detail", "odometry_state", "inliers",
-    "theta_deg", "boxes", "estimated", "odometry_ms", "estimation_ms",
+    "segment", "theta_deg", "boxes", "estimated", "odometry_ms", "estimation_ms",
 )
 """Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels;
 ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation."""
@@ -195,6 +195,7 @@ def run_frames(
                dynamic_ncols=True, desc="slopedist run")
     start = time.perf_counter()
     frame: Frame | None = None
+    last_segment = 0
     try:
         for frame in frames:
             k = frame.index
@@ -213,6 +214,11 @@ def run_frames(
                 R = res.R_world_cam
                 odo_state, inliers = res.state.value, int(res.inliers)
                 odo_count[odo_state] += 1
+                segment = getattr(res, "segment", 0)
+                if segment != last_segment:  # the backend restarted: no look-back across
+                    gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
+                    stream.gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
+                    last_segment = segment
             theta = gradient.update(frame.timestamp_s, R)
             t0 = time.perf_counter()
             est = stream.update(k, frame.timestamp_s, R, frame_boxes, frame.image)
@@ -227,7 +233,7 @@ def run_frames(
             log.write({
                 "frame": k, "timestamp_s": frame.timestamp_s, "source": frame.source,
                 "frame_status": frame.status.value, "detail": frame.detail,
-                "odometry_state": odo_state, "inliers": inliers,
+                "odometry_state": odo_state, "inliers": inliers, "segment": last_segment,
                 "theta_deg": math.degrees(theta), "boxes": len(frame_boxes),
                 "estimated": n_est, "odometry_ms": t_odo, "estimation_ms": t_est,
             })

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
 import click
 
@@ -22,6 +21,7 @@ from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import Estimator, available_methods, make_estimator
 from slopedist.io.frames import open_frames
+from slopedist.odometry import make_odometry
 from slopedist.odometry.base import RotationOdometry
 from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunResult, run_frames
 
@@ -35,28 +35,11 @@ def default_method() -> str:
 
 def build_odometry(name: str, camera: Camera, vocab: Path | None = None) -> RotationOdometry:
     """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``."""
-    options: dict[str, Any] = {}
     if name == "orbslam3":
-        options["vocabulary"] = vocab
-    elif vocab is not None:
+        return make_odometry(name, camera, vocabulary=vocab)
+    if vocab is not None:
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    try:
-        from slopedist.odometry import make_odometry
-    except ImportError:
-        make_odometry = None
-    if make_odometry is not None:
-        return make_odometry(name, camera, **options)
-    if name == "orbslam3":
-        from slopedist.odometry.orbslam3 import OrbSlam3Odometry
-
-        return OrbSlam3Odometry(camera, **options)
-    try:
-        from slopedist.odometry.visual import BuiltinVisualOdometry
-    except ImportError:
-        raise ConfigurationError(
-            "the built-in visual odometry is not part of this build"
-        ) from None
-    return BuiltinVisualOdometry(camera)
+    return make_odometry(name, camera)
 
 
 def check_runnable(estimator: Estimator) -> None:
