@@ -90,6 +90,19 @@ def cauchy_weights(r: FloatArray, scale: float) -> FloatArray:
     return 1.0 / (1.0 + (r / scale) ** 2)
 
 
+def tukey_weights(r: FloatArray, cutoff: float) -> FloatArray:
+    """IRLS weights of Tukey's biweight: ``(1 − (r/c)²)²`` inside ``|r| < c``, zero outside."""
+    u = np.clip(1.0 - (r / cutoff) ** 2, 0.0, None)
+    return u * u
+
+
+TUKEY_SCALES = 3.0
+"""Cut-off of the final Tukey polish, in units of the inlier threshold."""
+
+TUKEY_ITERATIONS = 3
+"""Maximum number of Tukey steps after the Cauchy iterations converged."""
+
+
 @dataclass(frozen=True)
 class TwoViewFit:
     """Result of a two-view fit.
@@ -202,9 +215,13 @@ def sampson_residuals(R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArr
 
 
 def _sampson_system(
-    R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArray, scale: float
+    R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArray, scale: float,
+    redescending: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Residuals ``r = e/√D``, Cauchy weights, Jacobian ``(N, 5)`` and the tangent basis of t.
+    """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t.
+
+    Weights are Cauchy's, or with ``redescending`` Tukey's biweight (zero beyond
+    ``TUKEY_SCALES × scale``).
 
     Gauss–Newton with D held fixed within a step (Sampson reweighting):
     ``∂e/∂ω = x₁ × Rᵀ(x₂ × t)`` for ``R ← R·exp(ω)``, ``∂e/∂t = R x₁ × x₂`` along the basis.
@@ -217,7 +234,8 @@ def _sampson_system(
     J[:, :3] = cross3(x1, m @ R)
     J[:, 3:] = cross3(a, x2) @ B
     J *= inv_sqrt_D[:, None]
-    return r, cauchy_weights(r, scale), J, B
+    w = tukey_weights(r, TUKEY_SCALES * scale) if redescending else cauchy_weights(r, scale)
+    return r, w, J, B
 
 
 def _tangent_basis(t: FloatArray) -> FloatArray:
@@ -299,18 +317,21 @@ def fit_relative_pose(
         t = translation_given_rotation(R, x1, x2, w)
     else:
         t = np.asarray(t_init, dtype=float) / np.linalg.norm(t_init)
-    for _ in range(iterations):
-        r, w, J, B = _sampson_system(R, t, x1, x2, scale)
+    redescending = False
+    for k in range(iterations + TUKEY_ITERATIONS):
+        r, w, J, B = _sampson_system(R, t, x1, x2, scale, redescending)
         Jw = J * w[:, None]
         A = Jw.T @ J + 1e-12 * np.eye(5)
         delta = -np.linalg.solve(A, Jw.T @ r)
         R = R @ so3_exp(delta[:3])
         t = t + B @ delta[3:]
         t /= np.linalg.norm(t)
-        if np.max(np.abs(delta)) < tolerance_rad:
+        if not redescending and (np.max(np.abs(delta)) < tolerance_rad or k >= iterations - 1):
+            redescending = True  # converged: polish with a loss that ignores gross outliers
+        elif redescending and np.max(np.abs(delta)) < tolerance_rad:
             break
     R = project_to_rotation(R)
-    r, w, J, _ = _sampson_system(R, t, x1, x2, scale)
+    r, w, J, _ = _sampson_system(R, t, x1, x2, scale, True)
     A = (J * w[:, None]).T @ J
     schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
     sigma2 = np.sum(w * r**2) / max(np.sum(w) - 5.0, 1.0)

@@ -1,0 +1,311 @@
+"""Built-in visual odometry on rendered point scenes with known motion, and on real KITTI frames.
+
+The synthetic scenes are random 3D points drawn as Gaussian blobs into grey images through known
+camera poses (forward motion, turns, pitch, a standing car, a vehicle moving with the camera).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from slopedist import geometry as geo
+from slopedist.camera import Camera
+from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.odometry import twoview as tv
+from slopedist.odometry.base import OdometryResult, OdometryState, lookback_indices
+from slopedist.odometry.factory import make_odometry
+from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
+
+Points = tuple[NDArray[np.float64], NDArray[np.float64]]
+W, H, F = 640, 240, 400.0
+CAMERA = Camera(F, W / 2 - 0.5, H / 2 - 0.5).with_image_size(W, H)
+DT = 0.1
+
+
+# ---------------------------------------------------------------------------- scene rendering
+def scene_points(n: int = 1500, seed: int = 0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Random world points (x right, y down, z forward; metres) and blob brightness."""
+    rng = np.random.default_rng(seed)
+    X = np.c_[rng.uniform(-60, 60, n), rng.uniform(-12, 1.6, n), rng.uniform(15, 220, n)]
+    return X, rng.uniform(90, 200, n)
+
+
+def render_blobs(
+    uv: NDArray[np.float64], brightness: NDArray[np.float64], sigma: float = 1.5,
+    background: float = 40.0, image: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """Add Gaussian blobs at pixel positions ``uv`` ``(N, 2)`` to a float image."""
+    img = np.full((H, W), background) if image is None else image
+    r = 4
+    d = np.arange(-r, r + 1)
+    dx, dy = (g.ravel() for g in np.meshgrid(d, d))
+    px = np.rint(uv[:, :1]) + dx
+    py = np.rint(uv[:, 1:]) + dy
+    val = brightness[:, None] * np.exp(
+        -((px - uv[:, :1]) ** 2 + (py - uv[:, 1:]) ** 2) / (2 * sigma**2)
+    )
+    ok = (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    np.add.at(img, (py[ok].astype(int), px[ok].astype(int)), val[ok])
+    return img
+
+
+def render(
+    X: NDArray[np.float64], brightness: NDArray[np.float64], R_world_cam: NDArray[np.float64],
+    centre: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Float image of the world points seen by a camera at ``centre`` with ``R_world_cam``."""
+    Xc = (X - centre) @ R_world_cam
+    front = Xc[:, 2] > 1.0
+    uv = F * Xc[front, :2] / Xc[front, 2:] + [CAMERA.c_x, CAMERA.c_y]
+    inside = np.all((uv > -5) & (uv < [W + 5, H + 5]), axis=1)
+    return render_blobs(uv[inside], brightness[front][inside])
+
+
+def to_uint8(img: NDArray[np.float64]) -> NDArray[np.uint8]:
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def trajectory(
+    n: int, speed: float = 10.0, yaw_rate_deg: float = 0.0, pitch_rate_deg: float = 0.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Camera-to-world rotations ``(n, 3, 3)`` and centres ``(n, 3)`` of a car driving forward
+    at ``speed`` m/s and turning/pitching at constant rates (degrees per second)."""
+    w = np.radians([pitch_rate_deg, yaw_rate_deg, 0.0]) * DT
+    Rs, cs = [np.eye(3)], [np.zeros(3)]
+    for _ in range(n - 1):
+        cs.append(cs[-1] + Rs[-1] @ np.array([0.0, 0.0, speed * DT]))
+        Rs.append(Rs[-1] @ tv.so3_exp(w))
+    return np.array(Rs), np.array(cs)
+
+
+def run(
+    vo: BuiltinVisualOdometry, images: Sequence[NDArray[np.uint8]], times: Sequence[float],
+    boxes: NDArray[np.float64] | None = None,
+) -> list[OdometryResult]:
+    return [vo.process(img, t, boxes) for img, t in zip(images, times)]
+
+
+def lookback_errors_deg(
+    results: list[OdometryResult], R_true: NDArray[np.float64], times: Sequence[float]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Relative-rotation and θ errors (degrees) over the one-second look-back, frames ≥ 1."""
+    L = lookback_indices(np.asarray(times))
+    rel, theta = [], []
+    for k in range(1, len(results)):
+        Ra, Rb = results[L[k]].R_world_cam, results[k].R_world_cam
+        assert Ra is not None and Rb is not None
+        rel.append(geo.rotation_angle_rad((Ra.T @ Rb).T @ (R_true[L[k]].T @ R_true[k])))
+        theta.append(geo.ego_road_gradient(Ra, Rb) - geo.ego_road_gradient(R_true[L[k]], R_true[k]))
+    return np.degrees(rel), np.degrees(theta)
+
+
+@pytest.fixture(scope="module")
+def points() -> Points:
+    return scene_points()
+
+
+# ---------------------------------------------------------------------------- accuracy
+@pytest.mark.parametrize(
+    ("motion", "median_deg", "max_deg"),
+    [
+        ({"pitch_rate_deg": 2.0}, 0.05, 0.12),  # straight, the road steepening
+        ({"yaw_rate_deg": 20.0, "pitch_rate_deg": 1.0}, 0.08, 0.25),  # a sharp turn
+    ],
+)
+def test_rotation_over_one_second(
+    points: Points, motion: dict[str, float],
+    median_deg: float, max_deg: float,
+) -> None:
+    R, c = trajectory(25, **motion)
+    images = [to_uint8(render(*points, R[k], c[k])) for k in range(len(R))]
+    times = [k * DT for k in range(len(R))]
+    results = run(BuiltinVisualOdometry(CAMERA), images, times)
+    assert all(r.state is OdometryState.OK for r in results)
+    assert all(r.inliers >= 20 for r in results[1:])
+    rel, theta = lookback_errors_deg(results, R, times)
+    # f = 400 px: 0.05° is a third of a pixel over the second
+    assert np.median(rel) < median_deg
+    assert np.max(rel) < max_deg
+    assert np.sqrt(np.mean(theta**2)) < 0.05
+
+
+def test_standing_car_uses_the_rotation_only_model(
+    points: Points,
+) -> None:
+    R, c = trajectory(15, speed=0.0, yaw_rate_deg=5.0, pitch_rate_deg=-1.0)
+    images = [to_uint8(render(*points, R[k], c[k])) for k in range(len(R))]
+    times = [k * DT for k in range(len(R))]
+    vo = BuiltinVisualOdometry(CAMERA)
+    results = run(vo, images, times)
+    assert all(r.state is OdometryState.OK for r in results)
+    assert vo.last_fit is not None and vo.last_fit.model == "rotation"
+    rel, _ = lookback_errors_deg(results, R, times)
+    assert np.max(rel) < 0.02
+
+
+def test_completely_static_camera_stays_at_identity(
+    points: Points,
+) -> None:
+    image = to_uint8(render(*points, np.eye(3), np.zeros(3)))
+    results = run(BuiltinVisualOdometry(CAMERA), [image] * 12, [k * DT for k in range(12)])
+    assert all(r.state is OdometryState.OK for r in results)
+    assert results[-1].R_world_cam is not None
+    assert np.degrees(geo.rotation_angle_rad(results[-1].R_world_cam)) < 0.01
+
+
+def test_dropped_frame(points: Points) -> None:
+    R, c = trajectory(25, yaw_rate_deg=8.0, pitch_rate_deg=1.5)
+    keep = [k for k in range(len(R)) if k != 13]  # frame 13 never arrives: a 0.2 s gap
+    images = [to_uint8(render(*points, R[k], c[k])) for k in keep]
+    times = [k * DT for k in keep]
+    results = run(BuiltinVisualOdometry(CAMERA), images, times)
+    assert all(r.state is OdometryState.OK for r in results)
+    rel, _ = lookback_errors_deg(results, R[keep], times)
+    assert np.max(rel) < 0.15
+
+
+def test_masked_vehicle_is_ignored(points: Points) -> None:
+    # a textured vehicle ahead that keeps its place in the image (it drives with the camera)
+    rng = np.random.default_rng(5)
+    box = np.array([[180.0, 60.0, 460.0, 220.0]])
+    car_uv = np.c_[rng.uniform(190, 450, 250), rng.uniform(70, 210, 250)]
+    car_brightness = rng.uniform(120, 220, 250)
+    R, c = trajectory(25, yaw_rate_deg=6.0, pitch_rate_deg=1.0)
+    images = []
+    for k in range(len(R)):
+        img = render(*points, R[k], c[k])
+        img[60:221, 180:461] = 60.0  # the car hides the scene behind it
+        images.append(to_uint8(render_blobs(car_uv, car_brightness, image=img)))
+    times = [k * DT for k in range(len(R))]
+    vo = BuiltinVisualOdometry(CAMERA)
+    results = run(vo, images, times, boxes=box)
+    assert all(r.state is OdometryState.OK for r in results)
+    pts = vo._pts  # tracks alive now: none inside the masked box
+    inside = (pts[:, 0] >= 180) & (pts[:, 0] <= 460) & (pts[:, 1] >= 60) & (pts[:, 1] <= 220)
+    assert not inside.any()
+    rel, _ = lookback_errors_deg(results, R, times)
+    assert np.median(rel) < 0.06
+
+
+# ---------------------------------------------------------------------------- states
+def test_lost_on_blank_frames_then_recovers(
+    points: Points,
+) -> None:
+    R, c = trajectory(30, yaw_rate_deg=5.0)
+    images = [to_uint8(render(*points, R[k], c[k])) for k in range(len(R))]
+    blank = np.full((H, W), 40, dtype=np.uint8)
+    vo = BuiltinVisualOdometry(CAMERA)
+    assert vo.process(blank, 0.0).state is OdometryState.NOT_INITIALISED
+    states = []
+    for k in range(1, 30):
+        image = blank if k in (8, 9) or 15 <= k <= 22 else images[k]
+        result = vo.process(image, k * DT)
+        states.append((k, result.state, result.segment))
+        if result.state is not OdometryState.OK:
+            assert result.R_world_cam is None
+    by_frame = {k: (s, seg) for k, s, seg in states}
+    assert by_frame[1] == (OdometryState.OK, 0)  # the first textured frame is the origin
+    assert by_frame[8][0] is OdometryState.LOST and by_frame[9][0] is OdometryState.LOST
+    assert by_frame[10] == (OdometryState.OK, 0)  # bridged from frame 7: same segment
+    assert all(by_frame[k][0] is OdometryState.LOST for k in range(15, 23))
+    assert by_frame[23] == (OdometryState.OK, 1)  # too long without a good frame: new segment
+    assert by_frame[29] == (OdometryState.OK, 1)
+
+
+def test_bridged_rotation_is_accurate(points: Points) -> None:
+    R, c = trajectory(22, yaw_rate_deg=6.0, pitch_rate_deg=1.5)
+    blank = np.full((H, W), 40, dtype=np.uint8)
+    vo = BuiltinVisualOdometry(CAMERA)
+    results = [vo.process(blank if k in (12, 13) else to_uint8(render(*points, R[k], c[k])),
+                          k * DT) for k in range(len(R))]
+    assert results[21].R_world_cam is not None and results[11].R_world_cam is not None
+    rel = results[11].R_world_cam.T @ results[21].R_world_cam
+    assert np.degrees(geo.rotation_angle_rad(rel.T @ (R[11].T @ R[21]))) < 0.15
+
+
+# ---------------------------------------------------------------------------- bad input
+def test_timestamps_must_increase() -> None:
+    vo = BuiltinVisualOdometry(CAMERA)
+    image = np.full((H, W), 40, dtype=np.uint8)
+    vo.process(image, 1.0)
+    with pytest.raises(DataMismatchError, match="does not follow"):
+        vo.process(image, 0.9)
+    with pytest.raises(DataMismatchError, match="does not follow"):
+        vo.process(image, 1.0)
+    with pytest.raises(DataMismatchError, match="finite"):
+        vo.process(image, float("nan"))
+    vo.reset()
+    vo.process(image, 0.0)  # a new sequence may start again at 0
+
+
+def test_image_size_and_type_are_checked() -> None:
+    vo = BuiltinVisualOdometry(CAMERA)
+    with pytest.raises(DataMismatchError, match="640×240 px of the camera calibration"):
+        vo.process(np.zeros((200, 640), dtype=np.uint8), 0.0)
+    with pytest.raises(DataMismatchError, match="grey H×W uint8"):
+        vo.process(np.zeros((H, W, 3), dtype=np.uint8), 0.0)
+    with pytest.raises(DataMismatchError, match="grey H×W uint8"):
+        vo.process(np.zeros((H, W), dtype=np.float32), 0.0)
+    with pytest.raises(DataMismatchError, match=r"mask_boxes must be \(N, 4\)"):
+        vo.process(np.zeros((H, W), dtype=np.uint8), 0.0, np.zeros((2, 3)))
+
+    unsized = BuiltinVisualOdometry(Camera(F, W / 2, H / 2))
+    unsized.process(np.zeros((H, W), dtype=np.uint8), 0.0)
+    with pytest.raises(DataMismatchError, match="of the first frame"):
+        unsized.process(np.zeros((H + 2, W), dtype=np.uint8), 0.1)
+    far_off = BuiltinVisualOdometry(Camera(F, 900.0, 500.0))
+    with pytest.raises(DataMismatchError, match="calibration and frames do not match"):
+        far_off.process(np.zeros((H, W), dtype=np.uint8), 0.0)
+
+
+def test_configuration_is_checked() -> None:
+    with pytest.raises(ConfigurationError):
+        VisualOdometryConfig(min_inliers=3)
+    with pytest.raises(ConfigurationError):
+        VisualOdometryConfig(lookback_s=0.0)
+    with pytest.raises(ConfigurationError, match="unknown option"):
+        make_odometry("builtin", CAMERA, no_such_option=1)
+    with pytest.raises(ConfigurationError, match="unknown odometry backend"):
+        make_odometry("nope", CAMERA)
+    vo = make_odometry("builtin", CAMERA, max_features=120)
+    assert isinstance(vo, BuiltinVisualOdometry) and vo.config.max_features == 120
+
+
+def test_memory_is_bounded(points: Points) -> None:
+    R, c = trajectory(8, yaw_rate_deg=3.0)
+    images = [to_uint8(render(*points, R[k], c[k])) for k in range(len(R))]
+    images += images[::-1]  # drive back and forth: 16 frames per loop
+    vo = BuiltinVisualOdometry(CAMERA, VisualOdometryConfig(max_features=150))
+    for k in range(64):
+        vo.process(images[k % len(images)], k * DT)
+        assert len(vo._history) <= 12  # one look-back of frames at 10 Hz, plus the current
+        assert len(vo._ids) <= 150
+        assert all(len(rec.ids) <= 150 for rec in vo._history)
+
+
+# ---------------------------------------------------------------------------- real frames
+@pytest.mark.parametrize(
+    ("sequence", "theta_rms_max", "rel_median_max"),
+    [("seq06_000-050", 0.08, 0.15), ("unknown_000-050", 0.12, 0.30)],
+)
+def test_real_kitti_frames(
+    kitti_odometry_dir: Path, sequence: str, theta_rms_max: float, rel_median_max: float
+) -> None:
+    from slopedist.datasets.kitti_odometry import read_kitti_odometry
+    from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
+
+    seq = read_kitti_odometry(kitti_odometry_dir / sequence)
+    assert seq.ground_truth is not None
+    vo = BuiltinVisualOdometry(seq.camera)
+    result = run_odometry(vo, ((t, img) for _, t, img in seq.frames()))
+    figures = OdometryEvaluation.from_run(result, seq.ground_truth)
+    assert figures.frames_ok == len(seq)
+    # measured 0.04° / 0.06° and 0.09° / 0.20°; identity rotations would give 0.3° / 0.4° and
+    # 0.5° / 26° (the sharp turn)
+    assert np.degrees(figures.theta_rms_rad) < theta_rms_max
+    assert np.degrees(figures.rel_rot_median_rad) < rel_median_max
