@@ -1,0 +1,47 @@
+"""``slopedist odometry eval`` on real frames, and user mistakes ending in exit code 2."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from slopedist.cli import main
+
+
+def test_eval_on_real_frames(kitti_odometry_dir: Path, tmp_path: Path,
+                             capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "figures" / "seq06.json"
+    threads = cv2.getNumThreads()
+    code = main(["odometry", "eval", str(kitti_odometry_dir / "seq06_000-050"), "--json",
+                 str(out)])
+    assert code == 0
+    assert cv2.getNumThreads() == threads  # one thread only while timing
+    printed = json.loads(capsys.readouterr().out)
+    written = json.loads(out.read_text())
+    assert printed == written
+    assert {"frames", "theta_rms_deg", "rel_rot_median_deg", "ms_per_frame"} <= set(written)
+    assert written["frames"] == 51 and written["frames_ok"] == 51
+    assert 0.0 < written["theta_rms_deg"] < 0.08
+    assert 0.0 < written["rel_rot_median_deg"] < 0.15
+    assert written["ms_per_frame"] > 0.0
+
+
+def test_eval_missing_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["odometry", "eval", str(tmp_path / "nope")])
+    assert code == 2
+    assert "sequence folder not found" in capsys.readouterr().err
+
+
+def test_eval_fewer_poses_than_frames(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "image_l").mkdir()
+    for k in range(3):
+        cv2.imwrite(str(tmp_path / "image_l" / f"{k:06d}.png"), np.zeros((50, 80), np.uint8))
+    (tmp_path / "calib.txt").write_text("70 0 40 0 0 70 25 0 0 0 1 0\n")
+    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
+    code = main(["odometry", "eval", str(tmp_path)])
+    assert code == 2
+    assert "1 poses for 3 frames" in capsys.readouterr().err
