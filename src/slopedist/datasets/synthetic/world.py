@@ -33,6 +33,10 @@ FloatArray = NDArray[np.float64]
 
 GROUND_STEP_M = 0.5
 """Length of the ground strips along the road, metres."""
+WALL_PIECE_M = 2.0
+"""Longest piece of a roadside wall along the road, metres."""
+WALL_FOOT_M = 0.3
+"""Depth to which the roadside walls reach below the ground (no gap under them), metres."""
 
 
 class Material(IntEnum):
@@ -197,24 +201,38 @@ def structure_polygons(road: Road, half_width_m: float, height_range: tuple[floa
         a, b = e[:-1], e[1:]
         keep = b > a + 0.1
         a, b = a[keep], b[keep]
+        height = rng.uniform(*height_range, a.shape[0])
+        trees = rng.random(a.shape[0]) < 0.35
+        colour_index = rng.integers(0, 1 << 30, a.shape[0])
+        shade = rng.uniform(0.85, 1.15, a.shape[0])
+        # pieces of at most WALL_PIECE_M, so the wall's foot follows the ground through
+        # vertical and horizontal curves (a long chord would leave a gap under it)
+        pieces = np.maximum(np.ceil((b - a) / WALL_PIECE_M), 1).astype(int)
+        seg = np.repeat(np.arange(a.shape[0]), pieces)
+        j = np.arange(seg.shape[0]) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+        step = (b - a) / pieces
+        a, b = a[seg] + j * step[seg], a[seg] + (j + 1) * step[seg]
+        height, trees = height[seg], trees[seg]
+        colour_index, shade = colour_index[seg], shade[seg]
         n = a.shape[0]
         w = np.full(n, side * half_width_m)
         pa, pb = road.point(a, w), road.point(b, w)
-        height = rng.uniform(*height_range, n)
-        trees = rng.random(n) < 0.35
         up = np.array([0.0, 0.0, 1.0])
         top_a, top_b = pa + height[:, None] * up, pb + height[:, None] * up
-        verts = np.stack([pa, pb, top_b, top_a], axis=1)
+        # the foot reaches WALL_FOOT_M below the ground; the ground strips in front, drawn
+        # after the wall (painter key = the piece's far end), cover it
+        foot = WALL_FOOT_M * up
+        verts = np.stack([pa - foot, pb - foot, top_b, top_a], axis=1)
         along = pb - pa
         along /= np.linalg.norm(along, axis=1, keepdims=True)
         normal = -side * road.left(0.5 * (a + b))  # inward: from the wall to the road
-        colour = np.where(trees[:, None], TREE_COLOURS[rng.integers(0, len(TREE_COLOURS), n)],
-                          BUILDING_COLOURS[rng.integers(0, len(BUILDING_COLOURS), n)])
-        colour = colour * rng.uniform(0.85, 1.15, (n, 1))
+        colour = np.where(trees[:, None], TREE_COLOURS[colour_index % len(TREE_COLOURS)],
+                          BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)])
+        colour = colour * shade[:, None]
         parts.append(Polygons(
             verts=verts, normal=normal, origin=pa, axis_u=along,
             axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=road.driven_distance(a),
-            key=a.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
+            key=b.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
             material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
             colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
         ))
