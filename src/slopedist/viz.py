@@ -7,6 +7,9 @@ boxes ``(left, top, right, bottom)`` pixels; θ in radians.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -120,3 +123,127 @@ def draw_fig3_overlay(
         if 0 <= row < h:
             cv2.line(out, (0, row), (w - 1, row), FIG3_GREEN, 2, cv2.LINE_8)
     return out
+
+
+# --- plots over time (synthetic demo) ---------------------------------------------------------
+
+METHOD_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+                  "tab:pink", "tab:olive", "tab:cyan")
+"""Matplotlib colours of the methods, in the order they are given."""
+
+
+@dataclass(frozen=True)
+class DistanceSeries:
+    """One target's distances over the frames of a sequence (metres, NaN = none).
+
+    Attributes:
+        track_id: the target.
+        truth: ``(F,)`` true distance (NaN where the target is not in view).
+        estimates: ``{method: (F,)}`` estimated distance (NaN where missing or not detected).
+        below_horizon: ``{method: (F,) bool}`` frames where the box bottom was at or above the
+            method's vanishing line (eq. 1 undefined).
+    """
+
+    track_id: int
+    truth: NDArray[np.float64]
+    estimates: dict[str, NDArray[np.float64]]
+    below_horizon: dict[str, NDArray[np.bool_]]
+
+
+@dataclass(frozen=True)
+class TargetTheta:
+    """Per-target gradients over the frames (radians) and the eq. 6 offset (pixels).
+
+    Attributes:
+        track_id: the target.
+        needed: θ that would make eq. 1 exact for the target's exact box and true distance.
+        adjusted: θ after the paper's per-target adjustment (eq. 7), NaN where not estimated.
+        delta_y: Δy of eq. 6, pixels.
+    """
+
+    track_id: int
+    needed: NDArray[np.float64]
+    adjusted: NDArray[np.float64]
+    delta_y: NDArray[np.float64]
+
+
+def _figure(rows: int, height_per_row: float) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, height_per_row * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_distance_series(path: str | Path, t_s: NDArray[np.float64],
+                         series: list[DistanceSeries], title: str = "") -> Path:
+    """Distance vs. truth over time, one panel per target; saved as PNG (Agg, no display).
+
+    Frames where a method's box bottom is at or above its vanishing line are marked by a
+    triangle at the top of the panel.
+    """
+    path = Path(path)
+    fig = _figure(max(len(series), 1), 2.6)
+    axes = fig.subplots(max(len(series), 1), 1, squeeze=False)[:, 0]
+    for ax, s in zip(axes, series):
+        ax.plot(t_s, s.truth, color="black", lw=2.0, label="truth")
+        finite = s.truth[np.isfinite(s.truth)]
+        top = float(min(max(2.0 * finite.max(), 20.0), 100.0)) if finite.size else 100.0
+        for i, (name, d) in enumerate(s.estimates.items()):
+            colour = METHOD_COLOURS[i % len(METHOD_COLOURS)]
+            ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
+            miss = s.below_horizon.get(name)
+            if miss is not None and miss.any():
+                ax.plot(t_s[miss], np.full(int(miss.sum()), top * (0.97 - 0.03 * i)), "v",
+                        color=colour, ms=4)
+        ax.set_ylim(0.0, top)
+        ax.set_ylabel(f"target {s.track_id}: z (m)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper left", ncol=4, fontsize=8)
+    axes[-1].set_xlabel("time (s)   (▼ = box bottom at or above the vanishing line)")
+    if title:
+        fig.suptitle(title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def plot_theta_series(path: str | Path, t_s: NDArray[np.float64],
+                      theta_est: NDArray[np.float64], theta_true: NDArray[np.float64],
+                      targets: list[TargetTheta], title: str = "",
+                      thresholds_px: tuple[float, ...] = (0.0, -10.0, -20.0)) -> Path:
+    """θ vs. truth over time (top) and Δy of eq. 6 per target (bottom); saved as PNG.
+
+    Top panel, degrees: θ of eq. 4 from the odometry and from the true rotations, and per
+    target the θ that would make eq. 1 exact and the paper's adjusted θ (eq. 7).
+    """
+    path = Path(path)
+    fig = _figure(2, 3.0)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.plot(t_s, np.degrees(theta_true), color="black", lw=2.0, label="θ, true rotations")
+    ax1.plot(t_s, np.degrees(theta_est), color="tab:blue", lw=1.2, label="θ, odometry")
+    for i, tt in enumerate(targets):
+        colour = METHOD_COLOURS[(i + 2) % len(METHOD_COLOURS)]
+        ax1.plot(t_s, np.degrees(tt.needed), color=colour, ls=":", lw=1.5,
+                 label=f"target {tt.track_id}: θ that makes eq. 1 exact")
+        if np.isfinite(tt.adjusted).any():
+            ax1.plot(t_s, np.degrees(tt.adjusted), color=colour, ls="--", lw=1.0,
+                     label=f"target {tt.track_id}: paper's adjusted θ")
+        ax2.plot(t_s, tt.delta_y, color=colour, lw=1.0, marker=".", ms=3,
+                 label=f"target {tt.track_id}")
+    for th in thresholds_px:
+        ax2.axhline(th, color="grey", lw=0.8, ls="--")
+    ax1.set_ylabel("θ (deg)")
+    ax1.grid(alpha=0.3)
+    ax1.legend(fontsize=7, ncol=2, loc="best")
+    ax2.set_ylabel("Δy = b_y − v (px)")
+    ax2.set_xlabel("time (s)")
+    ax2.grid(alpha=0.3)
+    if targets:
+        ax2.legend(fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    return path
