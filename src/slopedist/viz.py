@@ -46,6 +46,22 @@ def dashed_hline(image: NDArray[np.uint8], row: int, x0: int, x1: int,
         x += dash_px + gap_px
 
 
+def outlined_text(image: NDArray[np.uint8], text: str, org: tuple[int, int], scale: float,
+                  colour: tuple[int, int, int], thickness: int = 1) -> None:
+    """``cv2.putText`` with a dark one-pixel outline, so the text reads on any background.
+
+    The outline is the same text drawn in black at the eight one-pixel offsets (a thicker
+    stroke would advance each glyph further and drift away from the text on long lines).
+    """
+    x, y = org
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx or dy:
+                cv2.putText(image, text, (x + dx, y + dy), _FONT, scale, (0, 0, 0), thickness,
+                            cv2.LINE_AA)
+    cv2.putText(image, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
+
+
 def _label(image: NDArray[np.uint8], lines: list[str], box: NDArray[np.float64],
            colour: tuple[int, int, int]) -> None:
     """Write ``lines`` beside ``box``: right of it, or left of it when there is no room."""
@@ -57,9 +73,7 @@ def _label(image: NDArray[np.uint8], lines: list[str], box: NDArray[np.float64],
     x = right + 4 if right + 4 + width <= image.shape[1] else max(left - 4 - width, 0)
     y = max(top, 0) + line_h
     for text in lines:
-        # dark outline first, so the text reads on bright and dark backgrounds
-        cv2.putText(image, text, (x, y), _FONT, scale, (0, 0, 0), thick + 2, cv2.LINE_AA)
-        cv2.putText(image, text, (x, y), _FONT, scale, colour, thick, cv2.LINE_AA)
+        outlined_text(image, text, (x, y), scale, colour, thick)
         y += line_h
 
 
@@ -115,8 +129,7 @@ def draw_fig3_overlay(
             colour = FIG3_MISSING
         _label(out, lines, box, colour)
     if header:
-        cv2.putText(out, header, (8, 20), _FONT, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
-        cv2.putText(out, header, (8, 20), _FONT, 0.55, FIG3_TEXT, 1, cv2.LINE_AA)
+        outlined_text(out, header, (8, 20), 0.55, FIG3_TEXT)
     if math.isfinite(theta_rad):
         v = float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y))
         row = round(v)
