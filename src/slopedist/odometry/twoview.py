@@ -99,7 +99,7 @@ def tukey_weights(r: FloatArray, cutoff: float) -> FloatArray:
 TUKEY_SCALES = 3.0
 """Cut-off of the final Tukey polish, in units of the inlier threshold."""
 
-TUKEY_ITERATIONS = 3
+TUKEY_ITERATIONS = 2
 """Maximum number of Tukey steps after the Cauchy iterations converged."""
 
 
@@ -286,8 +286,8 @@ def fit_relative_pose(
     R_init: FloatArray,
     t_init: FloatArray | None = None,
     threshold_px: float = 1.0,
-    iterations: int = 10,
-    tolerance_rad: float = 2e-5,
+    iterations: int = 6,
+    tolerance_rad: float = 5e-5,
 ) -> TwoViewFit:
     """Relative pose ``(R, t)`` minimising the Cauchy-weighted Sampson distance (Gauss–Newton).
 

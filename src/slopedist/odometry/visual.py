@@ -294,33 +294,22 @@ class BuiltinVisualOdometry:
         assert self._prev_image is not None
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
-        p0 = self._pts.reshape(-1, 1, 2)
         if self._moving:
-            guess = (self._pts + self._vel * dt).astype(np.float32).reshape(-1, 1, 2)
+            guess = self._pts + self._vel * dt
         else:  # no motion known yet (first step of a segment): global shift of the image
-            guess = (p0 + _global_shift(self._prev_image, image)).astype(np.float32)
-        p1, status, err = cv2.calcOpticalFlowPyrLK(
-            self._prev_image, image, p0, guess,
-            winSize=(c.klt_window_px, c.klt_window_px), maxLevel=c.klt_levels,
-            criteria=self._klt_criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-        )
-        p1 = np.asarray(p1, dtype=np.float32).reshape(-1, 2)
-        assert self._size is not None
-        width, height = self._size
-        margin = 0.5 * c.klt_window_px
-        keep = (
-            (status.ravel() == 1)
-            & (err.ravel() < c.klt_max_error)
-            & (p1[:, 0] >= margin) & (p1[:, 0] < width - margin)
-            & (p1[:, 1] >= margin) & (p1[:, 1] < height - margin)
-            & ~_inside_boxes(p1, boxes)
-        )
-        ids, pts = self._ids[keep], p1[keep]
-        vel = (pts - self._pts[keep]) / dt
-
+            guess = self._pts + _global_shift(self._prev_image, image)
+        keep, pts = self._follow(image, guess, boxes)
+        ids = self._ids[keep]
         estimate = self._estimate(ids, pts, t)
+        if estimate is None and self._moving:
+            # the motion changed suddenly (a jolt, a long gap): retry from the global shift
+            keep, pts = self._follow(image, self._pts + _global_shift(self._prev_image, image),
+                                     boxes)
+            ids = self._ids[keep]
+            estimate = self._estimate(ids, pts, t)
         if estimate is None:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
+        vel = (pts - self._pts[keep]) / dt
         R_world_cam, fit, fit_ids, ref = estimate
         cov = _rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
         good = ~np.isin(ids, fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True)
@@ -351,6 +340,34 @@ class BuiltinVisualOdometry:
         self._commit(image, t, R_world_cam)
         return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers,
                               self._segment)
+
+    def _follow(
+        self, image: NDArray[np.uint8], guess: NDArray[np.floating], boxes: FloatArray
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float32]]:
+        """Track the current points into ``image`` by pyramidal Lucas–Kanade from ``guess``.
+
+        Returns the mask of the points kept (tracked, similar patch, inside the image, outside
+        the masked boxes) and their new positions.
+        """
+        c = self.config
+        assert self._prev_image is not None and self._size is not None
+        p1, status, err = cv2.calcOpticalFlowPyrLK(
+            self._prev_image, image, self._pts.reshape(-1, 1, 2),
+            np.asarray(guess, dtype=np.float32).reshape(-1, 1, 2),
+            winSize=(c.klt_window_px, c.klt_window_px), maxLevel=c.klt_levels,
+            criteria=self._klt_criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        )
+        p1 = np.asarray(p1, dtype=np.float32).reshape(-1, 2)
+        width, height = self._size
+        margin = 0.5 * c.klt_window_px
+        keep = (
+            (status.ravel() == 1)
+            & (err.ravel() < c.klt_max_error)
+            & (p1[:, 0] >= margin) & (p1[:, 0] < width - margin)
+            & (p1[:, 1] >= margin) & (p1[:, 1] < height - margin)
+            & ~_inside_boxes(p1, boxes)
+        )
+        return keep, p1[keep]
 
     def _lookback_position(self, t: float) -> int:
         """Index in the history of the look-back frame of time ``t`` (0 without enough history)."""
