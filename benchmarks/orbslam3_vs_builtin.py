@@ -23,10 +23,12 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -43,6 +45,19 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_odometry"
 WINDOW = 10
 PERIOD_S = 0.1
+
+
+@contextlib.contextmanager
+def c_stdout_to_stderr() -> Iterator[None]:
+    """Send what C++ code prints on standard output (ORB-SLAM3's log) to standard error."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def evaluate(seq: Path, backend: str, vocab: Path | None) -> dict[str, float]:
@@ -112,7 +127,8 @@ def main(argv: list[str] | None = None) -> int:
         for backend in backends:
             for run in range(args.runs if backend == "orbslam3" else 1):
                 try:
-                    r = evaluate(seq, backend, vocab if backend == "orbslam3" else None)
+                    with c_stdout_to_stderr():
+                        r = evaluate(seq, backend, vocab if backend == "orbslam3" else None)
                 except SlopedistError as exc:
                     print(f"{seq.name:18s} {backend:9s} unavailable: {exc}")
                     break
