@@ -50,6 +50,9 @@ from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, OdometryResult, Odom
 
 FloatArray = NDArray[np.float64]
 
+USAC_MAX_ITERATIONS = 300
+"""Iteration cap of OpenCV's USAC essential-matrix search (the fallback of a failed local fit)."""
+
 MAX_WARM_START_DEG = 15.0
 """A previous translation direction warm-starts a fit only within this angle of the chord."""
 
@@ -188,6 +191,7 @@ class BuiltinVisualOdometry:
         self._moving = False  # True once a velocity prediction exists
         self._cov = np.zeros((3, 3))  # covariance of the last rotation w.r.t. its look-back
         self._t_last: dict[str, FloatArray] = {}  # last translation direction per fit kind
+        self._usac_budget = 1  # global searches left for the current frame
         self._last_timestamp: float | None = None
         self._last_R: FloatArray | None = None
         self._segment = 0
@@ -294,6 +298,7 @@ class BuiltinVisualOdometry:
         assert self._prev_image is not None
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
+        self._usac_budget = 1
         if self._moving:
             guess = self._pts + self._vel * dt
         else:  # no motion known yet (first step of a segment): global shift of the image
@@ -437,7 +442,8 @@ class BuiltinVisualOdometry:
         if fit.n_inliers < c.min_inlier_ratio * n:  # poor prediction: start from the rotation
             other = self._refine(x1, x2, rot.R)
             fit = other if other.n_inliers > fit.n_inliers else fit
-        if fit.n_inliers < c.min_inlier_ratio * n:
+        if fit.n_inliers < c.min_inlier_ratio * n and self._usac_budget > 0:
+            self._usac_budget -= 1  # at most one global search per frame (bounded time)
             global_fit = self._fit_usac(uv_ref, uv_cur, x1, x2)
             if global_fit is not None and global_fit.n_inliers > fit.n_inliers:
                 fit = global_fit
@@ -455,7 +461,7 @@ class BuiltinVisualOdometry:
         """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
         c = self.config
         E, mask = cv2.findEssentialMat(uv_ref, uv_cur, self._K, cv2.USAC_DEFAULT, 0.999,
-                                       c.inlier_threshold_px)
+                                       c.inlier_threshold_px, USAC_MAX_ITERATIONS)
         if E is None or E.shape != (3, 3):
             return None
         _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self._K, mask=mask)
