@@ -116,7 +116,7 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
     print(f"\nlong run: {n_frames} frames of {seq.root.name} played forward and backward "
           f"({seq.camera.image_width}×{seq.camera.image_height})")
     print(f"  {'frames':>6s} {'RSS MB':>7s} {'peak MB':>8s} {'history':>8s} {'tracks':>7s} "
-          f"{'ms/frame':>9s}")
+          f"{'ms/frame':>9s} {'CPU ms':>7s}   (times: mean so far)")
     for k, idx in enumerate(order):
         image = frames[idx][1]
         t0, c0 = time.perf_counter(), time.process_time()
@@ -129,7 +129,8 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
         segment[k] = result.segment
         if k + 1 in checkpoints:
             print(f"  {k + 1:6d} {rss_mb():7.1f} {peak_rss_mb():8.1f} {len(vo._history):8d} "
-                  f"{len(vo._ids):7d} {seconds / (k + 1) * 1e3:9.2f}", flush=True)
+                  f"{len(vo._ids):7d} {seconds / (k + 1) * 1e3:9.2f} {cpu / (k + 1) * 1e3:7.2f}",
+                  flush=True)
     truth = RotationTrack.from_arrays(np.arange(n_frames) * 0.1,
                                       seq.ground_truth.R_world_cam[order])
     run = OdometryRun(np.arange(n_frames) * 0.1, rotations, valid, segment, seconds, cpu)
