@@ -1,8 +1,9 @@
 """Detector realism: noise applied to the exact 2D boxes of the synthetic scenes.
 
 Convention: boxes ``(left, top, right, bottom)`` in pixels, origin top-left. Noise is drawn from
-``numpy.random.default_rng([seed, frame])``, so every frame's noise depends only on the seed and
-the frame index (deterministic, whatever the order frames are processed in).
+``numpy.random.default_rng([seed, frame, row])``, so a target's noise depends only on the seed,
+the frame index and its row (deterministic, whatever the order frames are processed in and
+whichever other targets are in view).
 
 Model, per detection: the box is scaled about its centre by ``1 + ε`` with ``ε ~ N(0,
 scale_sigma)`` (one factor for width and height: a detector that misjudges the size), then
@@ -59,6 +60,13 @@ class BoxNoiseSpec:
         return cls(0.0, 0.0, 0.0, True, 0.3, 12.0)
 
 
+def _normal_cdf(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Standard normal CDF (turns a normal draw into a uniform one)."""
+    from scipy.special import ndtr
+
+    return np.asarray(ndtr(x))
+
+
 def detectable(boxes: ArrayLike, visible_share: ArrayLike, spec: BoxNoiseSpec) -> NDArray[np.bool_]:
     """Which exact boxes ``(N, 4)`` a detector could report (visible and tall enough)."""
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
@@ -89,12 +97,13 @@ def noisy_boxes(
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     n = b.shape[0]
-    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame), 0xB0C5])
-    # draw every random number whatever the detections, so noise of one target does not
-    # depend on whether another one is in view
-    eps = rng.normal(0.0, 1.0, n) * spec.scale_sigma
-    jitter = rng.normal(0.0, 1.0, (n, 4)) * spec.jitter_px
-    miss = rng.random(n) < spec.miss_rate
+    # one generator per row (target), drawn whether it is in view or not: the noise of a
+    # target depends only on the seed, the frame and its row
+    draws = np.array([np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame), i, 0xB0C5]
+                                            ).standard_normal(6) for i in range(n)]).reshape(n, 6)
+    eps = draws[:, 0] * spec.scale_sigma
+    jitter = draws[:, 1:5] * spec.jitter_px
+    miss = _normal_cdf(draws[:, 5]) < spec.miss_rate
     found = detectable(b, visible_share, spec) & ~miss
     cx = 0.5 * (b[:, 0] + b[:, 2])
     cy = 0.5 * (b[:, 1] + b[:, 3])

@@ -1,0 +1,86 @@
+"""``slopedist simulate``: the output folder is read back by the other commands."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from slopedist.camera import Camera
+from slopedist.cli import main
+from slopedist.depth.files import read_kitti_depth_png
+from slopedist.detections.readers import read_box_csv
+from slopedist.odometry.posefiles import read_kitti_poses
+
+FRAMES = 4
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("sim") / "run"
+    assert main(["simulate", "ego_crest", "--out", str(out), "--frames", str(FRAMES)]) == 0
+    return out
+
+
+def test_layout_and_readers(sim: Path) -> None:
+    names = {p.name for p in sim.iterdir()}
+    assert {"scenario.toml", "calib.txt", "info.json", "poses.txt", "times.txt", "boxes.csv",
+            "boxes_exact.csv", "truth.csv", "frames.csv", "image_02", "depth"} <= names
+    cam = Camera.from_kitti_calib(sim / "calib.txt")
+    assert (cam.f, cam.c_x, cam.c_y) == pytest.approx((721.5377, 609.5593, 172.854))
+    track = read_kitti_poses(sim / "poses.txt")
+    assert len(track) == FRAMES
+    np.testing.assert_allclose(track.R_world_cam[0], np.eye(3), atol=1e-9)
+    boxes = read_box_csv(sim / "boxes.csv")
+    assert set(boxes.track_id.tolist()) <= {1, 2} and len(boxes) >= FRAMES
+    info = json.loads((sim / "info.json").read_text())
+    assert info["frames"] == FRAMES and info["camera_height_m"] == 1.65
+    assert len(list((sim / "image_02").glob("*.png"))) == FRAMES
+
+
+def test_truth_matches_boxes_and_depth(sim: Path) -> None:
+    rows = list(csv.DictReader((sim / "truth.csv").open()))
+    assert len(rows) == 2 * FRAMES
+    exact = read_box_csv(sim / "boxes_exact.csv")
+    first = next(r for r in rows if r["frame"] == "0" and r["track_id"] == "1")
+    row0 = np.flatnonzero((exact.frame == 0) & (exact.track_id == 1))[0]
+    np.testing.assert_allclose(exact.boxes[row0], [float(first[k]) for k in
+                                                   ("left", "top", "right", "bottom")],
+                               rtol=1e-5)
+    # the true depth at the box's bottom-centre pixel is the rear face's distance
+    depth = read_kitti_depth_png(sim / "depth" / "000000.png")
+    b = exact.boxes[row0]
+    d = depth[int(b[3]) - 2, int(0.5 * (b[0] + b[2]))]
+    assert d == pytest.approx(float(first["z_rear_m"]), abs=0.05)
+
+
+def test_estimate_runs_on_the_output(sim: Path, tmp_path: Path) -> None:
+    out = tmp_path / "est.csv"
+    code = main(["estimate", "--calib", str(sim / "calib.txt"), "--poses",
+                 str(sim / "poses.txt"), "--boxes", str(sim / "boxes.csv"), "--method", "paper",
+                 "--out", str(out)])
+    assert code == 0
+    rows = list(csv.DictReader(out.open()))
+    assert rows and all(r["status"] == "ok" for r in rows)
+
+
+def test_user_mistakes_end_with_exit_code_2(tmp_path: Path, sim: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[ego]\nspeed_kmh = -3\n[[target]]\nstart_m = 1\nspeed_kmh = 1\n")
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml, line 2, field 'ego.speed_kmh'" in err
+    assert main(["simulate", "nope", "--out", str(tmp_path / "o")]) == 2
+    assert "built-in" in capsys.readouterr().err
+    assert main(["simulate", "ego_crest", "--out", str(sim)]) == 2  # would overwrite
+    assert "--force" in capsys.readouterr().err
+
+
+def test_list(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "target_steep_uphill" in out and "ego_sag" in out

@@ -1,0 +1,171 @@
+"""Scenario files: the built-in suite loads; mistakes are reported with file, line and field."""
+
+from __future__ import annotations
+
+import copy
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.datasets.synthetic.scenarios import (
+    SUITE,
+    builtin_names,
+    builtin_text,
+    field_lines,
+    load_scenario,
+    parse_scenario,
+)
+from slopedist.datasets.synthetic.scene import Scenario, simulate_truth
+from slopedist.errors import InputFileError, MissingInputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+MINIMAL = """
+name = "mine"
+[ego]
+speed_kmh = 36.0
+[[target]]
+start_m = 20.0
+speed_kmh = 40.0
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_the_suite_is_built_in_and_loads() -> None:
+    assert builtin_names()[:len(SUITE)] == list(SUITE)
+    for name in SUITE:
+        sc = load_scenario(name)
+        assert sc.name == name and sc.description.strip()
+        assert 100 <= sc.n_frames <= 150, "demo scenarios are 10-15 s at 10 Hz"
+        truth = simulate_truth(sc)
+        # the first target is in view in most frames (the scenario shows something)
+        assert truth.in_view[:, 0].mean() > 0.9
+
+
+def test_minimal_file_and_defaults(tmp_path: Path) -> None:
+    sc = load_scenario(_write(tmp_path, MINIMAL))
+    assert sc.name == "mine" and sc.n_frames == 120
+    assert sc.ego.speed_mps == pytest.approx(10.0)
+    assert sc.targets[0].track_id == 1 and sc.targets[0].lateral_m == pytest.approx(-1.75)
+    assert sc.camera.f == pytest.approx(721.5377) and sc.camera.rig.height_m == 1.65
+    assert sc.source == str(tmp_path / "s.toml")
+
+
+def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
+    text = builtin_text("target_steep_uphill")
+    a = load_scenario("target_steep_uphill")
+    b = load_scenario(_write(tmp_path, text, "copy.toml"))
+    assert a.road == b.road and a.targets == b.targets and a.seed == b.seed
+
+
+@pytest.mark.parametrize("text,field,line,words", [
+    (MINIMAL + "[[road.curve]]\nstart_m = 1.0\nlength_m = 5.0\nradius = 100.0\n",
+     "road.curve[0].radius", 11, "unknown field"),
+    (MINIMAL.replace("speed_kmh = 40.0", 'speed_kmh = "fast"'), "target[0].speed_kmh", 7,
+     "must be a number"),
+    (MINIMAL.replace("start_m = 20.0\n", ""), "target[0].start_m", 5, "required"),
+    (MINIMAL.replace("[ego]\nspeed_kmh = 36.0\n", ""), "ego", None, "required table"),
+    (MINIMAL + "[[target]]\nstart_m = 40.0\nspeed_kmh = 30.0\nlane = 4\n", "target[1].lane",
+     11, "a lane of the road"),
+    (MINIMAL + "[[target]]\nid = 1\nstart_m = 40.0\nspeed_kmh = 30.0\n", "target[1].id", 9,
+     "used twice"),
+    (MINIMAL.replace("speed_kmh = 40.0", "speed_kmh = 40.0\nwheelbase_m = 5.0"), "target[0]",
+     5, "wheelbase_m"),
+    (MINIMAL + "[road]\nstart_grade_pct = 55\n", "road.start_grade_pct", 9, "±40"),
+    (MINIMAL + "[noise]\ntruncate = 1\n", "noise.truncate", 9, "true or false"),
+    (MINIMAL + "[camera]\npitch_noise_band_hz = [1.0]\n", "camera.pitch_noise_band_hz", 9,
+     "list of 2"),
+    (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
+])
+def test_mistakes_name_file_line_and_field(tmp_path: Path, text: str, field: str,
+                                           line: int | None, words: str) -> None:
+    path = _write(tmp_path, text)
+    with pytest.raises(InputFileError) as info:
+        load_scenario(path)
+    err = info.value
+    assert err.field == field
+    assert err.line == line
+    assert words in str(err) and str(path) in str(err)
+
+
+def test_toml_syntax_error_names_the_line(tmp_path: Path) -> None:
+    path = _write(tmp_path, MINIMAL + "[road\nlanes = 2\n")
+    with pytest.raises(InputFileError, match="not valid TOML") as info:
+        load_scenario(path)
+    assert info.value.line == 8
+
+
+def test_unknown_name_and_missing_file() -> None:
+    with pytest.raises(MissingInputError, match="built-in: same_flat"):
+        load_scenario("no_such_scenario")
+    with pytest.raises(MissingInputError, match="not found"):
+        load_scenario("missing/dir/s.toml")
+
+
+def test_field_lines_counts_arrays_of_tables() -> None:
+    lines = field_lines("a = 1\n[[t]]\nx = 1\n[[t]]\nx = 2\n[r.c]\ny = 3\n")
+    assert lines == {"a": 1, "t[0]": 2, "t[0].x": 3, "t[1]": 4, "t[1].x": 5, "r.c": 6,
+                     "r.c.y": 7}
+
+
+# --- property: any edit of a valid file gives a scenario or an InputFileError -------------------
+
+BASE = tomllib.loads(builtin_text("bumps_and_curves"))
+
+
+def _leaves(d: Any, prefix: tuple = ()) -> list[tuple]:
+    if isinstance(d, dict):
+        out = [(*prefix, k) for k in d]
+        for k, v in d.items():
+            out += _leaves(v, (*prefix, k))
+        return out
+    if isinstance(d, list):
+        out = []
+        for i, v in enumerate(d):
+            out += _leaves(v, (*prefix, i))
+        return out
+    return []
+
+
+PATHS = sorted(set(_leaves(BASE)), key=str)
+VALUES = st.one_of(
+    st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=5), st.booleans(), st.lists(st.floats(-100, 100), max_size=4),
+    st.dictionaries(st.sampled_from(["x", "at_m", "speed_kmh"]), st.integers(-5, 5),
+                    max_size=2),
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(PATHS), VALUES), min_size=1, max_size=3))
+def test_edited_files_never_crash(edits: list[tuple[tuple, Any]]) -> None:
+    data = copy.deepcopy(BASE)
+    for path, value in edits:
+        node = data
+        try:
+            for key in path[:-1]:
+                node = node[key]
+            node[path[-1]] = value
+        except (KeyError, IndexError, TypeError):
+            continue
+    try:
+        sc = parse_scenario(data, "edited.toml")
+    except InputFileError as exc:
+        assert "edited.toml" in str(exc)
+        return
+    assert isinstance(sc, Scenario)
+    assert math.isfinite(sc.duration_s) and np.isfinite(sc.road.start_grade_pct)

@@ -1,0 +1,104 @@
+"""``slopedist demo``: a short run of the suite from rendered pixels, its files and tables."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+from slopedist.cli import main
+from slopedist.demo import DemoConfig, format_demo_tables, plan_methods, run_demo
+from slopedist.estimators import ESTIMATORS
+from slopedist.estimators.ground_contact import EgoGradientEstimator
+
+FRAMES = 8
+SCENARIOS = ("same_flat", "target_steep_uphill")
+
+
+class _LidarEstimator(EgoGradientEstimator):
+    """A method bound to a rotation source the demo does not simulate."""
+
+    name: ClassVar[str] = "lidar-test"
+    rotation_source: ClassVar[str | None] = "lidar"
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory: pytest.TempPathFactory):
+    out = tmp_path_factory.mktemp("demo")
+    pytest.importorskip("slopedist.odometry.visual")
+    cfg = DemoConfig(out, SCENARIOS, None, "visual", True, True, FRAMES, False)
+    return run_demo(cfg, echo=lambda s: None)
+
+
+def test_files_are_written(demo_run) -> None:
+    out = demo_run.config.out_dir
+    for name in ("summary.txt", "results.json", "rmse.csv", "timing.csv"):
+        assert (out / name).stat().st_size > 0
+    for sc in SCENARIOS:
+        folder = out / sc
+        assert (folder / "distance.png").stat().st_size > 1000
+        assert (folder / "theta.png").stat().st_size > 1000
+        video = folder / "overlay.mp4"
+        if not video.exists():
+            video = folder / "overlay.gif"
+        assert video.stat().st_size > 1000
+    data = json.loads((out / "results.json").read_text())
+    assert set(data["scenarios"]) == set(SCENARIOS)
+    assert data["scenarios"]["same_flat"]["frames"] == FRAMES
+
+
+def test_every_available_method_runs_and_the_table_matches_the_records(demo_run) -> None:
+    methods = demo_run.methods
+    assert {"flat", "ego", "paper"} <= set(methods)
+    text = format_demo_tables(demo_run)
+    assert "Table 1" in text and "Table 2" in text
+    for sc, run in zip(SCENARIOS, demo_run.runs):
+        rows = list(csv.DictReader((demo_run.config.out_dir / sc / "records.csv").open()))
+        assert {r["method"] for r in rows} == set(methods)
+        for m in ("flat", "paper"):
+            mine = [r for r in rows if r["method"] == m]
+            d = np.array([float(r["distance_m"]) if r["distance_m"] else math.nan for r in mine])
+            d = np.where([r["reason"] == "below_horizon" for r in mine], 80.0, np.minimum(d, 80))
+            z = np.array([float(r["truth_z_m"]) for r in mine])
+            ok = np.isfinite(d)
+            rmse = float(np.sqrt(np.mean((d[ok] - z[ok]) ** 2)))
+            assert run.scores[m].metrics()["rmse"] == pytest.approx(rmse, rel=1e-4)
+            assert run.scores[m].metrics()["n"] == int(ok.sum())
+
+
+def test_flat_road_estimates_are_close_to_the_truth(demo_run) -> None:
+    # same_flat, first frames: every method within a few metres (the rear-face offset of
+    # half a car length is part of the protocol's error)
+    run = demo_run.runs[0]
+    for m in ("flat", "ego", "paper"):
+        assert run.scores[m].metrics()["rmse"] < 5.0
+
+
+def test_methods_the_demo_cannot_feed_are_skipped_with_a_reason(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(ESTIMATORS, "lidar-test", _LidarEstimator)
+    from slopedist.camera import Camera
+
+    plans = {p.name: p for p in plan_methods(["paper", "imu", "depthmap", "lidar-test"],
+                                             Camera(721.5, 609.6, 172.9))}
+    assert plans["paper"].rotation == "odometry" and not plans["paper"].skipped
+    assert plans["imu"].rotation == "imu"
+    assert plans["depthmap"].depth and plans["depthmap"].rotation == "none"
+    assert "lidar" in plans["lidar-test"].skipped
+
+
+def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["demo", "--out", str(tmp_path / "d"), "--scenarios", "curve_flat", "--frames",
+                 "3", "--methods", "flat,paper", "--odometry", "truth", "--no-video",
+                 "--no-plots", "--quiet"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "Table 1" in out and "curve_flat" in out and "TRUE rotations" in out
+    assert str(tmp_path / "d" / "summary.txt") in out
+    assert main(["demo", "--out", str(tmp_path / "e"), "--methods", "nope"]) == 2
+    assert main(["demo", "--out", str(tmp_path / "e"), "--scenarios", "nope.toml"]) == 2
