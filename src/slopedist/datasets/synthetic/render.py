@@ -245,7 +245,8 @@ class Renderer:
         self._noise = (rng.standard_normal((2 * height, 2 * width)) * SENSOR_NOISE_GREY
                        ).astype(np.float32)
         self._atlas, self._tile_x0, self._tile_y0 = texture_atlas()
-        self._mat_tex = np.array([MATERIAL_TEXTURE[Material(m)] for m in range(len(Material))])
+        self._mat_tex = np.array([MATERIAL_TEXTURE[Material(m)] for m in range(len(Material))],
+                                 dtype=np.int32)
 
     # -- polygon stage ---------------------------------------------------------------------------
 
@@ -376,13 +377,14 @@ class Renderer:
         along /= np.maximum(np.take(plane_c, flat), 1e-3)
         np.maximum(along, across, out=along)
         # materials and textures per pixel
-        mat_table = np.zeros(len(polys) + 1, np.intp)
+        mat_table = np.zeros(len(polys) + 1, np.int32)
         mat_table[1:] = polys.material
         mat = np.take(mat_table, flat)
         tex = np.take(self._mat_tex, mat)
         ground = mat == int(Material.GROUND)
         verge = ground & (np.abs(V) > self.half)
-        tex[verge] = Tex.GRASS
+        verge_idx = np.flatnonzero(verge)
+        tex[verge_idx] = Tex.GRASS
         # sky: texture coordinates (degrees) from the world direction of each ray
         sky_idx = np.flatnonzero(sky)
         rx, ry = self._rays[sky_idx, 0], self._rays[sky_idx, 1]
@@ -400,7 +402,7 @@ class Renderer:
         tpm = np.take(Tex.TEXELS_PER_M, tex)
         lev = np.log2(np.maximum(along * tpm, 1e-6))
         np.clip(np.rint(lev, out=lev), 0, MIP_LEVELS - 1, out=lev)
-        tile = tex * MIP_LEVELS + lev.astype(np.intp)
+        tile = tex * np.int32(MIP_LEVELS) + lev.astype(np.int32)
         n = f32(TEX_SIZE)
         su = U * tpm
         sv = V * tpm
@@ -420,12 +422,12 @@ class Renderer:
         tint[1:] = polys.colour * shade[:, None]
         tint[1:][polys.material == int(Material.GROUND)] = ASPHALT_TINT
         rgb = np.take(tint, flat, axis=0)
-        rgb[verge] = GRASS_TINT
+        rgb[verge_idx] = GRASS_TINT
         cloud = grey[sky_idx]
         fog = 1.0 / (1.0 + z * f32(1.0 / HAZE_DISTANCE_M))  # share of the surface's own colour
         grey *= fog
         rgb *= grey[:, None]
-        rgb += (1.0 - fog)[:, None] * HAZE
+        rgb += np.multiply.outer(1.0 - fog, HAZE)
         t_el = np.clip(el / 25.0, 0.0, 1.0)[:, None]
         cover = np.clip((cloud - 0.45) * 2.5, 0.0, 1.0)[:, None]
         rgb[sky_idx] = (SKY_HORIZON * (1 - t_el) + SKY_ZENITH * t_el) * (1 - cover) + 0.97 * cover
