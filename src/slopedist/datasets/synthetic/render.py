@@ -470,7 +470,7 @@ class Renderer:
         white = MARKING_WHITE / ASPHALT_TINT.mean() * (0.9 + 0.1 * g)
         grey[road] = g + (white - g) * cover
 
-    def _structure_details(self, grey: NDArray[np.float32], mat: NDArray[np.intp],
+    def _structure_details(self, grey: NDArray[np.float32], mat: NDArray[np.int32],
                            U: NDArray[np.float32], V: NDArray[np.float32],
                            along: NDArray[np.float32]) -> None:
         """Windows on buildings, bands on posts and vehicles (in place, grey level)."""
