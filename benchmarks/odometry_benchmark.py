@@ -128,8 +128,8 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
         rotations[k] = result.R_world_cam if result.R_world_cam is not None else np.eye(3)
         segment[k] = result.segment
         if k + 1 in checkpoints:
-            print(f"  {k + 1:6d} {rss_mb():7.1f} {peak_rss_mb():8.1f} {len(vo._history):8d} "
-                  f"{len(vo._ids):7d} {seconds / (k + 1) * 1e3:9.2f} {cpu / (k + 1) * 1e3:7.2f}",
+            print(f"  {k + 1:6d} {rss_mb():7.1f} {peak_rss_mb():8.1f} {vo.history_frames:8d} "
+                  f"{len(vo.tracks):7d} {seconds / (k + 1) * 1e3:9.2f} {cpu / (k + 1) * 1e3:7.2f}",
                   flush=True)
     truth = RotationTrack.from_arrays(np.arange(n_frames) * 0.1,
                                       seq.ground_truth.R_world_cam[order])

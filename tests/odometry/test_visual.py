@@ -185,7 +185,7 @@ def test_masked_vehicle_is_ignored(points: Points) -> None:
     vo = BuiltinVisualOdometry(CAMERA)
     results = run(vo, images, times, boxes=box)
     assert all(r.state is OdometryState.OK for r in results)
-    pts = vo._pts  # tracks alive now: none inside the masked box
+    pts = vo.tracks  # tracks alive now: none inside the masked box
     inside = (pts[:, 0] >= 180) & (pts[:, 0] <= 460) & (pts[:, 1] >= 60) & (pts[:, 1] <= 220)
     assert not inside.any()
     rel, _ = lookback_errors_deg(results, R, times)
@@ -283,8 +283,8 @@ def test_memory_is_bounded(points: Points) -> None:
     vo = BuiltinVisualOdometry(CAMERA, VisualOdometryConfig(max_features=150))
     for k in range(64):
         vo.process(images[k % len(images)], k * DT)
-        assert len(vo._history) <= 12  # one look-back of frames at 10 Hz, plus the current
-        assert len(vo._ids) <= 150
+        assert vo.history_frames <= 12  # one look-back of frames at 10 Hz, plus the current
+        assert len(vo.tracks) <= 150
         assert all(len(rec.ids) <= 150 for rec in vo._history)
 
 

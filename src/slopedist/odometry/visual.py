@@ -179,6 +179,16 @@ class BuiltinVisualOdometry:
         """Number of restarts after a loss; rotations of different segments are unrelated."""
         return self._segment
 
+    @property
+    def tracks(self) -> NDArray[np.float32]:
+        """Pixel positions ``(N, 2)`` of the tracks alive in the last good frame (a copy)."""
+        return self._pts.copy()
+
+    @property
+    def history_frames(self) -> int:
+        """Frame records kept for the look-back (bounded by one look-back of frames)."""
+        return len(self._history)
+
     def reset(self) -> None:
         """Forget everything; the next frame may start a new sequence (timestamps restart)."""
         self._history: deque[_FrameRecord] = deque(maxlen=self.config.max_history_frames)
