@@ -95,8 +95,9 @@ class StreamingEstimator:
             )
         self._last_timestamp = timestamp_s
         theta = self.gradient.update(timestamp_s, R_world_cam)
+        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
         return self.estimator.estimate(
-            FrameInput(frame_index, timestamp_s, theta, boxes, image, depth_m)
+            FrameInput(frame_index, timestamp_s, theta, boxes, image, depth_m, R)
         )
 
 
@@ -191,9 +192,10 @@ def estimate_sequence(
                 f"boxes refer to frame {k}, but the sequence has frames 0..{len(timestamps_s) - 1}"
             )
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
+        R = track.R_world_cam[k] if track is not None and track.valid[k] else None
         est_parts.append(estimator.estimate(
             FrameInput(k, float(timestamps_s[k]), float(theta[k]), frame_boxes,
-                       depth_m=depth_m)))
+                       depth_m=depth_m, R_world_cam=R)))
         box_parts.append(frame_boxes)
     return SequenceEstimates(
         concat_boxes(box_parts), np.asarray(timestamps_s), concat_estimates(est_parts),

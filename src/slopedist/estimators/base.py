@@ -56,6 +56,8 @@ class FrameInput:
         boxes: this frame's boxes (a :class:`BoxTable` with one frame).
         image: the frame's pixels when the caller has them (``H×W`` or ``H×W×3`` uint8).
         depth_m: a dense depth map in metres for this frame, when a depth source provides one.
+        R_world_cam: the frame's camera-to-world rotation ``(3, 3)`` when known (estimators
+            that track targets use it to compensate the camera's own rotation between frames).
     """
 
     frame_index: int
@@ -64,6 +66,7 @@ class FrameInput:
     boxes: BoxTable
     image: NDArray[np.uint8] | None = None
     depth_m: NDArray[np.float32] | None = None
+    R_world_cam: NDArray[np.float64] | None = None
 
 
 @dataclass
