@@ -244,3 +244,31 @@ def test_cli_run_on_real_frames_with_lidar_boxes(kitti_raw_lead_dir: Path, tmp_p
     errors = [float(est[(int(f), int(t))]["distance_m"]) - z
               for f, t, z in zip(lead.frame, lead.track_id, lead.extra["z"])]
     assert np.sqrt(np.mean(np.square(errors))) < 0.5  # metres, lead car at 7–8 m
+
+
+class RestartingOdometry(ScriptedOdometry):
+    """Restarts (segment 1) at t = 1.2 s with an arbitrary jump of its rotation."""
+
+    def process(self, image_gray: np.ndarray, timestamp_s: float,
+                mask_boxes: np.ndarray | None = None) -> OdometryResult:
+        res = super().process(image_gray, timestamp_s, mask_boxes)
+        if timestamp_s < 1.15 or res.R_world_cam is None:
+            return res
+        return OdometryResult(rot_x(0.3) @ res.R_world_cam, res.state, res.inliers, 1)
+
+
+def test_no_look_back_across_an_odometry_restart(tmp_path: Path) -> None:
+    n = 16
+    run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
+               RestartingOdometry(), make_estimator("ego", CAM), tmp_path / "out",
+               progress=False)
+    frames = read_csv(tmp_path / "out" / "frames.csv")
+    assert [r["segment"] for r in frames[10:14]] == ["0", "0", "1", "1"]
+    theta = [float(r["theta_deg"]) for r in frames[11:]]
+    # frame 11 looks back a full second; frame 12 starts the new segment (θ = 0) and frame 15
+    # looks back only to frame 12: 0.3 s of pitch, never the 0.3 rad jump
+    assert theta[0] == pytest.approx(math.degrees(PITCH_RATE), rel=1e-4)
+    assert theta[1] == pytest.approx(0.0, abs=1e-9)
+    assert theta[4] == pytest.approx(math.degrees(PITCH_RATE * 0.3), rel=1e-3)
+    rows = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "15"]
+    assert float(rows[0]["theta_deg"]) == pytest.approx(theta[4], rel=1e-6)
