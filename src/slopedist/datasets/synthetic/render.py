@@ -42,6 +42,9 @@ NEAR_CLIP_M = 0.3
 """Polygons are clipped at this camera depth, metres."""
 VIEW_RANGE_M = 400.0
 """Static polygons farther ahead along the road than this are not drawn, metres."""
+LOD_NEAR_M = 60.0
+"""Ground strips and wall pieces are drawn at their fine level of detail up to this far ahead
+of the camera along the road, coarse beyond, metres."""
 HAZE_DISTANCE_M = 900.0
 """Distance at which haze hides 1 − 1/e of a surface's colour, metres."""
 SENSOR_NOISE_GREY = 1.5
@@ -156,6 +159,22 @@ class Rendered:
         return np.bincount(o.astype(np.int64), minlength=n_targets)[:n_targets]
 
 
+BAND_ROWS = 32
+"""Rows shaded together (small enough for the per-pixel arrays to stay in cache)."""
+
+
+@dataclass(frozen=True)
+class _FrameTables:
+    """Per-polygon tables of one frame (row 0 = sky): the 9 pixel functionals, |plane
+    distance|, material, tint (BGR), and the camera-to-world rotation as float32."""
+
+    functionals: NDArray[np.float32]
+    plane_c: NDArray[np.float32]
+    material: NDArray[np.int32]
+    tint: NDArray[np.float32]
+    R_world_cam: NDArray[np.float32]
+
+
 SUN_DIRECTION = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])
 """Unit vector towards the sun, world frame (for face shading)."""
 SKY_HORIZON = np.array([0.93, 0.88, 0.84], np.float32)
@@ -243,7 +262,7 @@ class Renderer:
         self._plane_c = np.zeros(0)
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
         self._noise = (rng.standard_normal((2 * height, 2 * width)) * SENSOR_NOISE_GREY
-                       ).astype(np.float32)
+                       + 0.5).astype(np.float32)  # + 0.5: rounding when cast to uint8
         self._atlas, self._tile_x0, self._tile_y0 = texture_atlas()
         self._mat_tex = np.array([MATERIAL_TEXTURE[Material(m)] for m in range(len(Material))],
                                  dtype=np.int32)
@@ -332,7 +351,10 @@ class Renderer:
         R = np.asarray(R_world_cam, dtype=float)
         C = np.asarray(centre_world, dtype=float)
         st = self.static
-        near = (st.s_hi >= s_camera - 2.0) & (st.s_lo <= s_camera + VIEW_RANGE_M)
+        boundary = s_camera + LOD_NEAR_M
+        detail = (st.lod < 0) | ((st.lod == 0) & (st.lod_key < boundary)) | (
+            (st.lod == 1) & (st.lod_key >= boundary))
+        near = detail & (st.s_hi >= s_camera - 2.0) & (st.s_lo <= s_camera + VIEW_RANGE_M)
         polys = st.select(np.flatnonzero(near))
         if dynamic is not None and len(dynamic):
             polys = Polygons.concat([polys, dynamic])
@@ -345,12 +367,46 @@ class Renderer:
 
     def _shade(self, ids: NDArray[np.int32], polys: Polygons, R: FloatArray, C: FloatArray,
                frame: int) -> Rendered:
+        """Per-pixel depth, texture and colour, in bands of rows (the arrays of a band stay in
+        the processor's cache)."""
         h, w = self.height, self.width
         f32 = np.float32
-        table = self._pixel_functionals(polys, R, C)  # (P + 1, 9), row 0 = sky
-        flat = ids.ravel().astype(np.intp)
-        x, y = self._xf, self._yf
-        col = np.take(table, flat, axis=0)  # (N, 9)
+        n = len(polys) + 1
+        plane_c = np.ones(n, f32)
+        mat_table = np.zeros(n, np.int32)
+        shade = 0.62 + 0.38 * np.clip(polys.normal @ SUN_DIRECTION, 0.0, 1.0)
+        tint = np.ones((n, 3), f32)
+        owner_table = np.full(n, -1, np.int16)
+        tables = _FrameTables(self._pixel_functionals(polys, R, C), plane_c, mat_table, tint,
+                              R.astype(f32))
+        plane_c[1:] = np.abs(self._plane_c)
+        mat_table[1:] = polys.material
+        tint[1:] = polys.colour * shade[:, None]
+        tint[1:][polys.material == int(Material.GROUND)] = ASPHALT_TINT
+        owner_table[1:] = polys.owner
+        image = np.empty((h, w, 3), np.uint8)
+        depth = np.empty((h, w), f32)
+        oy, ox = (frame * 7919) % h, (frame * 104729) % w
+        for r0 in range(0, h, BAND_ROWS):
+            r1 = min(h, r0 + BAND_ROWS)
+            channels, z = self._shade_band(ids[r0:r1].ravel().astype(np.intp),
+                                           slice(r0 * w, r1 * w), tables)
+            noise = self._noise[oy + r0:oy + r1, ox:ox + w].ravel()
+            for c, ch in enumerate(channels):
+                ch *= 255.0
+                ch += noise
+                np.clip(ch, 0, 255, out=ch)
+                image[r0:r1, :, c] = ch.reshape(r1 - r0, w)
+            depth[r0:r1] = z.reshape(r1 - r0, w)
+        return Rendered(image, depth, np.take(owner_table, ids))
+
+    def _shade_band(self, flat: NDArray[np.intp], pix: slice, tab: _FrameTables
+                    ) -> tuple[list[NDArray[np.float32]], NDArray[np.float32]]:
+        """Colour (three ``(N,)`` channels B, G, R in [0, 1]) and depth of the pixels ``pix``
+        with polygon indices ``flat`` (0 = sky)."""
+        f32 = np.float32
+        x, y = self._xf[pix], self._yf[pix]
+        col = np.take(tab.functionals, flat, axis=0)  # (N, 9)
         inv_z = col[:, 6] * x
         inv_z += col[:, 7] * y
         inv_z += col[:, 8]
@@ -369,17 +425,12 @@ class Renderer:
         # pixel footprint on the surface (metres): across (no foreshortening) and along the
         # steepest direction (foreshortened by the plane's obliquity): |r| z / f and
         # |r| z² / (f |c|), with c the plane's distance from the camera centre
-        across = z * self._ray_norm_over_f
-        plane_c = np.zeros(len(polys) + 1, f32)
-        plane_c[1:] = np.abs(self._plane_c)
-        plane_c[0] = 1.0
+        across = z * self._ray_norm_over_f[pix]
         along = across * z
-        along /= np.maximum(np.take(plane_c, flat), 1e-3)
+        along /= np.maximum(np.take(tab.plane_c, flat), 1e-3)
         np.maximum(along, across, out=along)
         # materials and textures per pixel
-        mat_table = np.zeros(len(polys) + 1, np.int32)
-        mat_table[1:] = polys.material
-        mat = np.take(mat_table, flat)
+        mat = np.take(tab.material, flat)
         tex = np.take(self._mat_tex, mat)
         ground = mat == int(Material.GROUND)
         verge = ground & (np.abs(V) > self.half)
@@ -387,8 +438,9 @@ class Renderer:
         tex[verge_idx] = Tex.GRASS
         # sky: texture coordinates (degrees) from the world direction of each ray
         sky_idx = np.flatnonzero(sky)
-        rx, ry = self._rays[sky_idx, 0], self._rays[sky_idx, 1]
-        Rf = R.astype(f32)
+        rays = self._rays[pix]
+        rx, ry = rays[sky_idx, 0], rays[sky_idx, 1]
+        Rf = tab.R_world_cam
         dx = Rf[0, 0] * rx + Rf[0, 1] * ry + Rf[0, 2]
         dy = Rf[1, 0] * rx + Rf[1, 1] * ry + Rf[1, 2]
         dz = Rf[2, 0] * rx + Rf[2, 1] * ry + Rf[2, 2]
@@ -411,36 +463,29 @@ class Renderer:
         mapy = sv - n * np.floor(sv / n)
         mapy += np.take(self._tile_y0.ravel(), tile)
         grey: NDArray[np.float32] = np.asarray(cv2.remap(
-            self._atlas, mapx.reshape(h, w), mapy.reshape(h, w), cv2.INTER_LINEAR),
+            self._atlas, mapx.reshape(-1, self.width), mapy.reshape(-1, self.width),
+            cv2.INTER_LINEAR),
             dtype=np.float32).ravel()
         # procedural details on the grey level (markings, windows, bands)
         self._ground_details(grey, U, V, across, along, ground, verge)
         self._structure_details(grey, mat, U, V, along)
-        # colour: tint × grey, haze, sky
-        shade = 0.62 + 0.38 * np.clip(polys.normal @ SUN_DIRECTION, 0.0, 1.0)
-        tint = np.ones((len(polys) + 1, 3), f32)
-        tint[1:] = polys.colour * shade[:, None]
-        tint[1:][polys.material == int(Material.GROUND)] = ASPHALT_TINT
-        rgb = np.take(tint, flat, axis=0)
-        rgb[verge_idx] = GRASS_TINT
+        # colour, channel by channel: tint × grey, haze, sky
         cloud = grey[sky_idx]
         fog = 1.0 / (1.0 + z * f32(1.0 / HAZE_DISTANCE_M))  # share of the surface's own colour
         grey *= fog
-        rgb *= grey[:, None]
-        rgb += np.multiply.outer(1.0 - fog, HAZE)
-        t_el = np.clip(el / 25.0, 0.0, 1.0)[:, None]
-        cover = np.clip((cloud - 0.45) * 2.5, 0.0, 1.0)[:, None]
-        rgb[sky_idx] = (SKY_HORIZON * (1 - t_el) + SKY_ZENITH * t_el) * (1 - cover) + 0.97 * cover
-        img = rgb.reshape(h, w, 3)
-        img *= 255.0
-        oy, ox = (frame * 7919) % h, (frame * 104729) % w
-        img += self._noise[oy:oy + h, ox:ox + w, None]
-        img += 0.5
-        np.clip(img, 0, 255, out=img)
-        owner_table = np.full(len(polys) + 1, -1, np.int16)
-        owner_table[1:] = polys.owner
-        owner = np.take(owner_table, ids)
-        return Rendered(img.astype(np.uint8), z.reshape(h, w), owner)
+        haze = 1.0 - fog
+        t_el = np.clip(el / 25.0, 0.0, 1.0)
+        cover = np.clip((cloud - 0.45) * 2.5, 0.0, 1.0)
+        channels = []
+        for c in range(3):
+            ch = np.take(tab.tint[:, c], flat)
+            ch[verge_idx] = GRASS_TINT[c]
+            ch *= grey
+            ch += haze * HAZE[c]
+            sky_c = SKY_HORIZON[c] + (SKY_ZENITH[c] - SKY_HORIZON[c]) * t_el
+            ch[sky_idx] = sky_c + (0.97 - sky_c) * cover
+            channels.append(ch)
+        return channels, z
 
     def _ground_details(self, grey: NDArray[np.float32], U: NDArray[np.float32],
                         V: NDArray[np.float32], across: NDArray[np.float32],
@@ -512,6 +557,6 @@ def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear:
             u0=np.zeros(m), key=s_rear.copy(), layer=np.full(m, int(Layer.VEHICLE)),
             s_lo=s_rear.copy(), s_hi=s_front.copy(), material=np.full(m, int(Material.VEHICLE)),
             colour=colours_bgr.copy(), owner=owners.astype(np.int64),
-            two_sided=np.zeros(m, bool),
+            two_sided=np.zeros(m, bool), lod=np.full(m, -1, np.int8), lod_key=np.zeros(m),
         ))
     return Polygons.concat(parts)

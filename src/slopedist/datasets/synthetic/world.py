@@ -35,6 +35,10 @@ GROUND_STEP_M = 0.5
 """Length of the ground strips along the road, metres."""
 WALL_PIECE_M = 2.0
 """Longest piece of a roadside wall along the road, metres."""
+COARSE_GROUND_M = 4.0
+"""Length of the ground strips drawn far from the camera (coarse level of detail), metres."""
+COARSE_WALL_PIECE_M = 8.0
+"""Longest piece of a roadside wall far from the camera (coarse level of detail), metres."""
 WALL_FOOT_M = 0.3
 """Depth to which the roadside walls reach below the ground (no gap under them), metres."""
 
@@ -75,6 +79,9 @@ class Polygons:
         material: ``(P,)`` :class:`Material`; colour: ``(P, 3)`` BGR in [0, 1].
         owner: ``(P,)`` index of the target vehicle the polygon belongs to, −1 for the world.
         two_sided: ``(P,)`` bool: never culled.
+        lod: ``(P,)`` level of detail: −1 always drawn, 0 fine, 1 coarse; fine and coarse
+            polygons cover the same surface, grouped by ``lod_key`` (plan distance, metres):
+            a group is drawn fine when its key is nearer than the renderer's boundary.
     """
 
     verts: FloatArray
@@ -91,6 +98,8 @@ class Polygons:
     colour: FloatArray
     owner: NDArray[np.int64]
     two_sided: NDArray[np.bool_]
+    lod: NDArray[np.int8]
+    lod_key: FloatArray
 
     def __len__(self) -> int:
         return int(self.verts.shape[0])
@@ -150,14 +159,18 @@ def box_polygons(
             axis_v=up.copy(), u0=np.zeros(n), key=s_near.copy(),
             layer=np.full(n, int(layer), np.int64), s_lo=s_near.copy(), s_hi=s_far.copy(),
             material=mat.copy(), colour=colour.copy(), owner=own.copy(),
-            two_sided=np.zeros(n, bool),
+            two_sided=np.zeros(n, bool), lod=np.full(n, -1, np.int8), lod_key=np.zeros(n),
         ))
     return Polygons.concat(parts)
 
 
-def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP_M) -> Polygons:
-    """Ground strips across ``±half_width_m`` between cross-sections ``step_m`` apart."""
-    s = np.arange(road.s[0] + 1.0, road.s[-1] - 1.0, step_m)
+def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP_M,
+                    lod: int = 0) -> Polygons:
+    """Ground strips across ``±half_width_m`` between cross-sections ``step_m`` apart, on a
+    grid that starts 1 m into the road (level of detail ``lod``; groups of
+    ``COARSE_GROUND_M``)."""
+    origin = road.s[0] + 1.0
+    s = np.arange(origin, road.s[-1] - 1.0, step_m)
     a, b = s[:-1], s[1:]
     n = a.shape[0]
     w = np.full(n, half_width_m)
@@ -173,7 +186,8 @@ def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP
         verts=verts, normal=normal, origin=road.centre(mid), axis_u=t, axis_v=lft,
         u0=road.driven_distance(mid), key=b.copy(), layer=np.full(n, int(Layer.GROUND)),
         s_lo=a.copy(), s_hi=b.copy(), material=np.full(n, int(Material.GROUND)), colour=grey,
-        owner=np.full(n, -1), two_sided=np.ones(n, bool),
+        owner=np.full(n, -1), two_sided=np.ones(n, bool), lod=np.full(n, lod, np.int8),
+        lod_key=origin + np.floor((a - origin) / COARSE_GROUND_M + 1e-9) * COARSE_GROUND_M,
     )
 
 
@@ -205,38 +219,49 @@ def structure_polygons(road: Road, half_width_m: float, height_range: tuple[floa
         trees = rng.random(a.shape[0]) < 0.35
         colour_index = rng.integers(0, 1 << 30, a.shape[0])
         shade = rng.uniform(0.85, 1.15, a.shape[0])
-        # pieces of at most WALL_PIECE_M, so the wall's foot follows the ground through
-        # vertical and horizontal curves (a long chord would leave a gap under it)
-        pieces = np.maximum(np.ceil((b - a) / WALL_PIECE_M), 1).astype(int)
-        seg = np.repeat(np.arange(a.shape[0]), pieces)
-        j = np.arange(seg.shape[0]) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-        step = (b - a) / pieces
-        a, b = a[seg] + j * step[seg], a[seg] + (j + 1) * step[seg]
-        height, trees = height[seg], trees[seg]
-        colour_index, shade = colour_index[seg], shade[seg]
-        n = a.shape[0]
-        w = np.full(n, side * half_width_m)
-        pa, pb = road.point(a, w), road.point(b, w)
-        up = np.array([0.0, 0.0, 1.0])
-        top_a, top_b = pa + height[:, None] * up, pb + height[:, None] * up
-        # the foot reaches WALL_FOOT_M below the ground; the ground strips in front, drawn
-        # after the wall (painter key = the piece's far end), cover it
-        foot = WALL_FOOT_M * up
-        verts = np.stack([pa - foot, pb - foot, top_b, top_a], axis=1)
-        along = pb - pa
-        along /= np.linalg.norm(along, axis=1, keepdims=True)
-        normal = -side * road.left(0.5 * (a + b))  # inward: from the wall to the road
-        colour = np.where(trees[:, None], TREE_COLOURS[colour_index % len(TREE_COLOURS)],
-                          BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)])
-        colour = colour * shade[:, None]
-        parts.append(Polygons(
-            verts=verts, normal=normal, origin=pa, axis_u=along,
-            axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=road.driven_distance(a),
-            key=b.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
-            material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
-            colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
-        ))
+        for lod, piece_m in ((0, WALL_PIECE_M), (1, COARSE_WALL_PIECE_M)):
+            parts.append(_wall_pieces(road, side, half_width_m, a, b, height, trees,
+                                      colour_index, shade, piece_m, lod))
     return Polygons.concat(parts)
+
+
+def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b: FloatArray,
+                 height: FloatArray, trees: NDArray[np.bool_], colour_index: NDArray[np.int64],
+                 shade: FloatArray, piece_m: float, lod: int) -> Polygons:
+    """The wall segments ``[a, b]`` of one side cut into pieces of at most ``piece_m``."""
+    # pieces of at most piece_m, so the wall's foot follows the ground through
+    # vertical and horizontal curves (a long chord would leave a gap under it)
+    pieces = np.maximum(np.ceil((b - a) / piece_m), 1).astype(int)
+    seg = np.repeat(np.arange(a.shape[0]), pieces)
+    j = np.arange(seg.shape[0]) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    step = (b - a) / pieces
+    group = a[seg]
+    a, b = a[seg] + j * step[seg], a[seg] + (j + 1) * step[seg]
+    height, trees = height[seg], trees[seg]
+    colour_index, shade = colour_index[seg], shade[seg]
+    n = a.shape[0]
+    w = np.full(n, side * half_width_m)
+    pa, pb = road.point(a, w), road.point(b, w)
+    up = np.array([0.0, 0.0, 1.0])
+    top_a, top_b = pa + height[:, None] * up, pb + height[:, None] * up
+    # the foot reaches WALL_FOOT_M below the ground; the ground strips in front, drawn
+    # after the wall (painter key = the piece's far end), cover it
+    foot = WALL_FOOT_M * up
+    verts = np.stack([pa - foot, pb - foot, top_b, top_a], axis=1)
+    along = pb - pa
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    normal = -side * road.left(0.5 * (a + b))  # inward: from the wall to the road
+    colour = np.where(trees[:, None], TREE_COLOURS[colour_index % len(TREE_COLOURS)],
+                      BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)])
+    colour = colour * shade[:, None]
+    return Polygons(
+        verts=verts, normal=normal, origin=pa, axis_u=along,
+        axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=road.driven_distance(a),
+        key=b.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
+        material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
+        colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
+        lod=np.full(n, lod, np.int8), lod_key=group,
+    )
 
 
 def _level_boxes_on_road(road: Road, s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -287,7 +312,8 @@ def static_world(road: Road, corridor_half_m: float, carriageway_half_m: float,
     """All static polygons of the world, in painter order (far to near, ground first)."""
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x5EED])
     polys = Polygons.concat([
-        ground_polygons(road, corridor_half_m),
+        ground_polygons(road, corridor_half_m, GROUND_STEP_M, 0),
+        ground_polygons(road, corridor_half_m, COARSE_GROUND_M, 1),
         structure_polygons(road, corridor_half_m, structure_height_m, structure_segment_m, rng),
         roadside_polygons(road, carriageway_half_m, corridor_half_m, post_spacing_m,
                           object_spacing_m, rng),
