@@ -1,0 +1,372 @@
+"""The distance cues of ``ours`` as pure, vectorised functions (no state, no I/O).
+
+Convention:
+    Camera frame x right, y down, z forward; image rows grow downwards. A target is a 3D box
+    standing on its road: ``Z`` is the depth (camera z) of its centre, which is what KITTI labels
+    give as ``z``; its heading ψ is the angle of its length axis from the camera's z axis,
+    positive towards +x (ψ and ψ + π look the same in a box). Distances in metres, rows and
+    columns in pixels, angles in radians. Every function broadcasts over leading dimensions
+    (targets × heading hypotheses).
+
+The 2D box of a 3D box seen by a level pinhole camera at height ``h`` over the target's road:
+
+* its bottom row is the nearest bottom corner, ``b = v + f·h/(Z − e)``,
+* its top row is the farthest top corner when the roof is below the camera
+  (``t = v + f·(h − H)/(Z + e)``) and the nearest one otherwise,
+* its left and right columns are the extreme corners in x/z,
+
+where ``v`` is the row of the target road's horizon and ``e`` the box's half extent in depth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+_CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
+_CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
+
+
+def depth_half_extent(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
+    """Half the depth extent ``e`` of a box footprint at heading ψ: ``(L|cos ψ| + W|sin ψ|)/2``."""
+    psi = np.asarray(yaw_rad, dtype=float)
+    return np.asarray(0.5 * (np.asarray(length_m) * np.abs(np.cos(psi))
+                             + np.asarray(width_m) * np.abs(np.sin(psi))))
+
+
+def footprint_corners(
+    yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Offsets ``(dx, dz)`` of the four footprint corners from the box centre, shape ``(..., 4)``.
+
+    The length axis points along ``(sin ψ, cos ψ)`` in (x, z), the width axis along
+    ``(cos ψ, −sin ψ)``.
+    """
+    psi = np.asarray(yaw_rad, dtype=float)[..., None]
+    half_l = np.asarray(length_m, dtype=float)[..., None] * _CORNER_L
+    half_w = np.asarray(width_m, dtype=float)[..., None] * _CORNER_W
+    s, c = np.sin(psi), np.cos(psi)
+    return half_l * s + half_w * c, half_l * c - half_w * s
+
+
+def project_box(
+    f: float, c_x: float, v: ArrayLike, cam_height_m: ArrayLike, x_m: ArrayLike, z_m: ArrayLike,
+    yaw_rad: ArrayLike, dims_hwl_m: ArrayLike,
+) -> FloatArray:
+    """2D box ``(left, top, right, bottom)`` of a 3D box standing on a flat road (pixels).
+
+    The forward model the cues invert (and the tests check them against).
+
+    Args:
+        f, c_x: focal length and principal-point column, pixels.
+        v: horizon row of the road the target stands on, pixels.
+        cam_height_m: camera height above that road, metres.
+        x_m, z_m: lateral position and depth of the box centre, metres.
+        yaw_rad: heading ψ.
+        dims_hwl_m: ``(..., 3)`` height, width, length, metres.
+    """
+    dims = np.asarray(dims_hwl_m, dtype=float)
+    dx, dz = footprint_corners(yaw_rad, dims[..., 1], dims[..., 2])
+    xc = np.asarray(x_m, dtype=float)[..., None] + dx
+    zc = np.asarray(z_m, dtype=float)[..., None] + dz
+    h = np.asarray(cam_height_m, dtype=float)[..., None]
+    cols = c_x + f * xc / zc
+    v_ = np.asarray(v, dtype=float)
+    bottom = v_ + f * np.max(h / zc, axis=-1)
+    top = v_ + f * np.min((h - dims[..., 0:1]) / zc, axis=-1)
+    return np.stack([cols.min(axis=-1), top, cols.max(axis=-1), bottom], axis=-1)
+
+
+def height_cue(
+    top: ArrayLike, bottom: ArrayLike, f: float, cam_height_m: ArrayLike, height_m: ArrayLike,
+    half_extent_m: ArrayLike,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Distance from the box height ``D = b − t`` and the target's height H (size cue, eq. S1).
+
+    Independent of the horizon: with ``d = D/f``, a roof below the camera (h ≥ H) gives
+    ``d·(Z² − e²) = H·Z + e·(2h − H)``, solved for the positive root; a roof above it gives
+    ``Z = H/d + e``.
+
+    Returns:
+        ``(Z, dZ/dD, dZ/dH, dZ/de, dZ/dh)``: the centre depth (m) and its partial derivatives
+        with respect to the box height (m/px), the target height, the half extent and the camera
+        height (m/m). ``Z`` is NaN where ``D ≤ 0``.
+    """
+    D = np.asarray(bottom, dtype=float) - np.asarray(top, dtype=float)
+    H = np.asarray(height_m, dtype=float)
+    e = np.asarray(half_extent_m, dtype=float)
+    h = np.asarray(cam_height_m, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = D / f
+        k = e * (2.0 * h - H)
+        Zq = (H + np.sqrt(H * H + 4.0 * d * (d * e * e + k))) / (2.0 * d)
+        den = 2.0 * d * Zq - H
+        roof_below = h >= H
+        Z = np.where(roof_below, Zq, H / d + e)
+        dZ_dD = np.where(roof_below, -(Zq * Zq - e * e) / den, -H / (d * d)) / f
+        dZ_dH = np.where(roof_below, (Zq - e) / den, 1.0 / d)
+        dZ_de = np.where(roof_below, (2.0 * d * e + 2.0 * h - H) / den, 1.0)
+        dZ_dh = np.where(roof_below, 2.0 * e / den, 0.0)
+    bad = ~(D > 0)
+    return tuple(np.where(bad, np.nan, a) for a in (Z, dZ_dD, dZ_dH, dZ_de, dZ_dh))  # type: ignore[return-value]
+
+
+def width_cue(
+    left: ArrayLike, right: ArrayLike, f: float, c_x: float, yaw_rad: ArrayLike,
+    width_m: ArrayLike, length_m: ArrayLike, z_init_m: ArrayLike, iterations: int = 2,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Distance from the box's left and right columns, a heading ψ and the footprint (size cue).
+
+    With the extreme corners i (left) and j (right), ``X + dx_i = a_l (Z + dz_i)`` and
+    ``X + dx_j = a_r (Z + dz_j)`` (``a = (column − c_x)/f``) are linear in the centre
+    ``(X, Z)``; which corners are extreme depends on ``(X, Z)``, so the choice is refined
+    ``iterations`` times starting from ``z_init_m``.
+
+    Returns:
+        ``(Z, dZ/dcolumn_rms, share_w)``: centre depth (m); the depth change per pixel of edge
+        noise (root-sum-square over both edges, m/px); and the share of the solution owed to the
+        width, ``∂log Z/∂log W`` (the rest, ``1 − share_w``, is owed to the length). ``Z`` is NaN
+        where the columns are not ordered.
+    """
+    al = (np.asarray(left, dtype=float) - c_x) / f
+    ar = (np.asarray(right, dtype=float) - c_x) / f
+    W = np.asarray(width_m, dtype=float)
+    L = np.asarray(length_m, dtype=float)
+    shape = np.broadcast_shapes(al.shape, ar.shape, np.shape(yaw_rad), W.shape, L.shape)
+    al, ar = np.broadcast_to(al, shape), np.broadcast_to(ar, shape)
+    psi = np.broadcast_to(np.asarray(yaw_rad, dtype=float), shape)[..., None]
+    s, c = np.sin(psi), np.cos(psi)
+    hl = np.broadcast_to(L, shape)[..., None] * _CORNER_L
+    hw = np.broadcast_to(W, shape)[..., None] * _CORNER_W
+    dxl, dzl = hl * s, hl * c
+    dxw, dzw = hw * c, -hw * s
+    dx, dz = dxl + dxw, dzl + dzw
+    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape).copy()
+    span = al - ar
+    mid = 0.5 * (al + ar)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(max(1, iterations)):
+            zc = np.maximum(Z[..., None] + dz, 1e-3)
+            px = (mid[..., None] * Z[..., None] + dx) / zc
+            li = _first_extreme(px, np.argmin)
+            ri = _first_extreme(px, np.argmax)
+            num_w = ((li * dxw).sum(-1) - (ri * dxw).sum(-1) - al * (li * dzw).sum(-1)
+                     + ar * (ri * dzw).sum(-1))
+            num_l = ((li * dxl).sum(-1) - (ri * dxl).sum(-1) - al * (li * dzl).sum(-1)
+                     + ar * (ri * dzl).sum(-1))
+            Z = (num_w + num_l) / span
+        dZ_dcol = np.hypot(Z + (li * dz).sum(-1), Z + (ri * dz).sum(-1)) / (np.abs(span) * f)
+        share_w = num_w / (num_w + num_l)
+    bad = ~(ar > al)
+    return (np.where(bad, np.nan, Z), np.where(bad, np.nan, dZ_dcol),
+            np.where(bad, np.nan, share_w))
+
+
+_ONE_HOT = np.eye(4)
+
+
+def _first_extreme(a: FloatArray, arg: object) -> FloatArray:
+    """One-hot mask ``(..., 4)`` of the first arg-minimum/maximum along the last axis."""
+    return np.asarray(_ONE_HOT[arg(a, axis=-1)])  # type: ignore[operator]
+
+
+def ground_contact_cue(
+    bottom: ArrayLike, v: ArrayLike, f: float, cam_height_m: ArrayLike, half_extent_m: ArrayLike,
+) -> FloatArray:
+    """Gradient-aware ground-contact distance to the target's centre (eq. 1 plus the half extent).
+
+    ``Z = f·h/(b − v) + e`` with ``v`` the horizon row of eq. 5 for the gradient in use; NaN where
+    ``b ≤ v`` (the contact point is at or above the horizon).
+    """
+    gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = f * np.asarray(cam_height_m, dtype=float) / gap + np.asarray(half_extent_m)
+    return np.where(gap > 0, z, np.nan)
+
+
+def ground_contact_sigma(
+    distance_near_m: ArrayLike, f: float, cam_height_m: ArrayLike, row_sigma_px: ArrayLike,
+    theta_sigma_rad: ArrayLike, height_sigma_m: ArrayLike = 0.0,
+) -> FloatArray:
+    """Propagated 1σ of the ground-contact distance (m): it grows as ``d²/(f·h)``.
+
+    ``σ_d² = (d²/(f h))²·(σ_row² + f²σ_θ²) + (d σ_h / h)²`` where ``d`` is the distance to the
+    contact point, ``σ_row`` the box-bottom pixel noise, ``σ_θ`` the gradient's uncertainty and
+    ``σ_h`` the camera height's.
+    """
+    d = np.asarray(distance_near_m, dtype=float)
+    h = np.asarray(cam_height_m, dtype=float)
+    gain = d * d / (f * h)
+    return np.asarray(np.sqrt((gain ** 2) * (np.square(row_sigma_px)
+                                             + (f * np.asarray(theta_sigma_rad)) ** 2)
+                              + (d * np.asarray(height_sigma_m) / h) ** 2))
+
+
+def fuse_inverse_variance(
+    values: ArrayLike, variances: ArrayLike, axis: int = -1
+) -> tuple[FloatArray, FloatArray]:
+    """Inverse-variance weighted mean of independent estimates, and its variance.
+
+    NaN values (or non-finite variances) are left out; where nothing is left the result is NaN.
+    """
+    x = np.asarray(values, dtype=float)
+    var = np.asarray(variances, dtype=float)
+    ok = np.isfinite(x) & np.isfinite(var) & (var > 0)
+    w = np.where(ok, 1.0 / np.where(ok, var, 1.0), 0.0)
+    wsum = w.sum(axis=axis)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean = (np.where(ok, x, 0.0) * w).sum(axis=axis) / wsum
+        out_var = 1.0 / wsum
+    return np.where(wsum > 0, mean, np.nan), np.where(wsum > 0, out_var, np.nan)
+
+
+def expected_centre_offset_px(
+    distance_m: ArrayLike, f: float, cam_height_m: ArrayLike, height_m: ArrayLike,
+    half_extent_m: ArrayLike,
+) -> FloatArray:
+    """Δy of eq. 6 (box centre row minus horizon row, px) of a target on the ego's road plane."""
+    Z = np.asarray(distance_m, dtype=float)
+    e = np.asarray(half_extent_m, dtype=float)
+    h = np.asarray(cam_height_m, dtype=float)
+    H = np.asarray(height_m, dtype=float)
+    top_depth = np.where(h >= H, Z + e, Z - e)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(0.5 * f * (h / (Z - e) + (h - H) / top_depth))
+
+
+def target_gradient(
+    delta_y_px: ArrayLike, distance_m: ArrayLike, f: float, cam_height_m: ArrayLike,
+    height_m: ArrayLike, half_extent_m: ArrayLike,
+) -> FloatArray:
+    """Continuous road gradient of a target relative to the ego gradient θ (radians).
+
+    A target at distance Z on the ego's road plane has its box centre ``Δy_flat(Z)`` rows below
+    the horizon (:func:`expected_centre_offset_px`); a target on a road climbing by α relative
+    to θ sits ``f·tan α`` rows higher. So ``α = atan((Δy_flat(Z) − Δy)/f)``, positive when the
+    target climbs; ``θ + α`` replaces the paper's three-step eq. 7.
+    """
+    flat = expected_centre_offset_px(distance_m, f, cam_height_m, height_m, half_extent_m)
+    return np.asarray(np.arctan((flat - np.asarray(delta_y_px, dtype=float)) / f))
+
+
+
+@dataclass(frozen=True)
+class LogCue:
+    """A log-distance estimate ``ℓ = log Z`` with its error split in two.
+
+    Attributes:
+        mean: ℓ (Z in metres).
+        var: total variance of ℓ.
+        var_white: the part independent from frame to frame (pixel noise, horizon jitter);
+            the rest (``var − var_white``) stays with a vehicle over its track.
+        loglik: log-likelihood of the cues' mutual consistency (compares heading hypotheses;
+            0 where a single cue was available).
+    """
+
+    mean: FloatArray
+    var: FloatArray
+    var_white: FloatArray
+    loglik: FloatArray
+
+
+def fuse_size_cues(
+    y_h: ArrayLike, r_h_white: ArrayLike, r_h_other: ArrayLike, c_h: ArrayLike, y_w: ArrayLike,
+    r_w_white: ArrayLike, r_w_other: ArrayLike, c_w: ArrayLike, sigma_log_h: ArrayLike,
+    sigma_log_w: ArrayLike, corr_hw: ArrayLike,
+) -> LogCue:
+    """Fuse the height and width cues (log distances) under the class size prior.
+
+    ``y_h = ℓ − c_h·ηH + n_h`` and ``y_w = ℓ − c_w·ηW + n_w``, with ``(ηH, ηW)`` the vehicle's
+    log size deviations from its class (spreads ``sigma_log_h``, ``sigma_log_w``, correlation
+    ``corr_hw``) and ``n`` measurement noise (white variances ``r_*_white`` plus other
+    per-vehicle variances ``r_*_other``, e.g. from the length): the generalised least-squares
+    estimate of ℓ. A non-finite width cue leaves the height cue alone.
+    """
+    yh, yw = np.asarray(y_h, dtype=float), np.asarray(y_w, dtype=float)
+    sh = np.asarray(c_h) * np.asarray(sigma_log_h)
+    sw = np.asarray(c_w) * np.asarray(sigma_log_w)
+    C11 = sh * sh + np.asarray(r_h_white) + np.asarray(r_h_other)
+    C22 = sw * sw + np.asarray(r_w_white) + np.asarray(r_w_other)
+    C12 = np.asarray(corr_hw) * sh * sw
+    both = np.isfinite(yw) & np.isfinite(C22)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        den = C11 + C22 - 2.0 * C12
+        a_h = (C22 - C12) / den
+        a_w = (C11 - C12) / den
+        mean = a_h * yh + a_w * yw
+        var = (C11 * C22 - C12 * C12) / den
+        white = a_h * a_h * np.asarray(r_h_white) + a_w * a_w * np.asarray(r_w_white)
+        diff = yh - yw
+        loglik = -0.5 * (diff * diff / den + np.log(2.0 * np.pi * den))
+    return LogCue(np.where(both, mean, yh), np.where(both, var, C11),
+                  np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
+                  np.where(both, loglik, 0.0))
+
+
+def ground_contact_log_cue(
+    bottom: ArrayLike, v: ArrayLike, f: float, cam_height_m: ArrayLike, half_extent_m: ArrayLike,
+    row_var_white: ArrayLike, row_var_other: ArrayLike, height_sigma_m: ArrayLike = 0.0,
+    half_extent_sigma_m: ArrayLike = 0.0,
+) -> LogCue:
+    """:func:`ground_contact_cue` as a log distance with its propagated variance.
+
+    Row noise (variances in px², white and per-vehicle, e.g. the target gradient's uncertainty
+    times f²) maps through ``∂ℓ/∂b = −(Z_n/Z)/(b − v)``: in metres the error grows as
+    ``d²/(f·h)``. The camera height and the half extent add per-vehicle variance. NaN where
+    ``b ≤ v``.
+    """
+    gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
+    h = np.asarray(cam_height_m, dtype=float)
+    e = np.asarray(half_extent_m, dtype=float)
+    ok = gap > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zn = f * h / gap
+        z = zn + e
+        d = (zn / z) / gap
+        white = d * d * np.asarray(row_var_white)
+        other = (d * d * np.asarray(row_var_other) + (zn / (z * h)) ** 2 * np.square(height_sigma_m)
+                 + np.square(np.asarray(half_extent_sigma_m) / z))
+    nan = np.nan
+    return LogCue(np.where(ok, np.log(z), nan), np.where(ok, white + other, nan),
+                  np.where(ok, white, nan), np.zeros(np.shape(gap)))
+
+
+def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
+    """Inverse-variance fusion of two independent log-distance cues.
+
+    The white variance is propagated with the same weights; ``loglik`` adds the consistency of
+    the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
+    """
+    ok = np.isfinite(b.mean) & np.isfinite(b.var) & (b.var > 0)
+    vb = np.where(ok, b.var, 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wa = vb / (a.var + vb)
+        wb = 1.0 - wa
+        mean = wa * a.mean + wb * np.where(ok, b.mean, 0.0)
+        var = a.var * vb / (a.var + vb)
+        white = wa * wa * a.var_white + wb * wb * np.where(ok, b.var_white, 0.0)
+        diff = a.mean - np.where(ok, b.mean, 0.0)
+        tot = a.var + vb
+        ll = -0.5 * (diff * diff / tot + np.log(2.0 * np.pi * tot))
+    return LogCue(np.where(ok, mean, a.mean), np.where(ok, var, a.var),
+                  np.where(ok, white, a.var_white), a.loglik + np.where(ok, ll, 0.0))
+
+
+def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, FloatArray]:
+    """Moment-match a mixture over the last axis (heading hypotheses) into one log cue.
+
+    The spread of the hypotheses' means counts as per-vehicle variance. Returns the cue and the
+    normalised weights.
+    """
+    lw = np.asarray(log_weight, dtype=float)
+    lw = lw - np.max(lw, axis=-1, keepdims=True)
+    w = np.exp(lw)
+    w /= w.sum(axis=-1, keepdims=True)
+    mean = np.sum(w * cue.mean, axis=-1)
+    var = np.sum(w * (cue.var + (cue.mean - mean[..., None]) ** 2), axis=-1)
+    white = np.sum(w * cue.var_white, axis=-1)
+    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape)), w

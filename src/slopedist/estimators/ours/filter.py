@@ -1,0 +1,132 @@
+"""The Kalman filters of ``ours``: pure, vectorised functions on state arrays.
+
+Distance filter, per track, state ``(ℓ, r)``: ``ℓ`` the log of the centre distance Z (m) and
+``r = Ż/Z`` the relative rate (1/s), so ``−1/r`` is the time to collision of an approaching
+target. Motion is constant velocity in Z with white-noise acceleration; ``Z' = Z + Ż·dt`` gives
+``ℓ' = ℓ + log(1 + r·dt)`` and ``r' = r/(1 + r·dt)``. The measurement is the frame's fused
+log-distance; only the part of its error that is independent from frame to frame (box-edge
+pixel noise, the vanishing line's jitter) is filtered — the part that stays with a vehicle (its
+size against the class prior, its road's gradient) cannot be averaged away and is added back to
+the reported uncertainty.
+
+Gradient filter, per track: the target's road gradient α (radians, relative to the ego
+gradient) is a random walk.
+
+Arrays broadcast over leading dimensions (targets).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+IDX_LOG_Z, IDX_RATE = 0, 1
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+@dataclass(frozen=True)
+class ProcessNoise:
+    """Process noise spectral densities.
+
+    Attributes:
+        accel_mps2: relative acceleration, m/s² per √s (white-noise acceleration).
+        gradient_rad: random walk of a target's road gradient α, rad per √s.
+    """
+
+    accel_mps2: float = 2.0
+    gradient_rad: float = float(np.radians(0.5))
+
+
+def cv_predict(
+    x: FloatArray, P: FloatArray, dt_s: FloatArray, accel_mps2: float
+) -> tuple[FloatArray, FloatArray]:
+    """Propagate ``(..., 2)`` states and ``(..., 2, 2)`` covariances over ``dt_s`` seconds.
+
+    The growth factor ``1 + r·dt`` is kept ≥ 0.2 so a target is never propagated through the
+    camera.
+    """
+    x = np.array(x, dtype=float, copy=True)
+    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), x.shape[:-1])
+    grow = np.maximum(1.0 + x[..., IDX_RATE] * dt, 0.2)
+    f01 = dt / grow
+    f11 = 1.0 / (grow * grow)
+    x[..., IDX_LOG_Z] += np.log(grow)
+    x[..., IDX_RATE] /= grow
+    p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
+    n00 = p00 + 2 * f01 * p01 + f01 * f01 * p11
+    n01 = f11 * (p01 + f01 * p11)
+    n11 = f11 * f11 * p11
+    q = accel_mps2 ** 2 * np.exp(-2.0 * x[..., IDX_LOG_Z])
+    P = np.stack([np.stack([n00 + q * dt ** 3 / 3, n01 + q * dt ** 2 / 2], -1),
+                  np.stack([n01 + q * dt ** 2 / 2, n11 + q * dt], -1)], -2)
+    return x, P
+
+
+def cv_update(
+    x: FloatArray, P: FloatArray, y: FloatArray, r: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Update ``(ℓ, r)`` with a measurement ``y`` of ℓ of variance ``r``.
+
+    Returns the new state, covariance and the normalised innovation squared.
+    """
+    S = P[..., 0, 0] + r
+    nu = y - x[..., IDX_LOG_Z]
+    K = P[..., :, 0] / S[..., None]
+    x_new = x + K * nu[..., None]
+    P_new = P - K[..., :, None] * P[..., None, 0, :]
+    P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+    return x_new, P_new, nu * nu / S
+
+
+def random_walk_update(
+    mean: FloatArray, var: FloatArray, dt_s: FloatArray | float, rate: float, obs: FloatArray,
+    obs_var: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Predict a scalar random walk over ``dt_s`` then update it with ``obs`` (variance
+    ``obs_var``); non-finite observations only predict."""
+    v = var + rate * rate * np.asarray(dt_s, dtype=float)
+    ok = np.isfinite(obs) & np.isfinite(obs_var)
+    k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)
+    return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
+
+
+def distance_moments(
+    x: FloatArray, P: FloatArray, extra_log_var: FloatArray | float = 0.0
+) -> tuple[FloatArray, FloatArray]:
+    """Mean and standard deviation of ``Z = exp(ℓ)`` (log-normal), metres.
+
+    ``extra_log_var`` adds variance of ℓ that the filter does not hold (the persistent part).
+    """
+    s2 = np.maximum(P[..., 0, 0] + extra_log_var, 0.0)
+    mean = np.exp(x[..., IDX_LOG_Z] + 0.5 * s2)
+    return mean, mean * np.sqrt(np.expm1(s2))
+
+
+def speed_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Relative speed ``Ż = r·Z`` (m/s, negative when approaching) and its 1σ (first order)."""
+    z = np.exp(x[..., IDX_LOG_Z])
+    r = x[..., IDX_RATE]
+    j_l, j_r = r * z, z
+    var = j_l * j_l * P[..., 0, 0] + 2 * j_l * j_r * P[..., 0, 1] + j_r * j_r * P[..., 1, 1]
+    return r * z, np.sqrt(np.maximum(var, 0.0))
+
+
+def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Time to collision ``−Z/Ż = −1/r`` (s) and its 1σ; NaN unless the target approaches."""
+    r = x[..., IDX_RATE]
+    approaching = r < 0
+    r_ = np.where(approaching, r, -1.0)
+    sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
+    return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
+
+
+def gaussian_loglik(residual: FloatArray, var: FloatArray) -> FloatArray:
+    """``log N(residual; 0, var)``; 0 where either is not finite."""
+    ok = np.isfinite(residual) & np.isfinite(var) & (var > 0)
+    v = np.where(ok, var, 1.0)
+    r = np.where(ok, residual, 0.0)
+    return np.where(ok, -0.5 * (r * r / v + np.log(v) + _LOG_2PI), 0.0)

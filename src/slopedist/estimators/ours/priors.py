@@ -1,0 +1,180 @@
+"""Per-class priors on vehicle (and road user) dimensions, and on the target's heading.
+
+The dimension means are the class averages of the KITTI *object* detection training set as they
+are published and reused as dimension anchors by monocular 3D detectors (e.g. Mousavian et al.,
+"3D bounding box estimation using deep learning and geometry", CVPR 2017; SMOKE, M3D-RPN),
+rounded to centimetres. The spreads are physical: the range of ordinary vehicles of the class
+(passenger cars from low coupés to small SUVs, 1.35–1.80 m tall, 1.45–1.85 m wide without
+mirrors, 3.4–4.9 m long) read as ±2σ. Nothing here was fitted on the KITTI *tracking* sequences
+that ``slopedist eval kitti-tracking`` scores; ``benchmarks/ours_kitti.py`` checks that the
+estimator does not depend on that choice by re-running it with priors fitted leave-one-sequence-out.
+
+Convention: metres; standard deviations are of the dimension itself (not of its logarithm).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import special
+
+from slopedist.errors import ConfigurationError
+
+
+@dataclass(frozen=True)
+class DimensionPrior:
+    """Gaussian prior on a class's 3D box: height, width, length (m) and their spreads (m).
+
+    ``corr_hw`` is the correlation of height and width (bigger vehicles are bigger in every
+    direction); it matters when both the box height and the box width are used as cues.
+    """
+
+    height_m: float
+    width_m: float
+    length_m: float
+    height_sigma_m: float
+    width_sigma_m: float
+    length_sigma_m: float
+    corr_hw: float = 0.3
+
+    def __post_init__(self) -> None:
+        values = (self.height_m, self.width_m, self.length_m, self.height_sigma_m,
+                  self.width_sigma_m, self.length_sigma_m)
+        if not all(math.isfinite(v) and v > 0 for v in values):
+            raise ConfigurationError(f"dimension prior values must be finite and > 0: {self}")
+        if not -1.0 < self.corr_hw < 1.0:
+            raise ConfigurationError(f"corr_hw must be in (-1, 1), got {self.corr_hw}")
+
+
+CLASS_PRIORS: dict[str, DimensionPrior] = {
+    "Car": DimensionPrior(1.53, 1.63, 3.88, 0.13, 0.10, 0.43),
+    "Van": DimensionPrior(2.18, 1.91, 5.08, 0.30, 0.17, 0.70),
+    "Truck": DimensionPrior(3.07, 2.63, 11.17, 0.50, 0.25, 3.0),
+    "Tram": DimensionPrior(3.56, 2.40, 18.61, 0.30, 0.20, 6.0),
+    "Pedestrian": DimensionPrior(1.76, 0.66, 0.84, 0.11, 0.14, 0.23, 0.2),
+    "Person_sitting": DimensionPrior(1.27, 0.54, 0.80, 0.10, 0.10, 0.20, 0.2),
+    "Cyclist": DimensionPrior(1.74, 0.60, 1.76, 0.10, 0.12, 0.18, 0.2),
+}
+"""Dimension priors by KITTI class name (see the module docstring for their provenance)."""
+
+UNKNOWN_CLASS_PRIOR = DimensionPrior(1.80, 1.75, 4.20, 0.45, 0.35, 1.60)
+"""Prior for any other class name (``Misc``, detector-specific names): a broad vehicle."""
+
+CLASS_ALIASES = {"car": "Car", "van": "Van", "truck": "Truck", "tram": "Tram",
+                 "pedestrian": "Pedestrian", "person": "Pedestrian", "cyclist": "Cyclist",
+                 "bicycle": "Cyclist", "person_sitting": "Person_sitting", "bus": "Truck"}
+
+
+def prior_for(class_name: str) -> DimensionPrior:
+    """The :class:`DimensionPrior` of a class name (case-insensitive; unknown → broad prior)."""
+    if class_name in CLASS_PRIORS:
+        return CLASS_PRIORS[class_name]
+    alias = CLASS_ALIASES.get(str(class_name).strip().lower())
+    return CLASS_PRIORS[alias] if alias else UNKNOWN_CLASS_PRIOR
+
+
+@dataclass(frozen=True)
+class PriorArrays:
+    """Dimension priors broadcast to N targets (metres), as produced by :func:`priors_for`."""
+
+    height_m: NDArray[np.float64]
+    width_m: NDArray[np.float64]
+    length_m: NDArray[np.float64]
+    height_sigma_m: NDArray[np.float64]
+    width_sigma_m: NDArray[np.float64]
+    length_sigma_m: NDArray[np.float64]
+    corr_hw: NDArray[np.float64]
+
+    @property
+    def log_sigma_h(self) -> NDArray[np.float64]:
+        """Spread of log(height), i.e. the relative spread of the height."""
+        return self.height_sigma_m / self.height_m
+
+    @property
+    def log_sigma_w(self) -> NDArray[np.float64]:
+        """Spread of log(width)."""
+        return self.width_sigma_m / self.width_m
+
+    @property
+    def log_sigma_l(self) -> NDArray[np.float64]:
+        """Spread of log(length)."""
+        return self.length_sigma_m / self.length_m
+
+
+def priors_for(
+    classes: ArrayLike, table: dict[str, DimensionPrior] | None = None
+) -> PriorArrays:
+    """Per-target prior arrays for an array of class names.
+
+    Args:
+        classes: ``(N,)`` class names.
+        table: class → prior (default :data:`CLASS_PRIORS`; unknown names get the broad prior).
+    """
+    names = np.asarray(classes, dtype=object).reshape(-1)
+    lookup = table if table is not None else CLASS_PRIORS
+    cache: dict[object, DimensionPrior] = {}
+    rows = []
+    for n in names:
+        p = cache.get(n)
+        if p is None:
+            p = lookup[n] if n in lookup else prior_for(str(n))
+            cache[n] = p
+        rows.append((p.height_m, p.width_m, p.length_m, p.height_sigma_m, p.width_sigma_m,
+                     p.length_sigma_m, p.corr_hw))
+    a = np.asarray(rows, dtype=float).reshape(-1, 7)
+    return PriorArrays(*(a[:, k] for k in range(7)))
+
+
+@dataclass(frozen=True)
+class YawPrior:
+    """Prior on a target's heading ψ relative to the camera's optical axis (radians).
+
+    Most traffic drives along the road and the ego camera looks along it, so ψ is a mixture:
+    with probability ``aligned_weight`` ψ ~ N(0, ``aligned_sigma_rad``) modulo π (same or
+    opposite direction look alike for a box), else uniform (crossing, turning, parked askew).
+    """
+
+    aligned_weight: float = 0.75
+    aligned_sigma_rad: float = math.radians(3.0)
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.aligned_weight <= 1.0:
+            raise ConfigurationError(f"aligned_weight must be in [0, 1], got {self.aligned_weight}")
+        if not self.aligned_sigma_rad > 0:
+            raise ConfigurationError("aligned_sigma_rad must be > 0")
+
+
+YAW_GRID_DEG = (-90.0, -60.0, -35.0, -20.0, -12.0, -7.0, -3.5, 0.0, 3.5, 7.0, 12.0, 20.0, 35.0,
+                60.0)
+"""Heading hypotheses ψ (degrees) the size cue is evaluated at; −90° is the same as +90°."""
+
+
+def yaw_grid() -> NDArray[np.float64]:
+    """The heading hypotheses of :data:`YAW_GRID_DEG`, radians."""
+    return np.radians(np.asarray(YAW_GRID_DEG))
+
+
+def yaw_prior_weights(grid_rad: ArrayLike, prior: YawPrior = YawPrior()) -> NDArray[np.float64]:
+    """Prior probability of each hypothesis of a (periodic, sorted) heading grid; sums to 1.
+
+    Each grid point stands for the interval halfway to its neighbours (periodic over π), and
+    gets the prior mass of that interval.
+    """
+    g = np.asarray(grid_rad, dtype=float)
+    nxt = np.r_[g[1:], g[0] + np.pi]
+    prv = np.r_[g[-1] - np.pi, g[:-1]]
+    lo, hi = 0.5 * (prv + g), 0.5 * (g + nxt)
+    width = hi - lo
+    mass_aligned = np.zeros_like(g)
+    s = prior.aligned_sigma_rad * math.sqrt(2.0)
+    for shift in (-np.pi, 0.0, np.pi):  # the wrapped Gaussian, three images are plenty
+        mass_aligned += 0.5 * (_erf((hi + shift) / s) - _erf((lo + shift) / s))
+    w = prior.aligned_weight * mass_aligned + (1.0 - prior.aligned_weight) * width / np.pi
+    return np.asarray(w / w.sum())
+
+
+def _erf(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.asarray(special.erf(x), dtype=float)
