@@ -22,6 +22,7 @@ from slopedist.estimators.ground_contact import (
     PaperEstimator,
 )
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
+from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
 
 
 class Method(str, Enum):
@@ -33,6 +34,8 @@ class Method(str, Enum):
     IMU = "imu"
     IMU_EGO = "imu-ego"
     DEPTHMAP = "depthmap"
+    OURS = "ours"
+    OURS_SELFCAL = "ours-selfcal"
 
 
 ESTIMATORS: dict[str, Callable[..., Estimator]] = {
@@ -42,6 +45,8 @@ ESTIMATORS: dict[str, Callable[..., Estimator]] = {
     Method.IMU.value: ImuEstimator,
     Method.IMU_EGO.value: ImuEgoEstimator,
     Method.DEPTHMAP.value: DepthMapEstimator,
+    Method.OURS.value: OursEstimator,
+    Method.OURS_SELFCAL.value: OursSelfCalibratingEstimator,
 }
 
 
@@ -73,6 +78,8 @@ __all__ = [
     "ImuEstimator",
     "Method",
     "MissingReason",
+    "OursEstimator",
+    "OursSelfCalibratingEstimator",
     "PaperEstimator",
     "ReferencePoint",
     "available_methods",
