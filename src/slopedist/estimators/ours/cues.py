@@ -331,7 +331,9 @@ def ground_contact_log_cue(
         other = (d * d * np.asarray(row_var_other) + (zn / (z * h)) ** 2 * np.square(height_sigma_m)
                  + np.square(np.asarray(half_extent_sigma_m) / z))
     nan = np.nan
-    return LogCue(np.where(ok, np.log(z), nan), np.where(ok, white + other, nan),
+    with np.errstate(invalid="ignore", divide="ignore"):
+        log_z = np.log(np.where(ok, z, 1.0))
+    return LogCue(np.where(ok, log_z, nan), np.where(ok, white + other, nan),
                   np.where(ok, white, nan), np.zeros(np.shape(gap)))
 
 

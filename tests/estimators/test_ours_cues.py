@@ -1,0 +1,235 @@
+"""The cues of ``ours`` against synthetic scenes: project a known 3D box, recover its distance."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.estimators.ours import cues
+from slopedist.estimators.ours.priors import (
+    CLASS_PRIORS,
+    UNKNOWN_CLASS_PRIOR,
+    YawPrior,
+    prior_for,
+    priors_for,
+    yaw_grid,
+    yaw_prior_weights,
+)
+
+F, CX, CY, H_CAM = 721.5, 609.6, 172.9, 1.65
+CAR = np.array([1.53, 1.63, 3.88])
+VAN_TALL = np.array([2.4, 1.9, 5.0])  # roof above the camera
+
+
+def _box(x: float, z: float, yaw_deg: float, dims: np.ndarray, v: float = CY,
+         h: float = H_CAM) -> np.ndarray:
+    return cues.project_box(F, CX, v, h, x, z, math.radians(yaw_deg), dims)
+
+
+def test_project_box_centre_on_axis_is_symmetric_and_bottom_is_eq1() -> None:
+    b = _box(0.0, 20.0, 0.0, CAR)
+    assert b[0] - CX == pytest.approx(CX - b[2])
+    # bottom row = nearest bottom edge: f·h/(Z − L/2) below the horizon (eq. 1 inverted)
+    assert b[3] == pytest.approx(CY + F * H_CAM / (20.0 - CAR[2] / 2))
+    # top row = farthest roof edge (roof below the camera)
+    assert b[1] == pytest.approx(CY + F * (H_CAM - CAR[0]) / (20.0 + CAR[2] / 2))
+
+
+@pytest.mark.parametrize("dims", [CAR, VAN_TALL])
+@pytest.mark.parametrize("x,z,yaw", [(0.0, 8.0, 0.0), (-4.5, 20.0, -31.0), (6.0, 45.0, 12.0),
+                                     (2.0, 70.0, 90.0)])
+def test_height_cue_recovers_the_centre_distance(dims: np.ndarray, x: float, z: float,
+                                                 yaw: float) -> None:
+    b = _box(x, z, yaw, dims)
+    e = cues.depth_half_extent(math.radians(yaw), dims[1], dims[2])
+    z_hat, dz_dD, dz_dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, dims[0], e)
+    assert z_hat == pytest.approx(z, rel=1e-9)
+    # a taller vehicle of the same box is farther; a taller box is nearer
+    assert dz_dH > 0 and dz_dD < 0
+
+
+def test_height_cue_derivatives_match_finite_differences() -> None:
+    b = _box(1.0, 25.0, 5.0, CAR)
+    e = cues.depth_half_extent(math.radians(5.0), CAR[1], CAR[2])
+    z0, dD, dH, de, dh = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
+    eps = 1e-6
+    assert (cues.height_cue(b[1], b[3] + eps, F, H_CAM, CAR[0], e)[0] - z0) / eps == \
+        pytest.approx(dD, rel=1e-4)
+    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0] + eps, e)[0] - z0) / eps == \
+        pytest.approx(dH, rel=1e-4)
+    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e + eps)[0] - z0) / eps == \
+        pytest.approx(de, rel=1e-4)
+    assert (cues.height_cue(b[1], b[3], F, H_CAM + eps, CAR[0], e)[0] - z0) / eps == \
+        pytest.approx(dh, rel=1e-4)
+
+
+def test_height_cue_of_a_degenerate_box_is_nan() -> None:
+    z = cues.height_cue(100.0, 100.0, F, H_CAM, 1.5, 2.0)[0]
+    assert np.isnan(z)
+
+
+@pytest.mark.parametrize("x,z,yaw", [(0.0, 10.0, 0.0), (-4.5, 20.0, -31.0), (8.0, 30.0, 7.0),
+                                     (-3.0, 60.0, 60.0), (5.0, 15.0, 90.0)])
+def test_width_cue_recovers_the_distance_at_the_true_heading(x: float, z: float,
+                                                             yaw: float) -> None:
+    b = _box(x, z, yaw, CAR)
+    z_hat, dz_dcol, share_w = cues.width_cue(b[0], b[2], F, CX, math.radians(yaw), CAR[1],
+                                             CAR[2], z_init_m=0.8 * z, iterations=3)
+    assert z_hat == pytest.approx(z, rel=1e-6)
+    assert dz_dcol > 0 and 0.0 <= share_w <= 1.0
+
+
+def test_width_cue_share_and_scaling() -> None:
+    """Z is linear in (W, L) for given extreme corners: scaling both scales Z."""
+    b = _box(-3.0, 25.0, 20.0, CAR)
+    z1, _, share = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), CAR[1], CAR[2], 25.0)
+    z2 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.1 * CAR[1], 1.1 * CAR[2],
+                        25.0)[0]
+    assert z2 == pytest.approx(1.1 * z1, rel=1e-9)
+    z3 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.001 * CAR[1], CAR[2], 25.0)[0]
+    assert math.log(z3 / z1) / math.log(1.001) == pytest.approx(share, rel=1e-3)
+
+
+def test_width_cue_at_a_wrong_heading_misses() -> None:
+    b = _box(0.0, 30.0, 25.0, CAR)
+    z0 = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], 30.0)[0]
+    assert z0 < 0.8 * 30.0  # the side of a turned car makes the box wider: looks nearer
+
+
+@settings(max_examples=60, deadline=None)
+@given(x=st.floats(-10, 10), z=st.floats(6, 80), yaw=st.floats(-89, 89),
+       h=st.floats(1.0, 2.5), w=st.floats(1.4, 2.2), length=st.floats(3.0, 6.0))
+def test_height_cue_inverts_the_projection(x: float, z: float, yaw: float, h: float, w: float,
+                                           length: float) -> None:
+    dims = np.array([h, w, length])
+    e = cues.depth_half_extent(math.radians(yaw), w, length)
+    if z - e < 1.0:
+        return
+    b = _box(x, z, yaw, dims)
+    assert cues.height_cue(b[1], b[3], F, H_CAM, h, e)[0] == pytest.approx(z, rel=1e-7)
+
+
+def test_ground_contact_cue_recovers_distance_with_the_right_horizon() -> None:
+    theta = math.radians(1.5)  # the target's road, 1.5° above the ego's
+    v = CY - F * math.tan(theta)
+    b = _box(2.0, 30.0, 0.0, CAR, v=v)
+    assert cues.ground_contact_cue(b[3], v, F, H_CAM, CAR[2] / 2) == pytest.approx(30.0)
+    flat = cues.ground_contact_cue(b[3], CY, F, H_CAM, CAR[2] / 2)
+    assert flat > 30.0  # ignoring the climb overestimates, as the paper says
+    assert np.isnan(cues.ground_contact_cue(CY - 1.0, CY, F, H_CAM, 2.0))
+
+
+def test_ground_contact_sigma_grows_with_the_square_of_distance() -> None:
+    s10 = cues.ground_contact_sigma(10.0, F, H_CAM, 1.0, 0.0)
+    s40 = cues.ground_contact_sigma(40.0, F, H_CAM, 1.0, 0.0)
+    assert s40 / s10 == pytest.approx(16.0)
+    assert s10 == pytest.approx(100.0 / (F * H_CAM))
+    # an angle error of σθ moves the contact row by f·σθ
+    assert cues.ground_contact_sigma(10.0, F, H_CAM, 0.0, 0.01) == pytest.approx(
+        100.0 / (F * H_CAM) * F * 0.01)
+
+
+def test_ground_contact_log_cue_variance_matches_the_metric_sigma() -> None:
+    b = _box(0.0, 25.0, 0.0, CAR)
+    e = CAR[2] / 2
+    cue = cues.ground_contact_log_cue(b[3], CY, F, H_CAM, e, 4.0, 0.0)
+    near = 25.0 - e
+    sigma_m = cues.ground_contact_sigma(near, F, H_CAM, 2.0, 0.0)
+    assert math.exp(cue.mean) == pytest.approx(25.0)
+    assert math.sqrt(cue.var) == pytest.approx(sigma_m / 25.0, rel=1e-6)
+    assert cue.var_white == pytest.approx(cue.var)
+
+
+def test_fuse_inverse_variance_by_hand() -> None:
+    mean, var = cues.fuse_inverse_variance([10.0, 14.0, np.nan], [1.0, 3.0, 1.0])
+    assert mean == pytest.approx((10.0 / 1 + 14.0 / 3) / (1 + 1 / 3))
+    assert var == pytest.approx(1 / (1 + 1 / 3))
+    m, v = cues.fuse_inverse_variance([np.nan], [1.0])
+    assert np.isnan(m) and np.isnan(v)
+
+
+def test_fuse_log_cues_weights_by_variance_and_scores_consistency() -> None:
+    a = cues.LogCue(np.array(math.log(20.0)), np.array(0.01), np.array(0.001), np.array(0.0))
+    b = cues.LogCue(np.array(math.log(25.0)), np.array(0.04), np.array(0.04), np.array(0.0))
+    out = cues.fuse_log_cues(a, b)
+    assert out.mean == pytest.approx(0.8 * math.log(20.0) + 0.2 * math.log(25.0))
+    assert out.var == pytest.approx(0.008)
+    assert out.var_white == pytest.approx(0.64 * 0.001 + 0.04 * 0.04)
+    far = cues.fuse_log_cues(a, cues.LogCue(np.array(math.log(60.0)), b.var, b.var_white,
+                                            b.loglik))
+    assert far.loglik < out.loglik  # an inconsistent cue is less likely
+    none = cues.fuse_log_cues(a, cues.LogCue(np.array(np.nan), b.var, b.var_white, b.loglik))
+    assert none.mean == a.mean and none.var == a.var
+
+
+def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
+    x, z, yaw = -2.0, 35.0, 0.0
+    b = _box(x, z, yaw, CAR)
+    e = CAR[2] / 2
+    zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
+    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], zh)
+    c_h = dH * CAR[0] / zh
+    out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share,
+                              0.085, 0.06, 0.3)
+    assert math.exp(out.mean) == pytest.approx(z, rel=1e-6)
+    # no width: the height cue alone, with the prior's spread
+    alone = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, c_h, np.nan, np.nan, np.nan, np.nan,
+                                0.085, 0.06, 0.3)
+    assert alone.mean == pytest.approx(math.log(zh))
+    assert alone.var == pytest.approx((c_h * 0.085) ** 2 + 1e-4)
+    assert out.var < alone.var
+
+
+def test_size_fusion_splits_a_size_surprise_between_the_cues() -> None:
+    """A low car (height 1.3 m, prior 1.53 m) seen from behind: the height cue says far, the
+    width cue is right; the fused distance lies between, nearer the better-known width."""
+    dims = np.array([1.30, 1.63, 3.88])
+    b = _box(0.0, 40.0, 0.0, dims)
+    e = CAR[2] / 2
+    zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
+    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], zh)
+    out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4,
+                              0.0, share, 0.085, 0.06, 0.3)
+    assert zw < math.exp(out.mean) < zh
+    assert abs(math.exp(out.mean) - 40.0) < abs(zh - 40.0)
+
+
+def test_target_gradient_recovers_a_climbing_target() -> None:
+    for alpha_deg in (-2.0, 0.0, 3.0, 6.0):
+        alpha = math.radians(alpha_deg)
+        v_target = CY - F * math.tan(alpha)
+        z = 30.0
+        b = _box(0.0, z, 0.0, CAR, v=v_target)
+        delta_y = 0.5 * (b[1] + b[3]) - CY  # eq. 6 against the ego's horizon (θ = 0)
+        est = cues.target_gradient(delta_y, z, F, H_CAM, CAR[0], CAR[2] / 2)
+        assert est == pytest.approx(alpha, abs=1e-3)
+
+
+def test_collapse_hypotheses_moments() -> None:
+    cue = cues.LogCue(np.array([[1.0, 2.0]]), np.array([[0.1, 0.2]]), np.array([[0.01, 0.02]]),
+                      np.zeros((1, 2)))
+    out, w = cues.collapse_hypotheses(cue, np.log([[0.25, 0.75]]))
+    assert w == pytest.approx(np.array([[0.25, 0.75]]))
+    assert out.mean[0] == pytest.approx(1.75)
+    assert out.var[0] == pytest.approx(0.25 * 0.1 + 0.75 * 0.2 + 0.25 * 0.75 ** 2
+                                       + 0.75 * 0.25 ** 2)
+    assert out.var_white[0] == pytest.approx(0.25 * 0.01 + 0.75 * 0.02)
+
+
+def test_priors_lookup_and_yaw_prior() -> None:
+    assert prior_for("Car") is CLASS_PRIORS["Car"]
+    assert prior_for("van") is CLASS_PRIORS["Van"]
+    assert prior_for("Misc") is UNKNOWN_CLASS_PRIOR
+    arr = priors_for(np.array(["Car", "Pedestrian", "Whatever"], dtype=object))
+    assert arr.height_m.tolist() == [1.53, 1.76, UNKNOWN_CLASS_PRIOR.height_m]
+    g = yaw_grid()
+    w = yaw_prior_weights(g, YawPrior(0.75, math.radians(3.0)))
+    assert w.sum() == pytest.approx(1.0)
+    assert int(np.argmax(w)) == int(np.argmin(np.abs(g)))
+    uniform = yaw_prior_weights(g, YawPrior(0.0, math.radians(3.0)))
+    # uniform prior: each hypothesis gets the share of the circle its cell covers
+    assert uniform.sum() == pytest.approx(1.0) and np.all(uniform > 0)
