@@ -5,7 +5,7 @@ What it does, as a new user would with ``slopedist run``:
 1. LiDAR ground truth: vehicle boxes and their distances from the Velodyne scans
    (:func:`slopedist.datasets.kitti_raw.lidar_vehicle_boxes`; distance = longitudinal z of the
    cluster's nearest face), written to ``OUT/lidar_boxes.csv`` (slopedist box CSV + ``z``).
-2. For each method (flat, ego, paper, and ours when registered): the streaming run of
+2. For each method (flat, ego, paper, and ours / ours-selfcal when registered): the streaming run of
    ``slopedist run FRAMES --calib calib.txt --boxes OUT/lidar_boxes.csv --method M`` with the
    built-in visual odometry, written to ``OUT/<method>/``.
 3. RMSE of each method against the LiDAR z over the boxes that are scored: not cut by the image
@@ -43,7 +43,7 @@ from slopedist.runner import RECORDS_NAME, RunningMean, run_frames
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
 IMAGE_SIZE = (1242, 375)
-METHODS = ("flat", "ego", "paper", "ours")
+METHODS = ("flat", "ego", "paper", "ours", "ours-selfcal")
 
 
 class RecordingOdometry:
@@ -86,12 +86,18 @@ def lead_track(boxes: BoxTable) -> int:
     return int(first.track_id[int(np.argmin(first.extra["z"]))])
 
 
+NEAREST_FACE_COLUMN = "distance_nearest_face_m"
+"""Records column of methods whose ``distance_m`` refers to the vehicle's centre (``ours``)."""
+
+
 def read_estimates(path: Path) -> dict[tuple[int, int], float]:
-    """``{(frame, track_id): distance_m}`` of a records CSV (NaN when missing)."""
+    """``{(frame, track_id): distance to the nearest face, m}`` of a records CSV (NaN when
+    missing): ``distance_nearest_face_m`` where the records have it, else ``distance_m`` (the
+    ground-contact methods' distance refers to the contact point under the box bottom)."""
     out = {}
     with path.open(newline="") as fh:
         for row in csv.DictReader(fh):
-            d = row["distance_m"]
+            d = row.get(NEAREST_FACE_COLUMN) or row["distance_m"]
             out[(int(row["frame"]), int(row["track_id"]))] = float(d) if d else math.nan
     return out
 
@@ -154,9 +160,12 @@ def main(argv: list[str] | None = None) -> int:
     common = scored & np.logical_and.reduce([ok[m] for m in methods])
     is_lead = truth.track_id == lead
     rows = []
+    bins = [(0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, args.max_z)]
+    binned: dict[str, list[float]] = {}
     for m in methods:
         d = np.array([estimates[m].get(k, math.nan) for k in key])
         err = d - z
+        binned[m] = [rmse(list(err[common & (z >= lo) & (z < hi)])) for lo, hi in bins]
         rows.append((m, rmse(list(err[common])), int(common.sum()),
                      float(np.mean(err[common])) if common.any() else math.nan,
                      rmse(list(err[common & is_lead])), int(np.sum(common & is_lead)),
@@ -167,12 +176,20 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels, "
           f"on the {int(common.sum())} scored boxes every method estimates (of {int(scored.sum())}"
-          f"); 'own' = each method over all the scored boxes it estimates:")
-    print(f"{'method':8s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
+          f"); 'own' = each method over all the scored boxes it estimates; methods that report "
+          f"the vehicle centre are read from their {NEAREST_FACE_COLUMN} column:")
+    print(f"{'method':12s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
           f"{'lead n':>7s} {'own RMSE':>9s} {'own n':>6s} {'VO ms':>7s} {'frames/s':>9s}")
     for m, r, n, b, lr, ln, own, own_n, vo_ms, fps in rows:
-        print(f"{m:8s} {r:8.2f} {n:5d} {b:+8.2f} {lr:10.2f} {ln:7d} {own:9.2f} {own_n:6d} "
+        print(f"{m:12s} {r:8.2f} {n:5d} {b:+8.2f} {lr:10.2f} {ln:7d} {own:9.2f} {own_n:6d} "
               f"{vo_ms:7.1f} {fps:9.1f}")
+    counts = [int(np.sum(common & (z >= lo) & (z < hi))) for lo, hi in bins]
+    print()
+    print("RMSE (m) by LiDAR distance, same boxes:")
+    print(f"{'method':12s} " + " ".join(f"{f'{lo:g}-{hi:g} m (n={c})':>16s}"
+                                         for (lo, hi), c in zip(bins, counts)))
+    for m in methods:
+        print(f"{m:12s} " + " ".join(f"{v:16.2f}" for v in binned[m]))
     return 0
 
 
