@@ -63,6 +63,33 @@ def test_csv_optional_columns_and_header_error(tmp_path: Path) -> None:
         read_box_csv(path)
 
 
+@TMP
+@given(truth=st.lists(st.one_of(st.none(), st.floats(0.01, 500, allow_nan=False)),
+                      min_size=1, max_size=10))
+def test_csv_ground_truth_column_round_trips(tmp_path: Path, truth: list[float | None]) -> None:
+    from slopedist.detections.writers import write_box_csv
+
+    path = tmp_path / "boxes.csv"
+    lines = ["frame,left,top,right,bottom,gt_distance_m"]
+    lines += [f"{k},1,2,30,40,{'' if g is None else repr(g)}" for k, g in enumerate(truth)]
+    path.write_text("\n".join(lines) + "\n")
+    t = read_box_csv(path)
+    expected = np.array([np.nan if g is None else g for g in truth])
+    np.testing.assert_array_equal(t.extra["gt_distance_m"], expected)
+    back = read_box_csv(write_box_csv(t, tmp_path / "again.csv"))
+    np.testing.assert_allclose(back.extra["gt_distance_m"], expected, rtol=1e-5)
+    assert "gt_distance_m" not in read_box_csv(write_box_csv(
+        BoxTable.build([0], [[1, 2, 3, 4]]), tmp_path / "none.csv")).extra
+
+
+@pytest.mark.parametrize("bad", ["-3", "0", "inf", "nan", "far"])
+def test_csv_bad_ground_truth_names_line_and_field(tmp_path: Path, bad: str) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text(f"frame,left,top,right,bottom,gt_distance_m\n0,1,2,3,4,5\n1,1,2,3,4,{bad}\n")
+    with pytest.raises(InputFileError, match=r"line 3, field 'gt_distance_m'"):
+        read_box_csv(path)
+
+
 def test_csv_nan_box_is_read_then_rejected_per_box(tmp_path: Path) -> None:
     path = tmp_path / "boxes.csv"
     path.write_text("frame,left,top,right,bottom\n0,nan,2,3,4\n0,10,20,5,40\n0,1,2,3,4\n")

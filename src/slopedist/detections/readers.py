@@ -5,11 +5,15 @@ Every reader returns a :class:`~slopedist.detections.boxes.BoxTable` and fails w
 
 The slopedist box CSV (for user boxes) has a header row and these columns::
 
-    frame,left,top,right,bottom[,track_id][,score][,class]
+    frame,left,top,right,bottom[,track_id][,score][,class][,gt_distance_m]
 
 ``frame`` is the 0-based frame index (int); ``left, top, right, bottom`` are pixels of the image
 the calibration belongs to (origin top-left); ``track_id`` is an int (-1 or empty = unknown);
 ``score`` a float (empty = unknown); ``class`` a name such as ``Car`` (empty = ``Car``).
+``gt_distance_m`` (optional) is the target's ground-truth distance in metres, longitudinal
+(camera z, as KITTI's label z), > 0; empty = unknown. When present it is kept as the box column
+``gt_distance_m`` (NaN where unknown): ``slopedist run`` copies it into ``records.csv`` so that
+``slopedist report`` can score the run, and the depthmap method's ``truth`` scaling reads it.
 Other columns are ignored.
 """
 
@@ -26,6 +30,8 @@ from slopedist.errors import InputFileError, MissingInputError
 
 CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
 CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")
+CSV_TRUTH_COLUMN = "gt_distance_m"
+"""Optional column of the slopedist box CSV: ground-truth distance (camera z), metres."""
 
 KITTI_LABEL_FIELDS = (
     "frame", "track_id", "type", "truncated", "occluded", "alpha", "left", "top", "right",
@@ -141,7 +147,7 @@ def read_box_csv(path: str | Path) -> BoxTable:
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"box CSV not found: {path}")
-    frames, boxes, tids, scores, classes = [], [], [], [], []
+    frames, boxes, tids, scores, classes, truth = [], [], [], [], [], []
     with path.open(newline="") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
@@ -152,6 +158,7 @@ def read_box_csv(path: str | Path) -> BoxTable:
                 f"{','.join(CSV_BOX_COLUMNS)}", line=1,
             )
         reader.fieldnames = header
+        has_truth = CSV_TRUTH_COLUMN in header
         for row in reader:
             lineno = reader.line_num
             frame = _parse(path, lineno, "frame", (row["frame"] or "").strip(), _int)
@@ -167,10 +174,26 @@ def read_box_csv(path: str | Path) -> BoxTable:
             sc = (row.get("score") or "").strip()
             scores.append(_parse(path, lineno, "score", sc, float) if sc else np.nan)
             classes.append((row.get("class") or "").strip() or "Car")
+            if has_truth:
+                truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
+    extra = {CSV_TRUTH_COLUMN: np.asarray(truth, dtype=float)} if has_truth else {}
     return BoxTable.build(
         frames, np.asarray(boxes, dtype=float).reshape(-1, 4), tids, scores,
-        np.asarray(classes, dtype=object),
+        np.asarray(classes, dtype=object), **extra,
     )
+
+
+def _truth_distance(path: Path, lineno: int, value: str | None) -> float:
+    """A ``gt_distance_m`` field: metres > 0, or NaN when empty."""
+    tok = (value or "").strip()
+    if not tok:
+        return float("nan")
+    d = float(_parse(path, lineno, CSV_TRUTH_COLUMN, tok, float))
+    if not (np.isfinite(d) and d > 0):
+        raise InputFileError(path, f"ground-truth distance must be a finite number of metres "
+                             f"> 0 (or empty = unknown), got '{tok}'", line=lineno,
+                             field=CSV_TRUTH_COLUMN)
+    return d
 
 
 def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
