@@ -272,3 +272,106 @@ def test_no_look_back_across_an_odometry_restart(tmp_path: Path) -> None:
     assert theta[4] == pytest.approx(math.degrees(PITCH_RATE * 0.3), rel=1e-3)
     rows = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "15"]
     assert float(rows[0]["theta_deg"]) == pytest.approx(theta[4], rel=1e-6)
+
+
+# --- ground truth in the records, the sequence name, depth maps, no odometry ------------------
+
+
+def boxes_with_truth(n: int) -> BoxTable:
+    """:func:`boxes_every_frame` with a ground-truth distance per box (unknown on frame 3)."""
+    b = boxes_every_frame(n)
+    gt = np.tile([10.0, 40.0], n)
+    gt[6:8] = np.nan
+    return BoxTable.build(b.frame, b.boxes, b.track_id, gt_distance_m=gt)
+
+
+def test_ground_truth_and_sequence_reach_the_records_and_the_report(tmp_path: Path) -> None:
+    from slopedist.report import ReportOptions, run_report_data
+
+    n = 15
+    for method in ("ego", "flat"):
+        run_frames(open_frames(make_frames(tmp_path / "clip7", n)), CAM, boxes_with_truth(n),
+                   ScriptedOdometry(), make_estimator(method, CAM), tmp_path / "runs" / method,
+                   progress=False)
+    rows = read_csv(tmp_path / "runs" / "ego" / "records.csv")
+    assert [r["gt_distance_m"] for r in rows[:2]] == ["10", "40"]
+    assert [r["gt_distance_m"] for r in rows if r["frame"] == "3"] == ["", ""]
+    summary = json.loads((tmp_path / "runs" / "ego" / "run.json").read_text())
+    assert summary["sequence"] == "clip7" and summary["ground_truth"] is True
+    data = run_report_data(tmp_path / "runs", ReportOptions())
+    assert data.sequences == ["clip7"] and data.methods == ["ego", "flat"]
+    for method in ("ego", "flat"):
+        recs = [r for r in read_csv(tmp_path / "runs" / method / "records.csv")
+                if r["gt_distance_m"] and r["distance_m"]]
+        err = [min(float(r["distance_m"]), 80.0) - float(r["gt_distance_m"]) for r in recs]
+        assert data.summaries["clip7"][method]["n"] == len(recs) == (28 if method == "flat"
+                                                                     else 26)
+        assert data.summaries["clip7"][method]["rmse"] == pytest.approx(
+            math.sqrt(np.mean(np.square(err))), rel=1e-4)
+
+
+def test_sequence_name_option_and_defaults(tmp_path: Path) -> None:
+    from slopedist.runner import default_sequence_name
+
+    run_frames(open_frames(make_frames(tmp_path / "f", 3)), CAM, boxes_every_frame(3),
+               ScriptedOdometry(), make_estimator("ego", CAM), tmp_path / "out", progress=False,
+               sequence="0007")
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["sequence"] == "0007" and summary["ground_truth"] is False
+    nested = tmp_path / "2011_09_26_drive_0001_sync" / "image_02" / "data"
+    nested.mkdir(parents=True)
+    assert default_sequence_name(nested) == "2011_09_26_drive_0001_sync"
+    video = tmp_path / "drive.mp4"
+    video.write_bytes(b"")
+    assert default_sequence_name(video) == "drive"
+
+
+class DepthFolder:
+    """``.npy`` depth maps in which box 0 reads ``5 + k`` m and box 1 ``30`` m at frame k (no
+    map for frame 2)."""
+
+    @staticmethod
+    def write(root: Path, n: int) -> Path:
+        root.mkdir()
+        for k in range(n):
+            if k == 2:
+                continue
+            depth = np.full((H, W), 60.0, np.float32)
+            depth[110:151, 100:151] = 5.0 + k
+            depth[105:126, 200:231] = 30.0
+            np.save(root / f"{k:06d}.npy", depth)
+        return root
+
+
+def test_depth_maps_feed_the_depthmap_method_and_are_timed(tmp_path: Path) -> None:
+    from slopedist.depth import FileDepthSource
+
+    n = 5
+    source = FileDepthSource(DepthFolder.write(tmp_path / "depth", n), missing_ok=True)
+    result = run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
+                        None, make_estimator("depthmap", CAM), tmp_path / "out",
+                        progress=False, depth=source)
+    assert result.frames_without_depth == 1 and result.depth_source is not None
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert [float(r["distance_m"]) for r in rows if r["frame"] == "3"] == [8.0, 30.0]
+    assert {r["reason"] for r in rows if r["frame"] == "2"} == {"no_depth"}
+    frames = read_csv(tmp_path / "out" / "frames.csv")
+    assert all(float(r["depth_ms"]) >= 0 for r in frames)
+    # no odometry: no rotation, no odometry time, and depthmap does not need either
+    assert all(r["odometry_state"] == "" and r["odometry_ms"] == "" for r in frames)
+    assert result.estimated == 2 * (n - 1)
+
+
+def test_depth_and_method_must_match(tmp_path: Path) -> None:
+    from slopedist.depth import FileDepthSource
+    from slopedist.errors import ConfigurationError
+
+    frames = open_frames(make_frames(tmp_path / "f", 3))
+    with pytest.raises(ConfigurationError, match="needs depth maps"):
+        run_frames(frames, CAM, boxes_every_frame(3), None, make_estimator("depthmap", CAM),
+                   tmp_path / "out", progress=False)
+    source = FileDepthSource(DepthFolder.write(tmp_path / "depth", 3), missing_ok=True)
+    with pytest.raises(ConfigurationError, match="does not use them"):
+        run_frames(frames, CAM, boxes_every_frame(3), None, make_estimator("paper", CAM),
+                   tmp_path / "out", progress=False, depth=source)
+    assert not (tmp_path / "out").exists()

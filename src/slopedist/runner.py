@@ -9,11 +9,17 @@ look-back, whatever the length of the input.
 Outputs under the output folder:
 
 - ``records.csv``: one row per target (the columns of ``slopedist estimate``,
-  :data:`~slopedist.pipeline.RECORD_FIELDS`).
+  :data:`~slopedist.pipeline.RECORD_FIELDS`), plus ``gt_distance_m`` (metres) when the boxes
+  carry a ground-truth distance (the optional column of the box CSV), so that
+  ``slopedist report`` can score the run.
 - ``frames.csv``: one row per frame (:data:`FRAME_FIELDS`): frame status, odometry state,
   inliers and segment (restarts of the odometry; θ never looks back across one), ego gradient
-  θ (degrees), number of boxes and of estimated distances, odometry and estimation time (ms).
-- ``run.json``: a summary, also written when the run stops on an error.
+  θ (degrees), number of boxes and of estimated distances, odometry, estimation and depth time
+  (ms; ``depth_ms`` = reading or inferring the frame's depth map, for depth-map methods, on
+  frames with boxes).
+- ``run.json``: a summary (:class:`RunResult`), also written when the run stops on an error;
+  its ``"sequence"`` names the sequence, so that the report lines up runs of different methods
+  on one sequence.
 - optionally an overlay (PNG folder or MP4, :func:`slopedist.viz.draw_fig3_overlay`).
 
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
@@ -35,8 +41,10 @@ import numpy as np
 from tqdm import tqdm
 
 from slopedist.camera import Camera
+from slopedist.depth.base import DepthSource
 from slopedist.detections.boxes import BoxTable
-from slopedist.errors import SlopedistError
+from slopedist.detections.readers import CSV_TRUTH_COLUMN
+from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import Estimator
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
@@ -50,10 +58,31 @@ SUMMARY_NAME = "run.json"
 
 FRAME_FIELDS = (
     "frame", "timestamp_s", "source", "frame_status", "detail", "odometry_state", "inliers",
-    "segment", "theta_deg", "boxes", "estimated", "odometry_ms", "estimation_ms",
+    "segment", "theta_deg", "boxes", "estimated", "odometry_ms", "estimation_ms", "depth_ms",
 )
-"""Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels;
-``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation."""
+"""Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels or without
+odometry; ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation;
+``depth_ms`` is empty where no depth map was made."""
+
+GENERIC_FOLDER_NAMES = frozenset({
+    "image_0", "image_1", "image_2", "image_3", "image_00", "image_01", "image_02", "image_03",
+    "image_l", "image_r", "images", "image", "frames", "data", "rgb", "img",
+})
+"""Frame folder names that say nothing about the sequence (KITTI layouts, ``simulate``
+output); :func:`default_sequence_name` takes the parent folder's name instead."""
+
+
+def default_sequence_name(frames_path: str | Path) -> str:
+    """Sequence name of a frame source: a video's file name without its ending, or the image
+    folder's name; for generic folder names (:data:`GENERIC_FOLDER_NAMES`, e.g.
+    ``drive_0001_sync/image_02/data``) the nearest parent with a specific name."""
+    path = Path(frames_path).absolute()
+    if path.is_file():
+        return path.stem
+    for part in (path, *path.parents):
+        if part.name and part.name.lower() not in GENERIC_FOLDER_NAMES:
+            return part.name
+    return path.name or "sequence"
 
 
 class RunAbortedError(SlopedistError):
@@ -72,18 +101,24 @@ class RunResult:
     Attributes:
         out_dir: output folder.
         method: estimator name.
+        sequence: the sequence the frames belong to (Table 1 row of ``slopedist report``).
         frames: frames seen; ``frame_status``: count per :class:`~slopedist.io.frames.FrameStatus`.
         odometry_states: count per odometry state (frames with pixels only).
         records: per-target rows written; ``estimated``: rows with a distance.
         boxes_without_frame: boxes whose frame index never came from the frame source.
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
+        depth_ms_mean: mean time per depth map (read or inference), milliseconds.
+        depth_source: what the depth maps came from (e.g. ``"file read: DIR"``), or None.
+        frames_without_depth: frames with boxes for which the depth source had no map.
+        ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
         overlay: overlay path, or None.
         error: why the run stopped early, or None; ``failed_frame``: its frame index.
     """
 
     out_dir: str
     method: str
+    sequence: str = ""
     frames: int = 0
     frame_status: dict[str, int] = field(default_factory=dict)
     odometry_states: dict[str, int] = field(default_factory=dict)
@@ -94,6 +129,10 @@ class RunResult:
     frames_per_s: float = 0.0
     odometry_ms_mean: float = math.nan
     estimation_ms_mean: float = math.nan
+    depth_ms_mean: float = math.nan
+    depth_source: str | None = None
+    frames_without_depth: int = 0
+    ground_truth: bool = False
     overlay: str | None = None
     error: str | None = None
     failed_frame: int | None = None
@@ -141,11 +180,20 @@ def _fmt(value: Any) -> Any:
     return value
 
 
+def describe_depth(depth: DepthSource) -> str:
+    """``"<kind>: <folder or model file>"`` of a depth source, for ``run.json``."""
+    where = getattr(depth, "folder", None)
+    model = getattr(depth, "model", None)
+    if where is None and model is not None:
+        where = getattr(getattr(model, "config", None), "model_path", None)
+    return f"{depth.kind}: {where}" if where is not None else depth.kind
+
+
 def run_frames(
     frames: FrameSource,
     camera: Camera,
     boxes: BoxTable,
-    odometry: RotationOdometry,
+    odometry: RotationOdometry | None,
     estimator: Estimator,
     out_dir: str | Path,
     *,
@@ -153,32 +201,54 @@ def run_frames(
     overlay: str | Path | None = None,
     overlay_fps: float = 10.0,
     progress: bool = True,
+    sequence: str | None = None,
+    depth: DepthSource | None = None,
 ) -> RunResult:
     """Run the whole pipeline on ``frames``, writing as it goes (see the module docstring).
 
     Args:
         frames: image folder or video (:func:`slopedist.io.frames.open_frames`).
         camera: calibration of the frames (checked against the frame size first).
-        boxes: boxes of every frame, by frame index.
-        odometry: rotation source fed every readable frame.
+        boxes: boxes of every frame, by frame index; a ``gt_distance_m`` column (metres) is
+            copied into ``records.csv``.
+        odometry: rotation source fed every readable frame, or None (no rotations: for methods
+            that do not use them, e.g. ``flat`` and ``depthmap``).
         estimator: distance method.
         out_dir: output folder (created).
         lookback_s: look-back of the ego gradient, seconds.
         overlay: None, a folder for annotated PNG frames, or a ``.mp4`` path.
         overlay_fps: frame rate of an MP4 overlay.
         progress: show a progress bar on stderr.
+        sequence: sequence name written to ``run.json`` (None:
+            :func:`default_sequence_name` of the frames).
+        depth: depth maps for a method that ``needs_depth`` (asked for every readable frame
+            with boxes; a frame without a map gives its targets the reason ``no_depth``).
 
     Raises:
+        ConfigurationError: a depth-map method without ``depth``, or ``depth`` for a method
+            that does not use it (before anything is written).
         DataMismatchError: calibration that does not fit the frames (before anything is written).
         RunAbortedError: an error part-way; ``records.csv`` / ``frames.csv`` keep every frame before
             the failing one and ``run.json`` says where it stopped.
     """
+    if estimator.needs_depth and depth is None:
+        raise ConfigurationError(f"method '{estimator.name}' needs depth maps (a depth folder "
+                                 "or an ONNX depth model)")
+    if depth is not None and not estimator.needs_depth:
+        raise ConfigurationError(f"depth maps were given, but method '{estimator.name}' does "
+                                 "not use them (use the depthmap method)")
     out = Path(out_dir)
     width, height = frames.frame_size()
     check_calibration(camera, width, height, str(frames.path))
     out.mkdir(parents=True, exist_ok=True)
     records_path = out / RECORDS_NAME
-    result = RunResult(str(out), estimator.name, overlay=str(overlay) if overlay else None)
+    has_truth = CSV_TRUTH_COLUMN in boxes.extra
+    result = RunResult(
+        str(out), estimator.name,
+        sequence=sequence if sequence else default_sequence_name(frames.path),
+        overlay=str(overlay) if overlay else None, ground_truth=has_truth,
+        depth_source=describe_depth(depth) if depth is not None else None,
+    )
     by_frame = boxes.frame_index()
     seen_box_frames: set[int] = set()
     empty = boxes.select(np.zeros(len(boxes), dtype=bool))
@@ -186,8 +256,7 @@ def run_frames(
     gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
     status_count: Counter[str] = Counter()
     odo_count: Counter[str] = Counter()
-    odo_ms = RunningMean()
-    est_ms = RunningMean()
+    times = {"odometry": RunningMean(), "estimation": RunningMean(), "depth": RunningMean()}
     writer = RecordWriter.open(records_path)
     log = _FrameLog(out / FRAMES_NAME)
     painter = OverlayWriter(overlay, overlay_fps) if overlay else None
@@ -205,14 +274,14 @@ def run_frames(
             status_count[frame.status.value] += 1
             R = None
             odo_state, inliers, t_odo = "", 0, math.nan
-            if frame.image is not None:
+            if frame.image is not None and odometry is not None:
                 gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
                 t0 = time.perf_counter()
                 res = odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
                 # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its
                 # own working time
                 t_odo = getattr(odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
-                odo_ms.add(t_odo)
+                times["odometry"].add(t_odo)
                 R = res.R_world_cam
                 odo_state, inliers = res.state.value, int(res.inliers)
                 odo_count[odo_state] += 1
@@ -222,12 +291,22 @@ def run_frames(
                     stream.gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
                     last_segment = segment
             theta = gradient.update(frame.timestamp_s, R)
+            depth_m, t_depth = None, math.nan
+            if depth is not None and frame.image is not None and len(frame_boxes):
+                t0 = time.perf_counter()
+                depth_m = depth.depth(k, frame.image)
+                t_depth = (time.perf_counter() - t0) * 1e3
+                times["depth"].add(t_depth)
+                result.frames_without_depth += int(depth_m is None)
             t0 = time.perf_counter()
-            est = stream.update(k, frame.timestamp_s, R, frame_boxes, frame.image)
+            est = stream.update(k, frame.timestamp_s, R, frame_boxes, frame.image, depth_m)
             t_est = (time.perf_counter() - t0) * 1e3
-            est_ms.add(t_est)
+            times["estimation"].add(t_est)
             rows = list(iter_records(frame_boxes, np.broadcast_to(frame.timestamp_s, (k + 1,)),
                                      est, estimator.name))
+            if has_truth:
+                for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
+                    row[CSV_TRUTH_COLUMN] = float(g)
             writer.write(rows)
             n_est = int(np.sum(est.reason == ""))
             result.records += len(rows)
@@ -238,11 +317,12 @@ def run_frames(
                 "odometry_state": odo_state, "inliers": inliers, "segment": last_segment,
                 "theta_deg": math.degrees(theta), "boxes": len(frame_boxes),
                 "estimated": n_est, "odometry_ms": t_odo, "estimation_ms": t_est,
+                "depth_ms": t_depth,
             })
             if painter is not None:
                 if frame.image is not None:
                     head = f"frame {k}  theta {math.degrees(theta):+.2f} deg" if math.isfinite(
-                        theta) else f"frame {k}  no rotation ({odo_state})"
+                        theta) else f"frame {k}  no rotation ({odo_state or 'no odometry'})"
                     painter.write(k, draw_fig3_overlay(frame.image, camera, frame_boxes, est,
                                                        theta, head))
                 else:
@@ -254,8 +334,7 @@ def run_frames(
                  else "the first frame")
         result.error = f"{type(exc).__name__}: {exc}"
         result.failed_frame = frame.index if frame is not None else None
-        _finish(result, start, status_count, odo_count, odo_ms, est_ms, by_frame,
-                seen_box_frames)
+        _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
         _close(writer, log, painter, bar, out, result)
         if isinstance(exc, (SlopedistError, OSError)):
             raise RunAbortedError(
@@ -264,20 +343,21 @@ def run_frames(
                 result.failed_frame, records_path,
             ) from exc
         raise
-    _finish(result, start, status_count, odo_count, odo_ms, est_ms, by_frame, seen_box_frames)
+    _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
     _close(writer, log, painter, bar, out, result)
     return result
 
 
 def _finish(result: RunResult, start: float, status_count: Counter[str],
-            odo_count: Counter[str], odo_ms: RunningMean, est_ms: RunningMean,
+            odo_count: Counter[str], times: dict[str, RunningMean],
             by_frame: dict[int, BoxTable], seen: set[int]) -> None:
     result.elapsed_s = time.perf_counter() - start
     result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
     result.frame_status = dict(status_count)
     result.odometry_states = dict(odo_count)
-    result.odometry_ms_mean = odo_ms.mean()
-    result.estimation_ms_mean = est_ms.mean()
+    result.odometry_ms_mean = times["odometry"].mean()
+    result.estimation_ms_mean = times["estimation"].mean()
+    result.depth_ms_mean = times["depth"].mean()
     result.boxes_without_frame = sum(len(b) for k, b in by_frame.items() if k not in seen)
 
 
