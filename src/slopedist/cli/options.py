@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import click
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
@@ -72,3 +75,29 @@ def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
         raise click.BadParameter("thresholds must decrease (t1 > t2 > t3)",
                                  param_hint="--thresholds")
     return {"adjustment": GradientAdjustment.from_degrees(a, t)}
+
+
+def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """``--depth-sample``, ``--depth-window``, ``--depth-scaling``: how the ``depthmap`` method
+    reads a depth map at a box (see :mod:`slopedist.estimators.depthmap`)."""
+    from slopedist.estimators.depthmap import DepthSample, DepthScaling
+
+    for option in reversed((
+        click.option("--depth-sample", type=click.Choice([s.value for s in DepthSample]),
+                     default=DepthSample.CENTRE.value, show_default=True,
+                     help="depthmap: box centre pixel, a window around it, or the box's lower "
+                          "part."),
+        click.option("--depth-window", type=int, default=5, show_default=True,
+                     help="depthmap: window side in pixels (odd) for --depth-sample window."),
+        click.option("--depth-scaling", type=click.Choice([s.value for s in DepthScaling]),
+                     default=DepthScaling.NONE.value, show_default=True,
+                     help="depthmap: per-frame median scaling for scale-less depth (contact = "
+                          "flat-ground distances, truth = ground truth; see the README)."),
+    )):
+        func = option(func)
+    return func
+
+
+def depthmap_estimator_options(sample: str, window_px: int, scaling: str) -> dict[str, object]:
+    """Constructor options of the ``depthmap`` estimator from the command-line values."""
+    return {"sample": sample, "window_px": window_px, "scaling": scaling}

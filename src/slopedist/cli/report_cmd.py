@@ -11,6 +11,8 @@ import click
 from slopedist.cli.options import (
     alphas_option,
     check_methods,
+    depthmap_estimator_options,
+    depthmap_options,
     height_option,
     lookback_option,
     mount_option,
@@ -19,7 +21,6 @@ from slopedist.cli.options import (
     thresholds_option,
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
     ReportOptions,
@@ -53,15 +54,7 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 @click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
                    "depth PNG, uint16/256 m) or .npy (float metres).")
-@click.option("--depth-sample", type=click.Choice([s.value for s in DepthSample]),
-              default=DepthSample.CENTRE.value, show_default=True,
-              help="depthmap: box centre pixel, a window around it, or the box's lower part.")
-@click.option("--depth-window", type=int, default=5, show_default=True,
-              help="depthmap: window side in pixels (odd) for --depth-sample window.")
-@click.option("--depth-scaling", type=click.Choice([s.value for s in DepthScaling]),
-              default=DepthScaling.NONE.value, show_default=True,
-              help="depthmap: per-frame median scaling for scale-less depth (contact = flat-"
-                   "ground distances, truth = ground truth; see the README).")
+@depthmap_options
 @click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
               default=RotationSource.ORBSLAM3.value, show_default=True,
               help="KITTI: rotation source of the visual-odometry methods (imu always uses oxts).")
@@ -93,8 +86,8 @@ def report(
         sequences=split_list(sequences), methods=tuple(names),
         rotation=RotationSource(rotation), boxes=BoxSource(boxes), min_score=score,
         height_m=height_m, mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
-        method_options={"paper": paper, "imu": paper, "depthmap": {
-            "sample": depth_sample, "window_px": depth_window, "scaling": depth_scaling}},
+        method_options={"paper": paper, "imu": paper, "depthmap": depthmap_estimator_options(
+            depth_sample, depth_window, depth_scaling)},
         depth_dir=depth_dir,
     )
     opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))

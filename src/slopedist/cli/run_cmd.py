@@ -1,8 +1,14 @@
-"""``slopedist run``: frames (image folder or video) + boxes → per-target distances, from pixels."""
+"""``slopedist run``: frames (image folder or video) + boxes → per-target distances, from pixels.
+
+Depth-map methods (``--method depthmap``) take their depth maps from a folder of per-frame files
+(``--depth-dir``: KITTI depth PNG or ``.npy``) or from an ONNX depth model run on each frame
+(``--depth-model``, optional extra ``onnx``).
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -11,21 +17,35 @@ from slopedist.camera import Camera
 from slopedist.cli.options import (
     alphas_option,
     check_methods,
+    depthmap_estimator_options,
+    depthmap_options,
     height_option,
     lookback_option,
     mount_option,
     paper_options,
+    parse_triple,
     thresholds_option,
 )
-from slopedist.detections.readers import read_box_file
+from slopedist.depth import (
+    DepthOutputKind,
+    DepthSource,
+    FileDepthSource,
+    OnnxDepthConfig,
+    OnnxDepthSource,
+)
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import Estimator, available_methods, make_estimator
-from slopedist.io.frames import open_frames
+from slopedist.estimators.depthmap import DepthScaling
+from slopedist.io.frames import FrameSource, open_frames
 from slopedist.odometry import make_odometry
-from slopedist.odometry.base import RotationOdometry
+from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunResult, run_frames
 
-ODOMETRY_BACKENDS = ("builtin", "orbslam3")
+ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
+DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
+"""``--depth-output`` values: what the ONNX model's output means."""
 
 
 def default_method() -> str:
@@ -33,27 +53,111 @@ def default_method() -> str:
     return "ours" if "ours" in available_methods() else "paper"
 
 
-def build_odometry(name: str, camera: Camera, vocab: Path | None = None) -> RotationOdometry:
-    """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``."""
+def build_odometry(name: str, camera: Camera, vocab: Path | None = None,
+                   lookback_s: float = LOOKBACK_S) -> RotationOdometry | None:
+    """The rotation source ``name`` (``builtin``, ``orbslam3`` or ``none``) for ``camera``.
+
+    The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
+    look-back of the gradient); ORB-SLAM3 tracks a map and has no such setting.
+    """
+    if vocab is not None and name != "orbslam3":
+        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
+    if name == "none":
+        return None
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
-    if vocab is not None:
-        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    return make_odometry(name, camera)
+    return make_odometry(name, camera, lookback_s=lookback_s)
 
 
-def check_runnable(estimator: Estimator) -> None:
-    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU) or
-    needing depth maps."""
+def parse_size(value: str) -> tuple[int, int]:
+    """``"640x192"`` → ``(640, 192)`` (width, height in pixels)."""
+    w, sep, h = value.lower().replace("×", "x").partition("x")
+    if not sep or not w.strip().isdigit() or not h.strip().isdigit() or not (
+            int(w) > 0 and int(h) > 0):
+        raise click.BadParameter(f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
+                                 param_hint="--depth-input-size")
+    return int(w), int(h)
+
+
+@dataclass(frozen=True)
+class DepthOptions:
+    """The ``--depth-*`` options that choose and configure the depth source."""
+
+    folder: Path | None = None
+    model: Path | None = None
+    input_size: str | None = None
+    mean: str | None = None
+    std: str | None = None
+    output: str = "depth"
+    scale: float = 1.0
+    bgr: bool = False
+    threads: int | None = None
+
+
+def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource | None:
+    """The depth source the options ask for (files or an ONNX model), or None.
+
+    Raises:
+        ConfigurationError: both a folder and a model, or model options without a model.
+        OptionalDependencyError: ``--depth-model`` without onnxruntime installed.
+    """
+    if opts.folder is not None and opts.model is not None:
+        raise ConfigurationError("give either --depth-dir or --depth-model, not both")
+    model_only = {"--depth-input-size": opts.input_size, "--depth-mean": opts.mean,
+                  "--depth-std": opts.std, "--depth-threads": opts.threads}
+    stray = [k for k, v in model_only.items() if v is not None]
+    stray += ["--depth-output"] if opts.output != "depth" else []
+    stray += ["--depth-scale"] if opts.scale != 1.0 else []
+    stray += ["--depth-bgr"] if opts.bgr else []
+    if opts.model is None and stray:
+        raise ConfigurationError(f"{', '.join(stray)} configure an ONNX depth model: "
+                                 "give it with --depth-model MODEL.onnx")
+    width, height = frames.frame_size()
+    if opts.folder is not None:
+        return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
+    if opts.model is None:
+        return None
+    if opts.input_size is None:
+        raise ConfigurationError("--depth-model needs the network's input size: "
+                                 "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)")
+    in_w, in_h = parse_size(opts.input_size)
+    config = OnnxDepthConfig(
+        opts.model, in_w, in_h,
+        mean=parse_triple(opts.mean, "--depth-mean") if opts.mean else (0.0, 0.0, 0.0),
+        std=parse_triple(opts.std, "--depth-std") if opts.std else (1.0, 1.0, 1.0),
+        output_kind=DEPTH_OUTPUTS[opts.output], output_scale=opts.scale, bgr_input=opts.bgr,
+        threads=opts.threads,
+    )
+    return OnnxDepthSource(config)
+
+
+def check_runnable(estimator: Estimator, has_depth: bool = False,
+                   boxes: BoxTable | None = None) -> None:
+    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU),
+    depth-map methods without a depth source (or depth without a depth-map method), and the
+    ``truth`` depth scaling without a ground-truth column in the boxes."""
     source = getattr(estimator, "rotation_source", None)
     if source is not None:
         raise ConfigurationError(
             f"method '{estimator.name}' is defined on '{source}' rotations; slopedist run feeds "
             "visual-odometry rotations from the frames (use slopedist estimate with pose files)"
         )
-    if estimator.needs_depth:
+    if estimator.needs_depth and not has_depth:
         raise ConfigurationError(
-            f"method '{estimator.name}' needs depth maps, which slopedist run does not produce"
+            f"method '{estimator.name}' needs depth maps: give a folder of per-frame depth "
+            "files (--depth-dir DIR) or an ONNX depth model (--depth-model MODEL.onnx "
+            "--depth-input-size WxH)"
+        )
+    if has_depth and not estimator.needs_depth:
+        raise ConfigurationError(
+            f"--depth-dir / --depth-model feed depth-map methods; method '{estimator.name}' "
+            "does not use depth (use --method depthmap)"
+        )
+    if (getattr(estimator, "scaling", None) is DepthScaling.TRUTH and boxes is not None
+            and CSV_TRUTH_COLUMN not in boxes.extra):
+        raise ConfigurationError(
+            f"--depth-scaling truth needs the ground-truth distance column "
+            f"'{CSV_TRUTH_COLUMN}' in the box file"
         )
 
 
@@ -67,7 +171,9 @@ def check_runnable(estimator: Estimator) -> None:
 @click.option("--method", default=None,
               help="Estimator name [default: ours when available, else paper].")
 @click.option("--odometry", type=click.Choice(ODOMETRY_BACKENDS), default="builtin",
-              show_default=True, help="Visual odometry backend (orbslam3 is an optional extra).")
+              show_default=True,
+              help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
+                   "for methods that do not use them: flat, depthmap).")
 @click.option("--vocab", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="ORB vocabulary (ORBvoc.txt) for --odometry orbslam3 "
                    "[default: $PYORBSLAM3_VOCAB].")
@@ -85,6 +191,33 @@ def check_runnable(estimator: Estimator) -> None:
               help="Timestamps file, one per frame (seconds or KITTI date-times); "
                    "overrides --fps.")
 @click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE.")
+@click.option("--sequence", default=None,
+              help="Sequence name written to OUT/run.json, so that `slopedist report` puts runs "
+                   "of different methods on one sequence in one row [default: the frames' "
+                   "folder or video name].")
+@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="depthmap: folder of per-frame depth maps named by frame number "
+                   "(KITTI depth PNG, uint16/256 = m, or .npy float metres).")
+@click.option("--depth-model", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="depthmap: ONNX depth model run on every frame with boxes (needs "
+                   "onnxruntime: pip install 'slopedist[onnx]').")
+@click.option("--depth-input-size", default=None,
+              help="ONNX model input size WIDTHxHEIGHT in pixels (e.g. 640x192).")
+@click.option("--depth-mean", default=None,
+              help="ONNX model input mean per channel (RGB, on values in [0, 1]) "
+                   "[default: 0,0,0].")
+@click.option("--depth-std", default=None,
+              help="ONNX model input std per channel (RGB) [default: 1,1,1].")
+@click.option("--depth-output", type=click.Choice(list(DEPTH_OUTPUTS)), default="depth",
+              show_default=True,
+              help="ONNX model output: depth (metres = scale × output) or inverse depth / "
+                   "disparity (metres = scale / output).")
+@click.option("--depth-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
+              show_default=True, help="ONNX model output scale (see --depth-output).")
+@click.option("--depth-bgr", is_flag=True, help="Feed the ONNX model BGR instead of RGB.")
+@click.option("--depth-threads", type=click.IntRange(min=1), default=None,
+              help="onnxruntime threads [default: its own].")
+@depthmap_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @height_option
 @mount_option
@@ -94,30 +227,43 @@ def check_runnable(estimator: Estimator) -> None:
 def run(
     frames: Path, calib: Path, boxes_path: Path, method: str | None, odometry: str,
     vocab: Path | None, out_dir: Path, overlay: bool, overlay_format: str, fps: float | None,
-    timestamps: Path | None, score: float | None, quiet: bool, height_m: float,
-    mount_angle_deg: float, lookback_s: float, alphas: str, thresholds: str,
+    timestamps: Path | None, score: float | None, sequence: str | None, depth_dir: Path | None,
+    depth_model: Path | None, depth_input_size: str | None, depth_mean: str | None,
+    depth_std: str | None, depth_output: str, depth_scale: float, depth_bgr: bool,
+    depth_threads: int | None, depth_sample: str, depth_window: int, depth_scaling: str,
+    quiet: bool, height_m: float, mount_angle_deg: float, lookback_s: float, alphas: str,
+    thresholds: str,
 ) -> None:
     """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
 
     The camera rotation comes from visual odometry on the frames; records are written to
-    OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv.
+    OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
+    gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
     """
     method = method or default_method()
     check_methods([method])
     camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
     source = open_frames(frames, fps, timestamps)
     boxes = read_box_file(boxes_path, score)
-    options = paper_options(alphas, thresholds) if method == "paper" else {}
+    options: dict[str, object] = {}
+    if method == "paper":
+        options = paper_options(alphas, thresholds)
+    elif method == "depthmap":
+        options = depthmap_estimator_options(depth_sample, depth_window, depth_scaling)
     estimator = make_estimator(method, camera, **options)
-    check_runnable(estimator)
-    backend = build_odometry(odometry, camera, vocab)
+    depth_opts = DepthOptions(depth_dir, depth_model, depth_input_size, depth_mean, depth_std,
+                              depth_output, depth_scale, depth_bgr, depth_threads)
+    check_runnable(estimator, depth_dir is not None or depth_model is not None, boxes)
+    depth = build_depth_source(depth_opts, source)
+    backend = build_odometry(odometry, camera, vocab, lookback_s)
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
     result = run_frames(
         source, camera, boxes, backend, estimator, out_dir, lookback_s=lookback_s,
-        overlay=overlay_path, overlay_fps=overlay_fps, progress=not quiet,
+        overlay=overlay_path, overlay_fps=overlay_fps, progress=not quiet, sequence=sequence,
+        depth=depth,
     )
     click.echo(summary_text(result, out_dir), err=True)
 
@@ -134,6 +280,15 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
         f"estimation {result.estimation_ms_mean:.2f} ms per frame",
     ]
+    if result.depth_source:
+        lines.append(f"depth maps ({result.depth_source}): {result.depth_ms_mean:.1f} ms per map")
+    if result.frames_without_depth:
+        lines.append(f"warning: {result.frames_without_depth} frames with boxes had no depth map "
+                     "(their targets are missing with reason no_depth)")
+    lines.append(f"sequence '{result.sequence}'; " + (
+        "ground truth (gt_distance_m) kept in the records: score with slopedist report "
+        f"{out_dir}" if result.ground_truth else
+        "no ground truth in the boxes (add a gt_distance_m column to score the run)"))
     if result.boxes_without_frame:
         lines.append(f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
                      "in FRAMES and were not used")
