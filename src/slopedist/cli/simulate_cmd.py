@@ -63,6 +63,11 @@ def simulate(scenario: str | None, out_dir: Path | None, list_only: bool, depth:
                                 on_frame=lambda _k: bar.update(1))
     click.echo(f"wrote {info['frames']} frames of '{sc.name}' to {out_dir} "
                f"(camera height {info['camera_height_m']:g} m)")
+    camera = f"--height {info['camera_height_m']:g} --mount-angle {info['mount_angle_deg']:g}"
     click.echo(f"next: slopedist estimate --calib {out_dir}/calib.txt --poses "
-               f"{out_dir}/poses.txt --boxes {out_dir}/boxes.csv --height "
-               f"{info['camera_height_m']:g}")
+               f"{out_dir}/poses.txt --boxes {out_dir}/boxes.csv {camera}")
+    if info["images"]:
+        click.echo(f"  or, from the pixels: slopedist run {out_dir}/image_02 --calib "
+                   f"{out_dir}/calib.txt --boxes {out_dir}/boxes.csv --timestamps "
+                   f"{out_dir}/times.txt {camera} --method paper --out {out_dir}/run_paper; "
+                   f"then slopedist report {out_dir}/run_paper")

@@ -9,8 +9,11 @@ Layout of the output folder (every file written as the frames are rendered)::
     poses.txt          KITTI poses: 12 numbers per line, 3×4 camera-to-world [R | t]
                        relative to the first frame (camera x right, y down, z forward)
     times.txt          timestamp of each frame, seconds (KITTI odometry layout)
-    boxes.csv          noisy detector boxes, slopedist box CSV with track ids
-    boxes_exact.csv    exact boxes of every target in view (+ z, truncation, visible_share)
+    boxes.csv          noisy detector boxes, slopedist box CSV with track ids and the
+                       ground-truth distance gt_distance_m (KITTI z, metres), so that
+                       ``slopedist run`` → ``slopedist report`` scores the run
+    boxes_exact.csv    exact boxes of every target in view (+ z, truncation, visible_share,
+                       gt_distance_m = z)
     truth.csv          per frame and target: distances, boxes, gradients (see TRUTH_FIELDS)
     frames.csv         per frame: ego position, gradient, pitch, true θ of eq. 4
     image_02/NNNNNN.png    the rendered frames (BGR PNG)
@@ -38,7 +41,7 @@ from slopedist.datasets.synthetic.scene import Scenario, SceneTruth
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.depth.files import write_kitti_depth_png
 from slopedist.detections.boxes import BoxTable
-from slopedist.detections.readers import CSV_BOX_COLUMNS
+from slopedist.detections.readers import CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.geometry import ego_road_gradient
 from slopedist.odometry.base import lookback_indices
@@ -98,6 +101,20 @@ def box_rows(boxes: BoxTable, extra: tuple[str, ...] = ()) -> list[list[Any]]:
     """Rows of the slopedist box CSV (``CSV_BOX_COLUMNS`` then ``extra`` columns)."""
     return [[int(boxes.frame[i]), *boxes.boxes[i], int(boxes.track_id[i]), boxes.score[i],
              boxes.cls[i], *(boxes.extra[k][i] for k in extra)] for i in range(len(boxes))]
+
+
+def with_truth_distance(seq: SyntheticSequence, boxes: BoxTable) -> BoxTable:
+    """``boxes`` of one frame with the column ``gt_distance_m``: the true KITTI z (metres) of
+    the target of each box's track id."""
+    if not len(boxes):
+        return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
+                        {**boxes.extra, CSV_TRUTH_COLUMN: np.zeros(0)})
+    ids = seq.truth.track_ids
+    m = np.searchsorted(ids, boxes.track_id)
+    if np.any(m >= len(ids)) or np.any(ids[np.minimum(m, len(ids) - 1)] != boxes.track_id):
+        raise ConfigurationError("a box's track id is not a target of the scenario")
+    return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
+                    {**boxes.extra, CSV_TRUTH_COLUMN: seq.truth.z_m[boxes.frame, m]})
 
 
 def kitti_calib_line(scenario: Scenario) -> str:
@@ -161,9 +178,9 @@ def write_simulation(
     theta = true_theta(seq.truth, sc.camera.rig.mount_angle_rad)
     tr = seq.truth
     streams = {
-        "boxes": CsvStream(out / "boxes.csv", CSV_BOX_COLUMNS),
-        "exact": CsvStream(out / "boxes_exact.csv",
-                           (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share")),
+        "boxes": CsvStream(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
+        "exact": CsvStream(out / "boxes_exact.csv", (*CSV_BOX_COLUMNS, "z", "truncation",
+                                                     "visible_share", CSV_TRUTH_COLUMN)),
         "truth": CsvStream(out / "truth.csv", TRUTH_FIELDS),
         "frames": CsvStream(out / "frames.csv", FRAME_FIELDS),
     }
@@ -179,8 +196,11 @@ def write_simulation(
                 write_kitti_depth_png(depth_dir / f"{k:06d}.png", f.depth_m)
             elif depth is DepthFormat.NPY:
                 np.save(depth_dir / f"{k:06d}.npy", f.depth_m)
-            streams["boxes"].rows(box_rows(f.detections))
-            streams["exact"].rows(box_rows(f.exact, ("z", "truncation", "visible_share")))
+            streams["boxes"].rows(box_rows(with_truth_distance(seq, f.detections),
+                                           (CSV_TRUTH_COLUMN,)))
+            streams["exact"].rows(box_rows(with_truth_distance(seq, f.exact),
+                                           ("z", "truncation", "visible_share",
+                                            CSV_TRUTH_COLUMN)))
             streams["truth"].rows(truth_rows(seq, f))
             streams["frames"].rows([[k, f.timestamp_s, tr.ego_s[k], 100.0 * tr.ego_grade[k],
                                      math.degrees(tr.ego_pitch_rad[k]),
