@@ -16,6 +16,8 @@ Outputs (folder ``slopedist-demo/`` by default), written as the run goes:
 - ``results.json``: every figure behind the tables, and the noise models used;
 - ``rmse.csv`` and ``timing.csv``: the two tables as CSV;
 - per scenario ``<name>/records.csv`` (one row per target, frame and method, with the truth),
+  ``<name>/frames.csv`` (per frame: odometry state, θ from the odometry and the true θ in
+  degrees, odometry time in ms; :data:`DEMO_FRAME_FIELDS`),
   ``<name>/distance.png``, ``<name>/theta.png`` and ``<name>/overlay.mp4`` (the paper's Fig. 3
   style; an animated GIF when OpenCV cannot write MP4).
 
@@ -41,7 +43,7 @@ from tqdm import tqdm
 
 from slopedist import viz
 from slopedist.camera import Camera
-from slopedist.datasets.synthetic.export import true_theta
+from slopedist.datasets.synthetic.export import CsvStream, true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
@@ -55,6 +57,9 @@ from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstima
 FloatArray = NDArray[np.float64]
 
 DEFAULT_OUT = Path("slopedist-demo")
+DEMO_FRAME_FIELDS = ("frame", "timestamp_s", "odometry_state", "theta_deg", "theta_true_deg",
+                     "odometry_ms")
+"""Columns of a scenario's ``frames.csv`` (θ of eq. 4 in degrees, 1 s look-back)."""
 CAP_M = 80.0
 """Cap of the published protocol, metres."""
 IMU_PITCH_NOISE_RAD = math.radians(0.03)
@@ -302,6 +307,7 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
     timestamps = seq.truth.timestamps_s
     gradient = EgoGradientTracker(camera.mount_angle_rad, LOOKBACK_S)
     records = RecordWriter.open(folder / "records.csv")
+    frame_log = CsvStream(folder / "frames.csv", DEMO_FRAME_FIELDS)
     try:
         for k in range(n):
             t0 = time.perf_counter()
@@ -314,6 +320,8 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
             odo_s += t2 - t1
             states[res.state.value] = states.get(res.state.value, 0) + 1
             theta_est[k] = gradient.update(frame.timestamp_s, res.R_world_cam)
+            frame_log.rows([[k, frame.timestamp_s, res.state.value, math.degrees(theta_est[k]),
+                             math.degrees(theta_true[k]), 1e3 * (t2 - t1)]])
             boxes = frame.detections
             m_idx = np.searchsorted(seq.truth.track_ids, boxes.track_id)
             truth_z = seq.truth.z_m[k, m_idx]
@@ -350,9 +358,10 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
                 bar.update(1)
     finally:
         records.close()
+        frame_log.close()
         if painter is not None:
             painter.close()
-    files = [str(folder / "records.csv")]
+    files = [str(folder / "records.csv"), str(folder / "frames.csv")]
     if painter is not None:
         files.append(str(painter.target if isinstance(painter, OverlayWriter) else painter.path))
     run = ScenarioRun(scenario.name, scenario.description.strip(), n, scores, render_s, odo_s,
