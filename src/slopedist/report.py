@@ -10,9 +10,13 @@ Sources:
 - a ``slopedist run`` output folder (``records.csv`` + ``frames.csv``), or a folder of such
   folders (one per sequence and method; the sequence is ``run.json``'s ``"sequence"``, else the
   folder name): the records are read back; they are scored when they carry a
-  ground-truth column (:data:`TRUTH_COLUMNS`), and ``frames.csv``'s per-frame times give Table 2.
-  A synthetic-suite output written in the same layout (records with ground truth) is read the
-  same way.
+  ground-truth column (:data:`TRUTH_COLUMNS`), and ``frames.csv``'s per-frame times give Table 2
+  (odometry time only for methods that use rotations). A folder of ``slopedist simulate``
+  outputs with the runs made from their frames inside (``SIM/run_paper/``, ...) is read the
+  same way, with the true θ of each simulation (``SIM/frames.csv``);
+- a ``slopedist demo`` output (``results.json``, ``<scenario>/records.csv`` and
+  ``<scenario>/frames.csv``): Table 1 per scenario × method against the synthetic truth, θ of
+  the odometry against the true θ, times from ``results.json``.
 
 Outputs under the output folder: ``report.md``, ``report.html`` (figures embedded as base64
 PNG, no external files), ``figures/*.png``, ``report.json`` and one CSV per table plus the
@@ -64,7 +68,7 @@ from slopedist.kitti_eval import (
     run_sequence,
 )
 
-TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m")
+TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
 
 THETA_TRUTH_COLUMNS = ("theta_true_deg", "gt_theta_deg")
@@ -79,10 +83,27 @@ class SourceKind(str, Enum):
 
     KITTI_TRACKING = "kitti_tracking"
     RUN = "run"
+    SYNTHETIC = "synthetic"
+    """A ``slopedist demo`` output folder (the synthetic-hill suite)."""
+
+
+DEMO_RESULTS = "results.json"
+"""File that marks a ``slopedist demo`` output folder (with ``<scenario>/records.csv``)."""
+
+
+def run_folders(root: Path) -> list[Path]:
+    """The run output folders (with ``records.csv``) at ``root``: ``root`` itself, its
+    sub-folders, and their sub-folders (e.g. ``slopedist simulate`` outputs holding the runs
+    made from their frames)."""
+    if (root / "records.csv").is_file():
+        return [root]
+    return sorted({p.parent for pattern in ("*/records.csv", "*/*/records.csv")
+                   for p in root.glob(pattern)})
 
 
 def detect_source(path: str | Path) -> SourceKind:
-    """Tell a KITTI tracking folder from a run output (or a folder of run outputs).
+    """Tell a KITTI tracking folder from a ``slopedist demo`` output and from a run output (or
+    a folder of run outputs, or of ``slopedist simulate`` outputs with runs inside).
 
     Raises:
         MissingInputError: the folder does not exist or is neither.
@@ -92,11 +113,14 @@ def detect_source(path: str | Path) -> SourceKind:
         raise MissingInputError(f"report source not found (expected a folder): {path}")
     if (path / "label_02").is_dir() and (path / "calib").is_dir():
         return SourceKind.KITTI_TRACKING
-    if (path / "records.csv").is_file() or any(path.glob("*/records.csv")):
+    if (path / DEMO_RESULTS).is_file() and any(path.glob("*/records.csv")):
+        return SourceKind.SYNTHETIC
+    if run_folders(path):
         return SourceKind.RUN
     raise MissingInputError(
-        f"{path} is neither a KITTI tracking folder (label_02/ and calib/) nor a `slopedist run` "
-        f"output (records.csv, or sub-folders with records.csv)"
+        f"{path} is neither a KITTI tracking folder (label_02/ and calib/), a `slopedist demo` "
+        f"output ({DEMO_RESULTS} and <scenario>/records.csv) nor a `slopedist run` output "
+        f"(records.csv, or sub-folders with records.csv)"
     )
 
 
@@ -313,19 +337,19 @@ def run_sequence_name(folder: Path) -> str:
 def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
     """Read one ``slopedist run`` output folder, or a folder of them (one per sequence)."""
     root = Path(root)
-    folders = [root] if (root / "records.csv").is_file() else sorted(
-        p.parent for p in root.glob("*/records.csv"))
+    folders = run_folders(root)
     records = Columns(RECORD_COLUMNS)
     theta = Columns(THETA_COLUMNS)
     sets: dict[str, dict[str, ScoredSet]] = {}
     timing_acc: dict[str, list[float]] = {}
     truth_found = False
-    theta_truth = False
-    names: list[str] = []
+    theta_truth_seqs: set[str] = set()
+    by_seq: dict[str, list[Path]] = {}
+    for folder in folders:
+        by_seq.setdefault(run_sequence_name(folder), []).append(folder)
+    names = list(by_seq)
     for folder in folders:
         seq = run_sequence_name(folder)
-        if seq not in names:
-            names.append(seq)
         path = folder / "records.csv"
         header, rows = _read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
         truth_col = next((c for c in TRUTH_COLUMNS if c in header), None)
@@ -360,27 +384,8 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
             ok &= np.isfinite(gt) & (gt > 0)
             sets[seq][method] = ScoredSet(capped[ok], gt[ok], n_gt=int(np.isfinite(gt).sum()),
                                           n_unscored=int((np.isfinite(gt) & ~ok).sum()))
-        frames_path = folder / "frames.csv"
-        if frames_path.is_file():
-            fheader, frows = _read_csv(frames_path, ("frame",))
-            t_col = next((c for c in THETA_TRUTH_COLUMNS if c in fheader), None)
-            for lineno, row in enumerate(frows, start=2):
-                k = int(_float(row["frame"], frames_path, lineno, "frame"))
-                ts = _float(row.get("timestamp_s", ""), frames_path, lineno, "timestamp_s")
-                if "theta_deg" in fheader:
-                    theta.add(sequence=seq, frame=k, timestamp_s=ts, source="run",
-                              theta_deg=_float(row["theta_deg"], frames_path, lineno,
-                                               "theta_deg"))
-                if t_col:
-                    theta_truth = True
-                    theta.add(sequence=seq, frame=k, timestamp_s=ts, source="truth",
-                              theta_deg=_float(row[t_col], frames_path, lineno, t_col))
-                for key in ("odometry_ms", "estimation_ms", "depth_ms"):
-                    if key in fheader:
-                        value = _float(row[key], frames_path, lineno, key)
-                        if math.isfinite(value):
-                            for method in by_method:
-                                timing_acc.setdefault(f"{method}\0{key}", []).append(value)
+        _read_frame_log(folder, seq, list(by_method), len(by_seq[seq]) > 1, theta, timing_acc,
+                        theta_truth_seqs)
     methods = sorted({m for s in sets.values() for m in s})
     if not methods:
         raise InputFileError(folders[0] / "records.csv", "no records"
@@ -433,8 +438,133 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         summaries=summaries, overall=overall, pooled=pooled, common=common, timing=timing,
         records=records, theta=theta,
         protocol={"source": "run", "folders": [str(f) for f in folders]}, notes=notes,
-        truth_source="truth" if theta_truth else None, has_truth=truth_found,
+        truth_source="truth" if theta_truth_seqs else None, has_truth=truth_found,
     )
+
+
+def _uses_rotation(method: str) -> bool:
+    """Whether a method uses the camera rotation (its runs are charged the odometry time)."""
+    return bool(getattr(ESTIMATORS.get(method), "needs_rotation", True))
+
+
+def _truth_frame_log(folder: Path) -> Path | None:
+    """``frames.csv`` of the ``slopedist simulate`` output a run folder lies in (its true θ),
+    if any."""
+    parent = folder.parent
+    if (parent / "info.json").is_file() and (parent / "frames.csv").is_file() and (
+            parent / "truth.csv").is_file():
+        return parent / "frames.csv"
+    return None
+
+
+def _read_frame_log(folder: Path, seq: str, methods: list[str], shared: bool, theta: Columns,
+                    timing_acc: dict[str, list[float]], theta_truth_seqs: set[str]) -> None:
+    """Add a run folder's per-frame θ (source ``run``, or the folder's name when several runs
+    share the sequence), the true θ (once per sequence: from the folder's ``frames.csv`` or
+    from the simulation it lies in) and the per-frame times of its methods."""
+    frames_path = folder / "frames.csv"
+    if not frames_path.is_file():
+        return
+    fheader, frows = _read_csv(frames_path, ("frame",))
+    source = folder.name if shared else "run"
+    truth_path: Path | None = frames_path if any(c in fheader for c in THETA_TRUTH_COLUMNS) \
+        else _truth_frame_log(folder)
+    if truth_path is not None and seq not in theta_truth_seqs:
+        theader, trows = (fheader, frows) if truth_path == frames_path else _read_csv(
+            truth_path, ("frame",))
+        t_col = next((c for c in THETA_TRUTH_COLUMNS if c in theader), None)
+        if t_col is not None:
+            theta_truth_seqs.add(seq)
+            for lineno, row in enumerate(trows, start=2):
+                theta.add(sequence=seq, frame=int(_float(row["frame"], truth_path, lineno,
+                                                         "frame")),
+                          timestamp_s=_float(row.get("timestamp_s", ""), truth_path, lineno,
+                                             "timestamp_s"),
+                          source="truth", theta_deg=_float(row[t_col], truth_path, lineno, t_col))
+    values = {key: [_float(row[key], frames_path, lineno, key)
+                    for lineno, row in enumerate(frows, start=2)]
+              for key in ("theta_deg", "odometry_ms", "estimation_ms", "depth_ms")
+              if key in fheader}
+    if any(math.isfinite(v) for v in values.get("theta_deg", [])):
+        for lineno, (row, th) in enumerate(zip(frows, values["theta_deg"]), start=2):
+            theta.add(sequence=seq, frame=int(_float(row["frame"], frames_path, lineno, "frame")),
+                      timestamp_s=_float(row.get("timestamp_s", ""), frames_path, lineno,
+                                         "timestamp_s"),
+                      source=source, theta_deg=th)
+    for key, column in values.items():
+        if key == "theta_deg":
+            continue
+        finite = [v for v in column if math.isfinite(v)]
+        for method in methods if finite else []:
+            if key == "odometry_ms" and not _uses_rotation(method):
+                continue
+            timing_acc.setdefault(f"{method}\0{key}", []).extend(finite)
+
+
+def _demo_number(results: dict[str, Any], path: Path, *keys: str) -> float:
+    value: Any = results
+    for k in keys:
+        if not isinstance(value, dict) or k not in value:
+            raise InputFileError(path, f"lacks {'.'.join(keys)} (not a slopedist demo output?)")
+        value = value[k]
+    if value is None:
+        return math.nan
+    if not isinstance(value, (int, float)):
+        raise InputFileError(path, f"{'.'.join(keys)} is not a number: {value!r}")
+    return float(value)
+
+
+def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
+    """Read a ``slopedist demo`` output: the per-scenario records (scored against the synthetic
+    truth, ``truth_z_m``), θ from ``<scenario>/frames.csv`` against the true θ, and the times
+    of ``results.json`` (odometry only for methods fed visual-odometry rotations)."""
+    root = Path(root)
+    data = run_report_data(root, opts)
+    path = root / DEMO_RESULTS
+    try:
+        results = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputFileError(path, f"not valid JSON ({exc})") from None
+    if not isinstance(results, dict) or not isinstance(results.get("scenarios"), dict):
+        raise InputFileError(path, "lacks 'scenarios' (not a slopedist demo output?)")
+    scenarios: dict[str, Any] = results["scenarios"]
+    for m in data.methods:
+        est = odo = frames = 0.0
+        for name in data.sequences:
+            if data.summaries[name][m].get("missing"):
+                continue  # no records of m in this scenario
+            n = _demo_number(scenarios, path, name, "frames")
+            frames += n
+            est += n * _demo_number(scenarios, path, name, "methods", m,
+                                    "estimation_ms_per_frame")
+            odo += n * _demo_number(scenarios, path, name, "odometry_ms_per_frame")
+        rotation = (results.get("methods") or {}).get(m, {}).get("rotation")
+        data.timing[m] = {
+            "odometry_ms": odo / frames if frames and rotation == "odometry" else math.nan,
+            "estimation_ms": est / frames if frames else math.nan,
+            "depth_ms": math.nan, "frames": frames,
+        }
+    config = results.get("config") or {}
+    odometry = ("the built-in visual odometry on the rendered frames"
+                if config.get("odometry", "visual") == "visual" else
+                "the TRUE rotations (demo --odometry truth)")
+    data.kind = SourceKind.SYNTHETIC
+    data.protocol = {"source": "synthetic", "demo": str(root), "config": config,
+                     "demo_protocol": results.get("protocol")}
+    data.notes = [
+        "Source: `slopedist demo` output (synthetic hills) of scenarios "
+        + compact_names(data.sequences) + f"; rotations from {odometry}; noisy detector boxes.",
+        "Ground truth: the synthetic targets' KITTI z (camera z of the 3D box's bottom centre); "
+        "the same cap rule as KITTI (estimates above 80 m count as 80 m, below-horizon "
+        "targets as 80 m).",
+        "Methods bound to an IMU get the true rotations with simulated IMU noise; depth-map "
+        "methods get the true depth with simulated network noise (no inference, so no depth "
+        "time).",
+        "Times per frame from results.json: odometry (for methods fed odometry rotations) and "
+        "estimation; rendering and the detector are excluded. θ: the odometry's ego gradient "
+        "against the true one (frames.csv of each scenario).",
+    ]
+    return data
 
 
 def report_data(source: str | Path, opts: ReportOptions,
@@ -443,6 +573,8 @@ def report_data(source: str | Path, opts: ReportOptions,
     kind = detect_source(source)
     if kind is SourceKind.KITTI_TRACKING:
         return kitti_report_data(source, opts, on_sequence)
+    if kind is SourceKind.SYNTHETIC:
+        return synthetic_report_data(source, opts)
     return run_report_data(source, opts)
 
 
