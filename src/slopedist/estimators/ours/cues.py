@@ -29,6 +29,7 @@ FloatArray = NDArray[np.float64]
 
 _CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
 _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
+_ONE_HOT = np.eye(4)
 
 
 def depth_half_extent(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
@@ -100,19 +101,19 @@ def height_cue(
     H = np.asarray(height_m, dtype=float)
     e = np.asarray(half_extent_m, dtype=float)
     h = np.asarray(cam_height_m, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d = D / f
-        k = e * (2.0 * h - H)
-        Zq = (H + np.sqrt(H * H + 4.0 * d * (d * e * e + k))) / (2.0 * d)
-        den = 2.0 * d * Zq - H
-        roof_below = h >= H
-        Z = np.where(roof_below, Zq, H / d + e)
-        dZ_dD = np.where(roof_below, -(Zq * Zq - e * e) / den, -H / (d * d)) / f
-        dZ_dH = np.where(roof_below, (Zq - e) / den, 1.0 / d)
-        dZ_de = np.where(roof_below, (2.0 * d * e + 2.0 * h - H) / den, 1.0)
-        dZ_dh = np.where(roof_below, 2.0 * e / den, 0.0)
-    bad = ~(D > 0)
-    return tuple(np.where(bad, np.nan, a) for a in (Z, dZ_dD, dZ_dH, dZ_de, dZ_dh))  # type: ignore[return-value]
+    d = np.where(D > 0, D, np.nan) / f  # NaN propagates to every output
+    k = e * (2.0 * h - H)
+    Zq = (H + np.sqrt(H * H + 4.0 * d * (d * e * e + k))) / (2.0 * d)
+    den = 2.0 * d * Zq - H
+    outs = (Zq, -(Zq * Zq - e * e) / den / f, (Zq - e) / den, (2.0 * d * e + 2.0 * h - H) / den,
+            2.0 * e / den)
+    roof_above = h < H
+    if not np.any(roof_above):
+        return outs
+    Zt = H / d + e
+    return (np.where(roof_above, Zt, outs[0]), np.where(roof_above, -H / (d * d) / f, outs[1]),
+            np.where(roof_above, 1.0 / d, outs[2]), np.where(roof_above, 1.0, outs[3]),
+            np.where(roof_above, 0.0 * d, outs[4]))
 
 
 def width_cue(
@@ -138,40 +139,32 @@ def width_cue(
     L = np.asarray(length_m, dtype=float)
     shape = np.broadcast_shapes(al.shape, ar.shape, np.shape(yaw_rad), W.shape, L.shape)
     al, ar = np.broadcast_to(al, shape), np.broadcast_to(ar, shape)
-    psi = np.broadcast_to(np.asarray(yaw_rad, dtype=float), shape)[..., None]
+    psi = np.asarray(yaw_rad, dtype=float)[..., None]
     s, c = np.sin(psi), np.cos(psi)
-    hl = np.broadcast_to(L, shape)[..., None] * _CORNER_L
-    hw = np.broadcast_to(W, shape)[..., None] * _CORNER_W
-    dxl, dzl = hl * s, hl * c
-    dxw, dzw = hw * c, -hw * s
-    dx, dz = dxl + dxw, dzl + dzw
-    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape).copy()
+    hl = L[..., None] * _CORNER_L
+    hw = W[..., None] * _CORNER_W
+    # per corner: the width's and the length's parts of its x and z offsets
+    parts = np.broadcast_to(np.stack([hw * c, hl * s, -hw * s, hl * c], axis=-1),
+                            (*shape, 4, 4))
+    dx = parts[..., 0] + parts[..., 1]
+    dz = parts[..., 2] + parts[..., 3]
+    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape)
     span = al - ar
     mid = 0.5 * (al + ar)
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(max(1, iterations)):
-            zc = np.maximum(Z[..., None] + dz, 1e-3)
-            px = (mid[..., None] * Z[..., None] + dx) / zc
-            li = _first_extreme(px, np.argmin)
-            ri = _first_extreme(px, np.argmax)
-            num_w = ((li * dxw).sum(-1) - (ri * dxw).sum(-1) - al * (li * dzw).sum(-1)
-                     + ar * (ri * dzw).sum(-1))
-            num_l = ((li * dxl).sum(-1) - (ri * dxl).sum(-1) - al * (li * dzl).sum(-1)
-                     + ar * (ri * dzl).sum(-1))
+            px = (mid[..., None] * Z[..., None] + dx) / np.maximum(Z[..., None] + dz, 1e-3)
+            pl = np.einsum("...c,...cq->...q", _ONE_HOT[np.argmin(px, axis=-1)], parts)
+            pr = np.einsum("...c,...cq->...q", _ONE_HOT[np.argmax(px, axis=-1)], parts)
+            num_w = pl[..., 0] - pr[..., 0] - al * pl[..., 2] + ar * pr[..., 2]
+            num_l = pl[..., 1] - pr[..., 1] - al * pl[..., 3] + ar * pr[..., 3]
             Z = (num_w + num_l) / span
-        dZ_dcol = np.hypot(Z + (li * dz).sum(-1), Z + (ri * dz).sum(-1)) / (np.abs(span) * f)
+        dZ_dcol = (np.hypot(Z + pl[..., 2] + pl[..., 3], Z + pr[..., 2] + pr[..., 3])
+                   / (np.abs(span) * f))
         share_w = num_w / (num_w + num_l)
     bad = ~(ar > al)
     return (np.where(bad, np.nan, Z), np.where(bad, np.nan, dZ_dcol),
             np.where(bad, np.nan, share_w))
-
-
-_ONE_HOT = np.eye(4)
-
-
-def _first_extreme(a: FloatArray, arg: object) -> FloatArray:
-    """One-hot mask ``(..., 4)`` of the first arg-minimum/maximum along the last axis."""
-    return np.asarray(_ONE_HOT[arg(a, axis=-1)])  # type: ignore[operator]
 
 
 def ground_contact_cue(

@@ -93,5 +93,6 @@ def simulate_traffic(
     table = BoxTable.build(frame, np.concatenate(boxes) if boxes else np.zeros((0, 4)),
                            vehicle if with_ids else np.full(len(vehicle), -1),
                            classes=np.full(len(vehicle), "Car", dtype=object))
-    return SimulatedTraffic(table, t, np.concatenate(zs) if zs else np.zeros(0), vehicle,
+    return SimulatedTraffic(table, np.asarray(t, dtype=float),
+                            np.concatenate(zs) if zs else np.zeros(0), vehicle,
                             np.concatenate(spd) if spd else np.zeros(0), dims)

@@ -84,18 +84,22 @@ def rotate_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float,
     """Where boxes ``(T, 4)`` go when the camera turns by ``R_rel`` ``(T, 3, 3)`` (pixels).
 
     ``R_rel`` maps directions of the old camera frame into the new one (``R_newᵀ·R_old`` for
-    camera-to-world rotations); a pure rotation moves every pixel the same way whatever its
-    depth, so each box's four corners are mapped and boxed again.
+    camera-to-world rotations). A pure rotation moves every pixel whatever its depth; between
+    two frames it is small, so each box is shifted by the motion of its centre (its size
+    changes by a second-order amount).
     """
     b = np.asarray(boxes, dtype=float)
-    xs = (b[:, [0, 2, 2, 0]] - c_x) / f
-    ys = (b[:, [1, 1, 3, 3]] - c_y) / f
-    rays = np.stack([xs, ys, np.ones_like(xs)], axis=-1)  # (T, 4, 3)
-    out = np.einsum("tij,tkj->tki", R_rel, rays)
-    z = np.maximum(out[..., 2], 1e-6)
-    u = c_x + f * out[..., 0] / z
-    v = c_y + f * out[..., 1] / z
-    return np.stack([u.min(axis=1), v.min(axis=1), u.max(axis=1), v.max(axis=1)], axis=1)
+    if b.shape[0] == 0:
+        return b.copy()
+    ray = np.empty((b.shape[0], 3))
+    ray[:, 0] = (0.5 * (b[:, 0] + b[:, 2]) - c_x) / f
+    ray[:, 1] = (0.5 * (b[:, 1] + b[:, 3]) - c_y) / f
+    ray[:, 2] = 1.0
+    out = np.einsum("tij,tj->ti", R_rel, ray)
+    z = np.maximum(out[:, 2], 1e-6)
+    du = c_x + f * out[:, 0] / z - 0.5 * (b[:, 0] + b[:, 2])
+    dv = c_y + f * out[:, 1] / z - 0.5 * (b[:, 1] + b[:, 3])
+    return b + np.stack([du, dv, du, dv], axis=1)
 
 
 def relative_rotations(R_last: FloatArray, R_now: FloatArray | None) -> FloatArray:
