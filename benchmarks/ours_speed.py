@@ -1,0 +1,116 @@
+"""Cost of ``ours`` per target and per frame on one core.
+
+Only the estimator is timed (``Estimator.estimate`` on prepared frames: boxes, θ, rotation),
+in process CPU time with numpy/BLAS limited to one thread; the detector and the odometry are
+not counted (as in the paper's comparison). Two workloads:
+
+1. KITTI tracking label boxes of every road-user class (Car, Van, Truck, Pedestrian, Cyclist,
+   Tram, Misc, Person_sitting — not only the protocol's evaluated ones), ORB-SLAM3 rotations,
+   all 13 sequences: the traffic density of real urban scenes.
+2. Simulated traffic (:func:`slopedist.estimators.ours.scene.simulate_traffic`) with a fixed
+   number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
+
+Usage::
+
+    python benchmarks/ours_speed.py [--data ../shared/data/kitti_tracking] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from slopedist.camera import Camera  # noqa: E402
+from slopedist.datasets.kitti_tracking import (  # noqa: E402
+    RotationSource,
+    list_sequences,
+    load_sequence,
+)
+from slopedist.estimators import make_estimator  # noqa: E402
+from slopedist.estimators.base import FrameInput  # noqa: E402
+from slopedist.estimators.ours.scene import simulate_traffic  # noqa: E402
+from slopedist.evaluation import format_table  # noqa: E402
+from slopedist.pipeline import ego_gradients  # noqa: E402
+
+DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
+METHODS = ("paper", "ours", "ours-selfcal")
+
+
+def cpu_time(method: str, camera: Camera, frames: list[FrameInput], repeats: int) -> float:
+    """Best of ``repeats`` runs of the estimator over ``frames``, CPU seconds."""
+    best = float("inf")
+    for _ in range(repeats):
+        est = make_estimator(method, camera)
+        est.reset()
+        t0 = time.process_time()
+        for fr in frames:
+            est.estimate(fr)
+        best = min(best, time.process_time() - t0)
+    return best
+
+
+def kitti(data: Path, repeats: int) -> None:
+    print("1. KITTI tracking label boxes of all road-user classes, ORB-SLAM3 rotations")
+    totals = {m: 0.0 for m in METHODS}
+    n_targets = n_frames = 0
+    for name in list_sequences(data):
+        seq = load_sequence(data, name)
+        labels = seq.labels.select(seq.labels.cls != "DontCare")
+        track = seq.rotations(RotationSource.ORBSLAM3)
+        theta = ego_gradients(track)
+        frames = [FrameInput(k, float(seq.timestamps_s[k]), float(theta[k]), b,
+                             R_world_cam=track.R_world_cam[k])
+                  for k, b in labels.by_frame()]
+        n_targets += len(labels)
+        n_frames += len(frames)
+        for m in METHODS:
+            totals[m] += cpu_time(m, seq.camera, frames, repeats)
+    rows = [[m, 1e3 * totals[m] / n_frames, 1e3 * totals[m] / n_targets] for m in METHODS]
+    print(f"   {n_targets} targets in {n_frames} frames ({n_targets / n_frames:.1f} per frame)")
+    print(format_table(["method", "ms/frame", "ms/target"], rows) + "\n")
+
+
+def simulated(repeats: int) -> None:
+    print("2. Simulated traffic, N vehicles per frame (200 frames)")
+    cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
+    rows = []
+    for n in (1, 5, 10, 20, 30, 60):
+        sim = simulate_traffic(cam, n, 200, seed=n, z_range_m=(10.0, 60.0),
+                               speed_range_mps=(-2.0, 2.0), box_noise_px=0.5)
+        eye = np.eye(3)
+        frames = [FrameInput(k, float(sim.timestamps_s[k]), 0.0, b, R_world_cam=eye)
+                  for k, b in sim.boxes.by_frame()]
+        per_frame = len(sim.boxes) / len(frames)
+        row: list[object] = [n, per_frame]
+        for m in ("ours", "ours-selfcal"):
+            sec = cpu_time(m, cam, frames, repeats)
+            row += [1e3 * sec / len(frames), 1e3 * sec / len(sim.boxes)]
+        rows.append(row)
+    print(format_table(["N", "targets/frame", "ours ms/frame", "ours ms/target",
+                        "selfcal ms/frame", "selfcal ms/target"], rows))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args(argv)
+    if (args.data / "label_02").is_dir():
+        kitti(args.data, args.repeats)
+    else:
+        print(f"(KITTI tracking data not found at {args.data}: section 1 skipped)\n")
+    simulated(args.repeats)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
