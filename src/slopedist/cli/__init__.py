@@ -12,6 +12,7 @@ import sys
 import click
 
 from slopedist import __version__
+from slopedist.cli.calibrate_cmd import calibrate
 from slopedist.cli.demo_cmd import demo
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
@@ -35,6 +36,7 @@ cli.add_command(report)
 cli.add_command(run)
 cli.add_command(simulate)
 cli.add_command(demo)
+cli.add_command(calibrate)
 
 
 def main(argv: list[str] | None = None) -> int:
