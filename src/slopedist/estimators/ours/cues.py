@@ -29,7 +29,6 @@ FloatArray = NDArray[np.float64]
 
 _CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
 _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
-_ONE_HOT = np.eye(4)
 
 
 def depth_half_extent(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
@@ -143,28 +142,30 @@ def width_cue(
     s, c = np.sin(psi), np.cos(psi)
     hl = L[..., None] * _CORNER_L
     hw = W[..., None] * _CORNER_W
-    # per corner: the width's and the length's parts of its x and z offsets
+    # per corner: the width's and the length's parts of its x and z offsets, flattened
     parts = np.broadcast_to(np.stack([hw * c, hl * s, -hw * s, hl * c], axis=-1),
-                            (*shape, 4, 4))
+                            (*shape, 4, 4)).reshape(-1, 4, 4)
+    rows = np.arange(parts.shape[0])
     dx = parts[..., 0] + parts[..., 1]
     dz = parts[..., 2] + parts[..., 3]
-    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape)
-    span = al - ar
-    mid = 0.5 * (al + ar)
+    al_f, ar_f = al.ravel(), ar.ravel()
+    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape).ravel()
+    span = al_f - ar_f
+    mid = 0.5 * (al_f + ar_f)[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(max(1, iterations)):
-            px = (mid[..., None] * Z[..., None] + dx) / np.maximum(Z[..., None] + dz, 1e-3)
-            pl = np.einsum("...c,...cq->...q", _ONE_HOT[np.argmin(px, axis=-1)], parts)
-            pr = np.einsum("...c,...cq->...q", _ONE_HOT[np.argmax(px, axis=-1)], parts)
-            num_w = pl[..., 0] - pr[..., 0] - al * pl[..., 2] + ar * pr[..., 2]
-            num_l = pl[..., 1] - pr[..., 1] - al * pl[..., 3] + ar * pr[..., 3]
+            px = (mid * Z[:, None] + dx) / np.maximum(Z[:, None] + dz, 1e-3)
+            pl = parts[rows, np.argmin(px, axis=-1)]  # the left-most corner's parts
+            pr = parts[rows, np.argmax(px, axis=-1)]
+            num_w = pl[:, 0] - pr[:, 0] - al_f * pl[:, 2] + ar_f * pr[:, 2]
+            num_l = pl[:, 1] - pr[:, 1] - al_f * pl[:, 3] + ar_f * pr[:, 3]
             Z = (num_w + num_l) / span
-        dZ_dcol = (np.hypot(Z + pl[..., 2] + pl[..., 3], Z + pr[..., 2] + pr[..., 3])
+        dZ_dcol = (np.hypot(Z + pl[:, 2] + pl[:, 3], Z + pr[:, 2] + pr[:, 3])
                    / (np.abs(span) * f))
         share_w = num_w / (num_w + num_l)
-    bad = ~(ar > al)
-    return (np.where(bad, np.nan, Z), np.where(bad, np.nan, dZ_dcol),
-            np.where(bad, np.nan, share_w))
+    bad = ~(ar_f > al_f)
+    return (np.where(bad, np.nan, Z).reshape(shape), np.where(bad, np.nan, dZ_dcol).reshape(shape),
+            np.where(bad, np.nan, share_w).reshape(shape))
 
 
 def ground_contact_cue(

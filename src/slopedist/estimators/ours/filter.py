@@ -57,13 +57,12 @@ def cv_predict(
     x[..., IDX_LOG_Z] += np.log(grow)
     x[..., IDX_RATE] /= grow
     p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
-    n00 = p00 + 2 * f01 * p01 + f01 * f01 * p11
-    n01 = f11 * (p01 + f01 * p11)
-    n11 = f11 * f11 * p11
     q = accel_mps2 ** 2 * np.exp(-2.0 * x[..., IDX_LOG_Z])
-    P = np.stack([np.stack([n00 + q * dt ** 3 / 3, n01 + q * dt ** 2 / 2], -1),
-                  np.stack([n01 + q * dt ** 2 / 2, n11 + q * dt], -1)], -2)
-    return x, P
+    out = np.empty(P.shape)
+    out[..., 0, 0] = p00 + 2 * f01 * p01 + f01 * f01 * p11 + q * dt ** 3 / 3
+    out[..., 0, 1] = out[..., 1, 0] = f11 * (p01 + f01 * p11) + q * dt ** 2 / 2
+    out[..., 1, 1] = f11 * f11 * p11 + q * dt
+    return x, out
 
 
 def cv_update(
