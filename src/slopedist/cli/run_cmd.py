@@ -54,16 +54,14 @@ def default_method() -> str:
 
 
 def build_odometry(name: str, camera: Camera, vocab: Path | None = None,
-                   lookback_s: float = LOOKBACK_S) -> RotationOdometry | None:
-    """The rotation source ``name`` (``builtin``, ``orbslam3`` or ``none``) for ``camera``.
+                   lookback_s: float = LOOKBACK_S) -> RotationOdometry:
+    """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
 
     The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
     look-back of the gradient); ORB-SLAM3 tracks a map and has no such setting.
     """
     if vocab is not None and name != "orbslam3":
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    if name == "none":
-        return None
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
     return make_odometry(name, camera, lookback_s=lookback_s)
@@ -255,7 +253,9 @@ def run(
                               depth_output, depth_scale, depth_bgr, depth_threads)
     check_runnable(estimator, depth_dir is not None or depth_model is not None, boxes)
     depth = build_depth_source(depth_opts, source)
-    backend = build_odometry(odometry, camera, vocab, lookback_s)
+    if odometry == "none" and vocab is not None:
+        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
+    backend = None if odometry == "none" else build_odometry(odometry, camera, vocab, lookback_s)
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
