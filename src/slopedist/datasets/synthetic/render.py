@@ -6,21 +6,27 @@ Convention:
     :mod:`~slopedist.datasets.synthetic.road`. Images are BGR ``H×W×3`` uint8; depth maps are
     float32 metres along the camera's z axis, ``+inf`` where a pixel sees the sky.
 
-How it works (numpy + OpenCV, no GPU):
+How it works (numpy + OpenCV, no GPU, a few milliseconds per 1242×375 frame):
 
 1. Visibility: every planar polygon of the world (:mod:`~slopedist.datasets.synthetic.world`)
    and of the target vehicles near the camera is projected, back faces culled, polygons crossing
-   the near plane clipped, and its index drawn with ``cv2.fillConvexPoly`` into an index buffer in
-   painter order (far to near along the road). The road is a height field seen from above, so
-   drawing by plan distance is a correct occlusion order, crests included.
-2. Per pixel, the polygon's plane gives the exact depth and texture coordinates in closed form:
-   ``1/z = h_w·p`` and ``u = (h_u·p)·z`` with ``p = (x, y, 1)`` and per-polygon 3-vectors
-   (a homography per polygon), so no ray marching.
-3. Shading: tileable 1/f-noise textures (asphalt, grass, façades, foliage, objects, vehicles,
-   clouds), mip-mapped and sampled with one ``cv2.remap`` from an atlas; lane markings, windows
-   and bands are procedural on the texture coordinates, anti-aliased by the pixel footprint; a
-   sky gradient with clouds fixed to world directions; distance haze; a fixed sensor-noise
-   pattern shifted per frame.
+   the near plane clipped, and its label drawn with ``cv2.fillConvexPoly`` into a label buffer
+   in painter order (far to near along the road). The road is a height field seen from above,
+   so drawing by plan distance is a correct occlusion order, crests included.
+2. Per polygon, its plane gives the depth and the texture coordinates in closed form:
+   ``1/z = h_w·p``, ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` with ``p = (x, y, 1)``
+   (a homography per polygon). ``h_w·p``, ``h_x·p`` and ``h_y·p`` are affine in the pixel, so
+   they are evaluated on a coarse grid (every ``CELL`` pixels) and interpolated bilinearly, which
+   is exact inside one plane. A cell of the grid whose pixels and corners all see one polygon,
+   or pieces of one smooth surface (the ground strips, the pieces of one wall) that agree with
+   each other at the corners to ``PLANE_TOLERANCE``, is drawn from the interpolation; every
+   other cell (occlusion edges, crests, object boundaries, the sky's edge) is evaluated pixel
+   by pixel from its own polygon's plane. Depth is exact either way (to float32 rounding).
+3. Shading: one ``cv2.remap`` into a texture atlas of 512-texel-wide tiles (1/f-noise
+   textures with the lane markings, verge, windows and bands baked in, world-anchored,
+   mip-mapped and chosen per cell by the pixel footprint), times the polygon's colour and sun
+   shading with distance haze (interpolated per cell), a sky gradient with clouds fixed to world
+   directions, and a fixed sensor-noise pattern shifted per frame; all in uint8 arithmetic.
 
 Everything is deterministic: textures from a fixed seed, the world from the scenario's seed.
 """
@@ -28,7 +34,9 @@ Everything is deterministic: textures from a fixed seed, the world from the scen
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -37,6 +45,7 @@ from numpy.typing import NDArray
 from slopedist.datasets.synthetic.world import Layer, Material, Polygons
 
 FloatArray = NDArray[np.float64]
+F32 = NDArray[np.float32]
 
 NEAR_CLIP_M = 0.3
 """Polygons are clipped at this camera depth, metres."""
@@ -49,28 +58,45 @@ HAZE_DISTANCE_M = 900.0
 """Distance at which haze hides 1 − 1/e of a surface's colour, metres."""
 SENSOR_NOISE_GREY = 1.5
 """Standard deviation of the sensor noise, grey levels."""
+CELL = 4
+"""Side of the interpolation cells, pixels."""
+PLANE_TOLERANCE = 2e-3
+"""Largest relative disagreement of ``1/z`` between pieces of one surface at a cell's corners for
+the cell to be interpolated (the interpolation error is a fraction of it)."""
 
 # --- textures ---------------------------------------------------------------------------------
 
 TEX_SIZE = 512
-TEX_PAD = 2
+"""Period of every texture along its ``u`` axis (the atlas's width), texels."""
 MIP_LEVELS = 6
+MIP_BIAS = 0.5
+"""Levels are chosen this much sharper than the footprint says (a level's texels are its blur
+apart, and bilinear sampling blurs further)."""
+TILE_PAD = 2
+"""Rows repeated above and below every tile of the atlas (bilinear sampling at its edges)."""
 
 
 class Tex:
-    """Texture indices in the atlas and their scale (texels per metre)."""
+    """Textures of the atlas: their scale and the range of ``v`` each tile covers."""
 
-    ASPHALT, GRASS, FACADE, FOLIAGE, OBJECT, VEHICLE, CLOUD = range(7)
+    ROAD, FACADE, FOLIAGE, OBJECT, POST, VEHICLE, SKY = range(7)
     COUNT = 7
-    TEXELS_PER_M = np.array([64.0, 32.0, 16.0, 24.0, 32.0, 32.0, TEX_SIZE / 90.0],
-                            dtype=np.float32)
-    """Texels per metre (per degree of azimuth/elevation for clouds: four tiles round the sky)."""
+    TEXELS_PER_M = np.array([64.0, 16.0, 32.0, 32.0, 32.0, 32.0, TEX_SIZE / 45.0])
+    """Texels per metre along ``u`` (the road's tile: one 8 m period of the lane dashes; the
+    sky's: per degree of azimuth, eight tiles round the horizon). Every period along ``u``
+    divides ``U_REBASE_M``."""
+    TEXELS_PER_M_V = TEXELS_PER_M * np.array([1, 1, 1, 1, 1, 1, 1.5])
+    """Texels per metre along ``v`` (the sky's: per degree of elevation)."""
+    V_MIN_M = np.array([math.nan, -20.0, -20.0, -2.0, -2.0, -2.0, -683.0 / TEXELS_PER_M_V[6]])
+    """``v`` of a tile's first row, metres (the road's tile spans the ground's width; the sky's
+    starts 40° below the horizon)."""
+    ROWS = (0, 1024, 1536, 256, 256, 256, 1707)
+    """Rows of a tile (the road's from the ground's width; the sky's up to 60° elevation)."""
 
 
 MATERIAL_TEXTURE = {
-    Material.SKY: Tex.CLOUD, Material.GROUND: Tex.ASPHALT, Material.BUILDING: Tex.FACADE,
-    Material.TREES: Tex.FOLIAGE, Material.POST: Tex.OBJECT, Material.OBJECT: Tex.OBJECT,
-    Material.VEHICLE: Tex.VEHICLE,
+    Material.GROUND: Tex.ROAD, Material.BUILDING: Tex.FACADE, Material.TREES: Tex.FOLIAGE,
+    Material.POST: Tex.POST, Material.OBJECT: Tex.OBJECT, Material.VEHICLE: Tex.VEHICLE,
 }
 
 
@@ -98,8 +124,9 @@ def _fft_blur(img: FloatArray, sigma: float) -> FloatArray:
     return np.asarray(np.fft.irfft2(np.fft.rfft2(img) * g, s=img.shape))
 
 
-def _base_textures(seed: int = 20240) -> list[FloatArray]:
-    """Grey textures in [0, 1], one per :class:`Tex` index."""
+@functools.lru_cache(maxsize=1)
+def _base_textures(seed: int = 20240) -> dict[str, FloatArray]:
+    """Periodic grey textures (512×512) in [0, 1]."""
     rng = np.random.default_rng(seed)
     n = TEX_SIZE
     speckle = (rng.random((n, n)) < 0.04) * rng.choice([-1.0, 1.0], (n, n))
@@ -113,27 +140,234 @@ def _base_textures(seed: int = 20240) -> list[FloatArray]:
     vehicle = 0.85 + 0.03 * _fft_noise(rng, 2.5)
     cloud = _fft_noise(rng, 3.2)
     cloud = 0.5 + 0.5 * np.tanh(1.5 * (cloud - 0.3))
-    return [np.clip(t, 0.0, 1.0) for t in (asphalt, grass, facade, foliage, obj, vehicle, cloud)]
+    out = dict(asphalt=asphalt, grass=grass, facade=facade, foliage=foliage, object=obj,
+               vehicle=vehicle, cloud=cloud)
+    return {k: np.clip(v, 0.0, 1.0) for k, v in out.items()}
+
+
+def _coverage(dist: NDArray[np.floating], half_width: float,
+              footprint: NDArray[np.floating] | float) -> NDArray[np.floating]:
+    """Anti-aliased coverage of a stripe of ``half_width`` at distance ``dist`` from its axis,
+    for pixels (texels) of footprint ``footprint`` (same units)."""
+    return np.asarray(np.clip((half_width - dist) / np.maximum(footprint, 1e-4) + 0.5, 0.0, 1.0))
+
+
+def _gauss_kernel(sigma: float) -> FloatArray:
+    if sigma <= 0:
+        return np.ones((1, 1))
+    r = math.ceil(3.0 * sigma)
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    return (k / k.sum())[:, None]
+
+
+def _blur_wrap_x(img: FloatArray, sigma_x: float, sigma_y: float) -> FloatArray:
+    """Gaussian blur, periodic along x (axis 1), mirrored at the first and last rows."""
+    if sigma_x <= 0 and sigma_y <= 0:
+        return img
+    kx, ky = _gauss_kernel(sigma_x), _gauss_kernel(sigma_y)
+    pad = kx.shape[0] // 2 + 1
+    wide = np.concatenate([img[:, -pad:], img, img[:, :pad]], axis=1).astype(np.float32)
+    out = cv2.sepFilter2D(wide, -1, kx.astype(np.float32), ky.astype(np.float32),
+                          borderType=cv2.BORDER_REFLECT)
+    return np.asarray(out[:, pad:-pad], dtype=np.float64)
+
+
+def _level_sigma(level: int) -> float:
+    """Blur of mip level ``level``, texels of level 0."""
+    return 0.0 if level == 0 else 0.6 * 2.0 ** (level - 1)
+
+
+DASH_M, GAP_M = 3.0, 5.0
+"""Lane separators: 3 m dashes with 5 m gaps (one period per road tile)."""
+LINE_HALF_WIDTH_M = 0.075
+MARKING_WHITE = 0.93
+ASPHALT_TINT = np.array([0.62, 0.62, 0.64])
+GRASS_TINT = np.array([0.30, 0.55, 0.45])
+
+def _grey_tile(tex: int) -> FloatArray:
+    """Grey tile of a wall or box texture, ``(ROWS, 512)`` in [0, 1], details baked in."""
+    base = _base_textures()
+    name = {Tex.FACADE: "facade", Tex.FOLIAGE: "foliage", Tex.OBJECT: "object",
+            Tex.POST: "object", Tex.VEHICLE: "vehicle"}[tex]
+    rows = Tex.ROWS[tex]
+    g = np.tile(base[name], (-(-rows // TEX_SIZE), 1))[:rows].copy()
+    tpm = float(Tex.TEXELS_PER_M[tex])
+    u = (np.arange(TEX_SIZE) / tpm)[None, :]
+    v = (Tex.V_MIN_M[tex] + np.arange(rows) / tpm)[:, None]
+    fp = 1.0 / tpm
+    if tex == Tex.FACADE:  # windows, 3.2 m apart, rows of 3 m from 1 m above the base
+        pu = np.abs(u - 3.2 * np.floor(u / 3.2) - 1.6)
+        pv = np.abs(v - 3.0 * np.floor(v / 3.0) - 1.7)
+        win = _coverage(pu, 0.65, fp) * _coverage(pv, 0.6, fp) * _coverage(1.0 - v, 0.0, fp)
+        g *= 1.0 - 0.65 * win
+    elif tex == Tex.POST:  # a dark band
+        g = g * (1.0 - 0.85 * _coverage(np.abs(v - 0.75), 0.1, fp))
+    elif tex == Tex.VEHICLE:  # windows and a bumper line
+        dark = np.maximum(_coverage(np.abs(v - 1.08), 0.22, fp),
+                          _coverage(np.abs(v - 0.35), 0.12, fp) * 0.8)
+        g = g * (1.0 - 0.6 * dark)
+    return np.asarray(np.broadcast_to(g, (rows, TEX_SIZE)))
+
+
+def _road_tile(half_m: float, lanes: int, lane_width_m: float, ground_half_m: float,
+               tpm_v: float) -> FloatArray:
+    """Colour tile of the ground (BGR in [0, 1], ``(rows, 512, 3)``): asphalt with edge lines
+    and dashed lane separators within ``±half_m``, grass beyond; columns at
+    ``Tex.TEXELS_PER_M[ROAD]``, rows at ``tpm_v`` texels per metre from ``v = −ground_half_m``."""
+    base = _base_textures()
+    tpm = float(Tex.TEXELS_PER_M[Tex.ROAD])
+    rows = math.ceil(2.0 * ground_half_m * tpm_v) + 1
+    reps = -(-rows // TEX_SIZE)
+    a = np.tile(base["asphalt"], (reps, 1))[:rows]
+    grass = np.tile(base["grass"], (reps, 1))[:rows]
+    u = (np.arange(TEX_SIZE) / tpm)[None, :]
+    v = (-ground_half_m + np.arange(rows) / tpm_v)[:, None]
+    fp = 1.0 / tpm
+    cover = _coverage(np.abs(np.abs(v) - (half_m - 0.25)), LINE_HALF_WIDTH_M, fp)
+    if lanes > 1:
+        k = np.clip(np.rint((v + half_m) / lane_width_m), 1, lanes - 1)
+        d = np.abs(v + half_m - k * lane_width_m)
+        period = DASH_M + GAP_M
+        phase = u - period * np.floor(u / period)
+        inside = np.minimum(phase, DASH_M - phase)  # > 0 within a dash
+        dash = _coverage(-inside, 0.0, fp)
+        cover = np.maximum(cover, _coverage(d, LINE_HALF_WIDTH_M, fp) * dash)
+    white = MARKING_WHITE / ASPHALT_TINT.mean() * (0.9 + 0.1 * a)
+    road = (a + (white - a) * cover)[..., None] * ASPHALT_TINT
+    on_road = _coverage(np.abs(v), half_m, fp)[..., None]
+    return np.asarray(on_road * road + (1.0 - on_road) * (grass[..., None] * GRASS_TINT))
+
+
+def _sky_tile() -> FloatArray:
+    """Colour tile of the sky (BGR in [0, 1]) over azimuth (columns) and elevation (rows): a
+    gradient from the horizon to 25° and clouds."""
+    cloud = _base_textures()["cloud"]
+    rows = Tex.ROWS[Tex.SKY]
+    c = cloud[(np.arange(rows) - 683) % TEX_SIZE]  # row 683 = the horizon = cloud row 0
+    el = (Tex.V_MIN_M[Tex.SKY] + np.arange(rows) / Tex.TEXELS_PER_M_V[Tex.SKY])[:, None, None]
+    t_el = np.clip(el / 25.0, 0.0, 1.0)
+    cover = np.clip((c - 0.45) * 2.5, 0.0, 1.0)[..., None]
+    sky = SKY_HORIZON + (SKY_ZENITH - SKY_HORIZON) * t_el
+    return np.asarray(sky + (0.97 - sky) * cover)
+
+
+def _mip_levels(tile: FloatArray) -> list[NDArray[np.uint8]]:
+    """The ``MIP_LEVELS`` levels of a tile (grey or BGR in [0, 1], 512 columns): level ``l``
+    blurred by ``_level_sigma(l)``, then every ``2^l``-th row and column; BGR uint8 with the
+    first column repeated at the end (bilinear sampling wraps)."""
+    colour = tile if tile.ndim == 3 else tile[..., None]
+    out = []
+    for lev in range(MIP_LEVELS):
+        s, step = _level_sigma(lev), 2**lev
+        chans = [_blur_wrap_x(colour[..., c], s, s)[::step, ::step]
+                 for c in range(colour.shape[2])]
+        img = np.stack(chans, axis=-1)
+        img = np.concatenate([img, img[:, :1]], axis=1)
+        if img.shape[2] == 1:
+            img = np.repeat(img, 3, axis=2)
+        out.append(np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8))
+    return out
+
+
+def _level_x0() -> NDArray[np.int64]:
+    """First column of each level's tile (levels side by side):
+    ``Σ_{k<l} (512 / 2^k + 1) = 1024 (1 − 2^−l) + l``."""
+    widths = [TEX_SIZE // 2**lev + 1 for lev in range(MIP_LEVELS)]
+    return np.concatenate([[0], np.cumsum(widths)[:-1]]).astype(np.int64)
+
+
+ATLAS_WIDTH = sum(TEX_SIZE // 2**lev + 1 for lev in range(MIP_LEVELS))
+
+
+def _band(levels: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+    """One texture's levels side by side, ``TILE_PAD`` repeated rows above and below."""
+    rows = levels[0].shape[0] + 2 * TILE_PAD
+    band = np.zeros((rows, ATLAS_WIDTH, 3), np.uint8)
+    x0 = _level_x0()
+    for lev, img in enumerate(levels):
+        padded = np.pad(img, ((TILE_PAD, TILE_PAD), (0, 0), (0, 0)), mode="edge")
+        band[:padded.shape[0], x0[lev]:x0[lev] + img.shape[1]] = padded
+    return band
 
 
 @functools.lru_cache(maxsize=1)
-def texture_atlas() -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
-    """The mip-mapped texture atlas (float32 grey) and the pixel origin of each (texture,
-    level) tile: ``(atlas, x0 (COUNT, LEVELS), y0 (COUNT, LEVELS))``. Tiles carry ``TEX_PAD``
-    texels of wrapped border so bilinear sampling is seamless."""
-    n, pad = TEX_SIZE, TEX_PAD
-    tile = n + 2 * pad
-    atlas = np.zeros((Tex.COUNT * tile, MIP_LEVELS * tile), np.float32)
-    x0 = np.zeros((Tex.COUNT, MIP_LEVELS), np.float32)
-    y0 = np.zeros((Tex.COUNT, MIP_LEVELS), np.float32)
-    for t, base in enumerate(_base_textures()):
-        for lev in range(MIP_LEVELS):
-            img = _fft_blur(base, 0.0 if lev == 0 else 0.6 * 2.0 ** (lev - 1))
-            padded = np.pad(img, pad, mode="wrap")
-            r, c = t * tile, lev * tile
-            atlas[r:r + tile, c:c + tile] = padded
-            x0[t, lev], y0[t, lev] = c + pad, r + pad
-    return atlas, x0, y0
+def _shared_atlas() -> tuple[NDArray[np.uint8], dict[int, int]]:
+    """Bands of the wall and box textures, and the first row of each texture's band."""
+    parts, first, row = [], {}, 0
+    for tex in (Tex.FACADE, Tex.FOLIAGE, Tex.OBJECT, Tex.POST, Tex.VEHICLE, Tex.SKY):
+        band = _band(_mip_levels(_sky_tile() if tex == Tex.SKY else _grey_tile(tex)))
+        first[tex] = row
+        row += band.shape[0]
+        parts.append(band)
+    return np.concatenate(parts, axis=0), first
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """Textures of one road layout in one image.
+
+    Level ``l`` (``s = 2^−l``) of texture ``t`` holds ``(u, v)`` (metres in the texture's frame)
+    at column ``1024 (1 − s) + l + s · ((u · TEXELS_PER_M[t]) mod 512)`` and row
+    ``y0[t] + s · (v − v_min[t]) · tpm_v[t]`` (see :func:`atlas_xy`).
+
+    Attributes:
+        image: ``(rows, ATLAS_WIDTH, 4)`` uint8 BGRA.
+        y0: ``(COUNT,)`` first row of each texture.
+        v_min, tpm_v: ``(COUNT,)`` metres, texels per metre along ``v`` at level 0.
+    """
+
+    image: NDArray[np.uint8]
+    y0: NDArray[np.float32]
+    v_min: FloatArray
+    tpm_v: FloatArray
+
+
+@functools.lru_cache(maxsize=4)
+def texture_atlas(half_m: float, lanes: int, lane_width_m: float, ground_half_m: float) -> Atlas:
+    """The atlas of one road layout (the ground spans ``±ground_half_m``)."""
+    shared, first = _shared_atlas()
+    budget = ATLAS_MAX_ROWS - shared.shape[0] - 2 * TILE_PAD - 2
+    tpm_v = Tex.TEXELS_PER_M_V.copy()
+    tpm_v[Tex.ROAD] = min(tpm_v[Tex.ROAD], budget / (2.0 * ground_half_m))
+    road = _band(_mip_levels(_road_tile(half_m, lanes, lane_width_m, ground_half_m,
+                                        float(tpm_v[Tex.ROAD]))))
+    v_min = Tex.V_MIN_M.copy()
+    v_min[Tex.ROAD] = -ground_half_m
+    y0 = np.array([TILE_PAD + (0 if t == Tex.ROAD else road.shape[0] + first[t])
+                   for t in range(Tex.COUNT)], np.float32)
+    image = cv2.cvtColor(np.concatenate([road, shared], axis=0), cv2.COLOR_BGR2BGRA)
+    return Atlas(np.asarray(image, dtype=np.uint8), y0, v_min, tpm_v)
+
+
+def atlas_xy(tx: F32, ty: F32, level: F32, y0: F32 | np.float32) -> tuple[F32, F32]:
+    """Atlas coordinates of texel coordinates ``(tx, ty)`` (level 0, ``ty`` from the texture's
+    first row) at mip level log2-footprint ``level`` (rounded, clipped to the levels) of the
+    texture whose first row is ``y0``. Overwrites ``tx``, ``ty`` and ``level``."""
+    np.clip(level, 0, MIP_LEVELS - 1, out=level)
+    np.rint(level, out=level)
+    t = tx * np.float32(1.0 / TEX_SIZE)  # u wraps round the 512-texel tiles
+    np.floor(t, out=t)
+    t *= np.float32(TEX_SIZE)
+    tx -= t
+    tx -= np.float32(2 * TEX_SIZE)
+    scale = np.exp2(np.negative(level, out=t), out=t)
+    tx *= scale
+    tx += level
+    tx += np.float32(2 * TEX_SIZE)
+    ty *= scale
+    ty += y0
+    return tx, ty
+
+
+FILL_LIMIT_PX = 8000.0
+"""Outlines reaching farther than this from the image are clipped to it before filling
+(``cv2.fillConvexPoly`` works in 16.16 fixed point and overflows beyond ±32768 pixels)."""
+U_REBASE_M = 32.0
+"""The ground's and walls' texture ``u`` (distance along the road) is taken relative to a
+multiple of this near the camera (a multiple of every texture's period, metres), to keep texel
+coordinates small."""
+ATLAS_MAX_ROWS = 32000
+"""``cv2.remap`` reads images of fewer than 32767 rows."""
 
 
 # --- the renderer -----------------------------------------------------------------------------
@@ -146,33 +380,28 @@ class Rendered:
     Attributes:
         image: BGR ``H×W×3`` uint8.
         depth_m: ``H×W`` float32, metres along the camera z axis; ``+inf`` for sky.
-        owner: ``H×W`` int16, index of the target vehicle seen at each pixel, −1 elsewhere.
+        labels: ``H×W`` uint16, the polygon seen at each pixel (0 = sky).
+        label_owner: ``(n + 1,)`` index of the target vehicle each label belongs to (−1: none);
+            the labels of the targets' faces are the highest, from ``first_vehicle_label``.
     """
 
     image: NDArray[np.uint8]
     depth_m: NDArray[np.float32]
-    owner: NDArray[np.int16]
+    labels: NDArray[np.uint16]
+    label_owner: NDArray[np.int16]
+    first_vehicle_label: int
+
+    @functools.cached_property
+    def owner(self) -> NDArray[np.int16]:
+        """``H×W`` int16, index of the target vehicle seen at each pixel, −1 elsewhere."""
+        return np.asarray(np.take(self.label_owner, self.labels), dtype=np.int16)
 
     def visible_pixels(self, n_targets: int) -> NDArray[np.int64]:
         """Number of pixels where each of ``n_targets`` targets is seen."""
-        o = self.owner[self.owner >= 0]
-        return np.bincount(o.astype(np.int64), minlength=n_targets)[:n_targets]
-
-
-BAND_ROWS = 32
-"""Rows shaded together (small enough for the per-pixel arrays to stay in cache)."""
-
-
-@dataclass(frozen=True)
-class _FrameTables:
-    """Per-polygon tables of one frame (row 0 = sky): the 9 pixel functionals, |plane
-    distance|, material, tint (BGR), and the camera-to-world rotation as float32."""
-
-    functionals: NDArray[np.float32]
-    plane_c: NDArray[np.float32]
-    material: NDArray[np.int32]
-    tint: NDArray[np.float32]
-    R_world_cam: NDArray[np.float32]
+        lab = self.labels[self.labels >= self.first_vehicle_label]
+        owners = self.label_owner[lab]
+        owners = owners[owners >= 0]
+        return np.bincount(owners.astype(np.int64), minlength=n_targets)[:n_targets]
 
 
 SUN_DIRECTION = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])
@@ -180,19 +409,7 @@ SUN_DIRECTION = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.8
 SKY_HORIZON = np.array([0.93, 0.88, 0.84], np.float32)
 SKY_ZENITH = np.array([0.80, 0.55, 0.33], np.float32)
 HAZE = np.array([0.88, 0.85, 0.82], np.float32)
-MARKING_WHITE = 0.93
-ASPHALT_TINT = np.array([0.62, 0.62, 0.64], np.float32)
-GRASS_TINT = np.array([0.30, 0.55, 0.45], np.float32)
-DASH_M, GAP_M = 3.0, 6.0
-"""Lane separators: 3 m dashes with 6 m gaps."""
-LINE_HALF_WIDTH_M = 0.075
-
-
-def _coverage(dist: NDArray[np.float32], half_width: float,
-              footprint: NDArray[np.float32]) -> NDArray[np.float32]:
-    """Anti-aliased coverage of a stripe of ``half_width`` at distance ``dist`` from its axis,
-    for pixels of footprint ``footprint`` (same units)."""
-    return np.asarray(np.clip((half_width - dist) / np.maximum(footprint, 1e-4) + 0.5, 0.0, 1.0))
+HAZE4 = np.append(HAZE, 0.0).astype(np.float32)
 
 
 def _clip_halfplane(poly: FloatArray, axis: int, bound: float, keep_above: bool) -> FloatArray:
@@ -231,6 +448,29 @@ FILL_LIMIT_PX = 8000.0
 (``cv2.fillConvexPoly`` works in 16.16 fixed point and overflows beyond ±32768 pixels)."""
 
 
+@dataclass(frozen=True)
+class _Tables:
+    """Per-label tables of one frame (label 0 = sky).
+
+    Attributes:
+        fn: ``(n + 1, 9)`` pixel functionals ``(h_x, h_y, h_w)``: ``1/z = h_w·p``, texel
+            coordinates ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` (``t_y`` from the
+            first row of the texture's tile, level 0); fn_t: its transpose.
+        plane_c: ``(n + 1,)`` distance of the plane from the camera centre, metres.
+        tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``.
+        tint: ``(n + 1, 4)`` BGRA colour × sun shading in [0, 1] (alpha 0).
+        surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
+    """
+
+    fn: NDArray[np.float32]
+    fn_t: NDArray[np.float32]
+    plane_c: NDArray[np.float32]
+    tex: NDArray[np.intp]
+    tpm: NDArray[np.float32]
+    tint: NDArray[np.float32]
+    surface: NDArray[np.int64]
+
+
 class Renderer:
     """Renders frames of one world (static polygons) seen by one camera.
 
@@ -248,24 +488,52 @@ class Renderer:
                  seed: int = 0) -> None:
         self.static = static
         self.K = np.asarray(K, dtype=float)
-        self.K_inv_T = np.linalg.inv(self.K).T
+        self.K_inv = np.linalg.inv(self.K)
         self.width, self.height = int(width), int(height)
         self.half = float(carriageway_half_m)
         self.lanes = int(lanes)
         self.lane_width = float(lane_width_m)
-        jj, ii = np.meshgrid(np.arange(width, dtype=np.float32),
-                             np.arange(height, dtype=np.float32))
-        self._xf, self._yf = jj.ravel(), ii.ravel()
-        self._rays = np.stack([(jj - K[0, 2]) / K[0, 0], (ii - K[1, 2]) / K[1, 1],
-                               np.ones_like(jj)], axis=-1).reshape(-1, 3).astype(np.float32)
-        self._ray_norm_over_f = (np.linalg.norm(self._rays, axis=1) / K[0, 0]).astype(np.float32)
-        self._plane_c = np.zeros(0)
+        ground = static.material == int(Material.GROUND)
+        if ground.any():
+            g = static.select(np.flatnonzero(ground))
+            v = np.einsum("pkj,pj->pk", g.verts - g.origin[:, None], g.axis_v)
+            ground_half = float(np.abs(v).max()) + 1.0
+        else:
+            ground_half = self.half + 1.0
+        self._atlas = texture_atlas(self.half, self.lanes, self.lane_width,
+                                    round(ground_half, 3))
+        self._mat_tex = np.zeros(len(Material), np.intp)
+        for m, t in MATERIAL_TEXTURE.items():
+            self._mat_tex[int(m)] = t
+        # the coarse grid: sample (b, a) at image point (CELL a − ½, CELL b − ½); cell (b, a)
+        # holds the pixels of rows CELL b … CELL b + CELL − 1 and the same columns
+        w, h = self.width, self.height
+        self._cells = (-(-h // CELL), -(-w // CELL))
+        hc, wc = self._cells[0] + 1, self._cells[1] + 1
+        self._xs = (CELL * np.arange(wc) - 0.5).astype(np.float32)
+        self._ys = (CELL * np.arange(hc) - 0.5).astype(np.float32)
+        self._sample_cols = np.minimum(CELL * np.arange(wc), w - 1)
+        self._sample_rows = np.minimum(CELL * np.arange(hc), h - 1)
+        self._rn_c = self._ray_norm_over_f(self._xs[None, :], self._ys[:, None])
+        self._kernel = np.ones((CELL + 1, CELL + 1), np.uint8)
+        off = np.arange(CELL, dtype=np.float32)
+        self._cell_dy = np.repeat(off, CELL)
+        self._cell_dx = np.tile(off, CELL)
+        hp, wp = CELL * self._cells[0], CELL * self._cells[1]  # the frame padded to whole cells
+        self._rn = self._ray_norm_over_f(np.arange(wp, dtype=np.float32)[None, :],
+                                         np.arange(hp, dtype=np.float32)[:, None])
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
-        self._noise = (rng.standard_normal((2 * height, 2 * width)) * SENSOR_NOISE_GREY
-                       + 0.5).astype(np.float32)  # + 0.5: rounding when cast to uint8
-        self._atlas, self._tile_x0, self._tile_y0 = texture_atlas()
-        self._mat_tex = np.array([MATERIAL_TEXTURE[Material(m)] for m in range(len(Material))],
-                                 dtype=np.int32)
+        noise = np.rint(rng.standard_normal((2 * h + CELL, 2 * w + CELL)) * SENSOR_NOISE_GREY)
+        self._noise_pos = np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[..., None], 4, axis=2)
+        self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 4,
+                                    axis=2)
+
+    def _ray_norm_over_f(self, x: F32, y: F32) -> F32:
+        """``|r| / f`` of the rays through image points ``(x, y)``, ``r = K⁻¹ (x, y, 1)``."""
+        K = self.K
+        rx = (x - K[0, 2]) / K[0, 0]
+        ry = (y - K[1, 2]) / K[1, 1]
+        return np.asarray(np.sqrt(rx * rx + ry * ry + 1.0) / K[0, 0], dtype=np.float32)
 
     # -- polygon stage ---------------------------------------------------------------------------
 
@@ -312,27 +580,41 @@ class Renderer:
         keep_arr = np.sort(np.asarray(keep, dtype=np.int64))  # painter order is index order
         return polys.select(keep_arr), [o for o in (outlines[p] for p in keep_arr) if o is not None]
 
-    def _pixel_functionals(self, polys: Polygons, R_wc: FloatArray, C_w: FloatArray
-                           ) -> NDArray[np.float32]:
-        """Per polygon, the 9 coefficients ``(h_u, h_v, h_w)``: ``1/z = h_w·p``,
-        ``u = (h_u·p)/(h_w·p)``, ``v = (h_v·p)/(h_w·p)`` for pixels ``p = (x, y, 1)``."""
-        K_inv = self.K_inv_T.T
+    def _tables(self, polys: Polygons, surface: NDArray[np.int64], R_wc: FloatArray,
+                C_w: FloatArray, u_base: float) -> _Tables:
+        """The per-label tables of ``polys`` (in label order, label = index + 1)."""
+        n = len(polys)
         n_c = polys.normal @ R_wc  # rows: (R_wcᵀ n)ᵀ, the normals in the camera frame
         x0_c = (polys.verts[:, 0] - C_w) @ R_wc
         o_c = (polys.origin - C_w) @ R_wc
         c = np.einsum("pi,pi->p", n_c, x0_c)  # plane: n_c · X = c
         c = np.where(np.abs(c) < 1e-9, 1e-9, c)
-        self._plane_c = c
-        h_w = (n_c @ K_inv) / c[:, None]  # rows: (K⁻ᵀ n / c)ᵀ
-        rows = []
-        for axis, off in ((polys.axis_u, polys.u0), (polys.axis_v, np.zeros(len(polys)))):
-            a_c = axis @ R_wc
-            k = off - np.einsum("pi,pi->p", a_c, o_c)
-            rows.append(a_c @ K_inv + k[:, None] * h_w)
-        rows.append(h_w)
-        table = np.zeros((len(polys) + 1, 9), np.float32)
-        table[1:] = np.concatenate(rows, axis=1)
-        return table
+        K_inv = self.K_inv
+        h_w = (n_c @ K_inv) / c[:, None]  # 1/z = h_w · p
+        tex = self._mat_tex[polys.material]
+        tpm_u = Tex.TEXELS_PER_M[tex]
+        tpm_v = self._atlas.tpm_v[tex]
+        a_u, a_v = polys.axis_u @ R_wc, polys.axis_v @ R_wc
+        along_road = polys.surface >= 0  # u = distance along the road: rebased
+        k_u = polys.u0 - np.where(along_road, u_base, 0.0) - np.einsum("pi,pi->p", a_u, o_c)
+        k_v = -np.einsum("pi,pi->p", a_v, o_c) - self._atlas.v_min[tex]
+        h_x = tpm_u[:, None] * (a_u @ K_inv + k_u[:, None] * h_w)
+        h_y = tpm_v[:, None] * (a_v @ K_inv + k_v[:, None] * h_w)
+        fn = np.zeros((n + 1, 9), np.float32)
+        fn[1:] = np.concatenate([h_x, h_y, h_w], axis=1)
+        plane_c = np.ones(n + 1, np.float32)
+        plane_c[1:] = np.abs(c)
+        shade = 0.62 + 0.38 * np.clip(polys.normal @ SUN_DIRECTION, 0.0, 1.0)
+        tint = np.zeros((n + 1, 4), np.float32)
+        tint[1:, :3] = polys.colour * shade[:, None]
+        tint[1:, :3][tex == Tex.ROAD] = 1.0  # the road's colours are in its texture
+        tex_l = np.full(n + 1, Tex.SKY, np.intp)
+        tex_l[1:] = tex
+        tpm = np.ones(n + 1, np.float32)
+        tpm[1:] = tpm_v
+        surf = np.full(n + 1, -1, np.int64)
+        surf[1:] = surface
+        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm, tint, surf)
 
     # -- frame -----------------------------------------------------------------------------------
 
@@ -360,181 +642,212 @@ class Renderer:
             polys = Polygons.concat([polys, dynamic])
             polys = polys.select(np.lexsort((polys.layer, -polys.key)))
         polys, outlines = self._visible_polygons(polys, R, C)
-        ids = np.zeros((self.height, self.width), np.int32)
-        for k, pts in enumerate(outlines):
-            cv2.fillConvexPoly(ids, pts, k + 1, cv2.LINE_8, 4)
-        return self._shade(ids, polys, R, C, frame)
+        n = len(polys)
+        if n >= np.iinfo(np.uint16).max:
+            raise ValueError(f"{n} visible polygons: more than the label buffer holds")
+        # labels: the pieces of one surface consecutive, the targets' faces last
+        surface = polys.surface
+        key = np.where(surface >= 0, surface, surface.max(initial=0) + 1 + np.arange(n))
+        order = np.lexsort((np.arange(n), key, polys.owner >= 0))
+        label = np.empty(n, np.int64)
+        label[order] = np.arange(1, n + 1)
+        labels = np.zeros((self.height, self.width), np.uint16)
+        for k, pts in enumerate(outlines):  # painter order
+            cv2.fillConvexPoly(labels, pts, int(label[k]), cv2.LINE_8, 4)
+        ordered = polys.select(order)
+        u_base = U_REBASE_M * math.floor(s_camera / U_REBASE_M)
+        tab = self._tables(ordered, key[order], R, C, u_base)
+        image, depth = self._shade(labels, tab, R, frame)
+        owner = np.full(n + 1, -1, np.int16)
+        owner[1:] = ordered.owner
+        vehicles = np.flatnonzero(ordered.owner >= 0)
+        first_vehicle = int(vehicles[0]) + 1 if vehicles.size else n + 1
+        return Rendered(image, depth, labels, owner, first_vehicle)
 
-    def _shade(self, ids: NDArray[np.int32], polys: Polygons, R: FloatArray, C: FloatArray,
-               frame: int) -> Rendered:
-        """Per-pixel depth, texture and colour, in bands of rows (the arrays of a band stay in
-        the processor's cache)."""
-        h, w = self.height, self.width
-        f32 = np.float32
-        n = len(polys) + 1
-        plane_c = np.ones(n, f32)
-        mat_table = np.zeros(n, np.int32)
-        shade = 0.62 + 0.38 * np.clip(polys.normal @ SUN_DIRECTION, 0.0, 1.0)
-        tint = np.ones((n, 3), f32)
-        owner_table = np.full(n, -1, np.int16)
-        tables = _FrameTables(self._pixel_functionals(polys, R, C), plane_c, mat_table, tint,
-                              R.astype(f32))
-        plane_c[1:] = np.abs(self._plane_c)
-        mat_table[1:] = polys.material
-        tint[1:] = polys.colour * shade[:, None]
-        tint[1:][polys.material == int(Material.GROUND)] = ASPHALT_TINT
-        owner_table[1:] = polys.owner
-        image = np.empty((h, w, 3), np.uint8)
-        depth = np.empty((h, w), f32)
-        oy, ox = (frame * 7919) % h, (frame * 104729) % w
-        for r0 in range(0, h, BAND_ROWS):
-            r1 = min(h, r0 + BAND_ROWS)
-            channels, z = self._shade_band(ids[r0:r1].ravel().astype(np.intp),
-                                           slice(r0 * w, r1 * w), tables)
-            noise = self._noise[oy + r0:oy + r1, ox:ox + w].ravel()
-            for c, ch in enumerate(channels):
-                ch *= 255.0
-                ch += noise
-                np.clip(ch, 0, 255, out=ch)
-                image[r0:r1, :, c] = ch.reshape(r1 - r0, w)
-            depth[r0:r1] = z.reshape(r1 - r0, w)
-        return Rendered(image, depth, np.take(owner_table, ids))
-
-    def _shade_band(self, flat: NDArray[np.intp], pix: slice, tab: _FrameTables
-                    ) -> tuple[list[NDArray[np.float32]], NDArray[np.float32]]:
-        """Colour (three ``(N,)`` channels B, G, R in [0, 1]) and depth of the pixels ``pix``
-        with polygon indices ``flat`` (0 = sky)."""
-        f32 = np.float32
-        x, y = self._xf[pix], self._yf[pix]
-        col = np.take(tab.functionals, flat, axis=0)  # (N, 9)
-        inv_z = col[:, 6] * x
-        inv_z += col[:, 7] * y
-        inv_z += col[:, 8]
-        sky = flat == 0
-        inv_z[sky] = 1.0
-        z = 1.0 / inv_z
-        U = col[:, 0] * x
-        U += col[:, 1] * y
-        U += col[:, 2]
-        U *= z
-        V = col[:, 3] * x
-        V += col[:, 4] * y
-        V += col[:, 5]
-        V *= z
-        del col
-        # pixel footprint on the surface (metres): across (no foreshortening) and along the
-        # steepest direction (foreshortened by the plane's obliquity): |r| z / f and
-        # |r| z² / (f |c|), with c the plane's distance from the camera centre
-        across = z * self._ray_norm_over_f[pix]
+    @staticmethod
+    def _level(z: F32, rn: F32, plane_c: F32, tpm: F32) -> F32:
+        """Mip level (unrounded) from the pixel footprint on the surface: across the ray
+        ``|r| z / f`` (no foreshortening) and along the surface's steepest direction,
+        foreshortened by the plane's obliquity, ``|r| z² / (f |c|)``; log2 of the larger, in
+        texels."""
+        across = z * rn
         along = across * z
-        along /= np.maximum(np.take(tab.plane_c, flat), 1e-3)
+        along /= np.maximum(plane_c, np.float32(1e-3))
         np.maximum(along, across, out=along)
-        # materials and textures per pixel
-        mat = np.take(tab.material, flat)
-        tex = np.take(self._mat_tex, mat)
-        ground = mat == int(Material.GROUND)
-        verge = ground & (np.abs(V) > self.half)
-        verge_idx = np.flatnonzero(verge)
-        tex[verge_idx] = Tex.GRASS
-        # sky: texture coordinates (degrees) from the world direction of each ray
-        sky_idx = np.flatnonzero(sky)
-        rays = self._rays[pix]
-        rx, ry = rays[sky_idx, 0], rays[sky_idx, 1]
-        Rf = tab.R_world_cam
-        dx = Rf[0, 0] * rx + Rf[0, 1] * ry + Rf[0, 2]
-        dy = Rf[1, 0] * rx + Rf[1, 1] * ry + Rf[1, 2]
-        dz = Rf[2, 0] * rx + Rf[2, 1] * ry + Rf[2, 2]
-        el = np.degrees(np.arctan2(dz, np.hypot(dx, dy)))
-        az = np.degrees(np.arctan2(dy, dx))
-        U[sky_idx] = az * 2.0
-        V[sky_idx] = el * 3.0
-        along[sky_idx] = 0.0
-        z[sky_idx] = np.inf
-        # mip level from the footprint, then one bilinear lookup in the atlas
-        tpm = np.take(Tex.TEXELS_PER_M, tex)
-        lev = np.log2(np.maximum(along * tpm, 1e-6))
-        np.clip(np.rint(lev, out=lev), 0, MIP_LEVELS - 1, out=lev)
-        tile = tex * np.int32(MIP_LEVELS) + lev.astype(np.int32)
-        n = f32(TEX_SIZE)
-        su = U * tpm
-        sv = V * tpm
-        mapx = su - n * np.floor(su / n)
-        mapx += np.take(self._tile_x0.ravel(), tile)
-        mapy = sv - n * np.floor(sv / n)
-        mapy += np.take(self._tile_y0.ravel(), tile)
-        grey: NDArray[np.float32] = np.asarray(cv2.remap(
-            self._atlas, mapx.reshape(-1, self.width), mapy.reshape(-1, self.width),
-            cv2.INTER_LINEAR),
-            dtype=np.float32).ravel()
-        # procedural details on the grey level (markings, windows, bands)
-        self._ground_details(grey, U, V, across, along, ground, verge)
-        self._structure_details(grey, mat, U, V, along)
-        # colour, channel by channel: tint × grey, haze, sky
-        cloud = grey[sky_idx]
-        fog = 1.0 / (1.0 + z * f32(1.0 / HAZE_DISTANCE_M))  # share of the surface's own colour
-        grey *= fog
-        haze = 1.0 - fog
-        t_el = np.clip(el / 25.0, 0.0, 1.0)
-        cover = np.clip((cloud - 0.45) * 2.5, 0.0, 1.0)
-        channels = []
-        for c in range(3):
-            ch = np.take(tab.tint[:, c], flat)
-            ch[verge_idx] = GRASS_TINT[c]
-            ch *= grey
-            ch += haze * HAZE[c]
-            sky_c = SKY_HORIZON[c] + (SKY_ZENITH[c] - SKY_HORIZON[c]) * t_el
-            ch[sky_idx] = sky_c + (0.97 - sky_c) * cover
-            channels.append(ch)
-        return channels, z
+        along *= tpm
+        np.maximum(along, np.float32(1e-6), out=along)
+        np.log2(along, out=along)
+        along -= np.float32(MIP_BIAS)
+        return along
 
-    def _ground_details(self, grey: NDArray[np.float32], U: NDArray[np.float32],
-                        V: NDArray[np.float32], across: NDArray[np.float32],
-                        along: NDArray[np.float32], ground: NDArray[np.bool_],
-                        verge: NDArray[np.bool_]) -> None:
-        """Lane markings on the asphalt, blended into the grey level (in place)."""
-        road = np.flatnonzero(ground & ~verge)
-        v = V[road]
-        lw = self.lane_width
-        near_line = np.abs(np.abs(v) - (self.half - 0.25)) < 0.3
-        if self.lanes > 1:
-            off = np.mod(v + self.half, lw)
-            near_line |= (np.minimum(off, lw - off) < 0.3)
-        road = road[near_line]
-        u, v = U[road], V[road]
-        f_u, f_v = along[road], across[road]
-        cover = _coverage(np.abs(np.abs(v) - (self.half - 0.25)), LINE_HALF_WIDTH_M, f_v)
-        if self.lanes > 1:
-            k = np.clip(np.rint((v + self.half) / self.lane_width), 1, self.lanes - 1)
-            d = np.abs(v + self.half - k * self.lane_width)
-            period = DASH_M + GAP_M
-            phase = u - period * np.floor(u / period)
-            inside = np.minimum(phase, DASH_M - phase)  # > 0 within a dash
-            dash = _coverage(-inside, 0.0, f_u)
-            np.maximum(cover, _coverage(d, LINE_HALF_WIDTH_M, f_v) * dash, out=cover)
-        g = grey[road]
-        white = MARKING_WHITE / ASPHALT_TINT.mean() * (0.9 + 0.1 * g)
-        grey[road] = g + (white - g) * cover
+    def _sky(self, x: F32, y: F32, R: FloatArray) -> tuple[F32, F32]:
+        """Texel coordinates in the sky's tile (level 0) of image points ``(x, y)``: azimuth and
+        elevation of their world directions."""
+        K = self.K
+        rx = (x - K[0, 2]) / K[0, 0]
+        ry = (y - K[1, 2]) / K[1, 1]
+        d = [R[i, 0] * rx + R[i, 1] * ry + R[i, 2] for i in range(3)]
+        el = np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1])))
+        az = np.degrees(np.arctan2(d[1], d[0]))
+        tx = az * Tex.TEXELS_PER_M[Tex.SKY]
+        ty = (el - Tex.V_MIN_M[Tex.SKY]) * Tex.TEXELS_PER_M_V[Tex.SKY]
+        return tx.astype(np.float32), ty.astype(np.float32)
 
-    def _structure_details(self, grey: NDArray[np.float32], mat: NDArray[np.int32],
-                           U: NDArray[np.float32], V: NDArray[np.float32],
-                           along: NDArray[np.float32]) -> None:
-        """Windows on buildings, bands on posts and vehicles (in place, grey level)."""
-        b = np.flatnonzero(mat == int(Material.BUILDING))
-        if b.size:
-            u, v, fb = U[b], V[b], along[b]
-            pu = np.abs(u - 3.2 * np.floor(u / 3.2) - 1.6)
-            pv = np.abs(v - 3.0 * np.floor(v / 3.0) - 1.7)
-            win = _coverage(pu, 0.65, fb) * _coverage(pv, 0.6, fb) * (v > 1.0)
-            grey[b] *= 1.0 - 0.65 * win
-        p = np.flatnonzero(mat == int(Material.POST))
-        if p.size:
-            grey[p] *= 1.0 - 0.85 * _coverage(np.abs(V[p] - 0.75), 0.1, along[p])
-        veh = np.flatnonzero(mat == int(Material.VEHICLE))
-        if veh.size:
-            v, fv = V[veh], along[veh]
-            dark = np.maximum(_coverage(np.abs(v - 1.08), 0.22, fv),
-                              _coverage(np.abs(v - 0.35), 0.12, fv) * 0.8)
-            grey[veh] *= 1.0 - 0.6 * dark
+    def _colour_terms(self, z: F32, lab: NDArray[np.intp], tab: _Tables
+                      ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """Per surface point (``z``, ``lab`` of any shape S): the factor of the texture (tint ×
+        share of the surface's colour through the haze) and the haze added, ``S × 4`` BGRA
+        uint8 (× 255)."""
+        fog = 1.0 / (1.0 + z * np.float32(1.0 / HAZE_DISTANCE_M))
+        mult = tab.tint[lab] * (255.0 * fog)[..., None]
+        add = (255.0 * (1.0 - fog))[..., None] * HAZE4
+        return np.rint(mult).astype(np.uint8), np.rint(add).astype(np.uint8)
+
+    def _shade(self, labels: NDArray[np.uint16], tab: _Tables, R: FloatArray, frame: int
+               ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """Image and depth: cells seeing one surface from the coarse grid, the others pixel by
+        pixel. Works on the frame padded to whole cells (``CELL·ny × CELL·nx``)."""
+        h, w = self.height, self.width
+        ny, nx = self._cells
+        # 1. the coarse grid: homogeneous coordinates, mip level and colour terms per sample
+        lab_c = labels[self._sample_rows][:, self._sample_cols].astype(np.intp)
+        f = np.take(tab.fn_t, lab_c, axis=1)
+        xs, ys = self._xs[None, :], self._ys[:, None]
+        inv_c = f[6] * xs + f[7] * ys + f[8]  # 0 for the sky (label 0)
+        tx_c = f[0] * xs + f[1] * ys + f[2]
+        ty_c = f[3] * xs + f[4] * ys + f[5]
+        sky_c = lab_c == 0
+        with np.errstate(divide="ignore"):
+            z_c = np.reciprocal(inv_c)
+        lev_c = self._level(z_c, self._rn_c, tab.plane_c[lab_c], tab.tpm[lab_c])
+        mult_c, add_c = self._colour_terms(z_c, lab_c, tab)
+        if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
+            yy, xx = np.nonzero(sky_c)
+            inv_c[yy, xx] = 1.0
+            tx_c[yy, xx], ty_c[yy, xx] = self._sky(self._xs[xx], self._ys[yy], R)
+            lev_c[yy, xx] = 0.0
+            mult_c[yy, xx] = 255
+            add_c[yy, xx] = 0
+        # 2. cells: the labels seen in each (its pixels and corners), one surface or not
+        padded = np.asarray(cv2.copyMakeBorder(labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w,
+                                               cv2.BORDER_REPLICATE), dtype=np.uint16)
+        sub = (slice(0, CELL * ny, CELL), slice(0, CELL * nx, CELL))
+        lo: NDArray[np.intp] = cv2.erode(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
+        hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
+        good = tab.surface[lo] == tab.surface[hi]
+        self._check_pieces(good, lo, hi, inv_c, tab)
+        y0_cell = self._atlas.y0[tab.tex[lo]]
+        # 3. every pixel from the interpolation (exact inside cells that see one plane)
+        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, y0_cell, mult_c, add_c)
+        _blocks(fields.depth)[(lo == 0) & (hi == 0)] = np.inf  # cells of sky
+        # 4. the other cells pixel by pixel
+        cb, ca = np.nonzero(~good)
+        if cb.size:
+            self._exact(cb, ca, padded[:CELL * ny, :CELL * nx], tab, R, fields)
+        # 5. texture, colour, sensor noise
+        depth, mapx, mapy, mult, add = fields
+        texel = cv2.remap(self._atlas.image, mapx, mapy, cv2.INTER_LINEAR)
+        image = cv2.multiply(texel, mult, scale=1.0 / 255.0)
+        cv2.add(image, add, dst=image)
+        oy, ox = (frame * 7919) % h, (frame * 104729) % w
+        hp, wp = CELL * ny, CELL * nx
+        cv2.add(image, self._noise_pos[oy:oy + hp, ox:ox + wp], dst=image)
+        cv2.subtract(image, self._noise_neg[oy:oy + hp, ox:ox + wp], dst=image)
+        return (np.asarray(cv2.cvtColor(image[:h, :w], cv2.COLOR_BGRA2BGR), dtype=np.uint8),
+                np.ascontiguousarray(depth[:h, :w]))
+
+    def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
+                      inv_c: F32, tab: _Tables) -> None:
+        """Cells seeing several pieces of one surface stay interpolated only where the planes of
+        the farthest and nearest pieces (extreme labels) agree with ``1/z`` at the cell's
+        corners (no crease, no crest hiding a farther piece); ``good`` is updated in place."""
+        cb, ca = np.nonzero(good & (lo != hi))
+        if not cb.size:
+            return
+        xs, ys = self._xs, self._ys
+        ok = np.ones(cb.shape, bool)
+        planes = [np.take(tab.fn_t[6:], lab[cb, ca], axis=1) for lab in (lo, hi)]
+        for db, da in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            x, y = xs[ca + da], ys[cb + db]
+            ref = inv_c[cb + db, ca + da]
+            tol = PLANE_TOLERANCE * np.abs(ref)
+            for p in planes:
+                ok &= np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol
+        good[cb[~ok], ca[~ok]] = False
+
+    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32, y0_cell: F32,
+                      mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
+        """Depth, atlas coordinates and colour terms of every pixel of the padded frame from the
+        coarse grid (bilinear, exact within a plane); depth ``+inf`` and NaN coordinates in the
+        sky (whose texture factor is 0). ``y0_cell``: first atlas row of each cell's texture."""
+        ny, nx = y0_cell.shape
+        hc, wc = inv_c.shape
+        size = (CELL * wc, CELL * hc)
+        o = CELL // 2  # output pixel j of the ×CELL resize sits at image x = j − CELL/2
+        crop = (slice(o, o + CELL * ny), slice(o, o + CELL * nx))
+
+        def up(a: NDArray) -> NDArray:
+            return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR)[crop])
+
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.reciprocal(up(inv_c))
+            mapx = up(tx_c)
+            mapx *= depth
+            mapy = up(ty_c)
+            mapy *= depth
+        y0 = np.asarray(cv2.resize(y0_cell, (CELL * nx, CELL * ny),
+                                   interpolation=cv2.INTER_NEAREST), dtype=np.float32)
+        mapx, mapy = atlas_xy(mapx, mapy, np.ascontiguousarray(up(lev_c)), y0)
+        return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
+
+    def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], labels: NDArray[np.uint16],
+               tab: _Tables, R: FloatArray, fields: _Fields) -> None:
+        """The pixels of cells ``(cb, ca)`` from their own polygon's plane, written into
+        ``fields`` (``labels``: the padded frame's)."""
+        n = cb.size
+        blocks = _blocks(labels)
+        lab = blocks[cb, ca].reshape(n, CELL * CELL).astype(np.intp)
+        x = (CELL * ca).astype(np.float32)[:, None] + self._cell_dx
+        y = (CELL * cb).astype(np.float32)[:, None] + self._cell_dy
+        f = np.take(tab.fn_t, lab, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.reciprocal(f[6] * x + f[7] * y + f[8])  # +inf in the sky
+            tx = f[0] * x + f[1] * y + f[2]
+            tx *= z
+            ty = f[3] * x + f[4] * y + f[5]
+            ty *= z
+        rn = _blocks(self._rn)[cb, ca].reshape(n, -1)
+        lev = self._level(z, rn, tab.plane_c[lab], tab.tpm[lab])
+        mult, add = self._colour_terms(z, lab, tab)
+        sky = np.nonzero(lab == 0)
+        if sky[0].size:
+            tx[sky], ty[sky] = self._sky(x[sky], y[sky], R)
+            lev[sky] = 0.0
+            mult[sky] = 255
+            add[sky] = 0
+        tx, ty = atlas_xy(tx, ty, lev, self._atlas.y0[tab.tex[lab]])
+        shape = (n, CELL, CELL)
+        for field, values in zip(fields, (z, tx, ty, mult, add), strict=True):
+            _blocks(np.asarray(field))[cb, ca] = values.reshape(shape + values.shape[2:])
+
+
+class _Fields(NamedTuple):
+    """Per pixel of the padded frame: depth (m), atlas coordinates (x, y), and the colour terms
+    (BGRA uint8): texture factor × 255 and haze added."""
+
+    depth: F32
+    mapx: F32
+    mapy: F32
+    mult: NDArray[np.uint8]
+    add: NDArray[np.uint8]
+
+
+def _blocks(a: NDArray) -> NDArray:
+    """View of an image of whole cells as ``(ny, nx, CELL, CELL, ...)`` blocks."""
+    ny, nx = a.shape[0] // CELL, a.shape[1] // CELL
+    view = a.view()
+    view.shape = (ny, CELL, nx, CELL, *a.shape[2:])  # raises rather than copy
+    return view.swapaxes(1, 2)
 
 
 def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear: FloatArray,
@@ -558,5 +871,6 @@ def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear:
             s_lo=s_rear.copy(), s_hi=s_front.copy(), material=np.full(m, int(Material.VEHICLE)),
             colour=colours_bgr.copy(), owner=owners.astype(np.int64),
             two_sided=np.zeros(m, bool), lod=np.full(m, -1, np.int8), lod_key=np.zeros(m),
+            surface=np.full(m, -1, np.int64),
         ))
     return Polygons.concat(parts)

@@ -84,6 +84,11 @@ class CameraSpec:
         return np.array([[self.f, 0.0, self.c_x], [0.0, self.f, self.c_y], [0.0, 0.0, 1.0]])
 
 
+MAX_STRUCTURE_HEIGHT_M = 25.0
+MAX_STRUCTURE_SEGMENT_M = 40.0
+"""Bounds of the roadside structures (their texture frames stay inside the renderer's tiles)."""
+
+
 @dataclass(frozen=True)
 class WorldSpec:
     """Roadside content of the renderer's world (seeded by the scenario's seed).
@@ -105,6 +110,13 @@ class WorldSpec:
             lo, hi = getattr(self, name)
             if not 0 < lo <= hi:
                 raise ConfigurationError(f"world {name} must satisfy 0 < min ≤ max")
+        # the renderer's wall textures cover heights up to about 40 m above a segment's start
+        if self.structure_height_m[1] > MAX_STRUCTURE_HEIGHT_M:
+            raise ConfigurationError(f"world structure_height_m must be at most "
+                                     f"{MAX_STRUCTURE_HEIGHT_M:g} m")
+        if self.structure_segment_m[1] > MAX_STRUCTURE_SEGMENT_M:
+            raise ConfigurationError(f"world structure_segment_m must be at most "
+                                     f"{MAX_STRUCTURE_SEGMENT_M:g} m")
         if self.post_spacing_m < 2 or self.object_spacing_m < 2:
             raise ConfigurationError("world post_spacing_m and object_spacing_m must be ≥ 2 m")
 

@@ -55,6 +55,10 @@ class Material(IntEnum):
     VEHICLE = 6
 
 
+GROUND_SURFACE = 0
+"""Surface id of the ground strips (wall segments are numbered from 1)."""
+
+
 class Layer(IntEnum):
     """Drawing priority among polygons with the same painter key (lower first)."""
 
@@ -82,6 +86,10 @@ class Polygons:
         lod: ``(P,)`` level of detail: −1 always drawn, 0 fine, 1 coarse; fine and coarse
             polygons cover the same surface, grouped by ``lod_key`` (plan distance, metres):
             a group is drawn fine when its key is nearer than the renderer's boundary.
+        surface: ``(P,)`` smooth surface the polygon is a piece of (−1: a surface of its own):
+            pieces of one surface (:data:`GROUND_SURFACE` for all ground strips, one id per
+            roadside wall segment) share one material and one continuous texture frame, so
+            the renderer may interpolate across their common edges.
     """
 
     verts: FloatArray
@@ -100,6 +108,7 @@ class Polygons:
     two_sided: NDArray[np.bool_]
     lod: NDArray[np.int8]
     lod_key: FloatArray
+    surface: NDArray[np.int64]
 
     def __len__(self) -> int:
         return int(self.verts.shape[0])
@@ -160,6 +169,7 @@ def box_polygons(
             layer=np.full(n, int(layer), np.int64), s_lo=s_near.copy(), s_hi=s_far.copy(),
             material=mat.copy(), colour=colour.copy(), owner=own.copy(),
             two_sided=np.zeros(n, bool), lod=np.full(n, -1, np.int8), lod_key=np.zeros(n),
+            surface=np.full(n, -1, np.int64),
         ))
     return Polygons.concat(parts)
 
@@ -188,6 +198,7 @@ def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP
         s_lo=a.copy(), s_hi=b.copy(), material=np.full(n, int(Material.GROUND)), colour=grey,
         owner=np.full(n, -1), two_sided=np.ones(n, bool), lod=np.full(n, lod, np.int8),
         lod_key=origin + np.floor((a - origin) / COARSE_GROUND_M + 1e-9) * COARSE_GROUND_M,
+        surface=np.full(n, GROUND_SURFACE, np.int64),
     )
 
 
@@ -205,8 +216,10 @@ OBJECT_COLOURS = np.array([
 
 def structure_polygons(road: Road, half_width_m: float, height_range: tuple[float, float],
                        length_range: tuple[float, float], rng: np.random.Generator) -> Polygons:
-    """Walls of buildings and tree lines at lateral offsets ``±half_width_m``."""
+    """Walls of buildings and tree lines at lateral offsets ``±half_width_m``; each wall
+    segment is one surface (ids from ``GROUND_SURFACE + 1``)."""
     parts = []
+    next_surface = GROUND_SURFACE + 1
     for side in (-1.0, 1.0):
         edges = [road.s[0] + 1.0]
         while edges[-1] < road.s[-1] - 1.0:
@@ -219,16 +232,23 @@ def structure_polygons(road: Road, half_width_m: float, height_range: tuple[floa
         trees = rng.random(a.shape[0]) < 0.35
         colour_index = rng.integers(0, 1 << 30, a.shape[0])
         shade = rng.uniform(0.85, 1.15, a.shape[0])
+        surface = next_surface + np.arange(a.shape[0])
+        next_surface += a.shape[0]
         for lod, piece_m in ((0, WALL_PIECE_M), (1, COARSE_WALL_PIECE_M)):
             parts.append(_wall_pieces(road, side, half_width_m, a, b, height, trees,
-                                      colour_index, shade, piece_m, lod))
+                                      colour_index, shade, surface, piece_m, lod))
     return Polygons.concat(parts)
 
 
 def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b: FloatArray,
                  height: FloatArray, trees: NDArray[np.bool_], colour_index: NDArray[np.int64],
-                 shade: FloatArray, piece_m: float, lod: int) -> Polygons:
-    """The wall segments ``[a, b]`` of one side cut into pieces of at most ``piece_m``."""
+                 shade: FloatArray, surface: NDArray[np.int64], piece_m: float,
+                 lod: int) -> Polygons:
+    """The wall segments ``[a, b]`` of one side cut into pieces of at most ``piece_m``.
+
+    Texture frame of every piece of a segment: ``u`` = distance driven along the centreline
+    at the piece's start plus the distance along the piece, ``v`` = height above the ground at
+    the segment's start (level rows of windows, continuous from piece to piece)."""
     # pieces of at most piece_m, so the wall's foot follows the ground through
     # vertical and horizontal curves (a long chord would leave a gap under it)
     pieces = np.maximum(np.ceil((b - a) / piece_m), 1).astype(int)
@@ -236,9 +256,11 @@ def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b:
     j = np.arange(seg.shape[0]) - np.repeat(np.cumsum(pieces) - pieces, pieces)
     step = (b - a) / pieces
     group = a[seg]
+    w_seg = np.full(a.shape[0], side * half_width_m)
+    base_z = road.point(a, w_seg)[:, 2][seg]
     a, b = a[seg] + j * step[seg], a[seg] + (j + 1) * step[seg]
     height, trees = height[seg], trees[seg]
-    colour_index, shade = colour_index[seg], shade[seg]
+    colour_index, shade, surface = colour_index[seg], shade[seg], surface[seg]
     n = a.shape[0]
     w = np.full(n, side * half_width_m)
     pa, pb = road.point(a, w), road.point(b, w)
@@ -254,13 +276,17 @@ def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b:
     colour = np.where(trees[:, None], TREE_COLOURS[colour_index % len(TREE_COLOURS)],
                       BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)])
     colour = colour * shade[:, None]
+    origin = pa.copy()
+    origin[:, 2] = base_z  # v = height above the segment's start
+    # u at the piece's start stays the driven distance there
+    u0 = road.driven_distance(a) - (pa[:, 2] - base_z) * along[:, 2]
     return Polygons(
-        verts=verts, normal=normal, origin=pa, axis_u=along,
-        axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=road.driven_distance(a),
+        verts=verts, normal=normal, origin=origin, axis_u=along,
+        axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=u0,
         key=b.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
         material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
         colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
-        lod=np.full(n, lod, np.int8), lod_key=group,
+        lod=np.full(n, lod, np.int8), lod_key=group, surface=surface.astype(np.int64),
     )
 
 
