@@ -528,6 +528,8 @@ def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
     if not isinstance(results, dict) or not isinstance(results.get("scenarios"), dict):
         raise InputFileError(path, "lacks 'scenarios' (not a slopedist demo output?)")
     scenarios: dict[str, Any] = results["scenarios"]
+    listed = list(results.get("methods") or {})  # the demo's own order of the methods
+    data.methods.sort(key=lambda m: listed.index(m) if m in listed else len(listed))
     for m in data.methods:
         est = odo = frames = 0.0
         for name in data.sequences:
@@ -730,11 +732,18 @@ def theta_table(data: ReportData) -> Table | None:
                              float(np.sqrt(np.mean(th[truth] ** 2)))])
     if not rows:
         return None
-    return Table("theta_agreement", f"Ego gradient θ against the {data.truth_source} truth (deg)",
+    return Table("theta_agreement", f"Ego gradient θ against {_truth_name(data)} (deg)",
                  ["sequence", "source", "frames", "RMS diff", "max |diff|", "RMS θ truth"],
                  rows, [[False] * 6 for _ in rows],
                  "θ of eq. 4 over the 1 s look-back, per frame, in degrees.",
                  {2: "d", 3: ".3f", 4: ".3f", 5: ".3f"})
+
+
+def _truth_name(data: ReportData) -> str:
+    """Words for the θ truth source: the OXTS (IMU) truth, or the true θ of a simulation."""
+    if data.truth_source == "truth":
+        return "the true θ" + (" of the simulation" if data.kind is SourceKind.SYNTHETIC else "")
+    return f"the {data.truth_source} (IMU) truth"
 
 
 def report_tables(data: ReportData) -> list[Table]:
@@ -955,14 +964,15 @@ def figure_theta(data: ReportData, max_panels: int = 12) -> Figure | None:
             truth = source == data.truth_source
             ax.plot(t[sel], th[sel], "-", lw=3.0 if truth else 1.0,
                     color="0.6" if truth else None,
-                    label=f"{source} (truth)" if truth else source)
+                    label=(source if source == "truth" else f"{source} (truth)") if truth
+                    else source)
         ax.set_title(f"sequence {s}", fontsize=9)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("θ (deg)")
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
-    what = (f"against the {data.truth_source} (IMU) truth" if data.truth_source
+    what = (f"against {_truth_name(data)}" if data.truth_source
             else "(no IMU truth in this source)")
     return Figure("theta_over_time.png",
                   f"Ego road gradient θ (eq. 4, 1 s look-back) over time {what}.", _png(fig))
