@@ -15,6 +15,9 @@ import numpy as np
 import pytest
 
 from slopedist.cli import main
+from slopedist.detections.readers import read_box_csv
+from slopedist.errors import MissingInputError
+from slopedist.report import detect_source
 
 FRAMES = 14
 SCENARIO = "ego_crest"
@@ -56,6 +59,8 @@ def test_records_carry_the_true_distance_of_each_target(chain: tuple[Path, str])
     for r in rows:
         assert float(r["gt_distance_m"]) == pytest.approx(truth[(r["frame"], r["track_id"])],
                                                           rel=1e-5)
+    exact = read_box_csv(root / "sim" / "boxes_exact.csv")
+    np.testing.assert_allclose(exact.extra["gt_distance_m"], exact_z(root / "sim"), rtol=1e-5)
     # the image folder is image_02: the sequence is named after the simulation folder
     assert json.loads((root / "sim" / "paper" / "run.json").read_text())["sequence"] == "sim"
 
@@ -79,6 +84,21 @@ def test_report_scores_every_method_in_one_row(chain: tuple[Path, str]) -> None:
     assert float(timing["depthmap"]["depth"]) > 0 and timing["paper"]["depth"] == ""
     html = (root / "report" / "report.html").read_text()
     assert html.count('src="data:image/png;base64,') == 3
+
+
+def exact_z(sim: Path) -> list[float]:
+    return [float(r["z"]) for r in read_csv(sim / "boxes_exact.csv")]
+
+
+def test_a_simulation_without_runs_says_what_to_do(tmp_path: Path,
+                                                   chain: tuple[Path, str]) -> None:
+    root, _ = chain
+    sim = tmp_path / "sims" / "bare"
+    sim.mkdir(parents=True)
+    for name in ("truth.csv", "info.json"):
+        (sim / name).write_bytes((root / "sim" / name).read_bytes())
+    with pytest.raises(MissingInputError, match=r"holds the truth but no estimates.*slopedist run"):
+        detect_source(tmp_path / "sims")
 
 
 def test_theta_of_each_run_is_compared_with_the_simulated_truth(chain: tuple[Path, str]) -> None:

@@ -117,6 +117,15 @@ def detect_source(path: str | Path) -> SourceKind:
         return SourceKind.SYNTHETIC
     if run_folders(path):
         return SourceKind.RUN
+    sims = [p.parent for p in (path / "truth.csv", *path.glob("*/truth.csv")) if p.is_file()
+            and (p.parent / "info.json").is_file()]
+    if sims:
+        raise MissingInputError(
+            f"{sims[0]} is a `slopedist simulate` output, which holds the truth but no estimates: "
+            f"run the methods on its frames first, e.g. slopedist run {sims[0]}/image_02 --calib "
+            f"{sims[0]}/calib.txt --boxes {sims[0]}/boxes.csv --timestamps {sims[0]}/times.txt "
+            f"--method paper --out {sims[0]}/run_paper, then report on {path}"
+        )
     raise MissingInputError(
         f"{path} is neither a KITTI tracking folder (label_02/ and calib/), a `slopedist demo` "
         f"output ({DEMO_RESULTS} and <scenario>/records.csv) nor a `slopedist run` output "
