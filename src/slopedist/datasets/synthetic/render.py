@@ -36,7 +36,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -458,7 +458,7 @@ class _Tables:
             first row of the texture's tile, level 0); fn_t: its transpose.
         plane_c: ``(n + 1,)`` distance of the plane from the camera centre, metres.
         tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``.
-        tint: ``(n + 1, 4)`` BGRA colour × sun shading in [0, 1] (alpha 0).
+        tint_t: ``(4, n + 1)`` BGRA colour × sun shading in [0, 1] (alpha 0).
         surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
     """
 
@@ -467,7 +467,7 @@ class _Tables:
     plane_c: NDArray[np.float32]
     tex: NDArray[np.intp]
     tpm: NDArray[np.float32]
-    tint: NDArray[np.float32]
+    tint_t: NDArray[np.float32]
     surface: NDArray[np.int64]
 
 
@@ -519,11 +519,19 @@ class Renderer:
         off = np.arange(CELL, dtype=np.float32)
         self._cell_dy = np.repeat(off, CELL)
         self._cell_dx = np.tile(off, CELL)
-        hp, wp = CELL * self._cells[0], CELL * self._cells[1]  # the frame padded to whole cells
-        self._rn = self._ray_norm_over_f(np.arange(wp, dtype=np.float32)[None, :],
-                                         np.arange(hp, dtype=np.float32)[:, None])
+        # per cell, its pixels' flat indices in the labels padded to whole cells (one more row
+        # and column) and in the frame of the grid's ×CELL upsampling
+        o = CELL // 2
+        cy = (CELL * np.arange(self._cells[0]))[:, None, None] + self._cell_dy.astype(np.intp)
+        cx = (CELL * np.arange(self._cells[1]))[None, :, None] + self._cell_dx.astype(np.intp)
+        self._cell_labels = cy * (CELL * self._cells[1] + 1) + cx
+        self._cell_work = (cy + o) * (CELL * wc) + cx + o
+        ww = np.arange(CELL * wc, dtype=np.float32)[None, :] - o
+        hw = np.arange(CELL * hc, dtype=np.float32)[:, None] - o
+        self._rn_work = self._ray_norm_over_f(ww, hw)
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
-        noise = np.rint(rng.standard_normal((2 * h + CELL, 2 * w + CELL)) * SENSOR_NOISE_GREY)
+        noise = np.rint(rng.standard_normal((2 * h + 2 * CELL, 2 * w + 2 * CELL))
+                        * SENSOR_NOISE_GREY)
         self._noise_pos = np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[..., None], 4, axis=2)
         self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 4,
                                     axis=2)
@@ -538,32 +546,30 @@ class Renderer:
     # -- polygon stage ---------------------------------------------------------------------------
 
     def _visible_polygons(self, polys: Polygons, R_wc: FloatArray, C_w: FloatArray
-                          ) -> tuple[Polygons, list[NDArray[np.int32]]]:
-        """Cull, clip and project; returns the kept polygons and their integer pixel outlines
-        (``cv2.fillConvexPoly`` coordinates with 4 fractional bits)."""
-        to_cam = polys.verts[:, 0] - C_w
-        facing = polys.two_sided | (np.einsum("pi,pi->p", -to_cam, polys.normal) > 1e-9)
-        polys = polys.select(np.flatnonzero(facing))
-        vc = np.einsum("ji,pkj->pki", R_wc, polys.verts - C_w)
+                          ) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
+        """Cull, clip and project; returns the indices of the kept polygons (painter order) and
+        their integer pixel outlines (``cv2.fillConvexPoly`` coordinates, 4 fractional bits)."""
+        facing = polys.two_sided | (
+            np.einsum("pi,pi->p", C_w - polys.verts[:, 0], polys.normal) > 1e-9)
+        idx = np.flatnonzero(facing)
+        vc = np.einsum("ji,pkj->pki", R_wc, polys.verts[idx] - C_w)
         z = vc[..., 2]
         all_in = np.all(z >= NEAR_CLIP_M, axis=1)
         any_in = np.any(z >= NEAR_CLIP_M, axis=1)
         K = self.K
-        outlines: list[NDArray[np.int32] | None] = [None] * len(polys)
         zz = np.where(all_in[:, None], z, 1.0)
         px = np.stack([K[0, 0] * vc[..., 0] / zz + K[0, 2], K[1, 1] * vc[..., 1] / zz + K[1, 2]],
                       axis=-1)
         w, h = self.width, self.height
-        onscreen = ((px[..., 0].max(1) >= -1) & (px[..., 0].min(1) <= w) & (px[..., 1].max(1) >= -1)
-                    & (px[..., 1].min(1) <= h))
+        lo, hi = px.min(axis=1), px.max(axis=1)
+        onscreen = (hi[:, 0] >= -1) & (lo[:, 0] <= w) & (hi[:, 1] >= -1) & (lo[:, 1] <= h)
         lim = FILL_LIMIT_PX
-        huge = np.any((px < -lim) | (px > np.array([w + lim, h + lim])), axis=(1, 2))
-        fixed = np.round(np.where(huge[:, None, None], 0.0, px) * 16.0).astype(np.int32)
-        keep = []
-        for p in np.flatnonzero(all_in & onscreen & ~huge):
-            outlines[p] = fixed[p]
-            keep.append(p)
-        for p in np.flatnonzero(any_in & ~(all_in & onscreen & ~huge)):
+        huge = np.any(lo < -lim, axis=1) | (hi[:, 0] > w + lim) | (hi[:, 1] > h + lim)
+        direct = np.flatnonzero(all_in & onscreen & ~huge)
+        outlines: dict[int, NDArray[np.int32]] = dict(zip(
+            direct.tolist(), np.round(px[direct] * 16.0).astype(np.int32), strict=True))
+        # crossing the near plane, or reaching beyond fillConvexPoly's range: clipped
+        for p in np.flatnonzero((any_in & ~all_in) | (all_in & onscreen & huge)).tolist():
             if all_in[p]:
                 q = px[p]
             else:
@@ -572,13 +578,13 @@ class Renderer:
                     continue
                 q = np.stack([K[0, 0] * poly[:, 0] / poly[:, 2] + K[0, 2],
                               K[1, 1] * poly[:, 1] / poly[:, 2] + K[1, 2]], axis=-1)
-            q = clip_polygon_rect(q, -4.0, -4.0, w + 4.0, h + 4.0)
-            if q.shape[0] < 3:
-                continue
+            if np.any(q < -lim) or np.any(q > (w + lim, h + lim)):
+                q = clip_polygon_rect(q, -4.0, -4.0, w + 4.0, h + 4.0)
+                if q.shape[0] < 3:
+                    continue
             outlines[p] = np.round(q * 16.0).astype(np.int32)
-            keep.append(p)
-        keep_arr = np.sort(np.asarray(keep, dtype=np.int64))  # painter order is index order
-        return polys.select(keep_arr), [o for o in (outlines[p] for p in keep_arr) if o is not None]
+        keep = sorted(outlines)  # painter order is index order
+        return idx[np.asarray(keep, dtype=np.intp)], [outlines[p] for p in keep]
 
     def _tables(self, polys: Polygons, surface: NDArray[np.int64], R_wc: FloatArray,
                 C_w: FloatArray, u_base: float) -> _Tables:
@@ -614,7 +620,8 @@ class Renderer:
         tpm[1:] = tpm_v
         surf = np.full(n + 1, -1, np.int64)
         surf[1:] = surface
-        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm, tint, surf)
+        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm,
+                       np.ascontiguousarray(tint.T), surf)
 
     # -- frame -----------------------------------------------------------------------------------
 
@@ -641,20 +648,20 @@ class Renderer:
         if dynamic is not None and len(dynamic):
             polys = Polygons.concat([polys, dynamic])
             polys = polys.select(np.lexsort((polys.layer, -polys.key)))
-        polys, outlines = self._visible_polygons(polys, R, C)
-        n = len(polys)
+        visible, outlines = self._visible_polygons(polys, R, C)
+        n = len(visible)
         if n >= np.iinfo(np.uint16).max:
             raise ValueError(f"{n} visible polygons: more than the label buffer holds")
         # labels: the pieces of one surface consecutive, the targets' faces last
-        surface = polys.surface
+        surface = polys.surface[visible]
         key = np.where(surface >= 0, surface, surface.max(initial=0) + 1 + np.arange(n))
-        order = np.lexsort((np.arange(n), key, polys.owner >= 0))
+        order = np.lexsort((np.arange(n), key, polys.owner[visible] >= 0))
         label = np.empty(n, np.int64)
         label[order] = np.arange(1, n + 1)
         labels = np.zeros((self.height, self.width), np.uint16)
         for k, pts in enumerate(outlines):  # painter order
             cv2.fillConvexPoly(labels, pts, int(label[k]), cv2.LINE_8, 4)
-        ordered = polys.select(order)
+        ordered = polys.select(visible[order])
         u_base = U_REBASE_M * math.floor(s_camera / U_REBASE_M)
         tab = self._tables(ordered, key[order], R, C, u_base)
         image, depth = self._shade(labels, tab, R, frame)
@@ -698,17 +705,29 @@ class Renderer:
         """Per surface point (``z``, ``lab`` of any shape S): the factor of the texture (tint ×
         share of the surface's colour through the haze) and the haze added, ``S × 4`` BGRA
         uint8 (× 255)."""
-        fog = 1.0 / (1.0 + z * np.float32(1.0 / HAZE_DISTANCE_M))
-        mult = tab.tint[lab] * (255.0 * fog)[..., None]
-        add = (255.0 * (1.0 - fog))[..., None] * HAZE4
-        return np.rint(mult).astype(np.uint8), np.rint(add).astype(np.uint8)
+        own = 1.0 / (1.0 + z * np.float32(1.0 / HAZE_DISTANCE_M))
+        own *= np.float32(255.0)
+        haze = np.float32(255.0) - own
+        mult = np.zeros((*lab.shape, 4), np.uint8)
+        add = np.zeros((*lab.shape, 4), np.uint8)
+        for c in range(3):  # + 0.5: rounded when cast
+            m = np.take(tab.tint_t[c], lab)
+            m *= own
+            m += np.float32(0.5)
+            mult[..., c] = m
+            a = haze * HAZE[c]
+            a += np.float32(0.5)
+            add[..., c] = a
+        return mult, add
 
     def _shade(self, labels: NDArray[np.uint16], tab: _Tables, R: FloatArray, frame: int
                ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         """Image and depth: cells seeing one surface from the coarse grid, the others pixel by
-        pixel. Works on the frame padded to whole cells (``CELL·ny × CELL·nx``)."""
+        pixel. Works on the frame of the grid's ×CELL upsampling (image pixel ``(y, x)`` at
+        ``(y + CELL/2, x + CELL/2)``), cropped at the end."""
         h, w = self.height, self.width
         ny, nx = self._cells
+        o = CELL // 2
         # 1. the coarse grid: homogeneous coordinates, mip level and colour terms per sample
         lab_c = labels[self._sample_rows][:, self._sample_cols].astype(np.intp)
         f = np.take(tab.fn_t, lab_c, axis=1)
@@ -719,7 +738,7 @@ class Renderer:
         sky_c = lab_c == 0
         with np.errstate(divide="ignore"):
             z_c = np.reciprocal(inv_c)
-        lev_c = self._level(z_c, self._rn_c, tab.plane_c[lab_c], tab.tpm[lab_c])
+        lev_c = self._level(z_c, self._rn_c, np.take(tab.plane_c, lab_c), np.take(tab.tpm, lab_c))
         mult_c, add_c = self._colour_terms(z_c, lab_c, tab)
         if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
             yy, xx = np.nonzero(sky_c)
@@ -736,25 +755,27 @@ class Renderer:
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         good = tab.surface[lo] == tab.surface[hi]
         self._check_pieces(good, lo, hi, inv_c, tab)
-        y0_cell = self._atlas.y0[tab.tex[lo]]
+        y0 = np.asarray(cv2.resize(self._atlas.y0[tab.tex[lo]], (CELL * nx, CELL * ny),
+                                   interpolation=cv2.INTER_NEAREST), dtype=np.float32)
         # 3. every pixel from the interpolation (exact inside cells that see one plane)
-        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, y0_cell, mult_c, add_c)
-        _blocks(fields.depth)[(lo == 0) & (hi == 0)] = np.inf  # cells of sky
+        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, y0, mult_c, add_c)
+        fields.depth.ravel()[self._cell_work[(lo == 0) & (hi == 0)].ravel()] = np.inf  # sky
         # 4. the other cells pixel by pixel
         cb, ca = np.nonzero(~good)
         if cb.size:
-            self._exact(cb, ca, padded[:CELL * ny, :CELL * nx], tab, R, fields)
+            self._exact(cb, ca, padded, tab, R, fields)
         # 5. texture, colour, sensor noise
         depth, mapx, mapy, mult, add = fields
         texel = cv2.remap(self._atlas.image, mapx, mapy, cv2.INTER_LINEAR)
         image = cv2.multiply(texel, mult, scale=1.0 / 255.0)
         cv2.add(image, add, dst=image)
         oy, ox = (frame * 7919) % h, (frame * 104729) % w
-        hp, wp = CELL * ny, CELL * nx
-        cv2.add(image, self._noise_pos[oy:oy + hp, ox:ox + wp], dst=image)
-        cv2.subtract(image, self._noise_neg[oy:oy + hp, ox:ox + wp], dst=image)
-        return (np.asarray(cv2.cvtColor(image[:h, :w], cv2.COLOR_BGRA2BGR), dtype=np.uint8),
-                np.ascontiguousarray(depth[:h, :w]))
+        hw, ww = depth.shape
+        cv2.add(image, self._noise_pos[oy:oy + hw, ox:ox + ww], dst=image)
+        cv2.subtract(image, self._noise_neg[oy:oy + hw, ox:ox + ww], dst=image)
+        crop = (slice(o, o + h), slice(o, o + w))
+        return (np.asarray(cv2.cvtColor(image[crop], cv2.COLOR_BGRA2BGR), dtype=np.uint8),
+                np.ascontiguousarray(depth[crop]))
 
     def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
                       inv_c: F32, tab: _Tables) -> None:
@@ -775,38 +796,37 @@ class Renderer:
                 ok &= np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol
         good[cb[~ok], ca[~ok]] = False
 
-    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32, y0_cell: F32,
+    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32, y0: F32,
                       mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
-        """Depth, atlas coordinates and colour terms of every pixel of the padded frame from the
-        coarse grid (bilinear, exact within a plane); depth ``+inf`` and NaN coordinates in the
-        sky (whose texture factor is 0). ``y0_cell``: first atlas row of each cell's texture."""
-        ny, nx = y0_cell.shape
+        """Depth, atlas coordinates and colour terms of every pixel from the coarse grid
+        (bilinear, exact within a plane), on the upsampling's frame. ``y0``: first atlas row of
+        each pixel's cell's texture (image frame, whole cells)."""
         hc, wc = inv_c.shape
         size = (CELL * wc, CELL * hc)
-        o = CELL // 2  # output pixel j of the ×CELL resize sits at image x = j − CELL/2
-        crop = (slice(o, o + CELL * ny), slice(o, o + CELL * nx))
 
         def up(a: NDArray) -> NDArray:
-            return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR)[crop])
+            return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR))
 
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore"):
             depth = np.reciprocal(up(inv_c))
-            mapx = up(tx_c)
-            mapx *= depth
-            mapy = up(ty_c)
-            mapy *= depth
-        y0 = np.asarray(cv2.resize(y0_cell, (CELL * nx, CELL * ny),
-                                   interpolation=cv2.INTER_NEAREST), dtype=np.float32)
-        mapx, mapy = atlas_xy(mapx, mapy, np.ascontiguousarray(up(lev_c)), y0)
+        mapx = up(tx_c)
+        mapx *= depth
+        mapy = up(ty_c)
+        mapy *= depth
+        o = CELL // 2
+        y0w = cv2.copyMakeBorder(y0, o, size[1] - y0.shape[0] - o, o, size[0] - y0.shape[1] - o,
+                                 cv2.BORDER_REPLICATE)
+        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c), np.asarray(y0w, dtype=np.float32))
         return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
 
-    def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], labels: NDArray[np.uint16],
+    def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
                tab: _Tables, R: FloatArray, fields: _Fields) -> None:
         """The pixels of cells ``(cb, ca)`` from their own polygon's plane, written into
-        ``fields`` (``labels``: the padded frame's)."""
+        ``fields`` (``padded``: the labels, padded to whole cells and one more row and
+        column)."""
         n = cb.size
-        blocks = _blocks(labels)
-        lab = blocks[cb, ca].reshape(n, CELL * CELL).astype(np.intp)
+        lab = np.take(padded, self._cell_labels[cb, ca]).astype(np.intp)  # (n, CELL²)
+        where = self._cell_work[cb, ca]
         x = (CELL * ca).astype(np.float32)[:, None] + self._cell_dx
         y = (CELL * cb).astype(np.float32)[:, None] + self._cell_dy
         f = np.take(tab.fn_t, lab, axis=1)
@@ -816,8 +836,8 @@ class Renderer:
             tx *= z
             ty = f[3] * x + f[4] * y + f[5]
             ty *= z
-        rn = _blocks(self._rn)[cb, ca].reshape(n, -1)
-        lev = self._level(z, rn, tab.plane_c[lab], tab.tpm[lab])
+        lev = self._level(z, np.take(self._rn_work, where), np.take(tab.plane_c, lab),
+                          np.take(tab.tpm, lab))
         mult, add = self._colour_terms(z, lab, tab)
         sky = np.nonzero(lab == 0)
         if sky[0].size:
@@ -826,28 +846,22 @@ class Renderer:
             mult[sky] = 255
             add[sky] = 0
         tx, ty = atlas_xy(tx, ty, lev, self._atlas.y0[tab.tex[lab]])
-        shape = (n, CELL, CELL)
         for field, values in zip(fields, (z, tx, ty, mult, add), strict=True):
-            _blocks(np.asarray(field))[cb, ca] = values.reshape(shape + values.shape[2:])
+            out: NDArray[Any] = np.asarray(field)
+            if out.ndim == 3:  # BGRA as one 32-bit word
+                out, values = out.view(np.uint32), values.view(np.uint32)
+            out.ravel()[where] = values.reshape(n, -1)
 
 
 class _Fields(NamedTuple):
-    """Per pixel of the padded frame: depth (m), atlas coordinates (x, y), and the colour terms
-    (BGRA uint8): texture factor × 255 and haze added."""
+    """Per pixel of the upsampling's frame: depth (m), atlas coordinates (x, y), and the colour
+    terms (BGRA uint8): texture factor × 255 and haze added."""
 
     depth: F32
     mapx: F32
     mapy: F32
     mult: NDArray[np.uint8]
     add: NDArray[np.uint8]
-
-
-def _blocks(a: NDArray) -> NDArray:
-    """View of an image of whole cells as ``(ny, nx, CELL, CELL, ...)`` blocks."""
-    ny, nx = a.shape[0] // CELL, a.shape[1] // CELL
-    view = a.view()
-    view.shape = (ny, CELL, nx, CELL, *a.shape[2:])  # raises rather than copy
-    return view.swapaxes(1, 2)
 
 
 def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear: FloatArray,
