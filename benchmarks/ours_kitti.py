@@ -57,15 +57,12 @@ ABLATION: list[tuple[str, dict[str, Any]]] = [
     ("+ box width with heading hypotheses",
      {**PER_FRAME, "use_ground_contact": False}),
     ("+ fusion with the ground-contact cue (ego gradient)", dict(PER_FRAME)),
-    ("+ continuous target gradient fed back", {**PER_FRAME, "gradient_feedback": True}),
-    ("+ tracking: CV Kalman filter on distance", {**PER_FRAME, "gradient_feedback": True,
-                                                 "motion_model": True}),
-    ("+ self-calibration", {**PER_FRAME, "gradient_feedback": True, "motion_model": True,
-                            "self_calibrate": True}),
-    ("ours (default: size, width, fusion, tracking)", {}),
-    ("ours-selfcal (default + self-calibration)", {"self_calibrate": True}),
+    ("+ tracking: CV Kalman filter on distance = ours", {}),
+    ("+ continuous target gradient fed back to the ground contact", {"gradient_feedback": True}),
+    ("+ self-calibration", {"gradient_feedback": True, "self_calibrate": True}),
+    ("ours + self-calibration = ours-selfcal", {"self_calibrate": True}),
+    ("ours + heading memory over the track", {"yaw_memory": True}),
 ]
-
 
 def report(data: Path, methods: Sequence[str], boxes: BoxSource = BoxSource.GT,
            options: dict[str, dict[str, Any]] | None = None, sequences: Sequence[str] | None = None,
