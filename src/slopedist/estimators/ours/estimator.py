@@ -301,7 +301,7 @@ class OursEstimator(Estimator):
         r_h_other = np.where(cut_h, r_h_other * infl, r_h_other)
         if cfg.use_width:
             z_w, dz_dcol, share_w = cues.width_cue(B[:, 0:1], B[:, 2:3], f, cam.c_x, psi, W, L,
-                                                   z_h)
+                                                   z_h, iterations=1)
             z_w = np.maximum(z_w, e + _MIN_NEAR_M)
             y_w = np.log(z_w)
             r_w_white = (dz_dcol * sigma_px / z_w) ** 2
