@@ -144,14 +144,6 @@ def test_ground_contact_log_cue_variance_matches_the_metric_sigma() -> None:
     assert cue.var_white == pytest.approx(cue.var)
 
 
-def test_fuse_inverse_variance_by_hand() -> None:
-    mean, var = cues.fuse_inverse_variance([10.0, 14.0, np.nan], [1.0, 3.0, 1.0])
-    assert mean == pytest.approx((10.0 / 1 + 14.0 / 3) / (1 + 1 / 3))
-    assert var == pytest.approx(1 / (1 + 1 / 3))
-    m, v = cues.fuse_inverse_variance([np.nan], [1.0])
-    assert np.isnan(m) and np.isnan(v)
-
-
 def test_fuse_log_cues_weights_by_variance_and_scores_consistency() -> None:
     a = cues.LogCue(np.array(math.log(20.0)), np.array(0.01), np.array(0.001), np.array(0.0))
     b = cues.LogCue(np.array(math.log(25.0)), np.array(0.04), np.array(0.04), np.array(0.0))

@@ -99,9 +99,3 @@ def test_random_walk_update() -> None:
     m2, v2 = kf.random_walk_update(np.array([0.5]), np.array([1.0]), 0.0, 0.0,
                                    np.array([np.nan]), np.array([1.0]))
     assert m2[0] == 0.5 and v2[0] == 1.0
-
-
-def test_gaussian_loglik() -> None:
-    assert kf.gaussian_loglik(np.array(0.0), np.array(1.0)) == pytest.approx(
-        -0.5 * math.log(2 * math.pi))
-    assert kf.gaussian_loglik(np.array(np.nan), np.array(1.0)) == 0.0

@@ -200,24 +200,6 @@ def ground_contact_sigma(
                               + (d * np.asarray(height_sigma_m) / h) ** 2))
 
 
-def fuse_inverse_variance(
-    values: ArrayLike, variances: ArrayLike, axis: int = -1
-) -> tuple[FloatArray, FloatArray]:
-    """Inverse-variance weighted mean of independent estimates, and its variance.
-
-    NaN values (or non-finite variances) are left out; where nothing is left the result is NaN.
-    """
-    x = np.asarray(values, dtype=float)
-    var = np.asarray(variances, dtype=float)
-    ok = np.isfinite(x) & np.isfinite(var) & (var > 0)
-    w = np.where(ok, 1.0 / np.where(ok, var, 1.0), 0.0)
-    wsum = w.sum(axis=axis)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mean = (np.where(ok, x, 0.0) * w).sum(axis=axis) / wsum
-        out_var = 1.0 / wsum
-    return np.where(wsum > 0, mean, np.nan), np.where(wsum > 0, out_var, np.nan)
-
-
 def expected_centre_offset_px(
     distance_m: ArrayLike, f: float, cam_height_m: ArrayLike, height_m: ArrayLike,
     half_extent_m: ArrayLike,
@@ -318,17 +300,12 @@ def ground_contact_log_cue(
     e = np.asarray(half_extent_m, dtype=float)
     ok = gap > 0
     with np.errstate(divide="ignore", invalid="ignore"):
-        zn = f * h / gap
+        zn = np.where(ok, f * h / gap, np.nan)
         z = zn + e
-        d = (zn / z) / gap
-        white = d * d * np.asarray(row_var_white)
-        other = (d * d * np.asarray(row_var_other) + (zn / (z * h)) ** 2 * np.square(height_sigma_m)
-                 + np.square(np.asarray(half_extent_sigma_m) / z))
-    nan = np.nan
-    with np.errstate(invalid="ignore", divide="ignore"):
-        log_z = np.log(np.where(ok, z, 1.0))
-    return LogCue(np.where(ok, log_z, nan), np.where(ok, white + other, nan),
-                  np.where(ok, white, nan), np.zeros(np.shape(gap)))
+        white = (ground_contact_sigma(zn, f, h, np.sqrt(row_var_white), 0.0) / z) ** 2
+        other = ((ground_contact_sigma(zn, f, h, np.sqrt(row_var_other), 0.0, height_sigma_m)
+                  / z) ** 2 + np.square(np.asarray(half_extent_sigma_m) / z))
+    return LogCue(np.log(z), white + other, white, np.zeros(np.shape(gap)))
 
 
 def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:

@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 IDX_LOG_Z, IDX_RATE = 0, 1
-_LOG_2PI = float(np.log(2.0 * np.pi))
 
 
 @dataclass(frozen=True)
@@ -121,11 +120,3 @@ def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
     r_ = np.where(approaching, r, -1.0)
     sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
     return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
-
-
-def gaussian_loglik(residual: FloatArray, var: FloatArray) -> FloatArray:
-    """``log N(residual; 0, var)``; 0 where either is not finite."""
-    ok = np.isfinite(residual) & np.isfinite(var) & (var > 0)
-    v = np.where(ok, var, 1.0)
-    r = np.where(ok, residual, 0.0)
-    return np.where(ok, -0.5 * (r * r / v + np.log(v) + _LOG_2PI), 0.0)
