@@ -279,27 +279,41 @@ def _level_x0() -> NDArray[np.int64]:
 ATLAS_WIDTH = sum(TEX_SIZE // 2**lev + 1 for lev in range(MIP_LEVELS))
 
 
-def _band(levels: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
-    """One texture's levels side by side, ``TILE_PAD`` repeated rows above and below."""
-    rows = levels[0].shape[0] + 2 * TILE_PAD
-    band = np.zeros((rows, ATLAS_WIDTH, 3), np.uint8)
+U_REBASE_M = 32.0
+"""The ground's and walls' texture ``u`` (distance along the road) is taken relative to a
+multiple of this near the camera (a multiple of every texture's period, metres), to keep texel
+coordinates small."""
+ATLAS_MAX_ROWS = 32000
+"""``cv2.remap`` reads images of fewer than 32767 rows."""
+LEVEL_ROW_STEP = 2 ** (MIP_LEVELS - 1)
+"""Textures start at multiples of this many rows of level 0 (whole rows at every level)."""
+
+
+def _stack(tiles: dict[int, list[NDArray[np.uint8]]]) -> tuple[NDArray[np.uint8], dict[int, int]]:
+    """Textures' levels in one image: level ``l`` in the columns from ``_level_x0()[l]``, each
+    texture's level-``l`` tile from row ``y0 / 2^l`` (``y0``: its first row at level 0, a
+    multiple of ``LEVEL_ROW_STEP``), ``TILE_PAD`` repeated rows above and below at every
+    level. Returns the image and ``y0`` of each texture."""
+    gap = 2 * TILE_PAD * LEVEL_ROW_STEP
+    y0, row = {}, gap // 2
+    for t, levels in tiles.items():
+        y0[t] = row
+        row += -(-levels[0].shape[0] // LEVEL_ROW_STEP) * LEVEL_ROW_STEP + gap
+    image = np.zeros((row - gap // 2, ATLAS_WIDTH, 3), np.uint8)
     x0 = _level_x0()
-    for lev, img in enumerate(levels):
-        padded = np.pad(img, ((TILE_PAD, TILE_PAD), (0, 0), (0, 0)), mode="edge")
-        band[:padded.shape[0], x0[lev]:x0[lev] + img.shape[1]] = padded
-    return band
+    for t, levels in tiles.items():
+        for lev, img in enumerate(levels):
+            r = y0[t] // 2**lev - TILE_PAD
+            padded = np.pad(img, ((TILE_PAD, TILE_PAD), (0, 0), (0, 0)), mode="edge")
+            image[r:r + padded.shape[0], x0[lev]:x0[lev] + img.shape[1]] = padded
+    return image, y0
 
 
 @functools.lru_cache(maxsize=1)
-def _shared_atlas() -> tuple[NDArray[np.uint8], dict[int, int]]:
-    """Bands of the wall and box textures, and the first row of each texture's band."""
-    parts, first, row = [], {}, 0
-    for tex in (Tex.FACADE, Tex.FOLIAGE, Tex.OBJECT, Tex.POST, Tex.VEHICLE, Tex.SKY):
-        band = _band(_mip_levels(_sky_tile() if tex == Tex.SKY else _grey_tile(tex)))
-        first[tex] = row
-        row += band.shape[0]
-        parts.append(band)
-    return np.concatenate(parts, axis=0), first
+def _shared_levels() -> dict[int, list[NDArray[np.uint8]]]:
+    """Mip levels of the wall, box and sky textures."""
+    return {t: _mip_levels(_sky_tile() if t == Tex.SKY else _grey_tile(t))
+            for t in (Tex.FACADE, Tex.FOLIAGE, Tex.OBJECT, Tex.POST, Tex.VEHICLE, Tex.SKY)}
 
 
 @dataclass(frozen=True)
@@ -308,16 +322,16 @@ class Atlas:
 
     Level ``l`` (``s = 2^−l``) of texture ``t`` holds ``(u, v)`` (metres in the texture's frame)
     at column ``1024 (1 − s) + l + s · ((u · TEXELS_PER_M[t]) mod 512)`` and row
-    ``y0[t] + s · (v − v_min[t]) · tpm_v[t]`` (see :func:`atlas_xy`).
+    ``s · (y0[t] + (v − v_min[t]) · tpm_v[t])`` (see :func:`atlas_xy`).
 
     Attributes:
         image: ``(rows, ATLAS_WIDTH, 4)`` uint8 BGRA.
-        y0: ``(COUNT,)`` first row of each texture.
+        y0: ``(COUNT,)`` first row of each texture at level 0.
         v_min, tpm_v: ``(COUNT,)`` metres, texels per metre along ``v`` at level 0.
     """
 
     image: NDArray[np.uint8]
-    y0: NDArray[np.float32]
+    y0: FloatArray
     v_min: FloatArray
     tpm_v: FloatArray
 
@@ -325,52 +339,39 @@ class Atlas:
 @functools.lru_cache(maxsize=4)
 def texture_atlas(half_m: float, lanes: int, lane_width_m: float, ground_half_m: float) -> Atlas:
     """The atlas of one road layout (the ground spans ``±ground_half_m``)."""
-    shared, first = _shared_atlas()
-    budget = ATLAS_MAX_ROWS - shared.shape[0] - 2 * TILE_PAD - 2
+    shared = _shared_levels()
+    used = sum(-(-lv[0].shape[0] // LEVEL_ROW_STEP) * LEVEL_ROW_STEP for lv in shared.values())
+    budget = ATLAS_MAX_ROWS - used - 4 * TILE_PAD * LEVEL_ROW_STEP * (len(shared) + 1)
     tpm_v = Tex.TEXELS_PER_M_V.copy()
     tpm_v[Tex.ROAD] = min(tpm_v[Tex.ROAD], budget / (2.0 * ground_half_m))
-    road = _band(_mip_levels(_road_tile(half_m, lanes, lane_width_m, ground_half_m,
-                                        float(tpm_v[Tex.ROAD]))))
+    road = _mip_levels(_road_tile(half_m, lanes, lane_width_m, ground_half_m,
+                                  float(tpm_v[Tex.ROAD])))
+    image, first = _stack({Tex.ROAD: road, **shared})
     v_min = Tex.V_MIN_M.copy()
     v_min[Tex.ROAD] = -ground_half_m
-    y0 = np.array([TILE_PAD + (0 if t == Tex.ROAD else road.shape[0] + first[t])
-                   for t in range(Tex.COUNT)], np.float32)
-    image = cv2.cvtColor(np.concatenate([road, shared], axis=0), cv2.COLOR_BGR2BGRA)
-    return Atlas(np.asarray(image, dtype=np.uint8), y0, v_min, tpm_v)
+    y0 = np.array([first[t] for t in range(Tex.COUNT)], np.float64)
+    bgra = cv2.cvtColor(image, cv2.COLOR_BGR2BGRA)
+    return Atlas(np.asarray(bgra, dtype=np.uint8), y0, v_min, tpm_v)
 
 
-def atlas_xy(tx: F32, ty: F32, level: F32, y0: F32 | np.float32) -> tuple[F32, F32]:
-    """Atlas coordinates of texel coordinates ``(tx, ty)`` (level 0, ``ty`` from the texture's
-    first row) at mip level log2-footprint ``level`` (rounded, clipped to the levels) of the
-    texture whose first row is ``y0``. Overwrites ``tx``, ``ty`` and ``level``."""
-    np.clip(level, 0, MIP_LEVELS - 1, out=level)
+def atlas_xy(tx: F32, ty: F32, level: F32) -> tuple[F32, F32]:
+    """Atlas coordinates of level-0 texel coordinates ``(tx, ty)`` (``ty`` from the atlas's first
+    row) at mip level log2-footprint ``level`` (rounded, clipped to the levels). Overwrites
+    ``tx``, ``ty`` and ``level``."""
+    np.maximum(level, np.float32(0.0), out=level)
+    np.minimum(level, np.float32(MIP_LEVELS - 1), out=level)
     np.rint(level, out=level)
     t = tx * np.float32(1.0 / TEX_SIZE)  # u wraps round the 512-texel tiles
     np.floor(t, out=t)
+    t += np.float32(2.0)
     t *= np.float32(TEX_SIZE)
-    tx -= t
-    tx -= np.float32(2 * TEX_SIZE)
+    tx -= t  # now (u mod 512) − 1024
     scale = np.exp2(np.negative(level, out=t), out=t)
     tx *= scale
     tx += level
     tx += np.float32(2 * TEX_SIZE)
     ty *= scale
-    ty += y0
     return tx, ty
-
-
-FILL_LIMIT_PX = 8000.0
-"""Outlines reaching farther than this from the image are clipped to it before filling
-(``cv2.fillConvexPoly`` works in 16.16 fixed point and overflows beyond ±32768 pixels)."""
-U_REBASE_M = 32.0
-"""The ground's and walls' texture ``u`` (distance along the road) is taken relative to a
-multiple of this near the camera (a multiple of every texture's period, metres), to keep texel
-coordinates small."""
-ATLAS_MAX_ROWS = 32000
-"""``cv2.remap`` reads images of fewer than 32767 rows."""
-
-
-# --- the renderer -----------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -500,6 +501,7 @@ class Renderer:
             ground_half = float(np.abs(v).max()) + 1.0
         else:
             ground_half = self.half + 1.0
+        self._near: tuple[NDArray[np.bool_], Polygons] | None = None
         self._atlas = texture_atlas(self.half, self.lanes, self.lane_width,
                                     round(ground_half, 3))
         self._mat_tex = np.zeros(len(Material), np.intp)
@@ -516,6 +518,8 @@ class Renderer:
         self._sample_rows = np.minimum(CELL * np.arange(hc), h - 1)
         self._rn_c = self._ray_norm_over_f(self._xs[None, :], self._ys[:, None])
         self._kernel = np.ones((CELL + 1, CELL + 1), np.uint8)
+        self._corner_db = np.array([0, 0, 1, 1])[:, None]
+        self._corner_da = np.array([0, 1, 0, 1])[:, None]
         off = np.arange(CELL, dtype=np.float32)
         self._cell_dy = np.repeat(off, CELL)
         self._cell_dx = np.tile(off, CELL)
@@ -532,8 +536,8 @@ class Renderer:
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
         noise = np.rint(rng.standard_normal((2 * h + 2 * CELL, 2 * w + 2 * CELL))
                         * SENSOR_NOISE_GREY)
-        self._noise_pos = np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[..., None], 4, axis=2)
-        self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 4,
+        self._noise_pos = np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+        self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 3,
                                     axis=2)
 
     def _ray_norm_over_f(self, x: F32, y: F32) -> F32:
@@ -545,14 +549,16 @@ class Renderer:
 
     # -- polygon stage ---------------------------------------------------------------------------
 
-    def _visible_polygons(self, polys: Polygons, R_wc: FloatArray, C_w: FloatArray
-                          ) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
-        """Cull, clip and project; returns the indices of the kept polygons (painter order) and
-        their integer pixel outlines (``cv2.fillConvexPoly`` coordinates, 4 fractional bits)."""
-        facing = polys.two_sided | (
-            np.einsum("pi,pi->p", C_w - polys.verts[:, 0], polys.normal) > 1e-9)
+    def _visible_polygons(self, polys: Polygons, painter: NDArray[np.intp], R_wc: FloatArray,
+                          C_w: FloatArray) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
+        """Cull, clip and project the polygons ``polys[painter]`` (painter order); returns the
+        indices (into ``painter``) of the kept ones and their integer pixel outlines
+        (``cv2.fillConvexPoly`` coordinates, 4 fractional bits)."""
+        verts = polys.verts[painter]
+        facing = polys.two_sided[painter] | (
+            np.einsum("pi,pi->p", C_w - verts[:, 0], polys.normal[painter]) > 1e-9)
         idx = np.flatnonzero(facing)
-        vc = np.einsum("ji,pkj->pki", R_wc, polys.verts[idx] - C_w)
+        vc = np.einsum("ji,pkj->pki", R_wc, verts[idx] - C_w)
         z = vc[..., 2]
         all_in = np.all(z >= NEAR_CLIP_M, axis=1)
         any_in = np.any(z >= NEAR_CLIP_M, axis=1)
@@ -604,6 +610,7 @@ class Renderer:
         along_road = polys.surface >= 0  # u = distance along the road: rebased
         k_u = polys.u0 - np.where(along_road, u_base, 0.0) - np.einsum("pi,pi->p", a_u, o_c)
         k_v = -np.einsum("pi,pi->p", a_v, o_c) - self._atlas.v_min[tex]
+        k_v += self._atlas.y0[tex] / tpm_v  # rows from the atlas's first
         h_x = tpm_u[:, None] * (a_u @ K_inv + k_u[:, None] * h_w)
         h_y = tpm_v[:, None] * (a_v @ K_inv + k_v[:, None] * h_w)
         fn = np.zeros((n + 1, 9), np.float32)
@@ -644,11 +651,16 @@ class Renderer:
         detail = (st.lod < 0) | ((st.lod == 0) & (st.lod_key < boundary)) | (
             (st.lod == 1) & (st.lod_key >= boundary))
         near = detail & (st.s_hi >= s_camera - 2.0) & (st.s_lo <= s_camera + VIEW_RANGE_M)
-        polys = st.select(np.flatnonzero(near))
+        if self._near is None or not np.array_equal(near, self._near[0]):
+            self._near = (near, st.select(np.flatnonzero(near)))
+        polys = self._near[1]
         if dynamic is not None and len(dynamic):
             polys = Polygons.concat([polys, dynamic])
-            polys = polys.select(np.lexsort((polys.layer, -polys.key)))
-        visible, outlines = self._visible_polygons(polys, R, C)
+            painter = np.lexsort((polys.layer, -polys.key))
+        else:
+            painter = np.arange(len(polys))
+        visible, outlines = self._visible_polygons(polys, painter, R, C)
+        visible = painter[visible]
         n = len(visible)
         if n >= np.iinfo(np.uint16).max:
             raise ValueError(f"{n} visible polygons: more than the label buffer holds")
@@ -697,7 +709,7 @@ class Renderer:
         el = np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1])))
         az = np.degrees(np.arctan2(d[1], d[0]))
         tx = az * Tex.TEXELS_PER_M[Tex.SKY]
-        ty = (el - Tex.V_MIN_M[Tex.SKY]) * Tex.TEXELS_PER_M_V[Tex.SKY]
+        ty = (el - Tex.V_MIN_M[Tex.SKY]) * Tex.TEXELS_PER_M_V[Tex.SKY] + self._atlas.y0[Tex.SKY]
         return tx.astype(np.float32), ty.astype(np.float32)
 
     def _colour_terms(self, z: F32, lab: NDArray[np.intp], tab: _Tables
@@ -755,27 +767,25 @@ class Renderer:
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         good = tab.surface[lo] == tab.surface[hi]
         self._check_pieces(good, lo, hi, inv_c, tab)
-        y0 = np.asarray(cv2.resize(self._atlas.y0[tab.tex[lo]], (CELL * nx, CELL * ny),
-                                   interpolation=cv2.INTER_NEAREST), dtype=np.float32)
         # 3. every pixel from the interpolation (exact inside cells that see one plane)
-        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, y0, mult_c, add_c)
+        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, mult_c, add_c)
         fields.depth.ravel()[self._cell_work[(lo == 0) & (hi == 0)].ravel()] = np.inf  # sky
         # 4. the other cells pixel by pixel
         cb, ca = np.nonzero(~good)
         if cb.size:
             self._exact(cb, ca, padded, tab, R, fields)
-        # 5. texture, colour, sensor noise
+        # 5. texture, colour, sensor noise, on the image's pixels
         depth, mapx, mapy, mult, add = fields
-        texel = cv2.remap(self._atlas.image, mapx, mapy, cv2.INTER_LINEAR)
-        image = cv2.multiply(texel, mult, scale=1.0 / 255.0)
-        cv2.add(image, add, dst=image)
-        oy, ox = (frame * 7919) % h, (frame * 104729) % w
-        hw, ww = depth.shape
-        cv2.add(image, self._noise_pos[oy:oy + hw, ox:ox + ww], dst=image)
-        cv2.subtract(image, self._noise_neg[oy:oy + hw, ox:ox + ww], dst=image)
         crop = (slice(o, o + h), slice(o, o + w))
-        return (np.asarray(cv2.cvtColor(image[crop], cv2.COLOR_BGRA2BGR), dtype=np.uint8),
-                np.ascontiguousarray(depth[crop]))
+        texel = cv2.cvtColor(cv2.remap(self._atlas.image, mapx, mapy, cv2.INTER_LINEAR)[crop],
+                             cv2.COLOR_BGRA2BGR)
+        image = cv2.multiply(texel, cv2.cvtColor(mult[crop], cv2.COLOR_BGRA2BGR),
+                             scale=1.0 / 255.0)
+        cv2.add(image, cv2.cvtColor(add[crop], cv2.COLOR_BGRA2BGR), dst=image)
+        oy, ox = (frame * 7919) % h, (frame * 104729) % w
+        cv2.add(image, self._noise_pos[oy:oy + h, ox:ox + w], dst=image)
+        cv2.subtract(image, self._noise_neg[oy:oy + h, ox:ox + w], dst=image)
+        return np.asarray(image, dtype=np.uint8), np.ascontiguousarray(depth[crop])
 
     def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
                       inv_c: F32, tab: _Tables) -> None:
@@ -785,22 +795,20 @@ class Renderer:
         cb, ca = np.nonzero(good & (lo != hi))
         if not cb.size:
             return
-        xs, ys = self._xs, self._ys
+        db, da = self._corner_db, self._corner_da
+        x, y = self._xs[ca + da], self._ys[cb + db]  # (4, m): the corners
+        ref = inv_c[cb + db, ca + da]
+        tol = PLANE_TOLERANCE * np.abs(ref)
         ok = np.ones(cb.shape, bool)
-        planes = [np.take(tab.fn_t[6:], lab[cb, ca], axis=1) for lab in (lo, hi)]
-        for db, da in ((0, 0), (0, 1), (1, 0), (1, 1)):
-            x, y = xs[ca + da], ys[cb + db]
-            ref = inv_c[cb + db, ca + da]
-            tol = PLANE_TOLERANCE * np.abs(ref)
-            for p in planes:
-                ok &= np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol
+        for lab in (lo, hi):
+            p = np.take(tab.fn_t[6:], lab[cb, ca], axis=1)
+            ok &= np.all(np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol, axis=0)
         good[cb[~ok], ca[~ok]] = False
 
-    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32, y0: F32,
+    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32,
                       mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
         """Depth, atlas coordinates and colour terms of every pixel from the coarse grid
-        (bilinear, exact within a plane), on the upsampling's frame. ``y0``: first atlas row of
-        each pixel's cell's texture (image frame, whole cells)."""
+        (bilinear, exact within a plane), on the upsampling's frame."""
         hc, wc = inv_c.shape
         size = (CELL * wc, CELL * hc)
 
@@ -813,10 +821,7 @@ class Renderer:
         mapx *= depth
         mapy = up(ty_c)
         mapy *= depth
-        o = CELL // 2
-        y0w = cv2.copyMakeBorder(y0, o, size[1] - y0.shape[0] - o, o, size[0] - y0.shape[1] - o,
-                                 cv2.BORDER_REPLICATE)
-        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c), np.asarray(y0w, dtype=np.float32))
+        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c))
         return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
@@ -845,7 +850,7 @@ class Renderer:
             lev[sky] = 0.0
             mult[sky] = 255
             add[sky] = 0
-        tx, ty = atlas_xy(tx, ty, lev, self._atlas.y0[tab.tex[lab]])
+        tx, ty = atlas_xy(tx, ty, lev)
         for field, values in zip(fields, (z, tx, ty, mult, add), strict=True):
             out: NDArray[Any] = np.asarray(field)
             if out.ndim == 3:  # BGRA as one 32-bit word
