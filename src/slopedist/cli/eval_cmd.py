@@ -12,6 +12,7 @@ from slopedist.cli.options import (
     alphas_option,
     check_methods,
     height_option,
+    kitti_source_options,
     lookback_option,
     mount_option,
     paper_options,
@@ -33,14 +34,7 @@ def eval_group() -> None:
 @click.option("--sequences", help="Comma-separated sequence names, e.g. 0000,0004 (default: all).")
 @click.option("--methods", default="flat,ego,paper", show_default=True,
               help="Comma-separated estimator names.")
-@click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
-              default=RotationSource.ORBSLAM3.value, show_default=True,
-              help="Camera rotation source.")
-@click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
-              default=BoxSource.GT.value, show_default=True,
-              help="Ground-truth boxes or PointRCNN detections.")
-@click.option("--score", type=float, default=None,
-              help="Keep detections with score >= SCORE (PointRCNN boxes).")
+@kitti_source_options("")
 @click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Depth maps of the depthmap method: DIR/<sequence>/<frame>.png|.npy.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),

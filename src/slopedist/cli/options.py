@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.estimators import available_methods
 
 
@@ -101,3 +102,25 @@ def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
 def depthmap_estimator_options(sample: str, window_px: int, scaling: str) -> dict[str, object]:
     """Constructor options of the ``depthmap`` estimator from the command-line values."""
     return {"sample": sample, "window_px": window_px, "scaling": scaling}
+
+
+def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """``--rotation``, ``--boxes`` and ``--score`` of KITTI tracking sources (help text starts
+    with ``prefix``)."""
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        for option in reversed((
+            click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
+                         default=RotationSource.ORBSLAM3.value, show_default=True,
+                         help=f"{prefix}Rotation source of the visual-odometry methods "
+                              "(imu and imu-ego always use oxts)."),
+            click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
+                         default=BoxSource.GT.value, show_default=True,
+                         help=f"{prefix}Ground-truth boxes or PointRCNN detections."),
+            click.option("--score", type=float, default=None,
+                         help=f"{prefix}Keep detections with score >= SCORE (PointRCNN boxes)."),
+        )):
+            command = option(command)
+        return command
+
+    return decorate

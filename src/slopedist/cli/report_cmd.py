@@ -14,6 +14,7 @@ from slopedist.cli.options import (
     depthmap_estimator_options,
     depthmap_options,
     height_option,
+    kitti_source_options,
     lookback_option,
     mount_option,
     paper_options,
@@ -55,14 +56,7 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
               help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
                    "depth PNG, uint16/256 m) or .npy (float metres).")
 @depthmap_options
-@click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
-              default=RotationSource.ORBSLAM3.value, show_default=True,
-              help="KITTI: rotation source of the visual-odometry methods (imu always uses oxts).")
-@click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
-              default=BoxSource.GT.value, show_default=True,
-              help="KITTI: ground-truth boxes or PointRCNN detections.")
-@click.option("--score", type=float, default=None,
-              help="KITTI: keep detections with score >= SCORE (PointRCNN boxes).")
+@kitti_source_options("KITTI: ")
 @click.option("--tracks", help="Tracks to plot over time, SEQUENCE:TRACK_ID,... "
                                "[default: the longest tracks].")
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
