@@ -142,3 +142,61 @@ def test_texture_everywhere_below_the_horizon() -> None:
     thirds = np.digitize(below[:, 0], [414, 828])
     assert len(below) > 400
     assert np.bincount(thirds, minlength=3).min() > 100  # left roadside, road, right roadside
+
+
+@pytest.mark.parametrize("name,k", [("ego_crest", 60), ("bumps_and_curves", 30),
+                                    ("target_steep_uphill", 80), ("curve_flat", 45)])
+def test_interpolated_cells_match_the_exact_evaluation(name: str, k: int) -> None:
+    # the renderer draws most cells from a coarse grid; the same frame evaluated pixel by pixel
+    # from each polygon's own plane is the reference: depth equal to float32 rounding on single
+    # planes and to the surface's smoothness across ground strips; colours within noise
+    from slopedist.datasets.synthetic.render import Renderer
+
+    seq = SyntheticSequence(load_scenario(name))
+    fast = seq.render(k)
+    r = seq.renderer
+    seq.renderer = Renderer(r.static, r.K, r.width, r.height, r.half, r.lanes, r.lane_width,
+                            seq.scenario.seed, interpolate=False)
+    exact = seq.render(k)
+    assert np.array_equal(fast.labels, exact.labels)
+    sky = ~np.isfinite(exact.depth_m)
+    assert np.array_equal(sky, ~np.isfinite(fast.depth_m))
+    rel = np.abs(fast.depth_m[~sky] / exact.depth_m[~sky] - 1.0)
+    vehicle = exact.owner[~sky] >= 0
+    assert rel[vehicle].max() < 1e-4  # single planes: exact
+    assert rel.max() < 2e-3 and np.median(rel) < 1e-5
+    diff = np.abs(fast.image.astype(int) - exact.image.astype(int))
+    # differences: mip levels rounded either side of a level's edge, seams between ground
+    # strips on curves (smoothed by the interpolation)
+    assert diff.mean() < 0.3 and np.percentile(diff, 99.9) <= 12
+
+
+def test_atlas_levels_hold_the_texture_where_atlas_xy_points() -> None:
+    import cv2
+
+    from slopedist.datasets.synthetic import render
+
+    atlas = render.texture_atlas(3.5, 2, 3.5, 10.5)
+    tiles = render._shared_levels()[render.Tex.FACADE]
+    rng = np.random.default_rng(1)
+    for level in range(render.MIP_LEVELS):
+        step = 2**level
+        rows, cols = tiles[level].shape[:2]
+        i = rng.integers(0, rows, 50)
+        j = rng.integers(0, cols - 1, 50)
+        # level-0 texel coordinates of those texels, u shifted by whole periods (wraps)
+        tx = (j * step + render.TEX_SIZE * rng.integers(-40, 40, 50)).astype(np.float32)
+        ty = (i * step + atlas.y0[render.Tex.FACADE]).astype(np.float32)
+        x, y = render.atlas_xy(tx, ty, np.full(50, float(level), np.float32))
+        got = cv2.remap(atlas.image, x[None], y[None], cv2.INTER_LINEAR)[0, :, :3]
+        np.testing.assert_array_equal(got, tiles[level][i, j])
+
+
+def test_tall_structures_are_refused() -> None:
+    from slopedist.datasets.synthetic.scene import WorldSpec
+    from slopedist.errors import ConfigurationError
+
+    with pytest.raises(ConfigurationError, match="structure_height_m"):
+        WorldSpec(structure_height_m=(3.0, 40.0))
+    with pytest.raises(ConfigurationError, match="structure_segment_m"):
+        WorldSpec(structure_segment_m=(6.0, 60.0))

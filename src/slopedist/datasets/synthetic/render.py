@@ -60,6 +60,9 @@ SENSOR_NOISE_GREY = 1.5
 """Standard deviation of the sensor noise, grey levels."""
 CELL = 4
 """Side of the interpolation cells, pixels."""
+TURN_TOLERANCE = 0.01
+"""Largest angle between the normals of the pieces of one surface seen in a cell for the cell to
+be interpolated, radians."""
 PLANE_TOLERANCE = 2e-3
 """Largest relative disagreement of ``1/z`` between pieces of one surface at a cell's corners for
 the cell to be interpolated (the interpolation error is a fraction of it)."""
@@ -354,22 +357,22 @@ def texture_atlas(half_m: float, lanes: int, lane_width_m: float, ground_half_m:
     return Atlas(np.asarray(bgra, dtype=np.uint8), y0, v_min, tpm_v)
 
 
-def atlas_xy(tx: F32, ty: F32, level: F32) -> tuple[F32, F32]:
+def atlas_xy(tx: F32, ty: F32, level: F32, clipped: bool = False) -> tuple[F32, F32]:
     """Atlas coordinates of level-0 texel coordinates ``(tx, ty)`` (``ty`` from the atlas's first
-    row) at mip level log2-footprint ``level`` (rounded, clipped to the levels). Overwrites
-    ``tx``, ``ty`` and ``level``."""
-    np.maximum(level, np.float32(0.0), out=level)
-    np.minimum(level, np.float32(MIP_LEVELS - 1), out=level)
+    row) at mip level log2-footprint ``level`` (rounded, clipped to the levels unless
+    ``clipped``). Overwrites ``tx``, ``ty`` and ``level``."""
+    if not clipped:
+        np.maximum(level, np.float32(0.0), out=level)
+        np.minimum(level, np.float32(MIP_LEVELS - 1), out=level)
     np.rint(level, out=level)
     t = tx * np.float32(1.0 / TEX_SIZE)  # u wraps round the 512-texel tiles
     np.floor(t, out=t)
-    t += np.float32(2.0)
-    t *= np.float32(TEX_SIZE)
-    tx -= t  # now (u mod 512) − 1024
+    cv2.scaleAdd(t, -float(TEX_SIZE), tx, dst=tx)  # u mod 512
     scale = np.exp2(np.negative(level, out=t), out=t)
     tx *= scale
+    level += np.float32(2 * TEX_SIZE)  # the level's first column, 1024 (1 − s) + l
+    cv2.scaleAdd(scale, -2.0 * TEX_SIZE, level, dst=level)
     tx += level
-    tx += np.float32(2 * TEX_SIZE)
     ty *= scale
     return tx, ty
 
@@ -461,6 +464,9 @@ class _Tables:
         tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``.
         tint_t: ``(4, n + 1)`` BGRA colour × sun shading in [0, 1] (alpha 0).
         surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
+        turn: ``(n + 1,)`` angle the surface's normal has turned through from its first label's
+            piece to each label's (radians, summed piece to piece): between labels ``a < b`` of
+            one surface every piece's normal is within ``turn[b] − turn[a]`` of the others'.
     """
 
     fn: NDArray[np.float32]
@@ -470,6 +476,7 @@ class _Tables:
     tpm: NDArray[np.float32]
     tint_t: NDArray[np.float32]
     surface: NDArray[np.int64]
+    turn: FloatArray
 
 
 class Renderer:
@@ -482,11 +489,14 @@ class Renderer:
         carriageway_half_m: half-width of the asphalt; lanes, lane_width_m: lane layout
             (for the markings).
         seed: seed of the sensor noise pattern.
+        interpolate: draw cells that see one surface from the coarse grid (False: every pixel
+            from its own polygon's plane, the reference the interpolation is tested against).
     """
 
     def __init__(self, static: Polygons, K: FloatArray, width: int, height: int,
                  carriageway_half_m: float, lanes: int, lane_width_m: float,
-                 seed: int = 0) -> None:
+                 seed: int = 0, interpolate: bool = True) -> None:
+        self.interpolate = interpolate
         self.static = static
         self.K = np.asarray(K, dtype=float)
         self.K_inv = np.linalg.inv(self.K)
@@ -627,8 +637,12 @@ class Renderer:
         tpm[1:] = tpm_v
         surf = np.full(n + 1, -1, np.int64)
         surf[1:] = surface
+        cos = np.einsum("pi,pi->p", polys.normal[1:], polys.normal[:-1])
+        step = np.where(surface[1:] == surface[:-1], np.arccos(np.clip(cos, -1.0, 1.0)), 0.0)
+        turn = np.zeros(n + 1)
+        turn[2:] = np.cumsum(step)
         return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm,
-                       np.ascontiguousarray(tint.T), surf)
+                       np.ascontiguousarray(tint.T), surf, turn)
 
     # -- frame -----------------------------------------------------------------------------------
 
@@ -751,6 +765,7 @@ class Renderer:
         with np.errstate(divide="ignore"):
             z_c = np.reciprocal(inv_c)
         lev_c = self._level(z_c, self._rn_c, np.take(tab.plane_c, lab_c), np.take(tab.tpm, lab_c))
+        np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         mult_c, add_c = self._colour_terms(z_c, lab_c, tab)
         if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
             yy, xx = np.nonzero(sky_c)
@@ -767,6 +782,8 @@ class Renderer:
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         good = tab.surface[lo] == tab.surface[hi]
         self._check_pieces(good, lo, hi, inv_c, tab)
+        if not self.interpolate:
+            good[:] = False
         # 3. every pixel from the interpolation (exact inside cells that see one plane)
         fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, mult_c, add_c)
         fields.depth.ravel()[self._cell_work[(lo == 0) & (hi == 0)].ravel()] = np.inf  # sky
@@ -789,10 +806,16 @@ class Renderer:
 
     def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
                       inv_c: F32, tab: _Tables) -> None:
-        """Cells seeing several pieces of one surface stay interpolated only where the planes of
-        the farthest and nearest pieces (extreme labels) agree with ``1/z`` at the cell's
-        corners (no crease, no crest hiding a farther piece); ``good`` is updated in place."""
-        cb, ca = np.nonzero(good & (lo != hi))
+        """Cells seeing several pieces of one surface stay interpolated only where the pieces'
+        normals agree to ``TURN_TOLERANCE`` and the planes of the farthest and nearest pieces
+        (extreme labels) agree with ``1/z`` at the cell's corners to ``PLANE_TOLERANCE`` (no
+        crease, no bump, no crest hiding a farther piece); ``good`` is updated in place."""
+        multi = good & (lo != hi)
+        # every piece between the extreme labels within TURN_TOLERANCE of the others (a bump
+        # or a crest between two coplanar pieces is no plane)
+        multi &= ~(tab.turn[hi] - tab.turn[lo] > TURN_TOLERANCE)
+        good &= (lo == hi) | multi
+        cb, ca = np.nonzero(multi)
         if not cb.size:
             return
         db, da = self._corner_db, self._corner_da
@@ -821,7 +844,7 @@ class Renderer:
         mapx *= depth
         mapy = up(ty_c)
         mapy *= depth
-        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c))
+        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c), clipped=True)
         return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
