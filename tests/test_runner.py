@@ -208,10 +208,13 @@ def test_cli_bad_inputs_exit_2_with_a_message(tmp_path: Path, monkeypatch: pytes
     assert "needs depth maps" in capsys.readouterr().err
 
 
-def test_default_method_is_ours_once_registered() -> None:
-    from slopedist.estimators import available_methods
-
-    assert run_cmd.default_method() == ("ours" if "ours" in available_methods() else "paper")
+def test_default_method_is_ours(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    frames, calib, boxes = _cli_setup(tmp_path)
+    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    out = tmp_path / "out"
+    assert main(["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--out",
+                 str(out), "--quiet"]) == 0
+    assert {r["method"] for r in read_csv(out / "records.csv")} == {"ours"}
 
 
 def test_cli_run_on_real_frames_with_lidar_boxes(kitti_raw_lead_dir: Path, tmp_path: Path,

@@ -47,7 +47,7 @@ from slopedist.datasets.synthetic.export import CsvStream, true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
-from slopedist.estimators import available_methods, make_estimator
+from slopedist.estimators import DEFAULT_METHOD, available_methods, make_estimator
 from slopedist.estimators.base import FrameEstimates, MissingReason
 from slopedist.evaluation import cap_estimates, distance_metrics, format_table
 from slopedist.io.overlay import OverlayWriter
@@ -298,7 +298,7 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
     streams = {p.name: StreamingEstimator(make_estimator(p.name, camera), LOOKBACK_S)
                for p in active}
     scores = {p.name: MethodScores() for p in plans}
-    overlay_method = "paper" if "paper" in streams else next(iter(streams), None)
+    overlay_method = DEFAULT_METHOD if DEFAULT_METHOD in streams else next(iter(streams), None)
     painter = _overlay_writer(folder, scenario.frame_rate_hz) if cfg.video else None
     theta_true = true_theta(seq.truth, camera.mount_angle_rad)
     theta_est = np.full(n, np.nan)

@@ -36,7 +36,7 @@ from slopedist.depth import (
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import Estimator, available_methods, make_estimator
+from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.frames import FrameSource, open_frames
 from slopedist.odometry import make_odometry
@@ -46,11 +46,6 @@ from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunResult, run_frames
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
-
-
-def default_method() -> str:
-    """``ours`` once it is registered, else the paper's method."""
-    return "ours" if "ours" in available_methods() else "paper"
 
 
 def build_odometry(name: str, camera: Camera, vocab: Path | None = None,
@@ -167,7 +162,7 @@ def check_runnable(estimator: Estimator, has_depth: bool = False,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Boxes per frame: slopedist CSV, KITTI labels or PointRCNN file.")
 @click.option("--method", default=None,
-              help="Estimator name [default: ours when available, else paper].")
+              help=f"Estimator name [default: {DEFAULT_METHOD}].")
 @click.option("--odometry", type=click.Choice(ODOMETRY_BACKENDS), default="builtin",
               show_default=True,
               help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
@@ -238,7 +233,7 @@ def run(
     OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
     gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
     """
-    method = method or default_method()
+    method = method or DEFAULT_METHOD
     check_methods([method])
     camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
     source = open_frames(frames, fps, timestamps)

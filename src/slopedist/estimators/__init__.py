@@ -38,6 +38,9 @@ class Method(str, Enum):
     OURS_SELFCAL = "ours-selfcal"
 
 
+DEFAULT_METHOD = Method.OURS.value
+"""The estimator of ``run`` and of the demo's overlays when none is chosen."""
+
 ESTIMATORS: dict[str, Callable[..., Estimator]] = {
     Method.FLAT.value: FlatGroundEstimator,
     Method.EGO.value: EgoGradientEstimator,
@@ -67,6 +70,7 @@ def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
 
 
 __all__ = [
+    "DEFAULT_METHOD",
     "ESTIMATORS",
     "DepthMapEstimator",
     "EgoGradientEstimator",
