@@ -20,12 +20,22 @@ where ``v`` is the row of the target road's horizon and ``e`` the box's half ext
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
+
+def all_true(mask: NDArray[np.bool_]) -> bool:
+    """``mask.all()`` for the small arrays of one frame (counting is cheaper than reducing)."""
+    return bool(np.count_nonzero(mask) == mask.size)
+
+
+def any_true(mask: NDArray[np.bool_]) -> bool:
+    """``mask.any()`` for the small arrays of one frame."""
+    return bool(np.count_nonzero(mask))
+
 
 _CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
 _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
@@ -100,19 +110,38 @@ def height_cue(
     H = np.asarray(height_m, dtype=float)
     e = np.asarray(half_extent_m, dtype=float)
     h = np.asarray(cam_height_m, dtype=float)
-    d = np.where(D > 0, D, np.nan) / f  # NaN propagates to every output
-    k = e * (2.0 * h - H)
-    Zq = (H + np.sqrt(H * H + 4.0 * d * (d * e * e + k))) / (2.0 * d)
-    den = 2.0 * d * Zq - H
-    outs = (Zq, -(Zq * Zq - e * e) / den / f, (Zq - e) / den, (2.0 * d * e + 2.0 * h - H) / den,
-            2.0 * e / den)
+    d = np.where(D > 0, D, np.nan) * (1.0 / f)  # NaN propagates to every output
+    d2 = 2.0 * d
+    two_h_minus_H = 2.0 * h - H
+    ee = e * e
+    # root of d·Z² − H·Z − (d·e² + e·(2h − H)) = 0; S = 2d·Z − H is the square root
+    S = np.sqrt(H * H + 2.0 * d2 * (d * ee + e * two_h_minus_H))
+    Zq = (H + S) / d2
+    inv_S = 1.0 / S
+    outs = (Zq, (ee - Zq * Zq) * (inv_S * (1.0 / f)), (Zq - e) * inv_S,
+            (d2 * e + two_h_minus_H) * inv_S, (2.0 * e) * inv_S)
     roof_above = h < H
-    if not np.any(roof_above):
+    if not any_true(roof_above):
         return outs
     Zt = H / d + e
     return (np.where(roof_above, Zt, outs[0]), np.where(roof_above, -H / (d * d) / f, outs[1]),
             np.where(roof_above, 1.0 / d, outs[2]), np.where(roof_above, 1.0, outs[3]),
             np.where(roof_above, 0.0 * d, outs[4]))
+
+
+def corner_parts(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
+    """The footprint corners' offsets from the box centre split by dimension, ``(..., 4, 4)``.
+
+    For each corner (second-last axis, as :func:`footprint_corners`): the width's part of its
+    x offset, the length's part of its x offset, the width's part of its z offset and the
+    length's part of its z offset (metres). They depend only on the class and the heading, so
+    the estimator computes them once per class and hypothesis.
+    """
+    psi = np.asarray(yaw_rad, dtype=float)[..., None]
+    s, c = np.sin(psi), np.cos(psi)
+    hl = np.asarray(length_m, dtype=float)[..., None] * _CORNER_L
+    hw = np.asarray(width_m, dtype=float)[..., None] * _CORNER_W
+    return np.stack([hw * c, hl * s, -hw * s, hl * c], axis=-1)
 
 
 def width_cue(
@@ -132,40 +161,45 @@ def width_cue(
         width, ``∂log Z/∂log W`` (the rest, ``1 − share_w``, is owed to the length). ``Z`` is NaN
         where the columns are not ordered.
     """
-    al = (np.asarray(left, dtype=float) - c_x) / f
-    ar = (np.asarray(right, dtype=float) - c_x) / f
-    W = np.asarray(width_m, dtype=float)
-    L = np.asarray(length_m, dtype=float)
-    shape = np.broadcast_shapes(al.shape, ar.shape, np.shape(yaw_rad), W.shape, L.shape)
-    al, ar = np.broadcast_to(al, shape), np.broadcast_to(ar, shape)
-    psi = np.asarray(yaw_rad, dtype=float)[..., None]
-    s, c = np.sin(psi), np.cos(psi)
-    hl = L[..., None] * _CORNER_L
-    hw = W[..., None] * _CORNER_W
-    # per corner: the width's and the length's parts of its x and z offsets, flattened
-    parts = np.broadcast_to(np.stack([hw * c, hl * s, -hw * s, hl * c], axis=-1),
-                            (*shape, 4, 4)).reshape(-1, 4, 4)
-    rows = np.arange(parts.shape[0])
-    dx = parts[..., 0] + parts[..., 1]
-    dz = parts[..., 2] + parts[..., 3]
-    al_f, ar_f = al.ravel(), ar.ravel()
-    Z = np.broadcast_to(np.asarray(z_init_m, dtype=float), shape).ravel()
-    span = al_f - ar_f
-    mid = 0.5 * (al_f + ar_f)[:, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for _ in range(max(1, iterations)):
-            px = (mid * Z[:, None] + dx) / np.maximum(Z[:, None] + dz, 1e-3)
-            pl = parts[rows, np.argmin(px, axis=-1)]  # the left-most corner's parts
-            pr = parts[rows, np.argmax(px, axis=-1)]
-            num_w = pl[:, 0] - pr[:, 0] - al_f * pl[:, 2] + ar_f * pr[:, 2]
-            num_l = pl[:, 1] - pr[:, 1] - al_f * pl[:, 3] + ar_f * pr[:, 3]
-            Z = (num_w + num_l) / span
-        dZ_dcol = (np.hypot(Z + pl[:, 2] + pl[:, 3], Z + pr[:, 2] + pr[:, 3])
-                   / (np.abs(span) * f))
-        share_w = num_w / (num_w + num_l)
-    bad = ~(ar_f > al_f)
-    return (np.where(bad, np.nan, Z).reshape(shape), np.where(bad, np.nan, dZ_dcol).reshape(shape),
-            np.where(bad, np.nan, share_w).reshape(shape))
+    shape = np.broadcast_shapes(np.shape(left), np.shape(right), np.shape(yaw_rad),
+                                np.shape(width_m), np.shape(length_m))
+    parts = np.broadcast_to(corner_parts(yaw_rad, width_m, length_m), (*shape, 4, 4))
+    return width_cue_from_parts(left, right, f, c_x, parts, z_init_m, iterations)
+
+
+def width_cue_from_parts(
+    left: ArrayLike, right: ArrayLike, f: float, c_x: float, parts: FloatArray,
+    z_init_m: ArrayLike, iterations: int = 2,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`width_cue` with the footprint given as :func:`corner_parts` ``(..., 4, 4)``, whose
+    leading shape is the output's (``left``, ``right`` and ``z_init_m`` broadcast to it)."""
+    shape = parts.shape[:-2]
+    pf = parts.reshape(-1, 4)  # one row per (target, hypothesis, corner)
+    al = _spread((np.asarray(left, dtype=float) - c_x) / f, shape)
+    ar = _spread((np.asarray(right, dtype=float) - c_x) / f, shape)
+    first = np.arange(0, pf.shape[0], 4)  # row of each (target, hypothesis)'s first corner
+    dx = (pf[:, 0] + pf[:, 1]).reshape(-1, 4)
+    dz = (pf[:, 2] + pf[:, 3]).reshape(-1, 4)
+    Z = _spread(z_init_m, shape)
+    span = np.where(ar > al, al - ar, np.nan)  # NaN (every output) where not ordered
+    mid = 0.5 * (al + ar)[:, None]
+    for _ in range(max(1, iterations)):
+        px = (mid * Z[:, None] + dx) / np.maximum(Z[:, None] + dz, 1e-3)
+        pl = pf[first + px.argmin(axis=-1)]  # the left-most corner's parts
+        pr = pf[first + px.argmax(axis=-1)]
+        num_w = pl[:, 0] - pr[:, 0] - al * pl[:, 2] + ar * pr[:, 2]
+        num_l = pl[:, 1] - pr[:, 1] - al * pl[:, 3] + ar * pr[:, 3]
+        Z = (num_w + num_l) / span
+    dZ_dcol = np.hypot(Z + pl[:, 2] + pl[:, 3], Z + pr[:, 2] + pr[:, 3]) / (np.abs(span) * f)
+    share_w = num_w / (num_w + num_l)  # num_w + num_l = Z·span ≠ 0
+    return Z.reshape(shape), dZ_dcol.reshape(shape), share_w.reshape(shape)
+
+
+def _spread(a: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    """``a`` broadcast to ``shape`` as a new, flat float array."""
+    out = np.empty(shape)
+    out[...] = a
+    return out.reshape(-1)
 
 
 def ground_contact_cue(
@@ -177,9 +211,9 @@ def ground_contact_cue(
     ``b ≤ v`` (the contact point is at or above the horizon).
     """
     gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = f * np.asarray(cam_height_m, dtype=float) / gap + np.asarray(half_extent_m)
-    return np.where(gap > 0, z, np.nan)
+    gap = np.where(gap > 0, gap, np.nan)  # NaN propagates without a warning
+    return np.asarray(f * np.asarray(cam_height_m, dtype=float) / gap
+                      + np.asarray(half_extent_m))
 
 
 def ground_contact_sigma(
@@ -230,9 +264,9 @@ def target_gradient(
 
 
 
-@dataclass(frozen=True)
-class LogCue:
-    """A log-distance estimate ``ℓ = log Z`` with its error split in two.
+class LogCue(NamedTuple):
+    """A log-distance estimate ``ℓ = log Z`` with its error split in two (a named tuple: built
+    several times per frame, so cheap to make).
 
     Attributes:
         mean: ℓ (Z in metres).
@@ -268,16 +302,18 @@ def fuse_size_cues(
     C11 = sh * sh + np.asarray(r_h_white) + np.asarray(r_h_other)
     C22 = sw * sw + np.asarray(r_w_white) + np.asarray(r_w_other)
     C12 = np.asarray(corr_hw) * sh * sw
-    both = np.isfinite(yw) & np.isfinite(C22)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        den = C11 + C22 - 2.0 * C12
-        a_h = (C22 - C12) / den
-        a_w = (C11 - C12) / den
-        mean = a_h * yh + a_w * yw
-        var = (C11 * C22 - C12 * C12) / den
-        white = a_h * a_h * np.asarray(r_h_white) + a_w * a_w * np.asarray(r_w_white)
-        diff = yh - yw
-        loglik = -0.5 * (diff * diff / den + np.log(2.0 * np.pi * den))
+    both = np.isfinite(yw + C22)
+    # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
+    den = C11 + C22 - 2.0 * C12
+    a_h = (C22 - C12) / den
+    a_w = (C11 - C12) / den
+    mean = a_h * yh + a_w * yw
+    var = (C11 * C22 - C12 * C12) / den
+    white = a_h * a_h * np.asarray(r_h_white) + a_w * a_w * np.asarray(r_w_white)
+    diff = yh - yw
+    loglik = -0.5 * (diff * diff / den + np.log(2.0 * np.pi * den))
+    if all_true(both):
+        return LogCue(mean, var, white, loglik)
     return LogCue(np.where(both, mean, yh), np.where(both, var, C11),
                   np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
                   np.where(both, loglik, 0.0))
@@ -297,15 +333,14 @@ def ground_contact_log_cue(
     """
     gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
     h = np.asarray(cam_height_m, dtype=float)
-    e = np.asarray(half_extent_m, dtype=float)
-    ok = gap > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        zn = np.where(ok, f * h / gap, np.nan)
-        z = zn + e
-        white = (ground_contact_sigma(zn, f, h, np.sqrt(row_var_white), 0.0) / z) ** 2
-        other = ((ground_contact_sigma(zn, f, h, np.sqrt(row_var_other), 0.0, height_sigma_m)
-                  / z) ** 2 + np.square(np.asarray(half_extent_sigma_m) / z))
-    return LogCue(np.log(z), white + other, white, np.zeros(np.shape(gap)))
+    zn = f * h / np.where(gap > 0, gap, np.nan)  # NaN propagates without a warning
+    z = zn + np.asarray(half_extent_m, dtype=float)
+    gain2 = np.square(zn * zn / (f * h))  # (σ_d/σ_row)², see ground_contact_sigma
+    inv_z2 = 1.0 / (z * z)
+    white = (gain2 * row_var_white) * inv_z2
+    other = ((gain2 * row_var_other + np.square(zn * np.asarray(height_sigma_m) / h)
+              + np.square(half_extent_sigma_m)) * inv_z2)
+    return LogCue(np.log(z), white + other, white, np.zeros(z.shape))
 
 
 def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
@@ -315,16 +350,20 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
     """
     ok = np.isfinite(b.mean) & np.isfinite(b.var) & (b.var > 0)
-    vb = np.where(ok, b.var, 1.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        wa = vb / (a.var + vb)
-        wb = 1.0 - wa
-        mean = wa * a.mean + wb * np.where(ok, b.mean, 0.0)
-        var = a.var * vb / (a.var + vb)
-        white = wa * wa * a.var_white + wb * wb * np.where(ok, b.var_white, 0.0)
-        diff = a.mean - np.where(ok, b.mean, 0.0)
-        tot = a.var + vb
-        ll = -0.5 * (diff * diff / tot + np.log(2.0 * np.pi * tot))
+    every = all_true(ok)
+    vb = b.var if every else np.where(ok, b.var, 1.0)
+    mb = b.mean if every else np.where(ok, b.mean, 0.0)
+    wb_white = b.var_white if every else np.where(ok, b.var_white, 0.0)
+    tot = a.var + vb  # > 0: vb > 0 and a.var ≥ 0
+    wa = vb / tot
+    wb = 1.0 - wa
+    mean = wa * a.mean + wb * mb
+    var = a.var * vb / tot
+    white = wa * wa * a.var_white + wb * wb * wb_white
+    diff = a.mean - mb
+    ll = -0.5 * (diff * diff / tot + np.log(2.0 * np.pi * tot))
+    if every:
+        return LogCue(mean, var, white, a.loglik + ll)
     return LogCue(np.where(ok, mean, a.mean), np.where(ok, var, a.var),
                   np.where(ok, white, a.var_white), a.loglik + np.where(ok, ll, 0.0))
 
@@ -336,10 +375,14 @@ def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, Flo
     normalised weights.
     """
     lw = np.asarray(log_weight, dtype=float)
-    lw = lw - np.max(lw, axis=-1, keepdims=True)
-    w = np.exp(lw)
-    w /= w.sum(axis=-1, keepdims=True)
-    mean = np.sum(w * cue.mean, axis=-1)
-    var = np.sum(w * (cue.var + (cue.mean - mean[..., None]) ** 2), axis=-1)
-    white = np.sum(w * cue.var_white, axis=-1)
-    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape)), w
+    w = np.exp(lw - np.maximum.reduce(lw, axis=-1, keepdims=True))
+    w /= np.add.reduce(w, axis=-1, keepdims=True)
+    return mix_hypotheses(cue, w), w
+
+
+def mix_hypotheses(cue: LogCue, weight: FloatArray) -> LogCue:
+    """:func:`collapse_hypotheses` with normalised weights (summing to 1 over the last axis)."""
+    mean = np.add.reduce(weight * cue.mean, axis=-1)
+    var = np.add.reduce(weight * (cue.var + (cue.mean - mean[..., None]) ** 2), axis=-1)
+    white = np.add.reduce(weight * cue.var_white, axis=-1)
+    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))

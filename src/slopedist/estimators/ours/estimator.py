@@ -34,29 +34,43 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
+from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
     FrameInput,
     ReferencePoint,
-    unusable_box_reasons,
 )
 from slopedist.estimators.ours import cues
 from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.cues import all_true, any_true
 from slopedist.estimators.ours.priors import (
     DimensionPrior,
     YawPrior,
-    priors_for,
+    prior_row,
+    resolve_prior,
     yaw_grid,
     yaw_prior_weights,
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalConfig, SelfCalibrator
 from slopedist.estimators.ours.tracking import (
+    COL_BOX_VEL,
+    COL_GRAD_MEAN,
+    COL_GRAD_OTHER,
+    COL_GRAD_VAR,
+    COL_LAST_BOX,
+    COL_LAST_T,
+    COL_LOG_W,
+    COL_N_OBS,
+    COL_P,
+    COL_PREV_T,
+    COL_R,
+    COL_X,
     TrackArrays,
     associate,
-    predicted_boxes,
-    relative_rotations,
+    moved_boxes,
+    turn_boxes,
 )
 
 FloatArray = NDArray[np.float64]
@@ -201,6 +215,16 @@ class OursEstimator(Estimator):
                                       config.selfcal)
         self._theta_rest = float(geo.ego_road_gradient(np.eye(3), np.eye(3),
                                                        camera.mount_angle_rad))
+        self._classes = _ClassTable(config.priors, grid)
+        modes = [(1.0, 1.0 - config.atypical_height_weight)]
+        if config.atypical_height_weight > 0:
+            modes.append((config.atypical_height_factor, config.atypical_height_weight))
+        self._height_modes = [k for k, _ in modes]  # spread factor of each body-style mode
+        self._log_mode = np.repeat(np.log([p for _, p in modes]), grid.size)
+        self._log_prior_all = (np.tile(self._log_yaw_prior, len(modes)) + self._log_mode)[None, :]
+        self._fixed_calib = _CalibInUse(0.0, config.mount_sigma_rad, camera.height_m,
+                                        config.height_sigma_m)
+        self._image_size_known = bool(camera.image_width and camera.image_height)
         self.reset()
 
     def reset(self) -> None:
@@ -236,51 +260,58 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        reasons = unusable_box_reasons(frame, needs_rotation=False)
+        usable = (np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0])
+                  & (boxes[:, 3] > boxes[:, 1]))
+        all_usable = all_true(usable)
+        # the reasons of unusable_box_reasons(frame, needs_rotation=False)
+        reasons = _object_column("", n) if all_usable else box_problems(boxes)
         theta_in = float(frame.theta_rad)
-        out = {k: np.full(n, np.nan) for k in ("distance", "theta_adj", "v", *EXTRA_COLUMNS)}
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
         theta_f = (theta_in if theta_ok else self._theta_rest) + calib.delta
         jitter = (self.config.theta_sigma_rad if theta_ok
                   else self.config.no_rotation_theta_sigma_rad)
-        good = np.flatnonzero(reasons == "")
+        good = np.arange(n) if all_usable else np.flatnonzero(usable)
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
-        self._update_image_extent(boxes[good])  # caller also passes the frames with no boxes
-        if good.size:
-            for key, value in self._estimate_boxes(frame, good, theta_f, jitter, calib).items():
-                out[key][good] = value
-        if self.config.self_calibrate:
+        # caller also passes the frames with no boxes
+        values = (self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+                  if good.size else {})
+        if self.config.self_calibrate and good.size:
             cal = self.selfcal.calibration()
-            out["calib_mount_angle_rad"][good] = cal.mount_angle_rad
-            out["calib_mount_angle_sigma_rad"][good] = cal.mount_angle_sigma_rad
-            out["calib_height_m"][good] = cal.height_m
-            out["calib_height_sigma_m"][good] = cal.height_sigma_m
+            values["calib_mount_angle_rad"] = _filled(good.size, cal.mount_angle_rad)
+            values["calib_mount_angle_sigma_rad"] = _filled(good.size, cal.mount_angle_sigma_rad)
+            values["calib_height_m"] = _filled(good.size, cal.height_m)
+            values["calib_height_sigma_m"] = _filled(good.size, cal.height_sigma_m)
+        out = _scatter(values, _OUTPUT_KEYS, good if not all_usable else None, n)
         v_frame = geo.vanishing_line_row(theta_f, self.camera.f, self.camera.c_y)
-        delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_frame)
+        delta_y = 0.5 * (boxes[:, 1] + boxes[:, 3]) - v_frame  # Δy of eq. 6
         return FrameEstimates(
-            theta_rad=np.full(n, theta_in),
+            theta_rad=_filled(n, theta_in),
             theta_adj_rad=out["theta_adj"],
-            delta_y_px=np.where(reasons == "", delta_y, np.nan),
+            delta_y_px=delta_y if all_usable else np.where(usable, delta_y, np.nan),
             v_px=out["v"],
             distance_m=out["distance"],
             reason=reasons,
-            reference=np.full(n, ReferencePoint.CENTRE.value, dtype=object),
+            reference=_object_column(ReferencePoint.CENTRE.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
 
-    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], theta_f: float,
-                        jitter_rad: float, calib: _CalibInUse) -> dict[str, FloatArray]:
+    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], all_good: bool,
+                        theta_f: float, jitter_rad: float, calib: _CalibInUse
+                        ) -> dict[str, FloatArray]:
         """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates)."""
         cfg = self.config
         cam = self.camera
         f = cam.f
         t = frame.timestamp_s
-        B = frame.boxes.boxes[good]
-        pri = priors_for(frame.boxes.cls[good], cfg.priors)
+        table = frame.boxes
+        B = table.boxes if all_good else table.boxes[good]
+        ids = table.track_id if all_good else table.track_id[good]
+        cls = self._classes
+        ci = cls.rows(table.cls if all_good else table.cls[good])
+        pri = cls.scalars[ci]  # (n, _N_SCALARS), columns as _ClassTable.scalars
         n = B.shape[0]
-        psi = self._yaw[None, :]
-        H, W, L = pri.height_m[:, None], pri.width_m[:, None], pri.length_m[:, None]
+        H = pri[:, 0:1]
         h = calib.height
         trunc_lr, trunc_top, trunc_bottom = self._truncation(B)
         infl = cfg.truncation_factor ** 2
@@ -288,71 +319,77 @@ class OursEstimator(Estimator):
         sigma_px = self.box_sigma_px
 
         # --- size cues per (target, heading hypothesis) -----------------------------------
-        e = cues.depth_half_extent(psi, W, L)
-        var_e = 0.25 * ((np.abs(np.cos(psi)) * pri.length_sigma_m[:, None]) ** 2
-                        + (np.abs(np.sin(psi)) * pri.width_sigma_m[:, None]) ** 2)
+        e = cls.e[ci]
+        var_e = cls.var_e[ci]
         z_h, dz_dD, dz_dH, dz_de, dz_dh = cues.height_cue(B[:, 1:2], B[:, 3:4], f, h, H, e)
         y_h = np.log(z_h)
         c_h = dz_dH * H / z_h
         r_h_white = 2.0 * (dz_dD * sigma_px / z_h) ** 2
         r_h_other = (dz_de ** 2 * var_e + (dz_dh * calib.sigma_height) ** 2) / z_h ** 2
-        cut_h = (trunc_top | trunc_bottom)[:, None]
-        r_h_white = np.where(cut_h, r_h_white * infl, r_h_white)
-        r_h_other = np.where(cut_h, r_h_other * infl, r_h_other)
+        cut_h = trunc_top | trunc_bottom
+        if any_true(cut_h):
+            r_h_white = np.where(cut_h[:, None], r_h_white * infl, r_h_white)
+            r_h_other = np.where(cut_h[:, None], r_h_other * infl, r_h_other)
         if cfg.use_width:
-            z_w, dz_dcol, share_w = cues.width_cue(B[:, 0:1], B[:, 2:3], f, cam.c_x, psi, W, L,
-                                                   z_h, iterations=1)
-            z_w = np.maximum(z_w, e + _MIN_NEAR_M)
+            z_w, dz_dcol, share_w = cues.width_cue_from_parts(
+                B[:, 0:1], B[:, 2:3], f, cam.c_x, cls.parts[ci], z_h, iterations=1)
+            z_w = np.maximum(z_w, cls.e_min[ci])
             y_w = np.log(z_w)
             r_w_white = (dz_dcol * sigma_px / z_w) ** 2
-            r_w_other = ((1.0 - share_w) * pri.log_sigma_l[:, None]) ** 2
-            r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
+            r_w_other = ((1.0 - share_w) * pri[:, 9:10]) ** 2
+            if any_true(trunc_lr):
+                r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
         else:
             y_w = r_w_white = r_w_other = share_w = np.full(e.shape, np.nan)
         # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
         # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
-        modes = [(1.0, 1.0 - cfg.atypical_height_weight)]
-        if cfg.atypical_height_weight > 0:
-            modes.append((cfg.atypical_height_factor, cfg.atypical_height_weight))
-        size = _concat_cues([cues.fuse_size_cues(
+        n_modes = len(self._height_modes)
+        size_modes = [cues.fuse_size_cues(
             y_h, r_h_white, r_h_other, c_h, y_w, r_w_white, r_w_other, share_w,
-            k * pri.log_sigma_h[:, None], pri.log_sigma_w[:, None], pri.corr_hw[:, None])
-            for k, _ in modes])
-        n_modes = len(modes)
-        log_mode = np.repeat(np.log([p for _, p in modes]), e.shape[1])
-        e_all = np.tile(e, n_modes)
+            pri[:, 7:8] if k == 1.0 else k * pri[:, 7:8], pri[:, 8:9], pri[:, 6:7])
+            for k in self._height_modes]
+        size = size_modes[0] if n_modes == 1 else _concat_cues(size_modes)
+        e_all = np.tile(e, n_modes) if n_modes > 1 else e
 
         # --- what the tracks carry --------------------------------------------------------
         R_now = frame.R_world_cam
         tr = self.tracks
-        R_rel = relative_rotations(tr.R_last, R_now)
-        pred_boxes, turned = predicted_boxes(tr, t, R_rel, f, cam.c_x, cam.c_y)
-        rows = (associate(tr, B, frame.boxes.track_id[good], cfg.min_iou, pred_boxes)
-                if cfg.tracking else np.full(n, -1, np.int64))
-        old = rows >= 0
-        r_old = rows[old]
-        if cfg.adapt_box_noise and r_old.size:
-            self._learn_box_noise(B[old] - pred_boxes[r_old], r_old, t)
-        dt = np.where(old, t - self.tracks.last_t[np.maximum(rows, 0)] if len(self.tracks)
-                      else 0.0, 0.0)
-        log_pi = np.broadcast_to(self._log_yaw_prior, e.shape).copy()
-        if cfg.yaw_memory and r_old.size:
-            mix = 1.0 - np.exp(-dt[old] / cfg.yaw_memory_s)
-            belief = ((1.0 - mix[:, None]) * np.exp(self.tracks.log_w[r_old])
-                      + mix[:, None] * np.exp(self._log_yaw_prior))
-            log_pi[old] = np.log(np.maximum(belief, 1e-300))
-        grad_m = np.zeros(n)
-        grad_v = np.full(n, np.inf)
-        grad_o = np.zeros(n)
-        if r_old.size:
-            tr = self.tracks
-            grad_m[old] = tr.grad_mean[r_old]
-            grad_v[old] = tr.grad_var[r_old] + cfg.process.gradient_rad ** 2 * dt[old]  # predict
-            grad_o[old] = tr.grad_var_other[r_old]
-        if cfg.gradient_feedback:
-            alpha, alpha_var = _shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+        pred_boxes = None
+        if not len(tr):  # (no track is ever stored unless cfg.tracking)
+            rows = np.full(n, -1, np.int64)
+            turned, depth_ratio = tr.last_box, np.ones(0)
         else:
-            alpha, alpha_var = np.zeros(n), np.full(n, cfg.gradient_sigma_rad ** 2)
+            turned, depth_ratio = turn_boxes(tr.last_box, f, cam.c_x, cam.c_y, tr.R_last, R_now)
+            pred_boxes = (moved_boxes(tr, turned, t)
+                          if cfg.adapt_box_noise or any_true(ids < 0) else None)
+            rows = associate(tr, B, ids, cfg.min_iou, pred_boxes)
+        old = rows >= 0
+        every_old = all_true(old)
+        r_old = rows if every_old else rows[old]
+        any_old = r_old.size > 0
+        S_old = tr.state[r_old]  # (a copy) the continued tracks' states
+        dt_old = t - S_old[:, COL_LAST_T]
+        grad_v_old = S_old[:, COL_GRAD_VAR] + cfg.process.gradient_rad ** 2 * dt_old  # predict
+        if cfg.adapt_box_noise and any_old and pred_boxes is not None:
+            self._learn_box_noise(B[old] - pred_boxes[r_old], r_old, t)
+        log_pi = self._log_yaw_prior
+        if cfg.yaw_memory and any_old:
+            mix = 1.0 - np.exp(-dt_old / cfg.yaw_memory_s)
+            carried = ((1.0 - mix[:, None]) * np.exp(S_old[:, COL_LOG_W:])
+                       + mix[:, None] * np.exp(self._log_yaw_prior))
+            log_pi = np.broadcast_to(log_pi[None, :], e.shape).copy()
+            log_pi[old] = np.log(np.maximum(carried, 1e-300))
+        if cfg.gradient_feedback:  # each target's gradient so far, predicted to now
+            grad_m = np.zeros(n)
+            grad_v = np.full(n, np.inf)
+            grad_o = np.zeros(n)
+            if any_old:
+                grad_m[old] = S_old[:, COL_GRAD_MEAN]
+                grad_v[old] = grad_v_old
+                grad_o[old] = S_old[:, COL_GRAD_OTHER]
+            alpha, alpha_var = _shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+        else:  # the prior, the same for every target
+            alpha, alpha_var = np.zeros(1), np.full(1, cfg.gradient_sigma_rad ** 2)
 
         # --- ground-contact cue and fusion ---------------------------------------------------
         v_frame = cam.c_y - f * math.tan(theta_f)
@@ -360,80 +397,93 @@ class OursEstimator(Estimator):
             v_target = cam.c_y - f * np.tan(theta_f + alpha)
             row_white = sigma_px ** 2 + (f * jitter_rad / cos2) ** 2
             row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta ** 2)
+            sd_e = cls.sd_e[ci]
             gc = cues.ground_contact_log_cue(B[:, 3:4], v_target[:, None], f, h, e_all,
                                              row_white, row_other[:, None], calib.sigma_height,
-                                             np.sqrt(np.tile(var_e, n_modes)))
-            gc = _inflate(gc, trunc_bottom[:, None], infl)
+                                             np.tile(sd_e, n_modes) if n_modes > 1 else sd_e)
+            if any_true(trunc_bottom):
+                gc = _inflate(gc, trunc_bottom[:, None], infl)
             fused = cues.fuse_log_cues(size, gc)
         else:
             fused = size
-        log_prior_all = np.tile(log_pi, n_modes) + log_mode
+        log_prior_all = (self._log_prior_all if log_pi is self._log_yaw_prior
+                         else np.tile(log_pi, n_modes) + self._log_mode)
         meas, w_all = cues.collapse_hypotheses(fused, log_prior_all + fused.loglik)
-        size_c, _ = cues.collapse_hypotheses(size, np.log(np.maximum(w_all, 1e-300)))
-        e_mean = np.sum(w_all * e_all, axis=1)
-        w = w_all.reshape(n, n_modes, -1).sum(axis=1)  # heading weights
+        size_c = cues.mix_hypotheses(size, w_all)
+        e_mean = np.add.reduce(w_all * e_all, axis=1)
+        w = w_all.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else w_all  # headings
 
         # --- distance filter --------------------------------------------------------------------
-        x = np.stack([meas.mean, np.zeros(n)], axis=1)
-        P = np.zeros((n, 2, 2))
-        P[:, 0, 0] = meas.var_white
-        P[:, 1, 1] = cfg.rate_sigma_per_s ** 2
-        continued = np.zeros(n, dtype=bool)
-        if cfg.motion_model and r_old.size:
-            x_old = self.tracks.x[r_old].copy()
-            x_old[:, kf.IDX_LOG_Z] += _turned_depth_log_ratio(
-                self.tracks.last_box[r_old], R_rel[r_old], f, cam.c_x, cam.c_y)
-            xp, Pp = kf.cv_predict(x_old, self.tracks.P[r_old], dt[old], cfg.process.accel_mps2)
-            xu, Pu, _ = kf.cv_update(xp, Pp, meas.mean[old], meas.var_white[old])
-            same = ((meas.mean[old] - xp[:, 0]) ** 2
-                    <= cfg.gate_sigma ** 2 * (Pp[:, 0, 0] + meas.var[old]))
-            idx = np.flatnonzero(old)[same]
-            x[idx], P[idx] = xu[same], Pu[same]
-            continued[idx] = True
-            gone = np.flatnonzero(old)[~same]
-            rows[gone] = -1  # another vehicle took this track's id or place: start afresh
+        continued = old.copy() if cfg.motion_model else np.zeros(n, dtype=bool)
+        x = P = None
+        if cfg.motion_model and any_old:
+            x_old = S_old[:, COL_X]
+            x_old[:, kf.IDX_LOG_Z] += np.log(np.maximum(depth_ratio[r_old], 0.1))
+            xp, Pp = kf.cv_predict(x_old, S_old[:, COL_P].reshape(-1, 2, 2), dt_old,
+                                   cfg.process.accel_mps2)
+            m_old, v_old = ((meas.mean, meas.var) if every_old
+                            else (meas.mean[old], meas.var[old]))
+            xu, Pu, _ = kf.cv_update(xp, Pp, m_old, meas.var_white if every_old
+                                     else meas.var_white[old])
+            same = (m_old - xp[:, 0]) ** 2 <= cfg.gate_sigma ** 2 * (Pp[:, 0, 0] + v_old)
+            if every_old and all_true(same):  # every target continues its track
+                x, P = xu, Pu
+            else:
+                x, P = self._new_states(meas)
+                idx = np.flatnonzero(old)
+                x[idx[same]], P[idx[same]] = xu[same], Pu[same]
+                continued[idx[~same]] = False
+                rows[idx[~same]] = -1  # another vehicle took this track's id
+        if x is None or P is None:                    # or place: start afresh
+            x, P = self._new_states(meas)
         var_other = np.maximum(meas.var - meas.var_white, 0.0)
         dist, sigma = kf.distance_moments(x, P, var_other)
-        speed, speed_sd = kf.speed_moments(x, P)
-        ttc, ttc_sd = kf.ttc_moments(x, P)
+        moving = continued
+        if any_true(moving):
+            speed, speed_sd = kf.speed_moments(x, P)
+            ttc, ttc_sd = kf.ttc_moments(x, P)
+            if not all_true(moving):
+                speed, speed_sd, ttc, ttc_sd = (np.where(moving, a, np.nan)
+                                                for a in (speed, speed_sd, ttc, ttc_sd))
+        else:
+            speed = speed_sd = ttc = ttc_sd = _filled(n, np.nan)
 
         # --- continuous target gradient from Δy and the size distance ----------------------
         z_size = np.exp(size_c.mean)
-        delta_y = geo.box_centre_row(B) - v_frame
-        a_obs = cues.target_gradient(delta_y, z_size, f, h, pri.height_m, e_mean)
-        flat = cues.expected_centre_offset_px(z_size, f, h, pri.height_m, e_mean)
-        a_white = ((flat / f) ** 2 * size_c.var_white
-                   + (sigma_px ** 2 + (f * jitter_rad) ** 2) / f ** 2)
-        a_other = ((flat / f) ** 2 * np.maximum(size_c.var - size_c.var_white, 0.0)
-                   + (0.5 * pri.height_sigma_m / z_size) ** 2)
-        fresh = rows < 0
-        g_mean, g_var = kf.random_walk_update(  # grad_v is already predicted to now
-            np.where(fresh, 0.0, grad_m), np.where(fresh, 1e6, np.minimum(grad_v, 1e6)), 0.0,
+        delta_y = 0.5 * (B[:, 1] + B[:, 3]) - v_frame
+        flat = cues.expected_centre_offset_px(z_size, f, h, pri[:, 0], e_mean)
+        a_obs = np.arctan((flat - delta_y) / f)  # cues.target_gradient, flat computed once
+        gain2 = (flat / f) ** 2
+        a_white = gain2 * size_c.var_white + (sigma_px ** 2 + (f * jitter_rad) ** 2) / f ** 2
+        a_other = (gain2 * np.maximum(size_c.var - size_c.var_white, 0.0)
+                   + (0.5 * pri[:, 3] / z_size) ** 2)
+        g_mean, g_var = kf.random_walk_update(
+            *_gradient_prior(rows, old, every_old, S_old[:, COL_GRAD_MEAN], grad_v_old), 0.0,
             0.0, a_obs, a_white)
         alpha_out, alpha_out_var = _shrink_to_prior(g_mean, g_var + a_other,
                                                     cfg.gradient_sigma_rad)
 
-        belief = log_prior_all + cfg.yaw_evidence_weight * fused.loglik  # tempered: frames
-        belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)  # correlate
-        belief -= np.logaddexp.reduce(belief, axis=1, keepdims=True)
-        uid = self._store(rows, frame.boxes.track_id[good], x, P, belief, g_mean, g_var, a_other,
-                          B, t, R_now, turned)
+        belief: FloatArray | None = None
+        if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
+            belief = log_prior_all + cfg.yaw_evidence_weight * fused.loglik  # tempered: frames
+            if n_modes > 1:  # correlate
+                belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
+            belief = belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
+        uid = (self._store(rows, ids, x, P, belief, g_mean, g_var, a_other, B, t, R_now,
+                           turned) if cfg.tracking else self._new_uids(n))
         if cfg.self_calibrate:
-            usable = (pri.log_sigma_h <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
+            usable = (pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
             theta_cfg = theta_f - calib.delta
             v_cfg = cam.c_y - f * math.tan(theta_cfg)
             near = np.where(usable, z_size - e_mean, np.nan)
-            self.selfcal.update(uid, B[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near)
-        moving = continued & cfg.motion_model
+            self.selfcal.update(uid, B[:, 3], _filled(n, v_cfg), _filled(n, theta_cfg), near)
         gc_plain = cues.ground_contact_cue(B[:, 3], v_frame, f, h, e_mean)
         return {
             "distance": dist, "sigma_m": sigma, "distance_nearest_face_m": dist - e_mean,
-            "speed_mps": np.where(moving, speed, np.nan),
-            "speed_sigma_mps": np.where(moving, speed_sd, np.nan),
-            "ttc_s": np.where(moving, ttc, np.nan), "ttc_sigma_s": np.where(moving, ttc_sd, np.nan),
+            "speed_mps": speed, "speed_sigma_mps": speed_sd, "ttc_s": ttc, "ttc_sigma_s": ttc_sd,
             "target_gradient_rad": alpha_out,
             "target_gradient_sigma_rad": np.sqrt(alpha_out_var),
-            "yaw_rad": self._yaw[np.argmax(w, axis=1)],
+            "yaw_rad": self._yaw[w.argmax(axis=1)],
             "distance_size_m": z_size,
             "distance_ground_contact_m": gc_plain,
             "track_uid": uid.astype(float),
@@ -441,14 +491,30 @@ class OursEstimator(Estimator):
             "v": cam.c_y - f * np.tan(theta_f + alpha_out),
         }
 
+    def _new_states(self, meas: cues.LogCue) -> tuple[FloatArray, FloatArray]:
+        """Filter states of tracks that start at this frame's measurement (zero rate)."""
+        n = meas.mean.shape[0]
+        x = np.zeros((n, 2))
+        x[:, kf.IDX_LOG_Z] = meas.mean
+        P = np.zeros((n, 2, 2))
+        P[:, 0, 0] = meas.var_white
+        P[:, 1, 1] = self.config.rate_sigma_per_s ** 2
+        return x, P
+
+    def _new_uids(self, k: int) -> NDArray[np.int64]:
+        uid = np.arange(self._next_uid, self._next_uid + k)
+        self._next_uid += k
+        return uid
+
     # -- state handling ---------------------------------------------------------------------
 
     def _store(self, rows: NDArray[np.int64], ext_ids: NDArray[np.int64], x: FloatArray,
-               P: FloatArray, log_w: FloatArray, g_mean: FloatArray, g_var: FloatArray,
+               P: FloatArray, log_w: FloatArray | None, g_mean: FloatArray, g_var: FloatArray,
                g_other: FloatArray, boxes: FloatArray, t: float,
                R_now: NDArray[np.float64] | None, turned: FloatArray) -> NDArray[np.int64]:
         """Write the updated states back; returns the track uid of every target.
 
+        ``log_w`` (the heading belief) is None when it is not kept: tracks then carry the prior.
         A new track that carries a box track id replaces any live track with that id (its
         vehicle failed the gate); a second box with an id already continued in this frame gets
         an id-less track.
@@ -457,39 +523,52 @@ class OursEstimator(Estimator):
         n = rows.shape[0]
         uid = np.empty(n, np.int64)
         cont = rows >= 0
-        r = rows[cont]
+        every = all_true(cont)
+        r = rows if every else rows[cont]
+        R = np.eye(3) if R_now is None else np.asarray(R_now, dtype=float)
         if r.size:
-            tr.x[r], tr.P[r], tr.log_w[r] = x[cont], P[cont], log_w[cont]
-            tr.grad_mean[r], tr.grad_var[r], tr.grad_var_other[r] = (
-                g_mean[cont], g_var[cont], g_other[cont])
-            dt = np.maximum(t - tr.last_t[r], 1e-6)
-            tr.box_vel[r] = (boxes[cont] - turned[r]) / dt[:, None]
-            tr.prev_t[r] = tr.last_t[r]
-            tr.last_t[r], tr.last_box[r] = t, boxes[cont]
-            tr.R_last[r] = np.eye(3) if R_now is None else R_now
-            tr.n_obs[r] += 1
+            def pick(a: np.ndarray) -> np.ndarray:
+                return a if every else a[cont]
+            S = tr.state[r]
+            b = pick(boxes)
+            S[:, COL_X] = pick(x)
+            S[:, COL_P] = pick(P).reshape(-1, 4)
+            S[:, COL_GRAD_MEAN] = pick(g_mean)
+            S[:, COL_GRAD_VAR] = pick(g_var)
+            S[:, COL_GRAD_OTHER] = pick(g_other)
+            S[:, COL_BOX_VEL] = (b - turned[r]) / np.maximum(t - S[:, COL_LAST_T], 1e-6)[:, None]
+            S[:, COL_PREV_T] = S[:, COL_LAST_T]
+            S[:, COL_LAST_T] = t
+            S[:, COL_LAST_BOX] = b
+            S[:, COL_R] = R.reshape(9)
+            S[:, COL_N_OBS] += 1.0
+            if log_w is not None:
+                S[:, COL_LOG_W:] = pick(log_w)
+            tr.state[r] = S
             uid[cont] = tr.uid[r]
+        if every:
+            return uid
         new = ~cont
-        k = int(new.sum())
-        if k:
-            new_uid = np.arange(self._next_uid, self._next_uid + k)
-            self._next_uid += k
-            uid[new] = new_uid
-            if self.config.tracking:
-                ext = ext_ids[new].copy()
-                ext[np.isin(ext, tr.ext_id[r])] = -1
-                _, first = np.unique(ext, return_index=True)
-                dup = np.ones(k, dtype=bool)
-                dup[first] = False
-                ext[dup] = -1
-                replaced = np.isin(tr.ext_id, ext[ext >= 0])
-                add = TrackArrays(new_uid, ext, x[new], P[new], log_w[new], g_mean[new],
-                                  g_var[new], g_other[new], np.full(k, t), boxes[new],
-                                  np.full(k, np.nan), np.full((k, 4), np.nan),
-                                  np.broadcast_to(np.eye(3) if R_now is None else R_now,
-                                                  (k, 3, 3)).copy(),
-                                  np.ones(k, np.int64))
-                self.tracks = tr.keep(~replaced).concat(add)
+        k = int(np.count_nonzero(new))
+        new_uid = self._new_uids(k)
+        uid[new] = new_uid
+        ext = ext_ids[new].copy()
+        taken = set(tr.ext_id[r].tolist())  # ids continued in this frame
+        seen: set[int] = set()
+        for i, e in enumerate(ext.tolist()):
+            if e >= 0 and (e in taken or e in seen):
+                ext[i] = -1
+            seen.add(e)
+        log_w_new = (np.broadcast_to(self._log_yaw_prior, (k, self._yaw.size))
+                     if log_w is None else log_w[new])
+        add = TrackArrays.start(new_uid, ext, x[new], P[new], log_w_new, g_mean[new],
+                                g_var[new], g_other[new], t, boxes[new], R)
+        claimed = ext[ext >= 0]
+        if claimed.size and len(tr):
+            replaced = (tr.ext_id[:, None] == claimed[None, :]).any(axis=1)
+            if any_true(replaced):
+                tr = tr.keep(~replaced)
+        self.tracks = tr.concat(add)
         return uid
 
     def _learn_box_noise(self, miss: FloatArray, rows: NDArray[np.int64], t: float) -> None:
@@ -509,8 +588,9 @@ class OursEstimator(Estimator):
 
     def _drop_stale(self, t: float) -> None:
         tr = self.tracks
-        if len(tr):
-            self.tracks = tr.keep(t - tr.last_t <= self.config.max_age_s + 1e-9)
+        age = self.config.max_age_s + 1e-9
+        if len(tr) and t - np.minimum.reduce(tr.last_t) > age:  # the oldest is stale
+            self.tracks = tr.keep(t - tr.last_t <= age)
 
     # -- calibration and image extent -------------------------------------------------------
 
@@ -520,26 +600,102 @@ class OursEstimator(Estimator):
             cov = self.selfcal.covariance
             return _CalibInUse(self.selfcal.horizon_offset_rad, math.sqrt(cov[0, 0]),
                                self.selfcal.height_m, math.sqrt(cov[1, 1]))
-        return _CalibInUse(0.0, cfg.mount_sigma_rad, self.camera.height_m, cfg.height_sigma_m)
-
-    def _update_image_extent(self, boxes: FloatArray) -> None:
-        if boxes.size:
-            self._max_right = max(self._max_right, float(boxes[:, 2].max()))
-            self._max_bottom = max(self._max_bottom, float(boxes[:, 3].max()))
+        return self._fixed_calib
 
     def _truncation(self, boxes: FloatArray) -> tuple[NDArray[np.bool_], ...]:
         """Boxes touching the image border: (left or right, top, bottom) flags.
 
         The image size is the camera's when known; otherwise the largest right/bottom edge seen
-        so far stands for the border once it lies beyond twice the principal point.
+        so far (these boxes included) stands for the border once it lies beyond twice the
+        principal point.
         """
         cam = self.camera
-        right = (cam.image_width - 1.0 if cam.image_width
-                 else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf))
-        bottom = (cam.image_height - 1.0 if cam.image_height
-                  else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf))
-        lr = (boxes[:, 0] <= 0.5) | (boxes[:, 2] >= right - 0.5)
-        return lr, boxes[:, 1] <= 0.5, boxes[:, 3] >= bottom - 0.5
+        if self._image_size_known:
+            right, bottom = float(cam.image_width or 0) - 1.0, float(cam.image_height or 0) - 1.0
+        else:
+            seen_right, seen_bottom = np.maximum.reduce(boxes[:, 2:4], axis=0).tolist()
+            self._max_right = max(self._max_right, seen_right)
+            self._max_bottom = max(self._max_bottom, seen_bottom)
+            right = (cam.image_width - 1.0 if cam.image_width
+                     else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf))
+            bottom = (cam.image_height - 1.0 if cam.image_height
+                      else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf))
+        cut = (boxes <= _BORDER_LOW) | (boxes >= np.array([math.inf, math.inf, right - 0.5,
+                                                           bottom - 0.5]))
+        return cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3]
+
+
+_BORDER_LOW = np.array([0.5, 0.5, -math.inf, -math.inf])
+"""A box edge at or below these (left, top) touches the image's left or top border."""
+
+_OUTPUT_KEYS = ("distance", "theta_adj", "v", *EXTRA_COLUMNS)
+
+
+_ABSENT: dict[tuple[str, ...], list[str]] = {}
+
+
+def _scatter(values: dict[str, FloatArray], keys: tuple[str, ...],
+             rows: NDArray[np.intp] | None, n: int) -> dict[str, FloatArray]:
+    """Per-box outputs of length ``n``: ``values`` (of the boxes ``rows``; all boxes when None)
+    placed in NaN-filled columns; keys without values stay NaN."""
+    if rows is None:
+        have = tuple(values)
+        missing = _ABSENT.get(have)
+        if missing is None:
+            missing = _ABSENT[have] = [k for k in keys if k not in values]
+    else:
+        missing = list(keys)
+    nan = np.empty((len(missing), n))
+    nan.fill(np.nan)
+    out = dict(zip(missing, nan, strict=True))
+    if rows is None:
+        out.update(values)
+    else:
+        for k, v in values.items():
+            out[k][rows] = v
+    return out
+
+
+class _ClassTable:
+    """Class priors and their per-heading constants, one row per class name seen so far.
+
+    The priors and the heading grid are fixed for an estimator, so each frame only gathers
+    rows (``scalars``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; ``e``, ``var_e``,
+    ``sd_e``: the footprint's half depth extent per heading, its variance and 1σ; ``e_min``:
+    the smallest centre distance the cues accept; ``parts``:
+    :func:`~slopedist.estimators.ours.cues.corner_parts`) instead of recomputing them.
+    """
+
+    def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
+        self._priors = priors
+        self._yaw = yaw_rad
+        self._index: dict[object, int] = {}
+        self._rows: list[tuple[float, ...]] = []
+        self._build()
+
+    def rows(self, classes: NDArray[np.object_]) -> NDArray[np.intp]:
+        """Row of each class name (new names are added)."""
+        index = self._index
+        try:
+            return np.array([index[c] for c in classes], dtype=np.intp)
+        except KeyError:
+            for c in classes:
+                if c not in index:
+                    index[c] = len(self._rows)
+                    self._rows.append(prior_row(resolve_prior(c, self._priors)))
+            self._build()
+            return np.array([index[c] for c in classes], dtype=np.intp)
+
+    def _build(self) -> None:
+        a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
+        H, W, L, sH, sW, sL = (a[:, k:k + 1] for k in range(6))
+        psi = self._yaw[None, :]
+        self.scalars = np.concatenate([a, sH / H, sW / W, sL / L], axis=1)
+        self.e = cues.depth_half_extent(psi, W, L)
+        self.e_min = self.e + _MIN_NEAR_M  # the nearest face at least _MIN_NEAR_M away
+        self.var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
+        self.sd_e = np.sqrt(self.var_e)
+        self.parts = cues.corner_parts(psi, W, L)
 
 
 @dataclass(frozen=True)
@@ -550,25 +706,51 @@ class _CalibInUse:
     sigma_height: float
 
 
+def _gradient_prior(rows: NDArray[np.int64], old: NDArray[np.bool_], every_old: bool,
+                    mean_old: FloatArray, var_old: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Mean and variance (rad, rad²) of each target's road gradient before this frame: its
+    track's random walk predicted to now (``mean_old``, ``var_old``: of the targets ``old``
+    that were associated with a track), or (0, 10⁶) for a target that starts a track (``rows``
+    < 0, after the gate)."""
+    kept = rows[old] >= 0 if not every_old else rows >= 0
+    if every_old and all_true(kept):
+        return mean_old, np.minimum(var_old, 1e6)
+    mean, var = np.zeros(rows.shape), np.full(rows.shape, 1e6)
+    idx = np.flatnonzero(old)[kept]
+    mean[idx] = mean_old[kept]
+    var[idx] = np.minimum(var_old[kept], 1e6)
+    return mean, var
+
+
+def _filled(n: int, value: float) -> FloatArray:
+    """``np.full(n, value)``, cheaper for the few targets of a frame."""
+    out = np.empty(n)
+    out.fill(value)
+    return out
+
+
+_OBJECT_COLUMNS: dict[str, NDArray[np.object_]] = {}
+
+
+def _object_column(value: str, n: int) -> NDArray[np.object_]:
+    """A new object array of ``n`` copies of ``value`` (copied from a cached template)."""
+    tmpl = _OBJECT_COLUMNS.get(value)
+    if tmpl is None or tmpl.shape[0] < n:
+        tmpl = _OBJECT_COLUMNS[value] = np.full(max(n, 64), value, dtype=object)
+    return tmpl[:n].copy()
+
+
 def _shrink_to_prior(mean: FloatArray, var: FloatArray, prior_sigma: float
                      ) -> tuple[FloatArray, FloatArray]:
     """Combine an estimate (mean, var; var may be inf) with a zero-mean prior of spread
     ``prior_sigma``: the posterior mean and variance."""
     s2 = prior_sigma * prior_sigma
     finite = np.isfinite(var)
+    if all_true(finite):
+        return mean * s2 / (s2 + var), s2 * var / (s2 + var)
     v = np.where(finite, var, 1.0)
     return (np.where(finite, mean * s2 / (s2 + v), 0.0),
             np.where(finite, s2 * v / (s2 + v), s2))
-
-
-def _turned_depth_log_ratio(boxes: FloatArray, R_rel: FloatArray, f: float, c_x: float,
-                            c_y: float) -> FloatArray:
-    """log(Z_new/Z_old) of points seen at the boxes' centres when the camera turns by ``R_rel``
-    (the ego's own rotation changes every target's depth, most for targets off to the side)."""
-    ray = np.stack([(0.5 * (boxes[:, 0] + boxes[:, 2]) - c_x) / f,
-                    (0.5 * (boxes[:, 1] + boxes[:, 3]) - c_y) / f, np.ones(len(boxes))], axis=1)
-    z_new = np.einsum("tj,tj->t", R_rel[:, 2, :], ray)
-    return np.log(np.maximum(z_new, 0.1))
 
 
 def _concat_cues(parts: list[cues.LogCue]) -> cues.LogCue:

@@ -49,7 +49,7 @@ def cv_predict(
     camera.
     """
     x = np.array(x, dtype=float, copy=True)
-    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), x.shape[:-1])
+    dt = np.asarray(dt_s, dtype=float)
     grow = np.maximum(1.0 + x[..., IDX_RATE] * dt, 0.2)
     f01 = dt / grow
     f11 = 1.0 / (grow * grow)
@@ -57,9 +57,10 @@ def cv_predict(
     x[..., IDX_RATE] /= grow
     p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
     q = accel_mps2 ** 2 * np.exp(-2.0 * x[..., IDX_LOG_Z])
+    dt2 = dt * dt
     out = np.empty(P.shape)
-    out[..., 0, 0] = p00 + 2 * f01 * p01 + f01 * f01 * p11 + q * dt ** 3 / 3
-    out[..., 0, 1] = out[..., 1, 0] = f11 * (p01 + f01 * p11) + q * dt ** 2 / 2
+    out[..., 0, 0] = p00 + 2 * f01 * p01 + f01 * f01 * p11 + q * (dt2 * dt) / 3
+    out[..., 0, 1] = out[..., 1, 0] = f11 * (p01 + f01 * p11) + q * dt2 / 2
     out[..., 1, 1] = f11 * f11 * p11 + q * dt
     return x, out
 
@@ -71,12 +72,17 @@ def cv_update(
 
     Returns the new state, covariance and the normalised innovation squared.
     """
-    S = P[..., 0, 0] + r
+    p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
+    S = p00 + r
     nu = y - x[..., IDX_LOG_Z]
-    K = P[..., :, 0] / S[..., None]
-    x_new = x + K * nu[..., None]
-    P_new = P - K[..., :, None] * P[..., None, 0, :]
-    P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+    k0, k1 = p00 / S, p01 / S  # the gain (P is symmetric)
+    x_new = np.empty(x.shape)
+    x_new[..., IDX_LOG_Z] = x[..., IDX_LOG_Z] + k0 * nu
+    x_new[..., IDX_RATE] = x[..., IDX_RATE] + k1 * nu
+    P_new = np.empty(P.shape)
+    P_new[..., 0, 0] = p00 - k0 * p00
+    P_new[..., 0, 1] = P_new[..., 1, 0] = p01 - k0 * p01
+    P_new[..., 1, 1] = p11 - k1 * p01
     return x_new, P_new, nu * nu / S
 
 
@@ -86,8 +92,11 @@ def random_walk_update(
 ) -> tuple[FloatArray, FloatArray]:
     """Predict a scalar random walk over ``dt_s`` then update it with ``obs`` (variance
     ``obs_var``); non-finite observations only predict."""
-    v = var + rate * rate * np.asarray(dt_s, dtype=float)
-    ok = np.isfinite(obs) & np.isfinite(obs_var)
+    v = var + rate * rate * np.asarray(dt_s, dtype=float) if rate else np.asarray(var)
+    ok = np.isfinite(obs + obs_var)
+    if np.count_nonzero(ok) == ok.size:
+        k = v / (v + obs_var)
+        return mean + k * (obs - mean), (1.0 - k) * v
     k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)
     return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
 

@@ -114,18 +114,29 @@ def priors_for(
         table: class → prior (default :data:`CLASS_PRIORS`; unknown names get the broad prior).
     """
     names = np.asarray(classes, dtype=object).reshape(-1)
-    lookup = table if table is not None else CLASS_PRIORS
     cache: dict[object, DimensionPrior] = {}
     rows = []
     for n in names:
         p = cache.get(n)
         if p is None:
-            p = lookup[n] if n in lookup else prior_for(str(n))
-            cache[n] = p
-        rows.append((p.height_m, p.width_m, p.length_m, p.height_sigma_m, p.width_sigma_m,
-                     p.length_sigma_m, p.corr_hw))
+            p = cache[n] = resolve_prior(n, table)
+        rows.append(prior_row(p))
     a = np.asarray(rows, dtype=float).reshape(-1, 7)
     return PriorArrays(*(a[:, k] for k in range(7)))
+
+
+def resolve_prior(class_name: object, table: dict[str, DimensionPrior] | None = None
+                  ) -> DimensionPrior:
+    """The prior of one class name: ``table``'s entry (default :data:`CLASS_PRIORS`), else the
+    built-in prior of its alias, else the broad :data:`UNKNOWN_CLASS_PRIOR`."""
+    lookup = table if table is not None else CLASS_PRIORS
+    return lookup[class_name] if class_name in lookup else prior_for(str(class_name))
+
+
+def prior_row(p: DimensionPrior) -> tuple[float, float, float, float, float, float, float]:
+    """``(H, W, L, σH, σW, σL, corr_hw)`` of a prior, the column order of :class:`PriorArrays`."""
+    return (p.height_m, p.width_m, p.length_m, p.height_sigma_m, p.width_sigma_m,
+            p.length_sigma_m, p.corr_hw)
 
 
 @dataclass(frozen=True)

@@ -21,57 +21,138 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
+# Columns of TrackArrays.state (one float row per track, so a frame reads and writes its tracks
+# with one indexing operation each).
+COL_X = slice(0, 2)
+"""Distance filter state: log distance ℓ (Z in m) and relative rate Ż/Z (1/s)."""
+COL_P = slice(2, 6)
+"""Its 2×2 covariance, row-major."""
+COL_GRAD_MEAN, COL_GRAD_VAR, COL_GRAD_OTHER = 6, 7, 8
+"""Target gradient estimate (rad), its variance and the per-vehicle variance of the latest
+observation (rad²)."""
+COL_BOX_VEL = slice(9, 13)
+"""Box edges' image velocity (px/s) with the camera's own rotation taken out; NaN until the
+track has two updates."""
+COL_LAST_BOX = slice(13, 17)
+"""The last box (l, t, r, b), pixels."""
+COL_LAST_T, COL_PREV_T = 17, 18
+"""Time of the last update and of the one before it (NaN until two updates), seconds."""
+COL_R = slice(19, 28)
+"""Camera-to-world rotation at the last update, row-major (identity if unknown)."""
+COL_N_OBS = 28
+"""Number of updates."""
+COL_LOG_W = 29
+"""First column of the log belief over the heading hypotheses (K columns)."""
+
+
 @dataclass
 class TrackArrays:
     """State of the live tracks, one row each.
 
     Attributes:
-        uid: unique id of the track within the sequence (never re-used).
-        ext_id: the boxes' track id it follows, or −1 for IoU-associated tracks.
-        x, P: distance filter state ``(T, 2)`` (log distance, relative rate) and covariance
-            ``(T, 2, 2)``.
-        log_w: ``(T, K)`` log belief over the heading hypotheses.
-        grad_mean, grad_var: the running estimate of the target gradient from its observations
-            (radians, rad²; before the prior is applied).
-        grad_var_other: per-vehicle variance of the latest gradient observation (rad²).
-        last_t: time of the last update, seconds.
-        last_box: ``(T, 4)`` the last box (IoU association).
-        prev_t: time of the update before the last.
-        box_vel: ``(T, 4)`` the box edges' image velocity (px/s) with the camera's own rotation
-            taken out; NaN until a track has two updates.
-        R_last: ``(T, 3, 3)`` camera-to-world rotation at the last update (identity if unknown).
-        n_obs: number of updates.
+        uid: ``(T,)`` unique id of the track within the sequence (never re-used).
+        ext_id: ``(T,)`` the boxes' track id it follows, or −1 for IoU-associated tracks.
+        state: ``(T, COL_LOG_W + K)`` float state, columns as the ``COL_*`` constants; read it
+            through the properties (views).
     """
 
     uid: IntArray
     ext_id: IntArray
-    x: FloatArray
-    P: FloatArray
-    log_w: FloatArray
-    grad_mean: FloatArray
-    grad_var: FloatArray
-    grad_var_other: FloatArray
-    last_t: FloatArray
-    last_box: FloatArray
-    prev_t: FloatArray
-    box_vel: FloatArray
-    R_last: FloatArray
-    n_obs: IntArray
+    state: FloatArray
 
     @classmethod
     def empty(cls, n_hypotheses: int) -> TrackArrays:
-        z = np.zeros(0)
-        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2)),
-                   np.zeros((0, 2, 2)), np.zeros((0, n_hypotheses)), z, z, z, z,
-                   np.zeros((0, 4)), z, np.zeros((0, 4)), np.zeros((0, 3, 3)),
-                   np.zeros(0, np.int64))
+        z = np.zeros(0, np.int64)
+        return cls(z, z.copy(), np.zeros((0, COL_LOG_W + n_hypotheses)))
+
+    @classmethod
+    def start(cls, uid: IntArray, ext_id: IntArray, x: FloatArray, P: FloatArray,
+              log_w: FloatArray, grad_mean: FloatArray, grad_var: FloatArray,
+              grad_var_other: FloatArray, t: float, boxes: FloatArray,
+              R_world_cam: FloatArray) -> TrackArrays:
+        """New tracks after their first update at time ``t`` (one row per argument row)."""
+        k = uid.shape[0]
+        st = np.empty((k, COL_LOG_W + log_w.shape[1]))
+        st[:, COL_X] = x
+        st[:, COL_P] = P.reshape(k, 4)
+        st[:, COL_GRAD_MEAN] = grad_mean
+        st[:, COL_GRAD_VAR] = grad_var
+        st[:, COL_GRAD_OTHER] = grad_var_other
+        st[:, COL_BOX_VEL] = np.nan
+        st[:, COL_LAST_BOX] = boxes
+        st[:, COL_LAST_T] = t
+        st[:, COL_PREV_T] = np.nan
+        st[:, COL_R] = np.asarray(R_world_cam, dtype=float).reshape(9)
+        st[:, COL_N_OBS] = 1.0
+        st[:, COL_LOG_W:] = log_w
+        return cls(uid, ext_id, st)
 
     def __len__(self) -> int:
         return int(self.uid.shape[0])
 
+    @property
+    def x(self) -> FloatArray:
+        """``(T, 2)`` distance filter states (see :data:`COL_X`)."""
+        return self.state[:, COL_X]
+
+    @property
+    def P(self) -> FloatArray:
+        """``(T, 2, 2)`` their covariances."""
+        return self.state[:, COL_P].reshape(-1, 2, 2)
+
+    @property
+    def log_w(self) -> FloatArray:
+        """``(T, K)`` log belief over the heading hypotheses."""
+        return self.state[:, COL_LOG_W:]
+
+    @property
+    def grad_mean(self) -> FloatArray:
+        """``(T,)`` target gradient estimates (rad, before the prior is applied)."""
+        return self.state[:, COL_GRAD_MEAN]
+
+    @property
+    def grad_var(self) -> FloatArray:
+        """``(T,)`` their variances (rad²)."""
+        return self.state[:, COL_GRAD_VAR]
+
+    @property
+    def grad_var_other(self) -> FloatArray:
+        """``(T,)`` per-vehicle variance of the latest gradient observation (rad²)."""
+        return self.state[:, COL_GRAD_OTHER]
+
+    @property
+    def last_t(self) -> FloatArray:
+        """``(T,)`` time of the last update, seconds."""
+        return self.state[:, COL_LAST_T]
+
+    @property
+    def prev_t(self) -> FloatArray:
+        """``(T,)`` time of the update before the last (NaN until two updates)."""
+        return self.state[:, COL_PREV_T]
+
+    @property
+    def last_box(self) -> FloatArray:
+        """``(T, 4)`` the last boxes, pixels."""
+        return self.state[:, COL_LAST_BOX]
+
+    @property
+    def box_vel(self) -> FloatArray:
+        """``(T, 4)`` box edge velocities, px/s (NaN until two updates)."""
+        return self.state[:, COL_BOX_VEL]
+
+    @property
+    def n_obs(self) -> FloatArray:
+        """``(T,)`` number of updates."""
+        return self.state[:, COL_N_OBS]
+
+    @property
+    def R_last(self) -> FloatArray:
+        """``(T, 3, 3)`` camera-to-world rotations at the last update."""
+        return self.state[:, COL_R].reshape(-1, 3, 3)
+
     def keep(self, mask: NDArray[np.bool_]) -> TrackArrays:
         """The tracks where ``mask`` is true."""
-        return TrackArrays(*(getattr(self, f.name)[mask] for f in fields(TrackArrays)))
+        return TrackArrays(self.uid[mask], self.ext_id[mask], self.state[mask])
 
     def concat(self, other: TrackArrays) -> TrackArrays:
         """These tracks followed by ``other``'s."""
@@ -79,43 +160,35 @@ class TrackArrays:
                              for f in fields(TrackArrays)))
 
 
-def rotate_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float,
-                 R_rel: FloatArray) -> FloatArray:
-    """Where boxes ``(T, 4)`` go when the camera turns by ``R_rel`` ``(T, 3, 3)`` (pixels).
+def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: FloatArray,
+               R_now: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+    """Where boxes ``(T, 4)`` seen at camera-to-world rotations ``R_last`` ``(T, 3, 3)`` go
+    when the camera has turned to ``R_now`` ``(3, 3)`` (pixels), and the depth ratio
+    ``Z_new/Z_old`` ``(T,)`` of the points seen at their centres (the ego's own rotation
+    changes every target's depth, most for targets off to the side).
 
-    ``R_rel`` maps directions of the old camera frame into the new one (``R_newᵀ·R_old`` for
-    camera-to-world rotations). A pure rotation moves every pixel whatever its depth; between
-    two frames it is small, so each box is shifted by the motion of its centre (its size
-    changes by a second-order amount).
+    A pure rotation moves every pixel whatever its depth; between two frames it is small, so
+    each box is shifted by the motion of its centre (its size changes by a second-order
+    amount). ``R_now`` None (rotation unknown) leaves the boxes where they were.
     """
     b = np.asarray(boxes, dtype=float)
-    if b.shape[0] == 0:
-        return b.copy()
-    ray = np.empty((b.shape[0], 3))
-    ray[:, 0] = (0.5 * (b[:, 0] + b[:, 2]) - c_x) / f
-    ray[:, 1] = (0.5 * (b[:, 1] + b[:, 3]) - c_y) / f
-    ray[:, 2] = 1.0
-    out = np.einsum("tij,tj->ti", R_rel, ray)
-    z = np.maximum(out[:, 2], 1e-6)
-    du = c_x + f * out[:, 0] / z - 0.5 * (b[:, 0] + b[:, 2])
-    dv = c_y + f * out[:, 1] / z - 0.5 * (b[:, 1] + b[:, 3])
-    return b + np.stack([du, dv, du, dv], axis=1)
+    if b.shape[0] == 0 or R_now is None:
+        return b.copy(), np.ones(b.shape[0])
+    c = np.array([c_x, c_y])
+    mid = 0.5 * (b[:, :2] + b[:, 2:])  # box centres (u, v)
+    ray = np.ones((b.shape[0], 3, 1))
+    ray[:, :2, 0] = (mid - c) * (1.0 / f)
+    out = (R_last @ ray)[..., 0] @ np.asarray(R_now, dtype=float)  # R_nowᵀ·R_last·ray
+    z = out[:, 2]
+    shift = c + out[:, :2] * (f / np.maximum(z, 1e-6))[:, None] - mid
+    return b + np.concatenate([shift, shift], axis=1), z
 
 
-def relative_rotations(R_last: FloatArray, R_now: FloatArray | None) -> FloatArray:
-    """``R_nowᵀ·R_last`` per track ``(T, 3, 3)``; identity when the current rotation is unknown."""
-    if R_now is None:
-        return np.broadcast_to(np.eye(3), R_last.shape).copy()
-    return np.einsum("ji,tjk->tik", np.asarray(R_now, dtype=float), R_last)
-
-
-def predicted_boxes(tracks: TrackArrays, t: float, R_rel: FloatArray, f: float, c_x: float,
-                    c_y: float) -> tuple[FloatArray, FloatArray]:
-    """Each track's box at time ``t``: turned with the camera, then moved at its own image
-    velocity (pixels); tracks with a single update only turn. Returns (predicted, turned)."""
-    turned = rotate_boxes(tracks.last_box, f, c_x, c_y, R_rel)
-    vel = np.nan_to_num(tracks.box_vel, nan=0.0)
-    return turned + vel * (t - tracks.last_t)[:, None], turned
+def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray:
+    """The tracks' ``turned`` boxes moved on to time ``t`` at their image velocities (pixels);
+    tracks with a single update (no velocity yet) only turn."""
+    vel = np.where(np.isnan(tracks.box_vel), 0.0, tracks.box_vel)
+    return turned + vel * (t - tracks.last_t)[:, None]
 
 
 def associate(
@@ -129,17 +202,24 @@ def associate(
     ``predicted`` boxes (default: their last boxes), greedily, best pair first.
     """
     n = boxes.shape[0]
-    rows = np.full(n, -1, np.int64)
     if len(tracks) == 0 or n == 0:
+        return np.full(n, -1, np.int64)
+    has_id = track_ids >= 0
+    # live tracks carry distinct ids (see OursEstimator._store), so a box's id names one row
+    same = (track_ids[:, None] == tracks.ext_id[None, :]) & has_id[:, None]
+    found = same.any(axis=1)
+    rows = np.where(found, same.argmax(axis=1), -1)
+    ids = track_ids[found].tolist()
+    if len(set(ids)) < len(ids):  # a second box with an id already taken starts a new track
+        seen: set[int] = set()
+        for k in np.flatnonzero(found):
+            if int(track_ids[k]) in seen:
+                rows[k] = -1
+            seen.add(int(track_ids[k]))
+    if np.count_nonzero(has_id) == n:
         return rows
-    by_ext = {int(e): i for i, e in enumerate(tracks.ext_id) if e >= 0}
-    used: set[int] = set()
-    for k in np.flatnonzero(track_ids >= 0):
-        r = by_ext.get(int(track_ids[k]))
-        if r is not None and r not in used:
-            rows[k] = r
-            used.add(r)
-    free_boxes = np.flatnonzero(track_ids < 0)
+    used: set[int] = set()  # id-less tracks are never taken by an id
+    free_boxes = np.flatnonzero(~has_id)
     free_tracks = np.flatnonzero(tracks.ext_id < 0)
     if free_boxes.size and free_tracks.size:
         ref = tracks.last_box if predicted is None else predicted
