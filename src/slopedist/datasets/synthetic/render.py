@@ -6,7 +6,8 @@ Convention:
     :mod:`~slopedist.datasets.synthetic.road`. Images are BGR ``H×W×3`` uint8; depth maps are
     float32 metres along the camera's z axis, ``+inf`` where a pixel sees the sky.
 
-How it works (numpy + OpenCV, no GPU, a few milliseconds per 1242×375 frame):
+How it works (numpy + OpenCV, no GPU; about 15 ms of CPU per 1242×375 frame on the shared
+2-core machine, ``benchmarks/synthetic_hills.py``):
 
 1. Visibility: every planar polygon of the world (:mod:`~slopedist.datasets.synthetic.world`)
    and of the target vehicles near the camera is projected, back faces culled, polygons crossing
@@ -18,15 +19,17 @@ How it works (numpy + OpenCV, no GPU, a few milliseconds per 1242×375 frame):
    (a homography per polygon). ``h_w·p``, ``h_x·p`` and ``h_y·p`` are affine in the pixel, so
    they are evaluated on a coarse grid (every ``CELL`` pixels) and interpolated bilinearly, which
    is exact inside one plane. A cell of the grid whose pixels and corners all see one polygon,
-   or pieces of one smooth surface (the ground strips, the pieces of one wall) that agree with
-   each other at the corners to ``PLANE_TOLERANCE``, is drawn from the interpolation; every
-   other cell (occlusion edges, crests, object boundaries, the sky's edge) is evaluated pixel
-   by pixel from its own polygon's plane. Depth is exact either way (to float32 rounding).
-3. Shading: one ``cv2.remap`` into a texture atlas of 512-texel-wide tiles (1/f-noise
-   textures with the lane markings, verge, windows and bands baked in, world-anchored,
-   mip-mapped and chosen per cell by the pixel footprint), times the polygon's colour and sun
-   shading with distance haze (interpolated per cell), a sky gradient with clouds fixed to world
-   directions, and a fixed sensor-noise pattern shifted per frame; all in uint8 arithmetic.
+   or pieces of one smooth surface (the ground strips, the pieces of one wall) whose normals
+   agree to ``TURN_TOLERANCE`` and whose extreme pieces agree at the corners to
+   ``PLANE_TOLERANCE``, is drawn from the interpolation; every other cell (occlusion edges,
+   crests, bumps, object boundaries, the sky's edge) is evaluated pixel by pixel from its own
+   polygon's plane (``Renderer(interpolate=False)`` does that everywhere: the reference).
+   Depth is exact on single planes (float32 rounding) and within about 1e-3 (relative) across
+   the pieces of a surface.
+3. Shading: one ``cv2.remap`` into a texture atlas (1/f-noise textures with the lane markings,
+   verge, windows, bands and the sky's gradient and clouds baked in, world-anchored, true mip
+   levels chosen per pixel by the footprint), times the polygon's colour and sun shading with
+   distance haze, and a fixed sensor-noise pattern shifted per frame; uint8 arithmetic.
 
 Everything is deterministic: textures from a fixed seed, the world from the scenario's seed.
 """
@@ -73,8 +76,14 @@ TEX_SIZE = 512
 """Period of every texture along its ``u`` axis (the atlas's width), texels."""
 MIP_LEVELS = 6
 MIP_BIAS = 0.5
-"""Levels are chosen this much sharper than the footprint says (a level's texels are its blur
-apart, and bilinear sampling blurs further)."""
+"""Levels are chosen this much sharper than the footprint says."""
+ROAD_FORESHORTENING_FREE = 16.0
+"""The road's mip level counts only its foreshortening beyond this factor: seen ahead at a
+grazing angle, its lane markings and texture stay sharp across the road (somewhat aliased along
+it); beyond a crest, at the most grazing angles, it blurs."""
+MIP_DECIMATION = (1, 2, 4, 8, 16, 32)
+"""Level ``l`` keeps every ``MIP_DECIMATION[l]``-th texel of its blurred tile (neighbouring
+pixels stay near in memory)."""
 TILE_PAD = 2
 """Rows repeated above and below every tile of the atlas (bilinear sampling at its edges)."""
 
@@ -116,6 +125,19 @@ def _fft_noise(rng: np.random.Generator, beta: float, n: int = TEX_SIZE) -> Floa
     return np.asarray(out / out.std())
 
 
+def _resampled(img: FloatArray, n: int = TEX_SIZE) -> FloatArray:
+    """A periodic texture resampled to ``n × n`` (Fourier interpolation), standard deviation
+    kept."""
+    m = img.shape[0]
+    spec = np.fft.fft2(img)
+    out = np.zeros((n, n), complex)
+    h = m // 2
+    out[:h, :h], out[:h, -h:], out[-h:, :h], out[-h:, -h:] = (
+        spec[:h, :h], spec[:h, -h:], spec[-h:, :h], spec[-h:, -h:])
+    res = np.fft.ifft2(out).real
+    return np.asarray(res * (img.std() / res.std()))
+
+
 def _fft_blur(img: FloatArray, sigma: float) -> FloatArray:
     """Periodic Gaussian blur (σ in texels)."""
     if sigma <= 0:
@@ -135,10 +157,17 @@ def _base_textures(seed: int = 20240) -> dict[str, FloatArray]:
     speckle = (rng.random((n, n)) < 0.04) * rng.choice([-1.0, 1.0], (n, n))
     asphalt = (0.50 + 0.10 * _fft_noise(rng, 1.0) + 0.06 * _fft_noise(rng, 3.0)
                + 0.22 * _fft_blur(speckle, 0.7))
-    grass = 0.50 + 0.20 * _fft_noise(rng, 1.4) + 0.08 * _fft_noise(rng, 3.0)
+    # grass, on the road's tile at 64 texels per metre, and foliage, at 32, keep the features
+    # they have at 32 and 24: drawn on smaller tiles (their own streams) and resampled
+    own = np.random.default_rng([seed, 1])
+    grass = 0.50 + 0.20 * _resampled(_fft_noise(own, 1.4, n // 2)) + 0.08 * _resampled(
+        _fft_noise(own, 3.0, n // 2))
+    _fft_noise(rng, 1.4), _fft_noise(rng, 3.0)  # the draws the other textures follow
     facade = 0.62 + 0.06 * _fft_noise(rng, 1.2) + 0.06 * _fft_noise(rng, 3.0)
-    leaves = _fft_noise(rng, 1.6)
-    foliage = 0.30 + 0.45 / (1.0 + np.exp(-2.5 * leaves)) + 0.05 * _fft_noise(rng, 0.8)
+    leaves = _resampled(_fft_noise(own, 1.6, 3 * n // 4))
+    foliage = 0.30 + 0.45 / (1.0 + np.exp(-2.5 * leaves)) + 0.05 * _resampled(
+        _fft_noise(own, 0.8, 3 * n // 4))
+    _fft_noise(rng, 1.6), _fft_noise(rng, 0.8)
     obj = 0.55 + 0.14 * _fft_noise(rng, 1.3)
     vehicle = 0.85 + 0.03 * _fft_noise(rng, 2.5)
     cloud = _fft_noise(rng, 3.2)
@@ -256,12 +285,13 @@ def _sky_tile() -> FloatArray:
 
 def _mip_levels(tile: FloatArray) -> list[NDArray[np.uint8]]:
     """The ``MIP_LEVELS`` levels of a tile (grey or BGR in [0, 1], 512 columns): level ``l``
-    blurred by ``_level_sigma(l)``, then every ``2^l``-th row and column; BGR uint8 with the
+    blurred by ``_level_sigma(l)``, then every ``MIP_DECIMATION[l]``-th row and column; BGR
+    uint8 with the
     first column repeated at the end (bilinear sampling wraps)."""
     colour = tile if tile.ndim == 3 else tile[..., None]
     out = []
     for lev in range(MIP_LEVELS):
-        s, step = _level_sigma(lev), 2**lev
+        s, step = _level_sigma(lev), MIP_DECIMATION[lev]
         chans = [_blur_wrap_x(colour[..., c], s, s)[::step, ::step]
                  for c in range(colour.shape[2])]
         img = np.stack(chans, axis=-1)
@@ -273,13 +303,13 @@ def _mip_levels(tile: FloatArray) -> list[NDArray[np.uint8]]:
 
 
 def _level_x0() -> NDArray[np.int64]:
-    """First column of each level's tile (levels side by side):
-    ``Σ_{k<l} (512 / 2^k + 1) = 1024 (1 − 2^−l) + l``."""
-    widths = [TEX_SIZE // 2**lev + 1 for lev in range(MIP_LEVELS)]
+    """First column of each level's tile (levels side by side, each with one column more: the
+    first repeated)."""
+    widths = [TEX_SIZE // d + 1 for d in MIP_DECIMATION]
     return np.concatenate([[0], np.cumsum(widths)[:-1]]).astype(np.int64)
 
 
-ATLAS_WIDTH = sum(TEX_SIZE // 2**lev + 1 for lev in range(MIP_LEVELS))
+ATLAS_WIDTH = sum(TEX_SIZE // d + 1 for d in MIP_DECIMATION)
 
 
 U_REBASE_M = 32.0
@@ -288,7 +318,7 @@ multiple of this near the camera (a multiple of every texture's period, metres),
 coordinates small."""
 ATLAS_MAX_ROWS = 32000
 """``cv2.remap`` reads images of fewer than 32767 rows."""
-LEVEL_ROW_STEP = 2 ** (MIP_LEVELS - 1)
+LEVEL_ROW_STEP = max(MIP_DECIMATION)
 """Textures start at multiples of this many rows of level 0 (whole rows at every level)."""
 
 
@@ -306,7 +336,7 @@ def _stack(tiles: dict[int, list[NDArray[np.uint8]]]) -> tuple[NDArray[np.uint8]
     x0 = _level_x0()
     for t, levels in tiles.items():
         for lev, img in enumerate(levels):
-            r = y0[t] // 2**lev - TILE_PAD
+            r = y0[t] // MIP_DECIMATION[lev] - TILE_PAD
             padded = np.pad(img, ((TILE_PAD, TILE_PAD), (0, 0), (0, 0)), mode="edge")
             image[r:r + padded.shape[0], x0[lev]:x0[lev] + img.shape[1]] = padded
     return image, y0
@@ -323,8 +353,8 @@ def _shared_levels() -> dict[int, list[NDArray[np.uint8]]]:
 class Atlas:
     """Textures of one road layout in one image.
 
-    Level ``l`` (``s = 2^−l``) of texture ``t`` holds ``(u, v)`` (metres in the texture's frame)
-    at column ``1024 (1 − s) + l + s · ((u · TEXELS_PER_M[t]) mod 512)`` and row
+    Level ``l`` (``s = 1 / MIP_DECIMATION[l]``) of texture ``t`` holds ``(u, v)`` (metres in the
+    texture's frame) at column ``x0[l] + s · ((u · TEXELS_PER_M[t]) mod 512)`` and row
     ``s · (y0[t] + (v − v_min[t]) · tpm_v[t])`` (see :func:`atlas_xy`).
 
     Attributes:
@@ -357,24 +387,31 @@ def texture_atlas(half_m: float, lanes: int, lane_width_m: float, ground_half_m:
     return Atlas(np.asarray(bgra, dtype=np.uint8), y0, v_min, tpm_v)
 
 
-def atlas_xy(tx: F32, ty: F32, level: F32, clipped: bool = False) -> tuple[F32, F32]:
+LEVEL_X0 = np.zeros(256, np.float32)
+"""First column of each mip level (a lookup table indexed by the level as uint8)."""
+LEVEL_X0[:MIP_LEVELS], LEVEL_X0[MIP_LEVELS:] = _level_x0(), _level_x0()[-1]
+LEVEL_SCALE = np.zeros(256, np.float32)
+"""Scale of each mip level's texel coordinates, ``1 / MIP_DECIMATION`` (indexed likewise)."""
+LEVEL_SCALE[:MIP_LEVELS] = 1.0 / np.asarray(MIP_DECIMATION)
+LEVEL_SCALE[MIP_LEVELS:] = LEVEL_SCALE[MIP_LEVELS - 1]
+
+
+def atlas_xy(tx: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
     """Atlas coordinates of level-0 texel coordinates ``(tx, ty)`` (``ty`` from the atlas's first
-    row) at mip level log2-footprint ``level`` (rounded, clipped to the levels unless
-    ``clipped``). Overwrites ``tx``, ``ty`` and ``level``."""
-    if not clipped:
-        np.maximum(level, np.float32(0.0), out=level)
-        np.minimum(level, np.float32(MIP_LEVELS - 1), out=level)
-    np.rint(level, out=level)
+    row) at mip level ``level`` (uint8, 2-D). Overwrites ``tx`` and ``ty``."""
     t = tx * np.float32(1.0 / TEX_SIZE)  # u wraps round the 512-texel tiles
     np.floor(t, out=t)
     cv2.scaleAdd(t, -float(TEX_SIZE), tx, dst=tx)  # u mod 512
-    scale = np.exp2(np.negative(level, out=t), out=t)
+    scale = cv2.LUT(level, LEVEL_SCALE)
     tx *= scale
-    level += np.float32(2 * TEX_SIZE)  # the level's first column, 1024 (1 − s) + l
-    cv2.scaleAdd(scale, -2.0 * TEX_SIZE, level, dst=level)
-    tx += level
+    tx += cv2.LUT(level, LEVEL_X0)
     ty *= scale
     return tx, ty
+
+
+def _rounded_level(level: F32) -> NDArray[np.uint8]:
+    """Mip level (log2-footprint) rounded and clipped to the levels, as uint8."""
+    return np.asarray(cv2.convertScaleAbs(np.clip(level, 0.0, MIP_LEVELS - 1)), dtype=np.uint8)
 
 
 @dataclass(frozen=True)
@@ -461,7 +498,8 @@ class _Tables:
             coordinates ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` (``t_y`` from the
             first row of the texture's tile, level 0); fn_t: its transpose.
         plane_c: ``(n + 1,)`` distance of the plane from the camera centre, metres.
-        tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``.
+        tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``;
+            free: ``(n + 1,)`` foreshortening that does not raise its mip level (``_level``).
         tint_t: ``(4, n + 1)`` BGRA colour × sun shading in [0, 1] (alpha 0).
         surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
         turn: ``(n + 1,)`` angle the surface's normal has turned through from its first label's
@@ -474,6 +512,7 @@ class _Tables:
     plane_c: NDArray[np.float32]
     tex: NDArray[np.intp]
     tpm: NDArray[np.float32]
+    free: NDArray[np.float32]
     tint_t: NDArray[np.float32]
     surface: NDArray[np.int64]
     turn: FloatArray
@@ -641,7 +680,8 @@ class Renderer:
         step = np.where(surface[1:] == surface[:-1], np.arccos(np.clip(cos, -1.0, 1.0)), 0.0)
         turn = np.zeros(n + 1)
         turn[2:] = np.cumsum(step)
-        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm,
+        free = np.where(tex_l == Tex.ROAD, ROAD_FORESHORTENING_FREE, 1.0).astype(np.float32)
+        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm, free,
                        np.ascontiguousarray(tint.T), surf, turn)
 
     # -- frame -----------------------------------------------------------------------------------
@@ -685,8 +725,9 @@ class Renderer:
         label = np.empty(n, np.int64)
         label[order] = np.arange(1, n + 1)
         labels = np.zeros((self.height, self.width), np.uint16)
-        for k, pts in enumerate(outlines):  # painter order
-            cv2.fillConvexPoly(labels, pts, int(label[k]), cv2.LINE_8, 4)
+        fill = cv2.fillConvexPoly
+        for pts, value in zip(outlines, label.tolist(), strict=True):  # painter order
+            fill(labels, pts, value, cv2.LINE_8, 4)
         ordered = polys.select(visible[order])
         u_base = U_REBASE_M * math.floor(s_camera / U_REBASE_M)
         tab = self._tables(ordered, key[order], R, C, u_base)
@@ -698,20 +739,20 @@ class Renderer:
         return Rendered(image, depth, labels, owner, first_vehicle)
 
     @staticmethod
-    def _level(z: F32, rn: F32, plane_c: F32, tpm: F32) -> F32:
-        """Mip level (unrounded) from the pixel footprint on the surface: across the ray
-        ``|r| z / f`` (no foreshortening) and along the surface's steepest direction,
-        foreshortened by the plane's obliquity, ``|r| z² / (f |c|)``; log2 of the larger, in
-        texels."""
+    def _level(z: F32, rn: F32, plane_c: F32, tpm: F32, free: F32) -> F32:
+        """Mip level (unrounded): log2 of the pixel footprint on the surface in texels, across the
+        ray ``|r| z / f`` (no foreshortening) times the foreshortening along the surface's
+        steepest direction ``z / |c|`` (``c``: the plane's distance) beyond ``free`` (1: the
+        larger footprint, no aliasing)."""
+        fore = z / np.maximum(plane_c * free, np.float32(1e-3))
+        np.maximum(fore, np.float32(1.0), out=fore)
         across = z * rn
-        along = across * z
-        along /= np.maximum(plane_c, np.float32(1e-3))
-        np.maximum(along, across, out=along)
-        along *= tpm
-        np.maximum(along, np.float32(1e-6), out=along)
-        np.log2(along, out=along)
-        along -= np.float32(MIP_BIAS)
-        return along
+        across *= tpm
+        across *= fore
+        np.maximum(across, np.float32(1e-6), out=across)
+        np.log2(across, out=across)
+        across -= np.float32(MIP_BIAS)
+        return across
 
     def _sky(self, x: F32, y: F32, R: FloatArray) -> tuple[F32, F32]:
         """Texel coordinates in the sky's tile (level 0) of image points ``(x, y)``: azimuth and
@@ -764,7 +805,8 @@ class Renderer:
         sky_c = lab_c == 0
         with np.errstate(divide="ignore"):
             z_c = np.reciprocal(inv_c)
-        lev_c = self._level(z_c, self._rn_c, np.take(tab.plane_c, lab_c), np.take(tab.tpm, lab_c))
+        lev_c = self._level(z_c, self._rn_c, np.take(tab.plane_c, lab_c), np.take(tab.tpm, lab_c),
+                            np.take(tab.free, lab_c))
         np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         mult_c, add_c = self._colour_terms(z_c, lab_c, tab)
         if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
@@ -844,7 +886,8 @@ class Renderer:
         mapx *= depth
         mapy = up(ty_c)
         mapy *= depth
-        mapx, mapy = atlas_xy(mapx, mapy, up(lev_c), clipped=True)
+        # levels clipped on the grid stay clipped when interpolated; rounded to uint8
+        mapx, mapy = atlas_xy(mapx, mapy, np.asarray(cv2.convertScaleAbs(up(lev_c)), np.uint8))
         return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
@@ -865,7 +908,7 @@ class Renderer:
             ty = f[3] * x + f[4] * y + f[5]
             ty *= z
         lev = self._level(z, np.take(self._rn_work, where), np.take(tab.plane_c, lab),
-                          np.take(tab.tpm, lab))
+                          np.take(tab.tpm, lab), np.take(tab.free, lab))
         mult, add = self._colour_terms(z, lab, tab)
         sky = np.nonzero(lab == 0)
         if sky[0].size:
@@ -873,7 +916,7 @@ class Renderer:
             lev[sky] = 0.0
             mult[sky] = 255
             add[sky] = 0
-        tx, ty = atlas_xy(tx, ty, lev)
+        tx, ty = atlas_xy(tx, ty, _rounded_level(lev))
         for field, values in zip(fields, (z, tx, ty, mult, add), strict=True):
             out: NDArray[Any] = np.asarray(field)
             if out.ndim == 3:  # BGRA as one 32-bit word
