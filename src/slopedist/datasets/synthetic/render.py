@@ -494,26 +494,21 @@ class _Tables:
     """Per-label tables of one frame (label 0 = sky).
 
     Attributes:
-        fn: ``(n + 1, 9)`` pixel functionals ``(h_x, h_y, h_w)``: ``1/z = h_w·p``, texel
-            coordinates ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` (``t_y`` from the
-            first row of the texture's tile, level 0); fn_t: its transpose.
-        plane_c: ``(n + 1,)`` distance of the plane from the camera centre, metres.
-        tex: ``(n + 1,)`` texture; tpm: ``(n + 1,)`` its texels per metre along ``v``;
-            free: ``(n + 1,)`` foreshortening that does not raise its mip level (``_level``).
-        tint_t: ``(4, n + 1)`` BGRA colour × sun shading in [0, 1] (alpha 0).
+        per_label: ``(15, n + 1)`` float32, one row per quantity (gathered together): rows 0–8
+            the pixel functionals ``(h_x, h_y, h_w)``: ``1/z = h_w·p``, texel coordinates
+            ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` (level 0, ``t_y`` from the
+            atlas's first row); row 9 the plane's distance from the camera centre (m); 10 the
+            texture's texels per metre along ``v``; 11 the foreshortening that does not raise the
+            mip level (``_level``); 12–14 the BGR colour × sun shading in [0, 1].
+        tex: ``(n + 1,)`` texture.
         surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
         turn: ``(n + 1,)`` angle the surface's normal has turned through from its first label's
             piece to each label's (radians, summed piece to piece): between labels ``a < b`` of
             one surface every piece's normal is within ``turn[b] − turn[a]`` of the others'.
     """
 
-    fn: NDArray[np.float32]
-    fn_t: NDArray[np.float32]
-    plane_c: NDArray[np.float32]
+    per_label: NDArray[np.float32]
     tex: NDArray[np.intp]
-    tpm: NDArray[np.float32]
-    free: NDArray[np.float32]
-    tint_t: NDArray[np.float32]
     surface: NDArray[np.int64]
     turn: FloatArray
 
@@ -550,7 +545,7 @@ class Renderer:
             ground_half = float(np.abs(v).max()) + 1.0
         else:
             ground_half = self.half + 1.0
-        self._near: tuple[NDArray[np.bool_], Polygons] | None = None
+        self._combined: Polygons | None = None
         self._atlas = texture_atlas(self.half, self.lanes, self.lane_width,
                                     round(ground_half, 3))
         self._mat_tex = np.zeros(len(Material), np.intp)
@@ -597,6 +592,19 @@ class Renderer:
         return np.asarray(np.sqrt(rx * rx + ry * ry + 1.0) / K[0, 0], dtype=np.float32)
 
     # -- polygon stage ---------------------------------------------------------------------------
+
+    def _with_dynamic(self, dynamic: Polygons | None) -> Polygons:
+        """The world's polygons followed by ``dynamic`` (rows kept between frames and
+        overwritten: no copy of the world per frame)."""
+        if dynamic is None or not len(dynamic):
+            return self.static
+        n = len(self.static)
+        if self._combined is None or len(self._combined) != n + len(dynamic):
+            self._combined = Polygons.concat([self.static, dynamic])
+        else:
+            for name in Polygons.__dataclass_fields__:
+                getattr(self._combined, name)[n:] = getattr(dynamic, name)
+        return self._combined
 
     def _visible_polygons(self, polys: Polygons, painter: NDArray[np.intp], R_wc: FloatArray,
                           C_w: FloatArray) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
@@ -681,8 +689,8 @@ class Renderer:
         turn = np.zeros(n + 1)
         turn[2:] = np.cumsum(step)
         free = np.where(tex_l == Tex.ROAD, ROAD_FORESHORTENING_FREE, 1.0).astype(np.float32)
-        return _Tables(fn, np.ascontiguousarray(fn.T), plane_c, tex_l, tpm, free,
-                       np.ascontiguousarray(tint.T), surf, turn)
+        per_label = np.concatenate([fn.T, plane_c[None], tpm[None], free[None], tint.T[:3]])
+        return _Tables(np.ascontiguousarray(per_label, dtype=np.float32), tex_l, surf, turn)
 
     # -- frame -----------------------------------------------------------------------------------
 
@@ -705,14 +713,11 @@ class Renderer:
         detail = (st.lod < 0) | ((st.lod == 0) & (st.lod_key < boundary)) | (
             (st.lod == 1) & (st.lod_key >= boundary))
         near = detail & (st.s_hi >= s_camera - 2.0) & (st.s_lo <= s_camera + VIEW_RANGE_M)
-        if self._near is None or not np.array_equal(near, self._near[0]):
-            self._near = (near, st.select(np.flatnonzero(near)))
-        polys = self._near[1]
-        if dynamic is not None and len(dynamic):
-            polys = Polygons.concat([polys, dynamic])
-            painter = np.lexsort((polys.layer, -polys.key))
-        else:
-            painter = np.arange(len(polys))
+        idx = np.flatnonzero(near)
+        polys = self._with_dynamic(dynamic)
+        if len(polys) > len(st):  # the targets' faces, in the rows after the world's
+            idx = np.concatenate([idx, np.arange(len(st), len(polys))])
+        painter = idx[np.lexsort((polys.layer[idx], -polys.key[idx]))]
         visible, outlines = self._visible_polygons(polys, painter, R, C)
         visible = painter[visible]
         n = len(visible)
@@ -767,19 +772,18 @@ class Renderer:
         ty = (el - Tex.V_MIN_M[Tex.SKY]) * Tex.TEXELS_PER_M_V[Tex.SKY] + self._atlas.y0[Tex.SKY]
         return tx.astype(np.float32), ty.astype(np.float32)
 
-    def _colour_terms(self, z: F32, lab: NDArray[np.intp], tab: _Tables
-                      ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-        """Per surface point (``z``, ``lab`` of any shape S): the factor of the texture (tint ×
-        share of the surface's colour through the haze) and the haze added, ``S × 4`` BGRA
-        uint8 (× 255)."""
+    @staticmethod
+    def _colour_terms(z: F32, tint: F32) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """Per surface point (``z`` of any shape S, ``tint``: ``3 × S`` BGR in [0, 1]): the
+        factor of the texture (tint × share of the surface's colour through the haze) and the
+        haze added, ``S × 4`` BGRA uint8 (× 255)."""
         own = 1.0 / (1.0 + z * np.float32(1.0 / HAZE_DISTANCE_M))
         own *= np.float32(255.0)
         haze = np.float32(255.0) - own
-        mult = np.zeros((*lab.shape, 4), np.uint8)
-        add = np.zeros((*lab.shape, 4), np.uint8)
+        mult = np.zeros((*z.shape, 4), np.uint8)
+        add = np.zeros((*z.shape, 4), np.uint8)
         for c in range(3):  # + 0.5: rounded when cast
-            m = np.take(tab.tint_t[c], lab)
-            m *= own
+            m = tint[c] * own
             m += np.float32(0.5)
             mult[..., c] = m
             a = haze * HAZE[c]
@@ -797,7 +801,7 @@ class Renderer:
         o = CELL // 2
         # 1. the coarse grid: homogeneous coordinates, mip level and colour terms per sample
         lab_c = labels[self._sample_rows][:, self._sample_cols].astype(np.intp)
-        f = np.take(tab.fn_t, lab_c, axis=1)
+        f = np.take(tab.per_label, lab_c, axis=1)
         xs, ys = self._xs[None, :], self._ys[:, None]
         inv_c = f[6] * xs + f[7] * ys + f[8]  # 0 for the sky (label 0)
         tx_c = f[0] * xs + f[1] * ys + f[2]
@@ -805,10 +809,9 @@ class Renderer:
         sky_c = lab_c == 0
         with np.errstate(divide="ignore"):
             z_c = np.reciprocal(inv_c)
-        lev_c = self._level(z_c, self._rn_c, np.take(tab.plane_c, lab_c), np.take(tab.tpm, lab_c),
-                            np.take(tab.free, lab_c))
+        lev_c = self._level(z_c, self._rn_c, f[9], f[10], f[11])
         np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
-        mult_c, add_c = self._colour_terms(z_c, lab_c, tab)
+        mult_c, add_c = self._colour_terms(z_c, f[12:15])
         if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
             yy, xx = np.nonzero(sky_c)
             inv_c[yy, xx] = 1.0
@@ -866,7 +869,7 @@ class Renderer:
         tol = PLANE_TOLERANCE * np.abs(ref)
         ok = np.ones(cb.shape, bool)
         for lab in (lo, hi):
-            p = np.take(tab.fn_t[6:], lab[cb, ca], axis=1)
+            p = np.take(tab.per_label[6:9], lab[cb, ca], axis=1)
             ok &= np.all(np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol, axis=0)
         good[cb[~ok], ca[~ok]] = False
 
@@ -900,16 +903,15 @@ class Renderer:
         where = self._cell_work[cb, ca]
         x = (CELL * ca).astype(np.float32)[:, None] + self._cell_dx
         y = (CELL * cb).astype(np.float32)[:, None] + self._cell_dy
-        f = np.take(tab.fn_t, lab, axis=1)
+        f = np.take(tab.per_label, lab, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.reciprocal(f[6] * x + f[7] * y + f[8])  # +inf in the sky
             tx = f[0] * x + f[1] * y + f[2]
             tx *= z
             ty = f[3] * x + f[4] * y + f[5]
             ty *= z
-        lev = self._level(z, np.take(self._rn_work, where), np.take(tab.plane_c, lab),
-                          np.take(tab.tpm, lab), np.take(tab.free, lab))
-        mult, add = self._colour_terms(z, lab, tab)
+        lev = self._level(z, np.take(self._rn_work, where), f[9], f[10], f[11])
+        mult, add = self._colour_terms(z, f[12:15])
         sky = np.nonzero(lab == 0)
         if sky[0].size:
             tx[sky], ty[sky] = self._sky(x[sky], y[sky], R)
