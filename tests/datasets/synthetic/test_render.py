@@ -201,3 +201,16 @@ def test_tall_structures_are_refused() -> None:
         WorldSpec(structure_height_m=(3.0, 40.0))
     with pytest.raises(ConfigurationError, match="structure_segment_m"):
         WorldSpec(structure_segment_m=(6.0, 60.0))
+
+
+def test_depth_is_positive_or_infinite() -> None:
+    # pixels the fill reaches past a far polygon's horizon are seen at infinity, not behind
+    # the camera (same_flat frame 27 has three at the horizon)
+    import warnings
+
+    seq = SyntheticSequence(load_scenario("same_flat"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        for k in (0, 27, 80):
+            d = seq.render(k).depth_m
+            assert not np.isnan(d).any() and np.all(d > 0)

@@ -826,6 +826,9 @@ class Renderer:
         lo: NDArray[np.intp] = cv2.erode(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         good = tab.surface[lo] == tab.surface[hi]
+        # a corner beyond its plane's horizon (a sliver of a far or edge-on polygon): exact
+        beyond = (inv_c <= 0) & ~sky_c
+        good &= ~(beyond[:-1, :-1] | beyond[:-1, 1:] | beyond[1:, :-1] | beyond[1:, 1:])
         self._check_pieces(good, lo, hi, inv_c, tab)
         if not self.interpolate:
             good[:] = False
@@ -883,14 +886,16 @@ class Renderer:
         def up(a: NDArray) -> NDArray:
             return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR))
 
-        with np.errstate(divide="ignore"):
+        # (in cells drawn pixel by pixel afterwards the values may be anything)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             depth = np.reciprocal(up(inv_c))
-        mapx = up(tx_c)
-        mapx *= depth
-        mapy = up(ty_c)
-        mapy *= depth
-        # levels clipped on the grid stay clipped when interpolated; rounded to uint8
-        mapx, mapy = atlas_xy(mapx, mapy, np.asarray(cv2.convertScaleAbs(up(lev_c)), np.uint8))
+            mapx = up(tx_c)
+            mapx *= depth
+            mapy = up(ty_c)
+            mapy *= depth
+            # levels clipped on the grid stay clipped when interpolated; rounded to uint8
+            level = np.asarray(cv2.convertScaleAbs(up(lev_c)), np.uint8)
+            mapx, mapy = atlas_xy(mapx, mapy, level)
         return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
@@ -904,12 +909,16 @@ class Renderer:
         x = (CELL * ca).astype(np.float32)[:, None] + self._cell_dx
         y = (CELL * cb).astype(np.float32)[:, None] + self._cell_dy
         f = np.take(tab.per_label, lab, axis=1)
+        inv = f[6] * x + f[7] * y + f[8]
+        # the sky (0), and pixels whose centre is beyond their polygon's horizon (the fill
+        # reaches half a pixel past an outline): seen at infinity
+        np.maximum(inv, np.float32(0.0), out=inv)
         with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.reciprocal(f[6] * x + f[7] * y + f[8])  # +inf in the sky
+            z = np.reciprocal(inv)
             tx = f[0] * x + f[1] * y + f[2]
-            tx *= z
+            tx /= inv
             ty = f[3] * x + f[4] * y + f[5]
-            ty *= z
+            ty /= inv
         lev = self._level(z, np.take(self._rn_work, where), f[9], f[10], f[11])
         mult, add = self._colour_terms(z, f[12:15])
         sky = np.nonzero(lab == 0)
