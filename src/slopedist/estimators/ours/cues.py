@@ -243,9 +243,9 @@ def expected_centre_offset_px(
     e = np.asarray(half_extent_m, dtype=float)
     h = np.asarray(cam_height_m, dtype=float)
     H = np.asarray(height_m, dtype=float)
-    top_depth = np.where(h >= H, Z + e, Z - e)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.asarray(0.5 * f * (h / (Z - e) + (h - H) / top_depth))
+    near = Z - e  # > 0 for the box of a real target
+    top_depth = np.where(h >= H, Z + e, near)
+    return np.asarray(0.5 * f * (h / near + (h - H) / top_depth))
 
 
 def target_gradient(

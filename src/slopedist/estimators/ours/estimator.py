@@ -260,9 +260,11 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
+        # every box finite with right > left and bottom > top (the common case, checked cheaply)
+        all_usable = (np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n
+                      and bool(np.isfinite(np.add.reduce(boxes, axis=None))))
         usable = (np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0])
-                  & (boxes[:, 3] > boxes[:, 1]))
-        all_usable = all_true(usable)
+                  & (boxes[:, 3] > boxes[:, 1])) if not all_usable else None
         # the reasons of unusable_box_reasons(frame, needs_rotation=False)
         reasons = _object_column("", n) if all_usable else box_problems(boxes)
         theta_in = float(frame.theta_rad)
@@ -271,7 +273,7 @@ class OursEstimator(Estimator):
         theta_f = (theta_in if theta_ok else self._theta_rest) + calib.delta
         jitter = (self.config.theta_sigma_rad if theta_ok
                   else self.config.no_rotation_theta_sigma_rad)
-        good = np.arange(n) if all_usable else np.flatnonzero(usable)
+        good = np.arange(n) if usable is None else np.flatnonzero(usable)
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
         values = (self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
@@ -288,7 +290,7 @@ class OursEstimator(Estimator):
         return FrameEstimates(
             theta_rad=_filled(n, theta_in),
             theta_adj_rad=out["theta_adj"],
-            delta_y_px=delta_y if all_usable else np.where(usable, delta_y, np.nan),
+            delta_y_px=delta_y if usable is None else np.where(usable, delta_y, np.nan),
             v_px=out["v"],
             distance_m=out["distance"],
             reason=reasons,
@@ -355,13 +357,14 @@ class OursEstimator(Estimator):
         R_now = frame.R_world_cam
         tr = self.tracks
         pred_boxes = None
+        # the boxes' image motion serves IoU association (id-less boxes) and the noise estimate
+        box_motion = cfg.adapt_box_noise or any_true(ids < 0)
         if not len(tr):  # (no track is ever stored unless cfg.tracking)
             rows = np.full(n, -1, np.int64)
             turned, depth_ratio = tr.last_box, np.ones(0)
         else:
             turned, depth_ratio = turn_boxes(tr.last_box, f, cam.c_x, cam.c_y, tr.R_last, R_now)
-            pred_boxes = (moved_boxes(tr, turned, t)
-                          if cfg.adapt_box_noise or any_true(ids < 0) else None)
+            pred_boxes = moved_boxes(tr, turned, t) if box_motion else None
             rows = associate(tr, B, ids, cfg.min_iou, pred_boxes)
         old = rows >= 0
         every_old = all_true(old)
@@ -387,19 +390,21 @@ class OursEstimator(Estimator):
                 grad_m[old] = S_old[:, COL_GRAD_MEAN]
                 grad_v[old] = grad_v_old
                 grad_o[old] = S_old[:, COL_GRAD_OTHER]
-            alpha, alpha_var = _shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+            a_m, a_v = _shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+            alpha: FloatArray | float = a_m[:, None]
+            alpha_var: FloatArray | float = a_v[:, None]
         else:  # the prior, the same for every target
-            alpha, alpha_var = np.zeros(1), np.full(1, cfg.gradient_sigma_rad ** 2)
+            alpha, alpha_var = 0.0, cfg.gradient_sigma_rad ** 2
 
         # --- ground-contact cue and fusion ---------------------------------------------------
         v_frame = cam.c_y - f * math.tan(theta_f)
         if cfg.use_ground_contact:
-            v_target = cam.c_y - f * np.tan(theta_f + alpha)
+            v_target = cam.c_y - f * np.tan(theta_f + alpha) if cfg.gradient_feedback else v_frame
             row_white = sigma_px ** 2 + (f * jitter_rad / cos2) ** 2
             row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta ** 2)
             sd_e = cls.sd_e[ci]
-            gc = cues.ground_contact_log_cue(B[:, 3:4], v_target[:, None], f, h, e_all,
-                                             row_white, row_other[:, None], calib.sigma_height,
+            gc = cues.ground_contact_log_cue(B[:, 3:4], v_target, f, h, e_all,
+                                             row_white, row_other, calib.sigma_height,
                                              np.tile(sd_e, n_modes) if n_modes > 1 else sd_e)
             if any_true(trunc_bottom):
                 gc = _inflate(gc, trunc_bottom[:, None], infl)
@@ -470,7 +475,8 @@ class OursEstimator(Estimator):
                 belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
             belief = belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
         uid = (self._store(rows, ids, x, P, belief, g_mean, g_var, a_other, B, t, R_now,
-                           turned) if cfg.tracking else self._new_uids(n))
+                           turned if box_motion else None) if cfg.tracking
+               else self._new_uids(n))
         if cfg.self_calibrate:
             usable = (pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
             theta_cfg = theta_f - calib.delta
@@ -511,13 +517,15 @@ class OursEstimator(Estimator):
     def _store(self, rows: NDArray[np.int64], ext_ids: NDArray[np.int64], x: FloatArray,
                P: FloatArray, log_w: FloatArray | None, g_mean: FloatArray, g_var: FloatArray,
                g_other: FloatArray, boxes: FloatArray, t: float,
-               R_now: NDArray[np.float64] | None, turned: FloatArray) -> NDArray[np.int64]:
+               R_now: NDArray[np.float64] | None, turned: FloatArray | None
+               ) -> NDArray[np.int64]:
         """Write the updated states back; returns the track uid of every target.
 
         ``log_w`` (the heading belief) is None when it is not kept: tracks then carry the prior.
-        A new track that carries a box track id replaces any live track with that id (its
-        vehicle failed the gate); a second box with an id already continued in this frame gets
-        an id-less track.
+        ``turned`` (the tracks' last boxes turned with the camera) is None when the box motion
+        is not needed (only id-less tracks and the box-noise estimate use it). A new track that
+        carries a box track id replaces any live track with that id (its vehicle failed the
+        gate); a second box with an id already continued in this frame gets an id-less track.
         """
         tr = self.tracks
         n = rows.shape[0]
@@ -536,7 +544,9 @@ class OursEstimator(Estimator):
             S[:, COL_GRAD_MEAN] = pick(g_mean)
             S[:, COL_GRAD_VAR] = pick(g_var)
             S[:, COL_GRAD_OTHER] = pick(g_other)
-            S[:, COL_BOX_VEL] = (b - turned[r]) / np.maximum(t - S[:, COL_LAST_T], 1e-6)[:, None]
+            if turned is not None:  # the box motion (else not needed: see _estimate_boxes)
+                S[:, COL_BOX_VEL] = ((b - turned[r])
+                                     / np.maximum(t - S[:, COL_LAST_T], 1e-6)[:, None])
             S[:, COL_PREV_T] = S[:, COL_LAST_T]
             S[:, COL_LAST_T] = t
             S[:, COL_LAST_BOX] = b

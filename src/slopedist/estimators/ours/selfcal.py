@@ -23,7 +23,7 @@ outliers (a wrong class, a false detection). It is causal and converges as track
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -88,18 +88,6 @@ class Calibration:
     n_tracks: int
 
 
-@dataclass
-class _TrackSums:
-    """Per-track sufficient statistics (A: design (·,2), U: random-effect loadings (·,2))."""
-
-    AA: FloatArray = field(default_factory=lambda: np.zeros((2, 2)))
-    AU: FloatArray = field(default_factory=lambda: np.zeros((2, 2)))
-    UU: FloatArray = field(default_factory=lambda: np.zeros((2, 2)))
-    Ay: FloatArray = field(default_factory=lambda: np.zeros(2))
-    Uy: FloatArray = field(default_factory=lambda: np.zeros(2))
-    n: int = 0
-
-
 class SelfCalibrator:
     """Causal estimator of (θ0, h); feed it targets frame by frame with :meth:`update`.
 
@@ -124,12 +112,15 @@ class SelfCalibrator:
 
     def reset(self) -> None:
         """Forget every observation (new sequence)."""
-        self._tracks: dict[int, _TrackSums] = {}
+        self._row_of: dict[int, int] = {}  # track key → row of the per-track sums
+        # per track: Σ AᵀD⁻¹A, Σ AᵀD⁻¹U, Σ UᵀD⁻¹U (2×2 each), Σ AᵀD⁻¹y, Σ UᵀD⁻¹y (2 each) and
+        # its current information matrix and vector (random effects marginalised)
+        self._sums = np.zeros((0, _N_SUMS))
         self._info_tracks = np.zeros((2, 2))
         self._vec_tracks = np.zeros(2)
         self._n_obs = 0
         self._p = self._prior_mean.copy()
-        self._cov = np.linalg.inv(self._prior_info)
+        self._cov = _inv2(self._prior_info)
 
     @property
     def horizon_offset_rad(self) -> float:
@@ -148,9 +139,9 @@ class SelfCalibrator:
 
     def calibration(self) -> Calibration:
         """The current estimate with its uncertainty."""
-        sd = np.sqrt(np.diag(self._cov))
-        return Calibration(self.mount0 - float(self._p[0]), float(sd[0]), float(self._p[1]),
-                           float(sd[1]), float(self._p[0]), self._n_obs, len(self._tracks))
+        return Calibration(self.mount0 - float(self._p[0]), math.sqrt(self._cov[0, 0]),
+                           float(self._p[1]), math.sqrt(self._cov[1, 1]), float(self._p[0]),
+                           self._n_obs, len(self._row_of))
 
     def update(self, track_keys: NDArray[np.int64], bottom_px: FloatArray, horizon_px: FloatArray,
                theta_rad: FloatArray, near_m: FloatArray) -> None:
@@ -166,59 +157,94 @@ class SelfCalibrator:
         c = self.config
         ok = (np.isfinite(bottom_px) & np.isfinite(horizon_px) & np.isfinite(near_m)
               & np.isfinite(theta_rad) & (near_m >= c.min_near_m) & (near_m <= c.max_near_m))
-        if not np.any(ok):
+        m = int(np.count_nonzero(ok))
+        if not m:
             return
         f = self.f
-        keys = np.asarray(track_keys)[ok]
         y = (bottom_px - horizon_px)[ok]
         a0 = -f / np.cos(theta_rad[ok]) ** 2
         a1 = f / near_m[ok]
         A = np.stack([a0, a1], axis=1)
-        U = np.stack([a1 * self._p[1], np.full(a1.shape, -f)], axis=1)
-        d = np.full(y.shape, c.row_sigma_px ** 2)
+        U = np.stack([a1 * self._p[1], np.full(m, -f)], axis=1)
+        d = np.full(m, c.row_sigma_px ** 2)
         resid = y - A @ self._p
         total = np.sqrt(d + (U[:, 0] * c.size_sigma_log) ** 2
                         + (U[:, 1] * c.gradient_sigma_rad) ** 2)
         z = np.abs(resid) / total
         w = np.where(z > c.huber_k, c.huber_k / np.maximum(z, 1e-12), 1.0)
-        d = d / w
-        for k in np.unique(keys):
-            m = keys == k
-            self._add_track_rows(int(k), A[m], U[m], y[m], d[m])
-        self._n_obs += int(ok.sum())
+        inv_d = w / d
+        Ad, Ud = A * inv_d[:, None], U * inv_d[:, None]
+        add = np.concatenate([(Ad[:, :, None] * A[:, None, :]).reshape(m, 4),
+                              (Ad[:, :, None] * U[:, None, :]).reshape(m, 4),
+                              (Ud[:, :, None] * U[:, None, :]).reshape(m, 4),
+                              Ad * y[:, None], Ud * y[:, None], np.zeros((m, 6))], axis=1)
+        rows = self._rows(np.asarray(track_keys)[ok].tolist())
+        if len(set(rows.tolist())) == m:
+            self._sums[rows, :_N_STATS] += add[:, :_N_STATS]
+            rows_u = rows
+        else:  # a key twice in one frame
+            np.add.at(self._sums, rows, add)
+            rows_u = np.unique(rows)
+        sums = self._sums[rows_u]
+        info, vec = self._track_info(sums)
+        self._info_tracks += (info - sums[:, _INFO].reshape(-1, 2, 2)).sum(axis=0)
+        self._vec_tracks += (vec - sums[:, _VEC]).sum(axis=0)
+        sums[:, _INFO] = info.reshape(-1, 4)
+        sums[:, _VEC] = vec
+        self._sums[rows_u] = sums
+        self._n_obs += m
         self._solve()
 
-    def _add_track_rows(self, key: int, A: FloatArray, U: FloatArray, y: FloatArray,
-                        d: FloatArray) -> None:
-        sums = self._tracks.get(key)
-        if sums is None:
-            sums = self._tracks[key] = _TrackSums()
-        else:
-            info, vec = self._track_info(sums)
-            self._info_tracks -= info
-            self._vec_tracks -= vec
-        inv_d = 1.0 / d
-        sums.AA += (A * inv_d[:, None]).T @ A
-        sums.AU += (A * inv_d[:, None]).T @ U
-        sums.UU += (U * inv_d[:, None]).T @ U
-        sums.Ay += (A * inv_d[:, None]).T @ y
-        sums.Uy += (U * inv_d[:, None]).T @ y
-        sums.n += len(y)
-        info, vec = self._track_info(sums)
-        self._info_tracks += info
-        self._vec_tracks += vec
+    def _rows(self, keys: list[int]) -> NDArray[np.intp]:
+        """Rows of the per-track sums of these track keys (new keys get zeroed rows)."""
+        row_of = self._row_of
+        new = [k for k in dict.fromkeys(keys) if k not in row_of]
+        if new:
+            start = len(row_of)
+            for i, k in enumerate(new):
+                row_of[k] = start + i
+            if start + len(new) > self._sums.shape[0]:  # grow by doubling
+                grown = np.zeros((max(2 * self._sums.shape[0], start + len(new), 16), _N_SUMS))
+                grown[:start] = self._sums[:start]
+                self._sums = grown
+        return np.array([row_of[k] for k in keys], dtype=np.intp)
 
-    def _track_info(self, s: _TrackSums) -> tuple[FloatArray, FloatArray]:
-        """Information matrix and vector of one track with its random effects marginalised."""
-        M = np.linalg.inv(self._omega_inv + s.UU)
-        info = s.AA - s.AU @ M @ s.AU.T
-        vec = s.Ay - s.AU @ M @ s.Uy
+    def _track_info(self, sums: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Information matrices ``(T, 2, 2)`` and vectors ``(T, 2)`` of tracks with their
+        random effects marginalised: ``AA − AU·M·AUᵀ`` and ``Ay − AU·M·Uy`` with
+        ``M = (Ω⁻¹ + UU)⁻¹``."""
+        AA = sums[:, _AA].reshape(-1, 2, 2)
+        AU = sums[:, _AU].reshape(-1, 2, 2)
+        UU = sums[:, _UU].reshape(-1, 2, 2)
+        M = _inv2(self._omega_inv + UU)
+        AUM = AU @ M
+        info = AA - AUM @ np.swapaxes(AU, -1, -2)
+        vec = sums[:, _AY] - (AUM @ sums[:, _UY, None])[..., 0]
         return info, vec
 
     def _solve(self) -> None:
         info = self._prior_info + self._info_tracks
         vec = self._prior_info @ self._prior_mean + self._vec_tracks
-        self._cov = np.asarray(np.linalg.inv(info), dtype=float)
+        self._cov = _inv2(info)
         p = self._cov @ vec
         if np.all(np.isfinite(p)) and p[1] > 0:
             self._p = p
+
+
+_AA, _AU, _UU, _AY, _UY = slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 14), slice(14, 16)
+_N_STATS = 16
+"""Columns of the per-track sufficient statistics (then the track's information: 4 + 2)."""
+_INFO, _VEC = slice(16, 20), slice(20, 22)
+_N_SUMS = 22
+
+
+def _inv2(M: FloatArray) -> FloatArray:
+    """Inverse of 2×2 matrices ``(..., 2, 2)`` in closed form."""
+    a, b, c, d = M[..., 0, 0], M[..., 0, 1], M[..., 1, 0], M[..., 1, 1]
+    det = a * d - b * c
+    out = np.empty(M.shape)
+    out[..., 0, 0] = d / det
+    out[..., 0, 1] = -b / det
+    out[..., 1, 0] = -c / det
+    out[..., 1, 1] = a / det
+    return out

@@ -10,7 +10,7 @@ update all tracks of a frame at once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,6 +59,7 @@ class TrackArrays:
     uid: IntArray
     ext_id: IntArray
     state: FloatArray
+    _by_ext: dict[int, int] | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def empty(cls, n_hypotheses: int) -> TrackArrays:
@@ -89,6 +90,13 @@ class TrackArrays:
 
     def __len__(self) -> int:
         return int(self.uid.shape[0])
+
+    def row_of_id(self) -> dict[int, int]:
+        """Row of each box track id the tracks follow (ids are distinct among live tracks:
+        see :meth:`OursEstimator._store`); built once per set of tracks."""
+        if self._by_ext is None:
+            self._by_ext = {e: i for i, e in enumerate(self.ext_id.tolist()) if e >= 0}
+        return self._by_ext
 
     @property
     def x(self) -> FloatArray:
@@ -157,7 +165,7 @@ class TrackArrays:
     def concat(self, other: TrackArrays) -> TrackArrays:
         """These tracks followed by ``other``'s."""
         return TrackArrays(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)])
-                             for f in fields(TrackArrays)))
+                             for f in fields(TrackArrays) if f.init))
 
 
 def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: FloatArray,
@@ -176,9 +184,13 @@ def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: Floa
         return b.copy(), np.ones(b.shape[0])
     c = np.array([c_x, c_y])
     mid = 0.5 * (b[:, :2] + b[:, 2:])  # box centres (u, v)
-    ray = np.ones((b.shape[0], 3, 1))
-    ray[:, :2, 0] = (mid - c) * (1.0 / f)
-    out = (R_last @ ray)[..., 0] @ np.asarray(R_now, dtype=float)  # R_nowᵀ·R_last·ray
+    ray = np.ones((b.shape[0], 3))
+    ray[:, :2] = (mid - c) * (1.0 / f)
+    R_now = np.asarray(R_now, dtype=float)
+    if np.count_nonzero(R_last == R_last[0]) == R_last.size:  # all seen at one rotation
+        out = ray @ (R_last[0].T @ R_now)  # rows: (R_nowᵀ·R_last·ray)ᵀ
+    else:
+        out = (R_last @ ray[:, :, None])[..., 0] @ R_now
     z = out[:, 2]
     shift = c + out[:, :2] * (f / np.maximum(z, 1e-6))[:, None] - mid
     return b + np.concatenate([shift, shift], axis=1), z
@@ -204,18 +216,16 @@ def associate(
     n = boxes.shape[0]
     if len(tracks) == 0 or n == 0:
         return np.full(n, -1, np.int64)
-    has_id = track_ids >= 0
-    # live tracks carry distinct ids (see OursEstimator._store), so a box's id names one row
-    same = (track_ids[:, None] == tracks.ext_id[None, :]) & has_id[:, None]
-    found = same.any(axis=1)
-    rows = np.where(found, same.argmax(axis=1), -1)
-    ids = track_ids[found].tolist()
-    if len(set(ids)) < len(ids):  # a second box with an id already taken starts a new track
+    ids = track_ids.tolist()
+    by_id = tracks.row_of_id()
+    rows = np.array([by_id.get(i, -1) if i >= 0 else -1 for i in ids], dtype=np.int64)
+    if len(set(ids)) < n:  # a second box with an id already taken starts a new track
         seen: set[int] = set()
-        for k in np.flatnonzero(found):
-            if int(track_ids[k]) in seen:
+        for k, i in enumerate(ids):
+            if i >= 0 and i in seen:
                 rows[k] = -1
-            seen.add(int(track_ids[k]))
+            seen.add(i)
+    has_id = track_ids >= 0
     if np.count_nonzero(has_id) == n:
         return rows
     used: set[int] = set()  # id-less tracks are never taken by an id
