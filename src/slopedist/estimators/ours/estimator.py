@@ -132,6 +132,16 @@ class OursConfig:
         min_iou: IoU needed to continue an id-less track.
         gate_sigma: a box further than this many σ from its track's prediction starts a new track.
         truncation_factor: noise multiplier of a cue whose box edge touches the image border.
+        occlusion_aware: a box with an edge on a nearer target's box (its bottom lower in the
+            image) may show only part of its vehicle (a box drawn around what is visible): its
+            width or height cue, if it says farther than the ground contact by more than their
+            noise explains, gets that excess as extra variance
+            (:func:`~slopedist.estimators.ours.cues.hidden_sides`,
+            :func:`~slopedist.estimators.ours.cues.occlusion_log_var`), so the fusion leans on
+            the ground contact; such a box does not feed the self-calibration either.
+        occlusion_gate_sigma: the outlier test of the occlusion check, in standard deviations
+            (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
+            for an edge touching a nearer box.
         priors: class → dimension prior (None = the built-in table).
         selfcal: self-calibration priors and noise levels.
     """
@@ -161,6 +171,8 @@ class OursConfig:
     min_iou: float = 0.3
     gate_sigma: float = 5.0
     truncation_factor: float = 10.0
+    occlusion_aware: bool = True
+    occlusion_gate_sigma: float = 3.0
     priors: dict[str, DimensionPrior] | None = None
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 
@@ -168,7 +180,7 @@ class OursConfig:
         for name in ("box_sigma_px", "theta_sigma_rad", "no_rotation_theta_sigma_rad",
                      "gradient_sigma_rad", "height_sigma_m", "mount_sigma_rad",
                      "rate_sigma_per_s", "yaw_memory_s", "max_age_s", "gate_sigma",
-                     "truncation_factor", "yaw_evidence_weight"):
+                     "truncation_factor", "yaw_evidence_weight", "occlusion_gate_sigma"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigurationError(f"ours option {name} must be a finite number > 0, "
@@ -343,14 +355,7 @@ class OursEstimator(Estimator):
                 r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
         else:
             y_w = r_w_white = r_w_other = share_w = np.full(e.shape, np.nan)
-        # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
-        # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
         n_modes = len(self._height_modes)
-        size_modes = [cues.fuse_size_cues(
-            y_h, r_h_white, r_h_other, c_h, y_w, r_w_white, r_w_other, share_w,
-            pri[:, 7:8] if k == 1.0 else k * pri[:, 7:8], pri[:, 8:9], pri[:, 6:7])
-            for k in self._height_modes]
-        size = size_modes[0] if n_modes == 1 else _concat_cues(size_modes)
         e_all = np.tile(e, n_modes) if n_modes > 1 else e
 
         # --- what the tracks carry --------------------------------------------------------
@@ -402,13 +407,40 @@ class OursEstimator(Estimator):
             v_target = cam.c_y - f * np.tan(theta_f + alpha) if cfg.gradient_feedback else v_frame
             row_white = sigma_px ** 2 + (f * jitter_rad / cos2) ** 2
             row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta ** 2)
-            sd_e = cls.sd_e[ci]
-            gc = cues.ground_contact_log_cue(B[:, 3:4], v_target, f, h, e_all,
-                                             row_white, row_other, calib.sigma_height,
-                                             np.tile(sd_e, n_modes) if n_modes > 1 else sd_e)
+            gc = cues.ground_contact_log_cue(B[:, 3:4], v_target, f, h, e, row_white, row_other,
+                                             calib.sigma_height, cls.sd_e[ci])
             if any_true(trunc_bottom):
                 gc = _inflate(gc, trunc_bottom[:, None], infl)
-            fused = cues.fuse_log_cues(size, gc)
+        censored = np.zeros(n, dtype=bool)  # a size cue taken as partly hidden
+        if cfg.occlusion_aware and cfg.use_ground_contact:
+            # a size cue that says too far may show only part of a vehicle hidden behind a
+            # nearer one (censored): first the outlier test, then how much nearer boxes cover
+            gate = cfg.occlusion_gate_sigma
+            ux_h = cues.unexplained_excess(y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other,
+                                           gc.mean, gc.var, gate)
+            ux_w = (cues.unexplained_excess(y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white
+                                            + r_w_other, gc.mean, gc.var, gate)
+                    if cfg.use_width else ux_h[:, :0])
+            if any_true(ux_h > 0) or any_true(ux_w > 0):
+                cut_w, cut_h = cues.hidden_sides(B, gate * sigma_px)
+                extra_h = cues.occlusion_log_var(ux_h, cut_h[:, None])
+                r_h_other = r_h_other + extra_h
+                censored = np.maximum.reduce(extra_h, axis=1) > 0
+                if cfg.use_width:
+                    extra_w = cues.occlusion_log_var(ux_w, cut_w[:, None])
+                    r_w_other = r_w_other + extra_w
+                    censored |= np.maximum.reduce(extra_w, axis=1) > 0
+        # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
+        # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
+        n_modes = len(self._height_modes)
+        size_modes = [cues.fuse_size_cues(
+            y_h, r_h_white, r_h_other, c_h, y_w, r_w_white, r_w_other, share_w,
+            pri[:, 7:8] if k == 1.0 else k * pri[:, 7:8], pri[:, 8:9], pri[:, 6:7])
+            for k in self._height_modes]
+        size = size_modes[0] if n_modes == 1 else _concat_cues(size_modes)
+        e_all = np.tile(e, n_modes) if n_modes > 1 else e
+        if cfg.use_ground_contact:
+            fused = cues.fuse_log_cues(size, gc if n_modes == 1 else _concat_cues([gc] * n_modes))
         else:
             fused = size
         log_prior_all = (self._log_prior_all if log_pi is self._log_yaw_prior
@@ -479,6 +511,7 @@ class OursEstimator(Estimator):
                else self._new_uids(n))
         if cfg.self_calibrate:
             usable = (pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
+            usable &= ~censored
             theta_cfg = theta_f - calib.delta
             v_cfg = cam.c_y - f * math.tan(theta_cfg)
             near = np.where(usable, z_size - e_mean, np.nan)

@@ -1,0 +1,116 @@
+"""The occlusion-aware size cue of ``ours``: which box sides nearer boxes may cut, the censored
+cue's variance, and a car whose box shows only its visible part."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.camera import Camera
+from slopedist.detections.boxes import BoxTable
+from slopedist.estimators.base import FrameInput
+from slopedist.estimators.ours import OursEstimator, cues
+
+CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
+CAR = np.array([1.53, 1.63, 3.88])
+VAN = np.array([2.18, 1.91, 5.08])  # the Van prior: roof above the camera
+
+
+def test_hidden_sides_by_hand() -> None:
+    boxes = np.array([[100, 100, 200, 150],    # right edge on box 1, left edge on box 2
+                      [150, 120, 300, 200],    # nearer than box 0; its edges are clear
+                      [0, 0, 120, 300.0],      # nearest (lowest bottom)
+                      [500, 100, 520, 120],    # alone
+                      [301, 150, 340, 180]])   # left edge touches box 1 (within 1.5 px)
+    cut_w, cut_h = cues.hidden_sides(boxes)
+    assert cut_w.tolist() == [True, False, False, False, True]
+    # box 0: top (row 100) on box 2's rows [0, 300]; bottom (150) on boxes 1 and 2
+    assert cut_h.tolist() == [True, False, False, False, True]
+    cut_w, cut_h = cues.hidden_sides(boxes, tol_px=0.5)  # 1 px apart: no longer touching
+    assert cut_w.tolist() == [True, False, False, False, False]
+    # a farther box covering a nearer one does not cut it
+    assert cues.hidden_sides(boxes[[2, 0]])[0].tolist() == [False, True]
+
+
+def _brute_force(b: np.ndarray, tol: float) -> tuple[list[bool], list[bool]]:
+    cut_w, cut_h = [], []
+    for i in range(len(b)):
+        w = h = False
+        for j in range(len(b)):
+            if b[j, 3] <= b[i, 3]:
+                continue
+            lo, hi = b[j, :2] - tol, b[j, 2:] + tol
+            if not all(min(b[i, 2 + a], hi[a]) > max(b[i, a], lo[a]) for a in (0, 1)):
+                continue
+            w |= any(lo[0] <= b[i, k] <= hi[0] for k in (0, 2))
+            h |= any(lo[1] <= b[i, k] <= hi[1] for k in (1, 3))
+        cut_w.append(w)
+        cut_h.append(h)
+    return cut_w, cut_h
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 500), st.floats(0, 300), st.floats(1, 200),
+                          st.floats(1, 100)), min_size=1, max_size=8),
+       st.floats(0.0, 3.0))
+def test_hidden_sides_match_a_brute_force_loop(raw: list[tuple[float, float, float, float]],
+                                               tol: float) -> None:
+    b = np.array([[x, y, x + w, y + h] for x, y, w, h in raw])
+    cut_w, cut_h = cues.hidden_sides(b, tol)
+    assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
+
+
+def test_censored_cue_variance() -> None:
+    # a cue 0.5 (log) farther than the reference, noise 0.01 + 0.01: 3σ test → 0.25 − 0.18
+    ux = cues.unexplained_excess(math.log(30.0) + 0.5, 0.01, math.log(30.0), 0.01, 3.0)
+    assert ux == pytest.approx(0.25 - 9 * 0.02)
+    assert cues.occlusion_log_var(ux, True) == pytest.approx(0.25 - 0.18)
+    assert cues.occlusion_log_var(ux, False) == 0.0  # no edge on a nearer box: not cut
+    # nearer than the reference, or within the noise: no extra variance
+    assert cues.occlusion_log_var(cues.unexplained_excess(2.0, 0.01, 2.5, 0.01), True) == 0.0
+    assert cues.occlusion_log_var(cues.unexplained_excess(2.1, 0.01, 2.0, 0.01), True) == 0.0
+    assert cues.occlusion_log_var(cues.unexplained_excess(np.nan, 0.01, 2.0, 0.01), True) == 0.0
+
+
+def _frame(k: int, boxes: np.ndarray, ids: list[int], classes: list[str] | None = None
+           ) -> FrameInput:
+    table = BoxTable.build(np.full(len(boxes), k), boxes, ids,
+                           classes=np.array(classes or ["Car"] * len(boxes), dtype=object))
+    return FrameInput(k, 0.1 * k, 0.0, table, R_world_cam=np.eye(3))
+
+
+def test_a_car_half_hidden_behind_a_van_relies_on_ground_contact() -> None:
+    """A car 25 m ahead, its left part hidden behind a van 10 m ahead (taller than the camera,
+    so the car's roof does not show above it): the box around its visible part is a third of
+    its width and the width cue says ~70 m. With the occlusion check the car's distance comes
+    from its height and its ground contact."""
+    van = cues.project_box(CAM.f, CAM.c_x, CAM.c_y, 1.65, 0.0, 10.0, 0.0, VAN)
+    car = cues.project_box(CAM.f, CAM.c_x, CAM.c_y, 1.65, 2.6, 25.0, 0.0, CAR)
+    assert van[0] < car[0] < van[2] < car[2] and van[1] < car[1] and car[3] < van[3]
+    visible = car.copy()
+    visible[0] = van[2]  # what shows right of the van
+    assert (visible[2] - visible[0]) < 0.4 * (car[2] - car[0])
+    boxes = np.stack([van, visible])
+    errs = {}
+    for aware in (True, False):
+        est = OursEstimator(CAM, occlusion_aware=aware)
+        outs = [est.estimate(_frame(k, boxes, [1, 2], ["Van", "Car"])) for k in range(10)]
+        errs[aware] = abs(outs[-1].distance_m[1] - 25.0)
+        assert outs[-1].distance_m[0] == pytest.approx(10.0, rel=0.1)  # the van: unaffected
+    assert errs[True] < 0.1 * 25.0
+    assert errs[True] < 0.5 * errs[False]
+
+
+def test_amodal_boxes_of_overlapping_cars_keep_their_size_cues() -> None:
+    """Whole-vehicle boxes (labels) that overlap: the size cues agree with the ground contact
+    within their noise, so nothing changes."""
+    near = cues.project_box(CAM.f, CAM.c_x, CAM.c_y, 1.65, 0.0, 10.0, 0.0, CAR)
+    far = cues.project_box(CAM.f, CAM.c_x, CAM.c_y, 1.65, 1.0, 30.0, 0.0, CAR)
+    boxes = np.stack([near, far])
+    a = OursEstimator(CAM).estimate(_frame(0, boxes, [1, 2]))
+    b = OursEstimator(CAM, occlusion_aware=False).estimate(_frame(0, boxes, [1, 2]))
+    np.testing.assert_array_equal(a.distance_m, b.distance_m)
