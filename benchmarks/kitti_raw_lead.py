@@ -17,12 +17,14 @@ Usage::
 
     python benchmarks/kitti_raw_lead.py [--data ../shared/data/kitti_raw_lead]
         [--out bench_out/kitti_raw_lead] [--odometry builtin|orbslam3] [--vocab ORBvoc.txt]
+        [--ours-options '{"occlusion_aware": false}']
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import sys
 import time
@@ -114,6 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vocab", type=Path, default=None)
     parser.add_argument("--max-z", type=float, default=40.0,
                         help="score boxes with LiDAR z up to this, metres")
+    parser.add_argument("--ours-options", type=json.loads, default={},
+                        help='options of ours and ours-selfcal as JSON, e.g. '
+                             '\'{"occlusion_aware": false}\' (default: none)')
     args = parser.parse_args(argv)
     if not args.data.is_dir():
         print(f"kitti_raw_lead data not found at {args.data}", file=sys.stderr)
@@ -147,7 +152,9 @@ def main(argv: list[str] | None = None) -> int:
         odometry = recorder if n_run == 0 else recorder.replay()
         with c_stdout_to_stderr():
             results[method] = run_frames(open_frames(drive.image_dir), camera, truth, odometry,
-                                         make_estimator(method, camera), out, progress=False)
+                                         make_estimator(method, camera, **(
+                                             args.ours_options if method.startswith("ours")
+                                             else {})), out, progress=False)
         estimates[method] = read_estimates(out / RECORDS_NAME)
         print(f"  ran {method}: {results[method].records} records, odometry "
               f"{results[method].odometry_states} → {out}", file=sys.stderr)
