@@ -138,7 +138,7 @@ class OursConfig:
             noise explains, gets that excess as extra variance
             (:func:`~slopedist.estimators.ours.cues.hidden_sides`,
             :func:`~slopedist.estimators.ours.cues.occlusion_log_var`), so the fusion leans on
-            the ground contact; such a box does not feed the self-calibration either.
+            the ground contact (and the self-calibration, which uses the size cue).
         occlusion_gate_sigma: the outlier test of the occlusion check, in standard deviations
             (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
             for an edge touching a nearer box.
@@ -411,10 +411,9 @@ class OursEstimator(Estimator):
                                              calib.sigma_height, cls.sd_e[ci])
             if any_true(trunc_bottom):
                 gc = _inflate(gc, trunc_bottom[:, None], infl)
-        censored = np.zeros(n, dtype=bool)  # a size cue taken as partly hidden
         if cfg.occlusion_aware and cfg.use_ground_contact:
             # a size cue that says too far may show only part of a vehicle hidden behind a
-            # nearer one (censored): first the outlier test, then how much nearer boxes cover
+            # nearer one (censored): first the outlier test, then which sides nearer boxes cut
             gate = cfg.occlusion_gate_sigma
             ux_h = cues.unexplained_excess(y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other,
                                            gc.mean, gc.var, gate)
@@ -423,13 +422,9 @@ class OursEstimator(Estimator):
                     if cfg.use_width else ux_h[:, :0])
             if any_true(ux_h > 0) or any_true(ux_w > 0):
                 cut_w, cut_h = cues.hidden_sides(B, gate * sigma_px)
-                extra_h = cues.occlusion_log_var(ux_h, cut_h[:, None])
-                r_h_other = r_h_other + extra_h
-                censored = np.maximum.reduce(extra_h, axis=1) > 0
+                r_h_other = r_h_other + cues.occlusion_log_var(ux_h, cut_h[:, None])
                 if cfg.use_width:
-                    extra_w = cues.occlusion_log_var(ux_w, cut_w[:, None])
-                    r_w_other = r_w_other + extra_w
-                    censored |= np.maximum.reduce(extra_w, axis=1) > 0
+                    r_w_other = r_w_other + cues.occlusion_log_var(ux_w, cut_w[:, None])
         # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
         # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
         n_modes = len(self._height_modes)
@@ -511,7 +506,6 @@ class OursEstimator(Estimator):
                else self._new_uids(n))
         if cfg.self_calibrate:
             usable = (pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
-            usable &= ~censored
             theta_cfg = theta_f - calib.delta
             v_cfg = cam.c_y - f * math.tan(theta_cfg)
             near = np.where(usable, z_size - e_mean, np.nan)
