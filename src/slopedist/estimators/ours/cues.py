@@ -169,37 +169,33 @@ def width_cue(
 
 def width_cue_from_parts(
     left: ArrayLike, right: ArrayLike, f: float, c_x: float, parts: FloatArray,
-    z_init_m: ArrayLike, iterations: int = 2,
+    z_init_m: ArrayLike, iterations: int = 2, offsets: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`width_cue` with the footprint given as :func:`corner_parts` ``(..., 4, 4)``, whose
-    leading shape is the output's (``left``, ``right`` and ``z_init_m`` broadcast to it)."""
+    leading shape is the output's (``left``, ``right`` and ``z_init_m`` broadcast to it);
+    ``offsets`` = the corners' ``(dx, dz)`` ``(..., 4)`` when already at hand (their sums)."""
     shape = parts.shape[:-2]
     pf = parts.reshape(-1, 4)  # one row per (target, hypothesis, corner)
-    al = _spread((np.asarray(left, dtype=float) - c_x) / f, shape)
-    ar = _spread((np.asarray(right, dtype=float) - c_x) / f, shape)
-    first = np.arange(0, pf.shape[0], 4)  # row of each (target, hypothesis)'s first corner
-    dx = (pf[:, 0] + pf[:, 1]).reshape(-1, 4)
-    dz = (pf[:, 2] + pf[:, 3]).reshape(-1, 4)
-    Z = _spread(z_init_m, shape)
+    al = (np.asarray(left, dtype=float) - c_x) / f
+    ar = (np.asarray(right, dtype=float) - c_x) / f
+    first = np.arange(0, pf.shape[0], 4).reshape(shape)  # row of each first corner
+    dx, dz = offsets if offsets is not None else (parts[..., 0] + parts[..., 1],
+                                                  parts[..., 2] + parts[..., 3])
+    Z = np.asarray(z_init_m, dtype=float)
     span = np.where(ar > al, al - ar, np.nan)  # NaN (every output) where not ordered
-    mid = 0.5 * (al + ar)[:, None]
+    mid = (0.5 * (al + ar))[..., None]
     for _ in range(max(1, iterations)):
-        px = (mid * Z[:, None] + dx) / np.maximum(Z[:, None] + dz, 1e-3)
+        Zc = Z[..., None]
+        px = (mid * Zc + dx) / np.maximum(Zc + dz, 1e-3)
         pl = pf[first + px.argmin(axis=-1)]  # the left-most corner's parts
         pr = pf[first + px.argmax(axis=-1)]
-        num_w = pl[:, 0] - pr[:, 0] - al * pl[:, 2] + ar * pr[:, 2]
-        num_l = pl[:, 1] - pr[:, 1] - al * pl[:, 3] + ar * pr[:, 3]
+        num_w = pl[..., 0] - pr[..., 0] - al * pl[..., 2] + ar * pr[..., 2]
+        num_l = pl[..., 1] - pr[..., 1] - al * pl[..., 3] + ar * pr[..., 3]
         Z = (num_w + num_l) / span
-    dZ_dcol = np.hypot(Z + pl[:, 2] + pl[:, 3], Z + pr[:, 2] + pr[:, 3]) / (np.abs(span) * f)
+    dZ_dcol = (np.hypot(Z + pl[..., 2] + pl[..., 3], Z + pr[..., 2] + pr[..., 3])
+               / (np.abs(span) * f))
     share_w = num_w / (num_w + num_l)  # num_w + num_l = Z·span ≠ 0
-    return Z.reshape(shape), dZ_dcol.reshape(shape), share_w.reshape(shape)
-
-
-def _spread(a: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
-    """``a`` broadcast to ``shape`` as a new, flat float array."""
-    out = np.empty(shape)
-    out[...] = a
-    return out.reshape(-1)
+    return Z, dZ_dcol, share_w
 
 
 def ground_contact_cue(

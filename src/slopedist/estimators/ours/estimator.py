@@ -246,6 +246,7 @@ class OursEstimator(Estimator):
         self._next_uid = 0
         self._max_right = -math.inf
         self._max_bottom = -math.inf
+        self._border_high = np.full(4, math.inf)  # box edges at or beyond touch the border
         self._d2_sum = 0.0
         self._d2_count = 0
 
@@ -297,12 +298,10 @@ class OursEstimator(Estimator):
             values["calib_height_m"] = _filled(good.size, cal.height_m)
             values["calib_height_sigma_m"] = _filled(good.size, cal.height_sigma_m)
         out = _scatter(values, _OUTPUT_KEYS, good if not all_usable else None, n)
-        v_frame = geo.vanishing_line_row(theta_f, self.camera.f, self.camera.c_y)
-        delta_y = 0.5 * (boxes[:, 1] + boxes[:, 3]) - v_frame  # Δy of eq. 6
         return FrameEstimates(
             theta_rad=_filled(n, theta_in),
             theta_adj_rad=out["theta_adj"],
-            delta_y_px=delta_y if usable is None else np.where(usable, delta_y, np.nan),
+            delta_y_px=out["delta_y"],
             v_px=out["v"],
             distance_m=out["distance"],
             reason=reasons,
@@ -346,7 +345,8 @@ class OursEstimator(Estimator):
             r_h_other = np.where(cut_h[:, None], r_h_other * infl, r_h_other)
         if cfg.use_width:
             z_w, dz_dcol, share_w = cues.width_cue_from_parts(
-                B[:, 0:1], B[:, 2:3], f, cam.c_x, cls.parts[ci], z_h, iterations=1)
+                B[:, 0:1], B[:, 2:3], f, cam.c_x, cls.parts[ci], z_h, iterations=1,
+                offsets=(cls.dx[ci], cls.dz[ci]))
             z_w = np.maximum(z_w, cls.e_min[ci])
             y_w = np.log(z_w)
             r_w_white = (dz_dcol * sigma_px / z_w) ** 2
@@ -521,6 +521,7 @@ class OursEstimator(Estimator):
             "distance_ground_contact_m": gc_plain,
             "track_uid": uid.astype(float),
             "theta_adj": theta_f + alpha_out,
+            "delta_y": delta_y,
             "v": cam.c_y - f * np.tan(theta_f + alpha_out),
         }
 
@@ -657,15 +658,16 @@ class OursEstimator(Estimator):
                      else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf))
             bottom = (cam.image_height - 1.0 if cam.image_height
                       else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf))
-        cut = (boxes <= _BORDER_LOW) | (boxes >= np.array([math.inf, math.inf, right - 0.5,
-                                                           bottom - 0.5]))
+        if self._border_high[2] != right - 0.5 or self._border_high[3] != bottom - 0.5:
+            self._border_high = np.array([math.inf, math.inf, right - 0.5, bottom - 0.5])
+        cut = (boxes <= _BORDER_LOW) | (boxes >= self._border_high)
         return cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3]
 
 
 _BORDER_LOW = np.array([0.5, 0.5, -math.inf, -math.inf])
 """A box edge at or below these (left, top) touches the image's left or top border."""
 
-_OUTPUT_KEYS = ("distance", "theta_adj", "v", *EXTRA_COLUMNS)
+_OUTPUT_KEYS = ("distance", "theta_adj", "v", "delta_y", *EXTRA_COLUMNS)
 
 
 _ABSENT: dict[tuple[str, ...], list[str]] = {}
@@ -700,7 +702,8 @@ class _ClassTable:
     rows (``scalars``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; ``e``, ``var_e``,
     ``sd_e``: the footprint's half depth extent per heading, its variance and 1σ; ``e_min``:
     the smallest centre distance the cues accept; ``parts``:
-    :func:`~slopedist.estimators.ours.cues.corner_parts`) instead of recomputing them.
+    :func:`~slopedist.estimators.ours.cues.corner_parts`, ``dx``, ``dz``: the corners'
+    offsets) instead of recomputing them.
     """
 
     def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
@@ -733,6 +736,8 @@ class _ClassTable:
         self.var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
         self.sd_e = np.sqrt(self.var_e)
         self.parts = cues.corner_parts(psi, W, L)
+        self.dx = self.parts[..., 0] + self.parts[..., 1]
+        self.dz = self.parts[..., 2] + self.parts[..., 3]
 
 
 @dataclass(frozen=True)
