@@ -411,20 +411,19 @@ class OursEstimator(Estimator):
                                              calib.sigma_height, cls.sd_e[ci])
             if any_true(trunc_bottom):
                 gc = _inflate(gc, trunc_bottom[:, None], infl)
-        if cfg.occlusion_aware and cfg.use_ground_contact:
+        if cfg.occlusion_aware and cfg.use_ground_contact and n > 1:
             # a size cue that says too far may show only part of a vehicle hidden behind a
-            # nearer one (censored): first the outlier test, then which sides nearer boxes cut
+            # nearer one (censored): which sides nearer boxes may cut, then the outlier test
             gate = cfg.occlusion_gate_sigma
-            ux_h = cues.unexplained_excess(y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other,
-                                           gc.mean, gc.var, gate)
-            ux_w = (cues.unexplained_excess(y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white
-                                            + r_w_other, gc.mean, gc.var, gate)
-                    if cfg.use_width else ux_h[:, :0])
-            if any_true(ux_h > 0) or any_true(ux_w > 0):
-                cut_w, cut_h = cues.hidden_sides(B, gate * sigma_px)
-                r_h_other = r_h_other + cues.occlusion_log_var(ux_h, cut_h[:, None])
-                if cfg.use_width:
-                    r_w_other = r_w_other + cues.occlusion_log_var(ux_w, cut_w[:, None])
+            cut_w, cut_h = cues.hidden_sides(B, gate * sigma_px)
+            if any_true(cut_h):
+                r_h_other = r_h_other + cues.occlusion_log_var(cues.unexplained_excess(
+                    y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other, gc.mean, gc.var,
+                    gate), cut_h[:, None])
+            if cfg.use_width and any_true(cut_w):
+                r_w_other = r_w_other + cues.occlusion_log_var(cues.unexplained_excess(
+                    y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white + r_w_other, gc.mean, gc.var,
+                    gate), cut_w[:, None])
         # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
         # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
         n_modes = len(self._height_modes)
