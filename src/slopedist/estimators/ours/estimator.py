@@ -355,8 +355,6 @@ class OursEstimator(Estimator):
                 r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
         else:
             y_w = r_w_white = r_w_other = share_w = np.full(e.shape, np.nan)
-        n_modes = len(self._height_modes)
-        e_all = np.tile(e, n_modes) if n_modes > 1 else e
 
         # --- what the tracks carry --------------------------------------------------------
         R_now = frame.R_world_cam
@@ -467,7 +465,7 @@ class OursEstimator(Estimator):
                 rows[idx[~same]] = -1  # another vehicle took this track's id
         if x is None or P is None:                    # or place: start afresh
             x, P = self._new_states(meas)
-        var_other = np.maximum(meas.var - meas.var_white, 0.0)
+        var_other = meas.var - meas.var_white  # ≥ 0: mix_hypotheses caps the white part
         dist, sigma = kf.distance_moments(x, P, var_other)
         moving = continued
         if any_true(moving):
@@ -486,7 +484,7 @@ class OursEstimator(Estimator):
         a_obs = np.arctan((flat - delta_y) / f)  # cues.target_gradient, flat computed once
         gain2 = (flat / f) ** 2
         a_white = gain2 * size_c.var_white + (sigma_px ** 2 + (f * jitter_rad) ** 2) / f ** 2
-        a_other = (gain2 * np.maximum(size_c.var - size_c.var_white, 0.0)
+        a_other = (gain2 * (size_c.var - size_c.var_white)
                    + (0.5 * pri[:, 3] / z_size) ** 2)
         g_mean, g_var = kf.random_walk_update(
             *_gradient_prior(rows, old, every_old, S_old[:, COL_GRAD_MEAN], grad_v_old), 0.0,
