@@ -9,7 +9,9 @@ For every box and every heading hypothesis ψ the estimator computes
    heading is a hypothesis, weighted by how well it reconciles width and height and by a prior
    that most traffic is aligned with the road;
 3. the **ground-contact cue**: eq. 1 with the vanishing line of the ego gradient θ (eq. 4–5), as
-   the paper, plus the target's own continuous road gradient α,
+   the paper, plus the target's own continuous road gradient α; a size cue whose box side
+   lies on a nearer target's box and that says farther than the ground contact by more than
+   noise explains is taken as cut short by occlusion (censored) and loses weight,
 
 and fuses them by their propagated uncertainties in an extended Kalman filter per track whose
 state is log-distance, relative rate, the vehicle's size deviation from its class prior and α
