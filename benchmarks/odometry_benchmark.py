@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import resource
 import sys
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
+from memory import peak_rss_mb, rss_mb  # benchmarks/memory.py, beside this script
 from numpy.typing import NDArray
 
 from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
@@ -51,21 +51,6 @@ TARGETS = {"seq06_000-050": 0.05, "unknown_000-050": 0.12}
 REL_TARGET_DEG = 0.15
 MS_TARGET = 10.0
 
-
-def rss_mb() -> float:
-    """Current resident set size of this process, MB (from /proc; peak RSS elsewhere)."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return math.nan
-
-
-def peak_rss_mb() -> float:
-    """Peak resident set size so far, MB (``ru_maxrss`` is in kB on Linux)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def load(seq: KittiOdometrySequence) -> list[tuple[float, NDArray[np.uint8]]]:

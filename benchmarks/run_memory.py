@@ -22,8 +22,6 @@ and the rows written so far. Usage::
 from __future__ import annotations
 
 import argparse
-import math
-import resource
 import sys
 import tempfile
 import time
@@ -32,6 +30,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from memory import peak_rss_mb, rss_mb  # benchmarks/memory.py, beside this script
 
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
@@ -45,22 +44,6 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
 CHECKPOINTS = (1000, 5000, 10000)
 FPS = 10.0
-
-
-def rss_mb() -> float:
-    """Current resident set size of this process, MB (from /proc)."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return math.nan
-
-
-def peak_rss_mb() -> float:
-    """Peak resident set size so far, MB (``ru_maxrss`` is in kB on Linux)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def ping_pong(n_frames: int, n: int) -> list[int]:
