@@ -127,6 +127,16 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
           f"{seconds / n_frames * 1e3:.2f} ms/frame wall, {cpu / n_frames * 1e3:.2f} ms/frame CPU")
 
 
+def sequence_folders(data: Path) -> list[Path]:
+    """KITTI odometry sequence folders (with ``poses.txt``) under ``data``, sorted; prints a
+    message to stderr when there is none."""
+    folders = sorted(p for p in data.iterdir() if (p / "poses.txt").is_file()) \
+        if data.is_dir() else []
+    if not folders:
+        print(f"no KITTI odometry sequences under {data}", file=sys.stderr)
+    return folders
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -135,10 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--long", type=int, default=10000,
                         help="frames of the memory run (0: skip)")
     args = parser.parse_args(argv)
-    folders = sorted(p for p in args.data.iterdir() if (p / "poses.txt").is_file()) \
-        if args.data.is_dir() else []
+    folders = sequence_folders(args.data)
     if not folders:
-        print(f"no KITTI odometry sequences under {args.data}", file=sys.stderr)
         return 2
     cv2.setNumThreads(1)
     print(f"built-in visual odometry, OpenCV {cv2.__version__} with 1 thread "
