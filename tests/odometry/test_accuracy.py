@@ -12,6 +12,7 @@ from slopedist.odometry.accuracy import (
     OdometryEvaluation,
     OdometryRun,
     lookback_pairs,
+    rotation_angle_rad,
     rotation_errors,
     run_odometry,
 )
@@ -108,3 +109,21 @@ def test_run_odometry_collects_states() -> None:
     assert np.allclose(run.R_world_cam[3], np.eye(3))
     assert len(seen) == 6 and run.seconds >= 0.0
     assert geo.rotation_angle_rad(run.R_world_cam[5].T @ gt.R_world_cam[5]) < 1e-12
+
+
+def test_rel_rot_error_is_exact_with_rounded_ground_truth() -> None:
+    """Ground truth rounded to 7 significant digits (as KITTI poses are) must not inflate a
+    0.2° error (arccos of the trace would report about 0.2 + δ/sin 0.2°)."""
+    gt = truth()
+    R = gt.R_world_cam.copy()
+    R[15:] = R[15:] @ tv.so3_exp(np.radians([0.0, 0.2, 0.0]))
+    rounded = np.array([[[float(f"{x:.6e}") for x in row] for row in M] for M in gt.R_world_cam])
+    assert np.abs(rounded[20].T @ rounded[20] - np.eye(3)).max() > 1e-8  # not orthonormal
+    noisy = RotationTrack.from_arrays(gt.timestamps_s, rounded)
+    errors = rotation_errors(make_run(R), noisy)
+    assert np.allclose(np.degrees(errors.rel_err_rad[15:25]), 0.2, atol=2e-4)
+    # the angle itself: a quarter turn and a half turn, exact matrices
+    assert np.isclose(rotation_angle_rad(tv.so3_exp(np.array([0.0, np.pi / 2, 0.0]))),
+                      np.pi / 2)
+    assert np.isclose(rotation_angle_rad(np.diag([1.0, -1.0, -1.0])), np.pi)
+    assert rotation_angle_rad(np.eye(3)) == 0.0
