@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import Camera
 from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.io.images import read_image_file
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses
 
@@ -63,12 +64,7 @@ def read_gray_image(path: str | Path) -> NDArray[np.uint8]:
         MissingInputError: the file does not exist.
         InputFileError: it cannot be decoded as an image.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"image not found: {path}")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise InputFileError(path, "cannot be decoded as an image")
+    image = read_image_file(path, cv2.IMREAD_GRAYSCALE, "image", "cannot be decoded as an image")
     return np.asarray(image, dtype=np.uint8)
 
 

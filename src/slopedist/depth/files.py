@@ -25,6 +25,7 @@ from slopedist.errors import (
     InputFileError,
     MissingInputError,
 )
+from slopedist.io.images import read_image_file
 
 DEPTH_FILE_SUFFIXES = (".png", ".npy")
 """File name endings of depth maps."""
@@ -42,11 +43,8 @@ def read_kitti_depth_png(path: str | Path) -> NDArray[np.float32]:
         InputFileError: it does not decode, or is not a single-channel 16-bit PNG.
     """
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"depth file not found: {path}")
-    raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise InputFileError(path, "does not decode as a PNG image (corrupt or not a PNG)")
+    raw = read_image_file(path, cv2.IMREAD_UNCHANGED, "depth file",
+                          "does not decode as a PNG image (corrupt or not a PNG)")
     if raw.dtype != np.uint16 or raw.ndim != 2:
         channels = 1 if raw.ndim == 2 else raw.shape[2]
         raise InputFileError(
