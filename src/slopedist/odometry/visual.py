@@ -25,7 +25,10 @@ rotation cannot be estimated is ``LOST`` (tracking then continues from the last 
 bridges dropped or blurred frames); when no good frame has been seen for ``max_bridge_s`` the
 next frame with enough corners starts a new *segment* (its rotation continues from the last good
 one, which assumes no rotation during the gap; :attr:`BuiltinVisualOdometry.segment` counts the
-restarts). Before the first origin the state is ``NOT_INITIALISED``.
+restarts). Before the first origin the state is ``NOT_INITIALISED``. An exposure jump (a tunnel, a
+flash, auto-exposure) is tracked through by mapping the new frame's grey levels to the previous
+frame's mean and spread (:func:`match_exposure`) before Lucas–Kanade, which assumes constant
+brightness.
 
 Memory is bounded: the tracks (``max_features``) and one look-back of frame records.
 
@@ -309,21 +312,19 @@ class BuiltinVisualOdometry:
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         self._usac_budget = 1
-        if self._moving:
-            guess = self._pts + self._vel * dt
-        else:  # no motion known yet (first step of a segment): global shift of the image
-            guess = self._pts + _global_shift(self._prev_image, image)
-        keep, pts = self._follow(image, guess, boxes)
-        ids = self._ids[keep]
-        estimate = self._estimate(ids, pts, t)
-        if estimate is None and self._moving:
-            # the motion changed suddenly (a jolt, a long gap): retry from the global shift
-            keep, pts = self._follow(image, self._pts + _global_shift(self._prev_image, image),
-                                     boxes)
-            ids = self._ids[keep]
-            estimate = self._estimate(ids, pts, t)
+        # Lucas–Kanade assumes constant brightness: after an exposure jump (a tunnel,
+        # auto-exposure, a flash) track into this frame with its grey levels mapped to the
+        # previous frame's mean and spread; the raw frame is kept for the next step
+        jumped = match_exposure(image, self._prev_image, EXPOSURE_JUMP_LEVELS)
+        keep, pts, estimate = self._attempt(image if jumped is None else jumped, boxes, t, dt)
+        if estimate is None and jumped is None:
+            # a smaller exposure change can still break the tracks: retry matched
+            matched = match_exposure(image, self._prev_image, MIN_EXPOSURE_CHANGE)
+            if matched is not None:
+                keep, pts, estimate = self._attempt(matched, boxes, t, dt)
         if estimate is None:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
+        ids = self._ids[keep]
         vel = (pts - self._pts[keep]) / dt
         R_world_cam, fit, fit_ids, ref = estimate
         cov = _rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
@@ -355,6 +356,29 @@ class BuiltinVisualOdometry:
         self._commit(image, t, R_world_cam)
         return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers,
                               self._segment)
+
+    def _attempt(
+        self, image: NDArray[np.uint8], boxes: FloatArray, t: float, dt: float
+    ) -> tuple[
+        NDArray[np.bool_], NDArray[np.float32],
+        tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord] | None,
+    ]:
+        """Track into ``image`` from the velocity prediction (or, with no velocity yet, the
+        global shift) and estimate the rotation; after a failed prediction (a jolt, a long gap)
+        retry once from the global shift. Returns the kept-track mask, their positions and the
+        estimate (None when both attempts fail)."""
+        assert self._prev_image is not None
+        if self._moving:
+            guess = self._pts + self._vel * dt
+        else:  # no motion known yet (first step of a segment): global shift of the image
+            guess = self._pts + _global_shift(self._prev_image, image)
+        keep, pts = self._follow(image, guess, boxes)
+        estimate = self._estimate(self._ids[keep], pts, t)
+        if estimate is None and self._moving:
+            keep, pts = self._follow(image, self._pts + _global_shift(self._prev_image, image),
+                                     boxes)
+            estimate = self._estimate(self._ids[keep], pts, t)
+        return keep, pts, estimate
 
     def _follow(
         self, image: NDArray[np.uint8], guess: NDArray[np.floating], boxes: FloatArray
@@ -569,6 +593,38 @@ def _half_size(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     h, w = image.shape
     even = image[: h - h % 2, : w - w % 2]
     return np.asarray(cv2.resize(even, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
+
+
+MIN_EXPOSURE_STD = 2.0
+"""Frames whose grey-level standard deviation is below this (blank, black) are not rescaled."""
+EXPOSURE_JUMP_LEVELS = 16.0
+"""Frames whose exposure match (:func:`match_exposure`) moves some grey level by this much are
+tracked matched from the start. Between KITTI frames, changes of the scene alone move the
+mean by up to ~7 levels and the spread by up to ~7 %, which maps some level by at most ~15."""
+MIN_EXPOSURE_CHANGE = 3.0
+"""After a failed frame, an exposure match that moves no grey level by this much (levels) is
+not worth a retry."""
+
+
+def match_exposure(
+    image: NDArray[np.uint8], reference: NDArray[np.uint8], min_change: float
+) -> NDArray[np.uint8] | None:
+    """``image`` with its grey levels mapped affinely to the mean and standard deviation of
+    ``reference`` (a global gain and offset, as an exposure or gain change of the camera makes).
+
+    Returns None when either frame is nearly uniform (nothing to match) or when the mapping
+    would change no grey level by ``min_change`` (grey levels) or more.
+    """
+    mean_i, std_i = (float(v) for v in np.ravel(cv2.meanStdDev(image)))
+    mean_r, std_r = (float(v) for v in np.ravel(cv2.meanStdDev(reference)))
+    if std_i < MIN_EXPOSURE_STD or std_r < MIN_EXPOSURE_STD:
+        return None
+    gain = std_r / std_i
+    levels = np.arange(256, dtype=np.float64)
+    mapped = np.clip(np.rint(mean_r + gain * (levels - mean_i)), 0, 255)
+    if np.max(np.abs(mapped - levels)) < min_change:
+        return None
+    return np.asarray(cv2.LUT(image, mapped.astype(np.uint8)))
 
 
 def _global_shift(image_a: NDArray[np.uint8], image_b: NDArray[np.uint8]) -> FloatArray:
