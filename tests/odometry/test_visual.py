@@ -369,6 +369,6 @@ def test_real_kitti_frames_through_exposure_changes(kitti_odometry_dir: Path) ->
     assert figures.frames_ok == len(seq)
     assert vo.segment == 0
     # measured 0.04° / 0.10° (the unchanged frames give 0.040° / 0.099°); without the exposure
-    # match 9 frames are lost and a new segment starts
+    # match 8 frames are lost and a new segment starts
     assert np.degrees(figures.theta_rms_rad) < 0.08
     assert np.degrees(figures.rel_rot_median_rad) < 0.15
