@@ -225,3 +225,30 @@ def test_priors_lookup_and_yaw_prior() -> None:
     uniform = yaw_prior_weights(g, YawPrior(0.0, math.radians(3.0)))
     # uniform prior: each hypothesis gets the share of the circle its cell covers
     assert uniform.sum() == pytest.approx(1.0) and np.all(uniform > 0)
+
+
+@pytest.mark.parametrize("bound", [-3.0, -0.4, 0.0, 0.7, 4.0])
+def test_censor_upper_matches_numerical_integration(bound: float) -> None:
+    # N(μ=0.2, v=0.09) times the bound's likelihood Φ((bound − ℓ)/s), s² = 0.04
+    from scipy import stats
+    mu, var, s2 = 0.2, 0.09, 0.04
+    cue = cues.LogCue(np.array([mu]), np.array([var]), np.array([0.03]), np.array([0.0]))
+    out = cues.censor_upper(cue, np.array([bound]), np.array([s2]), np.array([True]))
+    x = np.linspace(mu - 12 * math.sqrt(var), mu + 12 * math.sqrt(var), 200001)
+    post = stats.norm.pdf(x, mu, math.sqrt(var)) * stats.norm.cdf((bound - x) / math.sqrt(s2))
+    z = np.trapezoid(post, x)
+    m = np.trapezoid(x * post, x) / z
+    v = np.trapezoid((x - m) ** 2 * post, x) / z
+    assert out.mean[0] == pytest.approx(m, abs=1e-6)
+    assert out.var[0] == pytest.approx(v, rel=1e-5)
+    assert out.loglik[0] == pytest.approx(math.log(z), abs=1e-6)
+    assert out.var_white[0] == pytest.approx(0.03 * v / var, rel=1e-5)
+
+
+def test_censor_upper_leaves_unmasked_and_missing_bounds_alone() -> None:
+    cue = cues.LogCue(np.array([1.0, 1.0]), np.array([0.1, 0.1]), np.array([0.05, 0.05]),
+                      np.array([-1.0, -1.0]))
+    out = cues.censor_upper(cue, np.array([0.0, np.nan]), np.array([0.01, 0.01]),
+                            np.array([False, True]))
+    for k in ("mean", "var", "var_white", "loglik"):
+        assert getattr(out, k) == pytest.approx(getattr(cue, k))

@@ -176,6 +176,37 @@ def test_box_touching_the_image_border_relies_on_the_other_cues() -> None:
     assert guessed.distance_m[0] == pytest.approx(out.distance_m[0])
 
 
+@pytest.mark.parametrize("x_m,z_m,side", [(10.5, 14.0, True), (-9.0, 12.0, True),
+                                          (18.0, 22.0, True), (1.0, 5.0, False),
+                                          (2.0, 7.0, False), (-3.0, 6.0, False)])
+def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float,
+                                                      side: bool) -> None:
+    # a car at the side of the image (its box cut by the left or right border) or right in
+    # front (bottom cut): the cut size cue, and a cut bottom's ground contact, say "at least
+    # this far", so the vehicle is at most that far; as bounds they must not pull it away
+    cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0, image_width=1242, image_height=375)
+    b = project_box(cam.f, cam.c_x, cam.c_y, 1.65, x_m, z_m, 0.0, CAR)
+    cut = b.copy()
+    if side:
+        cut[[0, 2]] = np.clip(cut[[0, 2]], 0.0, 1241.0)
+    else:
+        cut[3] = min(cut[3], 374.0)
+    assert not np.allclose(cut, b), "the scene must cut the box"
+    frame = _frame(0, cut[None])
+    bounded = make_estimator("ours", cam).estimate(frame).distance_m[0]
+    soft = make_estimator("ours", cam, censor_border_cuts=False).estimate(frame).distance_m[0]
+    naive = make_estimator("ours", cam, censor_border_cuts=False,
+                           truncation_factor=1.0).estimate(frame).distance_m[0]
+    assert naive > 1.02 * z_m  # the cut cues taken at face value say too far
+    assert abs(bounded - z_m) <= abs(soft - z_m) + 1e-9
+    if side:  # the height cue is whole
+        assert abs(bounded - z_m) < 0.05 * z_m
+    else:  # only the width is whole (the heading is then loosely known); the ground
+        # contact's bound is what helps
+        assert abs(bounded - z_m) < 0.2 * z_m
+        assert abs(bounded - z_m) < 0.7 * abs(soft - z_m)
+
+
 def test_kitti_sequence_beats_paper(kitti_tracking_dir: Path) -> None:
     from slopedist.datasets.kitti_tracking import RotationSource, load_sequence, protocol_mask
 

@@ -24,6 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import special
 
 FloatArray = NDArray[np.float64]
 
@@ -428,6 +429,36 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
         return LogCue(mean, var, white, a.loglik + ll)
     return LogCue(np.where(ok, mean, a.mean), np.where(ok, var, a.var),
                   np.where(ok, white, a.var_white), a.loglik + np.where(ok, ll, 0.0))
+
+
+def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike,
+                 where: ArrayLike) -> LogCue:
+    """Condition a log-distance cue on an upper bound ``ℓ ≤ bound`` known up to noise of
+    variance ``bound_var`` (a censored measurement), where ``where`` is true and the bound finite.
+
+    A box cut by the image border shows less than its vehicle: the size cue of a cut dimension
+    says *at least this far*, so the vehicle is at most that far, and a box whose bottom is cut
+    has its ground contact below the image, so at most as far as the cut row says. With the
+    Gaussian ``cue`` ``N(μ, v)`` and the bound's likelihood ``Φ((bound − ℓ)/s)``, the posterior's
+    moments are those of a truncated normal: with ``a = (bound − μ)/√(v + s²)`` and
+    ``λ = φ(a)/Φ(a)``, ``μ' = μ − v·λ/√(v + s²)``, ``v' = v·(1 − v·λ(λ + a)/(v + s²))``; the
+    white part shrinks in the same ratio and ``log Φ(a)`` is added to ``loglik`` (it weighs the
+    heading hypotheses). A bound far above the estimate changes nothing.
+    """
+    mu, var = cue.mean, cue.var
+    tot = var + np.asarray(bound_var, dtype=float)
+    root = np.sqrt(tot)
+    a = (np.asarray(bound, dtype=float) - mu) / root
+    log_cdf = special.log_ndtr(a)
+    lam = np.exp(-0.5 * a * a - log_cdf) * _INV_SQRT_2PI
+    factor = 1.0 - var / tot * lam * (lam + a)
+    use = np.asarray(where, dtype=bool) & np.isfinite(a)
+    return LogCue(np.where(use, mu - var / root * lam, mu), np.where(use, var * factor, var),
+                  np.where(use, cue.var_white * factor, cue.var_white),
+                  np.where(use, cue.loglik + log_cdf, cue.loglik))
+
+
+_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 
 
 def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, FloatArray]:

@@ -133,7 +133,12 @@ class OursConfig:
         max_age_s: a track unseen for longer is dropped.
         min_iou: IoU needed to continue an id-less track.
         gate_sigma: a box further than this many σ from its track's prediction starts a new track.
-        truncation_factor: noise multiplier of a cue whose box edge touches the image border.
+        truncation_factor: noise multiplier of a cue whose box edge touches the image border
+            (it keeps a weak weight, so that a box cut on every side still gets a distance).
+        censor_border_cuts: such a cue also bounds the distance from above (a box cut by the
+            border is smaller than its vehicle, so its size cue says at least as far as the
+            vehicle is, and a cut bottom hides the ground contact below the image):
+            :func:`~slopedist.estimators.ours.cues.censor_upper`.
         occlusion_aware: a box with an edge on a nearer target's box (its bottom lower in the
             image) may show only part of its vehicle (a box drawn around what is visible): its
             width or height cue, if it says farther than the ground contact by more than their
@@ -155,7 +160,7 @@ class OursConfig:
     motion_model: bool = True
     yaw_memory: bool = False
     self_calibrate: bool = False
-    box_sigma_px: float = 0.5
+    box_sigma_px: float = 0.31
     adapt_box_noise: bool = False
     theta_sigma_rad: float = math.radians(0.3)
     no_rotation_theta_sigma_rad: float = math.radians(1.0)
@@ -173,6 +178,7 @@ class OursConfig:
     min_iou: float = 0.3
     gate_sigma: float = 5.0
     truncation_factor: float = 10.0
+    censor_border_cuts: bool = True
     occlusion_aware: bool = True
     occlusion_gate_sigma: float = 3.0
     priors: dict[str, DimensionPrior] | None = None
@@ -342,7 +348,13 @@ class OursEstimator(Estimator):
         r_h_white = 2.0 * (dz_dD * sigma_px / z_h) ** 2
         r_h_other = (dz_de ** 2 * var_e + (dz_dh * calib.sigma_height) ** 2) / z_h ** 2
         cut_h = trunc_top | trunc_bottom
+        # a dimension cut by the image border: the cue is an upper bound on the distance
+        # (applied to the fused cue below), and keeps only a weak Gaussian weight
+        bounds: list[tuple[FloatArray, FloatArray, NDArray[np.bool_]]] = []
+        censor = cfg.censor_border_cuts
         if any_true(cut_h):
+            if censor:
+                    bounds.append((y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other, cut_h))
             r_h_white = np.where(cut_h[:, None], r_h_white * infl, r_h_white)
             r_h_other = np.where(cut_h[:, None], r_h_other * infl, r_h_other)
         if cfg.use_width:
@@ -354,6 +366,9 @@ class OursEstimator(Estimator):
             r_w_white = (dz_dcol * sigma_px / z_w) ** 2
             r_w_other = ((1.0 - share_w) * pri[:, 9:10]) ** 2
             if any_true(trunc_lr):
+                if censor:
+                    bounds.append((y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white + r_w_other,
+                                   trunc_lr))
                 r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
         else:
             y_w = r_w_white = r_w_other = share_w = np.full(e.shape, np.nan)
@@ -410,6 +425,8 @@ class OursEstimator(Estimator):
             gc = cues.ground_contact_log_cue(B[:, 3:4], v_target, f, h, e, row_white, row_other,
                                              calib.sigma_height, cls.sd_e[ci])
             if any_true(trunc_bottom):
+                if censor:
+                    bounds.append((gc.mean, gc.var, trunc_bottom))
                 gc = _inflate(gc, trunc_bottom[:, None], infl)
         if cfg.occlusion_aware and cfg.use_ground_contact and n > 1:
             # a size cue that says too far may show only part of a vehicle hidden behind a
@@ -437,6 +454,10 @@ class OursEstimator(Estimator):
             fused = cues.fuse_log_cues(size, gc if n_modes == 1 else _concat_cues([gc] * n_modes))
         else:
             fused = size
+        for bound, bound_var, rows_cut in bounds:
+            if n_modes > 1:
+                bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
+            fused = cues.censor_upper(fused, bound, bound_var, rows_cut[:, None])
         log_prior_all = (self._log_prior_all if log_pi is self._log_yaw_prior
                          else np.tile(log_pi, n_modes) + self._log_mode)
         meas, w_all = cues.collapse_hypotheses(fused, log_prior_all + fused.loglik)
