@@ -348,6 +348,8 @@ def test_configuration_is_checked() -> None:
         VisualOdometryConfig(min_inliers=3)
     with pytest.raises(ConfigurationError):
         VisualOdometryConfig(lookback_s=0.0)
+    with pytest.raises(ConfigurationError, match="frame_to_frame_floor_rad"):
+        VisualOdometryConfig(frame_to_frame_floor_rad=-1e-4)
     with pytest.raises(ConfigurationError, match="unknown option"):
         make_odometry("builtin", CAMERA, no_such_option=1)
     with pytest.raises(ConfigurationError, match="unknown odometry backend"):

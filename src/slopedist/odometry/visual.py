@@ -7,8 +7,11 @@ rotations (whose errors add up over the ten steps of a second), each frame's rot
 
 1. Tracks: corners (Shi–Tomasi, detected on a half-resolution copy, away from existing tracks and
    from ``mask_boxes``) are followed frame to frame with pyramidal Lucas–Kanade, started from a
-   constant-velocity prediction. Tracks that fail, leave the image, enter a masked box or are
-   outliers of a fit are dropped; new corners refill the image.
+   constant-velocity prediction, each position then refined by an affine fit of the patch
+   (:mod:`~slopedist.odometry.affine_refine`: the road near the camera stretches and shears from
+   frame to frame, which biases the translational fit along the flow). Tracks that fail, leave
+   the image, enter a masked box or are outliers of a fit are dropped; new corners refill the
+   image.
 2. Rotation: the correspondences between the look-back frame ``L`` and the current frame ``t``
    (tracks alive in both) give the relative pose by iteratively reweighted least squares started
    from the constant-angular-velocity prediction (:mod:`slopedist.odometry.twoview`): a
@@ -51,6 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 from slopedist.camera import Camera
 from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.odometry import twoview as tv
+from slopedist.odometry.affine_refine import refine_affine
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, OdometryResult, OdometryState
 
 FloatArray = NDArray[np.float64]
@@ -86,6 +90,19 @@ class VisualOdometryConfig:
             residual below this (pixels), it is used instead of the essential matrix.
         max_bridge_s: after this long without a good frame, tracking restarts (new segment).
         max_history_frames: hard cap on the frame records kept for the look-back.
+        fuse_frame_to_frame: when the direct fit reaches further back than the previous frame,
+            fuse it with the rotation chained from the previous frame's (information-weighted:
+            the chain helps where the direct fit is weak, e.g. yaw against a sideways
+            translation with few tracks).
+        frame_to_frame_floor_rad: standard deviation added per axis to every frame-to-frame
+            step of the chain, radians: a fit between consecutive frames has systematic errors
+            its residuals do not show (on the rendered hills about 0.005–0.01° per step, in
+            pitch and roll, the same sign from step to step), which add up over the ten steps of
+            a look-back; without this floor the fusion trusts the chain most where it is
+            biased.
+        affine_refinement: refine every Lucas–Kanade position with an affine fit of the patch
+            (:mod:`~slopedist.odometry.affine_refine`; its stretch and shear bias the
+            translational fit on the road near the camera).
     """
 
     lookback_s: float = LOOKBACK_S
@@ -104,6 +121,8 @@ class VisualOdometryConfig:
     max_bridge_s: float = 0.5
     max_history_frames: int = 256
     fuse_frame_to_frame: bool = True
+    frame_to_frame_floor_rad: float = math.radians(0.02)
+    affine_refinement: bool = True
 
     def __post_init__(self) -> None:
         positive = ("lookback_s", "min_feature_distance_px", "corner_quality", "klt_max_error",
@@ -123,6 +142,10 @@ class VisualOdometryConfig:
             raise ConfigurationError("min_inlier_ratio must lie in (0, 1]")
         if self.max_history_frames < 2:
             raise ConfigurationError("max_history_frames must be ≥ 2")
+        if not (math.isfinite(self.frame_to_frame_floor_rad)
+                and self.frame_to_frame_floor_rad >= 0):
+            raise ConfigurationError("visual odometry frame_to_frame_floor_rad must be ≥ 0, got "
+                                     f"{self.frame_to_frame_floor_rad}")
 
 
 @dataclass(frozen=True)
@@ -199,6 +222,8 @@ class BuiltinVisualOdometry:
         self._history: deque[_FrameRecord] = deque(maxlen=self.config.max_history_frames)
         self._prev_image: NDArray[np.uint8] | None = None
         self._prev_energy = 0.0  # gradient energy of the previous image
+        self._float_source: NDArray[np.uint8] | None = None  # last image converted to float32
+        self._float_image = np.empty((0, 0), dtype=np.float32)
         self._ids = np.empty(0, dtype=np.int64)
         self._pts = np.empty((0, 2), dtype=np.float32)
         self._vel = np.empty((0, 2), dtype=np.float32)  # pixels per second
@@ -345,7 +370,7 @@ class BuiltinVisualOdometry:
         cov = _rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
         good = ~np.isin(ids, fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True)
         # frame to frame: drop outliers among the young tracks too, and (when the direct fit
-        # reached further back) fuse the chained rotation, which constrains roll better
+        # reached further back and the fusion is on) fuse the chained rotation
         direct_info = self.last_fit
         f2f = None
         if ref is not prev and c.fuse_frame_to_frame:
@@ -354,7 +379,8 @@ class BuiltinVisualOdometry:
         if f2f is not None:
             good &= f2f.residuals_px <= c.outlier_px
             vote = prev.R_world_cam @ f2f.R.T
-            cov_vote = f2f.R @ (np.linalg.inv(f2f.information) + self._cov) @ f2f.R.T
+            step_cov = np.linalg.inv(f2f.information) + c.frame_to_frame_floor_rad**2 * np.eye(3)
+            cov_vote = f2f.R @ (step_cov + self._cov) @ f2f.R.T
             R_world_cam, cov = _fuse(R_world_cam, cov, vote, cov_vote)
         else:
             x_prev = tv.normalise_pixels(self._pts[keep], self._K)
@@ -413,16 +439,29 @@ class BuiltinVisualOdometry:
             criteria=self._klt_criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
         )
         p1 = np.asarray(p1, dtype=np.float32).reshape(-1, 2)
+        tracked = (status.ravel() == 1) & (err.ravel() < c.klt_max_error)
+        if c.affine_refinement:  # the patch's stretch and shear (the road near the camera)
+            # not where the window reaches into a masked box: one rigid surface per window
+            near = _inside_boxes(p1, _grown(boxes, 0.5 * c.klt_window_px + 1.0))
+            refine = tracked & ~near
+            p1[refine] = refine_affine(self._as_float(previous), self._as_float(image),
+                                       self._pts[refine], p1[refine])[0]
         width, height = self._size
         margin = 0.5 * c.klt_window_px
         keep = (
-            (status.ravel() == 1)
-            & (err.ravel() < c.klt_max_error)
+            tracked
             & (p1[:, 0] >= margin) & (p1[:, 0] < width - margin)
             & (p1[:, 1] >= margin) & (p1[:, 1] < height - margin)
             & ~_inside_boxes(p1, boxes)
         )
         return keep, p1[keep]
+
+    def _as_float(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
+        """``image`` as float32, converted once: the current frame's copy serves again when
+        it is the previous frame of the next step."""
+        if self._float_source is not image:
+            self._float_source, self._float_image = image, image.astype(np.float32)
+        return self._float_image
 
     def _lookback_position(self, t: float) -> int:
         """Index in the history of the look-back frame of time ``t`` (0 without enough history)."""
@@ -706,6 +745,11 @@ def _check_boxes(mask_boxes: ArrayLike | None) -> FloatArray:
             f"mask_boxes must be (N, 4) (left, top, right, bottom) pixels, got {boxes.shape}"
         )
     return boxes
+
+
+def _grown(boxes: FloatArray, margin_px: float) -> FloatArray:
+    """``(M, 4)`` boxes (left, top, right, bottom) grown by ``margin_px`` on every side."""
+    return boxes + np.array([-margin_px, -margin_px, margin_px, margin_px])
 
 
 def _inside_boxes(pts: NDArray[np.float32], boxes: FloatArray) -> NDArray[np.bool_]:

@@ -56,12 +56,8 @@ def test_ego_gradient_within_005_deg(name: str) -> None:
     assert np.sqrt(np.mean(theta_err**2)) <= LIMIT_DEG
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param("ego_sag", marks=pytest.mark.xfail(
-        strict=True, reason="measured: median about 0.06° over frames 0-79 (pitch and roll errors "
-        "about 0.04° RMS each); θ itself is within 0.05°")),
-    "bumps_and_curves",
-])
+@pytest.mark.parametrize("name", list(RUNS))
 def test_rotation_over_the_lookback_within_005_deg(name: str) -> None:
     _, rel_err, _ = _errors(name)
     assert np.median(rel_err) <= LIMIT_DEG
+
