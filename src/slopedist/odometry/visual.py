@@ -222,7 +222,8 @@ class BuiltinVisualOdometry:
         self._history: deque[_FrameRecord] = deque(maxlen=self.config.max_history_frames)
         self._prev_image: NDArray[np.uint8] | None = None
         self._prev_energy = 0.0  # gradient energy of the previous image
-        self._float_source: NDArray[np.uint8] | None = None  # last image converted to float32
+        # the last current frame converted to float32, reused when it is the next previous one
+        self._float_source: NDArray[np.uint8] | None = None
         self._float_image = np.empty((0, 0), dtype=np.float32)
         self._ids = np.empty(0, dtype=np.int64)
         self._pts = np.empty((0, 2), dtype=np.float32)
@@ -444,8 +445,12 @@ class BuiltinVisualOdometry:
             # not where the window reaches into a masked box: one rigid surface per window
             near = _inside_boxes(p1, _grown(boxes, 0.5 * c.klt_window_px + 1.0))
             refine = tracked & ~near
-            p1[refine] = refine_affine(self._as_float(previous), self._as_float(image),
-                                       self._pts[refine], p1[refine])[0]
+            prev_f = self._float_image if previous is self._float_source else None
+            if prev_f is None or previous is image:
+                prev_f = previous.astype(np.float32)
+            cur_f = image.astype(np.float32)
+            self._float_source, self._float_image = image, cur_f  # the next step's previous
+            p1[refine] = refine_affine(prev_f, cur_f, self._pts[refine], p1[refine])[0]
         width, height = self._size
         margin = 0.5 * c.klt_window_px
         keep = (
@@ -455,13 +460,6 @@ class BuiltinVisualOdometry:
             & ~_inside_boxes(p1, boxes)
         )
         return keep, p1[keep]
-
-    def _as_float(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
-        """``image`` as float32, converted once: the current frame's copy serves again when
-        it is the previous frame of the next step."""
-        if self._float_source is not image:
-            self._float_source, self._float_image = image, image.astype(np.float32)
-        return self._float_image
 
     def _lookback_position(self, t: float) -> int:
         """Index in the history of the look-back frame of time ``t`` (0 without enough history)."""
