@@ -699,10 +699,13 @@ def gradient_energy(image: NDArray[np.uint8]) -> float:
     """Sharpness of a frame: the mean squared Sobel gradient of its half-size copy divided by
     its grey-level variance (per pixel², independent of the exposure's gain and offset);
     comparable between frames of the same scene."""
-    small = _half_size(image).astype(np.float32)
-    gx = cv2.Sobel(small, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(small, cv2.CV_32F, 0, 1, ksize=3)
-    return float(np.mean(gx * gx + gy * gy)) / max(float(np.var(small)), 1.0)
+    small = _half_size(image)
+    square_sum = 0.0
+    for dx, dy in ((1, 0), (0, 1)):  # E[g²] = std² + mean², per axis (OpenCV, int16 Sobel)
+        mean, std = cv2.meanStdDev(cv2.Sobel(small, cv2.CV_16S, dx, dy, ksize=3))
+        square_sum += float(std[0, 0]) ** 2 + float(mean[0, 0]) ** 2
+    grey_std = float(cv2.meanStdDev(small)[1][0, 0])
+    return square_sum / max(grey_std**2, 1.0)
 
 
 def blur_to_energy(image: NDArray[np.uint8], target: float) -> NDArray[np.uint8]:
