@@ -252,3 +252,61 @@ def test_censor_upper_leaves_unmasked_and_missing_bounds_alone() -> None:
                             np.array([False, True]))
     for k in ("mean", "var", "var_white", "loglik"):
         assert getattr(out, k) == pytest.approx(getattr(cue, k))
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=st.floats(-10, 10), z=st.floats(6, 80), yaw=st.floats(-89, 89),
+       h=st.floats(1.3, 2.6), sigma=st.floats(0.1, 2.0))
+def test_height_cue_log_is_height_cue_in_log_form(x: float, z: float, yaw: float, h: float,
+                                                  sigma: float) -> None:
+    dims = np.array([h, 1.7, 4.2])
+    b = _box(x, z, yaw, dims)
+    e = float(cues.depth_half_extent(math.radians(yaw), dims[1], dims[2]))
+    var_e = 0.02
+    z_ref, dD, dH, de, dh = cues.height_cue(b[1], b[3], F, H_CAM, h, e)
+    got = cues.height_cue_log(np.array([[b[3] - b[1]]]), F, H_CAM, sigma, 0.05,
+                              np.array([[h]]), np.array([[e]]), np.array([[var_e]]),
+                              np.array([[h > H_CAM]]))
+    assert got.mean[0, 0] == pytest.approx(math.log(z), abs=1e-9)
+    assert got.lever[0, 0] == pytest.approx(dH * h / z_ref, rel=1e-9)
+    assert got.var_white[0, 0] == pytest.approx(2 * (dD * sigma / z_ref) ** 2, rel=1e-9)
+    assert got.var_other[0, 0] == pytest.approx(
+        (de ** 2 * var_e + (dh * 0.05) ** 2) / z_ref ** 2, rel=1e-9)
+
+
+def test_width_cue_log_is_the_width_cue_in_log_form() -> None:
+    rng = np.random.default_rng(4)
+    n = 40
+    grid = yaw_grid()
+    x, z = rng.uniform(-10, 10, n), rng.uniform(5, 70, n)
+    b = cues.project_box(F, CX, CY, H_CAM, x, z, rng.uniform(-0.3, 0.3, n), CAR)
+    parts = np.broadcast_to(cues.corner_parts(grid, CAR[1], CAR[2]), (n, grid.size, 4, 4))
+    z_init = z[:, None] * rng.uniform(0.9, 1.1, (n, grid.size))
+    min_depth = np.full((n, grid.size), 2.4)
+    z_ref, dcol, share = cues.width_cue_from_parts(b[:, 0:1], b[:, 2:3], F, CX, parts, z_init,
+                                                   iterations=1)
+    z_ref = np.maximum(z_ref, min_depth)
+    corners = np.ascontiguousarray(np.broadcast_to(
+        cues.corner_table(grid, CAR[1], CAR[2])[:, None], (6, n, grid.size, 4)))
+    left, right = (np.repeat(b[:, k:k + 1], grid.size, axis=1) for k in (0, 2))
+    got = cues.width_cue_log(left, right, F, CX, 0.7, corners, z_init, min_depth)
+    np.testing.assert_allclose(got.mean, np.log(z_ref), atol=1e-12)
+    np.testing.assert_allclose(got.lever, share, atol=1e-12)
+    np.testing.assert_allclose(got.var_white, (dcol * 0.7 / z_ref) ** 2, rtol=1e-9)
+
+
+def test_hidden_sides_flags_the_sides_on_a_nearer_box() -> None:
+    far = [600.0, 170.0, 660.0, 200.0]  # behind: its right side and bottom on the near box
+    near = [650.0, 165.0, 760.0, 240.0]  # bottom lower: nearer
+    alone = [100.0, 170.0, 150.0, 200.0]
+    width_cut, height_cut = cues.hidden_sides(np.array([far, near, alone]), tol_px=1.0)
+    assert width_cut.tolist() == [True, False, False]
+    assert height_cut.tolist() == [True, False, False]
+    beside = [500.0, 170.0, 649.5, 200.0]  # its right edge 0.5 px from the near box: touching
+    width_cut, _ = cues.hidden_sides(np.array([beside, near]), tol_px=1.0)
+    assert width_cut.tolist() == [True, False]
+    width_cut, _ = cues.hidden_sides(np.array([beside, near]), tol_px=0.1)
+    assert width_cut.tolist() == [False, False]
+    top_on = [700.0, 200.0, 740.0, 230.0]  # its top edge inside the near box, bottom below
+    _, height_cut = cues.hidden_sides(np.array([top_on, [690.0, 150.0, 760.0, 235.0]]))
+    assert height_cut.tolist() == [True, False]

@@ -129,6 +129,41 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
         np.testing.assert_array_equal(again.estimates.distance_m, again2.estimates.distance_m)
 
 
+ABLATION_LIKE = [
+    {"use_width": False, "yaw_hypotheses": False, "use_ground_contact": False,
+     "motion_model": False},
+    {"use_ground_contact": False},
+    {"motion_model": False, "occlusion_aware": False},
+    {"gradient_feedback": True, "yaw_memory": True},
+    {"atypical_height_weight": 0.1},
+    {"adapt_box_noise": True, "censor_border_cuts": False},
+]
+
+
+@pytest.mark.parametrize("opts", ABLATION_LIKE)
+@pytest.mark.parametrize("with_ids", [True, False])
+def test_every_option_set_estimates_simulated_traffic(opts: dict, with_ids: bool) -> None:
+    sim = simulate_traffic(CAM, 8, 40, seed=5, box_noise_px=0.3, with_ids=with_ids)
+    res = estimate_sequence(OursEstimator(CAM, **opts), sim.boxes, sim.timestamps_s,
+                            _at_rest(len(sim.timestamps_s)))
+    e = res.estimates
+    assert np.all(np.isfinite(e.distance_m)) and np.all(np.isfinite(e.extra["sigma_m"]))
+    assert np.median(np.abs(e.distance_m / sim.z_m - 1)) < 0.1
+    assert np.all(e.extra["distance_nearest_face_m"] < e.distance_m)
+
+
+def test_tracks_keep_their_state_in_rows() -> None:
+    est = OursEstimator(CAM)
+    outs = _approach(est, 0, 5, 40.0, -5.0, 7, CAR)
+    tr = est.tracks
+    assert len(tr) == 1 and tr.ext_id.tolist() == [7]
+    assert tr.x.shape == (1, 2) and tr.P.shape == (1, 2, 2) and tr.last_box.shape == (1, 4)
+    assert math.exp(tr.x[0, 0]) == pytest.approx(outs[-1].distance_m[0], rel=0.01)
+    assert tr.n_obs[0] == 5 and tr.last_t[0] == pytest.approx(0.4)
+    assert np.allclose(tr.R_last[0], np.eye(3)) and tr.log_w.shape == (1, est._yaw.size)
+    assert np.all(np.linalg.eigvalsh(tr.P[0]) > 0)
+
+
 def _approach(est: OursEstimator, k0: int, n: int, z0: float, speed: float, tid: int,
               dims: np.ndarray) -> list:
     outs = []

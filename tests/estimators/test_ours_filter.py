@@ -99,3 +99,27 @@ def test_random_walk_update() -> None:
     m2, v2 = kf.random_walk_update(np.array([0.5]), np.array([1.0]), 0.0, 0.0,
                                    np.array([np.nan]), np.array([1.0]))
     assert m2[0] == 0.5 and v2[0] == 1.0
+
+
+def test_row_layout_matches_the_matrix_layout() -> None:
+    rng = np.random.default_rng(2)
+    m = 7
+    x = np.c_[np.log(rng.uniform(5, 60, m)), rng.normal(0, 0.3, m)]
+    A = rng.normal(0, 0.1, (m, 2, 2))
+    P = A @ np.swapaxes(A, 1, 2) + 1e-4 * np.eye(2)
+    rows = kf.rows_of(x, P)
+    x2, P2 = kf.states_of(rows)
+    np.testing.assert_array_equal(x2, x)
+    np.testing.assert_array_equal(P2, P)
+    d, sd = kf.distance_moments(x, P, 0.01)
+    d2, sd2 = kf.distance_moments_rows(rows, 0.01)
+    np.testing.assert_allclose(d2, d, rtol=1e-12)
+    np.testing.assert_allclose(sd2, sd, rtol=1e-12)
+    v, vsd = kf.speed_moments(x, P)
+    ttc, ttc_sd = kf.ttc_moments(x, P)
+    v2, vsd2, ttc2, ttc_sd2 = kf.motion_moments_rows(rows)
+    np.testing.assert_allclose(v2, v, rtol=1e-12)
+    np.testing.assert_allclose(vsd2, vsd, rtol=1e-12)
+    np.testing.assert_allclose(ttc2, ttc, rtol=1e-12)  # NaN where receding, in both
+    np.testing.assert_allclose(ttc_sd2, ttc_sd, rtol=1e-12)
+    assert np.isnan(ttc2[x[:, 1] >= 0]).all() and np.isfinite(ttc2[x[:, 1] < 0]).all()

@@ -130,6 +130,127 @@ def height_cue(
             np.where(roof_above, 0.0 * d, outs[4]))
 
 
+class SizeCue(NamedTuple):
+    """A size cue as a log distance, as :func:`height_cue_log` and :func:`width_cue_log` give it.
+
+    Attributes:
+        mean: ``ℓ = log Z`` (Z, the centre depth, in metres).
+        lever: ``∂ℓ/∂log(dimension)``, how much of a relative error of the vehicle's dimension
+            (against the class prior) goes into ℓ: ``∂log Z/∂log H`` for the height cue, the
+            width's share ``∂log Z/∂log W`` for the width cue.
+        var_white: variance of ℓ from the box edges' pixel noise (independent per frame).
+        var_other: other per-vehicle variance of ℓ (the footprint's depth, the camera height;
+            for the width cue, the length's share of the size prior).
+    """
+
+    mean: FloatArray
+    lever: FloatArray
+    var_white: FloatArray
+    var_other: FloatArray
+
+
+def height_cue_log(
+    box_height_px: FloatArray, f: float, cam_height_m: float, sigma_px: float,
+    cam_height_sigma_m: float, height_m: FloatArray, half_extent_m: FloatArray,
+    half_extent_var_m2: FloatArray, roof_above: NDArray[np.bool_] | None = None,
+) -> SizeCue:
+    """:func:`height_cue` as a :class:`SizeCue` in closed form (the estimator's per-frame path).
+
+    With ``d = D/f``, ``S = √(H² + 4d(d·e² + e(2h − H)))`` and ``Z = (H + S)/(2d)`` (roof below
+    the camera): ``∂Z/∂H = (Z − e)/S``, ``∂Z/∂D = (e² − Z²)/(S·f)``, ``∂Z/∂e = (2de + 2h − H)/S``
+    and ``∂Z/∂h = 2e/S``; where ``roof_above`` (``h < H``), ``Z = H/d + e``. The white variance
+    is that of the two edges' noise ``σ`` (box height variance ``2σ²``), the other that of the
+    half extent and the camera height.
+
+    Args:
+        box_height_px: ``(N, 1)`` box heights ``b − t`` (> 0), pixels.
+        f, cam_height_m: focal length (px) and camera height (m).
+        sigma_px, cam_height_sigma_m: box-edge noise (px) and camera-height uncertainty (m).
+        height_m, half_extent_m, half_extent_var_m2: the class's height, the footprint's half
+            depth extent and its variance per hypothesis, broadcastable to ``(N, K)``.
+        roof_above: where the vehicle is taller than the camera height (None: nowhere).
+    """
+    H = height_m
+    e = half_extent_m
+    d = box_height_px * (1.0 / f)
+    ee = e * e
+    tw = 2.0 * cam_height_m - H
+    S = np.sqrt(H * H + (4.0 * d) * (d * ee + e * tw))
+    inv_S = 1.0 / S
+    Z = (H + S) * (0.5 / d)
+    inv_Z = 1.0 / Z
+    sz = inv_S * inv_Z
+    lever = (Z - e) * sz * H
+    rel_D = (ee - Z * Z) * sz
+    white = (rel_D * rel_D) * (2.0 * (sigma_px / f) ** 2)
+    de = (2.0 * d) * e + tw
+    other = (de * de * half_extent_var_m2 + ee * (2.0 * cam_height_sigma_m) ** 2) * (sz * sz)
+    if roof_above is not None and any_true(roof_above):
+        Zt = H / d + e
+        inv_Zt = 1.0 / Zt
+        rel_t = H / (d * d) * inv_Zt
+        Z = np.where(roof_above, Zt, Z)
+        lever = np.where(roof_above, H / d * inv_Zt, lever)
+        white = np.where(roof_above, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), white)
+        other = np.where(roof_above, half_extent_var_m2 * inv_Zt * inv_Zt, other)
+    return SizeCue(np.log(Z), lever, white, other)
+
+
+def width_cue_log(
+    left: FloatArray, right: FloatArray, f: float, c_x: float, sigma_px: float,
+    corners: FloatArray, z_init_m: FloatArray, min_depth_m: FloatArray,
+) -> SizeCue:
+    """:func:`width_cue_from_parts` (one choice of the extreme corners, at ``z_init_m``) as a
+    :class:`SizeCue` whose ``var_other`` is 0 (the caller adds the length's share) and whose
+    lever is the width's share; the depth is clipped at ``min_depth_m`` before its logarithm.
+
+    Args:
+        left, right: ``(N, K)`` box columns (the same for every hypothesis), pixels.
+        f, c_x, sigma_px: focal length, principal-point column and box-edge noise, pixels.
+        corners: ``(6, N, K, 4)`` per hypothesis and footprint corner, the four
+            :func:`corner_parts` (the width's and the length's parts of the x offset, then of
+            the z offset) and the corner's x and z offsets (their sums), metres.
+        z_init_m, min_depth_m: ``(N, K)`` depth at which the extreme corners are chosen, and
+            the smallest centre depth accepted.
+    """
+    inv_f = 1.0 / f
+    al = (left - c_x) * inv_f
+    ar = (right - c_x) * inv_f
+    Zc = z_init_m[..., None]
+    px = (((al + ar) * 0.5)[..., None] * Zc + corners[4]) / np.maximum(Zc + corners[5], 1e-3)
+    flat = corners.reshape(6, -1)  # one column per (target, hypothesis, corner)
+    first = _first_corner_rows(z_init_m.shape)
+    pl = flat[:, first + px.argmin(axis=-1)]  # (6, N, K): the left-most corner's
+    pr = flat[:, first + px.argmax(axis=-1)]
+    num_w = pl[0] - pr[0] - al * pl[2] + ar * pr[2]
+    num = pl[4] - pr[4] - al * pl[5] + ar * pr[5]
+    Z = num / (al - ar)
+    Zm = np.maximum(Z, min_depth_m)
+    zl, zr = Z + pl[5], Z + pr[5]  # the extreme corners' depths
+    wpx = right - left
+    white = (zl * zl + zr * zr) / (Zm * Zm) * ((sigma_px * sigma_px) / (wpx * wpx))
+    return SizeCue(np.log(Zm), num_w / num, white, np.zeros(Zm.shape))
+
+
+_FIRST_ROWS: dict[tuple[int, ...], NDArray[np.intp]] = {}
+
+
+def _first_corner_rows(shape: tuple[int, ...]) -> NDArray[np.intp]:
+    """Index of each (target, hypothesis)'s first corner in a flattened ``(..., 4)`` layout."""
+    rows = _FIRST_ROWS.get(shape)
+    if rows is None:
+        rows = _FIRST_ROWS[shape] = np.arange(0, 4 * int(np.prod(shape)), 4).reshape(shape)
+    return rows
+
+
+def corner_table(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
+    """The ``corners`` argument of :func:`width_cue_log`, ``(6, ..., 4)``: :func:`corner_parts`
+    moved to the front, then the corners' x and z offsets."""
+    parts = np.moveaxis(corner_parts(yaw_rad, width_m, length_m), -1, 0)
+    return np.ascontiguousarray(np.concatenate(
+        [parts, (parts[0] + parts[1])[None], (parts[2] + parts[3])[None]]))
+
+
 def corner_parts(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
     """The footprint corners' offsets from the box centre split by dimension, ``(..., 4, 4)``.
 
@@ -241,8 +362,11 @@ def expected_centre_offset_px(
     h = np.asarray(cam_height_m, dtype=float)
     H = np.asarray(height_m, dtype=float)
     near = Z - e  # > 0 for the box of a real target
-    top_depth = np.where(h >= H, Z + e, near)
-    return np.asarray(0.5 * f * (h / near + (h - H) / top_depth))
+    top_depth = Z + e  # the far roof edge is the top of the box, unless the roof is above
+    roof_above = h < H
+    if any_true(roof_above):
+        top_depth = np.where(roof_above, near, top_depth)
+    return np.asarray((h / near + (h - H) / top_depth) * (0.5 * f))
 
 
 def target_gradient(
@@ -282,16 +406,21 @@ def hidden_sides(boxes: ArrayLike, tol_px: float = 1.5) -> tuple[NDArray[np.bool
         edge) on a nearer box.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    lo = b[None, :, :2] - tol_px  # nearer box j's extent (columns, rows), widened by tol
-    hi = b[None, :, 2:] + tol_px
-    reach = (np.minimum(b[:, None, 2:], hi) > np.maximum(b[:, None, :2], lo))  # (i, j, axis)
-    near = (reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3]))[..., None]
+    lo = b[:, :2] - tol_px  # each box's extent (columns, rows), widened by tol
+    hi = b[:, 2:] + tol_px
+    # pairs (i, j) whose boxes overlap or touch (both axes), with j nearer (its bottom lower)
+    reach = np.minimum(b[:, None, 2:], hi[None]) > np.maximum(b[:, None, :2], lo[None])
+    near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
     if not any_true(near):
         z = np.zeros(b.shape[0], dtype=bool)
         return z, z.copy()
-    on_lo = near & (b[:, None, :2] >= lo) & (b[:, None, :2] <= hi)  # left / top edge on j
-    on_hi = near & (b[:, None, 2:] >= lo) & (b[:, None, 2:] <= hi)  # right / bottom edge on j
-    cut = np.logical_or.reduce(on_lo | on_hi, axis=1)
+    i, j = np.nonzero(near)  # few pairs: test their edges only
+    lo_j, hi_j = lo[j], hi[j]
+    bi = b[i]
+    on = (((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
+          | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j)))  # right / bottom edge of i on j
+    cut = np.zeros((b.shape[0], 2), dtype=bool)
+    np.logical_or.at(cut, i, on)
     return cut[:, 0], cut[:, 1]
 
 
@@ -347,9 +476,10 @@ class LogCue(NamedTuple):
 
 
 def fuse_size_cues(
-    y_h: ArrayLike, r_h_white: ArrayLike, r_h_other: ArrayLike, c_h: ArrayLike, y_w: ArrayLike,
-    r_w_white: ArrayLike, r_w_other: ArrayLike, c_w: ArrayLike, sigma_log_h: ArrayLike,
-    sigma_log_w: ArrayLike, corr_hw: ArrayLike,
+    y_h: FloatArray, r_h_white: FloatArray | float, r_h_other: FloatArray | float,
+    c_h: FloatArray, y_w: FloatArray, r_w_white: FloatArray | float,
+    r_w_other: FloatArray | float, c_w: FloatArray, sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float, corr_hw: FloatArray | float,
 ) -> LogCue:
     """Fuse the height and width cues (log distances) under the class size prior.
 
@@ -360,21 +490,22 @@ def fuse_size_cues(
     estimate of ℓ. A non-finite width cue leaves the height cue alone.
     """
     yh, yw = np.asarray(y_h, dtype=float), np.asarray(y_w, dtype=float)
-    sh = np.asarray(c_h) * np.asarray(sigma_log_h)
-    sw = np.asarray(c_w) * np.asarray(sigma_log_w)
-    C11 = sh * sh + np.asarray(r_h_white) + np.asarray(r_h_other)
-    C22 = sw * sw + np.asarray(r_w_white) + np.asarray(r_w_other)
-    C12 = np.asarray(corr_hw) * sh * sw
-    both = np.isfinite(yw + C22)
+    sh = c_h * np.asarray(sigma_log_h)
+    sw = c_w * np.asarray(sigma_log_w)
+    C11 = sh * sh + r_h_white + r_h_other
+    C22 = sw * sw + r_w_white + r_w_other
+    C12 = corr_hw * sh * sw
     # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
-    den = C11 + C22 - 2.0 * C12
-    a_h = (C22 - C12) / den
-    a_w = (C11 - C12) / den
-    mean = a_h * yh + a_w * yw
-    var = (C11 * C22 - C12 * C12) / den
-    white = a_h * a_h * np.asarray(r_h_white) + a_w * a_w * np.asarray(r_w_white)
+    den = C11 + C22 - C12 - C12
+    inv_den = 1.0 / den
+    a_h = (C22 - C12) * inv_den
+    a_w = (C11 - C12) * inv_den
     diff = yh - yw
-    loglik = -0.5 * (diff * diff / den + np.log(2.0 * np.pi * den))
+    mean = yw + a_h * diff
+    var = (C11 * C22 - C12 * C12) * inv_den
+    white = a_h * a_h * r_h_white + a_w * a_w * r_w_white
+    loglik = (diff * diff * inv_den + np.log(den)) * -0.5 - _HALF_LOG_2PI
+    both = np.isfinite(den)
     if all_true(both):
         return LogCue(mean, var, white, loglik)
     return LogCue(np.where(both, mean, yh), np.where(both, var, C11),
@@ -382,10 +513,14 @@ def fuse_size_cues(
                   np.where(both, loglik, 0.0))
 
 
+_HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
+
+
 def ground_contact_log_cue(
-    bottom: ArrayLike, v: ArrayLike, f: float, cam_height_m: ArrayLike, half_extent_m: ArrayLike,
-    row_var_white: ArrayLike, row_var_other: ArrayLike, height_sigma_m: ArrayLike = 0.0,
-    half_extent_sigma_m: ArrayLike = 0.0,
+    bottom: FloatArray, v: FloatArray | float, f: float, cam_height_m: FloatArray | float,
+    half_extent_m: FloatArray | float, row_var_white: FloatArray | float,
+    row_var_other: FloatArray | float, height_sigma_m: FloatArray | float = 0.0,
+    half_extent_sigma_m: FloatArray | float = 0.0,
 ) -> LogCue:
     """:func:`ground_contact_cue` as a log distance with its propagated variance.
 
@@ -394,15 +529,19 @@ def ground_contact_log_cue(
     ``d²/(f·h)``. The camera height and the half extent add per-vehicle variance. NaN where
     ``b ≤ v``.
     """
-    gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
-    h = np.asarray(cam_height_m, dtype=float)
-    zn = f * h / np.where(gap > 0, gap, np.nan)  # NaN propagates without a warning
-    z = zn + np.asarray(half_extent_m, dtype=float)
-    gain2 = np.square(zn * zn / (f * h))  # (σ_d/σ_row)², see ground_contact_sigma
+    gap = bottom - np.asarray(v, dtype=float)
+    fh = f * np.asarray(cam_height_m, dtype=float)
+    bad = gap <= 0
+    zn = fh / gap
+    if any_true(bad):  # NaN, which then propagates
+        zn = np.where(bad, np.nan, zn)
+    z = zn + half_extent_m
+    gain = zn * zn * (1.0 / fh)
+    gain *= gain  # (σ_d/σ_row)², see ground_contact_sigma
     inv_z2 = 1.0 / (z * z)
-    white = (gain2 * row_var_white) * inv_z2
-    other = ((gain2 * row_var_other + np.square(zn * np.asarray(height_sigma_m) / h)
-              + np.square(half_extent_sigma_m)) * inv_z2)
+    white = gain * row_var_white * inv_z2
+    zh = zn * (np.asarray(height_sigma_m) * f / fh)
+    other = (gain * row_var_other + zh * zh + np.square(half_extent_sigma_m)) * inv_z2
     return LogCue(np.log(z), white + other, white, np.zeros(z.shape))
 
 
@@ -412,19 +551,20 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     The white variance is propagated with the same weights; ``loglik`` adds the consistency of
     the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
     """
-    ok = np.isfinite(b.mean) & np.isfinite(b.var) & (b.var > 0)
+    ok = np.isfinite(b.mean + b.var) & (b.var > 0)
     every = all_true(ok)
     vb = b.var if every else np.where(ok, b.var, 1.0)
     mb = b.mean if every else np.where(ok, b.mean, 0.0)
     wb_white = b.var_white if every else np.where(ok, b.var_white, 0.0)
     tot = a.var + vb  # > 0: vb > 0 and a.var ≥ 0
-    wa = vb / tot
-    wb = 1.0 - wa
-    mean = wa * a.mean + wb * mb
-    var = a.var * vb / tot
-    white = wa * wa * a.var_white + wb * wb * wb_white
+    inv_tot = 1.0 / tot
+    wa = vb * inv_tot
+    wb = a.var * inv_tot
     diff = a.mean - mb
-    ll = -0.5 * (diff * diff / tot + np.log(2.0 * np.pi * tot))
+    mean = mb + wa * diff
+    var = a.var * wa
+    white = wa * wa * a.var_white + wb * wb * wb_white
+    ll = (diff * diff * inv_tot + np.log(tot)) * -0.5 - _HALF_LOG_2PI
     if every:
         return LogCue(mean, var, white, a.loglik + ll)
     return LogCue(np.where(ok, mean, a.mean), np.where(ok, var, a.var),
@@ -476,6 +616,7 @@ def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, Flo
 def mix_hypotheses(cue: LogCue, weight: FloatArray) -> LogCue:
     """:func:`collapse_hypotheses` with normalised weights (summing to 1 over the last axis)."""
     mean = np.add.reduce(weight * cue.mean, axis=-1)
-    var = np.add.reduce(weight * (cue.var + (cue.mean - mean[..., None]) ** 2), axis=-1)
+    dev = cue.mean - mean[..., None]
+    var = np.add.reduce(weight * (cue.var + dev * dev), axis=-1)
     white = np.add.reduce(weight * cue.var_white, axis=-1)
     return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))

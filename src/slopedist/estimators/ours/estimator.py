@@ -57,20 +57,20 @@ from slopedist.estimators.ours.priors import (
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalConfig, SelfCalibrator
 from slopedist.estimators.ours.tracking import (
-    COL_BOX_VEL,
-    COL_GRAD_MEAN,
-    COL_GRAD_OTHER,
-    COL_GRAD_VAR,
-    COL_LAST_BOX,
-    COL_LAST_T,
-    COL_LOG_W,
-    COL_N_OBS,
-    COL_P,
-    COL_PREV_T,
-    COL_R,
-    COL_X,
+    ROW_BOX_VEL,
+    ROW_FILTER,
+    ROW_GRAD_MEAN,
+    ROW_GRAD_OTHER,
+    ROW_GRAD_VAR,
+    ROW_LAST_BOX,
+    ROW_LAST_T,
+    ROW_LOG_W,
+    ROW_N_OBS,
+    ROW_PREV_T,
+    ROW_ROT,
     TrackArrays,
     associate,
+    depth_ratios,
     moved_boxes,
     turn_boxes,
 )
@@ -242,10 +242,19 @@ class OursEstimator(Estimator):
         self._height_modes = [k for k, _ in modes]  # spread factor of each body-style mode
         self._log_mode = np.repeat(np.log([p for _, p in modes]), grid.size)
         self._log_prior_all = (np.tile(self._log_yaw_prior, len(modes)) + self._log_mode)[None, :]
+        self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
         self._fixed_calib = _CalibInUse(0.0, config.mount_sigma_rad, camera.height_m,
                                         config.height_sigma_m)
         self._image_size_known = bool(camera.image_width and camera.image_height)
         self.reset()
+
+    def _log_prior_rows(self, n: int) -> FloatArray:
+        """The log prior of the hypotheses (headings × body-style modes) for ``n`` targets,
+        ``(n, K·modes)`` (a slice of a cached block: no broadcasting per frame)."""
+        block = self._log_prior_block
+        if block.shape[0] < n:
+            block = self._log_prior_block = np.repeat(self._log_prior_all, 2 * n, axis=0)
+        return block[:n]
 
     def reset(self) -> None:
         """Forget all tracks and the self-calibration (new sequence)."""
@@ -320,7 +329,12 @@ class OursEstimator(Estimator):
     def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], all_good: bool,
                         theta_f: float, jitter_rad: float, calib: _CalibInUse
                         ) -> dict[str, FloatArray]:
-        """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates)."""
+        """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates).
+
+        Per (target, heading hypothesis) quantities are ``(n, K)`` arrays; the class constants
+        come as such planes from one gather (:class:`_ClassTable`), so that the arithmetic of a
+        frame's few targets never broadcasts.
+        """
         cfg = self.config
         cam = self.camera
         f = cam.f
@@ -330,48 +344,47 @@ class OursEstimator(Estimator):
         ids = table.track_id if all_good else table.track_id[good]
         cls = self._classes
         ci = cls.rows(table.cls if all_good else table.cls[good])
-        pri = cls.scalars[ci]  # (n, _N_SCALARS), columns as _ClassTable.scalars
+        pri = cls.scalars[ci]  # (n, 10), columns as _ClassTable.scalars
+        G = cls.planes[:, ci]  # (_N_PLANES, n, K), planes as _ClassTable.planes
         n = B.shape[0]
-        H = pri[:, 0:1]
         h = calib.height
-        trunc_lr, trunc_top, trunc_bottom = self._truncation(B)
-        infl = cfg.truncation_factor ** 2
-        cos2 = math.cos(theta_f) ** 2
         sigma_px = self.box_sigma_px
+        cuts = self._truncation(B)  # None when no box touches the image border
+        e, var_e = G[_P_E], G[_P_VAR_E]
+        ls_h, ls_w = G[_P_LS_H], G[_P_LS_W]
+        # the box edges as contiguous (n, K) planes
+        left, top, right, bottom = np.repeat(B.T[:, :, None], e.shape[1], axis=2)
 
         # --- size cues per (target, heading hypothesis) -----------------------------------
-        e = cls.e[ci]
-        var_e = cls.var_e[ci]
-        z_h, dz_dD, dz_dH, dz_de, dz_dh = cues.height_cue(B[:, 1:2], B[:, 3:4], f, h, H, e)
-        y_h = np.log(z_h)
-        c_h = dz_dH * H / z_h
-        r_h_white = 2.0 * (dz_dD * sigma_px / z_h) ** 2
-        r_h_other = (dz_de ** 2 * var_e + (dz_dh * calib.sigma_height) ** 2) / z_h ** 2
-        cut_h = trunc_top | trunc_bottom
-        # a dimension cut by the image border: the cue is an upper bound on the distance
-        # (applied to the fused cue below), and keeps only a weak Gaussian weight
-        bounds: list[tuple[FloatArray, FloatArray, NDArray[np.bool_]]] = []
-        censor = cfg.censor_border_cuts
-        if any_true(cut_h):
-            if censor:
-                    bounds.append((y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other, cut_h))
-            r_h_white = np.where(cut_h[:, None], r_h_white * infl, r_h_white)
-            r_h_other = np.where(cut_h[:, None], r_h_other * infl, r_h_other)
+        tall = pri[:, 0] > h  # the roof above the camera
+        hc = cues.height_cue_log(bottom - top, f, h, sigma_px, calib.sigma_height, G[_P_H],
+                                 e, var_e, tall[:, None] if any_true(tall) else None)
+        y_h, c_h, r_h_white, r_h_other = hc
         if cfg.use_width:
-            z_w, dz_dcol, share_w = cues.width_cue_from_parts(
-                B[:, 0:1], B[:, 2:3], f, cam.c_x, cls.parts[ci], z_h, iterations=1,
-                offsets=(cls.dx[ci], cls.dz[ci]))
-            z_w = np.maximum(z_w, cls.e_min[ci])
-            y_w = np.log(z_w)
-            r_w_white = (dz_dcol * sigma_px / z_w) ** 2
-            r_w_other = ((1.0 - share_w) * pri[:, 9:10]) ** 2
-            if any_true(trunc_lr):
-                if censor:
-                    bounds.append((y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white + r_w_other,
-                                   trunc_lr))
-                r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
+            wc = cues.width_cue_log(left, right, f, cam.c_x, sigma_px, cls.corners[:, ci],
+                                    np.exp(y_h), G[_P_E_MIN])
+            y_w, share_w, r_w_white = wc.mean, wc.lever, wc.var_white
+            r_w_other = (1.0 - share_w) * G[_P_LS_L]
+            r_w_other *= r_w_other
         else:
             y_w = r_w_white = r_w_other = share_w = np.full(e.shape, np.nan)
+        # a dimension cut by the image border keeps a weak Gaussian weight and bounds the
+        # distance from above (applied to the fused cue below)
+        bounds: list[tuple[FloatArray, FloatArray, NDArray[np.bool_]]] = []
+        if cuts is not None:
+            trunc_lr, trunc_top, trunc_bottom = cuts
+            infl = cfg.truncation_factor ** 2
+            cut_h = (trunc_top | trunc_bottom)[:, None]
+            if any_true(cut_h):
+                if cfg.censor_border_cuts:
+                    bounds.append((y_h, (c_h * ls_h) ** 2 + r_h_white + r_h_other, cut_h))
+                r_h_white = np.where(cut_h, r_h_white * infl, r_h_white)
+                r_h_other = np.where(cut_h, r_h_other * infl, r_h_other)
+            if cfg.use_width and any_true(trunc_lr):
+                if cfg.censor_border_cuts:
+                    bounds.append((y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other,
+                                   trunc_lr[:, None]))
+                r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
 
         # --- what the tracks carry --------------------------------------------------------
         R_now = frame.R_world_cam
@@ -382,34 +395,37 @@ class OursEstimator(Estimator):
         if not len(tr):  # (no track is ever stored unless cfg.tracking)
             rows = np.full(n, -1, np.int64)
             turned, depth_ratio = tr.last_box, np.ones(0)
-        else:
+        elif box_motion:
             turned, depth_ratio = turn_boxes(tr.last_box, f, cam.c_x, cam.c_y, tr.R_last, R_now)
-            pred_boxes = moved_boxes(tr, turned, t) if box_motion else None
+            pred_boxes = moved_boxes(tr, turned, t)
             rows = associate(tr, B, ids, cfg.min_iou, pred_boxes)
+        else:
+            rows = associate(tr, B, ids, cfg.min_iou)
+            turned, depth_ratio = tr.last_box, None  # the depth ratios of the continued only
         old = rows >= 0
         every_old = all_true(old)
         r_old = rows if every_old else rows[old]
         any_old = r_old.size > 0
-        S_old = tr.state[r_old]  # (a copy) the continued tracks' states
-        dt_old = t - S_old[:, COL_LAST_T]
-        grad_v_old = S_old[:, COL_GRAD_VAR] + cfg.process.gradient_rad ** 2 * dt_old  # predict
+        S_old = tr.state[:, r_old]  # (a copy) the continued tracks' states, rows as ROW_*
+        dt_old = t - S_old[ROW_LAST_T]
+        grad_v_old = S_old[ROW_GRAD_VAR] + cfg.process.gradient_rad ** 2 * dt_old  # predict
         if cfg.adapt_box_noise and any_old and pred_boxes is not None:
             self._learn_box_noise(B[old] - pred_boxes[r_old], r_old, t)
-        log_pi = self._log_yaw_prior
+        log_pi = None  # the heading prior of every target (else per target)
         if cfg.yaw_memory and any_old:
             mix = 1.0 - np.exp(-dt_old / cfg.yaw_memory_s)
-            carried = ((1.0 - mix[:, None]) * np.exp(S_old[:, COL_LOG_W:])
+            carried = ((1.0 - mix[:, None]) * np.exp(S_old[ROW_LOG_W:].T)
                        + mix[:, None] * np.exp(self._log_yaw_prior))
-            log_pi = np.broadcast_to(log_pi[None, :], e.shape).copy()
+            log_pi = np.broadcast_to(self._log_yaw_prior[None, :], e.shape).copy()
             log_pi[old] = np.log(np.maximum(carried, 1e-300))
         if cfg.gradient_feedback:  # each target's gradient so far, predicted to now
             grad_m = np.zeros(n)
             grad_v = np.full(n, np.inf)
             grad_o = np.zeros(n)
             if any_old:
-                grad_m[old] = S_old[:, COL_GRAD_MEAN]
+                grad_m[old] = S_old[ROW_GRAD_MEAN]
                 grad_v[old] = grad_v_old
-                grad_o[old] = S_old[:, COL_GRAD_OTHER]
+                grad_o[old] = S_old[ROW_GRAD_OTHER]
             a_m, a_v = _shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
             alpha: FloatArray | float = a_m[:, None]
             alpha_var: FloatArray | float = a_v[:, None]
@@ -419,34 +435,35 @@ class OursEstimator(Estimator):
         # --- ground-contact cue and fusion ---------------------------------------------------
         v_frame = cam.c_y - f * math.tan(theta_f)
         if cfg.use_ground_contact:
+            cos2 = math.cos(theta_f) ** 2
             v_target = cam.c_y - f * np.tan(theta_f + alpha) if cfg.gradient_feedback else v_frame
             row_white = sigma_px ** 2 + (f * jitter_rad / cos2) ** 2
             row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta ** 2)
-            gc = cues.ground_contact_log_cue(B[:, 3:4], v_target, f, h, e, row_white, row_other,
-                                             calib.sigma_height, cls.sd_e[ci])
-            if any_true(trunc_bottom):
-                if censor:
-                    bounds.append((gc.mean, gc.var, trunc_bottom))
-                gc = _inflate(gc, trunc_bottom[:, None], infl)
+            gc = cues.ground_contact_log_cue(bottom, v_target, f, h, e, row_white, row_other,
+                                             calib.sigma_height, G[_P_SD_E])
+            if cuts is not None and any_true(cuts[2]):
+                if cfg.censor_border_cuts:
+                    bounds.append((gc.mean, gc.var, cuts[2][:, None]))
+                gc = _inflate(gc, cuts[2][:, None], cfg.truncation_factor ** 2)
         if cfg.occlusion_aware and cfg.use_ground_contact and n > 1:
             # a size cue that says too far may show only part of a vehicle hidden behind a
             # nearer one (censored): which sides nearer boxes may cut, then the outlier test
             gate = cfg.occlusion_gate_sigma
-            cut_w, cut_h = cues.hidden_sides(B, gate * sigma_px)
-            if any_true(cut_h):
+            cut_w, cut_o = cues.hidden_sides(B, gate * sigma_px)
+            if any_true(cut_o):
                 r_h_other = r_h_other + cues.occlusion_log_var(cues.unexplained_excess(
-                    y_h, (c_h * pri[:, 7:8]) ** 2 + r_h_white + r_h_other, gc.mean, gc.var,
-                    gate), cut_h[:, None])
+                    y_h, (c_h * ls_h) ** 2 + r_h_white + r_h_other, gc.mean, gc.var,
+                    gate), cut_o[:, None])
             if cfg.use_width and any_true(cut_w):
                 r_w_other = r_w_other + cues.occlusion_log_var(cues.unexplained_excess(
-                    y_w, (share_w * pri[:, 8:9]) ** 2 + r_w_white + r_w_other, gc.mean, gc.var,
+                    y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other, gc.mean, gc.var,
                     gate), cut_w[:, None])
         # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
         # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
         n_modes = len(self._height_modes)
         size_modes = [cues.fuse_size_cues(
             y_h, r_h_white, r_h_other, c_h, y_w, r_w_white, r_w_other, share_w,
-            pri[:, 7:8] if k == 1.0 else k * pri[:, 7:8], pri[:, 8:9], pri[:, 6:7])
+            ls_h if k == 1.0 else k * ls_h, ls_w, G[_P_CORR])
             for k in self._height_modes]
         size = size_modes[0] if n_modes == 1 else _concat_cues(size_modes)
         e_all = np.tile(e, n_modes) if n_modes > 1 else e
@@ -457,8 +474,8 @@ class OursEstimator(Estimator):
         for bound, bound_var, rows_cut in bounds:
             if n_modes > 1:
                 bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
-            fused = cues.censor_upper(fused, bound, bound_var, rows_cut[:, None])
-        log_prior_all = (self._log_prior_all if log_pi is self._log_yaw_prior
+            fused = cues.censor_upper(fused, bound, bound_var, rows_cut)
+        log_prior_all = (self._log_prior_rows(n) if log_pi is None
                          else np.tile(log_pi, n_modes) + self._log_mode)
         meas, w_all = cues.collapse_hypotheses(fused, log_prior_all + fused.loglik)
         size_c = cues.mix_hypotheses(size, w_all)
@@ -466,51 +483,56 @@ class OursEstimator(Estimator):
         w = w_all.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else w_all  # headings
 
         # --- distance filter --------------------------------------------------------------------
-        continued = old.copy() if cfg.motion_model else np.zeros(n, dtype=bool)
-        x = P = None
+        # state rows (ℓ, r, P_ℓℓ, P_ℓr, P_rr) of every target: a new track starts at this
+        # frame's measurement (its white part) with zero rate
+        filt = np.empty((5, n))
+        filt[0] = meas.mean
+        filt[1] = 0.0
+        filt[2] = meas.var_white
+        filt[3] = 0.0
+        filt[4] = cfg.rate_sigma_per_s ** 2
+        continued = np.zeros(n, dtype=bool)
         if cfg.motion_model and any_old:
-            x_old = S_old[:, COL_X]
-            x_old[:, kf.IDX_LOG_Z] += np.log(np.maximum(depth_ratio[r_old], 0.1))
-            xp, Pp = kf.cv_predict(x_old, S_old[:, COL_P].reshape(-1, 2, 2), dt_old,
-                                   cfg.process.accel_mps2)
-            m_old, v_old = ((meas.mean, meas.var) if every_old
-                            else (meas.mean[old], meas.var[old]))
-            xu, Pu, _ = kf.cv_update(xp, Pp, m_old, meas.var_white if every_old
-                                     else meas.var_white[old])
-            same = (m_old - xp[:, 0]) ** 2 <= cfg.gate_sigma ** 2 * (Pp[:, 0, 0] + v_old)
+            prior = S_old[ROW_FILTER]
+            ratio = (depth_ratio[r_old] if depth_ratio is not None
+                     else depth_ratios(S_old[ROW_LAST_BOX], f, cam.c_x, cam.c_y,
+                                       S_old[ROW_ROT], R_now))
+            prior[0] += np.log(np.maximum(ratio, 0.1))
+            pred = kf.cv_predict_rows(prior, dt_old, cfg.process.accel_mps2)
+            m_old, v_old, w_old = ((meas.mean, meas.var, meas.var_white) if every_old
+                                   else (meas.mean[old], meas.var[old], meas.var_white[old]))
+            upd, _ = kf.cv_update_rows(pred, m_old, w_old)
+            dev = m_old - pred[0]
+            same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma ** 2
             if every_old and all_true(same):  # every target continues its track
-                x, P = xu, Pu
+                filt = upd
+                continued[:] = True
             else:
-                x, P = self._new_states(meas)
                 idx = np.flatnonzero(old)
-                x[idx[same]], P[idx[same]] = xu[same], Pu[same]
-                continued[idx[~same]] = False
-                rows[idx[~same]] = -1  # another vehicle took this track's id
-        if x is None or P is None:                    # or place: start afresh
-            x, P = self._new_states(meas)
+                filt[:, idx[same]] = upd[:, same]
+                continued[idx[same]] = True
+                rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
         var_other = meas.var - meas.var_white  # ≥ 0: mix_hypotheses caps the white part
-        dist, sigma = kf.distance_moments(x, P, var_other)
-        moving = continued
-        if any_true(moving):
-            speed, speed_sd = kf.speed_moments(x, P)
-            ttc, ttc_sd = kf.ttc_moments(x, P)
-            if not all_true(moving):
-                speed, speed_sd, ttc, ttc_sd = (np.where(moving, a, np.nan)
+        dist, sigma = kf.distance_moments_rows(filt, var_other)
+        if any_true(continued):
+            speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(filt)
+            if not all_true(continued):
+                speed, speed_sd, ttc, ttc_sd = (np.where(continued, a, np.nan)
                                                 for a in (speed, speed_sd, ttc, ttc_sd))
         else:
             speed = speed_sd = ttc = ttc_sd = _filled(n, np.nan)
 
         # --- continuous target gradient from Δy and the size distance ----------------------
         z_size = np.exp(size_c.mean)
-        delta_y = 0.5 * (B[:, 1] + B[:, 3]) - v_frame
+        delta_y = (B[:, 1] + B[:, 3]) * 0.5 - v_frame
         flat = cues.expected_centre_offset_px(z_size, f, h, pri[:, 0], e_mean)
-        a_obs = np.arctan((flat - delta_y) / f)  # cues.target_gradient, flat computed once
-        gain2 = (flat / f) ** 2
+        a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
+        gain2 = flat * flat * (1.0 / (f * f))
         a_white = gain2 * size_c.var_white + (sigma_px ** 2 + (f * jitter_rad) ** 2) / f ** 2
-        a_other = (gain2 * (size_c.var - size_c.var_white)
-                   + (0.5 * pri[:, 3] / z_size) ** 2)
+        z_h_sd = pri[:, 3] * 0.5 / z_size
+        a_other = gain2 * (size_c.var - size_c.var_white) + z_h_sd * z_h_sd
         g_mean, g_var = kf.random_walk_update(
-            *_gradient_prior(rows, old, every_old, S_old[:, COL_GRAD_MEAN], grad_v_old), 0.0,
+            *_gradient_prior(rows, old, every_old, S_old[ROW_GRAD_MEAN], grad_v_old), 0.0,
             0.0, a_obs, a_white)
         alpha_out, alpha_out_var = _shrink_to_prior(g_mean, g_var + a_other,
                                                     cfg.gradient_sigma_rad)
@@ -521,11 +543,13 @@ class OursEstimator(Estimator):
             if n_modes > 1:  # correlate
                 belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
             belief = belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
-        uid = (self._store(rows, ids, x, P, belief, g_mean, g_var, a_other, B, t, R_now,
+        uid = (self._store(rows, ids, filt, belief, g_mean, g_var, a_other, B, t, R_now,
                            turned if box_motion else None) if cfg.tracking
                else self._new_uids(n))
         if cfg.self_calibrate:
-            usable = (pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA) & ~trunc_top & ~trunc_bottom
+            usable = pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA
+            if cuts is not None:
+                usable &= ~cuts[1] & ~cuts[2]
             theta_cfg = theta_f - calib.delta
             v_cfg = cam.c_y - f * math.tan(theta_cfg)
             near = np.where(usable, z_size - e_mean, np.nan)
@@ -545,16 +569,6 @@ class OursEstimator(Estimator):
             "v": cam.c_y - f * np.tan(theta_f + alpha_out),
         }
 
-    def _new_states(self, meas: cues.LogCue) -> tuple[FloatArray, FloatArray]:
-        """Filter states of tracks that start at this frame's measurement (zero rate)."""
-        n = meas.mean.shape[0]
-        x = np.zeros((n, 2))
-        x[:, kf.IDX_LOG_Z] = meas.mean
-        P = np.zeros((n, 2, 2))
-        P[:, 0, 0] = meas.var_white
-        P[:, 1, 1] = self.config.rate_sigma_per_s ** 2
-        return x, P
-
     def _new_uids(self, k: int) -> NDArray[np.int64]:
         uid = np.arange(self._next_uid, self._next_uid + k)
         self._next_uid += k
@@ -562,13 +576,14 @@ class OursEstimator(Estimator):
 
     # -- state handling ---------------------------------------------------------------------
 
-    def _store(self, rows: NDArray[np.int64], ext_ids: NDArray[np.int64], x: FloatArray,
-               P: FloatArray, log_w: FloatArray | None, g_mean: FloatArray, g_var: FloatArray,
+    def _store(self, rows: NDArray[np.int64], ext_ids: NDArray[np.int64], filt: FloatArray,
+               log_w: FloatArray | None, g_mean: FloatArray, g_var: FloatArray,
                g_other: FloatArray, boxes: FloatArray, t: float,
                R_now: NDArray[np.float64] | None, turned: FloatArray | None
                ) -> NDArray[np.int64]:
         """Write the updated states back; returns the track uid of every target.
 
+        ``filt`` holds the distance filter's rows (:data:`ROW_FILTER`) of every target.
         ``log_w`` (the heading belief) is None when it is not kept: tracks then carry the prior.
         ``turned`` (the tracks' last boxes turned with the camera) is None when the box motion
         is not needed (only id-less tracks and the box-noise estimate use it). A new track that
@@ -577,33 +592,35 @@ class OursEstimator(Estimator):
         """
         tr = self.tracks
         n = rows.shape[0]
-        uid = np.empty(n, np.int64)
         cont = rows >= 0
         every = all_true(cont)
         r = rows if every else rows[cont]
         R = np.eye(3) if R_now is None else np.asarray(R_now, dtype=float)
+        if every:
+            uid = tr.uid[r]
+        else:
+            uid = np.empty(n, np.int64)
+            uid[cont] = tr.uid[r]
         if r.size:
             def pick(a: np.ndarray) -> np.ndarray:
-                return a if every else a[cont]
-            S = tr.state[r]
-            b = pick(boxes)
-            S[:, COL_X] = pick(x)
-            S[:, COL_P] = pick(P).reshape(-1, 4)
-            S[:, COL_GRAD_MEAN] = pick(g_mean)
-            S[:, COL_GRAD_VAR] = pick(g_var)
-            S[:, COL_GRAD_OTHER] = pick(g_other)
+                return a if every else a[..., cont]
+            S = tr.state[:, r]
+            b = pick(boxes.T)
+            S[ROW_FILTER] = pick(filt)
+            S[ROW_GRAD_MEAN] = pick(g_mean)
+            S[ROW_GRAD_VAR] = pick(g_var)
+            S[ROW_GRAD_OTHER] = pick(g_other)
             if turned is not None:  # the box motion (else not needed: see _estimate_boxes)
-                S[:, COL_BOX_VEL] = ((b - turned[r])
-                                     / np.maximum(t - S[:, COL_LAST_T], 1e-6)[:, None])
-            S[:, COL_PREV_T] = S[:, COL_LAST_T]
-            S[:, COL_LAST_T] = t
-            S[:, COL_LAST_BOX] = b
-            S[:, COL_R] = R.reshape(9)
-            S[:, COL_N_OBS] += 1.0
+                S[ROW_BOX_VEL] = ((b - turned[r].T)
+                                  / np.maximum(t - S[ROW_LAST_T], 1e-6))
+            S[ROW_PREV_T] = S[ROW_LAST_T]
+            S[ROW_LAST_T] = t
+            S[ROW_LAST_BOX] = b
+            S[ROW_ROT] = R.reshape(9, 1)
+            S[ROW_N_OBS] += 1.0
             if log_w is not None:
-                S[:, COL_LOG_W:] = pick(log_w)
-            tr.state[r] = S
-            uid[cont] = tr.uid[r]
+                S[ROW_LOG_W:] = pick(log_w.T)
+            tr.state[:, r] = S
         if every:
             return uid
         new = ~cont
@@ -619,7 +636,7 @@ class OursEstimator(Estimator):
             seen.add(e)
         log_w_new = (np.broadcast_to(self._log_yaw_prior, (k, self._yaw.size))
                      if log_w is None else log_w[new])
-        add = TrackArrays.start(new_uid, ext, x[new], P[new], log_w_new, g_mean[new],
+        add = TrackArrays.start(new_uid, ext, filt[:, new], log_w_new, g_mean[new],
                                 g_var[new], g_other[new], t, boxes[new], R)
         claimed = ext[ext >= 0]
         if claimed.size and len(tr):
@@ -660,8 +677,9 @@ class OursEstimator(Estimator):
                                self.selfcal.height_m, math.sqrt(cov[1, 1]))
         return self._fixed_calib
 
-    def _truncation(self, boxes: FloatArray) -> tuple[NDArray[np.bool_], ...]:
-        """Boxes touching the image border: (left or right, top, bottom) flags.
+    def _truncation(self, boxes: FloatArray) -> tuple[NDArray[np.bool_], ...] | None:
+        """Boxes touching the image border: (left or right, top, bottom) flags, or None when
+        no box touches it.
 
         The image size is the camera's when known; otherwise the largest right/bottom edge seen
         so far (these boxes included) stands for the border once it lies beyond twice the
@@ -681,6 +699,8 @@ class OursEstimator(Estimator):
         if self._border_high[2] != right - 0.5 or self._border_high[3] != bottom - 0.5:
             self._border_high = np.array([math.inf, math.inf, right - 0.5, bottom - 0.5])
         cut = (boxes <= _BORDER_LOW) | (boxes >= self._border_high)
+        if not any_true(cut):
+            return None
         return cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3]
 
 
@@ -719,11 +739,10 @@ class _ClassTable:
     """Class priors and their per-heading constants, one row per class name seen so far.
 
     The priors and the heading grid are fixed for an estimator, so each frame only gathers
-    rows (``scalars``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; ``e``, ``var_e``,
-    ``sd_e``: the footprint's half depth extent per heading, its variance and 1σ; ``e_min``:
-    the smallest centre distance the cues accept; ``parts``:
-    :func:`~slopedist.estimators.ours.cues.corner_parts`, ``dx``, ``dz``: the corners'
-    offsets) instead of recomputing them.
+    rows (``scalars``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; ``planes``:
+    ``(_N_PLANES, rows, K)`` per-hypothesis constants, see :data:`_P_E`; ``corners``:
+    :func:`~slopedist.estimators.ours.cues.corner_table`) instead of recomputing them. Rows are
+    gathered along the second axis, so that each plane of a frame is contiguous.
     """
 
     def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
@@ -748,16 +767,23 @@ class _ClassTable:
 
     def _build(self) -> None:
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
-        H, W, L, sH, sW, sL = (a[:, k:k + 1] for k in range(6))
+        H, W, L, sH, sW, sL, corr = (a[:, k:k + 1] for k in range(7))
         psi = self._yaw[None, :]
         self.scalars = np.concatenate([a, sH / H, sW / W, sL / L], axis=1)
-        self.e = cues.depth_half_extent(psi, W, L)
-        self.e_min = self.e + _MIN_NEAR_M  # the nearest face at least _MIN_NEAR_M away
-        self.var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
-        self.sd_e = np.sqrt(self.var_e)
-        self.parts = cues.corner_parts(psi, W, L)
-        self.dx = self.parts[..., 0] + self.parts[..., 1]
-        self.dz = self.parts[..., 2] + self.parts[..., 3]
+        e = cues.depth_half_extent(psi, W, L)
+        var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
+        planes = {_P_E: e, _P_VAR_E: var_e, _P_SD_E: np.sqrt(var_e),
+                  _P_E_MIN: e + _MIN_NEAR_M,  # the nearest face at least _MIN_NEAR_M away
+                  _P_H: H, _P_LS_H: sH / H, _P_LS_W: sW / W, _P_LS_L: sL / L, _P_CORR: corr}
+        self.planes = np.stack([np.broadcast_to(planes[k], e.shape) for k in range(_N_PLANES)])
+        self.corners = cues.corner_table(psi, W, L)
+
+
+_P_E, _P_VAR_E, _P_SD_E, _P_E_MIN, _P_H, _P_LS_H, _P_LS_W, _P_LS_L, _P_CORR = range(9)
+_N_PLANES = 9
+"""Planes of :attr:`_ClassTable.planes`: per class and heading hypothesis, the footprint's
+half depth extent e (m), its variance and 1σ, the smallest centre distance accepted, then the
+class's H, σH/H, σW/W, σL/L and H–W correlation (repeated over the hypotheses)."""
 
 
 @dataclass(frozen=True)

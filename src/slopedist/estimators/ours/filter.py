@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.estimators.ours.cues import any_true
+
 FloatArray = NDArray[np.float64]
 
 IDX_LOG_Z, IDX_RATE = 0, 1
@@ -40,6 +42,57 @@ class ProcessNoise:
     gradient_rad: float = float(np.radians(0.5))
 
 
+def cv_predict_rows(s: FloatArray, dt_s: FloatArray, accel_mps2: float) -> FloatArray:
+    """:func:`cv_predict` on state rows: ``s`` ``(5, m)`` = ℓ, r, P_ℓℓ, P_ℓr, P_rr (one column
+    per track); returns the predicted rows."""
+    log_z, r, p00, p01, p11 = s
+    dt = np.asarray(dt_s, dtype=float)
+    grow = np.maximum(r * dt + 1.0, 0.2)
+    ig = 1.0 / grow
+    f01 = dt * ig
+    out = np.empty(s.shape)
+    lp = log_z + np.log(grow)
+    out[0] = lp
+    out[1] = r * ig
+    qdt = np.exp(lp * -2.0) * (accel_mps2 * accel_mps2) * dt
+    a = p01 + f01 * p11
+    ig2 = ig * ig
+    out[2] = p00 + f01 * (p01 + a) + qdt * dt * dt * (1.0 / 3.0)
+    out[3] = ig2 * a + qdt * dt * 0.5
+    out[4] = ig2 * ig2 * p11 + qdt
+    return out
+
+
+def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`cv_update` on state rows (see :func:`cv_predict_rows`): the updated rows and the
+    normalised innovation squared."""
+    log_z, rate, p00, p01, p11 = s
+    inv_S = 1.0 / (p00 + r)
+    nu = y - log_z
+    k0 = p00 * inv_S
+    k1 = p01 * inv_S
+    out = np.empty(s.shape)
+    out[0] = log_z + k0 * nu
+    out[1] = rate + k1 * nu
+    out[2] = p00 - k0 * p00
+    out[3] = p01 - k0 * p01
+    out[4] = p11 - k1 * p01
+    return out, nu * nu * inv_S
+
+
+def rows_of(x: FloatArray, P: FloatArray) -> FloatArray:
+    """State rows ``(5, ...)`` of states ``(..., 2)`` and covariances ``(..., 2, 2)``."""
+    return np.stack([x[..., IDX_LOG_Z], x[..., IDX_RATE], P[..., 0, 0], P[..., 0, 1],
+                     P[..., 1, 1]])
+
+
+def states_of(s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """States ``(..., 2)`` and covariances ``(..., 2, 2)`` of state rows ``(5, ...)``."""
+    x = np.stack([s[0], s[1]], axis=-1)
+    P = np.stack([np.stack([s[2], s[3]], axis=-1), np.stack([s[3], s[4]], axis=-1)], axis=-2)
+    return x, P
+
+
 def cv_predict(
     x: FloatArray, P: FloatArray, dt_s: FloatArray, accel_mps2: float
 ) -> tuple[FloatArray, FloatArray]:
@@ -48,21 +101,8 @@ def cv_predict(
     The growth factor ``1 + r·dt`` is kept ≥ 0.2 so a target is never propagated through the
     camera.
     """
-    x = np.array(x, dtype=float, copy=True)
-    dt = np.asarray(dt_s, dtype=float)
-    grow = np.maximum(1.0 + x[..., IDX_RATE] * dt, 0.2)
-    f01 = dt / grow
-    f11 = 1.0 / (grow * grow)
-    x[..., IDX_LOG_Z] += np.log(grow)
-    x[..., IDX_RATE] /= grow
-    p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
-    q = accel_mps2 ** 2 * np.exp(-2.0 * x[..., IDX_LOG_Z])
-    dt2 = dt * dt
-    out = np.empty(P.shape)
-    out[..., 0, 0] = p00 + 2 * f01 * p01 + f01 * f01 * p11 + q * (dt2 * dt) / 3
-    out[..., 0, 1] = out[..., 1, 0] = f11 * (p01 + f01 * p11) + q * dt2 / 2
-    out[..., 1, 1] = f11 * f11 * p11 + q * dt
-    return x, out
+    return states_of(cv_predict_rows(rows_of(np.asarray(x, dtype=float),
+                                             np.asarray(P, dtype=float)), dt_s, accel_mps2))
 
 
 def cv_update(
@@ -72,18 +112,9 @@ def cv_update(
 
     Returns the new state, covariance and the normalised innovation squared.
     """
-    p00, p01, p11 = P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]
-    S = p00 + r
-    nu = y - x[..., IDX_LOG_Z]
-    k0, k1 = p00 / S, p01 / S  # the gain (P is symmetric)
-    x_new = np.empty(x.shape)
-    x_new[..., IDX_LOG_Z] = x[..., IDX_LOG_Z] + k0 * nu
-    x_new[..., IDX_RATE] = x[..., IDX_RATE] + k1 * nu
-    P_new = np.empty(P.shape)
-    P_new[..., 0, 0] = p00 - k0 * p00
-    P_new[..., 0, 1] = P_new[..., 1, 0] = p01 - k0 * p01
-    P_new[..., 1, 1] = p11 - k1 * p01
-    return x_new, P_new, nu * nu / S
+    rows, nis = cv_update_rows(rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)),
+                               np.asarray(y, dtype=float), np.asarray(r, dtype=float))
+    return (*states_of(rows), nis)
 
 
 def random_walk_update(
@@ -99,6 +130,32 @@ def random_walk_update(
         return mean + k * (obs - mean), (1.0 - k) * v
     k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)
     return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
+
+
+def distance_moments_rows(s: FloatArray, extra_log_var: FloatArray | float = 0.0
+                          ) -> tuple[FloatArray, FloatArray]:
+    """:func:`distance_moments` of state rows (see :func:`cv_predict_rows`)."""
+    s2 = np.maximum(s[2] + extra_log_var, 0.0)
+    mean = np.exp(s[0] + s2 * 0.5)
+    return mean, mean * np.sqrt(np.expm1(s2))
+
+
+def motion_moments_rows(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`speed_moments` and :func:`ttc_moments` of state rows: speed (m/s), its 1σ, time
+    to collision (s, NaN unless approaching) and its 1σ."""
+    log_z, r, p00, p01, p11 = s
+    z = np.exp(log_z)
+    speed = r * z
+    var = speed * speed * p00 + (speed + speed) * z * p01 + z * z * p11
+    speed_sd = np.sqrt(np.maximum(var, 0.0))
+    away = r >= 0
+    r_ = np.where(away, -1.0, r) if any_true(away) else r
+    ttc = -1.0 / r_
+    ttc_sd = np.sqrt(np.maximum(p11, 0.0)) / (r_ * r_)
+    if any_true(away):
+        ttc[away] = np.nan
+        ttc_sd[away] = np.nan
+    return speed, speed_sd, ttc, ttc_sd
 
 
 def distance_moments(
@@ -129,3 +186,4 @@ def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
     r_ = np.where(approaching, r, -1.0)
     sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
     return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
+

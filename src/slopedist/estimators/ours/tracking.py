@@ -10,7 +10,7 @@ update all tracks of a frame at once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,39 +21,41 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-# Columns of TrackArrays.state (one float row per track, so a frame reads and writes its tracks
-# with one indexing operation each).
-COL_X = slice(0, 2)
+# Rows of TrackArrays.state (one float column per track; a frame gathers the columns of its
+# tracks with one indexing operation, and each field is then a contiguous row).
+ROW_L, ROW_RATE = 0, 1
 """Distance filter state: log distance ℓ (Z in m) and relative rate Ż/Z (1/s)."""
-COL_P = slice(2, 6)
-"""Its 2×2 covariance, row-major."""
-COL_GRAD_MEAN, COL_GRAD_VAR, COL_GRAD_OTHER = 6, 7, 8
+ROW_P00, ROW_P01, ROW_P11 = 2, 3, 4
+"""Its covariance (symmetric 2×2: ℓℓ, ℓr, rr)."""
+ROW_FILTER = slice(0, 5)
+"""The five rows of the distance filter (as :mod:`~slopedist.estimators.ours.filter` takes)."""
+ROW_GRAD_MEAN, ROW_GRAD_VAR, ROW_GRAD_OTHER = 5, 6, 7
 """Target gradient estimate (rad), its variance and the per-vehicle variance of the latest
 observation (rad²)."""
-COL_BOX_VEL = slice(9, 13)
+ROW_BOX_VEL = slice(8, 12)
 """Box edges' image velocity (px/s) with the camera's own rotation taken out; NaN until the
 track has two updates."""
-COL_LAST_BOX = slice(13, 17)
+ROW_LAST_BOX = slice(12, 16)
 """The last box (l, t, r, b), pixels."""
-COL_LAST_T, COL_PREV_T = 17, 18
+ROW_LAST_T, ROW_PREV_T = 16, 17
 """Time of the last update and of the one before it (NaN until two updates), seconds."""
-COL_R = slice(19, 28)
+ROW_ROT = slice(18, 27)
 """Camera-to-world rotation at the last update, row-major (identity if unknown)."""
-COL_N_OBS = 28
+ROW_N_OBS = 27
 """Number of updates."""
-COL_LOG_W = 29
-"""First column of the log belief over the heading hypotheses (K columns)."""
+ROW_LOG_W = 28
+"""First row of the log belief over the heading hypotheses (K rows)."""
 
 
 @dataclass
 class TrackArrays:
-    """State of the live tracks, one row each.
+    """State of the live tracks, one column each.
 
     Attributes:
         uid: ``(T,)`` unique id of the track within the sequence (never re-used).
         ext_id: ``(T,)`` the boxes' track id it follows, or −1 for IoU-associated tracks.
-        state: ``(T, COL_LOG_W + K)`` float state, columns as the ``COL_*`` constants; read it
-            through the properties (views).
+        state: ``(ROW_LOG_W + K, T)`` float state, rows as the ``ROW_*`` constants; read it
+            through the properties.
     """
 
     uid: IntArray
@@ -64,35 +66,36 @@ class TrackArrays:
     @classmethod
     def empty(cls, n_hypotheses: int) -> TrackArrays:
         z = np.zeros(0, np.int64)
-        return cls(z, z.copy(), np.zeros((0, COL_LOG_W + n_hypotheses)))
+        return cls(z, z.copy(), np.zeros((ROW_LOG_W + n_hypotheses, 0)))
 
     @classmethod
-    def start(cls, uid: IntArray, ext_id: IntArray, x: FloatArray, P: FloatArray,
+    def start(cls, uid: IntArray, ext_id: IntArray, filter_rows: FloatArray,
               log_w: FloatArray, grad_mean: FloatArray, grad_var: FloatArray,
               grad_var_other: FloatArray, t: float, boxes: FloatArray,
               R_world_cam: FloatArray) -> TrackArrays:
-        """New tracks after their first update at time ``t`` (one row per argument row)."""
+        """New tracks after their first update at time ``t``: ``filter_rows`` ``(5, k)`` (the
+        :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, the others
+        ``(k,)``."""
         k = uid.shape[0]
-        st = np.empty((k, COL_LOG_W + log_w.shape[1]))
-        st[:, COL_X] = x
-        st[:, COL_P] = P.reshape(k, 4)
-        st[:, COL_GRAD_MEAN] = grad_mean
-        st[:, COL_GRAD_VAR] = grad_var
-        st[:, COL_GRAD_OTHER] = grad_var_other
-        st[:, COL_BOX_VEL] = np.nan
-        st[:, COL_LAST_BOX] = boxes
-        st[:, COL_LAST_T] = t
-        st[:, COL_PREV_T] = np.nan
-        st[:, COL_R] = np.asarray(R_world_cam, dtype=float).reshape(9)
-        st[:, COL_N_OBS] = 1.0
-        st[:, COL_LOG_W:] = log_w
+        st = np.empty((ROW_LOG_W + log_w.shape[1], k))
+        st[ROW_FILTER] = filter_rows
+        st[ROW_GRAD_MEAN] = grad_mean
+        st[ROW_GRAD_VAR] = grad_var
+        st[ROW_GRAD_OTHER] = grad_var_other
+        st[ROW_BOX_VEL] = np.nan
+        st[ROW_LAST_BOX] = boxes.T
+        st[ROW_LAST_T] = t
+        st[ROW_PREV_T] = np.nan
+        st[ROW_ROT] = np.asarray(R_world_cam, dtype=float).reshape(9, 1)
+        st[ROW_N_OBS] = 1.0
+        st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
     def __len__(self) -> int:
         return int(self.uid.shape[0])
 
     def row_of_id(self) -> dict[int, int]:
-        """Row of each box track id the tracks follow (ids are distinct among live tracks:
+        """Column of each box track id the tracks follow (ids are distinct among live tracks:
         see :meth:`OursEstimator._store`); built once per set of tracks."""
         if self._by_ext is None:
             self._by_ext = {e: i for i, e in enumerate(self.ext_id.tolist()) if e >= 0}
@@ -100,72 +103,74 @@ class TrackArrays:
 
     @property
     def x(self) -> FloatArray:
-        """``(T, 2)`` distance filter states (see :data:`COL_X`)."""
-        return self.state[:, COL_X]
+        """``(T, 2)`` distance filter states (ℓ, r)."""
+        return self.state[ROW_L:ROW_RATE + 1].T
 
     @property
     def P(self) -> FloatArray:
         """``(T, 2, 2)`` their covariances."""
-        return self.state[:, COL_P].reshape(-1, 2, 2)
+        p00, p01, p11 = self.state[ROW_P00], self.state[ROW_P01], self.state[ROW_P11]
+        return np.stack([np.stack([p00, p01], -1), np.stack([p01, p11], -1)], -2)
 
     @property
     def log_w(self) -> FloatArray:
         """``(T, K)`` log belief over the heading hypotheses."""
-        return self.state[:, COL_LOG_W:]
+        return self.state[ROW_LOG_W:].T
 
     @property
     def grad_mean(self) -> FloatArray:
         """``(T,)`` target gradient estimates (rad, before the prior is applied)."""
-        return self.state[:, COL_GRAD_MEAN]
+        return self.state[ROW_GRAD_MEAN]
 
     @property
     def grad_var(self) -> FloatArray:
         """``(T,)`` their variances (rad²)."""
-        return self.state[:, COL_GRAD_VAR]
+        return self.state[ROW_GRAD_VAR]
 
     @property
     def grad_var_other(self) -> FloatArray:
         """``(T,)`` per-vehicle variance of the latest gradient observation (rad²)."""
-        return self.state[:, COL_GRAD_OTHER]
+        return self.state[ROW_GRAD_OTHER]
 
     @property
     def last_t(self) -> FloatArray:
         """``(T,)`` time of the last update, seconds."""
-        return self.state[:, COL_LAST_T]
+        return self.state[ROW_LAST_T]
 
     @property
     def prev_t(self) -> FloatArray:
         """``(T,)`` time of the update before the last (NaN until two updates)."""
-        return self.state[:, COL_PREV_T]
+        return self.state[ROW_PREV_T]
 
     @property
     def last_box(self) -> FloatArray:
         """``(T, 4)`` the last boxes, pixels."""
-        return self.state[:, COL_LAST_BOX]
+        return self.state[ROW_LAST_BOX].T
 
     @property
     def box_vel(self) -> FloatArray:
         """``(T, 4)`` box edge velocities, px/s (NaN until two updates)."""
-        return self.state[:, COL_BOX_VEL]
+        return self.state[ROW_BOX_VEL].T
 
     @property
     def n_obs(self) -> FloatArray:
         """``(T,)`` number of updates."""
-        return self.state[:, COL_N_OBS]
+        return self.state[ROW_N_OBS]
 
     @property
     def R_last(self) -> FloatArray:
         """``(T, 3, 3)`` camera-to-world rotations at the last update."""
-        return self.state[:, COL_R].reshape(-1, 3, 3)
+        return self.state[ROW_ROT].T.reshape(-1, 3, 3)
 
     def keep(self, mask: NDArray[np.bool_]) -> TrackArrays:
         """The tracks where ``mask`` is true."""
-        return TrackArrays(self.uid[mask], self.ext_id[mask], self.state[mask])
+        return TrackArrays(self.uid[mask], self.ext_id[mask], self.state[:, mask])
 
     def concat(self, other: TrackArrays) -> TrackArrays:
         """These tracks followed by ``other``'s."""
-        return TrackArrays(*(np.concatenate([getattr(self, f.name), getattr(other, f.name)])
-                             for f in fields(TrackArrays) if f.init))
+        return TrackArrays(np.concatenate([self.uid, other.uid]),
+                           np.concatenate([self.ext_id, other.ext_id]),
+                           np.concatenate([self.state, other.state], axis=1))
 
 
 def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: FloatArray,
@@ -194,6 +199,25 @@ def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: Floa
     z = out[:, 2]
     shift = c + out[:, :2] * (f / np.maximum(z, 1e-6))[:, None] - mid
     return b + np.concatenate([shift, shift], axis=1), z
+
+
+def depth_ratios(box_rows: FloatArray, f: float, c_x: float, c_y: float, rot_rows: FloatArray,
+                 R_now: FloatArray | None) -> FloatArray:
+    """The second output of :func:`turn_boxes` alone: ``Z_new/Z_old`` ``(T,)`` of the points
+    seen at the centres of the boxes ``box_rows`` ``(4, T)`` (l, t, r, b rows) when the camera
+    turns from the camera-to-world rotations ``rot_rows`` ``(9, T)`` (row-major entries) to
+    ``R_now`` (ones when it is None)."""
+    b = np.asarray(box_rows, dtype=float)
+    if b.shape[1] == 0 or R_now is None:
+        return np.ones(b.shape[1])
+    # the new depth of the old ray ((u − c_x)/f, (v − c_y)/f, 1) is R_now's z axis (in the
+    # world) · R_last·ray, i.e. ray · (R_lastᵀ·R_now[:, 2])
+    m = b.shape[1]
+    q = (np.asarray(R_now, dtype=float)[:, 2] @ np.asarray(rot_rows).reshape(3, 3 * m)
+         ).reshape(3, m)
+    inv_2f = 0.5 / f
+    return ((b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0]
+            + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2])
 
 
 def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray:
