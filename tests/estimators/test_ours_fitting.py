@@ -4,6 +4,7 @@ against synthetic samples and scenes with known truth."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -106,3 +107,19 @@ def test_box_edge_noise_is_robust_to_outliers_and_offsets() -> None:
         box_edge_noise_px(boxes[:5], ref[:5])
     with pytest.raises(ConfigurationError, match=r"\(N, 4\)"):
         box_edge_noise_px(boxes, ref[:, :3])
+
+
+def test_shipped_defaults_are_the_fit_on_all_shared_sequences(kitti_tracking_dir: Path) -> None:
+    from slopedist.datasets.kitti_tracking import list_sequences
+    from slopedist.estimators.ours import OursConfig
+    from slopedist.estimators.ours.fitting import fit_parameters, kitti_tracking_fit_inputs
+
+    inputs = [kitti_tracking_fit_inputs(kitti_tracking_dir, s)
+              for s in list_sequences(kitti_tracking_dir)]
+    assert len(inputs) == 13
+    fitted = fit_parameters(inputs)
+    cfg = OursConfig()
+    assert fitted["yaw_prior"] == cfg.yaw_prior
+    assert fitted["box_sigma_px"] == cfg.box_sigma_px
+    # the labels' 2D boxes are their 3D boxes' projections, to a fraction of a pixel
+    assert 0.1 < cfg.box_sigma_px < 1.0

@@ -12,6 +12,10 @@ angle of a vehicle's length axis from the camera's z axis, positive towards +x, 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -139,3 +143,52 @@ def box_edge_noise_px(boxes: ArrayLike, reference: ArrayLike) -> float:
         raise ConfigurationError(f"need at least 10 finite box pairs, got {res.shape[0]}")
     mad = np.median(np.abs(res - np.median(res, axis=0)), axis=0)
     return float(np.sqrt(np.mean((1.4826 * mad) ** 2)))
+
+
+@dataclass(frozen=True)
+class LabelFitInputs:
+    """What the fits need from one labelled sequence: the headings ψ ``(N,)`` (radians), the 2D
+    boxes ``(N, 4)`` and the projections of the same labels' 3D boxes ``(N, 4)`` (pixels)."""
+
+    headings_rad: FloatArray
+    boxes: FloatArray
+    projected: FloatArray
+
+
+def kitti_tracking_fit_inputs(root: str | Path, name: str) -> LabelFitInputs:
+    """:class:`LabelFitInputs` of the label rows of KITTI tracking sequence ``name`` under
+    ``root`` that the evaluation protocol keeps (Car/Van, not truncated, occluded ≤ 1, z ≤ 80 m),
+    with the calibration's ``P2``.
+
+    Raises:
+        MissingInputError: the sequence's labels or calibration are absent.
+        InputFileError: a file is malformed.
+    """
+    from slopedist.camera import read_kitti_calib
+    from slopedist.datasets.kitti_tracking import load_sequence, protocol_mask
+
+    seq = load_sequence(root, name)
+    gt = seq.labels.select(protocol_mask(seq.labels))
+    P2 = read_kitti_calib(seq.calib_path)["P2"].reshape(3, 4)
+    loc = np.stack([gt.extra["x"], gt.extra["y"], gt.extra["z"]], axis=1)
+    return LabelFitInputs(kitti_heading(gt.extra["rotation_y"]), gt.boxes,
+                          project_kitti_boxes(P2, loc, gt.extra["dims_hwl"],
+                                              gt.extra["rotation_y"]))
+
+
+def fit_parameters(inputs: Sequence[LabelFitInputs]) -> dict[str, Any]:
+    """The options of ``ours`` fitted on labelled sequences: ``yaw_prior`` (:func:`fit_yaw_prior`
+    of their headings; weights rounded to 0.001, spreads to 0.01°) and ``box_sigma_px``
+    (:func:`box_edge_noise_px` of their boxes against their 3D boxes' projections, rounded to
+    0.01 px). The defaults of :class:`~slopedist.estimators.ours.OursConfig` are this fit on all
+    13 shared KITTI tracking sequences."""
+    fit = fit_yaw_prior(np.concatenate([i.headings_rad for i in inputs]))
+    sigma = box_edge_noise_px(np.concatenate([i.boxes for i in inputs]),
+                              np.concatenate([i.projected for i in inputs]))
+    return {
+        "yaw_prior": YawPrior(round(fit.aligned_weight, 3),
+                              math.radians(round(math.degrees(fit.aligned_sigma_rad), 2)),
+                              round(fit.broad_weight, 3),
+                              math.radians(round(math.degrees(fit.broad_sigma_rad), 2))),
+        "box_sigma_px": round(sigma, 2),
+    }
