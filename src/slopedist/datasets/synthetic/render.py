@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import cv2
@@ -399,19 +399,19 @@ LEVEL_SCALE[MIP_LEVELS:] = LEVEL_SCALE[MIP_LEVELS - 1]
 def atlas_xy(tx: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
     """Atlas coordinates of level-0 texel coordinates ``(tx, ty)`` (``ty`` from the atlas's first
     row) at mip level ``level`` (uint8, 2-D). Overwrites ``tx`` and ``ty``."""
-    t = tx * np.float32(1.0 / TEX_SIZE)  # u wraps round the 512-texel tiles
-    np.floor(t, out=t)
-    cv2.scaleAdd(t, -float(TEX_SIZE), tx, dst=tx)  # u mod 512
+    tx *= np.float32(1.0 / TEX_SIZE)
+    return _atlas_xy_periods(tx, ty, level)
+
+
+def _atlas_xy_periods(tu: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
+    """:func:`atlas_xy` of ``tu = tx / TEX_SIZE`` (``u`` in periods of the tiles). Overwrites
+    ``tu`` and ``ty``."""
+    tu -= np.floor(tu)  # u wraps round the tiles
     scale = cv2.LUT(level, LEVEL_SCALE)
-    tx *= scale
-    tx += cv2.LUT(level, LEVEL_X0)
+    cv2.multiply(tu, scale, dst=tu, scale=float(TEX_SIZE))
+    tu += cv2.LUT(level, LEVEL_X0)
     ty *= scale
-    return tx, ty
-
-
-def _rounded_level(level: F32) -> NDArray[np.uint8]:
-    """Mip level (log2-footprint) rounded and clipped to the levels, as uint8."""
-    return np.asarray(cv2.convertScaleAbs(np.clip(level, 0.0, MIP_LEVELS - 1)), dtype=np.uint8)
+    return tu, ty
 
 
 @dataclass(frozen=True)
@@ -420,17 +420,29 @@ class Rendered:
 
     Attributes:
         image: BGR ``H×W×3`` uint8.
-        depth_m: ``H×W`` float32, metres along the camera z axis; ``+inf`` for sky.
         labels: ``H×W`` uint16, the polygon seen at each pixel (0 = sky).
         label_owner: ``(n + 1,)`` index of the target vehicle each label belongs to (−1: none);
             the labels of the targets' faces are the highest, from ``first_vehicle_label``.
+        depth_work: the depth on the renderer's working frame (image pixel ``(y, x)`` at
+            ``(y + CELL/2, x + CELL/2)``; the sky's pixels arbitrary): :attr:`depth_m` is made
+            from it when asked for.
     """
 
     image: NDArray[np.uint8]
-    depth_m: NDArray[np.float32]
     labels: NDArray[np.uint16]
     label_owner: NDArray[np.int16]
     first_vehicle_label: int
+    depth_work: NDArray[np.float32] = field(repr=False)
+
+    @functools.cached_property
+    def depth_m(self) -> NDArray[np.float32]:
+        """``H×W`` float32, metres along the camera z axis; ``+inf`` for sky (made on first
+        access: callers that do not need depth do not pay for it)."""
+        h, w = self.labels.shape
+        o = CELL // 2
+        depth = np.ascontiguousarray(self.depth_work[o:o + h, o:o + w])
+        np.putmask(depth, self.labels == 0, np.float32(np.inf))
+        return depth
 
     @functools.cached_property
     def owner(self) -> NDArray[np.int16]:
@@ -450,7 +462,18 @@ SUN_DIRECTION = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.8
 SKY_HORIZON = np.array([0.93, 0.88, 0.84], np.float32)
 SKY_ZENITH = np.array([0.80, 0.55, 0.33], np.float32)
 HAZE = np.array([0.88, 0.85, 0.82], np.float32)
-HAZE4 = np.append(HAZE, 0.0).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=8)
+def _haze_rows(n: int) -> F32:
+    """``(n, 4)`` rows of the haze's BGR0 colour × 255."""
+    return np.tile(np.float32(255.0) * np.append(HAZE, np.float32(0.0)), (n, 1))
+
+
+def _haze_row(n: int) -> F32:
+    """The haze's BGR0 colour × 255 repeated ``n`` times, ``(n, 4)`` (shared, read only)."""
+    size = 1 << max(n - 1, 1).bit_length()  # few sizes cached
+    return _haze_rows(max(size, n))[:n]
 
 
 def _clip_halfplane(poly: FloatArray, axis: int, bound: float, keep_above: bool) -> FloatArray:
@@ -494,12 +517,14 @@ class _Tables:
     """Per-label tables of one frame (label 0 = sky).
 
     Attributes:
-        per_label: ``(15, n + 1)`` float32, one row per quantity (gathered together): rows 0–8
+        per_label: ``(11, n + 1)`` float32, one row per quantity (gathered together): rows 0–8
             the pixel functionals ``(h_x, h_y, h_w)``: ``1/z = h_w·p``, texel coordinates
-            ``t_x = (h_x·p)/(h_w·p)``, ``t_y = (h_y·p)/(h_w·p)`` (level 0, ``t_y`` from the
-            atlas's first row); row 9 the plane's distance from the camera centre (m); 10 the
-            texture's texels per metre along ``v``; 11 the foreshortening that does not raise the
-            mip level (``_level``); 12–14 the BGR colour × sun shading in [0, 1].
+            ``t_x = TEX_SIZE (h_x·p)/(h_w·p)`` (``h_x`` in periods of the tiles),
+            ``t_y = (h_y·p)/(h_w·p)`` (level 0, ``t_y`` from the atlas's first row); row 9
+            ``log2`` of the texture's texels per metre along ``v`` minus ``MIP_BIAS``; row 10
+            ``log2`` of the plane's distance from the camera centre (m) times the
+            foreshortening that does not raise the mip level (see ``_level``).
+        tint: ``(n + 1, 4)`` float32, the BGR colour × sun shading in [0, 1] and a 0.
         tex: ``(n + 1,)`` texture.
         surface: ``(n + 1,)`` surface of each label (equal for pieces of one surface).
         turn: ``(n + 1,)`` angle the surface's normal has turned through from its first label's
@@ -508,6 +533,7 @@ class _Tables:
     """
 
     per_label: NDArray[np.float32]
+    tint: NDArray[np.float32]
     tex: NDArray[np.intp]
     surface: NDArray[np.int64]
     turn: FloatArray
@@ -560,7 +586,7 @@ class Renderer:
         self._ys = (CELL * np.arange(hc) - 0.5).astype(np.float32)
         self._sample_cols = np.minimum(CELL * np.arange(wc), w - 1)
         self._sample_rows = np.minimum(CELL * np.arange(hc), h - 1)
-        self._rn_c = self._ray_norm_over_f(self._xs[None, :], self._ys[:, None])
+        self._log_rn_c = np.log2(self._ray_norm_over_f(self._xs[None, :], self._ys[:, None]))
         self._kernel = np.ones((CELL + 1, CELL + 1), np.uint8)
         self._corner_db = np.array([0, 0, 1, 1])[:, None]
         self._corner_da = np.array([0, 1, 0, 1])[:, None]
@@ -572,11 +598,11 @@ class Renderer:
         o = CELL // 2
         cy = (CELL * np.arange(self._cells[0]))[:, None, None] + self._cell_dy.astype(np.intp)
         cx = (CELL * np.arange(self._cells[1]))[None, :, None] + self._cell_dx.astype(np.intp)
-        self._cell_labels = cy * (CELL * self._cells[1] + 1) + cx
-        self._cell_work = (cy + o) * (CELL * wc) + cx + o
+        self._cell_labels = (cy * (CELL * self._cells[1] + 1) + cx).reshape(-1, CELL * CELL)
+        self._cell_work = ((cy + o) * (CELL * wc) + cx + o).reshape(-1, CELL * CELL)
         ww = np.arange(CELL * wc, dtype=np.float32)[None, :] - o
         hw = np.arange(CELL * hc, dtype=np.float32)[:, None] - o
-        self._rn_work = self._ray_norm_over_f(ww, hw)
+        self._log_rn_work = np.log2(self._ray_norm_over_f(ww, hw))
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
         noise = np.rint(rng.standard_normal((2 * h + 2 * CELL, 2 * w + 2 * CELL))
                         * SENSOR_NOISE_GREY)
@@ -668,7 +694,7 @@ class Renderer:
         k_u = polys.u0 - np.where(along_road, u_base, 0.0) - np.einsum("pi,pi->p", a_u, o_c)
         k_v = -np.einsum("pi,pi->p", a_v, o_c) - self._atlas.v_min[tex]
         k_v += self._atlas.y0[tex] / tpm_v  # rows from the atlas's first
-        h_x = tpm_u[:, None] * (a_u @ K_inv + k_u[:, None] * h_w)
+        h_x = (tpm_u / TEX_SIZE)[:, None] * (a_u @ K_inv + k_u[:, None] * h_w)
         h_y = tpm_v[:, None] * (a_v @ K_inv + k_v[:, None] * h_w)
         fn = np.zeros((n + 1, 9), np.float32)
         fn[1:] = np.concatenate([h_x, h_y, h_w], axis=1)
@@ -689,8 +715,11 @@ class Renderer:
         turn = np.zeros(n + 1)
         turn[2:] = np.cumsum(step)
         free = np.where(tex_l == Tex.ROAD, ROAD_FORESHORTENING_FREE, 1.0).astype(np.float32)
-        per_label = np.concatenate([fn.T, plane_c[None], tpm[None], free[None], tint.T[:3]])
-        return _Tables(np.ascontiguousarray(per_label, dtype=np.float32), tex_l, surf, turn)
+        log_tpm = np.log2(tpm) - np.float32(MIP_BIAS)
+        log_c = np.log2(np.maximum(plane_c * free, np.float32(1e-3)))
+        per_label = np.concatenate([fn.T, log_tpm[None], log_c[None]])
+        return _Tables(np.ascontiguousarray(per_label, dtype=np.float32), tint, tex_l, surf,
+                       turn)
 
     # -- frame -----------------------------------------------------------------------------------
 
@@ -736,82 +765,79 @@ class Renderer:
         ordered = polys.select(visible[order])
         u_base = U_REBASE_M * math.floor(s_camera / U_REBASE_M)
         tab = self._tables(ordered, key[order], R, C, u_base)
-        image, depth = self._shade(labels, tab, R, frame)
+        image, depth_work = self._shade(labels, tab, R, frame)
         owner = np.full(n + 1, -1, np.int16)
         owner[1:] = ordered.owner
         vehicles = np.flatnonzero(ordered.owner >= 0)
         first_vehicle = int(vehicles[0]) + 1 if vehicles.size else n + 1
-        return Rendered(image, depth, labels, owner, first_vehicle)
+        return Rendered(image, labels, owner, first_vehicle, depth_work)
 
     @staticmethod
-    def _level(z: F32, rn: F32, plane_c: F32, tpm: F32, free: F32) -> F32:
-        """Mip level (unrounded): log2 of the pixel footprint on the surface in texels, across the
-        ray ``|r| z / f`` (no foreshortening) times the foreshortening along the surface's
-        steepest direction ``z / |c|`` (``c``: the plane's distance) beyond ``free`` (1: the
-        larger footprint, no aliasing)."""
-        fore = z / np.maximum(plane_c * free, np.float32(1e-3))
-        np.maximum(fore, np.float32(1.0), out=fore)
-        across = z * rn
-        across *= tpm
-        across *= fore
-        np.maximum(across, np.float32(1e-6), out=across)
-        np.log2(across, out=across)
-        across -= np.float32(MIP_BIAS)
-        return across
+    def _level(inv: F32, log_rn: F32, log_tpm: F32, log_c: F32) -> F32:
+        """Mip level (unrounded) of surface points with ``1/z = inv`` (``≤ 0``: at infinity, the
+        top level after clipping): log2 of the pixel footprint on the surface in texels, across
+        the ray ``|r| z / f`` (no foreshortening) times the foreshortening along the surface's
+        steepest direction ``z / |c|`` (``c``: the plane's distance) beyond the label's free
+        foreshortening (1: the larger footprint, no aliasing); in logs, ``log2 z + log2(|r|/f)
+        + log2(tpm) − MIP_BIAS + max(log2 z − log2(|c|·free), 0)`` (``_Tables.per_label``)."""
+        log_z = np.maximum(inv, np.float32(1e-30))
+        np.log2(log_z, out=log_z)
+        np.negative(log_z, out=log_z)
+        fore = log_z - log_c
+        np.maximum(fore, np.float32(0.0), out=fore)
+        log_z += log_rn
+        log_z += log_tpm
+        log_z += fore
+        return log_z
 
     def _sky(self, x: F32, y: F32, R: FloatArray) -> tuple[F32, F32]:
-        """Texel coordinates in the sky's tile (level 0) of image points ``(x, y)``: azimuth and
-        elevation of their world directions."""
+        """Texel coordinates in the sky's tile (level 0; ``t_x / TEX_SIZE``, ``t_y``) of image
+        points ``(x, y)``: azimuth and elevation of their world directions."""
         K = self.K
         rx = (x - K[0, 2]) / K[0, 0]
         ry = (y - K[1, 2]) / K[1, 1]
         d = [R[i, 0] * rx + R[i, 1] * ry + R[i, 2] for i in range(3)]
         el = np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1])))
         az = np.degrees(np.arctan2(d[1], d[0]))
-        tx = az * Tex.TEXELS_PER_M[Tex.SKY]
+        tx = az * (Tex.TEXELS_PER_M[Tex.SKY] / TEX_SIZE)
         ty = (el - Tex.V_MIN_M[Tex.SKY]) * Tex.TEXELS_PER_M_V[Tex.SKY] + self._atlas.y0[Tex.SKY]
         return tx.astype(np.float32), ty.astype(np.float32)
 
     @staticmethod
-    def _colour_terms(z: F32, tint: F32) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-        """Per surface point (``z`` of any shape S, ``tint``: ``3 × S`` BGR in [0, 1]): the
-        factor of the texture (tint × share of the surface's colour through the haze) and the
-        haze added, ``S × 4`` BGRA uint8 (× 255)."""
-        own = 1.0 / (1.0 + z * np.float32(1.0 / HAZE_DISTANCE_M))
-        own *= np.float32(255.0)
-        haze = np.float32(255.0) - own
-        mult = np.zeros((*z.shape, 4), np.uint8)
-        add = np.zeros((*z.shape, 4), np.uint8)
-        for c in range(3):  # + 0.5: rounded when cast
-            m = tint[c] * own
-            m += np.float32(0.5)
-            mult[..., c] = m
-            a = haze * HAZE[c]
-            a += np.float32(0.5)
-            add[..., c] = a
-        return mult, add
+    def _colour_terms(inv: F32, tint: F32) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """Per surface point (``inv = 1/z``, 2-D, ``≤ 0``: at infinity; ``tint``: ``inv.shape ×
+        4`` BGR0 in [0, 1]): the factor of the texture (tint × share of the surface's colour
+        through the haze, ``1 / (1 + z / HAZE_DISTANCE_M)``) and the haze added, ``inv.shape ×
+        4`` BGRA uint8 (× 255, rounded)."""
+        near = np.maximum(inv, np.float32(0.0))
+        own = near + np.float32(1.0 / HAZE_DISTANCE_M)
+        np.divide(near, own, out=own)
+        own4 = np.asarray(cv2.merge([own] * 4))
+        mult = cv2.convertScaleAbs(np.multiply(tint, own4, out=tint), alpha=255.0)
+        np.subtract(np.float32(1.0), own4, out=own4)
+        own4 *= _haze_row(own.size).reshape(own4.shape)
+        add = cv2.convertScaleAbs(own4)
+        return np.asarray(mult, np.uint8), np.asarray(add, np.uint8)
 
     def _shade(self, labels: NDArray[np.uint16], tab: _Tables, R: FloatArray, frame: int
                ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         """Image and depth: cells seeing one surface from the coarse grid, the others pixel by
         pixel. Works on the frame of the grid's ×CELL upsampling (image pixel ``(y, x)`` at
-        ``(y + CELL/2, x + CELL/2)``), cropped at the end."""
+        ``(y + CELL/2, x + CELL/2)``): the image is cropped at the end, the depth returned on
+        that frame (the sky's pixels arbitrary, see :attr:`Rendered.depth_m`)."""
         h, w = self.height, self.width
         ny, nx = self._cells
         o = CELL // 2
         # 1. the coarse grid: homogeneous coordinates, mip level and colour terms per sample
         lab_c = labels[self._sample_rows][:, self._sample_cols].astype(np.intp)
-        f = np.take(tab.per_label, lab_c, axis=1)
+        f = np.take(tab.per_label, lab_c, axis=1, mode="clip")
         xs, ys = self._xs[None, :], self._ys[:, None]
         inv_c = f[6] * xs + f[7] * ys + f[8]  # 0 for the sky (label 0)
         tx_c = f[0] * xs + f[1] * ys + f[2]
         ty_c = f[3] * xs + f[4] * ys + f[5]
         sky_c = lab_c == 0
-        with np.errstate(divide="ignore"):
-            z_c = np.reciprocal(inv_c)
-        lev_c = self._level(z_c, self._rn_c, f[9], f[10], f[11])
-        np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
-        mult_c, add_c = self._colour_terms(z_c, f[12:15])
+        lev_c = self._level(inv_c, self._log_rn_c, f[9], f[10])
+        mult_c, add_c = self._colour_terms(inv_c, np.take(tab.tint, lab_c, axis=0, mode="clip"))
         if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
             yy, xx = np.nonzero(sky_c)
             inv_c[yy, xx] = 1.0
@@ -819,38 +845,43 @@ class Renderer:
             lev_c[yy, xx] = 0.0
             mult_c[yy, xx] = 255
             add_c[yy, xx] = 0
+        np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         # 2. cells: the labels seen in each (its pixels and corners), one surface or not
         padded = np.asarray(cv2.copyMakeBorder(labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w,
                                                cv2.BORDER_REPLICATE), dtype=np.uint16)
         sub = (slice(0, CELL * ny, CELL), slice(0, CELL * nx, CELL))
         lo: NDArray[np.intp] = cv2.erode(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
-        good = tab.surface[lo] == tab.surface[hi]
+        good = np.take(tab.surface, lo, mode="clip") == np.take(tab.surface, hi, mode="clip")
         # a corner beyond its plane's horizon (a sliver of a far or edge-on polygon): exact
         beyond = (inv_c <= 0) & ~sky_c
         good &= ~(beyond[:-1, :-1] | beyond[:-1, 1:] | beyond[1:, :-1] | beyond[1:, 1:])
         self._check_pieces(good, lo, hi, inv_c, tab)
         if not self.interpolate:
             good[:] = False
-        # 3. every pixel from the interpolation (exact inside cells that see one plane)
+        # 3. every pixel's homogeneous quantities from the coarse grid (exact inside cells that
+        # see one plane), 4. the other cells' pixels from their own polygon's plane
         fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, mult_c, add_c)
-        fields.depth.ravel()[self._cell_work[(lo == 0) & (hi == 0)].ravel()] = np.inf  # sky
-        # 4. the other cells pixel by pixel
         cb, ca = np.nonzero(~good)
         if cb.size:
             self._exact(cb, ca, padded, tab, R, fields)
-        # 5. texture, colour, sensor noise, on the image's pixels
-        depth, mapx, mapy, mult, add = fields
+        # 5. depth, atlas coordinates, texture, colour and sensor noise on the image's pixels
         crop = (slice(o, o + h), slice(o, o + w))
-        texel = cv2.cvtColor(cv2.remap(self._atlas.image, mapx, mapy, cv2.INTER_LINEAR)[crop],
-                             cv2.COLOR_BGRA2BGR)
-        image = cv2.multiply(texel, cv2.cvtColor(mult[crop], cv2.COLOR_BGRA2BGR),
-                             scale=1.0 / 255.0)
-        cv2.add(image, cv2.cvtColor(add[crop], cv2.COLOR_BGRA2BGR), dst=image)
+        depth, mapx, mapy, lev, mult, add = fields
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            np.reciprocal(depth, out=depth)
+            mapx *= depth  # the sky: w = 1 (its depth set below)
+            mapy *= depth
+            level = np.asarray(cv2.convertScaleAbs(lev), np.uint8)  # rounded
+            mapx, mapy = _atlas_xy_periods(mapx, mapy, level)
+        texel = cv2.remap(self._atlas.image, mapx[crop], mapy[crop], cv2.INTER_LINEAR)
+        cv2.multiply(texel, mult[crop], dst=texel, scale=1.0 / 255.0)
+        cv2.add(texel, add[crop], dst=texel)
+        image = cv2.cvtColor(texel, cv2.COLOR_BGRA2BGR)
         oy, ox = (frame * 7919) % h, (frame * 104729) % w
         cv2.add(image, self._noise_pos[oy:oy + h, ox:ox + w], dst=image)
         cv2.subtract(image, self._noise_neg[oy:oy + h, ox:ox + w], dst=image)
-        return np.asarray(image, dtype=np.uint8), np.ascontiguousarray(depth[crop])
+        return np.asarray(image, dtype=np.uint8), depth
 
     def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
                       inv_c: F32, tab: _Tables) -> None:
@@ -861,7 +892,8 @@ class Renderer:
         multi = good & (lo != hi)
         # every piece between the extreme labels within TURN_TOLERANCE of the others (a bump
         # or a crest between two coplanar pieces is no plane)
-        multi &= ~(tab.turn[hi] - tab.turn[lo] > TURN_TOLERANCE)
+        multi &= ~(np.take(tab.turn, hi, mode="clip") - np.take(tab.turn, lo, mode="clip")
+                   > TURN_TOLERANCE)
         good &= (lo == hi) | multi
         cb, ca = np.nonzero(multi)
         if not cb.size:
@@ -878,8 +910,8 @@ class Renderer:
 
     def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32,
                       mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
-        """Depth, atlas coordinates and colour terms of every pixel from the coarse grid
-        (bilinear, exact within a plane), on the upsampling's frame."""
+        """The grid's quantities at every pixel (bilinear, exact within a plane), on the
+        upsampling's frame."""
         hc, wc = inv_c.shape
         size = (CELL * wc, CELL * hc)
 
@@ -887,64 +919,62 @@ class Renderer:
             return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR))
 
         # (in cells drawn pixel by pixel afterwards the values may be anything)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            depth = np.reciprocal(up(inv_c))
-            mapx = up(tx_c)
-            mapx *= depth
-            mapy = up(ty_c)
-            mapy *= depth
-            # levels clipped on the grid stay clipped when interpolated; rounded to uint8
-            level = np.asarray(cv2.convertScaleAbs(up(lev_c)), np.uint8)
-            mapx, mapy = atlas_xy(mapx, mapy, level)
-        return _Fields(depth, mapx, mapy, up(mult_c), up(add_c))
+        return _Fields(*(up(a) for a in (inv_c, tx_c, ty_c, lev_c, mult_c, add_c)))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
                tab: _Tables, R: FloatArray, fields: _Fields) -> None:
         """The pixels of cells ``(cb, ca)`` from their own polygon's plane, written into
         ``fields`` (``padded``: the labels, padded to whole cells and one more row and
         column)."""
-        n = cb.size
-        lab = np.take(padded, self._cell_labels[cb, ca]).astype(np.intp)  # (n, CELL²)
-        where = self._cell_work[cb, ca]
-        x = (CELL * ca).astype(np.float32)[:, None] + self._cell_dx
-        y = (CELL * cb).astype(np.float32)[:, None] + self._cell_dy
-        f = np.take(tab.per_label, lab, axis=1)
-        inv = f[6] * x + f[7] * y + f[8]
+        cell = cb * self._cells[1] + ca
+        lab = np.take(padded, np.take(self._cell_labels, cell, axis=0, mode="clip").ravel(),
+                      mode="clip").astype(np.intp)
+        where = np.take(self._cell_work, cell, axis=0, mode="clip").ravel()
+        x = ((CELL * ca).astype(np.float32)[:, None] + self._cell_dx).ravel()
+        y = ((CELL * cb).astype(np.float32)[:, None] + self._cell_dy).ravel()
+        f = np.take(tab.per_label, lab, axis=1, mode="clip")
+        inv = f[6] * x
+        inv += f[7] * y
+        inv += f[8]
         # the sky (0), and pixels whose centre is beyond their polygon's horizon (the fill
         # reaches half a pixel past an outline): seen at infinity
         np.maximum(inv, np.float32(0.0), out=inv)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.reciprocal(inv)
-            tx = f[0] * x + f[1] * y + f[2]
-            tx /= inv
-            ty = f[3] * x + f[4] * y + f[5]
-            ty /= inv
-        lev = self._level(z, np.take(self._rn_work, where), f[9], f[10], f[11])
-        mult, add = self._colour_terms(z, f[12:15])
-        sky = np.nonzero(lab == 0)
-        if sky[0].size:
+        tx = f[0] * x
+        tx += f[1] * y
+        tx += f[2]
+        ty = f[3] * x
+        ty += f[4] * y
+        ty += f[5]
+        lev = self._level(inv, np.take(self._log_rn_work, where, mode="clip"), f[9], f[10])
+        tint = np.take(tab.tint, lab[None], axis=0, mode="clip")  # one row (OpenCV: fast)
+        mult, add = self._colour_terms(inv[None], tint)
+        mult, add = mult[0], add[0]
+        sky = np.flatnonzero(lab == 0)
+        if sky.size:
+            inv[sky] = 1.0
             tx[sky], ty[sky] = self._sky(x[sky], y[sky], R)
             lev[sky] = 0.0
             mult[sky] = 255
             add[sky] = 0
-        tx, ty = atlas_xy(tx, ty, _rounded_level(lev))
-        for field, values in zip(fields, (z, tx, ty, mult, add), strict=True):
-            out: NDArray[Any] = np.asarray(field)
+        np.clip(lev, 0.0, MIP_LEVELS - 1, out=lev)
+        for buffer, values in zip(fields, (inv, tx, ty, lev, mult, add), strict=True):
+            out: NDArray[Any] = np.asarray(buffer)
             if out.ndim == 3:  # BGRA as one 32-bit word
                 out, values = out.view(np.uint32), values.view(np.uint32)
-            out.ravel()[where] = values.reshape(n, -1)
+            out.ravel()[where] = values.ravel()
 
 
 class _Fields(NamedTuple):
-    """Per pixel of the upsampling's frame: depth (m), atlas coordinates (x, y), and the colour
-    terms (BGRA uint8): texture factor × 255 and haze added."""
+    """Per pixel of the upsampling's frame: ``1/z`` (1/m; 1 for the sky), the level-0 texel
+    coordinates times ``1/z``, the mip level (unrounded, within the levels), and the colour terms
+    (BGRA uint8): texture factor × 255 and haze added."""
 
-    depth: F32
-    mapx: F32
-    mapy: F32
+    inv: F32
+    tx: F32
+    ty: F32
+    level: F32
     mult: NDArray[np.uint8]
     add: NDArray[np.uint8]
-
 
 def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear: FloatArray,
                      s_front: FloatArray, owners: NDArray[np.int64]) -> Polygons:

@@ -8,7 +8,7 @@ the scenario's tables and one frame.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -30,7 +30,9 @@ class SyntheticFrame:
 
     Attributes:
         index: frame index; timestamp_s: seconds.
-        image: BGR ``H×W×3`` uint8; depth_m: ``H×W`` float32 metres (``+inf`` = sky).
+        image: BGR ``H×W×3`` uint8; depth_m: ``H×W`` float32 metres (``+inf`` = sky; made
+            on first access).
+        rendered: the renderer's output (labels, the target seen at each pixel, depth).
         visible_share: ``(M,)`` share of each target's projected silhouette (inside the image)
             that is not hidden by the road or another vehicle; 0 when not in view.
         exact: the exact boxes of the targets in view, with columns ``z`` (KITTI z of the box's
@@ -41,10 +43,15 @@ class SyntheticFrame:
     index: int
     timestamp_s: float
     image: NDArray[np.uint8]
-    depth_m: NDArray[np.float32]
+    rendered: Rendered = field(repr=False)
     visible_share: FloatArray
     exact: BoxTable
     detections: BoxTable
+
+    @property
+    def depth_m(self) -> NDArray[np.float32]:
+        """``H×W`` float32 metres along the camera z axis (``+inf`` = sky)."""
+        return self.rendered.depth_m
 
 
 class SyntheticSequence:
@@ -131,7 +138,7 @@ class SyntheticSequence:
         """Render frame ``k`` with its boxes."""
         r = self.render(k)
         share = self.visible_share(k, r)
-        return SyntheticFrame(k, float(self.truth.timestamps_s[k]), r.image, r.depth_m, share,
+        return SyntheticFrame(k, float(self.truth.timestamps_s[k]), r.image, r, share,
                               self.exact_boxes(k, share), self.detections(k, share))
 
     def __iter__(self) -> Iterator[SyntheticFrame]:
