@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from slopedist.estimators.ours import cues
@@ -78,25 +78,24 @@ def test_width_cue_recovers_the_distance_at_the_true_heading(x: float, z: float,
                                                              yaw: float) -> None:
     b = _box(x, z, yaw, CAR)
     z_hat, dz_dcol, share_w = cues.width_cue(b[0], b[2], F, CX, math.radians(yaw), CAR[1],
-                                             CAR[2], z_init_m=0.8 * z, iterations=3)
-    assert z_hat == pytest.approx(z, rel=1e-6)
+                                             CAR[2])
+    assert z_hat == pytest.approx(z, rel=1e-12)
     assert dz_dcol > 0 and 0.0 <= share_w <= 1.0
 
 
 def test_width_cue_share_and_scaling() -> None:
     """Z is linear in (W, L) for given extreme corners: scaling both scales Z."""
     b = _box(-3.0, 25.0, 20.0, CAR)
-    z1, _, share = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), CAR[1], CAR[2], 25.0)
-    z2 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.1 * CAR[1], 1.1 * CAR[2],
-                        25.0)[0]
+    z1, _, share = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), CAR[1], CAR[2])
+    z2 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.1 * CAR[1], 1.1 * CAR[2])[0]
     assert z2 == pytest.approx(1.1 * z1, rel=1e-9)
-    z3 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.001 * CAR[1], CAR[2], 25.0)[0]
+    z3 = cues.width_cue(b[0], b[2], F, CX, math.radians(20.0), 1.001 * CAR[1], CAR[2])[0]
     assert math.log(z3 / z1) / math.log(1.001) == pytest.approx(share, rel=1e-3)
 
 
 def test_width_cue_at_a_wrong_heading_misses() -> None:
     b = _box(0.0, 30.0, 25.0, CAR)
-    z0 = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], 30.0)[0]
+    z0 = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])[0]
     assert z0 < 0.8 * 30.0  # the side of a turned car makes the box wider: looks nearer
 
 
@@ -163,7 +162,7 @@ def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
     b = _box(x, z, yaw, CAR)
     e = CAR[2] / 2
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
-    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], zh)
+    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     c_h = dH * CAR[0] / zh
     out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share,
                               0.085, 0.06, 0.3)
@@ -183,7 +182,7 @@ def test_size_fusion_splits_a_size_surprise_between_the_cues() -> None:
     b = _box(0.0, 40.0, 0.0, dims)
     e = CAR[2] / 2
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
-    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2], zh)
+    zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4,
                               0.0, share, 0.085, 0.06, 0.3)
     assert zw < math.exp(out.mean) < zh
@@ -274,22 +273,37 @@ def test_height_cue_log_is_height_cue_in_log_form(x: float, z: float, yaw: float
         (de ** 2 * var_e + (dh * 0.05) ** 2) / z_ref ** 2, rel=1e-9)
 
 
+@settings(max_examples=60, deadline=None)
+@given(x=st.floats(-12, 12), z=st.floats(3, 80), yaw=st.floats(-89.9, 89.9),
+       w=st.floats(1.4, 2.5), ln=st.floats(3.0, 12.0))
+def test_width_cue_inverts_the_projection_near_and_far(x: float, z: float, yaw: float,
+                                                       w: float, ln: float) -> None:
+    dims = np.array([1.5, w, ln])
+    assume(z - 0.5 * math.hypot(w, ln) > 1.0)  # every corner at least 1 m in front
+    b = _box(x, z, yaw, dims)
+    z_hat, dz_dcol, share = cues.width_cue(b[0], b[2], F, CX, math.radians(yaw), w, ln)
+    assert z_hat == pytest.approx(z, rel=1e-9)
+    # the noise gain against a finite difference of both edges
+    eps = 1e-4
+    zl = cues.width_cue(b[0] + eps, b[2], F, CX, math.radians(yaw), w, ln)[0]
+    zr = cues.width_cue(b[0], b[2] + eps, F, CX, math.radians(yaw), w, ln)[0]
+    assert dz_dcol == pytest.approx(math.hypot(zl - z_hat, zr - z_hat) / eps, rel=1e-3)
+    assert 0.0 <= share <= 1.0
+
+
 def test_width_cue_log_is_the_width_cue_in_log_form() -> None:
     rng = np.random.default_rng(4)
     n = 40
     grid = yaw_grid()
     x, z = rng.uniform(-10, 10, n), rng.uniform(5, 70, n)
     b = cues.project_box(F, CX, CY, H_CAM, x, z, rng.uniform(-0.3, 0.3, n), CAR)
-    parts = np.broadcast_to(cues.corner_parts(grid, CAR[1], CAR[2]), (n, grid.size, 4, 4))
-    z_init = z[:, None] * rng.uniform(0.9, 1.1, (n, grid.size))
-    min_depth = np.full((n, grid.size), 2.4)
-    z_ref, dcol, share = cues.width_cue_from_parts(b[:, 0:1], b[:, 2:3], F, CX, parts, z_init,
-                                                   iterations=1)
-    z_ref = np.maximum(z_ref, min_depth)
-    corners = np.ascontiguousarray(np.broadcast_to(
-        cues.corner_table(grid, CAR[1], CAR[2])[:, None], (6, n, grid.size, 4)))
     left, right = (np.repeat(b[:, k:k + 1], grid.size, axis=1) for k in (0, 2))
-    got = cues.width_cue_log(left, right, F, CX, 0.7, corners, z_init, min_depth)
+    z_ref, dcol, share = cues.width_cue(left, right, F, CX, grid, CAR[1], CAR[2])
+    min_depth = np.full((n, grid.size), 2.4)
+    z_ref = np.maximum(z_ref, min_depth)
+    half = [np.broadcast_to(0.5 * d * fn(grid), (n, grid.size))
+            for d, fn in ((CAR[1], np.cos), (CAR[1], np.sin), (CAR[2], np.cos), (CAR[2], np.sin))]
+    got = cues.width_cue_log(left, right, F, CX, 0.7, *half, min_depth)
     np.testing.assert_allclose(got.mean, np.log(z_ref), atol=1e-12)
     np.testing.assert_allclose(got.lever, share, atol=1e-12)
     np.testing.assert_allclose(got.var_white, (dcol * 0.7 / z_ref) ** 2, rtol=1e-9)

@@ -196,86 +196,46 @@ def height_cue_log(
     return SizeCue(np.log(Z), lever, white, other)
 
 
-def width_cue_log(
-    left: FloatArray, right: FloatArray, f: float, c_x: float, sigma_px: float,
-    corners: FloatArray, z_init_m: FloatArray, min_depth_m: FloatArray,
-) -> SizeCue:
-    """:func:`width_cue_from_parts` (one choice of the extreme corners, at ``z_init_m``) as a
-    :class:`SizeCue` whose ``var_other`` is 0 (the caller adds the length's share) and whose
-    lever is the width's share; the depth is clipped at ``min_depth_m`` before its logarithm.
-
-    Args:
-        left, right: ``(N, K)`` box columns (the same for every hypothesis), pixels.
-        f, c_x, sigma_px: focal length, principal-point column and box-edge noise, pixels.
-        corners: ``(6, N, K, 4)`` per hypothesis and footprint corner, the four
-            :func:`corner_parts` (the width's and the length's parts of the x offset, then of
-            the z offset) and the corner's x and z offsets (their sums), metres.
-        z_init_m, min_depth_m: ``(N, K)`` depth at which the extreme corners are chosen, and
-            the smallest centre depth accepted.
-    """
+def _width_terms(
+    left: FloatArray, right: FloatArray, f: float, c_x: float, half_w_cos: FloatArray,
+    half_w_sin: FloatArray, half_l_cos: FloatArray, half_l_sin: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The width cue's depth, the width's share and the two extreme corners' depth offsets,
+    with the box width (see :func:`width_cue`)."""
     inv_f = 1.0 / f
     al = (left - c_x) * inv_f
     ar = (right - c_x) * inv_f
-    Zc = z_init_m[..., None]
-    px = (((al + ar) * 0.5)[..., None] * Zc + corners[4]) / np.maximum(Zc + corners[5], 1e-3)
-    flat = corners.reshape(6, -1)  # one column per (target, hypothesis, corner)
-    first = _first_corner_rows(z_init_m.shape)
-    pl = flat[:, first + px.argmin(axis=-1)]  # (6, N, K): the left-most corner's
-    pr = flat[:, first + px.argmax(axis=-1)]
-    num_w = pl[0] - pr[0] - al * pl[2] + ar * pr[2]
-    num = pl[4] - pr[4] - al * pl[5] + ar * pr[5]
-    Z = num / (al - ar)
-    Zm = np.maximum(Z, min_depth_m)
-    zl, zr = Z + pl[5], Z + pr[5]  # the extreme corners' depths
-    wpx = right - left
-    white = (zl * zl + zr * zr) / (Zm * Zm) * ((sigma_px * sigma_px) / (wpx * wpx))
-    return SizeCue(np.log(Zm), num_w / num, white, np.zeros(Zm.shape))
-
-
-_FIRST_ROWS: dict[tuple[int, ...], NDArray[np.intp]] = {}
-
-
-def _first_corner_rows(shape: tuple[int, ...]) -> NDArray[np.intp]:
-    """Index of each (target, hypothesis)'s first corner in a flattened ``(..., 4)`` layout."""
-    rows = _FIRST_ROWS.get(shape)
-    if rows is None:
-        rows = _FIRST_ROWS[shape] = np.arange(0, 4 * int(np.prod(shape)), 4).reshape(shape)
-    return rows
-
-
-def corner_table(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
-    """The ``corners`` argument of :func:`width_cue_log`, ``(6, ..., 4)``: :func:`corner_parts`
-    moved to the front, then the corners' x and z offsets."""
-    parts = np.moveaxis(corner_parts(yaw_rad, width_m, length_m), -1, 0)
-    return np.ascontiguousarray(np.concatenate(
-        [parts, (parts[0] + parts[1])[None], (parts[2] + parts[3])[None]]))
-
-
-def corner_parts(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
-    """The footprint corners' offsets from the box centre split by dimension, ``(..., 4, 4)``.
-
-    For each corner (second-last axis, as :func:`footprint_corners`): the width's part of its
-    x offset, the length's part of its x offset, the width's part of its z offset and the
-    length's part of its z offset (metres). They depend only on the class and the heading, so
-    the estimator computes them once per class and hypothesis.
-    """
-    psi = np.asarray(yaw_rad, dtype=float)[..., None]
-    s, c = np.sin(psi), np.cos(psi)
-    hl = np.asarray(length_m, dtype=float)[..., None] * _CORNER_L
-    hw = np.asarray(width_m, dtype=float)[..., None] * _CORNER_W
-    return np.stack([hw * c, hl * s, -hw * s, hl * c], axis=-1)
+    # x − a·z of the corner with signs (s_l, s_w) is s_l·(L sinψ − a L cosψ)/2 + s_w·(W cosψ +
+    # a W sinψ)/2: the left edge's corner minimises it at a_l, the right edge's maximises it
+    # at a_r
+    u_l = half_l_sin - al * half_l_cos
+    v_l = half_w_cos + al * half_w_sin
+    u_r = half_l_sin - ar * half_l_cos
+    v_r = half_w_cos + ar * half_w_sin
+    v_sum = np.abs(v_l) + np.abs(v_r)
+    num = np.abs(u_l) + np.abs(u_r) + v_sum
+    width_px = right - left
+    Z = num * (f / width_px)
+    # the corners' depth offsets s_l·L cosψ/2 − s_w·W sinψ/2 with the signs chosen
+    dz_l = np.sign(v_l) * half_w_sin - np.sign(u_l) * half_l_cos
+    dz_r = np.sign(u_r) * half_l_cos - np.sign(v_r) * half_w_sin
+    return Z, v_sum / num, dz_l, dz_r, width_px
 
 
 def width_cue(
     left: ArrayLike, right: ArrayLike, f: float, c_x: float, yaw_rad: ArrayLike,
-    width_m: ArrayLike, length_m: ArrayLike, z_init_m: ArrayLike, iterations: int = 2,
+    width_m: ArrayLike, length_m: ArrayLike,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Distance from the box's left and right columns, a heading ψ and the footprint (size cue).
 
-    With the extreme corners i (left) and j (right), ``X + dx_i = a_l (Z + dz_i)`` and
-    ``X + dx_j = a_r (Z + dz_j)`` (``a = (column − c_x)/f``) are linear in the centre
-    ``(X, Z)``; which corners are extreme depends on ``(X, Z)``, so the choice is refined
-    ``iterations`` times starting from ``z_init_m``.
+    With the extreme corners l (left) and r (right) of the footprint, ``X + dx_l = a_l (Z +
+    dz_l)`` and ``X + dx_r = a_r (Z + dz_r)`` (``a = (column − c_x)/f``) are linear in the
+    centre ``(X, Z)``. Every other corner lies right of the left edge's ray, so the left corner
+    is the one that minimises ``dx − a_l·dz`` (whatever X and Z), and the right one maximises
+    ``dx − a_r·dz``; over the rectangle these extremes are ``∓(|L(sin ψ − a cos ψ)| + |W(cos ψ
+    + a sin ψ)|)/2``, so ``Z = (|L(sin ψ − a_l cos ψ)| + |W(cos ψ + a_l sin ψ)| + |L(sin ψ −
+    a_r cos ψ)| + |W(cos ψ + a_r sin ψ)|)/(2 (a_r − a_l))``: exact for any box of the footprint
+    model, near or far.
 
     Returns:
         ``(Z, dZ/dcolumn_rms, share_w)``: centre depth (m); the depth change per pixel of edge
@@ -283,41 +243,40 @@ def width_cue(
         width, ``∂log Z/∂log W`` (the rest, ``1 − share_w``, is owed to the length). ``Z`` is NaN
         where the columns are not ordered.
     """
-    shape = np.broadcast_shapes(np.shape(left), np.shape(right), np.shape(yaw_rad),
-                                np.shape(width_m), np.shape(length_m))
-    parts = np.broadcast_to(corner_parts(yaw_rad, width_m, length_m), (*shape, 4, 4))
-    return width_cue_from_parts(left, right, f, c_x, parts, z_init_m, iterations)
+    psi = np.asarray(yaw_rad, dtype=float)
+    W = np.asarray(width_m, dtype=float)
+    L = np.asarray(length_m, dtype=float)
+    c, s = np.cos(psi), np.sin(psi)
+    lft = np.asarray(left, dtype=float)
+    rgt = np.asarray(right, dtype=float)
+    rgt = np.where(rgt > lft, rgt, np.nan)  # NaN (every output) where not ordered
+    Z, share, dz_l, dz_r, width_px = _width_terms(lft, rgt, f, c_x, 0.5 * W * c, 0.5 * W * s,
+                                                  0.5 * L * c, 0.5 * L * s)
+    return Z, np.hypot(Z + dz_l, Z + dz_r) / width_px, share
 
 
-def width_cue_from_parts(
-    left: ArrayLike, right: ArrayLike, f: float, c_x: float, parts: FloatArray,
-    z_init_m: ArrayLike, iterations: int = 2, offsets: tuple[FloatArray, FloatArray] | None = None,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """:func:`width_cue` with the footprint given as :func:`corner_parts` ``(..., 4, 4)``, whose
-    leading shape is the output's (``left``, ``right`` and ``z_init_m`` broadcast to it);
-    ``offsets`` = the corners' ``(dx, dz)`` ``(..., 4)`` when already at hand (their sums)."""
-    shape = parts.shape[:-2]
-    pf = parts.reshape(-1, 4)  # one row per (target, hypothesis, corner)
-    al = (np.asarray(left, dtype=float) - c_x) / f
-    ar = (np.asarray(right, dtype=float) - c_x) / f
-    first = np.arange(0, pf.shape[0], 4).reshape(shape)  # row of each first corner
-    dx, dz = offsets if offsets is not None else (parts[..., 0] + parts[..., 1],
-                                                  parts[..., 2] + parts[..., 3])
-    Z = np.asarray(z_init_m, dtype=float)
-    span = np.where(ar > al, al - ar, np.nan)  # NaN (every output) where not ordered
-    mid = (0.5 * (al + ar))[..., None]
-    for _ in range(max(1, iterations)):
-        Zc = Z[..., None]
-        px = (mid * Zc + dx) / np.maximum(Zc + dz, 1e-3)
-        pl = pf[first + px.argmin(axis=-1)]  # the left-most corner's parts
-        pr = pf[first + px.argmax(axis=-1)]
-        num_w = pl[..., 0] - pr[..., 0] - al * pl[..., 2] + ar * pr[..., 2]
-        num_l = pl[..., 1] - pr[..., 1] - al * pl[..., 3] + ar * pr[..., 3]
-        Z = (num_w + num_l) / span
-    dZ_dcol = (np.hypot(Z + pl[..., 2] + pl[..., 3], Z + pr[..., 2] + pr[..., 3])
-               / (np.abs(span) * f))
-    share_w = num_w / (num_w + num_l)  # num_w + num_l = Z·span ≠ 0
-    return Z, dZ_dcol, share_w
+def width_cue_log(
+    left: FloatArray, right: FloatArray, f: float, c_x: float, sigma_px: float,
+    half_w_cos: FloatArray, half_w_sin: FloatArray, half_l_cos: FloatArray,
+    half_l_sin: FloatArray, min_depth_m: FloatArray,
+) -> SizeCue:
+    """:func:`width_cue` as a :class:`SizeCue` (the estimator's per-frame path): its lever is
+    the width's share, its ``var_other`` 0 (the caller adds the length's share); the depth is
+    clipped at ``min_depth_m`` before its logarithm.
+
+    Args:
+        left, right: ``(N, K)`` box columns (the same for every hypothesis), pixels.
+        f, c_x, sigma_px: focal length, principal-point column and box-edge noise, pixels.
+        half_w_cos, half_w_sin, half_l_cos, half_l_sin: ``W cos ψ/2``, ``W sin ψ/2``,
+            ``L cos ψ/2``, ``L sin ψ/2`` of the class and hypotheses, ``(N, K)``, metres.
+        min_depth_m: ``(N, K)`` the smallest centre depth accepted.
+    """
+    Z, share, dz_l, dz_r, width_px = _width_terms(left, right, f, c_x, half_w_cos, half_w_sin,
+                                                  half_l_cos, half_l_sin)
+    Zm = np.maximum(Z, min_depth_m)
+    zl, zr = Z + dz_l, Z + dz_r  # the extreme corners' depths
+    white = (zl * zl + zr * zr) / (Zm * Zm) * ((sigma_px * sigma_px) / (width_px * width_px))
+    return SizeCue(np.log(Zm), share, white, np.zeros(Zm.shape))
 
 
 def ground_contact_cue(

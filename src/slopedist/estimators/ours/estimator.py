@@ -371,8 +371,8 @@ class OursEstimator(Estimator):
                                  e, var_e, tall[:, None] if any_true(tall) else None)
         y_h, c_h, r_h_white, r_h_other = hc
         if cfg.use_width:
-            wc = cues.width_cue_log(left, right, f, cam.c_x, sigma_px, cls.corners[:, ci],
-                                    np.exp(y_h), G[_P_E_MIN])
+            wc = cues.width_cue_log(left, right, f, cam.c_x, sigma_px, G[_P_HWC], G[_P_HWS],
+                                    G[_P_HLC], G[_P_HLS], G[_P_E_MIN])
             y_w, share_w, r_w_white = wc.mean, wc.lever, wc.var_white
             r_w_other = (1.0 - share_w) * G[_P_LS_L]
             r_w_other *= r_w_other
@@ -493,14 +493,8 @@ class OursEstimator(Estimator):
         w = w_all.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else w_all  # headings
 
         # --- distance filter --------------------------------------------------------------------
-        # state rows (ℓ, r, P_ℓℓ, P_ℓr, P_rr) of every target: a new track starts at this
-        # frame's measurement (its white part) with zero rate
-        filt = np.empty((5, n))
-        filt[0] = meas.mean
-        filt[1] = 0.0
-        filt[2] = meas.var_white
-        filt[3] = 0.0
-        filt[4] = cfg.rate_sigma_per_s ** 2
+        # state rows (ℓ, r, P_ℓℓ, P_ℓr, P_rr) of every target
+        filt: FloatArray | None = None
         continued = np.zeros(n, dtype=bool)
         if cfg.motion_model and any_old:
             prior = S_old[ROW_FILTER]
@@ -518,10 +512,13 @@ class OursEstimator(Estimator):
                 filt = upd
                 continued[:] = True
             else:
+                filt = self._new_filter_rows(meas)
                 idx = np.flatnonzero(old)
                 filt[:, idx[same]] = upd[:, same]
                 continued[idx[same]] = True
                 rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
+        if filt is None:
+            filt = self._new_filter_rows(meas)
         var_other = meas.var - meas.var_white  # ≥ 0: mix_hypotheses caps the white part
         dist, sigma = kf.distance_moments_rows(filt, var_other)
         if any_true(continued):
@@ -578,6 +575,15 @@ class OursEstimator(Estimator):
             "delta_y": delta_y,
             "v": cam.c_y - f * np.tan(theta_f + alpha_out),
         }
+
+    def _new_filter_rows(self, meas: cues.LogCue) -> FloatArray:
+        """Filter state rows of tracks that start at this frame's measurement (its white part)
+        with zero rate."""
+        filt = np.zeros((5, meas.mean.shape[0]))
+        filt[0] = meas.mean
+        filt[2] = meas.var_white
+        filt[4] = self.config.rate_sigma_per_s ** 2
+        return filt
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
         uid = np.arange(self._next_uid, self._next_uid + k)
@@ -750,9 +756,9 @@ class _ClassTable:
 
     The priors and the heading grid are fixed for an estimator, so each frame only gathers
     rows (``scalars``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; ``planes``:
-    ``(_N_PLANES, rows, K)`` per-hypothesis constants, see :data:`_P_E`; ``corners``:
-    :func:`~slopedist.estimators.ours.cues.corner_table`) instead of recomputing them. Rows are
-    gathered along the second axis, so that each plane of a frame is contiguous.
+    ``(_N_PLANES, rows, K)`` per-hypothesis constants, see :data:`_P_E`) instead of recomputing
+    them. Rows are gathered along the second axis, so that each plane of a frame is
+    contiguous.
     """
 
     def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
@@ -784,16 +790,19 @@ class _ClassTable:
         var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
         planes = {_P_E: e, _P_VAR_E: var_e, _P_SD_E: np.sqrt(var_e),
                   _P_E_MIN: e + _MIN_NEAR_M,  # the nearest face at least _MIN_NEAR_M away
-                  _P_H: H, _P_LS_H: sH / H, _P_LS_W: sW / W, _P_LS_L: sL / L, _P_CORR: corr}
+                  _P_H: H, _P_LS_H: sH / H, _P_LS_W: sW / W, _P_LS_L: sL / L, _P_CORR: corr,
+                  _P_HWC: 0.5 * W * np.cos(psi), _P_HWS: 0.5 * W * np.sin(psi),
+                  _P_HLC: 0.5 * L * np.cos(psi), _P_HLS: 0.5 * L * np.sin(psi)}
         self.planes = np.stack([np.broadcast_to(planes[k], e.shape) for k in range(_N_PLANES)])
-        self.corners = cues.corner_table(psi, W, L)
 
 
-_P_E, _P_VAR_E, _P_SD_E, _P_E_MIN, _P_H, _P_LS_H, _P_LS_W, _P_LS_L, _P_CORR = range(9)
-_N_PLANES = 9
+(_P_E, _P_VAR_E, _P_SD_E, _P_E_MIN, _P_H, _P_LS_H, _P_LS_W, _P_LS_L, _P_CORR, _P_HWC, _P_HWS,
+ _P_HLC, _P_HLS) = range(13)
+_N_PLANES = 13
 """Planes of :attr:`_ClassTable.planes`: per class and heading hypothesis, the footprint's
-half depth extent e (m), its variance and 1σ, the smallest centre distance accepted, then the
-class's H, σH/H, σW/W, σL/L and H–W correlation (repeated over the hypotheses)."""
+half depth extent e (m), its variance and 1σ, the smallest centre distance accepted, the
+class's H, σH/H, σW/W, σL/L and H–W correlation (repeated over the hypotheses), then
+``W cos ψ/2``, ``W sin ψ/2``, ``L cos ψ/2``, ``L sin ψ/2`` (the width cue's terms, m)."""
 
 
 @dataclass(frozen=True)
