@@ -394,14 +394,6 @@ LEVEL_SCALE = np.zeros(256, np.float32)
 """Scale of each mip level's texel coordinates, ``1 / MIP_DECIMATION`` (indexed likewise)."""
 LEVEL_SCALE[:MIP_LEVELS] = 1.0 / np.asarray(MIP_DECIMATION)
 LEVEL_SCALE[MIP_LEVELS:] = LEVEL_SCALE[MIP_LEVELS - 1]
-LEVEL_CODE = 40.0
-"""The renderer carries the unrounded mip level ``l`` as the uint8 ``round(LEVEL_CODE · l)`` (in
-the alpha channel of the texture factor; interpolated with it)."""
-_CODE_LEVEL = np.minimum(np.floor(np.arange(256) / LEVEL_CODE + 0.5), MIP_LEVELS - 1).astype(int)
-CODE_X0 = LEVEL_X0[_CODE_LEVEL]
-""":data:`LEVEL_X0` indexed by the level's code (rounded to the nearest level)."""
-CODE_SCALE = LEVEL_SCALE[_CODE_LEVEL]
-""":data:`LEVEL_SCALE` indexed by the level's code."""
 
 
 def atlas_xy(tx: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
@@ -411,16 +403,14 @@ def atlas_xy(tx: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
     return _atlas_xy_periods(tx, ty, level)
 
 
-def _atlas_xy_periods(tu: F32, ty: F32, level: NDArray[np.uint8], x0: F32 = LEVEL_X0,
-                      scale: F32 = LEVEL_SCALE) -> tuple[F32, F32]:
-    """:func:`atlas_xy` of ``tu = tx / TEX_SIZE`` (``u`` in periods of the tiles), the level's
-    first column and scale looked up by ``level`` in ``x0`` and ``scale``. Overwrites ``tu`` and
-    ``ty``."""
+def _atlas_xy_periods(tu: F32, ty: F32, level: NDArray[np.uint8]) -> tuple[F32, F32]:
+    """:func:`atlas_xy` of ``tu = tx / TEX_SIZE`` (``u`` in periods of the tiles). Overwrites
+    ``tu`` and ``ty``."""
     tu -= np.floor(tu)  # u wraps round the tiles
-    s = cv2.LUT(level, scale)
-    cv2.multiply(tu, s, dst=tu, scale=float(TEX_SIZE))
-    tu += cv2.LUT(level, x0)
-    ty *= s
+    scale = cv2.LUT(level, LEVEL_SCALE)
+    cv2.multiply(tu, scale, dst=tu, scale=float(TEX_SIZE))
+    tu += cv2.LUT(level, LEVEL_X0)
+    ty *= scale
     return tu, ty
 
 
@@ -857,10 +847,7 @@ class Renderer:
             lev_c[yy, xx] = 0.0
             mult_c[yy, xx] = 255
             add_c[yy, xx] = 0
-        # the level's code in the texture factor's alpha, clipped to the levels (stays within
-        # them when interpolated)
-        np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)
-        mult_c[..., 3] = cv2.convertScaleAbs(lev_c, alpha=LEVEL_CODE)
+        np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         # 2. cells: the labels seen in each (its pixels and corners), one surface or not
         padded = np.asarray(cv2.copyMakeBorder(labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w,
                                                cv2.BORDER_REPLICATE), dtype=np.uint16)
@@ -876,19 +863,19 @@ class Renderer:
             good[:] = False
         # 3. every pixel's homogeneous quantities from the coarse grid (exact inside cells that
         # see one plane), 4. the other cells' pixels from their own polygon's plane
-        fields = self._interpolated(inv_c, tx_c, ty_c, mult_c, add_c)
+        fields = self._interpolated(inv_c, tx_c, ty_c, lev_c, mult_c, add_c)
         cb, ca = np.nonzero(~good)
         if cb.size:
             self._exact(cb, ca, padded, tab, R, fields)
         # 5. depth, atlas coordinates, texture, colour and sensor noise on the image's pixels
         crop = (slice(o, o + h), slice(o, o + w))
-        depth, mapx, mapy, mult, add = fields
+        depth, mapx, mapy, lev, mult, add = fields
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             np.reciprocal(depth, out=depth)
             mapx *= depth  # the sky: w = 1 (its depth set below)
             mapy *= depth
-            code = np.asarray(cv2.extractChannel(mult, 3), np.uint8)
-            mapx, mapy = _atlas_xy_periods(mapx, mapy, code, CODE_X0, CODE_SCALE)
+            level = np.asarray(cv2.convertScaleAbs(lev), np.uint8)  # rounded
+            mapx, mapy = _atlas_xy_periods(mapx, mapy, level)
         texel = cv2.remap(self._atlas.image, mapx[crop], mapy[crop], cv2.INTER_LINEAR)
         cv2.multiply(texel, mult[crop], dst=texel, scale=1.0 / 255.0)
         cv2.add(texel, add[crop], dst=texel)
@@ -923,8 +910,8 @@ class Renderer:
             ok &= np.all(np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol, axis=0)
         good[cb[~ok], ca[~ok]] = False
 
-    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, mult_c: NDArray[np.uint8],
-                      add_c: NDArray[np.uint8]) -> _Fields:
+    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32,
+                      mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
         """The grid's quantities at every pixel (bilinear, exact within a plane), on the
         upsampling's frame."""
         hc, wc = inv_c.shape
@@ -934,7 +921,7 @@ class Renderer:
             return np.asarray(cv2.resize(a, size, interpolation=cv2.INTER_LINEAR))
 
         # (in cells drawn pixel by pixel afterwards the values may be anything)
-        return _Fields(*(up(a) for a in (inv_c, tx_c, ty_c, mult_c, add_c)))
+        return _Fields(*(up(a) for a in (inv_c, tx_c, ty_c, lev_c, mult_c, add_c)))
 
     def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
                tab: _Tables, R: FloatArray, fields: _Fields) -> None:
@@ -972,8 +959,7 @@ class Renderer:
             mult[sky] = 255
             add[sky] = 0
         np.clip(lev, 0.0, MIP_LEVELS - 1, out=lev)
-        mult[:, 3] = cv2.convertScaleAbs(lev, alpha=LEVEL_CODE).ravel()
-        for buffer, values in zip(fields, (inv, tx, ty, mult, add), strict=True):
+        for buffer, values in zip(fields, (inv, tx, ty, lev, mult, add), strict=True):
             out: NDArray[Any] = np.asarray(buffer)
             if out.ndim == 3:  # BGRA as one 32-bit word
                 out, values = out.view(np.uint32), values.view(np.uint32)
@@ -982,13 +968,13 @@ class Renderer:
 
 class _Fields(NamedTuple):
     """Per pixel of the upsampling's frame: ``1/z`` (1/m; 1 for the sky), the level-0 texel
-    coordinates times ``1/z`` (``t_x / TEX_SIZE``, ``t_y``), and the colour terms (BGRA uint8):
-    texture factor × 255 with the mip level's code (:data:`LEVEL_CODE`) in its alpha, and the
-    haze added."""
+    coordinates times ``1/z`` (``t_x / TEX_SIZE``, ``t_y``), the mip level (unrounded, within the
+    levels), and the colour terms (BGRA uint8): texture factor × 255 and haze added."""
 
     inv: F32
     tx: F32
     ty: F32
+    level: F32
     mult: NDArray[np.uint8]
     add: NDArray[np.uint8]
 
