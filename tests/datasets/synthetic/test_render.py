@@ -214,3 +214,17 @@ def test_depth_is_positive_or_infinite() -> None:
         for k in (0, 27, 80):
             d = seq.render(k).depth_m
             assert not np.isnan(d).any() and np.all(d > 0)
+
+
+def test_depth_map_made_on_request_matches_the_labels() -> None:
+    # the depth map is made when first asked for: the same map from the frame and the render,
+    # +inf where the sky is seen, positive elsewhere (finite but for pixels the fill reaches
+    # past a far polygon's horizon)
+    seq = SyntheticSequence(load_scenario("ego_crest"))
+    frame, r = seq.frame(60), seq.render(60)
+    d = frame.depth_m
+    assert d is frame.depth_m and d.flags.c_contiguous and d.shape == r.labels.shape
+    np.testing.assert_array_equal(d, r.depth_m)
+    sky = r.labels == 0
+    assert sky.any() and np.all(np.isinf(d[sky]))
+    assert np.all(d[~sky] > 0) and np.isfinite(d[~sky]).mean() > 0.999
