@@ -854,13 +854,13 @@ class Renderer:
         sky_c = lab_c == 0
         lev_c = self._level(inv_c, self._log_rn_c, f[9], f[10])
         mult_c, add_c = self._colour_terms(inv_c, np.take(tab.tint, lab_c, axis=0, mode="clip"))
-        if sky_c.any():  # the sky: its texel coordinates with w = 1, its colour as it is
-            yy, xx = np.nonzero(sky_c)
-            inv_c[yy, xx] = 1.0
-            tx_c[yy, xx], ty_c[yy, xx] = self._sky(self._xs[xx], self._ys[yy], R)
-            lev_c[yy, xx] = 0.0
-            mult_c[yy, xx] = 255
-            add_c[yy, xx] = 0
+        sky = np.flatnonzero(sky_c)
+        if sky.size:  # the sky: its texel coordinates with w = 1, its colour as it is
+            yy, xx = np.divmod(sky, sky_c.shape[1])
+            tx, ty = self._sky(np.take(self._xs, xx), np.take(self._ys, yy), R)
+            for grid, value in ((inv_c, 1.0), (tx_c, tx), (ty_c, ty), (lev_c, 0.0),
+                                (mult_c.view(np.uint32), 0xFFFFFFFF), (add_c.view(np.uint32), 0)):
+                np.put(grid, sky, value)
         np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         # 2. cells: the labels seen in each (its pixels and corners), one surface or not
         padded = np.asarray(cv2.copyMakeBorder(labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w,
@@ -911,18 +911,21 @@ class Renderer:
         multi &= ~(np.take(tab.turn, hi, mode="clip") - np.take(tab.turn, lo, mode="clip")
                    > TURN_TOLERANCE)
         good &= (lo == hi) | multi
-        cb, ca = np.nonzero(multi)
-        if not cb.size:
+        cell = np.flatnonzero(multi)  # flat indices into the cells
+        if not cell.size:
             return
+        wc = inv_c.shape[1]
+        cb, ca = np.divmod(cell, multi.shape[1])
         db, da = self._corner_db, self._corner_da
-        x, y = self._xs[ca + da], self._ys[cb + db]  # (4, m): the corners
-        ref = inv_c[cb + db, ca + da]
+        x = np.take(self._xs, ca + da, mode="clip")  # (4, m): the corners
+        y = np.take(self._ys, cb + db, mode="clip")
+        ref = np.take(inv_c, (cb + db) * wc + ca + da, mode="clip")
         tol = PLANE_TOLERANCE * np.abs(ref)
-        ok = np.ones(cb.shape, bool)
+        ok = np.ones(cell.shape, bool)
         for lab in (lo, hi):
-            p = np.take(tab.per_label[6:9], lab[cb, ca], axis=1)
+            p = np.take(tab.per_label[6:9], np.take(lab, cell, mode="clip"), axis=1, mode="clip")
             ok &= np.all(np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol, axis=0)
-        good[cb[~ok], ca[~ok]] = False
+        np.put(good, cell[~ok], False)
 
     def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32,
                       mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
