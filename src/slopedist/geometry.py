@@ -88,12 +88,13 @@ def ground_contact_distance(
         v: row of the vanishing line, pixels.
 
     Returns:
-        Distance in metres; NaN where ``u ≤ v`` (contact at or above the horizon: undefined).
+        Distance in metres; NaN where ``u ≤ v`` (contact at or above the horizon: undefined);
+        ``+inf`` where the gap is so small (below ~1e-300 px) that the distance overflows.
     """
     u = np.asarray(u, dtype=float)
     v = np.asarray(v, dtype=float)
     gap = u - v
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         d = np.asarray(f, dtype=float) * np.asarray(height_m, dtype=float) / gap
     return np.where(gap > 0, d, np.nan)
 
