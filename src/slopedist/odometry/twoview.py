@@ -335,10 +335,22 @@ def fit_relative_pose(
             redescending = True  # converged: polish with a loss that ignores gross outliers
         elif redescending and np.max(np.abs(delta)) < tolerance_rad:
             break
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        return _failed_fit(np.asarray(R_init, dtype=float), len(x1))
     R = project_to_rotation(R)
     r, w, J, _ = _sampson_system(R, t, x1, x2, scale, True)
     A = (J * w[:, None]).T @ J
-    schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
+    try:
+        schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2),
+                                                        A[3:, :3])
+    except np.linalg.LinAlgError:  # no weight left (every correspondence an outlier)
+        return _failed_fit(R, len(x1))
     sigma2 = np.sum(w * r**2) / max(np.sum(w) - 5.0, 1.0)
     r = np.abs(r) * f_px
     return TwoViewFit(R, t, r < threshold_px, r, False, schur / max(sigma2, 1e-16))
+
+
+def _failed_fit(R: FloatArray, n: int) -> TwoViewFit:
+    """A fit that explains nothing: no inliers, infinite residuals, no information."""
+    return TwoViewFit(R, np.zeros(3), np.zeros(n, dtype=bool), np.full(n, np.inf), False,
+                      np.zeros((3, 3)))

@@ -271,7 +271,10 @@ class BuiltinVisualOdometry:
             return self._start(image, t, boxes)
         if t - self._history[-1].timestamp_s > self.config.max_bridge_s:
             return self._start(image, t, boxes)
-        return self._track(image, t, boxes)
+        try:
+            return self._track(image, t, boxes)
+        except np.linalg.LinAlgError:  # a degenerate fit: this frame has no rotation
+            return OdometryResult(None, OdometryState.LOST, 0, self._segment)
 
     # ------------------------------------------------------------------ input checks
     def _check_image(self, image_gray: NDArray[np.uint8]) -> NDArray[np.uint8]:
