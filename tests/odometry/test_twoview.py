@@ -55,6 +55,26 @@ def test_cross3_matches_numpy() -> None:
     assert np.allclose(tv.cross3(a, b[0]), np.cross(a, b[0]))
 
 
+def test_project_to_rotation_of_a_reflection_is_a_rotation() -> None:
+    # a near-rotation times a mirror: the nearest rotation flips the smallest singular direction
+    R = tv.so3_exp(np.array([0.1, -0.2, 0.3]))
+    mirrored = R @ np.diag([1.0, 1.0, -0.2])
+    P = tv.project_to_rotation(mirrored)
+    assert np.allclose(P @ P.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(P) == pytest.approx(1.0)
+    assert np.allclose(P, R, atol=1e-12)
+    assert np.allclose(tv.project_to_rotation(2.0 * R), R, atol=1e-12)
+
+
+def test_cross_into_matches_numpy_for_homogeneous_rows() -> None:
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((7, 3))
+    b = np.column_stack([rng.standard_normal((7, 2)), np.ones(7)])
+    out = np.empty((7, 3))
+    tv._cross_into(out, a, b)
+    assert np.allclose(out, np.cross(a, b), rtol=0, atol=1e-15)
+
+
 def test_sampson_residuals_vanish_for_exact_correspondences() -> None:
     R, t = tv.so3_exp(np.radians([1.0, 10.0, 0.5])), np.array([0.1, 0.02, 1.0])
     x1, x2 = correspondences(R, t, noise_px=0.0)

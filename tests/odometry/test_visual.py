@@ -25,6 +25,7 @@ from slopedist.odometry.visual import (
     VisualOdometryConfig,
     blur_to_energy,
     gradient_energy,
+    grey_stats,
     match_exposure,
 )
 
@@ -270,6 +271,10 @@ def test_match_exposure_undoes_a_gain_and_offset() -> None:
     assert match_exposure(reference, reference, MIN_EXPOSURE_CHANGE) is None  # no change
     blank = np.full((60, 80), 40, dtype=np.uint8)
     assert match_exposure(blank, reference, MIN_EXPOSURE_CHANGE) is None  # nothing to match
+    # statistics passed in (cached from an earlier frame) give the same mapping
+    again = match_exposure(darker, reference, MIN_EXPOSURE_CHANGE,
+                           image_stats=grey_stats(darker), reference_stats=grey_stats(reference))
+    assert again is not None and np.array_equal(again, matched)
 
 
 # ---------------------------------------------------------------------------- states

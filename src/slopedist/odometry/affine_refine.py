@@ -44,6 +44,14 @@ def _offsets(half: int) -> tuple[F32, F32]:
     return dx.ravel(), dy.ravel()
 
 
+@functools.lru_cache(maxsize=4)
+def _offset_rows(half: int) -> F32:
+    """The window's column and row offsets stacked, ``(2, M)`` (read-only)."""
+    rows = np.stack(_offsets(half))
+    rows.flags.writeable = False
+    return rows
+
+
 def refine_affine(
     previous: NDArray[np.uint8] | F32, current: NDArray[np.uint8] | F32,
     p0: NDArray[np.floating], p1: NDArray[np.floating], half_window: int = HALF_WINDOW_PX,
@@ -79,14 +87,21 @@ def refine_affine(
     gy = (0.5 * (big[:, 2:, 1:-1] - big[:, :-2, 1:-1])).reshape(n, -1)
     # steepest-descent images of the warp x' = (I + D) x + δ, D row-major, then δ; centred over
     # the window, which leaves a grey-level offset free
-    sd = np.stack([gx * dx, gx * dy, gy * dx, gy * dy, gx, gy], axis=1)  # (N, 6, M)
+    sd = np.empty((n, 6, len(dx)), dtype=np.float32)  # (N, 6, M)
+    np.multiply(gx, dx, out=sd[:, 0])
+    np.multiply(gx, dy, out=sd[:, 1])
+    np.multiply(gy, dx, out=sd[:, 2])
+    np.multiply(gy, dy, out=sd[:, 3])
+    sd[:, 4] = gx
+    sd[:, 5] = gy
     sd -= sd.mean(axis=2, keepdims=True)
     H = np.matmul(sd, sd.transpose(0, 2, 1))
     H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(
         6, dtype=np.float32)
     H_inv = np.linalg.inv(H)
-    offsets = np.stack([dx, dy])  # (2, M)
+    offsets = _offset_rows(half_window)  # (2, M)
     A = np.tile(np.eye(2, dtype=np.float32), (n, 1, 1))
+    D_inv = np.empty((n, 2, 2), dtype=np.float32)
     t = p1.copy()
     sq0 = None
     for _ in range(iterations):
@@ -98,8 +113,10 @@ def refine_affine(
         D = step[:, :4].reshape(n, 2, 2) + np.eye(2, dtype=np.float32)
         det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
         det = np.where(np.abs(det) < 1e-6, np.float32(1e-6), det)
-        D_inv = np.stack([D[:, 1, 1], -D[:, 0, 1], -D[:, 1, 0], D[:, 0, 0]], axis=1).reshape(
-            n, 2, 2) / det[:, None, None]
+        np.divide(D[:, 1, 1], det, out=D_inv[:, 0, 0])
+        np.divide(-D[:, 0, 1], det, out=D_inv[:, 0, 1])
+        np.divide(-D[:, 1, 0], det, out=D_inv[:, 1, 0])
+        np.divide(D[:, 0, 0], det, out=D_inv[:, 1, 1])
         A = A @ D_inv
         t = t - np.matmul(A, step[:, 4:, None])[:, :, 0]
     e = _residuals(cur, A, t, offsets, T)

@@ -29,20 +29,27 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
+_I3 = np.eye(3)
+_I3.flags.writeable = False
+_RIDGE5 = 1e-12 * np.eye(5)
+_RIDGE5.flags.writeable = False
+
+
 def skew(v: FloatArray) -> FloatArray:
     """Cross-product matrix ``[v]ₓ`` of a 3-vector (``[v]ₓ w = v × w``)."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    x, y, z = np.asarray(v, dtype=float).tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def so3_exp(w: FloatArray) -> FloatArray:
     """Rotation matrix of the rotation vector ``w`` (axis × angle, radians), Rodrigues' formula."""
     w = np.asarray(w, dtype=float)
-    angle = float(np.linalg.norm(w))
+    angle = math.sqrt(float(w @ w))  # = np.linalg.norm(w), bit for bit
     W = skew(w)
     if angle < 1e-8:
-        return np.eye(3) + W + 0.5 * (W @ W)
+        return _I3 + W + 0.5 * (W @ W)
     return (
-        np.eye(3)
+        _I3
         + (np.sin(angle) / angle) * W
         + ((1.0 - np.cos(angle)) / angle**2) * (W @ W)
     )
@@ -71,8 +78,17 @@ def so3_log(R: FloatArray) -> FloatArray:
 def project_to_rotation(M: FloatArray) -> FloatArray:
     """Nearest rotation matrix (Frobenius norm) to a 3×3 matrix."""
     U, _, Vt = np.linalg.svd(M)
-    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)) or 1.0)])
-    return U @ D @ Vt
+    R = U @ Vt
+    if _det3(R) >= 0.0:  # (U · diag(1, 1, 1)) · Vt is U · Vt exactly
+        return R
+    U[:, 2] = -U[:, 2]  # U · diag(1, 1, −1)
+    return U @ Vt
+
+
+def _det3(M: FloatArray) -> float:
+    """Determinant of a 3×3 matrix (cofactor expansion; here only its sign is used)."""
+    (a, b, c), (d, e, f), (g, h, i) = M.tolist()
+    return float(a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g))
 
 
 def normalise_pixels(uv: NDArray[np.floating], K: FloatArray) -> FloatArray:
@@ -87,7 +103,10 @@ def normalise_pixels(uv: NDArray[np.floating], K: FloatArray) -> FloatArray:
 
 def cauchy_weights(r: FloatArray, scale: float) -> FloatArray:
     """IRLS weights of the Cauchy loss with the given scale (same unit as ``r``)."""
-    return 1.0 / (1.0 + (r / scale) ** 2)
+    w = np.divide(r, scale)
+    np.square(w, out=w)
+    w += 1.0
+    return np.divide(1.0, w, out=w)
 
 
 def tukey_weights(r: FloatArray, cutoff: float) -> FloatArray:
@@ -170,12 +189,12 @@ def fit_rotation_only(
     else:
         w = cauchy_weights(rotation_residuals_px(R_init, b1, b2, f_px), threshold_px)
     R = np.eye(3) if R_init is None else np.asarray(R_init, dtype=float)
+    r = rotation_residuals_px(R, b1, b2, f_px) if iterations < 1 else np.empty(0)
     for _ in range(iterations):
         H = (b2 * w[:, None]).T @ b1  # Σ w b₂ b₁ᵀ; R maximises tr(Rᵀ H)
         R = project_to_rotation(H)
         r = rotation_residuals_px(R, b1, b2, f_px)
         w = cauchy_weights(r, threshold_px)
-    r = rotation_residuals_px(R, b1, b2, f_px)
     # information: Jᵢ = R[b₁]ₓ per bearing, so Σ w JᵀJ = Σ w (I − b₁b₁ᵀ); 2 residual dof per point
     A = np.sum(w) * np.eye(3) - (b1 * w[:, None]).T @ b1
     sigma2 = np.sum(w * (r / f_px) ** 2) / max(2.0 * np.sum(w) - 3.0, 1.0)
@@ -203,20 +222,35 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
 def _sampson_terms(
     R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """``(R x₁, x₂ × t, algebraic error e, Sampson denominator D)`` per correspondence."""
+    """``(R x₁, Eᵀ x₂ = Rᵀ (x₂ × t), algebraic error e, Sampson denominator D)`` per
+    correspondence."""
     a = x1 @ R.T  # R x₁
-    m = cross3(x2, t)  # x₂ × t
+    S = skew(t)
+    m = x2 @ S  # x₂ × t (row form: x₂ᵀ [t]ₓ)
     e = np.einsum("ij,ij->i", a, m)  # x₂ᵀ [t]ₓ R x₁ = (R x₁)·(x₂ × t)
-    Ex1 = cross3(t, a)  # E x₁ = t × R x₁ (first two components used)
+    Ex1 = a @ S.T  # E x₁ = t × R x₁ (first two components used)
     Etx2 = m @ R  # Eᵀ x₂ = Rᵀ (x₂ × t)
-    D = Ex1[:, 0] ** 2 + Ex1[:, 1] ** 2 + Etx2[:, 0] ** 2 + Etx2[:, 1] ** 2
-    return a, m, e, np.maximum(D, 1e-30)
+    D = np.square(Ex1[:, 0])
+    D += np.square(Ex1[:, 1])
+    D += np.square(Etx2[:, 0])
+    D += np.square(Etx2[:, 1])
+    return a, Etx2, e, np.maximum(D, 1e-30, out=D)
 
 
 def sampson_residuals(R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArray) -> FloatArray:
     """Signed Sampson distance of ``x₂ᵀ [t]ₓ R x₁ = 0`` per correspondence (normalised units)."""
     _, _, e, D = _sampson_terms(R, t, x1, x2)
     return e / np.sqrt(D)
+
+
+def _cross_into(out: FloatArray, a: FloatArray, b: FloatArray) -> None:
+    """``out = a × b`` row-wise for ``(N, 3)`` arrays whose last column ``b[:, 2]`` is 1
+    (homogeneous coordinates; the products with that 1 are skipped, which is exact)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1 = b[:, 0], b[:, 1]
+    np.subtract(a1, a2 * b1, out=out[:, 0])
+    np.subtract(a2 * b0, a0, out=out[:, 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
 
 
 def _sampson_system(
@@ -231,13 +265,17 @@ def _sampson_system(
     Gauss–Newton with D held fixed within a step (Sampson reweighting):
     ``∂e/∂ω = x₁ × Rᵀ(x₂ × t)`` for ``R ← R·exp(ω)``, ``∂e/∂t = R x₁ × x₂`` along the basis.
     """
-    a, m, e, D = _sampson_terms(R, t, x1, x2)
-    inv_sqrt_D = 1.0 / np.sqrt(D)
+    a, Etx2, e, D = _sampson_terms(R, t, x1, x2)
+    inv_sqrt_D = np.sqrt(D, out=D)
+    np.divide(1.0, inv_sqrt_D, out=inv_sqrt_D)
     r = e * inv_sqrt_D
     B = _tangent_basis(t)
     J = np.empty((len(r), 5))
-    J[:, :3] = cross3(x1, m @ R)
-    J[:, 3:] = cross3(a, x2) @ B
+    _cross_into(J[:, :3], Etx2, x1)  # x₁ × Etx2 = −(Etx2 × x₁)
+    np.negative(J[:, :3], out=J[:, :3])
+    ax2 = np.empty_like(a)
+    _cross_into(ax2, a, x2)
+    J[:, 3:] = ax2 @ B
     J *= inv_sqrt_D[:, None]
     w = tukey_weights(r, TUKEY_SCALES * scale) if redescending else cauchy_weights(r, scale)
     return r, w, J, B
@@ -245,13 +283,14 @@ def _sampson_system(
 
 def _tangent_basis(t: FloatArray) -> FloatArray:
     """Two unit vectors ``(3, 2)`` orthogonal to the unit vector ``t`` and to each other."""
-    x, y, z = float(t[0]), float(t[1]), float(t[2])
+    x, y, z = np.asarray(t, dtype=float).tolist()
     if abs(x) < 0.9:  # b1 = t × (1, 0, 0)
-        b1 = np.array([0.0, z, -y]) / math.hypot(y, z)
+        n = math.hypot(y, z)
+        p, q, s = 0.0 / n, z / n, -y / n
     else:  # b1 = t × (0, 1, 0)
-        b1 = np.array([-z, 0.0, x]) / math.hypot(x, z)
-    b2 = np.array([y * b1[2] - z * b1[1], z * b1[0] - x * b1[2], x * b1[1] - y * b1[0]])
-    return np.stack([b1, b2], axis=1)
+        n = math.hypot(x, z)
+        p, q, s = -z / n, 0.0 / n, x / n
+    return np.array([[p, y * s - z * q], [q, z * p - x * s], [s, x * q - y * p]])
 
 
 def translation_given_rotation(
@@ -326,14 +365,15 @@ def fit_relative_pose(
     for k in range(iterations + TUKEY_ITERATIONS):
         r, w, J, B = _sampson_system(R, t, x1, x2, scale, redescending)
         Jw = J * w[:, None]
-        A = Jw.T @ J + 1e-12 * np.eye(5)
+        A = Jw.T @ J + _RIDGE5
         delta = -np.linalg.solve(A, Jw.T @ r)
         R = R @ so3_exp(delta[:3])
         t = t + B @ delta[3:]
-        t /= np.linalg.norm(t)
-        if not redescending and (np.max(np.abs(delta)) < tolerance_rad or k >= iterations - 1):
+        t /= math.sqrt(float(t @ t))  # = np.linalg.norm(t), bit for bit
+        step = float(np.max(np.abs(delta)))
+        if not redescending and (step < tolerance_rad or k >= iterations - 1):
             redescending = True  # converged: polish with a loss that ignores gross outliers
-        elif redescending and np.max(np.abs(delta)) < tolerance_rad:
+        elif redescending and step < tolerance_rad:
             break
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return _failed_fit(np.asarray(R_init, dtype=float), len(x1))

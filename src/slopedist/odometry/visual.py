@@ -222,6 +222,7 @@ class BuiltinVisualOdometry:
         self._history: deque[_FrameRecord] = deque(maxlen=self.config.max_history_frames)
         self._prev_image: NDArray[np.uint8] | None = None
         self._prev_energy = 0.0  # gradient energy of the previous image
+        self._prev_stats = (0.0, 0.0)  # grey-level mean and standard deviation of it
         # the last current frame converted to float32, reused when it is the next previous one
         self._float_source: NDArray[np.uint8] | None = None
         self._float_image = np.empty((0, 0), dtype=np.float32)
@@ -319,7 +320,8 @@ class BuiltinVisualOdometry:
         self._ids = np.empty(0, dtype=np.int64)
         self._pts = np.empty((0, 2), dtype=np.float32)
         self._vel = np.empty((0, 2), dtype=np.float32)
-        self._add_features(image, boxes)
+        small = _half_size(image)
+        self._add_features(image, boxes, small)
         if len(self._ids) < self.config.min_inliers:
             state = OdometryState.NOT_INITIALISED if self._last_R is None else OdometryState.LOST
             return OdometryResult(None, state, 0, self._segment)
@@ -332,7 +334,7 @@ class BuiltinVisualOdometry:
         self._cov = np.zeros((3, 3))
         self._omega = np.zeros(3)
         self._moving = False
-        self._commit(image, t, R)
+        self._commit(image, t, R, gradient_energy(image, small=small), grey_stats(image))
         return OdometryResult(R.copy(), OdometryState.OK, 0, self._segment)
 
     # ------------------------------------------------------------------ tracking
@@ -347,11 +349,14 @@ class BuiltinVisualOdometry:
         # Lucas–Kanade assumes constant brightness: after an exposure jump (a tunnel,
         # auto-exposure, a flash) track into this frame with its grey levels mapped to the
         # previous frame's mean and spread; the raw frame is kept for the next step
-        jumped = match_exposure(image, self._prev_image, EXPOSURE_JUMP_LEVELS)
+        stats = grey_stats(image)  # this frame's statistics serve again as the next previous
+        jumped = match_exposure(image, self._prev_image, EXPOSURE_JUMP_LEVELS,
+                                image_stats=stats, reference_stats=self._prev_stats)
         current = image if jumped is None else jumped
         # Lucas–Kanade also needs both frames equally sharp: when one is clearly blurrier (a
         # jolt, motion blur), blur the other to match (a symmetric blur moves no feature)
-        energy = gradient_energy(image)
+        small = _half_size(image)  # also where new corners are detected
+        energy = gradient_energy(image, small=small)
         if self._prev_energy > MAX_BLUR_RATIO * energy:
             # so blurred that its rotation would be poor: bridge it from the last sharp frame
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
@@ -363,7 +368,10 @@ class BuiltinVisualOdometry:
         keep, pts, estimate = self._attempt(previous, current, boxes, t, dt)
         if estimate is None and jumped is None:
             # a smaller exposure change can still break the tracks: retry matched
-            matched = match_exposure(current, previous, MIN_EXPOSURE_CHANGE)
+            matched = match_exposure(
+                current, previous, MIN_EXPOSURE_CHANGE,
+                image_stats=stats if current is image else None,
+                reference_stats=self._prev_stats if previous is self._prev_image else None)
             if matched is not None:
                 keep, pts, estimate = self._attempt(previous, matched, boxes, t, dt)
         if estimate is None:
@@ -397,8 +405,8 @@ class BuiltinVisualOdometry:
         self._omega = tv.so3_log(prev.R_world_cam.T @ R_world_cam) / dt
         self._moving = True
         self._ids, self._pts, self._vel = ids, pts.astype(np.float32), vel.astype(np.float32)
-        self._add_features(image, boxes)
-        self._commit(image, t, R_world_cam, energy)
+        self._add_features(image, boxes, small)
+        self._commit(image, t, R_world_cam, energy, stats)
         return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers,
                               self._segment)
 
@@ -578,23 +586,36 @@ class BuiltinVisualOdometry:
 
     # ------------------------------------------------------------------ bookkeeping
     def _commit(self, image: NDArray[np.uint8], t: float, R_world_cam: FloatArray,
-                energy: float | None = None) -> None:
+                energy: float, stats: tuple[float, float]) -> None:
+        """Record a good frame; ``energy`` (:func:`gradient_energy`) and ``stats``
+        (:func:`grey_stats`) are the image's, kept for the next frame's comparisons."""
         self._history.append(_FrameRecord(t, R_world_cam, self._ids.copy(), self._pts.copy()))
         cutoff = t - self.config.lookback_s + TIME_EPS_S
         while len(self._history) > 1 and self._history[1].timestamp_s <= cutoff:
             self._history.popleft()
         self._prev_image = image
-        self._prev_energy = gradient_energy(image) if energy is None else energy
+        self._prev_energy = energy
+        self._prev_stats = stats
         self._last_R = R_world_cam
 
-    def _add_features(self, image: NDArray[np.uint8], boxes: FloatArray) -> None:
-        """Detect corners on a half-resolution copy, away from tracks and masked boxes."""
+    def _add_features(self, image: NDArray[np.uint8], boxes: FloatArray,
+                      small: NDArray[np.uint8]) -> None:
+        """Detect corners on ``small``, the half-resolution copy of ``image``
+        (:func:`_half_size`), away from tracks and masked boxes."""
         c = self.config
         wanted = c.max_features - len(self._ids)
         if wanted < max(8, c.max_features // 10):
             return
-        small = _half_size(image)
-        mask = np.full(small.shape, 255, dtype=np.uint8)
+        radius = max(1, round(0.5 * c.min_feature_distance_px))
+        if len(self._pts):  # 0 within ``radius`` of a track, 255 elsewhere
+            occupied = np.zeros(small.shape, dtype=np.uint8)
+            xy = np.clip((self._pts * 0.5).astype(np.intp), 0,
+                         [small.shape[1] - 1, small.shape[0] - 1])
+            occupied[xy[:, 1], xy[:, 0]] = 255
+            kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+            mask = np.asarray(cv2.bitwise_not(cv2.dilate(occupied, kernel)))
+        else:
+            mask = np.full(small.shape, 255, dtype=np.uint8)
         border = max(2, math.ceil(0.25 * c.klt_window_px) + 1)
         mask[:border] = 0
         mask[-border:] = 0
@@ -603,14 +624,6 @@ class BuiltinVisualOdometry:
         for left, top, right, bottom in boxes * 0.5:
             mask[max(int(top), 0):max(math.ceil(bottom) + 1, 0),
                  max(int(left), 0):max(math.ceil(right) + 1, 0)] = 0
-        radius = max(1, round(0.5 * c.min_feature_distance_px))
-        if len(self._pts):
-            occupied = np.zeros(small.shape, dtype=np.uint8)
-            xy = np.clip((self._pts * 0.5).astype(np.intp), 0,
-                         [small.shape[1] - 1, small.shape[0] - 1])
-            occupied[xy[:, 1], xy[:, 0]] = 255
-            kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
-            mask[cv2.dilate(occupied, kernel) > 0] = 0
         corners = cv2.goodFeaturesToTrack(small, wanted, c.corner_quality, radius, mask=mask,
                                           blockSize=3)
         if corners is None or len(corners) == 0:
@@ -664,17 +677,26 @@ MIN_EXPOSURE_CHANGE = 3.0
 not worth a retry."""
 
 
+def grey_stats(image: NDArray[np.uint8]) -> tuple[float, float]:
+    """Mean and standard deviation of a frame's grey levels."""
+    mean, std = (float(v) for v in np.ravel(cv2.meanStdDev(image)))
+    return mean, std
+
+
 def match_exposure(
-    image: NDArray[np.uint8], reference: NDArray[np.uint8], min_change: float
+    image: NDArray[np.uint8], reference: NDArray[np.uint8], min_change: float,
+    image_stats: tuple[float, float] | None = None,
+    reference_stats: tuple[float, float] | None = None,
 ) -> NDArray[np.uint8] | None:
     """``image`` with its grey levels mapped affinely to the mean and standard deviation of
     ``reference`` (a global gain and offset, as an exposure or gain change of the camera makes).
 
+    ``image_stats``, ``reference_stats``: the frames' :func:`grey_stats` when already known.
     Returns None when either frame is nearly uniform (nothing to match) or when the mapping
     would change no grey level by ``min_change`` (grey levels) or more.
     """
-    mean_i, std_i = (float(v) for v in np.ravel(cv2.meanStdDev(image)))
-    mean_r, std_r = (float(v) for v in np.ravel(cv2.meanStdDev(reference)))
+    mean_i, std_i = grey_stats(image) if image_stats is None else image_stats
+    mean_r, std_r = grey_stats(reference) if reference_stats is None else reference_stats
     if std_i < MIN_EXPOSURE_STD or std_r < MIN_EXPOSURE_STD:
         return None
     gain = std_r / std_i
@@ -698,11 +720,13 @@ BLUR_SIGMAS_PX = (0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0)
 """Gaussian blurs tried by :func:`blur_to_energy`, pixels."""
 
 
-def gradient_energy(image: NDArray[np.uint8]) -> float:
+def gradient_energy(image: NDArray[np.uint8], small: NDArray[np.uint8] | None = None) -> float:
     """Sharpness of a frame: the mean squared Sobel gradient of its half-size copy divided by
     its grey-level variance (per pixel², independent of the exposure's gain and offset);
-    comparable between frames of the same scene."""
-    small = _half_size(image)
+    comparable between frames of the same scene. ``small``: the half-size copy
+    (:func:`_half_size`) when already made."""
+    if small is None:
+        small = _half_size(image)
     square_sum = 0.0
     for dx, dy in ((1, 0), (0, 1)):  # E[g²] = std² + mean², per axis (OpenCV, int16 Sobel)
         mean, std = cv2.meanStdDev(cv2.Sobel(small, cv2.CV_16S, dx, dy, ksize=3))
