@@ -205,11 +205,6 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     """Row-wise cross product of ``(N, 3)`` arrays (or an ``(N, 3)`` array and a 3-vector)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    # with a 3-vector, one matrix product: aᵢ × b = aᵢᵀ [b]ₓ, a × bᵢ = bᵢᵀ [a]ₓᵀ (row form)
-    if b.shape == (3,) and a.ndim == 2:
-        return np.asarray(a @ skew(b))
-    if a.shape == (3,) and b.ndim == 2:
-        return np.asarray(b @ skew(a).T)
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
