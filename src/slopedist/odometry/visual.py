@@ -346,6 +346,11 @@ class BuiltinVisualOdometry:
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         self._usac_budget = 1
+        small = _half_size(image)  # also where new corners are detected
+        energy = gradient_energy(image, small=small)
+        if self._prev_energy > MAX_BLUR_RATIO * energy:
+            # so blurred that its rotation would be poor: bridge it from the last sharp frame
+            return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         # Lucas–Kanade assumes constant brightness: after an exposure jump (a tunnel,
         # auto-exposure, a flash) track into this frame with its grey levels mapped to the
         # previous frame's mean and spread; the raw frame is kept for the next step
@@ -355,11 +360,6 @@ class BuiltinVisualOdometry:
         current = image if jumped is None else jumped
         # Lucas–Kanade also needs both frames equally sharp: when one is clearly blurrier (a
         # jolt, motion blur), blur the other to match (a symmetric blur moves no feature)
-        small = _half_size(image)  # also where new corners are detected
-        energy = gradient_energy(image, small=small)
-        if self._prev_energy > MAX_BLUR_RATIO * energy:
-            # so blurred that its rotation would be poor: bridge it from the last sharp frame
-            return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         previous = self._prev_image
         if energy > SHARPNESS_RATIO * self._prev_energy:
             current = blur_to_energy(current, self._prev_energy)
