@@ -95,21 +95,6 @@ class PriorArrays:
     length_sigma_m: NDArray[np.float64]
     corr_hw: NDArray[np.float64]
 
-    @property
-    def log_sigma_h(self) -> NDArray[np.float64]:
-        """Spread of log(height), i.e. the relative spread of the height."""
-        return self.height_sigma_m / self.height_m
-
-    @property
-    def log_sigma_w(self) -> NDArray[np.float64]:
-        """Spread of log(width)."""
-        return self.width_sigma_m / self.width_m
-
-    @property
-    def log_sigma_l(self) -> NDArray[np.float64]:
-        """Spread of log(length)."""
-        return self.length_sigma_m / self.length_m
-
 
 def priors_for(
     classes: ArrayLike, table: dict[str, DimensionPrior] | None = None
