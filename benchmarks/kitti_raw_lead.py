@@ -56,8 +56,9 @@ class RecordingOdometry:
         self.results: list[OdometryResult] = []
         self.ms = RunningMean()
 
-    def process(self, image_gray: np.ndarray, timestamp_s: float,
-                mask_boxes: np.ndarray | None = None) -> OdometryResult:
+    def process(
+        self, image_gray: np.ndarray, timestamp_s: float, mask_boxes: np.ndarray | None = None
+    ) -> OdometryResult:
         t0 = time.perf_counter()
         res = self.backend.process(image_gray, timestamp_s, mask_boxes)
         self.ms.add(getattr(self.backend, "last_track_ms", (time.perf_counter() - t0) * 1e3))
@@ -72,8 +73,12 @@ class RecordingOdometry:
         results = iter(list(self.results))
 
         class _Replay:
-            def process(self, image_gray: np.ndarray, timestamp_s: float,
-                        mask_boxes: np.ndarray | None = None) -> OdometryResult:
+            def process(
+                self,
+                image_gray: np.ndarray,
+                timestamp_s: float,
+                mask_boxes: np.ndarray | None = None,
+            ) -> OdometryResult:
                 return next(results)
 
             def reset(self) -> None:
@@ -114,11 +119,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "kitti_raw_lead")
     parser.add_argument("--odometry", default="builtin", choices=("builtin", "orbslam3"))
     parser.add_argument("--vocab", type=Path, default=None)
-    parser.add_argument("--max-z", type=float, default=40.0,
-                        help="score boxes with LiDAR z up to this, metres")
-    parser.add_argument("--ours-options", type=json.loads, default={},
-                        help='options of ours and ours-selfcal as JSON, e.g. '
-                             '\'{"occlusion_aware": false}\' (default: none)')
+    parser.add_argument(
+        "--max-z", type=float, default=40.0, help="score boxes with LiDAR z up to this, metres"
+    )
+    parser.add_argument(
+        "--ours-options",
+        type=json.loads,
+        default={},
+        help="options of ours and ours-selfcal as JSON, e.g. "
+        "'{\"occlusion_aware\": false}' (default: none)",
+    )
     args = parser.parse_args(argv)
     if not args.data.is_dir():
         print(f"kitti_raw_lead data not found at {args.data}", file=sys.stderr)
@@ -128,17 +138,20 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     truth = drive.lidar_boxes(IMAGE_SIZE)
     lidar_s = time.perf_counter() - t0
-    boxes_csv = write_box_csv(truth, args.out / "lidar_boxes.csv",
-                              ("z", "z_median", "x", "n_points", "truncated"))
+    boxes_csv = write_box_csv(
+        truth, args.out / "lidar_boxes.csv", ("z", "z_median", "x", "n_points", "truncated")
+    )
     lead = lead_track(truth)
     scored = (truth.extra["truncated"] == 0) & (truth.extra["z"] <= args.max_z)
     key = list(zip(truth.frame.tolist(), truth.track_id.tolist()))
     z = truth.extra["z"]
-    print(f"LiDAR boxes: {len(truth)} in {len(drive.frames())} frames ({lidar_s:.1f} s), "
-          f"{int(scored.sum())} scored (not cut by the image border, z <= {args.max_z:g} m); "
-          f"lead car track {lead}: {int(np.sum(scored & (truth.track_id == lead)))} scored "
-          f"frames, z {z[truth.track_id == lead].max():.2f} → "
-          f"{z[truth.track_id == lead].min():.2f} m")
+    print(
+        f"LiDAR boxes: {len(truth)} in {len(drive.frames())} frames ({lidar_s:.1f} s), "
+        f"{int(scored.sum())} scored (not cut by the image border, z <= {args.max_z:g} m); "
+        f"lead car track {lead}: {int(np.sum(scored & (truth.track_id == lead)))} scored "
+        f"frames, z {z[truth.track_id == lead].max():.2f} → "
+        f"{z[truth.track_id == lead].min():.2f} m"
+    )
     print(f"boxes written to {boxes_csv}")
 
     camera = drive.calib.camera()
@@ -151,19 +164,28 @@ def main(argv: list[str] | None = None) -> int:
         out = args.out / method
         odometry = recorder if n_run == 0 else recorder.replay()
         with c_stdout_to_stderr():
-            results[method] = run_frames(open_frames(drive.image_dir), camera, truth, odometry,
-                                         make_estimator(method, camera, **(
-                                             args.ours_options if method.startswith("ours")
-                                             else {})), out, progress=False)
+            results[method] = run_frames(
+                open_frames(drive.image_dir),
+                camera,
+                truth,
+                odometry,
+                make_estimator(
+                    method, camera, **(args.ours_options if method.startswith("ours") else {})
+                ),
+                out,
+                progress=False,
+            )
         estimates[method] = read_estimates(out / RECORDS_NAME)
-        print(f"  ran {method}: {results[method].records} records, odometry "
-              f"{results[method].odometry_states} → {out}", file=sys.stderr)
+        print(
+            f"  ran {method}: {results[method].records} records, odometry "
+            f"{results[method].odometry_states} → {out}",
+            file=sys.stderr,
+        )
     close = getattr(recorder.backend, "close", None)
     if close is not None:
         with c_stdout_to_stderr():
             close()
-    ok = {m: np.array([math.isfinite(estimates[m].get(k, math.nan)) for k in key])
-          for m in methods}
+    ok = {m: np.array([math.isfinite(estimates[m].get(k, math.nan)) for k in key]) for m in methods}
     common = scored & np.logical_and.reduce([ok[m] for m in methods])
     is_lead = truth.track_id == lead
     rows = []
@@ -173,28 +195,44 @@ def main(argv: list[str] | None = None) -> int:
         d = np.array([estimates[m].get(k, math.nan) for k in key])
         err = d - z
         binned[m] = [rmse(list(err[common & (z >= lo) & (z < hi)])) for lo, hi in bins]
-        rows.append((m, rmse(list(err[common])), int(common.sum()),
-                     float(np.mean(err[common])) if common.any() else math.nan,
-                     rmse(list(err[common & is_lead])), int(np.sum(common & is_lead)),
-                     rmse(list(err[scored & ok[m]])), int(np.sum(scored & ok[m])),
-                     recorder.ms.mean() if recorder.ms.count else math.nan,
-                     results[m].frames_per_s))
+        rows.append(
+            (
+                m,
+                rmse(list(err[common])),
+                int(common.sum()),
+                float(np.mean(err[common])) if common.any() else math.nan,
+                rmse(list(err[common & is_lead])),
+                int(np.sum(common & is_lead)),
+                rmse(list(err[scored & ok[m]])),
+                int(np.sum(scored & ok[m])),
+                recorder.ms.mean() if recorder.ms.count else math.nan,
+                results[m].frames_per_s,
+            )
+        )
 
     print()
-    print(f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels, "
-          f"on the {int(common.sum())} scored boxes every method estimates (of {int(scored.sum())}"
-          f"); 'own' = each method over all the scored boxes it estimates; methods that report "
-          f"the vehicle centre are read from their {NEAREST_FACE_COLUMN} column:")
-    print(f"{'method':12s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
-          f"{'lead n':>7s} {'own RMSE':>9s} {'own n':>6s} {'VO ms':>7s} {'frames/s':>9s}")
+    print(
+        f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels, "
+        f"on the {int(common.sum())} scored boxes every method estimates (of {int(scored.sum())}"
+        f"); 'own' = each method over all the scored boxes it estimates; methods that report "
+        f"the vehicle centre are read from their {NEAREST_FACE_COLUMN} column:"
+    )
+    print(
+        f"{'method':12s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
+        f"{'lead n':>7s} {'own RMSE':>9s} {'own n':>6s} {'VO ms':>7s} {'frames/s':>9s}"
+    )
     for m, r, n, b, lr, ln, own, own_n, vo_ms, fps in rows:
-        print(f"{m:12s} {r:8.2f} {n:5d} {b:+8.2f} {lr:10.2f} {ln:7d} {own:9.2f} {own_n:6d} "
-              f"{vo_ms:7.1f} {fps:9.1f}")
+        print(
+            f"{m:12s} {r:8.2f} {n:5d} {b:+8.2f} {lr:10.2f} {ln:7d} {own:9.2f} {own_n:6d} "
+            f"{vo_ms:7.1f} {fps:9.1f}"
+        )
     counts = [int(np.sum(common & (z >= lo) & (z < hi))) for lo, hi in bins]
     print()
     print("RMSE (m) by LiDAR distance, same boxes:")
-    print(f"{'method':12s} " + " ".join(f"{f'{lo:g}-{hi:g} m (n={c})':>16s}"
-                                         for (lo, hi), c in zip(bins, counts)))
+    print(
+        f"{'method':12s} "
+        + " ".join(f"{f'{lo:g}-{hi:g} m (n={c})':>16s}" for (lo, hi), c in zip(bins, counts))
+    )
     for m in methods:
         print(f"{m:12s} " + " ".join(f"{v:16.2f}" for v in binned[m]))
     return 0

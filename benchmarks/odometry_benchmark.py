@@ -52,7 +52,6 @@ REL_TARGET_DEG = 0.15
 MS_TARGET = 10.0
 
 
-
 def load(seq: KittiOdometrySequence) -> list[tuple[float, NDArray[np.uint8]]]:
     return [(t, image) for _, t, image in seq.frames()]
 
@@ -71,14 +70,17 @@ def accuracy_row(seq: KittiOdometrySequence, runs: list[OdometryRun]) -> str:
     target = TARGETS.get(seq.root.name)
     verdict = [
         f"θ {'ok' if target is not None and theta <= target else 'MISS'} (≤ {target})"
-        if target is not None else "",
+        if target is not None
+        else "",
         f"rel {'ok' if rel <= REL_TARGET_DEG else 'MISS'} (≤ {REL_TARGET_DEG})",
         f"time {'ok' if wall <= MS_TARGET else 'MISS'} (≤ {MS_TARGET:.0f} ms)",
     ]
     size = f"{seq.camera.image_width}×{seq.camera.image_height}"
-    return (f"{seq.root.name:16s} {size:9s} {figures.frames_ok:3d}/{figures.frames:<3d} "
-            f"{theta:8.4f} {theta_full:9.4f} {rel:8.4f} {wall:9.2f} {cpu:8.2f}   "
-            + ", ".join(v for v in verdict if v))
+    return (
+        f"{seq.root.name:16s} {size:9s} {figures.frames_ok:3d}/{figures.frames:<3d} "
+        f"{theta:8.4f} {theta_full:9.4f} {rel:8.4f} {wall:9.2f} {cpu:8.2f}   "
+        + ", ".join(v for v in verdict if v)
+    )
 
 
 def ping_pong(n_frames: int, n: int) -> list[int]:
@@ -87,8 +89,9 @@ def ping_pong(n_frames: int, n: int) -> list[int]:
     return [cycle[k % len(cycle)] for k in range(n_frames)]
 
 
-def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.uint8]]],
-             n_frames: int) -> None:
+def long_run(
+    seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.uint8]]], n_frames: int
+) -> None:
     assert seq.ground_truth is not None
     order = ping_pong(n_frames, len(frames))
     vo = BuiltinVisualOdometry(seq.camera)
@@ -98,10 +101,14 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
     segment = np.zeros(n_frames, dtype=np.int64)
     states = {s: 0 for s in OdometryState}
     seconds = cpu = 0.0
-    print(f"\nlong run: {n_frames} frames of {seq.root.name} played forward and backward "
-          f"({seq.camera.image_width}×{seq.camera.image_height})")
-    print(f"  {'frames':>6s} {'RSS MB':>7s} {'peak MB':>8s} {'history':>8s} {'tracks':>7s} "
-          f"{'ms/frame':>9s} {'CPU ms':>7s}   (times: mean so far)")
+    print(
+        f"\nlong run: {n_frames} frames of {seq.root.name} played forward and backward "
+        f"({seq.camera.image_width}×{seq.camera.image_height})"
+    )
+    print(
+        f"  {'frames':>6s} {'RSS MB':>7s} {'peak MB':>8s} {'history':>8s} {'tracks':>7s} "
+        f"{'ms/frame':>9s} {'CPU ms':>7s}   (times: mean so far)"
+    )
     for k, idx in enumerate(order):
         image = frames[idx][1]
         t0, c0 = time.perf_counter(), time.process_time()
@@ -113,25 +120,34 @@ def long_run(seq: KittiOdometrySequence, frames: list[tuple[float, NDArray[np.ui
         rotations[k] = result.R_world_cam if result.R_world_cam is not None else np.eye(3)
         segment[k] = result.segment
         if k + 1 in checkpoints:
-            print(f"  {k + 1:6d} {rss_mb():7.1f} {peak_rss_mb():8.1f} {vo.history_frames:8d} "
-                  f"{len(vo.tracks):7d} {seconds / (k + 1) * 1e3:9.2f} {cpu / (k + 1) * 1e3:7.2f}",
-                  flush=True)
-    truth = RotationTrack.from_arrays(np.arange(n_frames) * 0.1,
-                                      seq.ground_truth.R_world_cam[order])
+            print(
+                f"  {k + 1:6d} {rss_mb():7.1f} {peak_rss_mb():8.1f} {vo.history_frames:8d} "
+                f"{len(vo.tracks):7d} {seconds / (k + 1) * 1e3:9.2f} {cpu / (k + 1) * 1e3:7.2f}",
+                flush=True,
+            )
+    truth = RotationTrack.from_arrays(
+        np.arange(n_frames) * 0.1, seq.ground_truth.R_world_cam[order]
+    )
     run = OdometryRun(np.arange(n_frames) * 0.1, rotations, valid, segment, seconds, cpu)
     figures = OdometryEvaluation.from_run(run, truth)
-    print("  states: " + ", ".join(f"{s.value} {n}" for s, n in states.items())
-          + f"; segments: {int(segment.max()) + 1}")
-    print(f"  θ RMS {math.degrees(figures.theta_rms_rad):.4f}°, rel-rot median "
-          f"{math.degrees(figures.rel_rot_median_rad):.4f}°, "
-          f"{seconds / n_frames * 1e3:.2f} ms/frame wall, {cpu / n_frames * 1e3:.2f} ms/frame CPU")
+    print(
+        "  states: "
+        + ", ".join(f"{s.value} {n}" for s, n in states.items())
+        + f"; segments: {int(segment.max()) + 1}"
+    )
+    print(
+        f"  θ RMS {math.degrees(figures.theta_rms_rad):.4f}°, rel-rot median "
+        f"{math.degrees(figures.rel_rot_median_rad):.4f}°, "
+        f"{seconds / n_frames * 1e3:.2f} ms/frame wall, {cpu / n_frames * 1e3:.2f} ms/frame CPU"
+    )
 
 
 def sequence_folders(data: Path) -> list[Path]:
     """KITTI odometry sequence folders (with ``poses.txt``) under ``data``, sorted; prints a
     message to stderr when there is none."""
-    folders = sorted(p for p in data.iterdir() if (p / "poses.txt").is_file()) \
-        if data.is_dir() else []
+    folders = (
+        sorted(p for p in data.iterdir() if (p / "poses.txt").is_file()) if data.is_dir() else []
+    )
     if not folders:
         print(f"no KITTI odometry sequences under {data}", file=sys.stderr)
     return folders
@@ -140,25 +156,33 @@ def sequence_folders(data: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    parser.add_argument("--repeats", type=int, default=3,
-                        help="timing runs per sequence (the best is reported)")
-    parser.add_argument("--long", type=int, default=10000,
-                        help="frames of the memory run (0: skip)")
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="timing runs per sequence (the best is reported)"
+    )
+    parser.add_argument(
+        "--long", type=int, default=10000, help="frames of the memory run (0: skip)"
+    )
     args = parser.parse_args(argv)
     folders = sequence_folders(args.data)
     if not folders:
         return 2
     cv2.setNumThreads(1)
-    print(f"built-in visual odometry, OpenCV {cv2.__version__} with 1 thread "
-          f"(cv2.getNumThreads() = {cv2.getNumThreads()})")
-    print(f"{'sequence':16s} {'size':9s} {'ok':>7s} {'θ RMS °':>8s} {'θ k≥10 °':>9s} "
-          f"{'rel med°':>8s} {'ms/frame':>9s} {'CPU ms':>8s}")
+    print(
+        f"built-in visual odometry, OpenCV {cv2.__version__} with 1 thread "
+        f"(cv2.getNumThreads() = {cv2.getNumThreads()})"
+    )
+    print(
+        f"{'sequence':16s} {'size':9s} {'ok':>7s} {'θ RMS °':>8s} {'θ k≥10 °':>9s} "
+        f"{'rel med°':>8s} {'ms/frame':>9s} {'CPU ms':>8s}"
+    )
     sequences = []
     for folder in folders:
         seq = read_kitti_odometry(folder)
         frames = load(seq)
-        runs = [run_odometry(BuiltinVisualOdometry(seq.camera), frames)
-                for _ in range(max(args.repeats, 1))]
+        runs = [
+            run_odometry(BuiltinVisualOdometry(seq.camera), frames)
+            for _ in range(max(args.repeats, 1))
+        ]
         print(accuracy_row(seq, runs), flush=True)
         sequences.append((seq, frames))
     if args.long > 0:

@@ -85,8 +85,9 @@ def window_errors(R: FloatArray, G: FloatArray, window: int = WINDOW) -> FloatAr
         j = i - window
         est = R[j].T @ R[i]
         true = G[j].T @ G[i]
-        out.append(np.r_[np.linalg.norm(tv.so3_log(est.T @ true)),
-                         tv.so3_log(est) - tv.so3_log(true)])
+        out.append(
+            np.r_[np.linalg.norm(tv.so3_log(est.T @ true)), tv.so3_log(est) - tv.so3_log(true)]
+        )
     return np.asarray(out)
 
 
@@ -97,8 +98,9 @@ def rel_median_deg(R: FloatArray, G: FloatArray) -> float:
 
 def run_vo(camera: Camera, images: list[NDArray[np.uint8]]) -> FloatArray:
     """Rotations ``(N, 3, 3)`` of the built-in odometry (frames at 10 Hz)."""
-    run = run_odometry(BuiltinVisualOdometry(camera),
-                       [(0.1 * k, im) for k, im in enumerate(images)])
+    run = run_odometry(
+        BuiltinVisualOdometry(camera), [(0.1 * k, im) for k, im in enumerate(images)]
+    )
     return run.R_world_cam
 
 
@@ -110,8 +112,9 @@ def shifted_truth(G: FloatArray, shift_frames: float) -> FloatArray:
 
 
 # ---------------------------------------------------------------------------- tracks
-def klt_tracks(images: list[NDArray[np.uint8]], n_features: int = 1500,
-               fb_px: float = 0.3) -> FloatArray:
+def klt_tracks(
+    images: list[NDArray[np.uint8]], n_features: int = 1500, fb_px: float = 0.3
+) -> FloatArray:
     """Forward–backward-checked pyramidal KLT tracks at full resolution.
 
     Returns ``(M, 4)`` observations ``frame, track id, u, v`` (pixels).
@@ -129,8 +132,15 @@ def klt_tracks(images: list[NDArray[np.uint8]], n_features: int = 1500,
             p0, st0, _ = cv2.calcOpticalFlowPyrLK(im, prev, p1, None, **lk)
             p1 = p1.reshape(-1, 2)
             back = np.linalg.norm(p0.reshape(-1, 2) - pts, axis=1)
-            ok = ((st.ravel() == 1) & (st0.ravel() == 1) & (back < fb_px)
-                  & (p1[:, 0] > 5) & (p1[:, 0] < w - 5) & (p1[:, 1] > 5) & (p1[:, 1] < h - 5))
+            ok = (
+                (st.ravel() == 1)
+                & (st0.ravel() == 1)
+                & (back < fb_px)
+                & (p1[:, 0] > 5)
+                & (p1[:, 0] < w - 5)
+                & (p1[:, 1] > 5)
+                & (p1[:, 1] < h - 5)
+            )
             ids, pts = ids[ok], p1[ok]
         mask = np.full(im.shape, 255, np.uint8)
         for x, y in pts.astype(int):
@@ -177,8 +187,14 @@ class BundleAdjustment:
     intr: FloatArray
 
     @classmethod
-    def initialise(cls, obs: FloatArray, R_init: FloatArray, intr: tuple[float, float, float],
-                   C_init: FloatArray | None = None, min_len: int = 3) -> BundleAdjustment:
+    def initialise(
+        cls,
+        obs: FloatArray,
+        R_init: FloatArray,
+        intr: tuple[float, float, float],
+        C_init: FloatArray | None = None,
+        min_len: int = 3,
+    ) -> BundleAdjustment:
         """Centres by known-rotation linear structure from motion (unless given), points by
         linear triangulation; tracks shorter than ``min_len`` or behind a camera are dropped."""
         tid = obs[:, 1].astype(np.int64)
@@ -232,9 +248,14 @@ class BundleAdjustment:
         np.minimum.at(a, tinv, self.frames)
         return a
 
-    def residuals(self, R: FloatArray | None = None, C: FloatArray | None = None,
-                  pt: FloatArray | None = None, intr: FloatArray | None = None,
-                  jacobian: bool = False) -> tuple:
+    def residuals(
+        self,
+        R: FloatArray | None = None,
+        C: FloatArray | None = None,
+        pt: FloatArray | None = None,
+        intr: FloatArray | None = None,
+        jacobian: bool = False,
+    ) -> tuple:
         """Reprojection residuals ``(M, 2)`` px and depths ``(M,)``; with ``jacobian`` also the
         blocks w.r.t. (rotation of k, rotation of anchor, C_anchor, C_k, point, intrinsics)."""
         R = self.R if R is None else R
@@ -260,8 +281,14 @@ class BundleAdjustment:
         J_rk = Jp @ _skew_n(pc)
         J_ra = -Jp @ RkTRa @ _skew_n(b)
         J_ca = pt[p, 2][:, None, None] * (Jp @ RkT)
-        J_pt = np.stack([Jp @ RkTRa[:, :, 0:1], Jp @ RkTRa[:, :, 1:2],
-                         Jp @ np.einsum("nij,nj->ni", RkT, dC)[:, :, None]], axis=2)[..., 0]
+        J_pt = np.stack(
+            [
+                Jp @ RkTRa[:, :, 0:1],
+                Jp @ RkTRa[:, :, 1:2],
+                Jp @ np.einsum("nij,nj->ni", RkT, dC)[:, :, None],
+            ],
+            axis=2,
+        )[..., 0]
         J_in = np.zeros((len(p), 2, 3))
         J_in[:, 0, 0], J_in[:, 1, 0] = pc[:, 0] / z, pc[:, 1] / z
         J_in[:, 0, 1] = J_in[:, 1, 2] = 1.0
@@ -277,8 +304,9 @@ class BundleAdjustment:
         return np.asarray(np.linalg.norm(self.residuals()[0], axis=1))
 
     # solver ------------------------------------------------------------------------------
-    def _normal_equations(self, free_intr: str, fix_rotations: bool, L0: float,
-                          u_scale: FloatArray) -> tuple:
+    def _normal_equations(
+        self, free_intr: str, fix_rotations: bool, L0: float, u_scale: FloatArray
+    ) -> tuple:
         """Robustly weighted normal equations split into cameras (poses, intrinsics) and points:
         ``(U, W, V, g_c, g_p, weighted squared error, residual count)``."""
         n_fr = len(self.R)
@@ -299,21 +327,32 @@ class BundleAdjustment:
         blocks = [(J_ck, 6 * (k - 1) + 3, k > 0), (J_ca, 6 * (a - 1) + 3, a > 0)]
         if not fix_rotations:
             blocks += [(J_rk, 6 * (k - 1), k > 0), (J_ra, 6 * (a - 1), a > 0)]
-        blocks += [(J_in[:, :, col:col + 1], np.full(N, n_pose + c_i), np.ones(N, dtype=bool))
-                   for c_i, col in enumerate(in_cols)]
+        blocks += [
+            (J_in[:, :, col : col + 1], np.full(N, n_pose + c_i), np.ones(N, dtype=bool))
+            for c_i, col in enumerate(in_cols)
+        ]
         for J, base, valid in blocks:
             for i in range(2):
                 for j in range(J.shape[2]):
                     rows.append(obs_rows[valid] + i)
                     cols.append(base[valid] + j)
                     vals.append(J[valid, i, j])
-        Jc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                           shape=(2 * N, n_cam))
+        Jc = sp.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(2 * N, n_cam),
+        )
         ww = np.repeat(w, 2)
         Dw = sp.diags(ww)
-        Jpt = sp.csr_matrix((J_pt.reshape(-1), (np.repeat(obs_rows, 6) + np.tile(
-            np.repeat([0, 1], 3), N), np.repeat(3 * p, 6) + np.tile([0, 1, 2, 0, 1, 2], N))),
-            shape=(2 * N, 3 * n_pts))
+        Jpt = sp.csr_matrix(
+            (
+                J_pt.reshape(-1),
+                (
+                    np.repeat(obs_rows, 6) + np.tile(np.repeat([0, 1], 3), N),
+                    np.repeat(3 * p, 6) + np.tile([0, 1, 2, 0, 1, 2], N),
+                ),
+            ),
+            shape=(2 * N, 3 * n_pts),
+        )
         rv = r.reshape(-1)
         U = (Jc.T @ Dw @ Jc).toarray()
         Wcp = (Jc.T @ Dw @ Jpt).tocsr()
@@ -326,20 +365,27 @@ class BundleAdjustment:
         gc[sl] += 1e6 * u_scale * (self.C[-1] @ u_scale - L0)
         if fix_rotations:
             for kk in range(n_fr - 1):
-                U[6 * kk:6 * kk + 3, 6 * kk:6 * kk + 3] += np.eye(3)
+                U[6 * kk : 6 * kk + 3, 6 * kk : 6 * kk + 3] += np.eye(3)
         return U, Wcp, V, gc, gp, float(np.sum(ww * rv**2)), 2 * int(np.count_nonzero(w))
 
     @staticmethod
-    def _reduced(U: FloatArray, Wcp: sp.csr_matrix, V: FloatArray, lam: float
-                 ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
+    def _reduced(
+        U: FloatArray, Wcp: sp.csr_matrix, V: FloatArray, lam: float
+    ) -> tuple[FloatArray, sp.csr_matrix, sp.csr_matrix]:
         """Damped Schur complement ``S = U − W V⁻¹ Wᵀ``, ``W V⁻¹`` and ``V⁻¹`` (sparse)."""
         n_pts = len(V)
         Ul = U + lam * np.diag(np.diag(U) + 1e-9)
         Vi = np.linalg.inv(V + lam * (V * np.eye(3)[None]) + 1e-12 * np.eye(3)[None])
-        Vi_sp = sp.csr_matrix((Vi.reshape(-1), (np.repeat(np.arange(3 * n_pts), 3),
-                                                (3 * np.repeat(np.arange(n_pts), 9)
-                                                 + np.tile([0, 1, 2], 3 * n_pts)))),
-                              shape=(3 * n_pts, 3 * n_pts))
+        Vi_sp = sp.csr_matrix(
+            (
+                Vi.reshape(-1),
+                (
+                    np.repeat(np.arange(3 * n_pts), 3),
+                    (3 * np.repeat(np.arange(n_pts), 9) + np.tile([0, 1, 2], 3 * n_pts)),
+                ),
+            ),
+            shape=(3 * n_pts, 3 * n_pts),
+        )
         WVi = Wcp @ Vi_sp
         return Ul - (WVi @ Wcp.T).toarray(), WVi, Vi_sp
 
@@ -347,8 +393,13 @@ class BundleAdjustment:
         u_scale = self.C[-1] / max(float(np.linalg.norm(self.C[-1])), 1e-12)
         return float(self.C[-1] @ u_scale), u_scale
 
-    def solve(self, free_intr: str = "", fix_rotations: bool = False,
-              max_iterations: int = 200, tolerance: float = 1e-7) -> None:
+    def solve(
+        self,
+        free_intr: str = "",
+        fix_rotations: bool = False,
+        max_iterations: int = 200,
+        tolerance: float = 1e-7,
+    ) -> None:
         """Levenberg–Marquardt with the Schur complement on the points.
 
         ``free_intr``: which of ``"f"``, ``"x"`` (c_x), ``"y"`` (c_y) are estimated too;
@@ -414,8 +465,7 @@ class BundleAdjustment:
         return ba
 
 
-def _linear_centres(obs: FloatArray, R: FloatArray, intr: tuple[float, float, float]
-                    ) -> FloatArray:
+def _linear_centres(obs: FloatArray, R: FloatArray, intr: tuple[float, float, float]) -> FloatArray:
     """Camera centres given the rotations (known-rotation linear structure from motion).
 
     Minimises ``Σ ‖(I − d dᵀ)(X_p − C_k)‖²`` over centres and points (``d`` the unit world ray
@@ -427,8 +477,9 @@ def _linear_centres(obs: FloatArray, R: FloatArray, intr: tuple[float, float, fl
     fr = obs[:, 0].astype(np.int64)
     _, tinv = np.unique(obs[:, 1].astype(np.int64), return_inverse=True)
     n_pts = int(tinv.max()) + 1
-    d = np.einsum("nij,nj->ni", R[fr], np.c_[(obs[:, 2] - cx) / f, (obs[:, 3] - cy) / f,
-                                               np.ones(len(obs))])
+    d = np.einsum(
+        "nij,nj->ni", R[fr], np.c_[(obs[:, 2] - cx) / f, (obs[:, 3] - cy) / f, np.ones(len(obs))]
+    )
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     M = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
     A = np.zeros((n_pts, 3, 3))
@@ -449,17 +500,22 @@ def _linear_centres(obs: FloatArray, R: FloatArray, intr: tuple[float, float, fl
     h = np.einsum("kij,kjl,l->ki", R[:-1], heading, np.array([0.0, 0.0, 1.0]))
     g = np.zeros(3 * (n_fr - 1))  # Σ_k (C_k − C_{k−1})·h_k, C_0 = 0
     for k in range(1, n_fr):
-        g[3 * (k - 1):3 * k] += h[k - 1]
+        g[3 * (k - 1) : 3 * k] += h[k - 1]
         if k > 1:
-            g[3 * (k - 2):3 * (k - 1)] -= h[k - 1]
+            g[3 * (k - 2) : 3 * (k - 1)] -= h[k - 1]
     K = np.block([[H, g[:, None]], [g[None, :], np.zeros((1, 1))]])
     rhs = np.r_[np.zeros(len(g)), float(n_fr - 1)]
     x = np.linalg.lstsq(K, rhs, rcond=None)[0]
     return np.r_[np.zeros((1, 3)), x[:-1].reshape(-1, 3)]
 
 
-def synthetic_observations(obs: FloatArray, poses: FloatArray, intr: tuple[float, float, float],
-                           noise_px: float, seed: int = 0) -> FloatArray:
+def synthetic_observations(
+    obs: FloatArray,
+    poses: FloatArray,
+    intr: tuple[float, float, float],
+    noise_px: float,
+    seed: int = 0,
+) -> FloatArray:
     """Observations with the structure of ``obs`` (same frames and tracks) from the ground-truth
     motion ``poses`` ``(N, 3, 4)``: each track's point lies on its first observation's ray at a
     random depth of 4–60 m; projections with Gaussian noise (px)."""
@@ -529,9 +585,11 @@ class SystematicModel:
     def describe(self) -> str:
         a, b, c = self.coef
         sa, sb, sc = self.stderr
-        return (f"yaw scale {100 * a:+.2f}±{100 * sa:.2f} %, time offset {100 * b:+.1f}±"
-                f"{100 * sb:.1f} ms (at 10 Hz), tilt about x {math.degrees(c):+.2f}±"
-                f"{math.degrees(sc):.2f}°")
+        return (
+            f"yaw scale {100 * a:+.2f}±{100 * sa:.2f} %, time offset {100 * b:+.1f}±"
+            f"{100 * sb:.1f} ms (at 10 Hz), tilt about x {math.degrees(c):+.2f}±"
+            f"{math.degrees(sc):.2f}°"
+        )
 
 
 def chain(incs: FloatArray) -> FloatArray:
@@ -548,14 +606,18 @@ def print_systematic(tag: str, R: FloatArray, G: FloatArray) -> None:
     model = SystematicModel.fit(est, truth)
     print(f"    {tag}: all frames: {model.describe()}")
     half = len(est) // 2
-    for fit_part, test_part, name in ((slice(0, half), slice(half, None), "1st half → 2nd"),
-                                      (slice(half, None), slice(0, half), "2nd half → 1st")):
+    for fit_part, test_part, name in (
+        (slice(0, half), slice(half, None), "1st half → 2nd"),
+        (slice(half, None), slice(0, half), "2nd half → 1st"),
+    ):
         m = SystematicModel.fit(est[fit_part], truth[fit_part])
         R_test = chain(est[test_part])
         G_test = chain(truth[test_part])
         R_corr = chain(m.correct(est[test_part]))
-        print(f"      fit on the {name} ({m.describe()}): held-out median "
-              f"{rel_median_deg(R_test, G_test):.3f}° → {rel_median_deg(R_corr, G_test):.3f}°")
+        print(
+            f"      fit on the {name} ({m.describe()}): held-out median "
+            f"{rel_median_deg(R_test, G_test):.3f}° → {rel_median_deg(R_corr, G_test):.3f}°"
+        )
 
 
 # ---------------------------------------------------------------------------- report
@@ -569,19 +631,25 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
     cam = seq.camera
     images = [im for _, _, im in seq.frames()]
     turned = math.degrees(float(np.linalg.norm(tv.so3_log(G[0].T @ G[-1]))))
-    print(f"\n=== {seq.root.name}: {len(images)} frames, {cam.image_width}×{cam.image_height} px, "
-          f"f = {cam.f} px, c = ({cam.c_x}, {cam.c_y}) px; ground truth turns {turned:.1f}°")
+    print(
+        f"\n=== {seq.root.name}: {len(images)} frames, {cam.image_width}×{cam.image_height} px, "
+        f"f = {cam.f} px, c = ({cam.c_x}, {cam.c_y}) px; ground truth turns {turned:.1f}°"
+    )
     R_vo = run_vo(cam, images)
     E = window_errors(R_vo, G)
     true_rv = np.array([tv.so3_log(G[i - WINDOW].T @ G[i]) for i in range(WINDOW, len(G))])
-    print(f"[1] built-in odometry: rel-rot median {math.degrees(np.median(E[:, 0])):.4f}°; "
-          f"mean (est − true) rotation vector over the windows (x pitch, y yaw, z roll) "
-          f"{deg3(E[:, 1:].mean(axis=0))}°")
+    print(
+        f"[1] built-in odometry: rel-rot median {math.degrees(np.median(E[:, 0])):.4f}°; "
+        f"mean (est − true) rotation vector over the windows (x pitch, y yaw, z roll) "
+        f"{deg3(E[:, 1:].mean(axis=0))}°"
+    )
     yaw = true_rv[:, 1]
     if np.max(np.abs(yaw)) > math.radians(2.0):
         slope = float(np.sum(E[:, 2] * yaw) / np.sum(yaw**2))
-        print(f"    yaw error ≈ {100 * slope:+.2f} % of the window's yaw (least squares); "
-              f"roll error ≈ {100 * float(np.sum(E[:, 3] * yaw) / np.sum(yaw**2)):+.2f} % of it")
+        print(
+            f"    yaw error ≈ {100 * slope:+.2f} % of the window's yaw (least squares); "
+            f"roll error ≈ {100 * float(np.sum(E[:, 3] * yaw) / np.sum(yaw**2)):+.2f} % of it"
+        )
 
     print("[2] odometry re-run with other intrinsics (rel-rot median vs ground truth):")
     row = []
@@ -589,8 +657,10 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
         R_f = run_vo(replace(cam, f=cam.f * scale), images)
         row.append(f"f×{scale}: {rel_median_deg(R_f, G):.3f}°")
     print("    " + ", ".join(row))
-    row = [f"f = {f} ({name}): {rel_median_deg(run_vo(replace(cam, f=f), images), G):.3f}°"
-           for name, f in KITTI_FOCALS.items()]
+    row = [
+        f"f = {f} ({name}): {rel_median_deg(run_vo(replace(cam, f=f), images), G):.3f}°"
+        for name, f in KITTI_FOCALS.items()
+    ]
     print("    " + ", ".join(row))
     for axis in ("c_x", "c_y"):
         row = []
@@ -598,13 +668,18 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
             moved = replace(cam, **{axis: getattr(cam, axis) + shift})
             row.append(f"{shift:+d} px: {rel_median_deg(run_vo(moved, images), G):.3f}°")
         print(f"    {axis} " + ", ".join(row))
-    best = min(((fs, dy) for fs in (0.99, 0.995, 1.0) for dy in (0, 3, 6)),
-               key=lambda c: rel_median_deg(run_vo(replace(cam, f=cam.f * c[0],
-                                                           c_y=cam.c_y + c[1]), images), G))
+    best = min(
+        ((fs, dy) for fs in (0.99, 0.995, 1.0) for dy in (0, 3, 6)),
+        key=lambda c: rel_median_deg(
+            run_vo(replace(cam, f=cam.f * c[0], c_y=cam.c_y + c[1]), images), G
+        ),
+    )
     best_cam = replace(cam, f=cam.f * best[0], c_y=cam.c_y + best[1])
-    print(f"    best of f×{{0.99, 0.995, 1}} × c_y+{{0, 3, 6}} px: f×{best[0]}, c_y{best[1]:+d} px "
-          f"→ {rel_median_deg(run_vo(best_cam, images), G):.3f}° (diagnostic: chosen on the "
-          "ground truth)")
+    print(
+        f"    best of f×{{0.99, 0.995, 1}} × c_y+{{0, 3, 6}} px: f×{best[0]}, c_y{best[1]:+d} px "
+        f"→ {rel_median_deg(run_vo(best_cam, images), G):.3f}° (diagnostic: chosen on the "
+        "ground truth)"
+    )
 
     row = []
     inner = slice(5, -5)
@@ -612,8 +687,10 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
         Gs = shifted_truth(G, shift)
         err = math.degrees(float(np.median(window_errors(R_vo, Gs)[inner, 0])))
         row.append(f"{shift:+.1f}: {err:.3f}°")
-    print("[3] ground truth shifted by a fraction of a frame (median over the inner windows): "
-          + ", ".join(row))
+    print(
+        "[3] ground truth shifted by a fraction of a frame (median over the inner windows): "
+        + ", ".join(row)
+    )
 
     if not quick:
         intr = (cam.f, cam.c_x, cam.c_y)
@@ -624,51 +701,70 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
         kept = ba.obs
         synth = synthetic_observations(kept, poses, intr, 0.3)
         ba_syn = BundleAdjustment.initialise(synth, R_vo, intr).robust_solve()
-        print(f"[4] bundle adjustment: {len(kept)} observations of {len(np.unique(kept[:, 1]))} "
-              f"tracks kept (of {len(obs)} / {len(np.unique(obs[:, 1]))}); median reprojection "
-              f"{np.median(ba.errors_px()):.3f} px; {time.perf_counter() - t0:.0f} s")
+        print(
+            f"[4] bundle adjustment: {len(kept)} observations of {len(np.unique(kept[:, 1]))} "
+            f"tracks kept (of {len(obs)} / {len(np.unique(obs[:, 1]))}); median reprojection "
+            f"{np.median(ba.errors_px()):.3f} px; {time.perf_counter() - t0:.0f} s"
+        )
         syn_err = rel_median_deg(ba_syn.R, G)
         verdict = "the estimator itself is unbiased" if syn_err < 0.02 else "NOT a clean reference"
-        print("    synthetic check (ground-truth motion, same tracks, 0.3 px noise): rel-rot "
-              f"median {syn_err:.4f}° ({verdict})")
-        print("    on the real tracks: rel-rot median vs ground truth "
-              f"{rel_median_deg(ba.R, G):.4f}°, vs the built-in odometry "
-              f"{rel_median_deg(ba.R, R_vo):.4f}° "
-              f"(odometry vs ground truth {rel_median_deg(R_vo, G):.4f}°)")
+        print(
+            "    synthetic check (ground-truth motion, same tracks, 0.3 px noise): rel-rot "
+            f"median {syn_err:.4f}° ({verdict})"
+        )
+        print(
+            "    on the real tracks: rel-rot median vs ground truth "
+            f"{rel_median_deg(ba.R, G):.4f}°, vs the built-in odometry "
+            f"{rel_median_deg(ba.R, R_vo):.4f}° "
+            f"(odometry vs ground truth {rel_median_deg(R_vo, G):.4f}°)"
+        )
         Eb = window_errors(ba.R, G)
-        print(f"    mean (est − true) rotation vector {deg3(Eb[:, 1:].mean(axis=0))}° "
-              f"(odometry {deg3(E[:, 1:].mean(axis=0))}°)")
+        print(
+            f"    mean (est − true) rotation vector {deg3(Eb[:, 1:].mean(axis=0))}° "
+            f"(odometry {deg3(E[:, 1:].mean(axis=0))}°)"
+        )
 
         print("[5] reprojection cost (Huber, 1 px) of the same observations:")
         free_cost = _huber_cost(ba.errors_px())
-        print(f"    rotations free, given calibration:        {free_cost:9.0f}   median "
-              f"{np.median(ba.errors_px()):.3f} px")
+        print(
+            f"    rotations free, given calibration:        {free_cost:9.0f}   median "
+            f"{np.median(ba.errors_px()):.3f} px"
+        )
         fixed = BundleAdjustment(ba.obs, G.copy(), ba.C.copy(), ba.pt.copy(), ba.intr.copy())
         fixed.solve(fix_rotations=True)
-        print(f"    rotations = ground truth:                 {_huber_cost(fixed.errors_px()):9.0f}"
-              f"   median {np.median(fixed.errors_px()):.3f} px")
+        print(
+            f"    rotations = ground truth:                 {_huber_cost(fixed.errors_px()):9.0f}"
+            f"   median {np.median(fixed.errors_px()):.3f} px"
+        )
         fixed.solve(fix_rotations=True, free_intr="fxy", tolerance=1e-12)
         f_, cx_, cy_ = fixed.intr
-        print("    rotations = ground truth, intrinsics free: "
-              f"{_huber_cost(fixed.errors_px()):9.0f}   median "
-              f"{np.median(fixed.errors_px()):.3f} px at f = {f_:.1f}, "
-              f"c = ({cx_:.1f}, {cy_:.1f}) px")
+        print(
+            "    rotations = ground truth, intrinsics free: "
+            f"{_huber_cost(fixed.errors_px()):9.0f}   median "
+            f"{np.median(fixed.errors_px()):.3f} px at f = {f_:.1f}, "
+            f"c = ({cx_:.1f}, {cy_:.1f}) px"
+        )
 
         selfcal = BundleAdjustment(ba.obs, ba.R.copy(), ba.C.copy(), ba.pt.copy(), ba.intr.copy())
         selfcal.solve(free_intr="f", tolerance=1e-12)
         f_self = float(selfcal.intr[0])
         f_se = float(selfcal.intrinsics_stderr("f")[0])
-        syn_cal = BundleAdjustment(ba_syn.obs, ba_syn.R.copy(), ba_syn.C.copy(), ba_syn.pt.copy(),
-                                   ba_syn.intr.copy())
+        syn_cal = BundleAdjustment(
+            ba_syn.obs, ba_syn.R.copy(), ba_syn.C.copy(), ba_syn.pt.copy(), ba_syn.intr.copy()
+        )
         syn_cal.solve(free_intr="f", tolerance=1e-12)
         syn_se = float(syn_cal.intrinsics_stderr("f")[0])
-        print("[6] focal self-calibration (bundle adjustment, f free, no ground truth): f = "
-              f"{f_self:.1f} ± {f_se:.1f} px ({100 * (f_self / cam.f - 1):+.2f} %); rel-rot "
-              "median vs ground truth with it: bundle adjustment "
-              f"{rel_median_deg(selfcal.R, G):.4f}°, "
-              f"odometry {rel_median_deg(run_vo(replace(cam, f=f_self), images), G):.4f}°")
-        print(f"    on the synthetic tracks (true f = {cam.f} px) it finds f = "
-              f"{syn_cal.intr[0]:.1f} ± {syn_se:.1f} px")
+        print(
+            "[6] focal self-calibration (bundle adjustment, f free, no ground truth): f = "
+            f"{f_self:.1f} ± {f_se:.1f} px ({100 * (f_self / cam.f - 1):+.2f} %); rel-rot "
+            "median vs ground truth with it: bundle adjustment "
+            f"{rel_median_deg(selfcal.R, G):.4f}°, "
+            f"odometry {rel_median_deg(run_vo(replace(cam, f=f_self), images), G):.4f}°"
+        )
+        print(
+            f"    on the synthetic tracks (true f = {cam.f} px) it finds f = "
+            f"{syn_cal.intr[0]:.1f} ± {syn_se:.1f} px"
+        )
     if turned < 10.0:
         print("[7] systematic model: not identifiable (the sequence hardly turns)")
         return
@@ -681,8 +777,9 @@ def check_sequence(seq: KittiOdometrySequence, quick: bool) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    parser.add_argument("--quick", action="store_true",
-                        help="odometry-only steps (1–3, 7), no bundle adjustment")
+    parser.add_argument(
+        "--quick", action="store_true", help="odometry-only steps (1–3, 7), no bundle adjustment"
+    )
     args = parser.parse_args(argv)
     folders = sequence_folders(args.data)
     if not folders:

@@ -81,8 +81,7 @@ def evaluate(seq: Path, backend: str, vocab: Path | None) -> dict[str, float]:
     for a, b in ok:
         Ra, Rb = R[a], R[b]
         assert Ra is not None and Rb is not None
-        theta_err.append(float(geo.ego_road_gradient(Ra, Rb) - geo.ego_road_gradient(gt[a],
-                                                                                     gt[b])))
+        theta_err.append(float(geo.ego_road_gradient(Ra, Rb) - geo.ego_road_gradient(gt[a], gt[b])))
         err = (Ra.T @ Rb).T @ (gt[a].T @ gt[b])
         rel_err.append(float(geo.rotation_angle_rad(err)))
     return {
@@ -90,7 +89,8 @@ def evaluate(seq: Path, backend: str, vocab: Path | None) -> dict[str, float]:
         "windows": len(ok),
         "windows_total": len(pairs),
         "theta_rms_deg": math.degrees(math.sqrt(np.mean(np.square(theta_err))))
-        if theta_err else math.nan,
+        if theta_err
+        else math.nan,
         "rel_rot_median_deg": math.degrees(float(np.median(rel_err))) if rel_err else math.nan,
         "ms_per_frame": float(np.mean(times)),
     }
@@ -102,11 +102,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vocab", type=Path, default=None)
     parser.add_argument("--train-vocab", action="store_true")
     parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "orbslam3")
-    parser.add_argument("--runs", type=int, default=1, help="ORB-SLAM3 runs per sequence "
-                        "(it is multi-threaded and not deterministic)")
+    parser.add_argument(
+        "--runs",
+        type=int,
+        default=1,
+        help="ORB-SLAM3 runs per sequence (it is multi-threaded and not deterministic)",
+    )
     args = parser.parse_args(argv)
-    seqs = sorted(p for p in args.data.iterdir() if (p / "poses.txt").is_file()) \
-        if args.data.is_dir() else []
+    seqs = (
+        sorted(p for p in args.data.iterdir() if (p / "poses.txt").is_file())
+        if args.data.is_dir()
+        else []
+    )
     if not seqs:
         print(f"no KITTI odometry sequences under {args.data}", file=sys.stderr)
         return 2
@@ -118,11 +125,15 @@ def main(argv: list[str] | None = None) -> int:
         if raw.is_dir():
             folders.append(raw)
         vocab = train_from_images(images_in(folders), args.out / "orb_vocabulary.txt", 10, 6)
-        print(f"trained {vocab} from {len(folders)} folders in {time.perf_counter() - t0:.0f} s",
-              file=sys.stderr)
+        print(
+            f"trained {vocab} from {len(folders)} folders in {time.perf_counter() - t0:.0f} s",
+            file=sys.stderr,
+        )
     backends = ["builtin", "orbslam3"]
-    print(f"{'sequence':18s} {'backend':9s} {'run':>3s} {'windows':>8s} {'θ RMS °':>8s} "
-          f"{'rel med °':>9s} {'ms/frame':>9s}")
+    print(
+        f"{'sequence':18s} {'backend':9s} {'run':>3s} {'windows':>8s} {'θ RMS °':>8s} "
+        f"{'rel med °':>9s} {'ms/frame':>9s}"
+    )
     for seq in seqs:
         for backend in backends:
             for run in range(args.runs if backend == "orbslam3" else 1):
@@ -132,12 +143,14 @@ def main(argv: list[str] | None = None) -> int:
                 except SlopedistError as exc:
                     print(f"{seq.name:18s} {backend:9s} unavailable: {exc}")
                     break
-                print(f"{seq.name:18s} {backend:9s} {run + 1:3d} "
-                      f"{r['windows']:4d}/{r['windows_total']:<3d} {r['theta_rms_deg']:8.3f} "
-                      f"{r['rel_rot_median_deg']:9.3f} {r['ms_per_frame']:9.1f}", flush=True)
+                print(
+                    f"{seq.name:18s} {backend:9s} {run + 1:3d} "
+                    f"{r['windows']:4d}/{r['windows_total']:<3d} {r['theta_rms_deg']:8.3f} "
+                    f"{r['rel_rot_median_deg']:9.3f} {r['ms_per_frame']:9.1f}",
+                    flush=True,
+                )
     if vocab is None and not os.environ.get("PYORBSLAM3_VOCAB"):
-        print("(ORB-SLAM3 rows need --vocab, $PYORBSLAM3_VOCAB or --train-vocab)",
-              file=sys.stderr)
+        print("(ORB-SLAM3 rows need --vocab, $PYORBSLAM3_VOCAB or --train-vocab)", file=sys.stderr)
     return 0
 
 

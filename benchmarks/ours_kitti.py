@@ -66,18 +66,35 @@ from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 
-PER_FRAME = {"motion_model": False, "yaw_memory": False, "gradient_feedback": False,
-             "adapt_box_noise": False, "self_calibrate": False}
+PER_FRAME = {
+    "motion_model": False,
+    "yaw_memory": False,
+    "gradient_feedback": False,
+    "adapt_box_noise": False,
+    "self_calibrate": False,
+}
 NO_OCCLUSION = {"occlusion_aware": False}
 NO_CENSOR = {"censor_border_cuts": False}
 ABLATION: list[tuple[str, dict[str, Any]]] = [
-    ("size: box height, exact 3D-box model, class prior, heading 0",
-     {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, "use_width": False, "yaw_hypotheses": False,
-      "use_ground_contact": False}),
-    ("+ box width with heading hypotheses",
-     {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, "use_ground_contact": False}),
-    ("+ fusion with the ground-contact cue (ego gradient)",
-     {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR}),
+    (
+        "size: box height, exact 3D-box model, class prior, heading 0",
+        {
+            **PER_FRAME,
+            **NO_OCCLUSION,
+            **NO_CENSOR,
+            "use_width": False,
+            "yaw_hypotheses": False,
+            "use_ground_contact": False,
+        },
+    ),
+    (
+        "+ box width with heading hypotheses",
+        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, "use_ground_contact": False},
+    ),
+    (
+        "+ fusion with the ground-contact cue (ego gradient)",
+        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR},
+    ),
     ("+ tracking: CV Kalman filter on distance", {**NO_OCCLUSION, **NO_CENSOR}),
     ("+ occlusion-aware size cue (cut widths/heights censored)", dict(NO_CENSOR)),
     ("+ border cuts bound the distance (censored) = ours", {}),
@@ -96,25 +113,45 @@ SENSITIVITY: list[tuple[str, Callable[[float], dict[str, Any]]]] = [
     ("process accel (2 m/s²/√s)", lambda k: {"process": ProcessNoise(2.0 * k)}),
     ("gate_sigma (5σ)", lambda k: {"gate_sigma": 5.0 * k}),
     ("truncation_factor (10)", lambda k: {"truncation_factor": 10.0 * k}),
-    ("class size spreads", lambda k: {"priors": {
-        c: dataclasses.replace(p, height_sigma_m=p.height_sigma_m * k,
-                               width_sigma_m=p.width_sigma_m * k,
-                               length_sigma_m=p.length_sigma_m * k)
-        for c, p in CLASS_PRIORS.items()}}),
+    (
+        "class size spreads",
+        lambda k: {
+            "priors": {
+                c: dataclasses.replace(
+                    p,
+                    height_sigma_m=p.height_sigma_m * k,
+                    width_sigma_m=p.width_sigma_m * k,
+                    length_sigma_m=p.length_sigma_m * k,
+                )
+                for c, p in CLASS_PRIORS.items()
+            }
+        },
+    ),
 ]
 
 Scores = dict[str, tuple[float, int]]
 """Per sequence: (sum of squared errors, number of scored targets)."""
 
 
-def report(data: Path, methods: Sequence[str], boxes: BoxSource = BoxSource.GT,
-           options: dict[str, dict[str, Any]] | None = None, sequences: Sequence[str] | None = None,
-           height_m: float = 1.65, mount_deg: float = 0.0) -> dict[str, Any]:
+def report(
+    data: Path,
+    methods: Sequence[str],
+    boxes: BoxSource = BoxSource.GT,
+    options: dict[str, dict[str, Any]] | None = None,
+    sequences: Sequence[str] | None = None,
+    height_m: float = 1.65,
+    mount_deg: float = 0.0,
+) -> dict[str, Any]:
     """The ``eval kitti-tracking`` report for these settings."""
     cfg = KittiEvalConfig(
-        sequences=sequences, methods=list(methods), boxes=boxes,
-        min_score=2.0 if boxes is BoxSource.POINTRCNN else None, height_m=height_m,
-        mount_angle_rad=math.radians(mount_deg), method_options=options or {})
+        sequences=sequences,
+        methods=list(methods),
+        boxes=boxes,
+        min_score=2.0 if boxes is BoxSource.POINTRCNN else None,
+        height_m=height_m,
+        mount_angle_rad=math.radians(mount_deg),
+        method_options=options or {},
+    )
     return evaluate_kitti_tracking(data, cfg)
 
 
@@ -123,8 +160,9 @@ def overall(rep: dict[str, Any], method: str) -> dict[str, Any]:
 
 
 def scores(rep: dict[str, Any], method: str) -> Scores:
-    return {s: (v["rmse"] ** 2 * v["n"], v["n"])
-            for s, v in rep["methods"][method]["sequences"].items()}
+    return {
+        s: (v["rmse"] ** 2 * v["n"], v["n"]) for s, v in rep["methods"][method]["sequences"].items()
+    }
 
 
 def pooled(sc: Scores, seqs: Sequence[str] | None = None) -> float:
@@ -155,13 +193,22 @@ def naive_size_cue(data: Path) -> float:
 
 def describe(options: dict[str, Any]) -> list[str]:
     y = options["yaw_prior"]
-    return [f"{y.aligned_weight:.3f}", f"{math.degrees(y.aligned_sigma_rad):.2f}",
-            f"{y.broad_weight:.3f}", f"{math.degrees(y.broad_sigma_rad):.2f}",
-            f"{options['box_sigma_px']:.2f}"]
+    return [
+        f"{y.aligned_weight:.3f}",
+        f"{math.degrees(y.aligned_sigma_rad):.2f}",
+        f"{y.broad_weight:.3f}",
+        f"{math.degrees(y.broad_sigma_rad):.2f}",
+        f"{options['box_sigma_px']:.2f}",
+    ]
 
 
-def loo_scores(data: Path, seqs: Sequence[str], boxes: BoxSource,
-               options_of: Callable[[str], dict[str, Any]], method: str = "ours") -> Scores:
+def loo_scores(
+    data: Path,
+    seqs: Sequence[str],
+    boxes: BoxSource,
+    options_of: Callable[[str], dict[str, Any]],
+    method: str = "ours",
+) -> Scores:
     """``method`` on each sequence with the options fitted without it."""
     out: Scores = {}
     for s in seqs:
@@ -173,40 +220,85 @@ def loo_scores(data: Path, seqs: Sequence[str], boxes: BoxSource,
 def section_loo(data: Path, inputs: dict[str, LabelFitInputs]) -> None:
     seqs = list(inputs)
     folds = {s: fit_parameters([inputs[o] for o in seqs if o != s]) for s in seqs}
-    print("1. The reported figures, leave one sequence out: each sequence is scored with the "
-          "heading prior and the box-edge noise\n   fitted on the other twelve sequences' "
-          "labels; ORB-SLAM3 rotations; RMSE (m)")
+    print(
+        "1. The reported figures, leave one sequence out: each sequence is scored with the "
+        "heading prior and the box-edge noise\n   fitted on the other twelve sequences' "
+        "labels; ORB-SLAM3 rotations; RMSE (m)"
+    )
     base_gt = report(data, ["flat", "paper"])
     loo_gt = loo_scores(data, seqs, BoxSource.GT, lambda s: folds[s])
     flat, paper = scores(base_gt, "flat"), scores(base_gt, "paper")
     rows: list[list[Any]] = [
-        [s, *describe(folds[s]), loo_gt[s][1], rmse_of(flat, s), rmse_of(paper, s),
-         rmse_of(loo_gt, s)] for s in seqs]
-    rows.append(["pooled", "", "", "", "", "", sum(v[1] for v in loo_gt.values()),
-                 pooled(flat), pooled(paper), pooled(loo_gt)])
-    print(format_table(["held out", "in-lane w", "σ (°)", "broad w", "σ (°)", "box σ (px)",
-                        "n", "flat", "paper", "ours (LOO)"], rows))
+        [
+            s,
+            *describe(folds[s]),
+            loo_gt[s][1],
+            rmse_of(flat, s),
+            rmse_of(paper, s),
+            rmse_of(loo_gt, s),
+        ]
+        for s in seqs
+    ]
+    rows.append(
+        [
+            "pooled",
+            "",
+            "",
+            "",
+            "",
+            "",
+            sum(v[1] for v in loo_gt.values()),
+            pooled(flat),
+            pooled(paper),
+            pooled(loo_gt),
+        ]
+    )
+    print(
+        format_table(
+            [
+                "held out",
+                "in-lane w",
+                "σ (°)",
+                "broad w",
+                "σ (°)",
+                "box σ (px)",
+                "n",
+                "flat",
+                "paper",
+                "ours (LOO)",
+            ],
+            rows,
+        )
+    )
     worse = [s for s in seqs if rmse_of(loo_gt, s) >= rmse_of(paper, s)]
-    print(f"   ground-truth boxes: ours (LOO) {pooled(loo_gt):.3f} m pooled; sequences where it "
-          f"is not better than paper: {worse or 'none'}")
+    print(
+        f"   ground-truth boxes: ours (LOO) {pooled(loo_gt):.3f} m pooled; sequences where it "
+        f"is not better than paper: {worse or 'none'}"
+    )
     base_pr = report(data, ["flat", "paper"], BoxSource.POINTRCNN)
     loo_pr = loo_scores(data, seqs, BoxSource.POINTRCNN, lambda s: folds[s])
     n_gt = overall(base_pr, "paper")["n_gt"]
     n_pr = sum(v[1] for v in loo_pr.values())
-    print(f"   PointRCNN boxes (score >= 2, matched by IoU >= 0.5): ours (LOO) "
-          f"{pooled(loo_pr):.3f} m (n = {n_pr}, recall {n_pr / n_gt:.2f}); flat "
-          f"{overall(base_pr, 'flat')['rmse']:.2f}, paper {overall(base_pr, 'paper')['rmse']:.2f}")
+    print(
+        f"   PointRCNN boxes (score >= 2, matched by IoU >= 0.5): ours (LOO) "
+        f"{pooled(loo_pr):.3f} m (n = {n_pr}, recall {n_pr / n_gt:.2f}); flat "
+        f"{overall(base_pr, 'flat')['rmse']:.2f}, paper {overall(base_pr, 'paper')['rmse']:.2f}"
+    )
     everything = fit_parameters(list(inputs.values()))
     cfg = OursConfig()
     shipped = {"yaw_prior": cfg.yaw_prior, "box_sigma_px": cfg.box_sigma_px}
-    print("   fit on all 13 sequences (in-lane w, σ°, broad w, σ°, box σ px): "
-          f"{', '.join(describe(everything))}; the shipped defaults "
-          f"{'are' if everything == shipped else 'are NOT'} this fit")
+    print(
+        "   fit on all 13 sequences (in-lane w, σ°, broad w, σ°, box σ px): "
+        f"{', '.join(describe(everything))}; the shipped defaults "
+        f"{'are' if everything == shipped else 'are NOT'} this fit"
+    )
     rep = report(data, ["ours"])
     pr = report(data, ["ours"], BoxSource.POINTRCNN)
-    print(f"   with the shipped defaults on every sequence (not LOO): ground truth "
-          f"{overall(rep, 'ours')['rmse']:.3f} m, PointRCNN {overall(pr, 'ours')['rmse']:.3f} m; "
-          f"{overall(rep, 'ours')['ms_per_frame']:.2f} ms per frame (whole pipeline)\n")
+    print(
+        f"   with the shipped defaults on every sequence (not LOO): ground truth "
+        f"{overall(rep, 'ours')['rmse']:.3f} m, PointRCNN {overall(pr, 'ours')['rmse']:.3f} m; "
+        f"{overall(rep, 'ours')['ms_per_frame']:.2f} ms per frame (whole pipeline)\n"
+    )
 
 
 def fitted_priors(data: Path, exclude: str) -> dict[str, DimensionPrior]:
@@ -229,15 +321,26 @@ def fitted_priors(data: Path, exclude: str) -> dict[str, DimensionPrior]:
 
 
 def section_checks(data: Path, seqs: Sequence[str]) -> None:
-    print("2. Checks (shipped heading prior and box noise), pooled RMSE (m): ground truth | "
-          "PointRCNN")
-    rows: list[list[Any]] = [["published KITTI-object dimension priors (shipped)",
-                              ours_pooled(data, BoxSource.GT, {}),
-                              ours_pooled(data, BoxSource.POINTRCNN, {})]]
+    print(
+        "2. Checks (shipped heading prior and box noise), pooled RMSE (m): ground truth | PointRCNN"
+    )
+    rows: list[list[Any]] = [
+        [
+            "published KITTI-object dimension priors (shipped)",
+            ours_pooled(data, BoxSource.GT, {}),
+            ours_pooled(data, BoxSource.POINTRCNN, {}),
+        ]
+    ]
     fitted = {s: fitted_priors(data, s) for s in seqs}
-    rows.append(["Car/Van dimension priors fitted on the other 12 sequences' labels",
-                 *(pooled(loo_scores(data, seqs, b, lambda s: {"priors": fitted[s]}))
-                   for b in (BoxSource.GT, BoxSource.POINTRCNN))])
+    rows.append(
+        [
+            "Car/Van dimension priors fitted on the other 12 sequences' labels",
+            *(
+                pooled(loo_scores(data, seqs, b, lambda s: {"priors": fitted[s]}))
+                for b in (BoxSource.GT, BoxSource.POINTRCNN)
+            ),
+        ]
+    )
     print(format_table(["dimension priors", "gt", "pointrcnn"], rows))
     gates = {f"{g:g}σ": {"occlusion_gate_sigma": g} for g in (1.0, 2.0, 3.0)}
     for boxes in (BoxSource.GT, BoxSource.POINTRCNN):
@@ -245,12 +348,15 @@ def section_checks(data: Path, seqs: Sequence[str]) -> None:
     print()
 
 
-def loo_choice(data: Path, seqs: Sequence[str], boxes: BoxSource, what: str,
-               options: dict[str, dict[str, Any]]) -> None:
+def loo_choice(
+    data: Path, seqs: Sequence[str], boxes: BoxSource, what: str, options: dict[str, dict[str, Any]]
+) -> None:
     """Choose among ``options`` for each sequence on the other sequences (pooled RMSE), score
     the choice on the held-out one; print the pooled result, the choices and the whole grid."""
-    per = {label: scores(report(data, ["ours"], boxes, {"ours": opts}), "ours")
-           for label, opts in options.items()}
+    per = {
+        label: scores(report(data, ["ours"], boxes, {"ours": opts}), "ours")
+        for label, opts in options.items()
+    }
     sq, n, choices = 0.0, 0, []
     for s in seqs:
         others = [o for o in seqs if o != s]
@@ -260,25 +366,41 @@ def loo_choice(data: Path, seqs: Sequence[str], boxes: BoxSource, what: str,
         n += per[best][s][1]
     picked = ", ".join(f"{c} ×{choices.count(c)}" for c in dict.fromkeys(choices))
     grid = "  ".join(f"{label} {pooled(per[label]):.3f}" for label in options)
-    print(f"   {boxes.value:>9s}: {what} chosen on the other 12 sequences -> "
-          f"{math.sqrt(sq / n):.3f} ({picked}); all 13 sequences: {grid}")
+    print(
+        f"   {boxes.value:>9s}: {what} chosen on the other 12 sequences -> "
+        f"{math.sqrt(sq / n):.3f} ({picked}); all 13 sequences: {grid}"
+    )
 
 
 def section_ablation(data: Path) -> None:
-    print("3. Ablation (shipped defaults): pooled RMSE (m), each row adds one part "
-          "(GT boxes | PointRCNN >= 2)")
-    rows: list[list[Any]] = [["size alone: fixed 1.52 m height + half length (reference)",
-                              naive_size_cue(data), math.nan]]
+    print(
+        "3. Ablation (shipped defaults): pooled RMSE (m), each row adds one part "
+        "(GT boxes | PointRCNN >= 2)"
+    )
+    rows: list[list[Any]] = [
+        [
+            "size alone: fixed 1.52 m height + half length (reference)",
+            naive_size_cue(data),
+            math.nan,
+        ]
+    ]
     for label, opts in ABLATION:
-        rows.append([label, ours_pooled(data, BoxSource.GT, opts),
-                     ours_pooled(data, BoxSource.POINTRCNN, opts)])
+        rows.append(
+            [
+                label,
+                ours_pooled(data, BoxSource.GT, opts),
+                ours_pooled(data, BoxSource.POINTRCNN, opts),
+            ]
+        )
         sys.stdout.flush()
     print(format_table(["configuration", "gt", "pointrcnn"], rows) + "\n")
 
 
 def section_calibration(data: Path) -> None:
-    print("4. Wrong calibration (eval --height/--mount-angle), GT boxes, shipped defaults: "
-          "pooled RMSE (m)")
+    print(
+        "4. Wrong calibration (eval --height/--mount-angle), GT boxes, shipped defaults: "
+        "pooled RMSE (m)"
+    )
     right = overall(report(data, ["ours", "ours-selfcal"]), "ours")["rmse"]
     rows = []
     for dh, dm in ((1.1, 1.0), (0.9, -1.0), (1.1, -1.0), (0.9, 1.0)):
@@ -315,30 +437,54 @@ def section_synthetic(scenarios: Sequence[str]) -> None:
 
 
 def section_sensitivity(data: Path) -> None:
-    print("6. Sensitivity to the a-priori physical parameters (shipped defaults otherwise): "
-          "pooled RMSE (m), GT | PointRCNN")
-    rows: list[list[Any]] = [["(shipped)", ours_pooled(data, BoxSource.GT, {}), "",
-                              ours_pooled(data, BoxSource.POINTRCNN, {}), ""]]
+    print(
+        "6. Sensitivity to the a-priori physical parameters (shipped defaults otherwise): "
+        "pooled RMSE (m), GT | PointRCNN"
+    )
+    rows: list[list[Any]] = [
+        [
+            "(shipped)",
+            ours_pooled(data, BoxSource.GT, {}),
+            "",
+            ours_pooled(data, BoxSource.POINTRCNN, {}),
+            "",
+        ]
+    ]
     for label, opts in SENSITIVITY:
         half, double = opts(0.5), opts(2.0)
-        rows.append([label, ours_pooled(data, BoxSource.GT, half),
-                     ours_pooled(data, BoxSource.GT, double),
-                     ours_pooled(data, BoxSource.POINTRCNN, half),
-                     ours_pooled(data, BoxSource.POINTRCNN, double)])
+        rows.append(
+            [
+                label,
+                ours_pooled(data, BoxSource.GT, half),
+                ours_pooled(data, BoxSource.GT, double),
+                ours_pooled(data, BoxSource.POINTRCNN, half),
+                ours_pooled(data, BoxSource.POINTRCNN, double),
+            ]
+        )
         sys.stdout.flush()
-    print(format_table(["parameter", "gt ×½", "gt ×2", "pointrcnn ×½", "pointrcnn ×2"], rows)
-          + "\n")
+    print(
+        format_table(["parameter", "gt ×½", "gt ×2", "pointrcnn ×½", "pointrcnn ×2"], rows) + "\n"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    ap.add_argument("--skip", default="", help="comma-separated sections to skip: loo, "
-                    "checks, ablation, calibration, synthetic")
-    ap.add_argument("--sensitivity", action="store_true",
-                    help="also halve and double each a-priori physical parameter (slow)")
-    ap.add_argument("--synthetic", default="target_steep_uphill",
-                    help="comma-separated synthetic scenarios ('all' for the whole suite)")
+    ap.add_argument(
+        "--skip",
+        default="",
+        help="comma-separated sections to skip: loo, checks, ablation, calibration, synthetic",
+    )
+    ap.add_argument(
+        "--sensitivity",
+        action="store_true",
+        help="also halve and double each a-priori physical parameter (slow)",
+    )
+    ap.add_argument(
+        "--synthetic",
+        default="target_steep_uphill",
+        help="comma-separated synthetic scenarios ('all' for the whole suite)",
+    )
     args = ap.parse_args(argv)
     skip = {s.strip() for s in args.skip.split(",") if s.strip()}
     if not (args.data / "label_02").is_dir():
@@ -347,16 +493,19 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     seqs = list_sequences(args.data)
     inputs = {s: kitti_tracking_fit_inputs(args.data, s) for s in seqs}
-    sections = [("loo", lambda: section_loo(args.data, inputs)),
-                ("checks", lambda: section_checks(args.data, seqs)),
-                ("ablation", lambda: section_ablation(args.data)),
-                ("calibration", lambda: section_calibration(args.data))]
+    sections = [
+        ("loo", lambda: section_loo(args.data, inputs)),
+        ("checks", lambda: section_checks(args.data, seqs)),
+        ("ablation", lambda: section_ablation(args.data)),
+        ("calibration", lambda: section_calibration(args.data)),
+    ]
     for key, run in sections:
         if key not in skip:
             run()
             sys.stdout.flush()
     if "synthetic" not in skip:
         from slopedist.datasets.synthetic.scenarios import SUITE
+
         names = list(SUITE) if args.synthetic == "all" else args.synthetic.split(",")
         section_synthetic(names)
     if args.sensitivity:

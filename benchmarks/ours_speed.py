@@ -67,9 +67,12 @@ def kitti(data: Path, repeats: int) -> None:
         labels = seq.labels.select(seq.labels.cls != "DontCare")
         track = seq.rotations(RotationSource.ORBSLAM3)
         theta = ego_gradients(track)
-        frames = [FrameInput(k, float(seq.timestamps_s[k]), float(theta[k]), b,
-                             R_world_cam=track.R_world_cam[k])
-                  for k, b in labels.by_frame()]
+        frames = [
+            FrameInput(
+                k, float(seq.timestamps_s[k]), float(theta[k]), b, R_world_cam=track.R_world_cam[k]
+            )
+            for k, b in labels.by_frame()
+        ]
         n_targets += len(labels)
         n_frames += len(frames)
         for m in METHODS:
@@ -84,19 +87,39 @@ def simulated(repeats: int) -> None:
     cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
     rows = []
     for n in (1, 5, 10, 20, 30, 60):
-        sim = simulate_traffic(cam, n, 200, seed=n, z_range_m=(10.0, 60.0),
-                               speed_range_mps=(-2.0, 2.0), box_noise_px=0.5)
+        sim = simulate_traffic(
+            cam,
+            n,
+            200,
+            seed=n,
+            z_range_m=(10.0, 60.0),
+            speed_range_mps=(-2.0, 2.0),
+            box_noise_px=0.5,
+        )
         eye = np.eye(3)
-        frames = [FrameInput(k, float(sim.timestamps_s[k]), 0.0, b, R_world_cam=eye)
-                  for k, b in sim.boxes.by_frame()]
+        frames = [
+            FrameInput(k, float(sim.timestamps_s[k]), 0.0, b, R_world_cam=eye)
+            for k, b in sim.boxes.by_frame()
+        ]
         per_frame = len(sim.boxes) / len(frames)
         row: list[object] = [n, per_frame]
         for m in ("ours", "ours-selfcal"):
             sec = cpu_time(m, cam, frames, repeats)
             row += [1e3 * sec / len(frames), 1e3 * sec / len(sim.boxes)]
         rows.append(row)
-    print(format_table(["N", "targets/frame", "ours ms/frame", "ours ms/target",
-                        "selfcal ms/frame", "selfcal ms/target"], rows))
+    print(
+        format_table(
+            [
+                "N",
+                "targets/frame",
+                "ours ms/frame",
+                "ours ms/target",
+                "selfcal ms/frame",
+                "selfcal ms/target",
+            ],
+            rows,
+        )
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

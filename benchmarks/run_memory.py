@@ -60,8 +60,9 @@ class LoopedFrames:
     finished the ``k`` frames before it (the checkpoints hook in there).
     """
 
-    def __init__(self, files: list[Path], order: list[int],
-                 on_frame: Callable[[int], None] | None = None) -> None:
+    def __init__(
+        self, files: list[Path], order: list[int], on_frame: Callable[[int], None] | None = None
+    ) -> None:
         self.path = files[0].parent
         self.files = files
         self.order = order
@@ -92,8 +93,9 @@ def looped_boxes(source_boxes: BoxTable, order: list[int]) -> BoxTable:
     parts = []
     for k, idx in enumerate(order):
         b = by_frame.get(idx, empty)
-        parts.append(BoxTable(np.full(len(b), k, np.int64), b.boxes, b.track_id, b.score, b.cls,
-                              {}))
+        parts.append(
+            BoxTable(np.full(len(b), k, np.int64), b.boxes, b.track_id, b.score, b.cls, {})
+        )
     return concat_boxes(parts)
 
 
@@ -108,8 +110,9 @@ def kitti_raw_source(data: Path) -> tuple[list[Path], Camera, BoxTable, str]:
     return files, drive.calib.camera(), boxes, f"kitti_raw_lead ({len(files)} real frames)"
 
 
-def synthetic_source(scenario: str, n: int, folder: Path) -> tuple[list[Path], Camera, BoxTable,
-                                                                  str]:
+def synthetic_source(
+    scenario: str, n: int, folder: Path
+) -> tuple[list[Path], Camera, BoxTable, str]:
     """``n`` frames of a built-in synthetic scenario, rendered once into ``folder``."""
     from slopedist.datasets.synthetic.scenarios import load_scenario
     from slopedist.datasets.synthetic.sequence import SyntheticSequence
@@ -129,17 +132,24 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=10000, help="frames to run")
     parser.add_argument("--method", default="paper", help="estimator")
-    parser.add_argument("--data", type=Path, default=DEFAULT_DATA,
-                        help="kitti_raw_lead folder (real frames)")
-    parser.add_argument("--synthetic", metavar="SCENARIO", default=None,
-                        help="use 60 frames of a built-in synthetic scenario instead")
+    parser.add_argument(
+        "--data", type=Path, default=DEFAULT_DATA, help="kitti_raw_lead folder (real frames)"
+    )
+    parser.add_argument(
+        "--synthetic",
+        metavar="SCENARIO",
+        default=None,
+        help="use 60 frames of a built-in synthetic scenario instead",
+    )
     parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "run_memory")
     args = parser.parse_args(argv)
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.synthetic is None and not args.data.is_dir():
-            print(f"kitti_raw_lead not found at {args.data}; using --synthetic same_flat",
-                  file=sys.stderr)
+            print(
+                f"kitti_raw_lead not found at {args.data}; using --synthetic same_flat",
+                file=sys.stderr,
+            )
             args.synthetic = "same_flat"
         if args.synthetic is not None:
             files, camera, source_boxes, what = synthetic_source(args.synthetic, 60, Path(tmp))
@@ -148,17 +158,27 @@ def main(argv: list[str] | None = None) -> int:
         order = ping_pong(args.frames, len(files))
         boxes = looped_boxes(source_boxes, order)
         width, height = LoopedFrames(files, [0]).frame_size()
-        print(f"source: {what}, {width}×{height}, played forward and backward for "
-              f"{args.frames} frames at {FPS:g} Hz; {len(boxes)} boxes "
-              f"({len(boxes) / args.frames:.2f} per frame); method {args.method}; "
-              f"built-in visual odometry; output {args.out}")
-        box_mb = sum(a.nbytes for a in (boxes.frame, boxes.boxes, boxes.track_id,
-                                        boxes.score, boxes.cls)) / 1e6
-        print(f"RSS before the run: {rss_mb():.1f} MB (the box file of the whole run is read "
-              f"up front, as `slopedist run` does: {box_mb:.1f} MB of arrays, plus the runner's "
-              "per-frame index of it)")
-        print(f"{'frames':>7s} {'RSS MB':>8s} {'peak MB':>8s} {'frames/s':>9s} {'rows':>8s}",
-              flush=True)
+        print(
+            f"source: {what}, {width}×{height}, played forward and backward for "
+            f"{args.frames} frames at {FPS:g} Hz; {len(boxes)} boxes "
+            f"({len(boxes) / args.frames:.2f} per frame); method {args.method}; "
+            f"built-in visual odometry; output {args.out}"
+        )
+        box_mb = (
+            sum(
+                a.nbytes for a in (boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls)
+            )
+            / 1e6
+        )
+        print(
+            f"RSS before the run: {rss_mb():.1f} MB (the box file of the whole run is read "
+            f"up front, as `slopedist run` does: {box_mb:.1f} MB of arrays, plus the runner's "
+            "per-frame index of it)"
+        )
+        print(
+            f"{'frames':>7s} {'RSS MB':>8s} {'peak MB':>8s} {'frames/s':>9s} {'rows':>8s}",
+            flush=True,
+        )
         start = time.perf_counter()
         checkpoints = {c for c in CHECKPOINTS if c < args.frames}
         records_path = args.out / RECORDS_NAME
@@ -166,19 +186,33 @@ def main(argv: list[str] | None = None) -> int:
         def report(k: int) -> None:
             if k in checkpoints:
                 rows = sum(1 for _ in records_path.open()) - 1
-                print(f"{k:7d} {rss_mb():8.1f} {peak_rss_mb():8.1f} "
-                      f"{k / (time.perf_counter() - start):9.1f} {rows:8d}", flush=True)
+                print(
+                    f"{k:7d} {rss_mb():8.1f} {peak_rss_mb():8.1f} "
+                    f"{k / (time.perf_counter() - start):9.1f} {rows:8d}",
+                    flush=True,
+                )
 
         frames = LoopedFrames(files, order, report)
-        result = run_frames(frames, camera, boxes, make_odometry("builtin", camera),
-                            make_estimator(args.method, camera), args.out, progress=False)
+        result = run_frames(
+            frames,
+            camera,
+            boxes,
+            make_odometry("builtin", camera),
+            make_estimator(args.method, camera),
+            args.out,
+            progress=False,
+        )
         rows = sum(1 for _ in records_path.open()) - 1
-        print(f"{result.frames:7d} {rss_mb():8.1f} {peak_rss_mb():8.1f} "
-              f"{result.frames_per_s:9.1f} {rows:8d}   (end)")
-    print(f"odometry {result.odometry_ms_mean:.2f} ms, estimation {result.estimation_ms_mean:.3f}"
-          f" ms per frame (means); odometry states: "
-          + ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items()))
-          + f"; {result.estimated} of {result.records} records with a distance")
+        print(
+            f"{result.frames:7d} {rss_mb():8.1f} {peak_rss_mb():8.1f} "
+            f"{result.frames_per_s:9.1f} {rows:8d}   (end)"
+        )
+    print(
+        f"odometry {result.odometry_ms_mean:.2f} ms, estimation {result.estimation_ms_mean:.3f}"
+        f" ms per frame (means); odometry states: "
+        + ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items()))
+        + f"; {result.estimated} of {result.records} records with a distance"
+    )
     return 0 if result.error is None and rows == len(boxes) else 1
 
 

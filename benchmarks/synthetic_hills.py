@@ -53,9 +53,11 @@ SOURCES = ("vo", "true", "inv")
 
 
 def render_speed(repeats: int, frames: int) -> None:
-    print("1. Renderer speed (image + true depth + visibility of the targets), ms per frame:"
-          " wall clock and process CPU time (≈ wall time on an idle core), best of the passes;"
-          " no_depth: CPU time when the depth map is not asked for")
+    print(
+        "1. Renderer speed (image + true depth + visibility of the targets), ms per frame:"
+        " wall clock and process CPU time (≈ wall time on an idle core), best of the passes;"
+        " no_depth: CPU time when the depth map is not asked for"
+    )
     print(f"{'scenario':>22s} {'wall':>7s} {'cpu':>7s} {'no_depth':>8s}")
     rows = []
     for name in SUITE:
@@ -96,15 +98,18 @@ def evaluate(name: str) -> dict[str, object]:
     frames = []
     for k in range(n):
         f = seq.frame(k)
-        res = vo.process(cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY), f.timestamp_s,
-                         f.detections.boxes)
+        res = vo.process(
+            cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY), f.timestamp_s, f.detections.boxes
+        )
         R_vo[k] = res.R_world_cam if res.R_world_cam is not None else np.nan
         frames.append(f.detections)
     t = seq.truth.timestamps_s
     R_true = seq.truth.poses_cam0()[:, :, :3]
     tracks = {"vo": R_vo, "true": R_true, "inv": np.swapaxes(R_true, 1, 2)}
-    thetas = {s: ego_gradients(RotationTrack.from_arrays(t, R), cam.mount_angle_rad)
-              for s, R in tracks.items()}
+    thetas = {
+        s: ego_gradients(RotationTrack.from_arrays(t, R), cam.mount_angle_rad)
+        for s, R in tracks.items()
+    }
     out: dict[str, object] = {"theta": thetas}
     rows: dict[str, list] = {}
     for src in SOURCES:
@@ -118,8 +123,12 @@ def evaluate(name: str) -> dict[str, object]:
                 reason += list(e.reason)
                 z += seq.truth.z_m[k, idx].tolist()
                 frame += [k] * len(boxes)
-            rows[f"{m}/{src}"] = [np.asarray(d), np.asarray(reason, dtype=object),
-                                  np.asarray(z), np.asarray(frame)]
+            rows[f"{m}/{src}"] = [
+                np.asarray(d),
+                np.asarray(reason, dtype=object),
+                np.asarray(z),
+                np.asarray(frame),
+            ]
     # oracle: per target the θ that makes eq. 1 exact for the exact box, applied to the noisy box
     d, reason, z, frame = [], [], [], []
     for k, boxes in enumerate(frames):
@@ -131,8 +140,12 @@ def evaluate(name: str) -> dict[str, object]:
         reason += ["" if np.isfinite(x) else "below_horizon" for x in dd]
         z += seq.truth.z_m[k, idx].tolist()
         frame += [k] * len(boxes)
-    rows["oracle"] = [np.asarray(d), np.asarray(reason, dtype=object), np.asarray(z),
-                      np.asarray(frame)]
+    rows["oracle"] = [
+        np.asarray(d),
+        np.asarray(reason, dtype=object),
+        np.asarray(z),
+        np.asarray(frame),
+    ]
     out["rows"] = rows
     out["seq"] = seq
     return out
@@ -146,8 +159,10 @@ def main() -> None:
     cv2.setNumThreads(1)
     render_speed(args.repeats, args.speed_frames)
 
-    print("2. RMSE (m) by rotation source: vo = built-in visual odometry on the rendered frames,"
-          " true = true rotations, inv = true rotations inverted (θ sign flipped)")
+    print(
+        "2. RMSE (m) by rotation source: vo = built-in visual odometry on the rendered frames,"
+        " true = true rotations, inv = true rotations inverted (θ sign flipped)"
+    )
     cols = [f"{m}/{s}" for s in SOURCES for m in METHODS] + ["oracle"]
     print(f"{'scenario':>20s} " + " ".join(f"{c:>10s}" for c in cols))
     results = {}
@@ -167,8 +182,10 @@ def main() -> None:
         ok = np.isfinite(err)
         rms = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan
         mx = float(np.max(np.abs(err[ok]))) if ok.any() else math.nan
-        print(f"{name:>20s} {rms:8.4f} {mx:8.4f} {int((~ok).sum()):5d} "
-              f"{float(np.max(np.abs(np.degrees(th['true'])))):8.2f}")
+        print(
+            f"{name:>20s} {rms:8.4f} {mx:8.4f} {int((~ok).sum()):5d} "
+            f"{float(np.max(np.abs(np.degrees(th['true'])))):8.2f}"
+        )
 
     print("\n4. target_steep_uphill by phase (true rotations), RMSE (m) and targets")
     res = results["target_steep_uphill"]

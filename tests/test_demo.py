@@ -80,12 +80,17 @@ def test_flat_road_estimates_are_close_to_the_truth(demo_run) -> None:
 
 
 def test_methods_the_demo_cannot_feed_are_skipped_with_a_reason(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setitem(ESTIMATORS, "lidar-test", _LidarEstimator)
     from slopedist.camera import Camera
 
-    plans = {p.name: p for p in plan_methods(["paper", "imu", "depthmap", "lidar-test"],
-                                             Camera(721.5, 609.6, 172.9))}
+    plans = {
+        p.name: p
+        for p in plan_methods(
+            ["paper", "imu", "depthmap", "lidar-test"], Camera(721.5, 609.6, 172.9)
+        )
+    }
     assert plans["paper"].rotation == "odometry" and not plans["paper"].skipped
     assert plans["imu"].rotation == "imu"
     assert plans["depthmap"].depth and plans["depthmap"].rotation == "none"
@@ -93,9 +98,24 @@ def test_methods_the_demo_cannot_feed_are_skipped_with_a_reason(
 
 
 def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["demo", "--out", str(tmp_path / "d"), "--scenarios", "curve_flat", "--frames",
-                 "3", "--methods", "flat,paper", "--odometry", "truth", "--no-video",
-                 "--no-plots", "--quiet"])
+    code = main(
+        [
+            "demo",
+            "--out",
+            str(tmp_path / "d"),
+            "--scenarios",
+            "curve_flat",
+            "--frames",
+            "3",
+            "--methods",
+            "flat,paper",
+            "--odometry",
+            "truth",
+            "--no-video",
+            "--no-plots",
+            "--quiet",
+        ]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert "Table 1" in out and "curve_flat" in out and "TRUE rotations" in out

@@ -45,8 +45,9 @@ def test_bins_split_by_truth() -> None:
 
 
 def test_cap_rule() -> None:
-    d, ok = cap_estimates([10.0, 120.0, np.nan, np.nan], ["", "", "below_horizon",
-                                                           "no_rotation"], 80.0)
+    d, ok = cap_estimates(
+        [10.0, 120.0, np.nan, np.nan], ["", "", "below_horizon", "no_rotation"], 80.0
+    )
     np.testing.assert_array_equal(d[:3], [10.0, 80.0, 80.0])
     assert list(ok) == [True, True, True, False]
 
@@ -66,10 +67,16 @@ def test_match_by_frame_never_crosses_frames() -> None:
     assert list(d) == [0] and list(g) == [1]
 
 
-@given(st.lists(st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30),
-                          st.floats(1, 30)), max_size=8),
-       st.lists(st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30),
-                          st.floats(1, 30)), max_size=8))
+@given(
+    st.lists(
+        st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30), st.floats(1, 30)),
+        max_size=8,
+    ),
+    st.lists(
+        st.tuples(st.floats(0, 50), st.floats(0, 50), st.floats(1, 30), st.floats(1, 30)),
+        max_size=8,
+    ),
+)
 def test_matching_is_one_to_one_and_above_threshold(a: list, b: list) -> None:
     det = np.array([[x, y, x + w, y + h] for x, y, w, h in a]).reshape(-1, 4)
     gt = np.array([[x, y, x + w, y + h] for x, y, w, h in b]).reshape(-1, 4)

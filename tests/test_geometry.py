@@ -80,8 +80,18 @@ def test_eq6_target_offset() -> None:
 
 @pytest.mark.parametrize(
     ("delta_y", "alpha_deg"),
-    [(5.0, 0.0), (0.001, 0.0), (0.0, 3.0), (-5.0, 3.0), (-9.99, 3.0), (-10.0, 5.0),
-     (-15.0, 5.0), (-20.0, 5.0), (-20.01, 6.0), (-300.0, 6.0)],
+    [
+        (5.0, 0.0),
+        (0.001, 0.0),
+        (0.0, 3.0),
+        (-5.0, 3.0),
+        (-9.99, 3.0),
+        (-10.0, 5.0),
+        (-15.0, 5.0),
+        (-20.0, 5.0),
+        (-20.01, 6.0),
+        (-300.0, 6.0),
+    ],
 )
 def test_eq7_steps_read_from_the_most_severe_case(delta_y: float, alpha_deg: float) -> None:
     theta = math.radians(0.4)

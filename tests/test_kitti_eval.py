@@ -28,10 +28,17 @@ def test_reproduces_the_published_figures(kitti_tracking_dir: Path) -> None:
         for method, rmse in zip(("flat", "ego", "paper"), figures):
             got = report["methods"][method]["sequences"][seq]["rmse"]
             assert got == pytest.approx(rmse, abs=0.05), (seq, method)
-    assert "80" in report["protocol"]["cap_rule"] and "vanishing line" in report["protocol"][
-        "cap_rule"]
+    assert (
+        "80" in report["protocol"]["cap_rule"]
+        and "vanishing line" in report["protocol"]["cap_rule"]
+    )
     assert set(report["methods"]["paper"]["overall"]["bins"]) == {
-        "0-10", "10-20", "20-30", "30-40", "40-80"}
+        "0-10",
+        "10-20",
+        "20-30",
+        "30-40",
+        "40-80",
+    }
 
 
 def test_oxts_rotations_run_on_sequences_with_imu(kitti_tracking_dir: Path) -> None:
@@ -41,7 +48,8 @@ def test_oxts_rotations_run_on_sequences_with_imu(kitti_tracking_dir: Path) -> N
     for m in ("ego", "paper"):
         # the IMU and ORB-SLAM3 gradients agree to < 0.1°, so the errors must be close
         assert report["methods"][m]["overall"]["rmse"] == pytest.approx(
-            orb["methods"][m]["overall"]["rmse"], abs=0.5)
+            orb["methods"][m]["overall"]["rmse"], abs=0.5
+        )
 
 
 def test_oxts_missing_for_a_sequence_is_reported(kitti_tracking_dir: Path) -> None:

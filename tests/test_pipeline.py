@@ -57,9 +57,12 @@ def run_streaming(method: str, track: RotationTrack, boxes: BoxTable):
             R = track.R_world_cam[k] if track.valid[k] else None
             parts.append(stream.update(k, float(track.timestamps_s[k]), R, by_frame[k]))
         else:
-            stream.update(k, float(track.timestamps_s[k]),
-                          track.R_world_cam[k] if track.valid[k] else None,
-                          boxes.select(np.zeros(len(boxes), bool)))
+            stream.update(
+                k,
+                float(track.timestamps_s[k]),
+                track.R_world_cam[k] if track.valid[k] else None,
+                boxes.select(np.zeros(len(boxes), bool)),
+            )
     return concat_estimates(parts), stream
 
 
@@ -69,10 +72,12 @@ def test_streaming_equals_batch(method: str) -> None:
     streamed, _ = run_streaming(method, track, boxes)
     batch = estimate_sequence(make_estimator(method, CAMERA), boxes, track.timestamps_s, track)
     np.testing.assert_array_equal(streamed.reason, batch.estimates.reason)
-    np.testing.assert_allclose(streamed.distance_m, batch.estimates.distance_m, rtol=1e-12,
-                               equal_nan=True)
-    np.testing.assert_allclose(streamed.theta_adj_rad, batch.estimates.theta_adj_rad,
-                               rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(
+        streamed.distance_m, batch.estimates.distance_m, rtol=1e-12, equal_nan=True
+    )
+    np.testing.assert_allclose(
+        streamed.theta_adj_rad, batch.estimates.theta_adj_rad, rtol=1e-12, equal_nan=True
+    )
     assert "non_finite_box" in set(batch.estimates.reason)
     assert "inverted_box" in set(batch.estimates.reason)
     if method != "flat":
@@ -86,10 +91,14 @@ def test_every_registered_method_streams_like_batch() -> None:
         if make_estimator(method, CAMERA).needs_depth:
             continue
         streamed, _ = run_streaming(method, track, boxes)
-        batch = estimate_sequence(make_estimator(method, CAMERA), boxes, track.timestamps_s,
-                                  track)
-        np.testing.assert_allclose(streamed.distance_m, batch.estimates.distance_m,
-                                   rtol=1e-9, equal_nan=True, err_msg=method)
+        batch = estimate_sequence(make_estimator(method, CAMERA), boxes, track.timestamps_s, track)
+        np.testing.assert_allclose(
+            streamed.distance_m,
+            batch.estimates.distance_m,
+            rtol=1e-9,
+            equal_nan=True,
+            err_msg=method,
+        )
 
 
 def test_history_is_bounded_by_the_lookback() -> None:
@@ -104,8 +113,10 @@ def test_gradient_tracker_matches_vectorised_gradients_with_gaps() -> None:
     t = np.cumsum(np.r_[0.0, np.where(np.arange(79) % 13 == 0, 0.3, 0.1)])
     track = RotationTrack.from_arrays(t, track.R_world_cam, track.valid)
     tracker = EgoGradientTracker()
-    streamed = [tracker.update(float(t[k]), track.R_world_cam[k] if track.valid[k] else None)
-                for k in range(len(track))]
+    streamed = [
+        tracker.update(float(t[k]), track.R_world_cam[k] if track.valid[k] else None)
+        for k in range(len(track))
+    ]
     np.testing.assert_allclose(streamed, ego_gradients(track), equal_nan=True, atol=1e-12)
 
 

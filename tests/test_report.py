@@ -44,7 +44,7 @@ def make_depth_folder(root: Path, kitti: Path, seq: str) -> None:
         sel = np.flatnonzero(gt.frame == k)
         for i in sel[np.argsort(-gt.extra["z"][sel])]:
             left, top, right, bottom = np.round(gt.boxes[i]).astype(int)
-            depth[max(top, 0):bottom + 1, max(left, 0):right + 1] = gt.extra["z"][i]
+            depth[max(top, 0) : bottom + 1, max(left, 0) : right + 1] = gt.extra["z"][i]
         write_kitti_depth_png(root / seq / f"{k:06d}.png", depth)
 
 
@@ -59,8 +59,18 @@ def kitti_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, P
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        code = main(["report", str(kitti), "--sequences", ",".join(SEQS), "--depth-dir",
-                     str(tmp / "depth"), "--out", str(out)])
+        code = main(
+            [
+                "report",
+                str(kitti),
+                "--sequences",
+                ",".join(SEQS),
+                "--depth-dir",
+                str(tmp / "depth"),
+                "--out",
+                str(out),
+            ]
+        )
     assert code == 0
     return out, buf.getvalue(), kitti
 
@@ -82,7 +92,8 @@ def test_kitti_tables_match_the_evaluation(kitti_report: tuple[Path, str, Path])
     for m in ("flat", "ego", "paper"):
         for s in SEQS:
             assert float(table1[s][m]) == pytest.approx(
-                ref["methods"][m]["sequences"][s]["rmse"], abs=1e-4)
+                ref["methods"][m]["sequences"][s]["rmse"], abs=1e-4
+            )
     # imu and depthmap have nothing on 0014 (no OXTS there; depth given for 0000 only)
     assert table1["0014"]["imu"] == "" and table1["0014"]["depthmap"] == ""
     # common = 0000 only: equals the 0000 row
@@ -102,7 +113,7 @@ def test_kitti_outputs_are_complete(kitti_report: tuple[Path, str, Path]) -> Non
         assert f"figures/{name}" in md
     page = (out / "report.html").read_text()
     assert page.count('src="data:image/png;base64,') == 3
-    assert "<b>" in page and "src=\"figures/" not in page  # self-contained
+    assert "<b>" in page and 'src="figures/' not in page  # self-contained
     timing = {r["method"]: r for r in _csv(out / "table2_time.csv")}
     assert timing["depthmap"]["depth"] != "" and float(timing["depthmap"]["depth"]) > 0
     assert timing["paper"]["odometry"] == ""  # precomputed poses: not timed
@@ -129,16 +140,28 @@ def _has_pyarrow() -> bool:
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium not installed "
-                    "(Debian package 'chromium'; .ci/run installs it)")
+@pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="headless Chromium not installed (Debian package 'chromium'; .ci/run installs it)",
+)
 def test_html_figures_render_in_headless_chromium(
     kitti_report: tuple[Path, str, Path], tmp_path: Path
 ) -> None:
     out, _, _ = kitti_report
-    cmd = [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
-           "--virtual-time-budget=10000", "--dump-dom", (out / "report.html").as_uri()]
+    cmd = [
+        str(CHROMIUM),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--virtual-time-budget=10000",
+        "--dump-dom",
+        (out / "report.html").as_uri(),
+    ]
     dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False).stdout
     body = re.search(r"<body[^>]*>", dom)
     assert body is not None, f"no <body> in Chromium's DOM dump: {dom[:300]!r}"
@@ -151,8 +174,12 @@ def test_html_figures_render_in_headless_chromium(
 # --- run outputs ----------------------------------------------------------------------------
 
 
-def write_run(folder: Path, rows: list[dict[str, object]], frames: list[dict[str, object]],
-              extra: tuple[str, ...] = ("gt_distance_m",)) -> None:
+def write_run(
+    folder: Path,
+    rows: list[dict[str, object]],
+    frames: list[dict[str, object]],
+    extra: tuple[str, ...] = ("gt_distance_m",),
+) -> None:
     """A `slopedist run` output folder: records.csv (RECORD_FIELDS + extras) and frames.csv."""
     folder.mkdir(parents=True)
     with (folder / "records.csv").open("w", newline="") as fh:
@@ -166,18 +193,40 @@ def write_run(folder: Path, rows: list[dict[str, object]], frames: list[dict[str
 
 
 def _record(frame: int, d: float | str, gt: float, reason: str = "") -> dict[str, object]:
-    return {"frame": frame, "timestamp_s": 0.1 * frame, "track_id": 3, "class": "Car",
-            "method": "paper", "distance_m": d, "status": "missing" if reason else "ok",
-            "reason": reason, "theta_deg": 0.1, "gt_distance_m": gt}
+    return {
+        "frame": frame,
+        "timestamp_s": 0.1 * frame,
+        "track_id": 3,
+        "class": "Car",
+        "method": "paper",
+        "distance_m": d,
+        "status": "missing" if reason else "ok",
+        "reason": reason,
+        "theta_deg": 0.1,
+        "gt_distance_m": gt,
+    }
 
 
 def test_run_output_is_scored_and_timed(tmp_path: Path) -> None:
-    rows = [_record(0, 10.0, 11.0), _record(1, 21.0, 20.0), _record(2, "", 30.0,
-                                                                      "below_horizon"),
-            _record(3, "", 30.0, "no_rotation"), _record(4, 95.0, 70.0)]
-    frames = [{"frame": k, "timestamp_s": 0.1 * k, "theta_deg": 0.1 * k,
-               "theta_true_deg": 0.1 * k + 0.05, "odometry_ms": 10.0 + k,
-               "estimation_ms": 1.0, "depth_ms": ""} for k in range(5)]
+    rows = [
+        _record(0, 10.0, 11.0),
+        _record(1, 21.0, 20.0),
+        _record(2, "", 30.0, "below_horizon"),
+        _record(3, "", 30.0, "no_rotation"),
+        _record(4, 95.0, 70.0),
+    ]
+    frames = [
+        {
+            "frame": k,
+            "timestamp_s": 0.1 * k,
+            "theta_deg": 0.1 * k,
+            "theta_true_deg": 0.1 * k + 0.05,
+            "odometry_ms": 10.0 + k,
+            "estimation_ms": 1.0,
+            "depth_ms": "",
+        }
+        for k in range(5)
+    ]
     write_run(tmp_path / "seqA", rows, frames)
     assert detect_source(tmp_path / "seqA") is SourceKind.RUN
     assert detect_source(tmp_path) is SourceKind.RUN  # a folder of run outputs
@@ -196,9 +245,11 @@ def test_run_output_is_scored_and_timed(tmp_path: Path) -> None:
     assert theta.rows[0][3] == pytest.approx(0.05)
     written = write_report(data, tmp_path / "out", parquet=False)
     assert (tmp_path / "out" / "report.html").is_file()
-    assert {f.name for f in written.figures} == {"distance_over_time.png",
-                                                 "error_vs_distance.png",
-                                                 "theta_over_time.png"}
+    assert {f.name for f in written.figures} == {
+        "distance_over_time.png",
+        "error_vs_distance.png",
+        "theta_over_time.png",
+    }
 
 
 def test_run_output_without_truth_has_no_table1(tmp_path: Path) -> None:
@@ -234,8 +285,9 @@ def test_depthmap_needs_a_depth_folder_and_unknown_tracks(tmp_path: Path) -> Non
     opts = ReportOptions(eval=KittiEvalConfig(sequences=["0000"], methods=("depthmap",)))
     with pytest.raises(ConfigurationError, match="--depth-dir"):
         report_data(kitti, opts)
-    data = report_data(kitti, ReportOptions(eval=KittiEvalConfig(sequences=["0000"],
-                                                                 methods=("flat",))))
+    data = report_data(
+        kitti, ReportOptions(eval=KittiEvalConfig(sequences=["0000"], methods=("flat",)))
+    )
     with pytest.raises(ConfigurationError, match="track 999 of sequence 0000"):
         write_report(data, tmp_path / "o", tracks=[("0000", 999)], parquet=False)
 

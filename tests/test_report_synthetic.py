@@ -32,8 +32,19 @@ def demo_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, s
     pytest.importorskip("slopedist.odometry.visual")
     root = tmp_path_factory.mktemp("demo_report")
     demo = root / "demo"
-    run_demo(DemoConfig(demo, SCENARIOS, METHODS, "visual", video=False, plots=False,
-                        max_frames=FRAMES, progress=False), echo=lambda s: None)
+    run_demo(
+        DemoConfig(
+            demo,
+            SCENARIOS,
+            METHODS,
+            "visual",
+            video=False,
+            plots=False,
+            max_frames=FRAMES,
+            progress=False,
+        ),
+        echo=lambda s: None,
+    )
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         assert main(["report", str(demo), "--out", str(root / "report"), "--no-parquet"]) == 0
@@ -41,7 +52,8 @@ def demo_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, s
 
 
 def test_table1_is_the_demo_rmse_per_scenario_and_method(
-        demo_report: tuple[Path, Path, str]) -> None:
+    demo_report: tuple[Path, Path, str],
+) -> None:
     demo, out, printed = demo_report
     assert detect_source(demo) is SourceKind.SYNTHETIC
     assert "Table 1: RMSE (m) per sequence and method" in printed
@@ -64,10 +76,12 @@ def test_table2_and_theta_come_from_the_demo(demo_report: tuple[Path, Path, str]
     theirs = {r["method"]: r for r in read_csv(demo / "timing.csv")}
     for m in METHODS:
         assert float(mine[m]["estimation"]) == pytest.approx(
-            float(theirs[m]["estimation_ms"]), rel=1e-3, abs=1e-3)
+            float(theirs[m]["estimation_ms"]), rel=1e-3, abs=1e-3
+        )
         assert mine[m]["depth"] == ""  # simulated depth noise: nothing inferred
     assert float(mine["paper"]["odometry"]) == pytest.approx(
-        float(theirs["paper"]["odometry_ms"]), rel=1e-3)
+        float(theirs["paper"]["odometry_ms"]), rel=1e-3
+    )
     assert mine["imu"]["odometry"] == "" and mine["flat"]["odometry"] == ""
     results = json.loads((demo / "results.json").read_text())
     theta = {r["sequence"]: r for r in read_csv(out / "theta_agreement.csv")}
@@ -87,8 +101,9 @@ def test_html_page_has_every_figure(demo_report: tuple[Path, Path, str]) -> None
     assert "synthetic" in page
 
 
-def test_damaged_demo_results_name_the_file(demo_report: tuple[Path, Path, str],
-                                            tmp_path: Path) -> None:
+def test_damaged_demo_results_name_the_file(
+    demo_report: tuple[Path, Path, str], tmp_path: Path
+) -> None:
     demo, _, _ = demo_report
     copy = tmp_path / "demo"
     shutil.copytree(demo, copy)

@@ -41,8 +41,9 @@ class ScriptedOdometry:
         self.fail_at = fail_at
         self.error = error or RuntimeError("boom")
 
-    def process(self, image_gray: np.ndarray, timestamp_s: float,
-                mask_boxes: np.ndarray | None = None) -> OdometryResult:
+    def process(
+        self, image_gray: np.ndarray, timestamp_s: float, mask_boxes: np.ndarray | None = None
+    ) -> OdometryResult:
         assert image_gray.ndim == 2 and image_gray.dtype == np.uint8
         if self.fail_at is not None and timestamp_s >= self.fail_at:
             raise self.error
@@ -77,8 +78,15 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 def test_records_and_frame_log_match_hand_computed_distances(tmp_path: Path) -> None:
     n = 15
     odo = ScriptedOdometry()
-    result = run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
-                        odo, make_estimator("ego", CAM), tmp_path / "out", progress=False)
+    result = run_frames(
+        open_frames(make_frames(tmp_path / "f", n)),
+        CAM,
+        boxes_every_frame(n),
+        odo,
+        make_estimator("ego", CAM),
+        tmp_path / "out",
+        progress=False,
+    )
     assert result.frames == n and result.records == 2 * n and result.estimated == 2 * (n - 1)
     assert result.odometry_states == {"not_initialised": 1, "ok": n - 1}
     # the frame's boxes are masked out of the odometry's features
@@ -91,8 +99,7 @@ def test_records_and_frame_log_match_hand_computed_distances(tmp_path: Path) -> 
     assert float(frames[12]["theta_deg"]) == pytest.approx(math.degrees(PITCH_RATE), rel=1e-4)
     rows = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "12"]
     v = CAM.c_y - CAM.f * math.tan(PITCH_RATE)
-    assert float(rows[0]["distance_m"]) == pytest.approx(CAM.f * CAM.height_m / (150 - v),
-                                                         rel=1e-5)
+    assert float(rows[0]["distance_m"]) == pytest.approx(CAM.f * CAM.height_m / (150 - v), rel=1e-5)
     first = [r for r in read_csv(tmp_path / "out" / "records.csv") if r["frame"] == "0"]
     assert [r["reason"] for r in first] == ["no_rotation", "no_rotation"]
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
@@ -101,9 +108,15 @@ def test_records_and_frame_log_match_hand_computed_distances(tmp_path: Path) -> 
 
 def test_missing_frame_is_logged_and_the_run_goes_on(tmp_path: Path) -> None:
     n = 8
-    result = run_frames(open_frames(make_frames(tmp_path / "f", n, skip=(4,))), CAM,
-                        boxes_every_frame(n), ScriptedOdometry(), make_estimator("paper", CAM),
-                        tmp_path / "out", progress=False)
+    result = run_frames(
+        open_frames(make_frames(tmp_path / "f", n, skip=(4,))),
+        CAM,
+        boxes_every_frame(n),
+        ScriptedOdometry(),
+        make_estimator("paper", CAM),
+        tmp_path / "out",
+        progress=False,
+    )
     assert result.frames == n and result.frame_status == {"ok": n - 1, "missing": 1}
     frames = read_csv(tmp_path / "out" / "frames.csv")
     assert frames[4]["frame_status"] == "missing" and frames[4]["odometry_state"] == ""
@@ -116,9 +129,15 @@ def test_missing_frame_is_logged_and_the_run_goes_on(tmp_path: Path) -> None:
 def test_crash_halfway_keeps_the_records_written_before(tmp_path: Path) -> None:
     n = 10
     with pytest.raises(RuntimeError, match="boom"):
-        run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
-                   ScriptedOdometry(fail_at=0.55), make_estimator("ego", CAM), tmp_path / "out",
-                   progress=False)
+        run_frames(
+            open_frames(make_frames(tmp_path / "f", n)),
+            CAM,
+            boxes_every_frame(n),
+            ScriptedOdometry(fail_at=0.55),
+            make_estimator("ego", CAM),
+            tmp_path / "out",
+            progress=False,
+        )
     rows = read_csv(tmp_path / "out" / "records.csv")
     assert sorted({int(r["frame"]) for r in rows}) == [0, 1, 2, 3, 4, 5]
     assert len(read_csv(tmp_path / "out" / "frames.csv")) == 6
@@ -130,27 +149,46 @@ def test_user_error_halfway_names_the_frame_and_the_kept_records(tmp_path: Path)
     n = 6
     err = InputFileError("x.png", "bad pixels")
     with pytest.raises(RunAbortedError, match=r"frame 3 \(000003\.png\).*records of the 3 frames"):
-        run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
-                   ScriptedOdometry(fail_at=0.25, error=err), make_estimator("ego", CAM),
-                   tmp_path / "out", progress=False)
+        run_frames(
+            open_frames(make_frames(tmp_path / "f", n)),
+            CAM,
+            boxes_every_frame(n),
+            ScriptedOdometry(fail_at=0.25, error=err),
+            make_estimator("ego", CAM),
+            tmp_path / "out",
+            progress=False,
+        )
     assert len(read_csv(tmp_path / "out" / "records.csv")) == 6
 
 
 def test_calibration_mismatch_fails_before_writing(tmp_path: Path) -> None:
     far = Camera(500.0, 700.0, 100.0)
     with pytest.raises(DataMismatchError, match=r"c_x = 700\.0 px lies outside"):
-        run_frames(open_frames(make_frames(tmp_path / "f", 3)), far, boxes_every_frame(3),
-                   ScriptedOdometry(), make_estimator("ego", far), tmp_path / "out",
-                   progress=False)
+        run_frames(
+            open_frames(make_frames(tmp_path / "f", 3)),
+            far,
+            boxes_every_frame(3),
+            ScriptedOdometry(),
+            make_estimator("ego", far),
+            tmp_path / "out",
+            progress=False,
+        )
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("target", ["overlay", "overlay.mp4"])
 def test_overlay_png_folder_and_mp4(tmp_path: Path, target: str) -> None:
     n = 6
-    run_frames(open_frames(make_frames(tmp_path / "f", n, skip=(2,))), CAM, boxes_every_frame(n),
-               ScriptedOdometry(), make_estimator("ego", CAM), tmp_path / "out",
-               overlay=tmp_path / "out" / target, progress=False)
+    run_frames(
+        open_frames(make_frames(tmp_path / "f", n, skip=(2,))),
+        CAM,
+        boxes_every_frame(n),
+        ScriptedOdometry(),
+        make_estimator("ego", CAM),
+        tmp_path / "out",
+        overlay=tmp_path / "out" / target,
+        progress=False,
+    )
     if target == "overlay":
         pngs = sorted((tmp_path / "out" / "overlay").glob("*.png"))
         assert [p.name for p in pngs] == [f"{k:06d}.png" for k in (0, 1, 3, 4, 5)]
@@ -171,13 +209,30 @@ def _cli_setup(tmp_path: Path, n: int = 5) -> tuple[Path, Path, Path]:
     return frames, calib, boxes
 
 
-def test_cli_run_writes_outputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_run_writes_outputs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
     monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
     out = tmp_path / "out"
-    code = main(["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--method",
-                 "paper", "--out", str(out), "--quiet", "--overlay", "--overlay-format", "png"])
+    code = main(
+        [
+            "run",
+            str(frames),
+            "--calib",
+            str(calib),
+            "--boxes",
+            str(boxes),
+            "--method",
+            "paper",
+            "--out",
+            str(out),
+            "--quiet",
+            "--overlay",
+            "--overlay-format",
+            "png",
+        ]
+    )
     assert code == 0
     err = capsys.readouterr().err
     assert "wrote 10 records" in err and "frames/s" in err
@@ -185,8 +240,9 @@ def test_cli_run_writes_outputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert len(list((out / "overlay").glob("*.png"))) == 5
 
 
-def test_cli_bad_inputs_exit_2_with_a_message(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_bad_inputs_exit_2_with_a_message(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
     monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
     video = tmp_path / "clip.mp4"
@@ -212,13 +268,28 @@ def test_default_method_is_ours(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     frames, calib, boxes = _cli_setup(tmp_path)
     monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
     out = tmp_path / "out"
-    assert main(["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--out",
-                 str(out), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(frames),
+                "--calib",
+                str(calib),
+                "--boxes",
+                str(boxes),
+                "--out",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert {r["method"] for r in read_csv(out / "records.csv")} == {"ours"}
 
 
-def test_cli_run_on_real_frames_with_lidar_boxes(kitti_raw_lead_dir: Path, tmp_path: Path,
-                                                 capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_run_on_real_frames_with_lidar_boxes(
+    kitti_raw_lead_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from slopedist.datasets.kitti_raw import (
         KittiRawDrive,
         lidar_vehicle_boxes,
@@ -227,12 +298,29 @@ def test_cli_run_on_real_frames_with_lidar_boxes(kitti_raw_lead_dir: Path, tmp_p
     )
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
-    truth = link_tracks([lidar_vehicle_boxes(read_velodyne(drive.velodyne_paths[k]), drive.calib,
-                                             (1242, 375), k) for k in range(12)])
+    truth = link_tracks(
+        [
+            lidar_vehicle_boxes(read_velodyne(drive.velodyne_paths[k]), drive.calib, (1242, 375), k)
+            for k in range(12)
+        ]
+    )
     boxes = write_box_csv(truth, tmp_path / "lidar_boxes.csv")
     out = tmp_path / "out"
-    code = main(["run", str(drive.image_dir), "--calib", str(drive.calib_path), "--boxes",
-                 str(boxes), "--method", "ego", "--out", str(out), "--quiet"])
+    code = main(
+        [
+            "run",
+            str(drive.image_dir),
+            "--calib",
+            str(drive.calib_path),
+            "--boxes",
+            str(boxes),
+            "--method",
+            "ego",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     frames = read_csv(out / "frames.csv")
     assert len(frames) == 78
@@ -241,19 +329,25 @@ def test_cli_run_on_real_frames_with_lidar_boxes(kitti_raw_lead_dir: Path, tmp_p
     assert all(abs(float(r["theta_deg"])) < 1.0 for r in frames if r["theta_deg"])
     est = {(int(r["frame"]), int(r["track_id"])): r for r in read_csv(out / "records.csv")}
     assert len(est) == len(truth)
-    lead = truth.select((np.abs(truth.extra["x"]) < 1.0) & (truth.extra["truncated"] == 0)
-                        & (truth.extra["z"] < 9.0))
+    lead = truth.select(
+        (np.abs(truth.extra["x"]) < 1.0)
+        & (truth.extra["truncated"] == 0)
+        & (truth.extra["z"] < 9.0)
+    )
     assert len(lead) >= 10
-    errors = [float(est[(int(f), int(t))]["distance_m"]) - z
-              for f, t, z in zip(lead.frame, lead.track_id, lead.extra["z"])]
+    errors = [
+        float(est[(int(f), int(t))]["distance_m"]) - z
+        for f, t, z in zip(lead.frame, lead.track_id, lead.extra["z"])
+    ]
     assert np.sqrt(np.mean(np.square(errors))) < 0.5  # metres, lead car at 7–8 m
 
 
 class RestartingOdometry(ScriptedOdometry):
     """Restarts (segment 1) at t = 1.2 s with an arbitrary jump of its rotation."""
 
-    def process(self, image_gray: np.ndarray, timestamp_s: float,
-                mask_boxes: np.ndarray | None = None) -> OdometryResult:
+    def process(
+        self, image_gray: np.ndarray, timestamp_s: float, mask_boxes: np.ndarray | None = None
+    ) -> OdometryResult:
         res = super().process(image_gray, timestamp_s, mask_boxes)
         if timestamp_s < 1.15 or res.R_world_cam is None:
             return res
@@ -262,9 +356,15 @@ class RestartingOdometry(ScriptedOdometry):
 
 def test_no_look_back_across_an_odometry_restart(tmp_path: Path) -> None:
     n = 16
-    run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
-               RestartingOdometry(), make_estimator("ego", CAM), tmp_path / "out",
-               progress=False)
+    run_frames(
+        open_frames(make_frames(tmp_path / "f", n)),
+        CAM,
+        boxes_every_frame(n),
+        RestartingOdometry(),
+        make_estimator("ego", CAM),
+        tmp_path / "out",
+        progress=False,
+    )
     frames = read_csv(tmp_path / "out" / "frames.csv")
     assert [r["segment"] for r in frames[10:14]] == ["0", "0", "1", "1"]
     theta = [float(r["theta_deg"]) for r in frames[11:]]
@@ -293,9 +393,15 @@ def test_ground_truth_and_sequence_reach_the_records_and_the_report(tmp_path: Pa
 
     n = 15
     for method in ("ego", "flat"):
-        run_frames(open_frames(make_frames(tmp_path / "clip7", n)), CAM, boxes_with_truth(n),
-                   ScriptedOdometry(), make_estimator(method, CAM), tmp_path / "runs" / method,
-                   progress=False)
+        run_frames(
+            open_frames(make_frames(tmp_path / "clip7", n)),
+            CAM,
+            boxes_with_truth(n),
+            ScriptedOdometry(),
+            make_estimator(method, CAM),
+            tmp_path / "runs" / method,
+            progress=False,
+        )
     rows = read_csv(tmp_path / "runs" / "ego" / "records.csv")
     assert [r["gt_distance_m"] for r in rows[:2]] == ["10", "40"]
     assert [r["gt_distance_m"] for r in rows if r["frame"] == "3"] == ["", ""]
@@ -304,21 +410,31 @@ def test_ground_truth_and_sequence_reach_the_records_and_the_report(tmp_path: Pa
     data = run_report_data(tmp_path / "runs", ReportOptions())
     assert data.sequences == ["clip7"] and data.methods == ["ego", "flat"]
     for method in ("ego", "flat"):
-        recs = [r for r in read_csv(tmp_path / "runs" / method / "records.csv")
-                if r["gt_distance_m"] and r["distance_m"]]
+        recs = [
+            r
+            for r in read_csv(tmp_path / "runs" / method / "records.csv")
+            if r["gt_distance_m"] and r["distance_m"]
+        ]
         err = [min(float(r["distance_m"]), 80.0) - float(r["gt_distance_m"]) for r in recs]
-        assert data.summaries["clip7"][method]["n"] == len(recs) == (28 if method == "flat"
-                                                                     else 26)
+        assert data.summaries["clip7"][method]["n"] == len(recs) == (28 if method == "flat" else 26)
         assert data.summaries["clip7"][method]["rmse"] == pytest.approx(
-            math.sqrt(np.mean(np.square(err))), rel=1e-4)
+            math.sqrt(np.mean(np.square(err))), rel=1e-4
+        )
 
 
 def test_sequence_name_option_and_defaults(tmp_path: Path) -> None:
     from slopedist.runner import default_sequence_name
 
-    run_frames(open_frames(make_frames(tmp_path / "f", 3)), CAM, boxes_every_frame(3),
-               ScriptedOdometry(), make_estimator("ego", CAM), tmp_path / "out", progress=False,
-               sequence="0007")
+    run_frames(
+        open_frames(make_frames(tmp_path / "f", 3)),
+        CAM,
+        boxes_every_frame(3),
+        ScriptedOdometry(),
+        make_estimator("ego", CAM),
+        tmp_path / "out",
+        progress=False,
+        sequence="0007",
+    )
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["sequence"] == "0007" and summary["ground_truth"] is False
     nested = tmp_path / "2011_09_26_drive_0001_sync" / "image_02" / "data"
@@ -351,9 +467,16 @@ def test_depth_maps_feed_the_depthmap_method_and_are_timed(tmp_path: Path) -> No
 
     n = 5
     source = FileDepthSource(DepthFolder.write(tmp_path / "depth", n), missing_ok=True)
-    result = run_frames(open_frames(make_frames(tmp_path / "f", n)), CAM, boxes_every_frame(n),
-                        None, make_estimator("depthmap", CAM), tmp_path / "out",
-                        progress=False, depth=source)
+    result = run_frames(
+        open_frames(make_frames(tmp_path / "f", n)),
+        CAM,
+        boxes_every_frame(n),
+        None,
+        make_estimator("depthmap", CAM),
+        tmp_path / "out",
+        progress=False,
+        depth=source,
+    )
     assert result.frames_without_depth == 1 and result.depth_source is not None
     rows = read_csv(tmp_path / "out" / "records.csv")
     assert [float(r["distance_m"]) for r in rows if r["frame"] == "3"] == [8.0, 30.0]
@@ -371,10 +494,25 @@ def test_depth_and_method_must_match(tmp_path: Path) -> None:
 
     frames = open_frames(make_frames(tmp_path / "f", 3))
     with pytest.raises(ConfigurationError, match="needs depth maps"):
-        run_frames(frames, CAM, boxes_every_frame(3), None, make_estimator("depthmap", CAM),
-                   tmp_path / "out", progress=False)
+        run_frames(
+            frames,
+            CAM,
+            boxes_every_frame(3),
+            None,
+            make_estimator("depthmap", CAM),
+            tmp_path / "out",
+            progress=False,
+        )
     source = FileDepthSource(DepthFolder.write(tmp_path / "depth", 3), missing_ok=True)
     with pytest.raises(ConfigurationError, match="does not use them"):
-        run_frames(frames, CAM, boxes_every_frame(3), None, make_estimator("paper", CAM),
-                   tmp_path / "out", progress=False, depth=source)
+        run_frames(
+            frames,
+            CAM,
+            boxes_every_frame(3),
+            None,
+            make_estimator("paper", CAM),
+            tmp_path / "out",
+            progress=False,
+            depth=source,
+        )
     assert not (tmp_path / "out").exists()

@@ -33,17 +33,47 @@ def chain(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     pytest.importorskip("slopedist.odometry.visual")
     root = tmp_path_factory.mktemp("chain")
     sim = root / "sim"
-    assert main(["simulate", SCENARIO, "--out", str(sim), "--frames", str(FRAMES),
-                 "--depth", "png"]) == 0
+    assert (
+        main(["simulate", SCENARIO, "--out", str(sim), "--frames", str(FRAMES), "--depth", "png"])
+        == 0
+    )
     info = json.loads((sim / "info.json").read_text())
-    camera = ["--height", str(info["camera_height_m"]), "--mount-angle",
-              str(info["mount_angle_deg"])]
-    common = [str(sim / "image_02"), "--calib", str(sim / "calib.txt"), "--boxes",
-              str(sim / "boxes.csv"), "--timestamps", str(sim / "times.txt"), *camera, "--quiet"]
+    camera = [
+        "--height",
+        str(info["camera_height_m"]),
+        "--mount-angle",
+        str(info["mount_angle_deg"]),
+    ]
+    common = [
+        str(sim / "image_02"),
+        "--calib",
+        str(sim / "calib.txt"),
+        "--boxes",
+        str(sim / "boxes.csv"),
+        "--timestamps",
+        str(sim / "times.txt"),
+        *camera,
+        "--quiet",
+    ]
     for method in ("paper", "flat"):
         assert main(["run", *common, "--method", method, "--out", str(sim / method)]) == 0
-    assert main(["run", *common, "--method", "depthmap", "--odometry", "none", "--depth-dir",
-                 str(sim / "depth"), "--out", str(sim / "depthmap")]) == 0
+    assert (
+        main(
+            [
+                "run",
+                *common,
+                "--method",
+                "depthmap",
+                "--odometry",
+                "none",
+                "--depth-dir",
+                str(sim / "depth"),
+                "--out",
+                str(sim / "depthmap"),
+            ]
+        )
+        == 0
+    )
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         assert main(["report", str(root), "--out", str(root / "report"), "--no-parquet"]) == 0
@@ -52,13 +82,15 @@ def chain(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
 
 def test_records_carry_the_true_distance_of_each_target(chain: tuple[Path, str]) -> None:
     root, _ = chain
-    truth = {(r["frame"], r["track_id"]): float(r["z_m"])
-             for r in read_csv(root / "sim" / "truth.csv")}
+    truth = {
+        (r["frame"], r["track_id"]): float(r["z_m"]) for r in read_csv(root / "sim" / "truth.csv")
+    }
     rows = read_csv(root / "sim" / "paper" / "records.csv")
     assert len(rows) >= FRAMES
     for r in rows:
-        assert float(r["gt_distance_m"]) == pytest.approx(truth[(r["frame"], r["track_id"])],
-                                                          rel=1e-5)
+        assert float(r["gt_distance_m"]) == pytest.approx(
+            truth[(r["frame"], r["track_id"])], rel=1e-5
+        )
     exact = read_box_csv(root / "sim" / "boxes_exact.csv")
     np.testing.assert_allclose(exact.extra["gt_distance_m"], exact_z(root / "sim"), rtol=1e-5)
     # the image folder is image_02: the sequence is named after the simulation folder
@@ -75,7 +107,8 @@ def test_report_scores_every_method_in_one_row(chain: tuple[Path, str]) -> None:
         err = [min(float(r["distance_m"]), 80.0) - float(r["gt_distance_m"]) for r in rows]
         assert len(rows) > FRAMES // 2
         assert float(table1["sim"][method]) == pytest.approx(
-            math.sqrt(float(np.mean(np.square(err)))), rel=1e-3, abs=1e-3)
+            math.sqrt(float(np.mean(np.square(err)))), rel=1e-3, abs=1e-3
+        )
     # true depth at the box centre: within a few metres of KITTI z (centre vs. rear face)
     assert float(table1["sim"]["depthmap"]) < 5.0
     timing = {r["method"]: r for r in read_csv(root / "report" / "table2_time.csv")}
@@ -90,8 +123,7 @@ def exact_z(sim: Path) -> list[float]:
     return [float(r["z"]) for r in read_csv(sim / "boxes_exact.csv")]
 
 
-def test_a_simulation_without_runs_says_what_to_do(tmp_path: Path,
-                                                   chain: tuple[Path, str]) -> None:
+def test_a_simulation_without_runs_says_what_to_do(tmp_path: Path, chain: tuple[Path, str]) -> None:
     root, _ = chain
     sim = tmp_path / "sims" / "bare"
     sim.mkdir(parents=True)
@@ -103,8 +135,7 @@ def test_a_simulation_without_runs_says_what_to_do(tmp_path: Path,
 
 def test_theta_of_each_run_is_compared_with_the_simulated_truth(chain: tuple[Path, str]) -> None:
     root, _ = chain
-    truth = {r["frame"]: float(r["theta_true_deg"])
-             for r in read_csv(root / "sim" / "frames.csv")}
+    truth = {r["frame"]: float(r["theta_true_deg"]) for r in read_csv(root / "sim" / "frames.csv")}
     rows = read_csv(root / "report" / "theta_agreement.csv")
     assert {r["source"] for r in rows} == {"paper", "flat"}  # depthmap ran without odometry
     for r in rows:
@@ -112,4 +143,5 @@ def test_theta_of_each_run_is_compared_with_the_simulated_truth(chain: tuple[Pat
         diff = [float(x["theta_deg"]) - truth[x["frame"]] for x in run]
         assert int(r["frames"]) == len(run) >= FRAMES - 2
         assert float(r["RMS diff"]) == pytest.approx(
-            math.sqrt(float(np.mean(np.square(diff)))), abs=2e-3)
+            math.sqrt(float(np.mean(np.square(diff)))), abs=2e-3
+        )

@@ -57,8 +57,14 @@ from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstima
 FloatArray = NDArray[np.float64]
 
 DEFAULT_OUT = Path("slopedist-demo")
-DEMO_FRAME_FIELDS = ("frame", "timestamp_s", "odometry_state", "theta_deg", "theta_true_deg",
-                     "odometry_ms")
+DEMO_FRAME_FIELDS = (
+    "frame",
+    "timestamp_s",
+    "odometry_state",
+    "theta_deg",
+    "theta_true_deg",
+    "odometry_ms",
+)
 """Columns of a scenario's ``frames.csv`` (θ of eq. 4 in degrees, 1 s look-back)."""
 CAP_M = 80.0
 """Cap of the published protocol, metres."""
@@ -81,8 +87,12 @@ class TrueRotationOdometry:
         self._R = R_world_cam
         self._k = 0
 
-    def process(self, image_gray: NDArray[np.uint8], timestamp_s: float,
-                mask_boxes: NDArray[np.float64] | None = None) -> OdometryResult:
+    def process(
+        self,
+        image_gray: NDArray[np.uint8],
+        timestamp_s: float,
+        mask_boxes: NDArray[np.float64] | None = None,
+    ) -> OdometryResult:
         R = self._R[self._k]
         self._k += 1
         return OdometryResult(R, OdometryState.OK, 0)
@@ -96,8 +106,10 @@ def visual_odometry(camera: Camera) -> RotationOdometry:
     try:
         from slopedist.odometry.visual import BuiltinVisualOdometry
     except ImportError:
-        raise ConfigurationError("the built-in visual odometry (slopedist.odometry.visual) is "
-                                 "not part of this build; use --odometry truth") from None
+        raise ConfigurationError(
+            "the built-in visual odometry (slopedist.odometry.visual) is "
+            "not part of this build; use --odometry truth"
+        ) from None
     return BuiltinVisualOdometry(camera)
 
 
@@ -127,8 +139,7 @@ class DemoConfig:
 
     def __post_init__(self) -> None:
         if self.odometry not in ("visual", "truth"):
-            raise ConfigurationError(f"odometry must be 'visual' or 'truth', got "
-                                     f"'{self.odometry}'")
+            raise ConfigurationError(f"odometry must be 'visual' or 'truth', got '{self.odometry}'")
 
 
 @dataclass
@@ -179,8 +190,9 @@ class MethodScores:
     seconds: float = 0.0
     failed: str = ""
 
-    def add(self, frame: int, tracks: NDArray[np.int64], est: FrameEstimates,
-            truth: FloatArray) -> None:
+    def add(
+        self, frame: int, tracks: NDArray[np.int64], est: FrameEstimates, truth: FloatArray
+    ) -> None:
         n = len(est)
         self.frame += [frame] * n
         self.track += tracks.tolist()
@@ -230,16 +242,18 @@ class _DepthNoise:
 
     def __init__(self, height: int, width: int, seed: int) -> None:
         rng = np.random.default_rng([seed, 0xDE9])
-        self._field = np.exp(rng.normal(0.0, DEPTH_PIXEL_SIGMA, (2 * height, 2 * width))
-                             ).astype(np.float32)
+        self._field = np.exp(rng.normal(0.0, DEPTH_PIXEL_SIGMA, (2 * height, 2 * width))).astype(
+            np.float32
+        )
         self._seed = seed
         self._h, self._w = height, width
 
     def __call__(self, depth: NDArray[np.float32], k: int) -> NDArray[np.float32]:
-        scale = math.exp(np.random.default_rng([self._seed, k, 0xDE9]).normal(
-            0.0, DEPTH_SCALE_SIGMA))
+        scale = math.exp(
+            np.random.default_rng([self._seed, k, 0xDE9]).normal(0.0, DEPTH_SCALE_SIGMA)
+        )
         oy, ox = (k * 131) % self._h, (k * 977) % self._w
-        out = depth * self._field[oy:oy + self._h, ox:ox + self._w] * np.float32(scale)
+        out = depth * self._field[oy : oy + self._h, ox : ox + self._w] * np.float32(scale)
         out[~np.isfinite(depth)] = np.nan
         return np.asarray(out, dtype=np.float32)
 
@@ -260,15 +274,21 @@ class _GifWriter:
 
     def close(self) -> None:
         if self.frames:
-            self.frames[0].save(self.path, save_all=True, append_images=self.frames[1:],
-                                duration=int(1000 / self.fps), loop=0)
+            self.frames[0].save(
+                self.path,
+                save_all=True,
+                append_images=self.frames[1:],
+                duration=int(1000 / self.fps),
+                loop=0,
+            )
 
 
 def _overlay_writer(folder: Path, fps: float) -> OverlayWriter | _GifWriter:
     try:
         writer = OverlayWriter(folder / "overlay.mp4", fps)
-        probe = cv2.VideoWriter(str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"),
-                                fps, (16, 16))
+        probe = cv2.VideoWriter(
+            str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
+        )
         ok = probe.isOpened()
         probe.release()
         if ok:
@@ -278,8 +298,9 @@ def _overlay_writer(folder: Path, fps: float) -> OverlayWriter | _GifWriter:
     return _GifWriter(folder / "overlay.gif", fps)
 
 
-def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
-                 bar: tqdm | None = None) -> tuple[ScenarioRun, list[MethodPlan]]:
+def run_scenario(
+    name: str, cfg: DemoConfig, method_names: list[str], bar: tqdm | None = None
+) -> tuple[ScenarioRun, list[MethodPlan]]:
     """Run every method on one scenario (see the module docstring)."""
     scenario = load_scenario(name)
     seq = SyntheticSequence(scenario)
@@ -290,13 +311,18 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
     folder = cfg.out_dir / scenario.name
     folder.mkdir(parents=True, exist_ok=True)
     R_true = seq.truth.poses_cam0()[:, :3, :3]
-    odometry: RotationOdometry = (visual_odometry(camera) if cfg.odometry == "visual"
-                                  else TrueRotationOdometry(R_true))
+    odometry: RotationOdometry = (
+        visual_odometry(camera) if cfg.odometry == "visual" else TrueRotationOdometry(R_true)
+    )
     R_imu = _imu_rotations(R_true, scenario.seed)
-    depth_noise = (_DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
-                   if any(p.depth for p in active) else None)
-    streams = {p.name: StreamingEstimator(make_estimator(p.name, camera), LOOKBACK_S)
-               for p in active}
+    depth_noise = (
+        _DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
+        if any(p.depth for p in active)
+        else None
+    )
+    streams = {
+        p.name: StreamingEstimator(make_estimator(p.name, camera), LOOKBACK_S) for p in active
+    }
     scores = {p.name: MethodScores() for p in plans}
     overlay_method = DEFAULT_METHOD if DEFAULT_METHOD in streams else next(iter(streams), None)
     painter = _overlay_writer(folder, scenario.frame_rate_hz) if cfg.video else None
@@ -320,8 +346,18 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
             odo_s += t2 - t1
             states[res.state.value] = states.get(res.state.value, 0) + 1
             theta_est[k] = gradient.update(frame.timestamp_s, res.R_world_cam)
-            frame_log.rows([[k, frame.timestamp_s, res.state.value, math.degrees(theta_est[k]),
-                             math.degrees(theta_true[k]), 1e3 * (t2 - t1)]])
+            frame_log.rows(
+                [
+                    [
+                        k,
+                        frame.timestamp_s,
+                        res.state.value,
+                        math.degrees(theta_est[k]),
+                        math.degrees(theta_true[k]),
+                        1e3 * (t2 - t1),
+                    ]
+                ]
+            )
             boxes = frame.detections
             m_idx = np.searchsorted(seq.truth.track_ids, boxes.track_id)
             truth_z = seq.truth.z_m[k, m_idx]
@@ -333,8 +369,9 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
                 R = {"odometry": res.R_world_cam, "imu": R_imu[k], "none": None}[p.rotation]
                 t3 = time.perf_counter()
                 try:
-                    est = streams[p.name].update(k, frame.timestamp_s, R, boxes, frame.image,
-                                                 depth if p.depth else None)
+                    est = streams[p.name].update(
+                        k, frame.timestamp_s, R, boxes, frame.image, depth if p.depth else None
+                    )
                 except SlopedistError as exc:
                     scores[p.name].failed = f"frame {k}: {exc}"
                     continue
@@ -348,12 +385,16 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
                     shown = est
             if painter is not None and shown is not None:
                 th = theta_est[k]
-                head = (f"{scenario.name}  frame {k}  t {frame.timestamp_s:4.1f} s  "
-                        f"{overlay_method}: theta {math.degrees(th):+.2f} deg (true "
-                        f"{math.degrees(theta_true[k]):+.2f})" if math.isfinite(th) else
-                        f"{scenario.name}  frame {k}  no rotation ({res.state.value})")
-                painter.write(k, viz.draw_fig3_overlay(frame.image, camera, boxes, shown,
-                                                       None, head))
+                head = (
+                    f"{scenario.name}  frame {k}  t {frame.timestamp_s:4.1f} s  "
+                    f"{overlay_method}: theta {math.degrees(th):+.2f} deg (true "
+                    f"{math.degrees(theta_true[k]):+.2f})"
+                    if math.isfinite(th)
+                    else f"{scenario.name}  frame {k}  no rotation ({res.state.value})"
+                )
+                painter.write(
+                    k, viz.draw_fig3_overlay(frame.image, camera, boxes, shown, None, head)
+                )
             if bar is not None:
                 bar.update(1)
     finally:
@@ -364,23 +405,31 @@ def run_scenario(name: str, cfg: DemoConfig, method_names: list[str],
     files = [str(folder / "records.csv"), str(folder / "frames.csv")]
     if painter is not None:
         files.append(str(painter.target if isinstance(painter, OverlayWriter) else painter.path))
-    run = ScenarioRun(scenario.name, scenario.description.strip(), n, scores, render_s, odo_s,
-                      states, theta_est, theta_true[:n], files)
+    run = ScenarioRun(
+        scenario.name,
+        scenario.description.strip(),
+        n,
+        scores,
+        render_s,
+        odo_s,
+        states,
+        theta_est,
+        theta_true[:n],
+        files,
+    )
     if cfg.plots:
         run.files += _plots(run, seq, folder, [p.name for p in active])
     return run, plans
 
 
-def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path,
-           methods: list[str]) -> list[str]:
+def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list[str]) -> list[str]:
     """Distance vs truth and θ vs truth plots of one scenario."""
-    t = seq.truth.timestamps_s[:run.frames]
+    t = seq.truth.timestamps_s[: run.frames]
     cam = seq.camera
     series = []
     theta_targets = []
     for m, tid in enumerate(seq.truth.track_ids):
-        truth = np.where(seq.truth.in_view[:run.frames, m], seq.truth.z_m[:run.frames, m],
-                         np.nan)
+        truth = np.where(seq.truth.in_view[: run.frames, m], seq.truth.z_m[: run.frames, m], np.nan)
         est: dict[str, FloatArray] = {}
         below: dict[str, NDArray[np.bool_]] = {}
         for name in methods:
@@ -395,7 +444,7 @@ def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path,
             below[name] = b
         series.append(viz.DistanceSeries(int(tid), truth, est, below))
         # θ that would make eq. 1 exact for this target (exact box, true z), and the paper's
-        needed = theta_needed_rad(seq.truth.box[:run.frames, m, 3], truth, cam)
+        needed = theta_needed_rad(seq.truth.box[: run.frames, m, 3], truth, cam)
         adj = np.full(run.frames, np.nan)
         dy = np.full(run.frames, np.nan)
         if "paper" in run.scores:
@@ -407,8 +456,9 @@ def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path,
     p1 = folder / "distance.png"
     viz.plot_distance_series(p1, t, series, f"{run.name}: distance vs truth (KITTI z)")
     p2 = folder / "theta.png"
-    viz.plot_theta_series(p2, t, run.theta_est, run.theta_true, theta_targets,
-                          f"{run.name}: ego gradient θ vs truth")
+    viz.plot_theta_series(
+        p2, t, run.theta_est, run.theta_true, theta_targets, f"{run.name}: ego gradient θ vs truth"
+    )
     return [str(p1), str(p2)]
 
 
@@ -433,15 +483,22 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
     names = list(cfg.methods) if cfg.methods is not None else available_methods()
     unknown = [m for m in names if m not in available_methods()]
     if unknown:
-        raise ConfigurationError(f"unknown method(s) {', '.join(unknown)}; choose from "
-                                 f"{', '.join(available_methods())}")
+        raise ConfigurationError(
+            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
+        )
     scenarios = [load_scenario(s) for s in cfg.scenarios]  # fail early on a bad name or file
-    total = sum(s.n_frames if cfg.max_frames is None else min(s.n_frames, cfg.max_frames)
-                for s in scenarios)
+    total = sum(
+        s.n_frames if cfg.max_frames is None else min(s.n_frames, cfg.max_frames) for s in scenarios
+    )
     runs: list[ScenarioRun] = []
     plans: list[MethodPlan] = []
-    with tqdm(total=total, unit="frame", disable=not cfg.progress, dynamic_ncols=True,
-              desc="slopedist demo") as bar:
+    with tqdm(
+        total=total,
+        unit="frame",
+        disable=not cfg.progress,
+        dynamic_ncols=True,
+        desc="slopedist demo",
+    ) as bar:
         for name, sc in zip(cfg.scenarios, scenarios):
             bar.set_postfix_str(sc.name)
             run, plans = run_scenario(name, cfg, names, bar)
@@ -485,8 +542,9 @@ def rmse_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
 def missing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
     """Targets at or above the vanishing line (scored as 80 m) per scenario × method."""
     methods = result.methods
-    rows = [[r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)]
-            for r in result.runs]
+    rows = [
+        [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs
+    ]
     return ["scenario", *methods], rows
 
 
@@ -500,8 +558,11 @@ def timing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
             continue
         est_ms = 1e3 * sum(r.scores[p.name].seconds for r in result.runs) / max(frames, 1)
         odo = odo_ms if p.rotation == "odometry" else 0.0
-        src = {"odometry": result.config.odometry + " odometry", "imu": "IMU (simulated)",
-               "none": "-"}[p.rotation] + (" + depth map" if p.depth else "")
+        src = {
+            "odometry": result.config.odometry + " odometry",
+            "imu": "IMU (simulated)",
+            "none": "-",
+        }[p.rotation] + (" + depth map" if p.depth else "")
         rows.append([p.name, src, odo, est_ms, odo + est_ms])
     return ["method", "inputs", "odometry_ms", "estimation_ms", "total_ms"], rows
 
@@ -512,12 +573,24 @@ def odometry_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
     for r in result.runs:
         err = np.degrees(r.theta_est - r.theta_true)
         ok = np.isfinite(err)
-        rows.append([r.name, int(ok.sum()), r.frames,
-                     float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan,
-                     float(np.max(np.abs(err[ok]))) if ok.any() else math.nan,
-                     float(np.max(np.abs(np.degrees(r.theta_true))))])
-    return ["scenario", "frames_ok", "frames", "theta_rms_err_deg", "theta_max_err_deg",
-            "theta_true_max_deg"], rows
+        rows.append(
+            [
+                r.name,
+                int(ok.sum()),
+                r.frames,
+                float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else math.nan,
+                float(np.max(np.abs(err[ok]))) if ok.any() else math.nan,
+                float(np.max(np.abs(np.degrees(r.theta_true)))),
+            ]
+        )
+    return [
+        "scenario",
+        "frames_ok",
+        "frames",
+        "theta_rms_err_deg",
+        "theta_max_err_deg",
+        "theta_true_max_deg",
+    ], rows
 
 
 def format_demo_tables(result: DemoResult) -> str:
@@ -529,18 +602,24 @@ def format_demo_tables(result: DemoResult) -> str:
     hm, rm = missing_rows(result)
     frames = sum(r.frames for r in result.runs)
     render_ms = 1e3 * sum(r.render_s for r in result.runs) / max(frames, 1)
-    odo = ("the built-in visual odometry on the rendered frames" if cfg.odometry == "visual"
-           else "the TRUE rotations (diagnostic, --odometry truth)")
+    odo = (
+        "the built-in visual odometry on the rendered frames"
+        if cfg.odometry == "visual"
+        else "the TRUE rotations (diagnostic, --odometry truth)"
+    )
     out = [
         f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
         f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
         f"the vanishing line counts as {CAP_M:g} m",
-        format_table(h1, r1), "",
+        format_table(h1, r1),
+        "",
         f"Targets at or above the vanishing line (counted as {CAP_M:g} m)",
-        format_table(hm, rm), "",
+        format_table(hm, rm),
+        "",
         "Table 2. Time per frame (ms; the detector is external and not counted; rendering "
         f"{render_ms:.1f} ms/frame is not counted)",
-        format_table(h2, r2), "",
+        format_table(h2, r2),
+        "",
         "Ego gradient θ (eq. 4) from the odometry vs. from the true rotations (degrees)",
         format_table(h3, r3),
     ]
@@ -549,31 +628,53 @@ def format_demo_tables(result: DemoResult) -> str:
 
 def _write_results(result: DemoResult) -> None:
     out = result.config.out_dir
-    for fname, (headers, rows) in (("rmse.csv", rmse_rows(result)),
-                                   ("timing.csv", timing_rows(result))):
+    for fname, (headers, rows) in (
+        ("rmse.csv", rmse_rows(result)),
+        ("timing.csv", timing_rows(result)),
+    ):
         lines = [",".join(headers)] + [",".join(_csv(v) for v in r) for r in rows]
         (out / fname).write_text("\n".join(lines) + "\n")
     (out / "summary.txt").write_text(format_demo_tables(result) + "\n")
     data = {
-        "config": {"scenarios": list(result.config.scenarios),
-                   "odometry": result.config.odometry, "max_frames": result.config.max_frames},
-        "protocol": {"distance": "KITTI z: camera z of the 3D box's bottom centre",
-                     "cap_m": CAP_M, "matching": "by track id",
-                     "imu_noise_deg": math.degrees(IMU_PITCH_NOISE_RAD),
-                     "depth_noise": {"frame_log_sigma": DEPTH_SCALE_SIGMA,
-                                     "pixel_log_sigma": DEPTH_PIXEL_SIGMA}},
-        "methods": {p.name: {"rotation": p.rotation, "depth": p.depth, "skipped": p.skipped}
-                    for p in result.plans},
-        "scenarios": {r.name: {
-            "description": r.description, "frames": r.frames,
-            "render_ms_per_frame": 1e3 * r.render_s / max(r.frames, 1),
-            "odometry_ms_per_frame": 1e3 * r.odometry_s / max(r.frames, 1),
-            "odometry_states": r.odometry_states,
-            "methods": {m: {**s.metrics(), "failed": s.failed,
-                            "estimation_ms_per_frame": 1e3 * s.seconds / max(r.frames, 1)}
-                        for m, s in r.scores.items() if m in result.methods},
-            "files": r.files,
-        } for r in result.runs},
+        "config": {
+            "scenarios": list(result.config.scenarios),
+            "odometry": result.config.odometry,
+            "max_frames": result.config.max_frames,
+        },
+        "protocol": {
+            "distance": "KITTI z: camera z of the 3D box's bottom centre",
+            "cap_m": CAP_M,
+            "matching": "by track id",
+            "imu_noise_deg": math.degrees(IMU_PITCH_NOISE_RAD),
+            "depth_noise": {
+                "frame_log_sigma": DEPTH_SCALE_SIGMA,
+                "pixel_log_sigma": DEPTH_PIXEL_SIGMA,
+            },
+        },
+        "methods": {
+            p.name: {"rotation": p.rotation, "depth": p.depth, "skipped": p.skipped}
+            for p in result.plans
+        },
+        "scenarios": {
+            r.name: {
+                "description": r.description,
+                "frames": r.frames,
+                "render_ms_per_frame": 1e3 * r.render_s / max(r.frames, 1),
+                "odometry_ms_per_frame": 1e3 * r.odometry_s / max(r.frames, 1),
+                "odometry_states": r.odometry_states,
+                "methods": {
+                    m: {
+                        **s.metrics(),
+                        "failed": s.failed,
+                        "estimation_ms_per_frame": 1e3 * s.seconds / max(r.frames, 1),
+                    }
+                    for m, s in r.scores.items()
+                    if m in result.methods
+                },
+                "files": r.files,
+            }
+            for r in result.runs
+        },
         "elapsed_s": result.elapsed_s,
     }
     (out / "results.json").write_text(json.dumps(_clean(data), indent=2) + "\n")
@@ -609,10 +710,8 @@ def iter_outputs(result: DemoResult) -> Iterator[str]:
         yield from r.files
 
 
-def theta_needed_rad(box_bottom_px: FloatArray, z_true_m: FloatArray, camera: Camera
-                     ) -> FloatArray:
+def theta_needed_rad(box_bottom_px: FloatArray, z_true_m: FloatArray, camera: Camera) -> FloatArray:
     """θ that makes eq. 1 give exactly ``z_true_m`` for a box bottom row ``u`` (radians):
     eq. 1 solved for the vanishing line, ``v = u − f·h/z``, then eq. 5 for θ."""
     v = box_bottom_px - camera.f * camera.height_m / z_true_m
     return np.asarray(np.arctan((camera.c_y - v) / camera.f))
-

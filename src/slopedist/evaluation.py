@@ -19,12 +19,23 @@ from slopedist.detections.boxes import BoxTable, iou_matrix
 from slopedist.estimators.base import MissingReason
 
 DISTANCE_BINS_M: tuple[tuple[float, float], ...] = (
-    (0.0, 10.0), (10.0, 20.0), (20.0, 30.0), (30.0, 40.0), (40.0, 80.0),
+    (0.0, 10.0),
+    (10.0, 20.0),
+    (20.0, 30.0),
+    (30.0, 40.0),
+    (40.0, 80.0),
 )
 """Ground-truth distance bins of the per-bin tables, metres (lower bound exclusive)."""
 
 METRIC_KEYS = (
-    "n", "rmse", "mae", "abs_rel", "sq_rel", "rmse_log", "delta_1.25", "delta_1.25^2",
+    "n",
+    "rmse",
+    "mae",
+    "abs_rel",
+    "sq_rel",
+    "rmse_log",
+    "delta_1.25",
+    "delta_1.25^2",
     "delta_1.25^3",
 )
 
@@ -64,8 +75,10 @@ def binned_metrics(
     """:func:`distance_metrics` per ground-truth distance bin ``(lo, hi]``."""
     p = np.asarray(pred_m, dtype=float)
     g = np.asarray(gt_m, dtype=float)
-    return {bin_label(lo, hi): distance_metrics(p[(g > lo) & (g <= hi)], g[(g > lo) & (g <= hi)])
-            for lo, hi in bins}
+    return {
+        bin_label(lo, hi): distance_metrics(p[(g > lo) & (g <= hi)], g[(g > lo) & (g <= hi)])
+        for lo, hi in bins
+    }
 
 
 def cap_estimates(
@@ -161,8 +174,10 @@ def pool(sets: Sequence[ScoredSet]) -> ScoredSet:
     return ScoredSet(
         np.concatenate([s.pred_m for s in sets]) if sets else np.zeros(0),
         np.concatenate([s.gt_m for s in sets]) if sets else np.zeros(0),
-        sum(s.n_gt for s in sets), sum(s.n_unscored for s in sets),
-        sum(s.seconds for s in sets), sum(s.frames for s in sets),
+        sum(s.n_gt for s in sets),
+        sum(s.n_unscored for s in sets),
+        sum(s.seconds for s in sets),
+        sum(s.frames for s in sets),
     )
 
 
@@ -223,27 +238,35 @@ def format_report_tables(report: dict[str, Any]) -> str:
     rmse_rows: list[list[Any]] = []
     for s in seqs:
         first = report["methods"][methods[0]]["sequences"][s]
-        rmse_rows.append([s, first["n"], *(report["methods"][m]["sequences"][s]["rmse"]
-                                           for m in methods)])
+        rmse_rows.append(
+            [s, first["n"], *(report["methods"][m]["sequences"][s]["rmse"] for m in methods)]
+        )
     n_all = report["methods"][methods[0]]["overall"]["n"] if methods else 0
-    rmse_rows.append(["overall", n_all, *(report["methods"][m]["overall"]["rmse"]
-                                          for m in methods)])
+    rmse_rows.append(
+        ["overall", n_all, *(report["methods"][m]["overall"]["rmse"] for m in methods)]
+    )
     common = report.get("overall_common")
     if common is not None:
         first = common["methods"][methods[0]]
-        rmse_rows.append(["common", first["n"], *(common["methods"][m]["rmse"]
-                                                  for m in methods)])
+        rmse_rows.append(["common", first["n"], *(common["methods"][m]["rmse"] for m in methods)])
     out = ["RMSE (m) per sequence", format_table(["sequence", "n", *methods], rmse_rows)]
     for m in methods:
-        missing = {s: v["missing"] for s, v in report["methods"][m]["sequences"].items()
-                   if v.get("missing")}
+        missing = {
+            s: v["missing"]
+            for s, v in report["methods"][m]["sequences"].items()
+            if v.get("missing")
+        }
         if missing:
-            out.append(f"{m}: no result on {', '.join(missing)} "
-                       f"({next(iter(missing.values()))}); its overall pools "
-                       f"{compact_names(report['methods'][m].get('pooled_sequences', []))}")
+            out.append(
+                f"{m}: no result on {', '.join(missing)} "
+                f"({next(iter(missing.values()))}); its overall pools "
+                f"{compact_names(report['methods'][m].get('pooled_sequences', []))}"
+            )
     if common is not None:
-        out.append(f"common: every method pooled over the sequences all of them ran on "
-                   f"({compact_names(common['sequences'])})")
+        out.append(
+            f"common: every method pooled over the sequences all of them ran on "
+            f"({compact_names(common['sequences'])})"
+        )
     keys = ["n", "rmse", "mae", "abs_rel", "sq_rel", "rmse_log", "delta_1.25"]
     has_recall = "recall" in report["methods"][methods[0]]["overall"] if methods else False
     if has_recall:
@@ -252,8 +275,12 @@ def format_report_tables(report: dict[str, Any]) -> str:
     rows = [[m, *(report["methods"][m]["overall"][k] for k in keys)] for m in methods]
     out += ["", "Overall (pooled)", format_table(["method", *keys], rows)]
     bins = list(report["methods"][methods[0]]["overall"]["bins"]) if methods else []
-    bin_rows = [[m, *(report["methods"][m]["overall"]["bins"][b]["rmse"] for b in bins)]
-                for m in methods]
-    out += ["", "RMSE (m) per ground-truth distance bin (m)",
-            format_table(["method", *bins], bin_rows)]
+    bin_rows = [
+        [m, *(report["methods"][m]["overall"]["bins"][b]["rmse"] for b in bins)] for m in methods
+    ]
+    out += [
+        "",
+        "RMSE (m) per ground-truth distance bin (m)",
+        format_table(["method", *bins], bin_rows),
+    ]
     return "\n".join(out)

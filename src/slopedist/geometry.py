@@ -131,8 +131,10 @@ class GradientAdjustment:
     ) -> GradientAdjustment:
         """Build from angles in degrees (the unit of the paper and the command line)."""
         a1, a2, a3 = (float(np.radians(a)) for a in alphas_deg)
-        return cls((a1, a2, a3), (float(thresholds_px[0]), float(thresholds_px[1]),
-                                  float(thresholds_px[2])))
+        return cls(
+            (a1, a2, a3),
+            (float(thresholds_px[0]), float(thresholds_px[1]), float(thresholds_px[2])),
+        )
 
 
 def adjusted_gradient(

@@ -77,22 +77,33 @@ class KittiEvalConfig:
                 "max_distance_m": PROTOCOL_MAX_DISTANCE_M,
                 "distance": "label z (longitudinal, camera 2)",
             },
-            "camera": {"f": "P2[0,0]", "c_y": "P2[1,2]", "height_m": self.height_m,
-                       "mount_angle_deg": math.degrees(self.mount_angle_rad)},
+            "camera": {
+                "f": "P2[0,0]",
+                "c_y": "P2[1,2]",
+                "height_m": self.height_m,
+                "mount_angle_deg": math.degrees(self.mount_angle_rad),
+            },
             "lookback_s": self.lookback_s,
             "frame_period_s": 0.1,
             "rotation": RotationSource(self.rotation).value,
             "boxes": BoxSource(self.boxes).value,
             "min_score": self.min_score,
-            "matching": (f"greedy one-to-one by 2D IoU >= {self.min_iou}, best pair first"
-                         if BoxSource(self.boxes) is BoxSource.POINTRCNN else None),
+            "matching": (
+                f"greedy one-to-one by 2D IoU >= {self.min_iou}, best pair first"
+                if BoxSource(self.boxes) is BoxSource.POINTRCNN
+                else None
+            ),
             "cap_m": self.cap_m,
-            "cap_rule": (f"estimates above {self.cap_m:g} m are set to {self.cap_m:g} m; a target "
-                         f"whose box bottom is at or above the vanishing line (u <= v) counts as "
-                         f"{self.cap_m:g} m"),
-            "overall": ("pooled over all targets of the sequences each method ran on "
-                        "(pooled_sequences); overall_common pools every method over the "
-                        "sequences all of them ran on, when those differ"),
+            "cap_rule": (
+                f"estimates above {self.cap_m:g} m are set to {self.cap_m:g} m; a target "
+                f"whose box bottom is at or above the vanishing line (u <= v) counts as "
+                f"{self.cap_m:g} m"
+            ),
+            "overall": (
+                "pooled over all targets of the sequences each method ran on "
+                "(pooled_sequences); overall_common pools every method over the "
+                "sequences all of them ran on, when those differ"
+            ),
             "rotation_per_method": {m: self.rotation_of(m) for m in self.methods},
             "depth_dir": str(self.depth_dir) if self.depth_dir is not None else None,
             "sequences": list(self.sequences) if self.sequences is not None else None,
@@ -160,13 +171,18 @@ class SequenceRun:
         """The :class:`ScoredSet` of ``method`` (``info["missing"]`` says why, if absent)."""
         run = self.runs[method]
         if run.missing:
-            return ScoredSet(np.zeros(0), np.zeros(0), n_gt=len(self.gt), frames=0,
-                             info={"missing": run.missing})
+            return ScoredSet(
+                np.zeros(0), np.zeros(0), n_gt=len(self.gt), frames=0, info={"missing": run.missing}
+            )
         ok = run.scorable[self.det_rows]
         return ScoredSet(
-            pred_m=run.distance_m[self.det_rows][ok], gt_m=self.gt.extra["z"][self.gt_rows][ok],
-            n_gt=len(self.gt), n_unscored=int((~ok).sum()), seconds=run.seconds,
-            frames=self.n_frames, info={"depth_seconds": run.depth_seconds},
+            pred_m=run.distance_m[self.det_rows][ok],
+            gt_m=self.gt.extra["z"][self.gt_rows][ok],
+            n_gt=len(self.gt),
+            n_unscored=int((~ok).sum()),
+            seconds=run.seconds,
+            frames=self.n_frames,
+            info={"depth_seconds": run.depth_seconds},
         )
 
 
@@ -208,25 +224,37 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     gt = seq.labels.select(protocol_mask(seq.labels))
     boxes = _boxes_for(seq, cfg, gt)
     with_detections = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
-    det_rows, gt_rows = (match_by_frame(boxes, gt, cfg.min_iou) if with_detections
-                         else (np.arange(len(gt)), np.arange(len(gt))))
+    det_rows, gt_rows = (
+        match_by_frame(boxes, gt, cfg.min_iou)
+        if with_detections
+        else (np.arange(len(gt)), np.arange(len(gt)))
+    )
     truth = np.full(len(boxes), np.nan)
     truth[det_rows] = gt.extra["z"][gt_rows]
-    boxes = BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
-                     {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth})
+    boxes = BoxTable(
+        boxes.frame,
+        boxes.boxes,
+        boxes.track_id,
+        boxes.score,
+        boxes.cls,
+        {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth},
+    )
     tracks: dict[str, RotationTrack | str] = {}
     theta: dict[str, NDArray[np.float64]] = {}
 
     def track_for(source: RotationSource, declared: bool) -> RotationTrack | str:
         if source.value not in tracks:
             if declared and not seq.has_rotations(source):
-                tracks[source.value] = (f"no {source.value} poses for sequence {seq.name} "
-                                        f"(expected {seq.rotation_path(source)})")
+                tracks[source.value] = (
+                    f"no {source.value} poses for sequence {seq.name} "
+                    f"(expected {seq.rotation_path(source)})"
+                )
             else:
                 track = seq.rotations(source)
                 tracks[source.value] = track
-                theta[source.value] = ego_gradients(track, seq.camera.mount_angle_rad,
-                                                    cfg.lookback_s)[:seq.n_frames]
+                theta[source.value] = ego_gradients(
+                    track, seq.camera.mount_angle_rad, cfg.lookback_s
+                )[: seq.n_frames]
         return tracks[source.value]
 
     runs: dict[str, MethodRun] = {}
@@ -246,21 +274,37 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
                 missing = f"no depth maps for sequence {seq.name} (expected folder {folder})"
         if missing:
             nan = np.full(n, np.nan)
-            runs[name] = MethodRun(name, source.value if estimator.needs_rotation else None,
-                                   nan, np.zeros(n, bool), nan,
-                                   np.full(n, "missing", dtype=object), missing=missing)
+            runs[name] = MethodRun(
+                name,
+                source.value if estimator.needs_rotation else None,
+                nan,
+                np.zeros(n, bool),
+                nan,
+                np.full(n, "missing", dtype=object),
+                missing=missing,
+            )
             continue
         with Stopwatch() as watch:
             result = estimate_sequence(
-                estimator, boxes, seq.timestamps_s,
-                track if isinstance(track, RotationTrack) else None, cfg.lookback_s,
-                depth=depth_source.depth if depth_source is not None else None)
-        capped, scorable = cap_estimates(result.estimates.distance_m, result.estimates.reason,
-                                         cfg.cap_m)
+                estimator,
+                boxes,
+                seq.timestamps_s,
+                track if isinstance(track, RotationTrack) else None,
+                cfg.lookback_s,
+                depth=depth_source.depth if depth_source is not None else None,
+            )
+        capped, scorable = cap_estimates(
+            result.estimates.distance_m, result.estimates.reason, cfg.cap_m
+        )
         rows = result.boxes.extra["row"]
-        run = MethodRun(name, source.value if estimator.needs_rotation else None,
-                        np.empty(n), np.empty(n, dtype=bool), np.empty(n),
-                        np.empty(n, dtype=object))
+        run = MethodRun(
+            name,
+            source.value if estimator.needs_rotation else None,
+            np.empty(n),
+            np.empty(n, dtype=bool),
+            np.empty(n),
+            np.empty(n, dtype=object),
+        )
         run.distance_m[rows] = capped
         run.scorable[rows] = scorable
         run.theta_rad[rows] = result.estimates.theta_rad
@@ -271,9 +315,7 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, theta)
 
 
-def evaluate_sequence(
-    seq: KittiTrackingSequence, cfg: KittiEvalConfig
-) -> dict[str, ScoredSet]:
+def evaluate_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> dict[str, ScoredSet]:
     """Score every method of ``cfg`` on one sequence."""
     run = run_sequence(seq, cfg)
     return {name: run.scored(name) for name in cfg.methods}
@@ -315,8 +357,9 @@ def build_report(
         common = [s for s in names if all(s in ran[m] for m in cfg.methods)]
         report["overall_common"] = {
             "sequences": common,
-            "methods": {m: summarise([per_seq[s][m] for s in common], with_recall)
-                        for m in cfg.methods},
+            "methods": {
+                m: summarise([per_seq[s][m] for s in common], with_recall) for m in cfg.methods
+            },
         }
     return report
 
@@ -333,6 +376,7 @@ def evaluate_kitti_tracking(
     for name in names:
         if on_sequence is not None:
             on_sequence(name)
-        per_seq[name] = evaluate_sequence(load_sequence(root, name, cfg.height_m,
-                                                        cfg.mount_angle_rad), cfg)
+        per_seq[name] = evaluate_sequence(
+            load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad), cfg
+        )
     return build_report(cfg, names, per_seq)

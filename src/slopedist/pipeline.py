@@ -137,11 +137,17 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
         return np.concatenate([getattr(p, name) for p in parts])
 
     return FrameEstimates(
-        theta_rad=cat("theta_rad"), theta_adj_rad=cat("theta_adj_rad"),
-        delta_y_px=cat("delta_y_px"), v_px=cat("v_px"), distance_m=cat("distance_m"),
-        reason=cat("reason"), reference=cat("reference"),
-        extra={k: np.concatenate([p.extra.get(k, np.full(len(p), np.nan)) for p in parts])
-               for k in sorted(keys)},
+        theta_rad=cat("theta_rad"),
+        theta_adj_rad=cat("theta_adj_rad"),
+        delta_y_px=cat("delta_y_px"),
+        v_px=cat("v_px"),
+        distance_m=cat("distance_m"),
+        reason=cat("reason"),
+        reference=cat("reference"),
+        extra={
+            k: np.concatenate([p.extra.get(k, np.full(len(p), np.nan)) for p in parts])
+            for k in sorted(keys)
+        },
     )
 
 
@@ -151,8 +157,10 @@ def concat_boxes(parts: list[BoxTable]) -> BoxTable:
         return BoxTable.empty()
     keys = set.intersection(*(set(p.extra) for p in parts))
     return BoxTable(
-        np.concatenate([p.frame for p in parts]), np.concatenate([p.boxes for p in parts]),
-        np.concatenate([p.track_id for p in parts]), np.concatenate([p.score for p in parts]),
+        np.concatenate([p.frame for p in parts]),
+        np.concatenate([p.boxes for p in parts]),
+        np.concatenate([p.track_id for p in parts]),
+        np.concatenate([p.score for p in parts]),
         np.concatenate([p.cls for p in parts]),
         {k: np.concatenate([p.extra[k] for p in parts]) for k in keys},
     )
@@ -182,7 +190,8 @@ def estimate_sequence(
         )
     theta = (
         ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s)
-        if track is not None else np.full(len(timestamps_s), np.nan)
+        if track is not None
+        else np.full(len(timestamps_s), np.nan)
     )
     estimator.reset()
     box_parts, est_parts = [], []
@@ -193,34 +202,63 @@ def estimate_sequence(
             )
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         R = track.R_world_cam[k] if track is not None and track.valid[k] else None
-        est_parts.append(estimator.estimate(
-            FrameInput(k, float(timestamps_s[k]), float(theta[k]), frame_boxes,
-                       depth_m=depth_m, R_world_cam=R)))
+        est_parts.append(
+            estimator.estimate(
+                FrameInput(
+                    k,
+                    float(timestamps_s[k]),
+                    float(theta[k]),
+                    frame_boxes,
+                    depth_m=depth_m,
+                    R_world_cam=R,
+                )
+            )
+        )
         box_parts.append(frame_boxes)
     return SequenceEstimates(
-        concat_boxes(box_parts), np.asarray(timestamps_s), concat_estimates(est_parts),
+        concat_boxes(box_parts),
+        np.asarray(timestamps_s),
+        concat_estimates(est_parts),
         estimator.name,
     )
 
 
 RECORD_FIELDS = (
-    "frame", "timestamp_s", "track_id", "class", "score", "left", "top", "right", "bottom",
-    "method", "theta_deg", "theta_adj_deg", "delta_y_px", "v_px", "distance_m", "reference",
-    "status", "reason",
+    "frame",
+    "timestamp_s",
+    "track_id",
+    "class",
+    "score",
+    "left",
+    "top",
+    "right",
+    "bottom",
+    "method",
+    "theta_deg",
+    "theta_adj_deg",
+    "delta_y_px",
+    "v_px",
+    "distance_m",
+    "reference",
+    "status",
+    "reason",
 )
 """Columns of the per-target records CSV, in order; method-specific extras follow."""
 
 
 def iter_records(
-    boxes: BoxTable, timestamps_s: Iterable[float] | NDArray[np.float64], est: FrameEstimates,
+    boxes: BoxTable,
+    timestamps_s: Iterable[float] | NDArray[np.float64],
+    est: FrameEstimates,
     method: str,
 ) -> Iterator[dict[str, Any]]:
     """One dict per target (``RECORD_FIELDS`` plus extras), angles in degrees.
 
     ``timestamps_s`` is indexed by each box's frame number.
     """
-    ts = np.asarray(list(timestamps_s) if not isinstance(timestamps_s, np.ndarray)
-                    else timestamps_s)
+    ts = np.asarray(
+        list(timestamps_s) if not isinstance(timestamps_s, np.ndarray) else timestamps_s
+    )
     for i in range(len(boxes)):
         ok = est.reason[i] == ""
         row: dict[str, Any] = {
@@ -229,8 +267,10 @@ def iter_records(
             "track_id": int(boxes.track_id[i]),
             "class": boxes.cls[i],
             "score": float(boxes.score[i]),
-            "left": float(boxes.boxes[i, 0]), "top": float(boxes.boxes[i, 1]),
-            "right": float(boxes.boxes[i, 2]), "bottom": float(boxes.boxes[i, 3]),
+            "left": float(boxes.boxes[i, 0]),
+            "top": float(boxes.boxes[i, 1]),
+            "right": float(boxes.boxes[i, 2]),
+            "bottom": float(boxes.boxes[i, 3]),
             "method": method,
             "theta_deg": math.degrees(est.theta_rad[i]),
             "theta_adj_deg": math.degrees(est.theta_adj_rad[i]),
@@ -269,8 +309,9 @@ class RecordWriter:
         for row in rows:
             if self._writer is None:
                 fields = list(RECORD_FIELDS) + [k for k in row if k not in RECORD_FIELDS]
-                self._writer = csv.DictWriter(self._stream, fieldnames=fields,
-                                              extrasaction="ignore")
+                self._writer = csv.DictWriter(
+                    self._stream, fieldnames=fields, extrasaction="ignore"
+                )
                 self._writer.writeheader()
             self._writer.writerow({k: _fmt(v) for k, v in row.items()})
         self._stream.flush()

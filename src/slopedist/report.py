@@ -97,8 +97,9 @@ def run_folders(root: Path) -> list[Path]:
     made from their frames)."""
     if (root / "records.csv").is_file():
         return [root]
-    return sorted({p.parent for pattern in ("*/records.csv", "*/*/records.csv")
-                   for p in root.glob(pattern)})
+    return sorted(
+        {p.parent for pattern in ("*/records.csv", "*/*/records.csv") for p in root.glob(pattern)}
+    )
 
 
 def detect_source(path: str | Path) -> SourceKind:
@@ -117,8 +118,11 @@ def detect_source(path: str | Path) -> SourceKind:
         return SourceKind.SYNTHETIC
     if run_folders(path):
         return SourceKind.RUN
-    sims = [p.parent for p in (path / "truth.csv", *path.glob("*/truth.csv")) if p.is_file()
-            and (p.parent / "info.json").is_file()]
+    sims = [
+        p.parent
+        for p in (path / "truth.csv", *path.glob("*/truth.csv"))
+        if p.is_file() and (p.parent / "info.json").is_file()
+    ]
     if sims:
         raise MissingInputError(
             f"{sims[0]} is a `slopedist simulate` output, which holds the truth but no estimates: "
@@ -176,8 +180,19 @@ class Columns:
         return np.asarray(self.data[name], dtype=dtype)
 
 
-RECORD_COLUMNS = ("sequence", "frame", "timestamp_s", "track_id", "method", "rotation",
-                  "distance_m", "gt_distance_m", "scored", "reason", "theta_deg")
+RECORD_COLUMNS = (
+    "sequence",
+    "frame",
+    "timestamp_s",
+    "track_id",
+    "method",
+    "rotation",
+    "distance_m",
+    "gt_distance_m",
+    "scored",
+    "reason",
+    "theta_deg",
+)
 THETA_COLUMNS = ("sequence", "frame", "timestamp_s", "source", "theta_deg")
 
 
@@ -220,8 +235,9 @@ class ReportData:
 
 def default_kitti_methods(depth: bool) -> list[str]:
     """Every registered method that can run on KITTI tracking (``depthmap`` with depth only)."""
-    return [m for m in available_methods()
-            if depth or not getattr(ESTIMATORS[m], "needs_depth", False)]
+    return [
+        m for m in available_methods() if depth or not getattr(ESTIMATORS[m], "needs_depth", False)
+    ]
 
 
 def kitti_report_data(
@@ -233,8 +249,9 @@ def kitti_report_data(
     methods = list(cfg.methods) or default_kitti_methods(cfg.depth_dir is not None)
     unknown = [m for m in methods if m not in ESTIMATORS]
     if unknown:
-        raise ConfigurationError(f"unknown method(s) {', '.join(unknown)}; choose from "
-                                 f"{', '.join(available_methods())}")
+        raise ConfigurationError(
+            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
+        )
     cfg = KittiEvalConfig(**{**cfg.__dict__, "methods": tuple(methods)})
     names = check_run(root, cfg)
     runs: dict[str, SequenceRun] = {}
@@ -260,15 +277,28 @@ def kitti_report_data(
             th = np.degrees(mr.theta_rad[run.det_rows])
             reasons = mr.reason[run.det_rows]
             for i in range(len(run.det_rows)):
-                records.add(sequence=s, frame=int(frames[i]), timestamp_s=0.1 * int(frames[i]),
-                            track_id=int(tids[i]), method=m, rotation=mr.rotation or "",
-                            distance_m=float(d[i]) if ok[i] else math.nan,
-                            gt_distance_m=float(gt_z[i]), scored=bool(ok[i]),
-                            reason=reasons[i], theta_deg=float(th[i]))
+                records.add(
+                    sequence=s,
+                    frame=int(frames[i]),
+                    timestamp_s=0.1 * int(frames[i]),
+                    track_id=int(tids[i]),
+                    method=m,
+                    rotation=mr.rotation or "",
+                    distance_m=float(d[i]) if ok[i] else math.nan,
+                    gt_distance_m=float(gt_z[i]),
+                    scored=bool(ok[i]),
+                    reason=reasons[i],
+                    theta_deg=float(th[i]),
+                )
         for source, values in run.theta_rad.items():
             for k, v in enumerate(values):
-                theta.add(sequence=s, frame=k, timestamp_s=0.1 * k, source=source,
-                          theta_deg=math.degrees(v))
+                theta.add(
+                    sequence=s,
+                    frame=k,
+                    timestamp_s=0.1 * k,
+                    source=source,
+                    theta_deg=math.degrees(v),
+                )
     timing: dict[str, dict[str, float]] = {}
     for m in methods:
         present = [runs[s].runs[m] for s in names if not runs[s].runs[m].missing]
@@ -276,35 +306,51 @@ def kitti_report_data(
         timing[m] = {
             "odometry_ms": math.nan,
             "estimation_ms": 1000 * sum(r.seconds for r in present) / frames_n
-            if frames_n else math.nan,
-            "depth_ms": (1000 * sum(r.depth_seconds for r in present) / frames_n
-                         if frames_n and getattr(ESTIMATORS[m], "needs_depth", False)
-                         else math.nan),
+            if frames_n
+            else math.nan,
+            "depth_ms": (
+                1000 * sum(r.depth_seconds for r in present) / frames_n
+                if frames_n and getattr(ESTIMATORS[m], "needs_depth", False)
+                else math.nan
+            ),
             "frames": float(frames_n),
         }
-    boxes_kind = ("ground-truth boxes" if BoxSource(cfg.boxes) is BoxSource.GT
-                  else "PointRCNN detections matched to the truth by IoU")
+    boxes_kind = (
+        "ground-truth boxes"
+        if BoxSource(cfg.boxes) is BoxSource.GT
+        else "PointRCNN detections matched to the truth by IoU"
+    )
     notes = [
         f"Protocol: {boxes_kind}; "
         f"ground truth = KITTI label z of Car/Van, truncated 0, occluded <= 1, 0 < z <= 80 m; "
         f"{report['protocol']['cap_rule']}.",
-        "Rotation per method: " + ", ".join(
-            f"{m} = {r or 'none'}" for m, r in report["protocol"]["rotation_per_method"].items())
+        "Rotation per method: "
+        + ", ".join(
+            f"{m} = {r or 'none'}" for m, r in report["protocol"]["rotation_per_method"].items()
+        )
         + ".",
         "Odometry time is not measured on KITTI tracking: the rotations are precomputed pose "
         "files (ORB-SLAM3, OXTS). Estimation = the estimator's own time; depth = reading the "
         "depth maps (file read, not network inference). The 2D detector is excluded.",
     ]
     return ReportData(
-        title=opts.title, source=root, kind=SourceKind.KITTI_TRACKING, methods=methods,
+        title=opts.title,
+        source=root,
+        kind=SourceKind.KITTI_TRACKING,
+        methods=methods,
         sequences=names,
         summaries={s: {m: report["methods"][m]["sequences"][s] for m in methods} for s in names},
         overall={m: report["methods"][m]["overall"] for m in methods},
         pooled={m: report["methods"][m]["pooled_sequences"] for m in methods},
-        common=report.get("overall_common"), timing=timing, records=records, theta=theta,
-        protocol=report["protocol"], notes=notes,
-        truth_source=RotationSource.OXTS.value if any(
-            RotationSource.OXTS.value in r.theta_rad for r in runs.values()) else None,
+        common=report.get("overall_common"),
+        timing=timing,
+        records=records,
+        theta=theta,
+        protocol=report["protocol"],
+        notes=notes,
+        truth_source=RotationSource.OXTS.value
+        if any(RotationSource.OXTS.value in r.theta_rad for r in runs.values())
+        else None,
     )
 
 
@@ -314,8 +360,7 @@ def _float(value: str, path: Path, line: int, name: str) -> float:
     try:
         return float(value)
     except ValueError:
-        raise InputFileError(path, f"'{value}' is not a number", line=line,
-                             field=name) from None
+        raise InputFileError(path, f"'{value}' is not a number", line=line, field=name) from None
 
 
 def _read_csv(path: Path, required: Sequence[str]) -> tuple[list[str], list[dict[str, str]]]:
@@ -324,8 +369,11 @@ def _read_csv(path: Path, required: Sequence[str]) -> tuple[list[str], list[dict
         header = list(reader.fieldnames or [])
         absent = [c for c in required if c not in header]
         if absent:
-            raise InputFileError(path, f"missing column(s) {', '.join(absent)} "
-                                       f"(header: {', '.join(header) or 'none'})", line=1)
+            raise InputFileError(
+                path,
+                f"missing column(s) {', '.join(absent)} (header: {', '.join(header) or 'none'})",
+                line=1,
+            )
         return header, list(reader)
 
 
@@ -374,32 +422,45 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
             reason = row.get("reason", "") or ""
             by_method.setdefault(method, []).append((d, g, reason))
             tid = row.get("track_id", "")
-            records.add(sequence=seq, frame=frame,
-                        timestamp_s=_float(row.get("timestamp_s", ""), path, lineno,
-                                           "timestamp_s"),
-                        track_id=int(_float(tid, path, lineno, "track_id")) if tid else -1,
-                        method=method, rotation="", distance_m=d, gt_distance_m=g,
-                        scored=False, reason=reason,
-                        theta_deg=_float(row.get("theta_deg", ""), path, lineno, "theta_deg"))
+            records.add(
+                sequence=seq,
+                frame=frame,
+                timestamp_s=_float(row.get("timestamp_s", ""), path, lineno, "timestamp_s"),
+                track_id=int(_float(tid, path, lineno, "track_id")) if tid else -1,
+                method=method,
+                rotation="",
+                distance_m=d,
+                gt_distance_m=g,
+                scored=False,
+                reason=reason,
+                theta_deg=_float(row.get("theta_deg", ""), path, lineno, "theta_deg"),
+            )
         sets.setdefault(seq, {})
         for method, vals in by_method.items():
             if method in sets[seq]:
                 raise ConfigurationError(
                     f"method {method} appears twice for sequence {seq} (another run folder "
-                    f"besides {folder} has it): give one run per method and sequence")
+                    f"besides {folder} has it): give one run per method and sequence"
+                )
             dist = np.array([v[0] for v in vals])
             gt = np.array([v[1] for v in vals])
             capped, ok = cap_estimates(dist, np.array([v[2] for v in vals], dtype=object))
             ok &= np.isfinite(gt) & (gt > 0)
-            sets[seq][method] = ScoredSet(capped[ok], gt[ok], n_gt=int(np.isfinite(gt).sum()),
-                                          n_unscored=int((np.isfinite(gt) & ~ok).sum()))
-        _read_frame_log(folder, seq, list(by_method), len(by_seq[seq]) > 1, theta, timing_acc,
-                        theta_truth_seqs)
+            sets[seq][method] = ScoredSet(
+                capped[ok],
+                gt[ok],
+                n_gt=int(np.isfinite(gt).sum()),
+                n_unscored=int((np.isfinite(gt) & ~ok).sum()),
+            )
+        _read_frame_log(
+            folder, seq, list(by_method), len(by_seq[seq]) > 1, theta, timing_acc, theta_truth_seqs
+        )
     methods = sorted({m for s in sets.values() for m in s})
     if not methods:
-        raise InputFileError(folders[0] / "records.csv", "no records"
-                             + (f" of method(s) {', '.join(opts.methods)}" if opts.methods
-                                else ""))
+        raise InputFileError(
+            folders[0] / "records.csv",
+            "no records" + (f" of method(s) {', '.join(opts.methods)}" if opts.methods else ""),
+        )
     # mark which records were scored (same rule as above)
     rec_d, rec_g = records.array("distance_m"), records.array("gt_distance_m")
     capped_all, ok_all = cap_estimates(rec_d, np.asarray(records.data["reason"], dtype=object))
@@ -418,36 +479,58 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
             else:
                 summaries[s][m] = summarise(
                     [ScoredSet(np.zeros(0), np.zeros(0), 0, info={"missing": "not in records"})],
-                    False)
+                    False,
+                )
     overall = {m: summarise([sets[s][m] for s in pooled[m]], False) for m in methods}
     common = None
     if len({tuple(v) for v in pooled.values()}) > 1:
         shared = [s for s in names if all(s in pooled[m] for m in methods)]
-        common = {"sequences": shared,
-                  "methods": {m: summarise([sets[s][m] for s in shared], False)
-                              for m in methods}}
-    timing = {m: {key: (float(np.mean(timing_acc[f"{m}\0{key}"]))
-                        if f"{m}\0{key}" in timing_acc else math.nan)
-                  for key in ("odometry_ms", "estimation_ms", "depth_ms")} for m in methods}
+        common = {
+            "sequences": shared,
+            "methods": {m: summarise([sets[s][m] for s in shared], False) for m in methods},
+        }
+    timing = {
+        m: {
+            key: (
+                float(np.mean(timing_acc[f"{m}\0{key}"]))
+                if f"{m}\0{key}" in timing_acc
+                else math.nan
+            )
+            for key in ("odometry_ms", "estimation_ms", "depth_ms")
+        }
+        for m in methods
+    }
     for m in methods:
         timing[m]["frames"] = float(len(timing_acc.get(f"{m}\0estimation_ms", [])))
     notes = [
-        "Source: `slopedist run` output (records.csv, frames.csv) of "
-        + compact_names(names) + ".",
-        ("Ground truth: column " + ", ".join(TRUTH_COLUMNS) + " of records.csv; the same cap "
-         "rule as KITTI (estimates above 80 m count as 80 m, below-horizon targets as 80 m).")
-        if truth_found else
-        "No ground-truth column in records.csv (" + ", ".join(TRUTH_COLUMNS) + "): "
+        "Source: `slopedist run` output (records.csv, frames.csv) of " + compact_names(names) + ".",
+        (
+            "Ground truth: column " + ", ".join(TRUTH_COLUMNS) + " of records.csv; the same cap "
+            "rule as KITTI (estimates above 80 m count as 80 m, below-horizon targets as 80 m)."
+        )
+        if truth_found
+        else "No ground-truth column in records.csv (" + ", ".join(TRUTH_COLUMNS) + "): "
         "the accuracy tables are empty; distances over time are shown without truth.",
         "Times are the per-frame means of frames.csv (odometry_ms, estimation_ms, depth_ms); "
         "the 2D detector is excluded.",
     ]
     return ReportData(
-        title=opts.title, source=root, kind=SourceKind.RUN, methods=methods, sequences=names,
-        summaries=summaries, overall=overall, pooled=pooled, common=common, timing=timing,
-        records=records, theta=theta,
-        protocol={"source": "run", "folders": [str(f) for f in folders]}, notes=notes,
-        truth_source="truth" if theta_truth_seqs else None, has_truth=truth_found,
+        title=opts.title,
+        source=root,
+        kind=SourceKind.RUN,
+        methods=methods,
+        sequences=names,
+        summaries=summaries,
+        overall=overall,
+        pooled=pooled,
+        common=common,
+        timing=timing,
+        records=records,
+        theta=theta,
+        protocol={"source": "run", "folders": [str(f) for f in folders]},
+        notes=notes,
+        truth_source="truth" if theta_truth_seqs else None,
+        has_truth=truth_found,
     )
 
 
@@ -460,14 +543,24 @@ def _truth_frame_log(folder: Path) -> Path | None:
     """``frames.csv`` of the ``slopedist simulate`` output a run folder lies in (its true θ),
     if any."""
     parent = folder.parent
-    if (parent / "info.json").is_file() and (parent / "frames.csv").is_file() and (
-            parent / "truth.csv").is_file():
+    if (
+        (parent / "info.json").is_file()
+        and (parent / "frames.csv").is_file()
+        and (parent / "truth.csv").is_file()
+    ):
         return parent / "frames.csv"
     return None
 
 
-def _read_frame_log(folder: Path, seq: str, methods: list[str], shared: bool, theta: Columns,
-                    timing_acc: dict[str, list[float]], theta_truth_seqs: set[str]) -> None:
+def _read_frame_log(
+    folder: Path,
+    seq: str,
+    methods: list[str],
+    shared: bool,
+    theta: Columns,
+    timing_acc: dict[str, list[float]],
+    theta_truth_seqs: set[str],
+) -> None:
     """Add a run folder's per-frame θ (source ``run``, or the folder's name when several runs
     share the sequence), the true θ (once per sequence: from the folder's ``frames.csv`` or
     from the simulation it lies in) and the per-frame times of its methods."""
@@ -476,30 +569,42 @@ def _read_frame_log(folder: Path, seq: str, methods: list[str], shared: bool, th
         return
     fheader, frows = _read_csv(frames_path, ("frame",))
     source = folder.name if shared else "run"
-    truth_path: Path | None = frames_path if any(c in fheader for c in THETA_TRUTH_COLUMNS) \
-        else _truth_frame_log(folder)
+    truth_path: Path | None = (
+        frames_path if any(c in fheader for c in THETA_TRUTH_COLUMNS) else _truth_frame_log(folder)
+    )
     if truth_path is not None and seq not in theta_truth_seqs:
-        theader, trows = (fheader, frows) if truth_path == frames_path else _read_csv(
-            truth_path, ("frame",))
+        theader, trows = (
+            (fheader, frows) if truth_path == frames_path else _read_csv(truth_path, ("frame",))
+        )
         t_col = next((c for c in THETA_TRUTH_COLUMNS if c in theader), None)
         if t_col is not None:
             theta_truth_seqs.add(seq)
             for lineno, row in enumerate(trows, start=2):
-                theta.add(sequence=seq, frame=int(_float(row["frame"], truth_path, lineno,
-                                                         "frame")),
-                          timestamp_s=_float(row.get("timestamp_s", ""), truth_path, lineno,
-                                             "timestamp_s"),
-                          source="truth", theta_deg=_float(row[t_col], truth_path, lineno, t_col))
-    values = {key: [_float(row[key], frames_path, lineno, key)
-                    for lineno, row in enumerate(frows, start=2)]
-              for key in ("theta_deg", "odometry_ms", "estimation_ms", "depth_ms")
-              if key in fheader}
+                theta.add(
+                    sequence=seq,
+                    frame=int(_float(row["frame"], truth_path, lineno, "frame")),
+                    timestamp_s=_float(
+                        row.get("timestamp_s", ""), truth_path, lineno, "timestamp_s"
+                    ),
+                    source="truth",
+                    theta_deg=_float(row[t_col], truth_path, lineno, t_col),
+                )
+    values = {
+        key: [
+            _float(row[key], frames_path, lineno, key) for lineno, row in enumerate(frows, start=2)
+        ]
+        for key in ("theta_deg", "odometry_ms", "estimation_ms", "depth_ms")
+        if key in fheader
+    }
     if any(math.isfinite(v) for v in values.get("theta_deg", [])):
         for lineno, (row, th) in enumerate(zip(frows, values["theta_deg"]), start=2):
-            theta.add(sequence=seq, frame=int(_float(row["frame"], frames_path, lineno, "frame")),
-                      timestamp_s=_float(row.get("timestamp_s", ""), frames_path, lineno,
-                                         "timestamp_s"),
-                      source=source, theta_deg=th)
+            theta.add(
+                sequence=seq,
+                frame=int(_float(row["frame"], frames_path, lineno, "frame")),
+                timestamp_s=_float(row.get("timestamp_s", ""), frames_path, lineno, "timestamp_s"),
+                source=source,
+                theta_deg=th,
+            )
     for key, column in values.items():
         if key == "theta_deg":
             continue
@@ -546,25 +651,32 @@ def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
                 continue  # no records of m in this scenario
             n = _demo_number(scenarios, path, name, "frames")
             frames += n
-            est += n * _demo_number(scenarios, path, name, "methods", m,
-                                    "estimation_ms_per_frame")
+            est += n * _demo_number(scenarios, path, name, "methods", m, "estimation_ms_per_frame")
             odo += n * _demo_number(scenarios, path, name, "odometry_ms_per_frame")
         rotation = (results.get("methods") or {}).get(m, {}).get("rotation")
         data.timing[m] = {
             "odometry_ms": odo / frames if frames and rotation == "odometry" else math.nan,
             "estimation_ms": est / frames if frames else math.nan,
-            "depth_ms": math.nan, "frames": frames,
+            "depth_ms": math.nan,
+            "frames": frames,
         }
     config = results.get("config") or {}
-    odometry = ("the built-in visual odometry on the rendered frames"
-                if config.get("odometry", "visual") == "visual" else
-                "the TRUE rotations (demo --odometry truth)")
+    odometry = (
+        "the built-in visual odometry on the rendered frames"
+        if config.get("odometry", "visual") == "visual"
+        else "the TRUE rotations (demo --odometry truth)"
+    )
     data.kind = SourceKind.SYNTHETIC
-    data.protocol = {"source": "synthetic", "demo": str(root), "config": config,
-                     "demo_protocol": results.get("protocol")}
+    data.protocol = {
+        "source": "synthetic",
+        "demo": str(root),
+        "config": config,
+        "demo_protocol": results.get("protocol"),
+    }
     data.notes = [
         "Source: `slopedist demo` output (synthetic hills) of scenarios "
-        + compact_names(data.sequences) + f"; rotations from {odometry}; noisy detector boxes.",
+        + compact_names(data.sequences)
+        + f"; rotations from {odometry}; noisy detector boxes.",
         "Ground truth: the synthetic targets' KITTI z (camera z of the 3D box's bottom centre); "
         "the same cap rule as KITTI (estimates above 80 m count as 80 m, below-horizon "
         "targets as 80 m).",
@@ -578,8 +690,9 @@ def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
     return data
 
 
-def report_data(source: str | Path, opts: ReportOptions,
-                on_sequence: Callable[[str], None] | None = None) -> ReportData:
+def report_data(
+    source: str | Path, opts: ReportOptions, on_sequence: Callable[[str], None] | None = None
+) -> ReportData:
     """The report's data from any supported source (see :func:`detect_source`)."""
     kind = detect_source(source)
     if kind is SourceKind.KITTI_TRACKING:
@@ -612,8 +725,9 @@ class Table:
 
 
 def _best(values: Sequence[Any], larger_is_better: bool = False) -> list[bool]:
-    arr = np.array([v if isinstance(v, float) and math.isfinite(v) else np.nan
-                    for v in values], dtype=float)
+    arr = np.array(
+        [v if isinstance(v, float) and math.isfinite(v) else np.nan for v in values], dtype=float
+    )
     if not np.isfinite(arr).any():
         return [False] * len(values)
     best = np.nanmax(arr) if larger_is_better else np.nanmin(arr)
@@ -635,37 +749,61 @@ def table1(data: ReportData) -> Table:
     bold.append([False, False, *(_best(vals) if data.common is None else [False] * len(vals))])
     notes = []
     for m in data.methods:
-        miss = {s: data.summaries[s][m]["missing"] for s in data.sequences
-                if data.summaries[s][m].get("missing")}
+        miss = {
+            s: data.summaries[s][m]["missing"]
+            for s in data.sequences
+            if data.summaries[s][m].get("missing")
+        }
         if miss:
-            notes.append(f"{m}: no result on {', '.join(miss)} ({next(iter(miss.values()))}); "
-                         f"its overall pools {compact_names(data.pooled[m]) or 'nothing'}.")
+            notes.append(
+                f"{m}: no result on {', '.join(miss)} ({next(iter(miss.values()))}); "
+                f"its overall pools {compact_names(data.pooled[m]) or 'nothing'}."
+            )
     if data.common is not None:
         cm = data.common["methods"]
         vals = [float(cm[m]["rmse"]) for m in data.methods]
         rows.append(["common", max(int(cm[m]["n"]) for m in data.methods), *vals])
         bold.append([False, False, *_best(vals)])
-        notes.append("common: every method pooled over the sequences all of them ran on ("
-                     + (compact_names(data.common["sequences"]) or "none") + ").")
+        notes.append(
+            "common: every method pooled over the sequences all of them ran on ("
+            + (compact_names(data.common["sequences"]) or "none")
+            + ")."
+        )
     else:
-        notes.append("overall: pooled over all targets of "
-                     + compact_names(data.sequences) + ".")
-    return Table("table1_rmse", "Table 1: RMSE (m) per sequence and method",
-                 ["sequence", "n", *data.methods], rows, bold, "\n".join(notes), {1: "d"})
+        notes.append("overall: pooled over all targets of " + compact_names(data.sequences) + ".")
+    return Table(
+        "table1_rmse",
+        "Table 1: RMSE (m) per sequence and method",
+        ["sequence", "n", *data.methods],
+        rows,
+        bold,
+        "\n".join(notes),
+        {1: "d"},
+    )
 
 
-EXT_KEYS = (("n", "n", None), ("rmse", "RMSE", False), ("mae", "MAE", False),
-            ("abs_rel", "AbsRel", False), ("sq_rel", "SqRel", False),
-            ("rmse_log", "RMSElog", False), ("delta_1.25", "δ<1.25", True),
-            ("delta_1.25^2", "δ<1.25²", True), ("delta_1.25^3", "δ<1.25³", True))
+EXT_KEYS = (
+    ("n", "n", None),
+    ("rmse", "RMSE", False),
+    ("mae", "MAE", False),
+    ("abs_rel", "AbsRel", False),
+    ("sq_rel", "SqRel", False),
+    ("rmse_log", "RMSElog", False),
+    ("delta_1.25", "δ<1.25", True),
+    ("delta_1.25^2", "δ<1.25²", True),
+    ("delta_1.25^3", "δ<1.25³", True),
+)
 
 
-def extended_table(data: ReportData, scope: dict[str, dict[str, Any]], title: str,
-                   key: str, compare: bool = True) -> Table:
+def extended_table(
+    data: ReportData, scope: dict[str, dict[str, Any]], title: str, key: str, compare: bool = True
+) -> Table:
     """Overall metrics per method (errors: lower is better; δ: higher is better); best in bold
     when ``compare`` (the methods were scored on the same targets)."""
-    rows = [[m, *(float(scope[m][k]) if k != "n" else int(scope[m][k])
-                  for k, _, _ in EXT_KEYS)] for m in data.methods]
+    rows = [
+        [m, *(float(scope[m][k]) if k != "n" else int(scope[m][k]) for k, _, _ in EXT_KEYS)]
+        for m in data.methods
+    ]
     bold = [[False] * (len(EXT_KEYS) + 1) for _ in rows]
     for j, (_, _, larger) in enumerate(EXT_KEYS, start=1):
         if larger is None or not compare:
@@ -673,8 +811,9 @@ def extended_table(data: ReportData, scope: dict[str, dict[str, Any]], title: st
         for i, b in enumerate(_best([r[j] for r in rows], larger)):
             bold[i][j] = b
     fmts = {1: "d", 4: ".3f", 5: ".3f", 6: ".3f", 7: ".3f", 8: ".3f", 9: ".3f"}
-    return Table(key, title, ["method", *(label for _, label, _ in EXT_KEYS)], rows, bold,
-                 formats=fmts)
+    return Table(
+        key, title, ["method", *(label for _, label, _ in EXT_KEYS)], rows, bold, formats=fmts
+    )
 
 
 def bins_table(data: ReportData, scope: dict[str, dict[str, Any]], pooled_note: str) -> Table:
@@ -683,19 +822,32 @@ def bins_table(data: ReportData, scope: dict[str, dict[str, Any]], pooled_note: 
     bold: list[list[bool]] = []
     for lo, hi in DISTANCE_BINS_M:
         label = f"{lo:g}-{hi:g}"
-        block = [[label, m, int(scope[m]["bins"][label]["n"]),
-                  float(scope[m]["bins"][label]["rmse"]),
-                  float(scope[m]["bins"][label]["abs_rel"]),
-                  float(scope[m]["bins"][label]["delta_1.25"])] for m in data.methods]
+        block = [
+            [
+                label,
+                m,
+                int(scope[m]["bins"][label]["n"]),
+                float(scope[m]["bins"][label]["rmse"]),
+                float(scope[m]["bins"][label]["abs_rel"]),
+                float(scope[m]["bins"][label]["delta_1.25"]),
+            ]
+            for m in data.methods
+        ]
         marks = [[False] * 6 for _ in block]
         for j, larger in ((3, False), (4, False), (5, True)):
             for i, b in enumerate(_best([r[j] for r in block], larger)):
                 marks[i][j] = b
         rows += block
         bold += marks
-    return Table("metrics_by_distance", "Metrics per ground-truth distance bin (m)",
-                 ["bin (m)", "method", "n", "RMSE", "AbsRel", "δ<1.25"], rows, bold,
-                 pooled_note, {2: "d", 4: ".3f", 5: ".3f"})
+    return Table(
+        "metrics_by_distance",
+        "Metrics per ground-truth distance bin (m)",
+        ["bin (m)", "method", "n", "RMSE", "AbsRel", "δ<1.25"],
+        rows,
+        bold,
+        pooled_note,
+        {2: "d", 4: ".3f", 5: ".3f"},
+    )
 
 
 def table2(data: ReportData) -> Table:
@@ -707,12 +859,20 @@ def table2(data: ReportData) -> Table:
         finite = [p for p in parts if math.isfinite(p)]
         rows.append([m, *parts, float(sum(finite)) if finite else math.nan])
     bold = [[False, False, False, False, b] for b in _best([r[4] for r in rows])]
-    note = ("Time per frame in milliseconds, averaged over every frame of the sequences each "
-            "method ran on; '-' = not applicable or not measured. The 2D detector is excluded "
-            "(shared by every method).")
-    return Table("table2_time", "Table 2: time per frame (ms)",
-                 ["method", "odometry", "estimation", "depth", "total"], rows, bold, note,
-                 {1: ".3f", 2: ".3f", 3: ".3f", 4: ".3f"})
+    note = (
+        "Time per frame in milliseconds, averaged over every frame of the sequences each "
+        "method ran on; '-' = not applicable or not measured. The 2D detector is excluded "
+        "(shared by every method)."
+    )
+    return Table(
+        "table2_time",
+        "Table 2: time per frame (ms)",
+        ["method", "odometry", "estimation", "depth", "total"],
+        rows,
+        bold,
+        note,
+        {1: ".3f", 2: ".3f", 3: ".3f", 4: ".3f"},
+    )
 
 
 def theta_table(data: ReportData) -> Table | None:
@@ -732,20 +892,35 @@ def theta_table(data: ReportData) -> Table | None:
         t_by_frame = dict(zip(frame[truth], th[truth]))
         for o in others:
             sel = (seq == s) & (src == o)
-            diffs = np.array([v - t_by_frame[k] for k, v in zip(frame[sel], th[sel])
-                              if k in t_by_frame and math.isfinite(v)
-                              and math.isfinite(t_by_frame[k])])
+            diffs = np.array(
+                [
+                    v - t_by_frame[k]
+                    for k, v in zip(frame[sel], th[sel])
+                    if k in t_by_frame and math.isfinite(v) and math.isfinite(t_by_frame[k])
+                ]
+            )
             if diffs.size:
-                rows.append([s, o, int(diffs.size), float(np.sqrt(np.mean(diffs**2))),
-                             float(np.max(np.abs(diffs))),
-                             float(np.sqrt(np.mean(th[truth] ** 2)))])
+                rows.append(
+                    [
+                        s,
+                        o,
+                        int(diffs.size),
+                        float(np.sqrt(np.mean(diffs**2))),
+                        float(np.max(np.abs(diffs))),
+                        float(np.sqrt(np.mean(th[truth] ** 2))),
+                    ]
+                )
     if not rows:
         return None
-    return Table("theta_agreement", f"Ego gradient θ against {_truth_name(data)} (deg)",
-                 ["sequence", "source", "frames", "RMS diff", "max |diff|", "RMS θ truth"],
-                 rows, [[False] * 6 for _ in rows],
-                 "θ of eq. 4 over the 1 s look-back, per frame, in degrees.",
-                 {2: "d", 3: ".3f", 4: ".3f", 5: ".3f"})
+    return Table(
+        "theta_agreement",
+        f"Ego gradient θ against {_truth_name(data)} (deg)",
+        ["sequence", "source", "frames", "RMS diff", "max |diff|", "RMS θ truth"],
+        rows,
+        [[False] * 6 for _ in rows],
+        "θ of eq. 4 over the 1 s look-back, per frame, in degrees.",
+        {2: "d", 3: ".3f", 4: ".3f", 5: ".3f"},
+    )
 
 
 def _truth_name(data: ReportData) -> str:
@@ -761,16 +936,28 @@ def report_tables(data: ReportData) -> list[Table]:
     if data.has_truth:
         tables.append(table1(data))
         if data.common is not None:
-            tables.append(extended_table(
-                data, data.common["methods"],
-                "Extended metrics, every method on the common sequences ("
-                + compact_names(data.common["sequences"]) + ")", "metrics_common"))
-            tables.append(bins_table(data, data.common["methods"],
-                                     "Pooled over the common sequences."))
-        tables.append(extended_table(data, data.overall,
-                                     "Extended metrics, overall (each method pooled over the "
-                                     "sequences it ran on)", "metrics_overall",
-                                     compare=data.common is None))
+            tables.append(
+                extended_table(
+                    data,
+                    data.common["methods"],
+                    "Extended metrics, every method on the common sequences ("
+                    + compact_names(data.common["sequences"])
+                    + ")",
+                    "metrics_common",
+                )
+            )
+            tables.append(
+                bins_table(data, data.common["methods"], "Pooled over the common sequences.")
+            )
+        tables.append(
+            extended_table(
+                data,
+                data.overall,
+                "Extended metrics, overall (each method pooled over the sequences it ran on)",
+                "metrics_overall",
+                compare=data.common is None,
+            )
+        )
         if data.common is None:
             tables.append(bins_table(data, data.overall, "Pooled over all sequences."))
     tables.append(table2(data))
@@ -782,22 +969,35 @@ def report_tables(data: ReportData) -> list[Table]:
 
 def format_text(table: Table) -> str:
     """Plain text, best values marked with ``*``."""
-    rows = [[table.cell(i, j) + ("*" if table.bold[i][j] else "")
-             for j in range(len(table.headers))] for i in range(len(table.rows))]
-    return table.title + "\n" + format_table(table.headers, rows) + (
-        "\n" + table.note if table.note else "")
+    rows = [
+        [table.cell(i, j) + ("*" if table.bold[i][j] else "") for j in range(len(table.headers))]
+        for i in range(len(table.rows))
+    ]
+    return (
+        table.title
+        + "\n"
+        + format_table(table.headers, rows)
+        + ("\n" + table.note if table.note else "")
+    )
 
 
 def format_markdown(table: Table) -> str:
     """GitHub Markdown, best values in bold."""
+
     def md(i: int, j: int) -> str:
         c = table.cell(i, j)
         return f"**{c}**" if table.bold[i][j] else c
 
-    lines = [f"### {table.title}", "", "| " + " | ".join(table.headers) + " |",
-             "|" + "|".join("---:" if j else ":---" for j in range(len(table.headers))) + "|"]
-    lines += ["| " + " | ".join(md(i, j) for j in range(len(table.headers))) + " |"
-              for i in range(len(table.rows))]
+    lines = [
+        f"### {table.title}",
+        "",
+        "| " + " | ".join(table.headers) + " |",
+        "|" + "|".join("---:" if j else ":---" for j in range(len(table.headers))) + "|",
+    ]
+    lines += [
+        "| " + " | ".join(md(i, j) for j in range(len(table.headers))) + " |"
+        for i in range(len(table.rows))
+    ]
     if table.note:
         lines += ["", *(f"{n}  " for n in table.note.splitlines())]
     return "\n".join(lines)
@@ -805,18 +1005,26 @@ def format_markdown(table: Table) -> str:
 
 def format_html(table: Table) -> str:
     """An HTML ``<table>`` with a caption; best values in ``<b>``."""
+
     def td(i: int, j: int) -> str:
         c = html.escape(table.cell(i, j))
         return f"<td><b>{c}</b></td>" if table.bold[i][j] else f"<td>{c}</td>"
 
     head = "".join(f"<th>{html.escape(h)}</th>" for h in table.headers)
-    body = "\n".join("<tr>" + "".join(td(i, j) for j in range(len(table.headers))) + "</tr>"
-                     for i in range(len(table.rows)))
-    note = ('<p class="note">' + "<br>".join(html.escape(n) for n in table.note.splitlines())
-            + "</p>") if table.note else ""
-    return (f'<section id="{table.key}"><h2>{html.escape(table.title)}</h2>\n'
-            f'<table><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>{note}'
-            f"</section>")
+    body = "\n".join(
+        "<tr>" + "".join(td(i, j) for j in range(len(table.headers))) + "</tr>"
+        for i in range(len(table.rows))
+    )
+    note = (
+        ('<p class="note">' + "<br>".join(html.escape(n) for n in table.note.splitlines()) + "</p>")
+        if table.note
+        else ""
+    )
+    return (
+        f'<section id="{table.key}"><h2>{html.escape(table.title)}</h2>\n'
+        f"<table><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>{note}"
+        f"</section>"
+    )
 
 
 # --- figures --------------------------------------------------------------------------------
@@ -886,8 +1094,7 @@ def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure
             ms = sel & (meth == m)
             order = np.argsort(t[ms])
             ax.plot(t[ms][order], d[ms][order], ".-", ms=3, lw=1, color=colors[m], label=m)
-        first = sel & (meth == data.methods[0]) if (sel & (meth == data.methods[0])).any() \
-            else sel
+        first = sel & (meth == data.methods[0]) if (sel & (meth == data.methods[0])).any() else sel
         order = np.argsort(t[first])
         if np.isfinite(g[first]).any():
             ax.plot(t[first][order], g[first][order], "k-", lw=2, label="truth")
@@ -897,9 +1104,12 @@ def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure
     axes[-1, 0].set_xlabel("time (s)")
     axes[0, 0].legend(fontsize=7, ncol=min(len(data.methods) + 1, 7), loc="upper right")
     fig.tight_layout()
-    return Figure("distance_over_time.png",
-                  "Estimated distance against the truth over time for chosen tracks "
-                  "(capped at 80 m; gaps are frames without an estimate).", _png(fig))
+    return Figure(
+        "distance_over_time.png",
+        "Estimated distance against the truth over time for chosen tracks "
+        "(capped at 80 m; gaps are frames without an estimate).",
+        _png(fig),
+    )
 
 
 def figure_error_vs_distance(data: ReportData) -> Figure | None:
@@ -912,10 +1122,12 @@ def figure_error_vs_distance(data: ReportData) -> Figure | None:
     scored = np.asarray(data.records.data["scored"], dtype=bool)
     where = "every sequence"
     if data.common is not None:
-        scored &= np.isin(np.asarray(data.records.data["sequence"], dtype=object),
-                          data.common["sequences"])
-        where = "the sequences every method ran on (" + compact_names(
-            data.common["sequences"]) + ")"
+        scored &= np.isin(
+            np.asarray(data.records.data["sequence"], dtype=object), data.common["sequences"]
+        )
+        where = (
+            "the sequences every method ran on (" + compact_names(data.common["sequences"]) + ")"
+        )
     if not (scored & np.isfinite(g)).any():
         return None
     edges = np.arange(0.0, 80.0 + ERROR_BIN_M, ERROR_BIN_M)
@@ -926,24 +1138,32 @@ def figure_error_vs_distance(data: ReportData) -> Figure | None:
         sel = scored & (meth == m)
         err = d[sel] - g[sel]
         idx = np.digitize(g[sel], edges, right=True) - 1
-        rmse = [np.sqrt(np.mean(err[idx == b] ** 2)) if (idx == b).sum() >= 5 else np.nan
-                for b in range(len(centres))]
-        bias = [np.mean(err[idx == b]) if (idx == b).sum() >= 5 else np.nan
-                for b in range(len(centres))]
+        rmse = [
+            np.sqrt(np.mean(err[idx == b] ** 2)) if (idx == b).sum() >= 5 else np.nan
+            for b in range(len(centres))
+        ]
+        bias = [
+            np.mean(err[idx == b]) if (idx == b).sum() >= 5 else np.nan for b in range(len(centres))
+        ]
         a1.plot(centres, rmse, "o-", ms=3, color=colors[m], label=m)
         a2.plot(centres, bias, "o-", ms=3, color=colors[m], label=m)
     a1.set(xlabel="true distance (m)", ylabel="RMSE (m)", title="RMSE per 5 m bin")
-    a2.set(xlabel="true distance (m)", ylabel="mean error (m)",
-           title="mean signed error (estimate - truth)")
+    a2.set(
+        xlabel="true distance (m)",
+        ylabel="mean error (m)",
+        title="mean signed error (estimate - truth)",
+    )
     a2.axhline(0, color="k", lw=0.8)
     for a in (a1, a2):
         a.grid(alpha=0.3)
     a1.legend(fontsize=7)
     fig.tight_layout()
-    return Figure("error_vs_distance.png",
-                  f"Error against the true distance per method, pooled over {where} (bins "
-                  f"with at least 5 targets).",
-                  _png(fig))
+    return Figure(
+        "error_vs_distance.png",
+        f"Error against the true distance per method, pooled over {where} (bins "
+        f"with at least 5 targets).",
+        _png(fig),
+    )
 
 
 def figure_theta(data: ReportData, max_panels: int = 12) -> Figure | None:
@@ -964,31 +1184,38 @@ def figure_theta(data: ReportData, max_panels: int = 12) -> Figure | None:
     cols = min(3, len(shown))
     rows = math.ceil(len(shown) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 2.3 * rows), squeeze=False)
-    for ax in axes.ravel()[len(shown):]:
+    for ax in axes.ravel()[len(shown) :]:
         ax.axis("off")
     for ax, s in zip(axes.ravel(), shown):
         # the truth first, wide and grey, so that the sources drawn over it stay visible
         for source in sorted(set(src[seq == s]), key=lambda x: x != data.truth_source):
             sel = (seq == s) & (src == source)
             truth = source == data.truth_source
-            ax.plot(t[sel], th[sel], "-", lw=3.0 if truth else 1.0,
-                    color="0.6" if truth else None,
-                    label=(source if source == "truth" else f"{source} (truth)") if truth
-                    else source)
+            ax.plot(
+                t[sel],
+                th[sel],
+                "-",
+                lw=3.0 if truth else 1.0,
+                color="0.6" if truth else None,
+                label=(source if source == "truth" else f"{source} (truth)") if truth else source,
+            )
         ax.set_title(f"sequence {s}", fontsize=9)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("θ (deg)")
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
-    what = (f"against {_truth_name(data)}" if data.truth_source
-            else "(no IMU truth in this source)")
-    return Figure("theta_over_time.png",
-                  f"Ego road gradient θ (eq. 4, 1 s look-back) over time {what}.", _png(fig))
+    what = f"against {_truth_name(data)}" if data.truth_source else "(no IMU truth in this source)"
+    return Figure(
+        "theta_over_time.png",
+        f"Ego road gradient θ (eq. 4, 1 s look-back) over time {what}.",
+        _png(fig),
+    )
 
 
-def report_figures(data: ReportData, tracks: Sequence[tuple[str, int]] | None,
-                   n_tracks: int) -> list[Figure]:
+def report_figures(
+    data: ReportData, tracks: Sequence[tuple[str, int]] | None, n_tracks: int
+) -> list[Figure]:
     """Every figure of the report (matplotlib, Agg backend)."""
     import matplotlib
 
@@ -1034,8 +1261,9 @@ def write_columns(columns: Columns, path: Path, parquet: bool) -> list[Path]:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        pq.write_table(pa.table({n: columns.data[n] for n in columns.names}),
-                       path.with_suffix(".parquet"))
+        pq.write_table(
+            pa.table({n: columns.data[n] for n in columns.names}), path.with_suffix(".parquet")
+        )
         written.append(path.with_suffix(".parquet"))
     return written
 
@@ -1065,11 +1293,11 @@ def metrics_columns(data: ReportData) -> Columns:
             if k == "bins":
                 for b, bm in v.items():
                     for bk, bv in bm.items():
-                        cols.add(scope=scope, sequence=seq, method=m, bin_m=b, metric=bk,
-                                 value=float(bv))
+                        cols.add(
+                            scope=scope, sequence=seq, method=m, bin_m=b, metric=bk, value=float(bv)
+                        )
             elif isinstance(v, (int, float)):
-                cols.add(scope=scope, sequence=seq, method=m, bin_m="all", metric=k,
-                         value=float(v))
+                cols.add(scope=scope, sequence=seq, method=m, bin_m="all", metric=k, value=float(v))
 
     for s in data.sequences:
         for m in data.methods:
@@ -1081,8 +1309,7 @@ def metrics_columns(data: ReportData) -> Columns:
             emit("common", ",".join(data.common["sequences"]), m, data.common["methods"][m])
     for m in data.methods:
         for k, v in data.timing[m].items():
-            cols.add(scope="timing", sequence="", method=m, bin_m="all", metric=k,
-                     value=float(v))
+            cols.add(scope="timing", sequence="", method=m, bin_m="all", metric=k, value=float(v))
     return cols
 
 
@@ -1101,9 +1328,13 @@ class WrittenReport:
     files: list[Path]
 
 
-def write_report(data: ReportData, out_dir: str | Path,
-                 tracks: Sequence[tuple[str, int]] | None = None, n_tracks: int = 4,
-                 parquet: bool | None = None) -> WrittenReport:
+def write_report(
+    data: ReportData,
+    out_dir: str | Path,
+    tracks: Sequence[tuple[str, int]] | None = None,
+    n_tracks: int = 4,
+    parquet: bool | None = None,
+) -> WrittenReport:
     """Write ``report.md``, ``report.html``, figures, JSON, CSV (and Parquet) under ``out_dir``.
 
     Files are written one by one as soon as each is ready.
@@ -1119,20 +1350,39 @@ def write_report(data: ReportData, out_dir: str | Path,
     files += write_columns(data.records, out / "records.csv", use_parquet)
     if len(data.theta):
         files += write_columns(data.theta, out / "theta.csv", use_parquet)
-    (out / "report.json").write_text(json.dumps(_json_ready(
-        {"title": data.title, "source": str(data.source), "kind": data.kind.value,
-         "protocol": data.protocol, "methods": data.methods, "sequences": data.sequences,
-         "sequence_summaries": data.summaries, "overall": data.overall, "pooled": data.pooled,
-         "overall_common": data.common, "timing": data.timing, "notes": data.notes}),
-        indent=1, allow_nan=False) + "\n")
+    (out / "report.json").write_text(
+        json.dumps(
+            _json_ready(
+                {
+                    "title": data.title,
+                    "source": str(data.source),
+                    "kind": data.kind.value,
+                    "protocol": data.protocol,
+                    "methods": data.methods,
+                    "sequences": data.sequences,
+                    "sequence_summaries": data.summaries,
+                    "overall": data.overall,
+                    "pooled": data.pooled,
+                    "overall_common": data.common,
+                    "timing": data.timing,
+                    "notes": data.notes,
+                }
+            ),
+            indent=1,
+            allow_nan=False,
+        )
+        + "\n"
+    )
     files.append(out / "report.json")
     figures = report_figures(data, tracks, n_tracks)
     for f in figures:
         (out / "figures" / f.name).write_bytes(f.png)
         files.append(out / "figures" / f.name)
-    intro = [f"Source: `{data.source}` ({data.kind.value}); methods: "
-             f"{', '.join(data.methods)}; sequences: {compact_names(data.sequences)}.",
-             *data.notes]
+    intro = [
+        f"Source: `{data.source}` ({data.kind.value}); methods: "
+        f"{', '.join(data.methods)}; sequences: {compact_names(data.sequences)}.",
+        *data.notes,
+    ]
     md = [f"# {data.title}", "", *[f"- {n}" for n in intro], ""]
     for t in tables:
         md += [format_markdown(t), ""]
@@ -1140,17 +1390,24 @@ def write_report(data: ReportData, out_dir: str | Path,
         md += [f"![{f.caption}](figures/{f.name})", "", f"*{f.caption}*", ""]
     (out / "report.md").write_text("\n".join(md))
     files.append(out / "report.md")
-    body = [f"<h1>{html.escape(data.title)}</h1>",
-            "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in intro) + "</ul>"]
+    body = [
+        f"<h1>{html.escape(data.title)}</h1>",
+        "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in intro) + "</ul>",
+    ]
     body += [format_html(t) for t in tables]
     for f in figures:
         b64 = base64.b64encode(f.png).decode("ascii")
-        body.append(f'<figure><img class="figure" alt="{html.escape(f.caption)}" '
-                    f'src="data:image/png;base64,{b64}"><figcaption>{html.escape(f.caption)}'
-                    f"</figcaption></figure>")
-    page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<title>{html.escape(data.title)}</title>{HTML_STYLE}</head>\n<body>\n"
-            + "\n".join(body) + f"\n{HTML_SCRIPT}\n</body></html>\n")
+        body.append(
+            f'<figure><img class="figure" alt="{html.escape(f.caption)}" '
+            f'src="data:image/png;base64,{b64}"><figcaption>{html.escape(f.caption)}'
+            f"</figcaption></figure>"
+        )
+    page = (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f"<title>{html.escape(data.title)}</title>{HTML_STYLE}</head>\n<body>\n"
+        + "\n".join(body)
+        + f"\n{HTML_SCRIPT}\n</body></html>\n"
+    )
     (out / "report.html").write_text(page)
     files.append(out / "report.html")
     return WrittenReport(out, tables, figures, files)

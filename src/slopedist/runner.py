@@ -57,17 +57,45 @@ FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
 
 FRAME_FIELDS = (
-    "frame", "timestamp_s", "source", "frame_status", "detail", "odometry_state", "inliers",
-    "segment", "theta_deg", "boxes", "estimated", "odometry_ms", "estimation_ms", "depth_ms",
+    "frame",
+    "timestamp_s",
+    "source",
+    "frame_status",
+    "detail",
+    "odometry_state",
+    "inliers",
+    "segment",
+    "theta_deg",
+    "boxes",
+    "estimated",
+    "odometry_ms",
+    "estimation_ms",
+    "depth_ms",
 )
 """Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels or without
 odometry; ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation;
 ``depth_ms`` is empty where no depth map was made."""
 
-GENERIC_FOLDER_NAMES = frozenset({
-    "image_0", "image_1", "image_2", "image_3", "image_00", "image_01", "image_02", "image_03",
-    "image_l", "image_r", "images", "image", "frames", "data", "rgb", "img",
-})
+GENERIC_FOLDER_NAMES = frozenset(
+    {
+        "image_0",
+        "image_1",
+        "image_2",
+        "image_3",
+        "image_00",
+        "image_01",
+        "image_02",
+        "image_03",
+        "image_l",
+        "image_r",
+        "images",
+        "image",
+        "frames",
+        "data",
+        "rgb",
+        "img",
+    }
+)
 """Frame folder names that say nothing about the sequence (KITTI layouts, ``simulate``
 output); :func:`default_sequence_name` takes the parent folder's name instead."""
 
@@ -138,8 +166,10 @@ class RunResult:
     failed_frame: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in asdict(self).items()}
+        return {
+            k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in asdict(self).items()
+        }
 
 
 class _FrameLog:
@@ -232,11 +262,14 @@ def run_frames(
             the failing one and ``run.json`` says where it stopped.
     """
     if estimator.needs_depth and depth is None:
-        raise ConfigurationError(f"method '{estimator.name}' needs depth maps (a depth folder "
-                                 "or an ONNX depth model)")
+        raise ConfigurationError(
+            f"method '{estimator.name}' needs depth maps (a depth folder or an ONNX depth model)"
+        )
     if depth is not None and not estimator.needs_depth:
-        raise ConfigurationError(f"depth maps were given, but method '{estimator.name}' does "
-                                 "not use them (use the depthmap method)")
+        raise ConfigurationError(
+            f"depth maps were given, but method '{estimator.name}' does "
+            "not use them (use the depthmap method)"
+        )
     out = Path(out_dir)
     width, height = frames.frame_size()
     check_calibration(camera, width, height, str(frames.path))
@@ -244,9 +277,11 @@ def run_frames(
     records_path = out / RECORDS_NAME
     has_truth = CSV_TRUTH_COLUMN in boxes.extra
     result = RunResult(
-        str(out), estimator.name,
+        str(out),
+        estimator.name,
         sequence=sequence if sequence else default_sequence_name(frames.path),
-        overlay=str(overlay) if overlay else None, ground_truth=has_truth,
+        overlay=str(overlay) if overlay else None,
+        ground_truth=has_truth,
         depth_source=describe_depth(depth) if depth is not None else None,
     )
     by_frame = boxes.frame_index()
@@ -260,8 +295,13 @@ def run_frames(
     writer = RecordWriter.open(records_path)
     log = _FrameLog(out / FRAMES_NAME)
     painter = OverlayWriter(overlay, overlay_fps) if overlay else None
-    bar = tqdm(total=frames.expected_frames(), unit="frame", disable=not progress,
-               dynamic_ncols=True, desc="slopedist run")
+    bar = tqdm(
+        total=frames.expected_frames(),
+        unit="frame",
+        disable=not progress,
+        dynamic_ncols=True,
+        desc="slopedist run",
+    )
     start = time.perf_counter()
     frame: Frame | None = None
     last_segment = 0
@@ -302,8 +342,11 @@ def run_frames(
             est = stream.update(k, frame.timestamp_s, R, frame_boxes, frame.image, depth_m)
             t_est = (time.perf_counter() - t0) * 1e3
             times["estimation"].add(t_est)
-            rows = list(iter_records(frame_boxes, np.broadcast_to(frame.timestamp_s, (k + 1,)),
-                                     est, estimator.name))
+            rows = list(
+                iter_records(
+                    frame_boxes, np.broadcast_to(frame.timestamp_s, (k + 1,)), est, estimator.name
+                )
+            )
             if has_truth:
                 for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
                     row[CSV_TRUTH_COLUMN] = float(g)
@@ -311,27 +354,40 @@ def run_frames(
             n_est = int(np.sum(est.reason == ""))
             result.records += len(rows)
             result.estimated += n_est
-            log.write({
-                "frame": k, "timestamp_s": frame.timestamp_s, "source": frame.source,
-                "frame_status": frame.status.value, "detail": frame.detail,
-                "odometry_state": odo_state, "inliers": inliers, "segment": last_segment,
-                "theta_deg": math.degrees(theta), "boxes": len(frame_boxes),
-                "estimated": n_est, "odometry_ms": t_odo, "estimation_ms": t_est,
-                "depth_ms": t_depth,
-            })
+            log.write(
+                {
+                    "frame": k,
+                    "timestamp_s": frame.timestamp_s,
+                    "source": frame.source,
+                    "frame_status": frame.status.value,
+                    "detail": frame.detail,
+                    "odometry_state": odo_state,
+                    "inliers": inliers,
+                    "segment": last_segment,
+                    "theta_deg": math.degrees(theta),
+                    "boxes": len(frame_boxes),
+                    "estimated": n_est,
+                    "odometry_ms": t_odo,
+                    "estimation_ms": t_est,
+                    "depth_ms": t_depth,
+                }
+            )
             if painter is not None:
                 if frame.image is not None:
-                    head = f"frame {k}  theta {math.degrees(theta):+.2f} deg" if math.isfinite(
-                        theta) else f"frame {k}  no rotation ({odo_state or 'no odometry'})"
-                    painter.write(k, draw_fig3_overlay(frame.image, camera, frame_boxes, est,
-                                                       theta, head))
+                    head = (
+                        f"frame {k}  theta {math.degrees(theta):+.2f} deg"
+                        if math.isfinite(theta)
+                        else f"frame {k}  no rotation ({odo_state or 'no odometry'})"
+                    )
+                    painter.write(
+                        k, draw_fig3_overlay(frame.image, camera, frame_boxes, est, theta, head)
+                    )
                 else:
                     painter.write_placeholder(k, f"frame {k}: {frame.status.value}")
             result.frames += 1
             bar.update(1)
     except (Exception, KeyboardInterrupt) as exc:
-        where = (f"frame {frame.index} ({frame.source})" if frame is not None
-                 else "the first frame")
+        where = f"frame {frame.index} ({frame.source})" if frame is not None else "the first frame"
         result.error = f"{type(exc).__name__}: {exc}"
         result.failed_frame = frame.index if frame is not None else None
         _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
@@ -340,7 +396,8 @@ def run_frames(
             raise RunAbortedError(
                 f"run stopped at {where}: {exc}. The records of the {result.frames} frames "
                 f"before it are in {records_path} (per-frame log {out / FRAMES_NAME})",
-                result.failed_frame, records_path,
+                result.failed_frame,
+                records_path,
             ) from exc
         raise
     _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
@@ -348,9 +405,15 @@ def run_frames(
     return result
 
 
-def _finish(result: RunResult, start: float, status_count: Counter[str],
-            odo_count: Counter[str], times: dict[str, RunningMean],
-            by_frame: dict[int, BoxTable], seen: set[int]) -> None:
+def _finish(
+    result: RunResult,
+    start: float,
+    status_count: Counter[str],
+    odo_count: Counter[str],
+    times: dict[str, RunningMean],
+    by_frame: dict[int, BoxTable],
+    seen: set[int],
+) -> None:
     result.elapsed_s = time.perf_counter() - start
     result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
     result.frame_status = dict(status_count)
@@ -361,8 +424,14 @@ def _finish(result: RunResult, start: float, status_count: Counter[str],
     result.boxes_without_frame = sum(len(b) for k, b in by_frame.items() if k not in seen)
 
 
-def _close(writer: RecordWriter, log: _FrameLog, painter: OverlayWriter | None, bar: tqdm,
-           out: Path, result: RunResult) -> None:
+def _close(
+    writer: RecordWriter,
+    log: _FrameLog,
+    painter: OverlayWriter | None,
+    bar: tqdm,
+    out: Path,
+    result: RunResult,
+) -> None:
     bar.close()
     writer.close()
     log.close()

@@ -36,9 +36,16 @@ FIG3_TEXT = (255, 255, 255)
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
-def dashed_hline(image: NDArray[np.uint8], row: int, x0: int, x1: int,
-                 colour: tuple[int, int, int], dash_px: int = 12, gap_px: int = 8,
-                 thickness: int = 1) -> None:
+def dashed_hline(
+    image: NDArray[np.uint8],
+    row: int,
+    x0: int,
+    x1: int,
+    colour: tuple[int, int, int],
+    dash_px: int = 12,
+    gap_px: int = 8,
+    thickness: int = 1,
+) -> None:
     """Draw a dashed horizontal line at ``row`` from column ``x0`` to ``x1`` (in place)."""
     x = x0
     while x < x1:
@@ -46,8 +53,14 @@ def dashed_hline(image: NDArray[np.uint8], row: int, x0: int, x1: int,
         x += dash_px + gap_px
 
 
-def outlined_text(image: NDArray[np.uint8], text: str, org: tuple[int, int], scale: float,
-                  colour: tuple[int, int, int], thickness: int = 1) -> None:
+def outlined_text(
+    image: NDArray[np.uint8],
+    text: str,
+    org: tuple[int, int],
+    scale: float,
+    colour: tuple[int, int, int],
+    thickness: int = 1,
+) -> None:
     """``cv2.putText`` with a dark one-pixel outline, so the text reads on any background.
 
     The outline is the same text drawn in black at the eight one-pixel offsets (a thicker
@@ -57,13 +70,18 @@ def outlined_text(image: NDArray[np.uint8], text: str, org: tuple[int, int], sca
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
             if dx or dy:
-                cv2.putText(image, text, (x + dx, y + dy), _FONT, scale, (0, 0, 0), thickness,
-                            cv2.LINE_AA)
+                cv2.putText(
+                    image, text, (x + dx, y + dy), _FONT, scale, (0, 0, 0), thickness, cv2.LINE_AA
+                )
     cv2.putText(image, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
-def _label(image: NDArray[np.uint8], lines: list[str], box: NDArray[np.float64],
-           colour: tuple[int, int, int]) -> None:
+def _label(
+    image: NDArray[np.uint8],
+    lines: list[str],
+    box: NDArray[np.float64],
+    colour: tuple[int, int, int],
+) -> None:
     """Write ``lines`` beside ``box``: right of it, or left of it when there is no room."""
     scale, thick = 0.45, 1
     sizes = [cv2.getTextSize(t, _FONT, scale, thick)[0] for t in lines]
@@ -102,8 +120,9 @@ def draw_fig3_overlay(
             ``estimates.theta_rad`` (first finite value). No green line when θ is unknown.
         header: optional text written at the top left (e.g. frame number and θ).
     """
-    out = np.asarray(cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy(),
-                     dtype=np.uint8)
+    out = np.asarray(
+        cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy(), dtype=np.uint8
+    )
     h, w = out.shape[:2]
     if theta_rad is None:
         finite = estimates.theta_rad[np.isfinite(estimates.theta_rad)]
@@ -140,8 +159,17 @@ def draw_fig3_overlay(
 
 # --- plots over time (synthetic demo) ---------------------------------------------------------
 
-METHOD_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
-                  "tab:pink", "tab:olive", "tab:cyan")
+METHOD_COLOURS = (
+    "tab:blue",
+    "tab:orange",
+    "tab:green",
+    "tab:red",
+    "tab:purple",
+    "tab:brown",
+    "tab:pink",
+    "tab:olive",
+    "tab:cyan",
+)
 """Matplotlib colours of the methods, in the order they are given."""
 
 
@@ -189,8 +217,9 @@ def _figure(rows: int, height_per_row: float) -> Any:
     return fig
 
 
-def plot_distance_series(path: str | Path, t_s: NDArray[np.float64],
-                         series: list[DistanceSeries], title: str = "") -> Path:
+def plot_distance_series(
+    path: str | Path, t_s: NDArray[np.float64], series: list[DistanceSeries], title: str = ""
+) -> Path:
     """Distance vs. truth over time, one panel per target; saved as PNG (Agg, no display).
 
     Frames where a method's box bottom is at or above its vanishing line are marked by a
@@ -208,8 +237,13 @@ def plot_distance_series(path: str | Path, t_s: NDArray[np.float64],
             ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
             miss = s.below_horizon.get(name)
             if miss is not None and miss.any():
-                ax.plot(t_s[miss], np.full(int(miss.sum()), top * (0.97 - 0.03 * i)), "v",
-                        color=colour, ms=4)
+                ax.plot(
+                    t_s[miss],
+                    np.full(int(miss.sum()), top * (0.97 - 0.03 * i)),
+                    "v",
+                    color=colour,
+                    ms=4,
+                )
         ax.set_ylim(0.0, top)
         ax.set_ylabel(f"target {s.track_id}: z (m)")
         ax.grid(alpha=0.3)
@@ -222,10 +256,15 @@ def plot_distance_series(path: str | Path, t_s: NDArray[np.float64],
     return path
 
 
-def plot_theta_series(path: str | Path, t_s: NDArray[np.float64],
-                      theta_est: NDArray[np.float64], theta_true: NDArray[np.float64],
-                      targets: list[TargetTheta], title: str = "",
-                      thresholds_px: tuple[float, ...] = (0.0, -10.0, -20.0)) -> Path:
+def plot_theta_series(
+    path: str | Path,
+    t_s: NDArray[np.float64],
+    theta_est: NDArray[np.float64],
+    theta_true: NDArray[np.float64],
+    targets: list[TargetTheta],
+    title: str = "",
+    thresholds_px: tuple[float, ...] = (0.0, -10.0, -20.0),
+) -> Path:
     """θ vs. truth over time (top) and Δy of eq. 6 per target (bottom); saved as PNG.
 
     Top panel, degrees: θ of eq. 4 from the odometry and from the true rotations, and per
@@ -238,13 +277,26 @@ def plot_theta_series(path: str | Path, t_s: NDArray[np.float64],
     ax1.plot(t_s, np.degrees(theta_est), color="tab:blue", lw=1.2, label="θ, odometry")
     for i, tt in enumerate(targets):
         colour = METHOD_COLOURS[(i + 2) % len(METHOD_COLOURS)]
-        ax1.plot(t_s, np.degrees(tt.needed), color=colour, ls=":", lw=1.5,
-                 label=f"target {tt.track_id}: θ that makes eq. 1 exact")
+        ax1.plot(
+            t_s,
+            np.degrees(tt.needed),
+            color=colour,
+            ls=":",
+            lw=1.5,
+            label=f"target {tt.track_id}: θ that makes eq. 1 exact",
+        )
         if np.isfinite(tt.adjusted).any():
-            ax1.plot(t_s, np.degrees(tt.adjusted), color=colour, ls="--", lw=1.0,
-                     label=f"target {tt.track_id}: paper's adjusted θ")
-        ax2.plot(t_s, tt.delta_y, color=colour, lw=1.0, marker=".", ms=3,
-                 label=f"target {tt.track_id}")
+            ax1.plot(
+                t_s,
+                np.degrees(tt.adjusted),
+                color=colour,
+                ls="--",
+                lw=1.0,
+                label=f"target {tt.track_id}: paper's adjusted θ",
+            )
+        ax2.plot(
+            t_s, tt.delta_y, color=colour, lw=1.0, marker=".", ms=3, label=f"target {tt.track_id}"
+        )
     for th in thresholds_px:
         ax2.axhline(th, color="grey", lw=0.8, ls="--")
     ax1.set_ylabel("θ (deg)")

@@ -35,15 +35,32 @@ def simulated(tmp_path: Path) -> dict[str, Path]:
 
 
 def _args(paths: dict[str, Path]) -> list[str]:
-    return ["--calib", str(paths["calib"]), "--poses", str(paths["poses"]), "--boxes",
-            str(paths["boxes"])]
+    return [
+        "--calib",
+        str(paths["calib"]),
+        "--poses",
+        str(paths["poses"]),
+        "--boxes",
+        str(paths["boxes"]),
+    ]
 
 
-def test_calibrate_recovers_a_wrong_calibration(simulated: dict[str, Path], tmp_path: Path,
-                                                capsys: pytest.CaptureFixture) -> None:
+def test_calibrate_recovers_a_wrong_calibration(
+    simulated: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     out = tmp_path / "cal.json"
-    code = main(["calibrate", *_args(simulated), "--height", "1.815", "--mount-angle", "1",
-                 "--json", str(out)])
+    code = main(
+        [
+            "calibrate",
+            *_args(simulated),
+            "--height",
+            "1.815",
+            "--mount-angle",
+            "1",
+            "--json",
+            str(out),
+        ]
+    )
     assert code == 0
     text = capsys.readouterr().out
     assert "use: --mount-angle" in text
@@ -53,8 +70,9 @@ def test_calibrate_recovers_a_wrong_calibration(simulated: dict[str, Path], tmp_
     assert 0 < final["height_sigma_m"] < 0.1 and final["n_tracks"] >= 5
 
 
-def test_calibrate_without_boxes_is_a_user_error(simulated: dict[str, Path],
-                                                 capsys: pytest.CaptureFixture) -> None:
+def test_calibrate_without_boxes_is_a_user_error(
+    simulated: dict[str, Path], capsys: pytest.CaptureFixture
+) -> None:
     simulated["boxes"].write_text("frame,left,top,right,bottom\n")
     assert main(["calibrate", *_args(simulated)]) == 2
     err = capsys.readouterr().err
@@ -62,7 +80,8 @@ def test_calibrate_without_boxes_is_a_user_error(simulated: dict[str, Path],
 
 
 def test_estimate_with_ours_writes_centre_distances_and_extras(
-        simulated: dict[str, Path], tmp_path: Path) -> None:
+    simulated: dict[str, Path], tmp_path: Path
+) -> None:
     out = tmp_path / "records.csv"
     assert main(["estimate", *_args(simulated), "--method", "ours", "--out", str(out)]) == 0
     rows = list(csv.DictReader(out.open()))

@@ -21,16 +21,30 @@ def small_sequence(tmp_path: Path) -> dict[str, Path]:
     poses = tmp_path / "poses.txt"
     poses.write_text("".join(f"1 0 0 0 0 1 0 0 0 0 1 {k:.1f}\n" for k in range(5)))
     boxes = tmp_path / "boxes.csv"
-    boxes.write_text("frame,left,top,right,bottom,track_id\n0,500,150,600,250,7\n"
-                     "3,500,40,600,90,7\n4,10,20,5,30,8\n")
+    boxes.write_text(
+        "frame,left,top,right,bottom,track_id\n0,500,150,600,250,7\n"
+        "3,500,40,600,90,7\n4,10,20,5,30,8\n"
+    )
     return {"calib": calib, "poses": poses, "boxes": boxes}
 
 
 def test_estimate_writes_records(small_sequence: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "out" / "records.csv"
-    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
-                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"]),
-                 "--method", "paper", "--out", str(out)])
+    code = main(
+        [
+            "estimate",
+            "--calib",
+            str(small_sequence["calib"]),
+            "--poses",
+            str(small_sequence["poses"]),
+            "--boxes",
+            str(small_sequence["boxes"]),
+            "--method",
+            "paper",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     rows = list(csv.DictReader(out.open()))
     assert [r["frame"] for r in rows] == ["0", "3", "4"]
@@ -40,18 +54,39 @@ def test_estimate_writes_records(small_sequence: dict[str, Path], tmp_path: Path
     assert rows[2]["reason"] == "inverted_box"
 
 
-def test_estimate_to_stdout(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture
-                            ) -> None:
-    assert main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
-                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])]) == 0
+def test_estimate_to_stdout(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture) -> None:
+    assert (
+        main(
+            [
+                "estimate",
+                "--calib",
+                str(small_sequence["calib"]),
+                "--poses",
+                str(small_sequence["poses"]),
+                "--boxes",
+                str(small_sequence["boxes"]),
+            ]
+        )
+        == 0
+    )
     assert capsys.readouterr().out.startswith("frame,timestamp_s")
 
 
-def test_poses_not_covering_boxes(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture
-                                  ) -> None:
+def test_poses_not_covering_boxes(
+    small_sequence: dict[str, Path], capsys: pytest.CaptureFixture
+) -> None:
     small_sequence["poses"].write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
-    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
-                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])])
+    code = main(
+        [
+            "estimate",
+            "--calib",
+            str(small_sequence["calib"]),
+            "--poses",
+            str(small_sequence["poses"]),
+            "--boxes",
+            str(small_sequence["boxes"]),
+        ]
+    )
     assert code == 2
     err = capsys.readouterr().err
     assert "1 poses do not cover" in err and "Traceback" not in err
@@ -59,23 +94,52 @@ def test_poses_not_covering_boxes(small_sequence: dict[str, Path], capsys: pytes
 
 @pytest.mark.parametrize(
     ("which", "content", "message"),
-    [("calib", "P2: 1 2 x 4 5 6 7 8 9 10 11 12\n", "line 1, field 'P2[2]'"),
-     ("poses", "1 0 0 0 0 1 0 0 0 0 1\n", "line 1: expected 12 numbers"),
-     ("boxes", "frame,left,top,right,bottom\n0,1,2,3\n", "line 2, field 'bottom'")],
+    [
+        ("calib", "P2: 1 2 x 4 5 6 7 8 9 10 11 12\n", "line 1, field 'P2[2]'"),
+        ("poses", "1 0 0 0 0 1 0 0 0 0 1\n", "line 1: expected 12 numbers"),
+        ("boxes", "frame,left,top,right,bottom\n0,1,2,3\n", "line 2, field 'bottom'"),
+    ],
 )
-def test_malformed_inputs_exit_2(small_sequence: dict[str, Path], capsys: pytest.CaptureFixture,
-                                 which: str, content: str, message: str) -> None:
+def test_malformed_inputs_exit_2(
+    small_sequence: dict[str, Path],
+    capsys: pytest.CaptureFixture,
+    which: str,
+    content: str,
+    message: str,
+) -> None:
     small_sequence[which].write_text(content)
-    code = main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
-                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])])
+    code = main(
+        [
+            "estimate",
+            "--calib",
+            str(small_sequence["calib"]),
+            "--poses",
+            str(small_sequence["poses"]),
+            "--boxes",
+            str(small_sequence["boxes"]),
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and message in err and str(small_sequence[which]) in err
 
 
 def test_unknown_method_is_a_usage_error(small_sequence: dict[str, Path]) -> None:
-    assert main(["estimate", "--calib", str(small_sequence["calib"]), "--poses",
-                 str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"]),
-                 "--method", "magic"]) == 2
+    assert (
+        main(
+            [
+                "estimate",
+                "--calib",
+                str(small_sequence["calib"]),
+                "--poses",
+                str(small_sequence["poses"]),
+                "--boxes",
+                str(small_sequence["boxes"]),
+                "--method",
+                "magic",
+            ]
+        )
+        == 2
+    )
 
 
 def test_eval_missing_data_dir(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -83,11 +147,23 @@ def test_eval_missing_data_dir(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     assert "no KITTI tracking data" in capsys.readouterr().err
 
 
-def test_eval_json_shape(kitti_tracking_dir: Path, tmp_path: Path,
-                         capsys: pytest.CaptureFixture) -> None:
+def test_eval_json_shape(
+    kitti_tracking_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     out = tmp_path / "r.json"
-    code = main(["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0000,0004",
-                 "--methods", "flat,paper", "--json", str(out)])
+    code = main(
+        [
+            "eval",
+            "kitti-tracking",
+            str(kitti_tracking_dir),
+            "--sequences",
+            "0000,0004",
+            "--methods",
+            "flat,paper",
+            "--json",
+            str(out),
+        ]
+    )
     assert code == 0
     report = json.loads(out.read_text())
     assert set(report) == {"protocol", "methods"}

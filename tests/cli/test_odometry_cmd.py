@@ -12,12 +12,12 @@ import pytest
 from slopedist.cli import main
 
 
-def test_eval_on_real_frames(kitti_odometry_dir: Path, tmp_path: Path,
-                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_eval_on_real_frames(
+    kitti_odometry_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "figures" / "seq06.json"
     threads = cv2.getNumThreads()
-    code = main(["odometry", "eval", str(kitti_odometry_dir / "seq06_000-050"), "--json",
-                 str(out)])
+    code = main(["odometry", "eval", str(kitti_odometry_dir / "seq06_000-050"), "--json", str(out)])
     assert code == 0
     assert cv2.getNumThreads() == threads  # one thread only while timing
     printed = json.loads(capsys.readouterr().out)

@@ -34,8 +34,16 @@ def setup(tmp_path: Path, n: int = 4, truth: bool = False) -> list[str]:
     extra = {"gt_distance_m": np.full(n, 20.0)} if truth else {}
     boxes = BoxTable.build(np.arange(n), np.tile(BOX, (n, 1)), np.zeros(n), **extra)
     write_box_csv(boxes, tmp_path / "boxes.csv")
-    return [str(frames), "--calib", str(tmp_path / "calib.txt"), "--boxes",
-            str(tmp_path / "boxes.csv"), "--out", str(tmp_path / "out"), "--quiet"]
+    return [
+        str(frames),
+        "--calib",
+        str(tmp_path / "calib.txt"),
+        "--boxes",
+        str(tmp_path / "boxes.csv"),
+        "--out",
+        str(tmp_path / "out"),
+        "--quiet",
+    ]
 
 
 def records(tmp_path: Path) -> list[dict[str, str]]:
@@ -51,10 +59,25 @@ def frame_log(tmp_path: Path) -> list[dict[str, str]]:
 def test_depth_folder_of_kitti_pngs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     args = setup(tmp_path, truth=True)
     for k in (0, 1, 3):  # no map for frame 2
-        write_kitti_depth_png(tmp_path / "depth" / f"{k:010d}.png",
-                              np.full((H, W), 12.5 + k, np.float32))
-    code = main(["run", *args, "--method", "depthmap", "--odometry", "none", "--depth-dir",
-                 str(tmp_path / "depth"), "--depth-sample", "window", "--sequence", "s1"])
+        write_kitti_depth_png(
+            tmp_path / "depth" / f"{k:010d}.png", np.full((H, W), 12.5 + k, np.float32)
+        )
+    code = main(
+        [
+            "run",
+            *args,
+            "--method",
+            "depthmap",
+            "--odometry",
+            "none",
+            "--depth-dir",
+            str(tmp_path / "depth"),
+            "--depth-sample",
+            "window",
+            "--sequence",
+            "s1",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     err = capsys.readouterr().err
     assert "1 frames with boxes had no depth map" in err and "ground truth" in err
@@ -65,8 +88,20 @@ def test_depth_folder_of_kitti_pngs(tmp_path: Path, capsys: pytest.CaptureFixtur
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["sequence"] == "s1" and summary["depth_source"].startswith("file read")
     # the truth column also serves the oracle median scaling: scale = 20 / depth
-    code = main(["run", *args, "--method", "depthmap", "--depth-dir", str(tmp_path / "depth"),
-                 "--depth-scaling", "truth", "--odometry", "none"])
+    code = main(
+        [
+            "run",
+            *args,
+            "--method",
+            "depthmap",
+            "--depth-dir",
+            str(tmp_path / "depth"),
+            "--depth-scaling",
+            "truth",
+            "--odometry",
+            "none",
+        ]
+    )
     assert code == 0
     assert [r["distance_m"] for r in records(tmp_path)] == ["20", "20", "", "20"]
 
@@ -78,52 +113,102 @@ def test_onnx_depth_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
 
     model = build_model(tmp_path / "tiny.onnx")
     args = setup(tmp_path)
-    code = main(["run", *args, "--method", "depthmap", "--odometry", "none", "--depth-model",
-                 str(model), "--depth-input-size", "24x16", "--depth-mean", "0.1,0.1,0.1",
-                 "--depth-std", "0.5,0.5,0.5", "--depth-scale", "4", "--depth-output",
-                 "inverse"])
+    code = main(
+        [
+            "run",
+            *args,
+            "--method",
+            "depthmap",
+            "--odometry",
+            "none",
+            "--depth-model",
+            str(model),
+            "--depth-input-size",
+            "24x16",
+            "--depth-mean",
+            "0.1,0.1,0.1",
+            "--depth-std",
+            "0.5,0.5,0.5",
+            "--depth-scale",
+            "4",
+            "--depth-output",
+            "inverse",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     for k, row in enumerate(records(tmp_path)):
         x = ((40 + 10 * k) / 255 - 0.1) / 0.5  # every channel, normalised
         expected = 4.0 / (sum(WEIGHTS_RGB) * x + BIAS)
         assert float(row["distance_m"]) == pytest.approx(expected, rel=1e-4)
     assert all(float(r["depth_ms"]) > 0 for r in frame_log(tmp_path))
-    assert "onnx inference" in json.loads((tmp_path / "out" / "run.json").read_text())[
-        "depth_source"]
+    assert (
+        "onnx inference" in json.loads((tmp_path / "out" / "run.json").read_text())["depth_source"]
+    )
 
 
 def test_onnx_without_onnxruntime_is_a_clear_error(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-        capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     args = setup(tmp_path)
     (tmp_path / "m.onnx").write_bytes(b"not read")
     monkeypatch.setitem(sys.modules, "onnxruntime", None)
-    code = main(["run", *args, "--method", "depthmap", "--depth-model", str(tmp_path / "m.onnx"),
-                 "--depth-input-size", "24x16"])
+    code = main(
+        [
+            "run",
+            *args,
+            "--method",
+            "depthmap",
+            "--depth-model",
+            str(tmp_path / "m.onnx"),
+            "--depth-input-size",
+            "24x16",
+        ]
+    )
     assert code == 2
     err = capsys.readouterr().err
     assert "onnxruntime" in err and "slopedist[onnx]" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize(("extra", "message"), [
-    (["--method", "depthmap"], "needs depth maps: give a folder"),
-    (["--method", "paper", "--depth-dir", "DEPTH"], "does not use depth"),
-    (["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-model", "m.onnx"],
-     "either --depth-dir or --depth-model"),
-    (["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-mean", "0,0,0"],
-     "--depth-mean configure an ONNX depth model"),
-    (["--method", "depthmap", "--depth-model", "m.onnx"], "--depth-input-size WIDTHxHEIGHT"),
-    (["--method", "depthmap", "--depth-model", "m.onnx", "--depth-input-size", "24by16"],
-     "is not WIDTHxHEIGHT"),
-    (["--method", "depthmap", "--depth-model", "missing.onnx", "--depth-input-size", "24x16"],
-     "not found"),
-    (["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-scaling", "truth"],
-     "needs the ground-truth distance column 'gt_distance_m'"),
-    (["--method", "depthmap", "--depth-dir", "nowhere"], "depth folder not found"),
-    (["--method", "ego", "--vocab", "v.txt"], "--vocab is only used"),
-])
-def test_bad_depth_options_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                  extra: list[str], message: str) -> None:
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--method", "depthmap"], "needs depth maps: give a folder"),
+        (["--method", "paper", "--depth-dir", "DEPTH"], "does not use depth"),
+        (
+            ["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-model", "m.onnx"],
+            "either --depth-dir or --depth-model",
+        ),
+        (
+            ["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-mean", "0,0,0"],
+            "--depth-mean configure an ONNX depth model",
+        ),
+        (["--method", "depthmap", "--depth-model", "m.onnx"], "--depth-input-size WIDTHxHEIGHT"),
+        (
+            ["--method", "depthmap", "--depth-model", "m.onnx", "--depth-input-size", "24by16"],
+            "is not WIDTHxHEIGHT",
+        ),
+        (
+            [
+                "--method",
+                "depthmap",
+                "--depth-model",
+                "missing.onnx",
+                "--depth-input-size",
+                "24x16",
+            ],
+            "not found",
+        ),
+        (
+            ["--method", "depthmap", "--depth-dir", "DEPTH", "--depth-scaling", "truth"],
+            "needs the ground-truth distance column 'gt_distance_m'",
+        ),
+        (["--method", "depthmap", "--depth-dir", "nowhere"], "depth folder not found"),
+        (["--method", "ego", "--vocab", "v.txt"], "--vocab is only used"),
+    ],
+)
+def test_bad_depth_options_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], message: str
+) -> None:
     if "missing.onnx" in extra:  # the model file is looked for once onnxruntime is there
         pytest.importorskip("onnxruntime")
     args = setup(tmp_path)
@@ -137,8 +222,9 @@ def test_bad_depth_options_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert not (tmp_path / "out").exists()
 
 
-def test_lookback_reaches_the_builtin_odometry(tmp_path: Path,
-                                               monkeypatch: pytest.MonkeyPatch) -> None:
+def test_lookback_reaches_the_builtin_odometry(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     pytest.importorskip("slopedist.odometry.visual")
     cam = Camera(500.0, 160.0, 100.0, height_m=1.5)
     vo = run_cmd.build_odometry("builtin", cam, None, 0.5)

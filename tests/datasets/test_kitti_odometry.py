@@ -17,7 +17,10 @@ P0 = "7.0e+02 0 3.0e+02 0 0 7.0e+02 1.0e+02 0 0 0 1 0"
 
 
 def make_sequence(
-    root: Path, n: int = 4, size: tuple[int, int] = (320, 200), poses: int | None = None,
+    root: Path,
+    n: int = 4,
+    size: tuple[int, int] = (320, 200),
+    poses: int | None = None,
     calib: str = P0,
 ) -> Path:
     """A folder with ``n`` grey frames, ``poses`` ground-truth lines (default n) and calib."""
@@ -67,20 +70,34 @@ def test_extra_poses_are_ignored(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("change", "error", "message"),
     [
-        (lambda r: (r / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n"), DataMismatchError,
-         "1 poses for 4 frames"),
+        (
+            lambda r: (r / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n"),
+            DataMismatchError,
+            "1 poses for 4 frames",
+        ),
         (lambda r: (r / "poses.txt").unlink(), MissingInputError, "ground-truth poses"),
-        (lambda r: (r / "calib.txt").write_text("7e2 0 3e2 0 0 7e2 1e2 0 0 0 1\n"),
-         InputFileError, "line 1"),
-        (lambda r: (r / "calib.txt").write_text(P0.replace("3.0e+02", "9.0e+02") + "\n"),
-         DataMismatchError, "principal point"),
+        (
+            lambda r: (r / "calib.txt").write_text("7e2 0 3e2 0 0 7e2 1e2 0 0 0 1\n"),
+            InputFileError,
+            "line 1",
+        ),
+        (
+            lambda r: (r / "calib.txt").write_text(P0.replace("3.0e+02", "9.0e+02") + "\n"),
+            DataMismatchError,
+            "principal point",
+        ),
         (lambda r: (r / "calib.txt").unlink(), MissingInputError, "calib"),
-        (lambda r: (r / "times.txt").write_text("0\n0.1\n0.1\n0.3\n"), InputFileError,
-         "line 3"),
-        (lambda r: (r / "times.txt").write_text("0\n0.1\n"), DataMismatchError,
-         "2 timestamps for 4 frames"),
-        (lambda r: (r / "image_l" / "000000.png").write_bytes(b"not a png"), InputFileError,
-         "cannot be decoded"),
+        (lambda r: (r / "times.txt").write_text("0\n0.1\n0.1\n0.3\n"), InputFileError, "line 3"),
+        (
+            lambda r: (r / "times.txt").write_text("0\n0.1\n"),
+            DataMismatchError,
+            "2 timestamps for 4 frames",
+        ),
+        (
+            lambda r: (r / "image_l" / "000000.png").write_bytes(b"not a png"),
+            InputFileError,
+            "cannot be decoded",
+        ),
     ],
 )
 def test_bad_input_is_reported(
@@ -114,8 +131,9 @@ def test_read_gray_image_errors(tmp_path: Path) -> None:
         read_gray_image(tmp_path / "x.png")
 
 
-@pytest.mark.parametrize(("sequence", "size"), [("seq06_000-050", (1226, 370)),
-                                                ("unknown_000-050", (1241, 376))])
+@pytest.mark.parametrize(
+    ("sequence", "size"), [("seq06_000-050", (1226, 370)), ("unknown_000-050", (1241, 376))]
+)
 def test_real_sequences(kitti_odometry_dir: Path, sequence: str, size: tuple[int, int]) -> None:
     seq = read_kitti_odometry(kitti_odometry_dir / sequence)
     assert len(seq) == 51

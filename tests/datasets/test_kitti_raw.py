@@ -59,7 +59,8 @@ def test_calib_file_and_camera(tmp_path: Path) -> None:
     path.write_text(
         "P2: 700 0 600 45 0 700 180 0.2 0 0 1 0.003\n"
         "R0_rect: 1 0 0 0 1 0 0 0 1\n"
-        "Tr_velo_to_cam: 0 -1 0 0 0 0 -1 -0.08 1 0 0 -0.27\n")
+        "Tr_velo_to_cam: 0 -1 0 0 0 0 -1 -0.08 1 0 0 -0.27\n"
+    )
     calib = KittiRawCalib.from_file(path)
     assert calib.camera().f == 700 and calib.camera().c_y == 180
     assert calib.T_rect_velo[:3, 3] == pytest.approx([0, -0.08, -0.27])
@@ -80,8 +81,9 @@ def test_read_velodyne_checks_the_size(tmp_path: Path) -> None:
         read_velodyne(tmp_path / "c.bin")
 
 
-def _face(x: tuple[float, float], y: tuple[float, float], z: tuple[float, float],
-          step: float = 0.1) -> np.ndarray:
+def _face(
+    x: tuple[float, float], y: tuple[float, float], z: tuple[float, float], step: float = 0.1
+) -> np.ndarray:
     """Points on an axis-aligned rectangle (one of the ranges has zero length)."""
     axes = [np.arange(a, b + step / 2, step) if b > a else np.array([a]) for a, b in (x, y, z)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
@@ -90,8 +92,12 @@ def _face(x: tuple[float, float], y: tuple[float, float], z: tuple[float, float]
 def _car(x0: float, length: float = 4.0, half_width: float = 0.9) -> np.ndarray:
     """What the LiDAR sees of a car ahead: its rear face and its roof."""
     low, top = -LIDAR_HEIGHT + 0.3, -LIDAR_HEIGHT + 1.5
-    return np.vstack([_face((x0, x0), (-half_width, half_width), (low, top)),
-                      _face((x0, x0 + length), (-half_width, half_width), (top, top))])
+    return np.vstack(
+        [
+            _face((x0, x0), (-half_width, half_width), (low, top)),
+            _face((x0, x0 + length), (-half_width, half_width), (top, top)),
+        ]
+    )
 
 
 def synthetic_scan() -> np.ndarray:

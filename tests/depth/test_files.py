@@ -41,10 +41,10 @@ def test_kitti_png_is_uint16_over_256_with_zero_as_no_value(tmp_path: Path) -> N
 
 
 @settings(max_examples=30, deadline=None)
-@given(arrays(np.float64, (7, 9), elements=st.one_of(
-    st.just(np.nan), st.floats(0.01, 255.0))))
-def test_png_round_trip_within_quantisation(tmp_path_factory: pytest.TempPathFactory,
-                                            depth: np.ndarray) -> None:
+@given(arrays(np.float64, (7, 9), elements=st.one_of(st.just(np.nan), st.floats(0.01, 255.0))))
+def test_png_round_trip_within_quantisation(
+    tmp_path_factory: pytest.TempPathFactory, depth: np.ndarray
+) -> None:
     path = tmp_path_factory.mktemp("png") / "1.png"
     write_kitti_depth_png(path, depth)
     back = read_kitti_depth_png(path)
@@ -141,8 +141,9 @@ def _lidar_depth(root: Path, k: int, shape: tuple[int, int]) -> tuple[np.ndarray
     rows, cols = np.rint(v[inside]).astype(int), np.rint(u[inside]).astype(int)
     np.minimum.at(depth, (rows, cols), z[inside])
     depth[~np.isfinite(depth)] = np.nan
-    lane = inside & (np.abs(pts[:, 1]) < 0.9) & (pts[:, 2] > -1.4) & (pts[:, 0] > 2) & (
-        pts[:, 0] < 25)
+    lane = (
+        inside & (np.abs(pts[:, 1]) < 0.9) & (pts[:, 2] > -1.4) & (pts[:, 0] > 2) & (pts[:, 0] < 25)
+    )
     near = lane & (z < z[lane].min() + 2.0)
     box = np.array([u[near].min(), v[near].min(), u[near].max(), v[near].max()])
     return depth, np.r_[box, np.median(z[near])]
@@ -163,8 +164,9 @@ def test_lidar_depth_png_gives_the_lead_car_distance(tmp_path: Path) -> None:
     est = DepthMapEstimator(camera, sample="lower")
     got = []
     for k, box in zip(LEAD_FRAMES, boxes):
-        frame = FrameInput(k, 0.1 * k, float("nan"), BoxTable.build([k], box[None]),
-                           depth_m=source.depth(k))
+        frame = FrameInput(
+            k, 0.1 * k, float("nan"), BoxTable.build([k], box[None]), depth_m=source.depth(k)
+        )
         out = est.estimate(frame)
         assert out.reason[0] == ""
         got.append(out.distance_m[0])

@@ -34,7 +34,8 @@ def build_model(path: Path, in_h: int = 16, in_w: int = 24) -> Path:
     b = numpy_helper.from_array(np.array([BIAS], np.float32), "B")
     node = helper.make_node("Conv", ["image", "W", "B"], ["depth"])
     graph = helper.make_graph(
-        [node], "tiny_depth",
+        [node],
+        "tiny_depth",
         [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, in_h, in_w])],
         [helper.make_tensor_value_info("depth", TensorProto.FLOAT, [1, 1, in_h, in_w])],
         initializer=[w, b],
@@ -72,12 +73,14 @@ def test_metric_output_rgb_order_normalisation_and_resize(tmp_path: Path) -> Non
 
 def test_inverse_depth_output_and_non_positive_values(tmp_path: Path) -> None:
     path = build_model(tmp_path / "m.onnx")
-    model = OnnxDepthModel(_config(path, output_kind=DepthOutputKind.INVERSE_DEPTH,
-                                   output_scale=12.0))
+    model = OnnxDepthModel(
+        _config(path, output_kind=DepthOutputKind.INVERSE_DEPTH, output_scale=12.0)
+    )
     img = _uniform_bgr(0, 0, 255)  # out = 2·1 + 1 = 3 → 12 / 3 = 4 m
     np.testing.assert_allclose(model.predict(img), 4.0, rtol=1e-5)
-    negative = OnnxDepthModel(_config(path, mean=(10.0, 0.0, 0.0),
-                                      output_kind=DepthOutputKind.INVERSE_DEPTH))
+    negative = OnnxDepthModel(
+        _config(path, mean=(10.0, 0.0, 0.0), output_kind=DepthOutputKind.INVERSE_DEPTH)
+    )
     assert np.all(np.isnan(negative.predict(img)))  # output < 0 → no value
 
 
@@ -86,9 +89,14 @@ def test_source_feeds_the_depthmap_estimator(tmp_path: Path) -> None:
     source = OnnxDepthSource(_config(path, output_scale=2.5))
     camera = Camera(700.0, 25.0, 15.0).with_image_size(50, 30)
     img = _uniform_bgr(0, 0, 255)  # out = 3 → 7.5 m
-    frame = FrameInput(0, 0.0, float("nan"), BoxTable.build([0, 0], [[10, 5, 20, 15],
-                                                                     [60, 5, 70, 15]]),
-                       image=img, depth_m=source.depth(0, img))
+    frame = FrameInput(
+        0,
+        0.0,
+        float("nan"),
+        BoxTable.build([0, 0], [[10, 5, 20, 15], [60, 5, 70, 15]]),
+        image=img,
+        depth_m=source.depth(0, img),
+    )
     out = DepthMapEstimator(camera).estimate(frame)
     assert out.distance_m[0] == pytest.approx(7.5, rel=1e-5)
     assert out.reason[1] == "no_depth"  # box outside the image

@@ -13,7 +13,8 @@ from slopedist.estimators import DepthMapEstimator, FrameInput
 
 synthetic = pytest.importorskip(
     "slopedist.datasets.synthetic.sequence",
-    reason="the synthetic renderer (slopedist.datasets.synthetic) is not in this build")
+    reason="the synthetic renderer (slopedist.datasets.synthetic) is not in this build",
+)
 scenarios = pytest.importorskip("slopedist.datasets.synthetic.scenarios")
 
 FRAMES = (0, 50)
@@ -42,8 +43,7 @@ def test_noisy_true_depth_files_give_the_rear_face_distance(tmp_path: Path, name
         source = FileDepthSource(tmp_path / folder, expected_shape=(h, w))
         est = DepthMapEstimator(camera, sample="window", window_px=9)
         for k, f in frames.items():
-            out = est.estimate(FrameInput(k, f.timestamp_s, 0.0, f.exact,
-                                          depth_m=source.depth(k)))
+            out = est.estimate(FrameInput(k, f.timestamp_s, 0.0, f.exact, depth_m=source.depth(k)))
             rear = seq.truth.z_rear_m[k][seq.truth.in_view[k]]
             assert len(rear) == len(out.distance_m) > 0
             # the box-centre pixel sees the rear face: its depth, not the label's centre z
@@ -57,7 +57,6 @@ def test_scale_less_synthetic_depth_is_recovered_by_contact_scaling() -> None:
     est = DepthMapEstimator(seq.camera.with_image_size(w, h), scaling="contact")
     for k in FRAMES:
         f = seq.frame(k)
-        out = est.estimate(FrameInput(k, f.timestamp_s, 0.0, f.exact,
-                                      depth_m=0.02 * f.depth_m))
+        out = est.estimate(FrameInput(k, f.timestamp_s, 0.0, f.exact, depth_m=0.02 * f.depth_m))
         rear = seq.truth.z_rear_m[k][seq.truth.in_view[k]]
         np.testing.assert_allclose(out.distance_m, rear, rtol=0.05)

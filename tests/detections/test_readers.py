@@ -22,8 +22,16 @@ from slopedist.detections import (
 from slopedist.errors import InputFileError, MissingInputError
 
 coord = st.floats(-2000, 4000, allow_nan=False, allow_infinity=False)
-row = st.tuples(st.integers(0, 10_000), coord, coord, coord, coord, st.integers(-1, 500),
-                st.floats(0, 100, allow_nan=False), st.sampled_from(["Car", "Van", "Truck"]))
+row = st.tuples(
+    st.integers(0, 10_000),
+    coord,
+    coord,
+    coord,
+    coord,
+    st.integers(-1, 500),
+    st.floats(0, 100, allow_nan=False),
+    st.sampled_from(["Car", "Van", "Truck"]),
+)
 TMP = settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_examples=40)
 
 
@@ -42,13 +50,16 @@ def test_csv_round_trip(tmp_path: Path, rows: list[tuple]) -> None:
 
 
 @TMP
-@given(bad=st.text(alphabet="abcxyz!?", min_size=1, max_size=5), col=st.sampled_from(
-    ["left", "top", "right", "bottom"]))
+@given(
+    bad=st.text(alphabet="abcxyz!?", min_size=1, max_size=5),
+    col=st.sampled_from(["left", "top", "right", "bottom"]),
+)
 def test_csv_bad_number_names_line_and_field(tmp_path: Path, bad: str, col: str) -> None:
     path = tmp_path / "boxes.csv"
     values = {"left": "1", "top": "2", "right": "30", "bottom": "40", col: bad}
-    path.write_text("frame,left,top,right,bottom\n0,1,2,3,4\n1,{left},{top},{right},{bottom}\n"
-                    .format(**values))
+    path.write_text(
+        "frame,left,top,right,bottom\n0,1,2,3,4\n1,{left},{top},{right},{bottom}\n".format(**values)
+    )
     with pytest.raises(InputFileError, match=rf"line 3, field '{col}'"):
         read_box_csv(path)
 
@@ -64,8 +75,11 @@ def test_csv_optional_columns_and_header_error(tmp_path: Path) -> None:
 
 
 @TMP
-@given(truth=st.lists(st.one_of(st.none(), st.floats(0.01, 500, allow_nan=False)),
-                      min_size=1, max_size=10))
+@given(
+    truth=st.lists(
+        st.one_of(st.none(), st.floats(0.01, 500, allow_nan=False)), min_size=1, max_size=10
+    )
+)
 def test_csv_ground_truth_column_round_trips(tmp_path: Path, truth: list[float | None]) -> None:
     from slopedist.detections.writers import write_box_csv
 
@@ -78,8 +92,12 @@ def test_csv_ground_truth_column_round_trips(tmp_path: Path, truth: list[float |
     np.testing.assert_array_equal(t.extra["gt_distance_m"], expected)
     back = read_box_csv(write_box_csv(t, tmp_path / "again.csv"))
     np.testing.assert_allclose(back.extra["gt_distance_m"], expected, rtol=1e-5)
-    assert "gt_distance_m" not in read_box_csv(write_box_csv(
-        BoxTable.build([0], [[1, 2, 3, 4]]), tmp_path / "none.csv")).extra
+    assert (
+        "gt_distance_m"
+        not in read_box_csv(
+            write_box_csv(BoxTable.build([0], [[1, 2, 3, 4]]), tmp_path / "none.csv")
+        ).extra
+    )
 
 
 @pytest.mark.parametrize("bad", ["-3", "0", "inf", "nan", "far"])
@@ -97,7 +115,7 @@ def test_csv_nan_box_is_read_then_rejected_per_box(tmp_path: Path) -> None:
     assert list(box_problems(t.boxes)) == ["non_finite_box", "inverted_box", ""]
 
 
-LABEL = ("0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12")
+LABEL = "0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12"
 
 
 def test_kitti_labels(tmp_path: Path) -> None:
@@ -111,11 +129,17 @@ def test_kitti_labels(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("replacement", "match"),
-    [("0 3 Car 0 1 -1.79 296.74 oops", "expected 17 fields"),
-     ("0 3 Car 0 x -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12",
-      "line 2, field 'occluded'"),
-     ("0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 z13 -2.12",
-      "line 2, field 'z'")],
+    [
+        ("0 3 Car 0 1 -1.79 296.74 oops", "expected 17 fields"),
+        (
+            "0 3 Car 0 x -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12",
+            "line 2, field 'occluded'",
+        ),
+        (
+            "0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 z13 -2.12",
+            "line 2, field 'z'",
+        ),
+    ],
 )
 def test_kitti_label_errors(tmp_path: Path, replacement: str, match: str) -> None:
     path = tmp_path / "0000.txt"
@@ -126,8 +150,10 @@ def test_kitti_label_errors(tmp_path: Path, replacement: str, match: str) -> Non
 
 def test_pointrcnn_score_filter_and_error(tmp_path: Path) -> None:
     path = tmp_path / "0000.txt"
-    path.write_text("0,2,298.3,165.2,458.2,293.4,8.3,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.79\n"
-                    "0,2,364.7,137.9,453.8,172.6,-0.45,1.48,1.6,3.87,-9.09,-0.01,32.8,-1.0,-0.8\n")
+    path.write_text(
+        "0,2,298.3,165.2,458.2,293.4,8.3,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.79\n"
+        "0,2,364.7,137.9,453.8,172.6,-0.45,1.48,1.6,3.87,-9.09,-0.01,32.8,-1.0,-0.8\n"
+    )
     assert len(read_pointrcnn(path)) == 2
     kept = read_box_file(path, min_score=2.0)
     assert len(kept) == 1 and kept.score[0] == pytest.approx(8.3)

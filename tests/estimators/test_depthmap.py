@@ -22,10 +22,14 @@ CAR_W, CAR_H = 1.6, 1.5
 
 def car_box(x_m: float, z_m: float, cam: Camera = CAMERA) -> np.ndarray:
     """Pixel box of a car's rear face (1.6 m × 1.5 m) standing on the road at (x, z)."""
-    return np.array([
-        cam.c_x + cam.f * (x_m - CAR_W / 2) / z_m, cam.c_y + cam.f * (cam.height_m - CAR_H) / z_m,
-        cam.c_x + cam.f * (x_m + CAR_W / 2) / z_m, cam.c_y + cam.f * cam.height_m / z_m,
-    ])
+    return np.array(
+        [
+            cam.c_x + cam.f * (x_m - CAR_W / 2) / z_m,
+            cam.c_y + cam.f * (cam.height_m - CAR_H) / z_m,
+            cam.c_x + cam.f * (x_m + CAR_W / 2) / z_m,
+            cam.c_y + cam.f * cam.height_m / z_m,
+        ]
+    )
 
 
 def render(cars: list[tuple[float, float]], cam: Camera = CAMERA) -> np.ndarray:
@@ -42,11 +46,13 @@ def render(cars: list[tuple[float, float]], cam: Camera = CAMERA) -> np.ndarray:
     return depth.astype(np.float32)
 
 
-def frame_of(cars: list[tuple[float, float]], depth: np.ndarray | None, k: int = 0,
-             **extra: np.ndarray) -> FrameInput:
+def frame_of(
+    cars: list[tuple[float, float]], depth: np.ndarray | None, k: int = 0, **extra: np.ndarray
+) -> FrameInput:
     boxes = np.array([car_box(x, z) for x, z in cars]).reshape(-1, 4)
-    return FrameInput(k, 0.1 * k, 0.0, BoxTable.build(np.full(len(boxes), k), boxes, **extra),
-                      depth_m=depth)
+    return FrameInput(
+        k, 0.1 * k, 0.0, BoxTable.build(np.full(len(boxes), k), boxes, **extra), depth_m=depth
+    )
 
 
 CARS = [(-3.0, 9.0), (0.0, 21.5), (3.5, 44.0)]
@@ -65,8 +71,9 @@ def test_is_registered_and_needs_depth_not_rotation() -> None:
     est = make_estimator("depthmap", CAMERA)
     assert isinstance(est, DepthMapEstimator)
     assert est.needs_depth and not est.needs_rotation
-    frame = FrameInput(0, 0.0, math.nan, BoxTable.build([0], [car_box(0, 10)]),
-                       depth_m=render([(0, 10)]))
+    frame = FrameInput(
+        0, 0.0, math.nan, BoxTable.build([0], [car_box(0, 10)]), depth_m=render([(0, 10)])
+    )
     assert est.estimate(frame).distance_m[0] == pytest.approx(10.0)
 
 
@@ -78,19 +85,21 @@ def test_window_median_is_robust_to_noise_and_holes() -> None:
         depth[round((b[1] + b[3]) / 2), round((b[0] + b[2]) / 2)] = np.nan
     centre = DepthMapEstimator(CAMERA, sample="centre").estimate(frame_of(CARS, depth))
     assert list(centre.reason) == ["no_depth"] * 3 and np.all(np.isnan(centre.distance_m))
-    window = DepthMapEstimator(CAMERA, sample="window", window_px=7).estimate(
-        frame_of(CARS, depth))
+    window = DepthMapEstimator(CAMERA, sample="window", window_px=7).estimate(frame_of(CARS, depth))
     np.testing.assert_allclose(window.distance_m, [z for _, z in CARS], rtol=0.03)
 
 
 def test_missing_depth_map_and_boxes_outside_the_image() -> None:
     out = DepthMapEstimator(CAMERA).estimate(frame_of(CARS, None))
     assert list(out.reason) == ["no_depth"] * 3
-    frame = FrameInput(0, 0.0, 0.0, BoxTable.build([0, 0], [[2000, 10, 2100, 50],
-                                                           [5, 50, 3, 60]]),
-                       depth_m=render([]))
-    assert list(DepthMapEstimator(CAMERA).estimate(frame).reason) == ["no_depth",
-                                                                       "inverted_box"]
+    frame = FrameInput(
+        0,
+        0.0,
+        0.0,
+        BoxTable.build([0, 0], [[2000, 10, 2100, 50], [5, 50, 3, 60]]),
+        depth_m=render([]),
+    )
+    assert list(DepthMapEstimator(CAMERA).estimate(frame).reason) == ["no_depth", "inverted_box"]
 
 
 def test_contact_median_scaling_recovers_scale_less_depth() -> None:
@@ -99,8 +108,7 @@ def test_contact_median_scaling_recovers_scale_less_depth() -> None:
     out = est.estimate(frame_of(CARS, 0.37 * render(CARS)))
     np.testing.assert_allclose(out.distance_m, [z for _, z in CARS], rtol=1e-5)
     np.testing.assert_allclose(out.extra["depth_scale"], 1 / 0.37, rtol=1e-5)
-    np.testing.assert_allclose(out.extra["depth_raw_m"], [0.37 * z for _, z in CARS],
-                               rtol=1e-5)
+    np.testing.assert_allclose(out.extra["depth_raw_m"], [0.37 * z for _, z in CARS], rtol=1e-5)
 
 
 def test_truth_scaling_uses_the_supplied_column_and_carries_the_scale() -> None:
@@ -110,8 +118,7 @@ def test_truth_scaling_uses_the_supplied_column_and_carries_the_scale() -> None:
     out = est.estimate(frame_of(cars, 3.0 * render(cars), gt_distance_m=gt))
     np.testing.assert_allclose(out.distance_m, gt, rtol=1e-5)
     # next frame has no truth: the last scale is reused
-    out2 = est.estimate(frame_of(cars, 3.0 * render(cars), k=1,
-                                 gt_distance_m=np.full(2, np.nan)))
+    out2 = est.estimate(frame_of(cars, 3.0 * render(cars), k=1, gt_distance_m=np.full(2, np.nan)))
     np.testing.assert_allclose(out2.distance_m, gt, rtol=1e-5)
     est.reset()
     out3 = est.estimate(frame_of(cars, render(cars), k=0, gt_distance_m=np.full(2, np.nan)))
@@ -129,8 +136,13 @@ def test_cap_at_80_m_and_no_cap() -> None:
 
 
 def test_bad_options_and_depth_size() -> None:
-    for kw in ({"sample": "middle"}, {"scaling": "magic"}, {"window_px": 4},
-               {"lower_fraction": 0.0}, {"max_depth_m": 0.0}):
+    for kw in (
+        {"sample": "middle"},
+        {"scaling": "magic"},
+        {"window_px": 4},
+        {"lower_fraction": 0.0},
+        {"max_depth_m": 0.0},
+    ):
         with pytest.raises(ConfigurationError, match="depthmap"):
             DepthMapEstimator(CAMERA, **kw)  # type: ignore[arg-type]
     with pytest.raises(DataMismatchError, match=r"depth map is 10×5 pixels"):

@@ -31,11 +31,14 @@ def test_imu_rows_are_the_paper_and_ego_estimators_on_oxts() -> None:
     assert ImuEstimator.rotation_source == ImuEgoEstimator.rotation_source == "oxts"
     assert RotationSource(ImuEstimator.rotation_source) is RotationSource.OXTS
     assert PaperEstimator.rotation_source is None
-    boxes = BoxTable.build([0, 0, 0], [[600, 150, 640, 176], [500, 190, 560, 230],
-                                       [700, 160, 720, 170]])
+    boxes = BoxTable.build(
+        [0, 0, 0], [[600, 150, 640, 176], [500, 190, 560, 230], [700, 160, 720, 170]]
+    )
     frame = FrameInput(0, 0.0, np.radians(1.5), boxes)
-    for imu, vo in ((ImuEstimator(CAMERA), PaperEstimator(CAMERA)),
-                    (ImuEgoEstimator(CAMERA), EgoGradientEstimator(CAMERA))):
+    for imu, vo in (
+        (ImuEstimator(CAMERA), PaperEstimator(CAMERA)),
+        (ImuEgoEstimator(CAMERA), EgoGradientEstimator(CAMERA)),
+    ):
         a, b = imu.estimate(frame), vo.estimate(frame)
         np.testing.assert_array_equal(a.distance_m, b.distance_m)
         np.testing.assert_array_equal(a.theta_adj_rad, b.theta_adj_rad)
@@ -46,10 +49,12 @@ def test_imu_is_fed_oxts_beside_orbslam3_and_missing_without_it(
 ) -> None:
     seqs = ["0000", "0014"]
     report = evaluate_kitti_tracking(
-        kitti_tracking_dir, KittiEvalConfig(sequences=seqs, methods=("paper", "imu", "imu-ego")))
+        kitti_tracking_dir, KittiEvalConfig(sequences=seqs, methods=("paper", "imu", "imu-ego"))
+    )
     oxts = evaluate_kitti_tracking(
-        kitti_tracking_dir, KittiEvalConfig(sequences=["0000"], methods=("paper", "ego"),
-                                            rotation=RotationSource.OXTS))
+        kitti_tracking_dir,
+        KittiEvalConfig(sequences=["0000"], methods=("paper", "ego"), rotation=RotationSource.OXTS),
+    )
     m = report["methods"]
     # on 0000 the imu rows are exactly the paper/ego rows run on OXTS rotations
     assert m["imu"]["sequences"]["0000"]["rmse"] == oxts["methods"]["paper"]["overall"]["rmse"]
@@ -65,14 +70,18 @@ def test_imu_is_fed_oxts_beside_orbslam3_and_missing_without_it(
     assert common["sequences"] == ["0000"]
     assert common["methods"]["paper"]["rmse"] == m["paper"]["sequences"]["0000"]["rmse"]
     assert report["protocol"]["rotation_per_method"] == {
-        "paper": "orbslam3", "imu": "oxts", "imu-ego": "oxts"}
+        "paper": "orbslam3",
+        "imu": "oxts",
+        "imu-ego": "oxts",
+    }
     text = format_report_tables(report)
     assert "imu: no result on 0014" in text and "common" in text
 
 
 def test_no_common_row_when_every_method_ran_everywhere(kitti_tracking_dir: Path) -> None:
     report = evaluate_kitti_tracking(
-        kitti_tracking_dir, KittiEvalConfig(sequences=["0000"], methods=("flat", "imu")))
+        kitti_tracking_dir, KittiEvalConfig(sequences=["0000"], methods=("flat", "imu"))
+    )
     assert "overall_common" not in report
     assert report["protocol"]["rotation_per_method"] == {"flat": None, "imu": "oxts"}
 
@@ -81,11 +90,13 @@ def test_depthmap_without_depth_folder_is_a_configuration_error(
     kitti_tracking_dir: Path,
 ) -> None:
     with pytest.raises(ConfigurationError, match="depthmap need depth maps"):
-        evaluate_kitti_tracking(kitti_tracking_dir,
-                                KittiEvalConfig(sequences=["0000"], methods=("depthmap",)))
+        evaluate_kitti_tracking(
+            kitti_tracking_dir, KittiEvalConfig(sequences=["0000"], methods=("depthmap",))
+        )
 
 
 def test_compact_names() -> None:
     assert compact_names(["0000", "0001", "0002", "0005", "x", "0006"]) == (
-        "0000-0002, 0005, x, 0006")
+        "0000-0002, 0005, x, 0006"
+    )
     assert compact_names([]) == ""

@@ -25,8 +25,9 @@ CAR = np.array([1.53, 1.63, 3.88])
 VAN_TALL = np.array([2.4, 1.9, 5.0])  # roof above the camera
 
 
-def _box(x: float, z: float, yaw_deg: float, dims: np.ndarray, v: float = CY,
-         h: float = H_CAM) -> np.ndarray:
+def _box(
+    x: float, z: float, yaw_deg: float, dims: np.ndarray, v: float = CY, h: float = H_CAM
+) -> np.ndarray:
     return cues.project_box(F, CX, v, h, x, z, math.radians(yaw_deg), dims)
 
 
@@ -40,10 +41,12 @@ def test_project_box_centre_on_axis_is_symmetric_and_bottom_is_eq1() -> None:
 
 
 @pytest.mark.parametrize("dims", [CAR, VAN_TALL])
-@pytest.mark.parametrize("x,z,yaw", [(0.0, 8.0, 0.0), (-4.5, 20.0, -31.0), (6.0, 45.0, 12.0),
-                                     (2.0, 70.0, 90.0)])
-def test_height_cue_recovers_the_centre_distance(dims: np.ndarray, x: float, z: float,
-                                                 yaw: float) -> None:
+@pytest.mark.parametrize(
+    "x,z,yaw", [(0.0, 8.0, 0.0), (-4.5, 20.0, -31.0), (6.0, 45.0, 12.0), (2.0, 70.0, 90.0)]
+)
+def test_height_cue_recovers_the_centre_distance(
+    dims: np.ndarray, x: float, z: float, yaw: float
+) -> None:
     b = _box(x, z, yaw, dims)
     e = cues.depth_half_extent(math.radians(yaw), dims[1], dims[2])
     z_hat, dz_dD, dz_dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, dims[0], e)
@@ -57,14 +60,18 @@ def test_height_cue_derivatives_match_finite_differences() -> None:
     e = cues.depth_half_extent(math.radians(5.0), CAR[1], CAR[2])
     z0, dD, dH, de, dh = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     eps = 1e-6
-    assert (cues.height_cue(b[1], b[3] + eps, F, H_CAM, CAR[0], e)[0] - z0) / eps == \
-        pytest.approx(dD, rel=1e-4)
-    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0] + eps, e)[0] - z0) / eps == \
-        pytest.approx(dH, rel=1e-4)
-    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e + eps)[0] - z0) / eps == \
-        pytest.approx(de, rel=1e-4)
-    assert (cues.height_cue(b[1], b[3], F, H_CAM + eps, CAR[0], e)[0] - z0) / eps == \
-        pytest.approx(dh, rel=1e-4)
+    assert (cues.height_cue(b[1], b[3] + eps, F, H_CAM, CAR[0], e)[0] - z0) / eps == pytest.approx(
+        dD, rel=1e-4
+    )
+    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0] + eps, e)[0] - z0) / eps == pytest.approx(
+        dH, rel=1e-4
+    )
+    assert (cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e + eps)[0] - z0) / eps == pytest.approx(
+        de, rel=1e-4
+    )
+    assert (cues.height_cue(b[1], b[3], F, H_CAM + eps, CAR[0], e)[0] - z0) / eps == pytest.approx(
+        dh, rel=1e-4
+    )
 
 
 def test_height_cue_of_a_degenerate_box_is_nan() -> None:
@@ -72,13 +79,21 @@ def test_height_cue_of_a_degenerate_box_is_nan() -> None:
     assert np.isnan(z)
 
 
-@pytest.mark.parametrize("x,z,yaw", [(0.0, 10.0, 0.0), (-4.5, 20.0, -31.0), (8.0, 30.0, 7.0),
-                                     (-3.0, 60.0, 60.0), (5.0, 15.0, 90.0)])
-def test_width_cue_recovers_the_distance_at_the_true_heading(x: float, z: float,
-                                                             yaw: float) -> None:
+@pytest.mark.parametrize(
+    "x,z,yaw",
+    [
+        (0.0, 10.0, 0.0),
+        (-4.5, 20.0, -31.0),
+        (8.0, 30.0, 7.0),
+        (-3.0, 60.0, 60.0),
+        (5.0, 15.0, 90.0),
+    ],
+)
+def test_width_cue_recovers_the_distance_at_the_true_heading(
+    x: float, z: float, yaw: float
+) -> None:
     b = _box(x, z, yaw, CAR)
-    z_hat, dz_dcol, share_w = cues.width_cue(b[0], b[2], F, CX, math.radians(yaw), CAR[1],
-                                             CAR[2])
+    z_hat, dz_dcol, share_w = cues.width_cue(b[0], b[2], F, CX, math.radians(yaw), CAR[1], CAR[2])
     assert z_hat == pytest.approx(z, rel=1e-12)
     assert dz_dcol > 0 and 0.0 <= share_w <= 1.0
 
@@ -100,10 +115,17 @@ def test_width_cue_at_a_wrong_heading_misses() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(x=st.floats(-10, 10), z=st.floats(6, 80), yaw=st.floats(-89, 89),
-       h=st.floats(1.0, 2.5), w=st.floats(1.4, 2.2), length=st.floats(3.0, 6.0))
-def test_height_cue_inverts_the_projection(x: float, z: float, yaw: float, h: float, w: float,
-                                           length: float) -> None:
+@given(
+    x=st.floats(-10, 10),
+    z=st.floats(6, 80),
+    yaw=st.floats(-89, 89),
+    h=st.floats(1.0, 2.5),
+    w=st.floats(1.4, 2.2),
+    length=st.floats(3.0, 6.0),
+)
+def test_height_cue_inverts_the_projection(
+    x: float, z: float, yaw: float, h: float, w: float, length: float
+) -> None:
     dims = np.array([h, w, length])
     e = cues.depth_half_extent(math.radians(yaw), w, length)
     if z - e < 1.0:
@@ -129,7 +151,8 @@ def test_ground_contact_sigma_grows_with_the_square_of_distance() -> None:
     assert s10 == pytest.approx(100.0 / (F * H_CAM))
     # an angle error of σθ moves the contact row by f·σθ
     assert cues.ground_contact_sigma(10.0, F, H_CAM, 0.0, 0.01) == pytest.approx(
-        100.0 / (F * H_CAM) * F * 0.01)
+        100.0 / (F * H_CAM) * F * 0.01
+    )
 
 
 def test_ground_contact_log_cue_variance_matches_the_metric_sigma() -> None:
@@ -150,8 +173,7 @@ def test_fuse_log_cues_weights_by_variance_and_scores_consistency() -> None:
     assert out.mean == pytest.approx(0.8 * math.log(20.0) + 0.2 * math.log(25.0))
     assert out.var == pytest.approx(0.008)
     assert out.var_white == pytest.approx(0.64 * 0.001 + 0.04 * 0.04)
-    far = cues.fuse_log_cues(a, cues.LogCue(np.array(math.log(60.0)), b.var, b.var_white,
-                                            b.loglik))
+    far = cues.fuse_log_cues(a, cues.LogCue(np.array(math.log(60.0)), b.var, b.var_white, b.loglik))
     assert far.loglik < out.loglik  # an inconsistent cue is less likely
     none = cues.fuse_log_cues(a, cues.LogCue(np.array(np.nan), b.var, b.var_white, b.loglik))
     assert none.mean == a.mean and none.var == a.var
@@ -164,12 +186,14 @@ def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     c_h = dH * CAR[0] / zh
-    out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share,
-                              0.085, 0.06, 0.3)
+    out = cues.fuse_size_cues(
+        math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
+    )
     assert math.exp(out.mean) == pytest.approx(z, rel=1e-6)
     # no width: the height cue alone, with the prior's spread
-    alone = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, c_h, np.nan, np.nan, np.nan, np.nan,
-                                0.085, 0.06, 0.3)
+    alone = cues.fuse_size_cues(
+        math.log(zh), 1e-4, 0.0, c_h, np.nan, np.nan, np.nan, np.nan, 0.085, 0.06, 0.3
+    )
     assert alone.mean == pytest.approx(math.log(zh))
     assert alone.var == pytest.approx((c_h * 0.085) ** 2 + 1e-4)
     assert out.var < alone.var
@@ -183,8 +207,9 @@ def test_size_fusion_splits_a_size_surprise_between_the_cues() -> None:
     e = CAR[2] / 2
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
-    out = cues.fuse_size_cues(math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4,
-                              0.0, share, 0.085, 0.06, 0.3)
+    out = cues.fuse_size_cues(
+        math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
+    )
     assert zw < math.exp(out.mean) < zh
     assert abs(math.exp(out.mean) - 40.0) < abs(zh - 40.0)
 
@@ -201,13 +226,13 @@ def test_target_gradient_recovers_a_climbing_target() -> None:
 
 
 def test_collapse_hypotheses_moments() -> None:
-    cue = cues.LogCue(np.array([[1.0, 2.0]]), np.array([[0.1, 0.2]]), np.array([[0.01, 0.02]]),
-                      np.zeros((1, 2)))
+    cue = cues.LogCue(
+        np.array([[1.0, 2.0]]), np.array([[0.1, 0.2]]), np.array([[0.01, 0.02]]), np.zeros((1, 2))
+    )
     out, w = cues.collapse_hypotheses(cue, np.log([[0.25, 0.75]]))
     assert w == pytest.approx(np.array([[0.25, 0.75]]))
     assert out.mean[0] == pytest.approx(1.75)
-    assert out.var[0] == pytest.approx(0.25 * 0.1 + 0.75 * 0.2 + 0.25 * 0.75 ** 2
-                                       + 0.75 * 0.25 ** 2)
+    assert out.var[0] == pytest.approx(0.25 * 0.1 + 0.75 * 0.2 + 0.25 * 0.75**2 + 0.75 * 0.25**2)
     assert out.var_white[0] == pytest.approx(0.25 * 0.01 + 0.75 * 0.02)
 
 
@@ -230,6 +255,7 @@ def test_priors_lookup_and_yaw_prior() -> None:
 def test_censor_upper_matches_numerical_integration(bound: float) -> None:
     # N(μ=0.2, v=0.09) times the bound's likelihood Φ((bound − ℓ)/s), s² = 0.04
     from scipy import stats
+
     mu, var, s2 = 0.2, 0.09, 0.04
     cue = cues.LogCue(np.array([mu]), np.array([var]), np.array([0.03]), np.array([0.0]))
     out = cues.censor_upper(cue, np.array([bound]), np.array([s2]), np.array([True]))
@@ -245,39 +271,62 @@ def test_censor_upper_matches_numerical_integration(bound: float) -> None:
 
 
 def test_censor_upper_leaves_unmasked_and_missing_bounds_alone() -> None:
-    cue = cues.LogCue(np.array([1.0, 1.0]), np.array([0.1, 0.1]), np.array([0.05, 0.05]),
-                      np.array([-1.0, -1.0]))
-    out = cues.censor_upper(cue, np.array([0.0, np.nan]), np.array([0.01, 0.01]),
-                            np.array([False, True]))
+    cue = cues.LogCue(
+        np.array([1.0, 1.0]), np.array([0.1, 0.1]), np.array([0.05, 0.05]), np.array([-1.0, -1.0])
+    )
+    out = cues.censor_upper(
+        cue, np.array([0.0, np.nan]), np.array([0.01, 0.01]), np.array([False, True])
+    )
     for k in ("mean", "var", "var_white", "loglik"):
         assert getattr(out, k) == pytest.approx(getattr(cue, k))
 
 
 @settings(max_examples=40, deadline=None)
-@given(x=st.floats(-10, 10), z=st.floats(6, 80), yaw=st.floats(-89, 89),
-       h=st.floats(1.3, 2.6), sigma=st.floats(0.1, 2.0))
-def test_height_cue_log_is_height_cue_in_log_form(x: float, z: float, yaw: float, h: float,
-                                                  sigma: float) -> None:
+@given(
+    x=st.floats(-10, 10),
+    z=st.floats(6, 80),
+    yaw=st.floats(-89, 89),
+    h=st.floats(1.3, 2.6),
+    sigma=st.floats(0.1, 2.0),
+)
+def test_height_cue_log_is_height_cue_in_log_form(
+    x: float, z: float, yaw: float, h: float, sigma: float
+) -> None:
     dims = np.array([h, 1.7, 4.2])
     b = _box(x, z, yaw, dims)
     e = float(cues.depth_half_extent(math.radians(yaw), dims[1], dims[2]))
     var_e = 0.02
     z_ref, dD, dH, de, dh = cues.height_cue(b[1], b[3], F, H_CAM, h, e)
-    got = cues.height_cue_log(np.array([[b[3] - b[1]]]), F, H_CAM, sigma, 0.05,
-                              np.array([[h]]), np.array([[e]]), np.array([[var_e]]),
-                              np.array([[h > H_CAM]]))
+    got = cues.height_cue_log(
+        np.array([[b[3] - b[1]]]),
+        F,
+        H_CAM,
+        sigma,
+        0.05,
+        np.array([[h]]),
+        np.array([[e]]),
+        np.array([[var_e]]),
+        np.array([[h > H_CAM]]),
+    )
     assert got.mean[0, 0] == pytest.approx(math.log(z), abs=1e-9)
     assert got.lever[0, 0] == pytest.approx(dH * h / z_ref, rel=1e-9)
     assert got.var_white[0, 0] == pytest.approx(2 * (dD * sigma / z_ref) ** 2, rel=1e-9)
     assert got.var_other[0, 0] == pytest.approx(
-        (de ** 2 * var_e + (dh * 0.05) ** 2) / z_ref ** 2, rel=1e-9)
+        (de**2 * var_e + (dh * 0.05) ** 2) / z_ref**2, rel=1e-9
+    )
 
 
 @settings(max_examples=60, deadline=None)
-@given(x=st.floats(-12, 12), z=st.floats(3, 80), yaw=st.floats(-89.9, 89.9),
-       w=st.floats(1.4, 2.5), ln=st.floats(3.0, 12.0))
-def test_width_cue_inverts_the_projection_near_and_far(x: float, z: float, yaw: float,
-                                                       w: float, ln: float) -> None:
+@given(
+    x=st.floats(-12, 12),
+    z=st.floats(3, 80),
+    yaw=st.floats(-89.9, 89.9),
+    w=st.floats(1.4, 2.5),
+    ln=st.floats(3.0, 12.0),
+)
+def test_width_cue_inverts_the_projection_near_and_far(
+    x: float, z: float, yaw: float, w: float, ln: float
+) -> None:
     dims = np.array([1.5, w, ln])
     assume(z - 0.5 * math.hypot(w, ln) > 1.0)  # every corner at least 1 m in front
     b = _box(x, z, yaw, dims)
@@ -297,12 +346,14 @@ def test_width_cue_log_is_the_width_cue_in_log_form() -> None:
     grid = yaw_grid()
     x, z = rng.uniform(-10, 10, n), rng.uniform(5, 70, n)
     b = cues.project_box(F, CX, CY, H_CAM, x, z, rng.uniform(-0.3, 0.3, n), CAR)
-    left, right = (np.repeat(b[:, k:k + 1], grid.size, axis=1) for k in (0, 2))
+    left, right = (np.repeat(b[:, k : k + 1], grid.size, axis=1) for k in (0, 2))
     z_ref, dcol, share = cues.width_cue(left, right, F, CX, grid, CAR[1], CAR[2])
     min_depth = np.full((n, grid.size), 2.4)
     z_ref = np.maximum(z_ref, min_depth)
-    half = [np.broadcast_to(0.5 * d * fn(grid), (n, grid.size))
-            for d, fn in ((CAR[1], np.cos), (CAR[1], np.sin), (CAR[2], np.cos), (CAR[2], np.sin))]
+    half = [
+        np.broadcast_to(0.5 * d * fn(grid), (n, grid.size))
+        for d, fn in ((CAR[1], np.cos), (CAR[1], np.sin), (CAR[2], np.cos), (CAR[2], np.sin))
+    ]
     got = cues.width_cue_log(left, right, F, CX, 0.7, *half, min_depth)
     np.testing.assert_allclose(got.mean, np.log(z_ref), atol=1e-12)
     np.testing.assert_allclose(got.lever, share, atol=1e-12)

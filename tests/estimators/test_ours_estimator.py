@@ -28,10 +28,12 @@ def _at_rest(n: int, period: float = 0.1) -> RotationTrack:
     return RotationTrack.from_arrays(t, np.broadcast_to(np.eye(3), (n, 3, 3)))
 
 
-def _frame(k: int, boxes: np.ndarray, ids: list[int] | None = None, theta: float = 0.0,
-           cls: str = "Car") -> FrameInput:
-    table = BoxTable.build(np.full(len(boxes), k), boxes, ids,
-                           classes=np.full(len(boxes), cls, dtype=object))
+def _frame(
+    k: int, boxes: np.ndarray, ids: list[int] | None = None, theta: float = 0.0, cls: str = "Car"
+) -> FrameInput:
+    table = BoxTable.build(
+        np.full(len(boxes), k), boxes, ids, classes=np.full(len(boxes), cls, dtype=object)
+    )
     return FrameInput(k, 0.1 * k, theta, table, R_world_cam=np.eye(3))
 
 
@@ -83,8 +85,9 @@ def test_empty_frame_keeps_all_columns() -> None:
 @pytest.mark.parametrize("with_ids", [True, False])
 def test_tracking_gives_speed_and_ttc_of_simulated_traffic(with_ids: bool) -> None:
     sim = simulate_traffic(CAM, 6, 80, seed=1, box_noise_px=0.5, with_ids=with_ids)
-    res = estimate_sequence(make_estimator("ours", CAM), sim.boxes, sim.timestamps_s,
-                            _at_rest(len(sim.timestamps_s)))
+    res = estimate_sequence(
+        make_estimator("ours", CAM), sim.boxes, sim.timestamps_s, _at_rest(len(sim.timestamps_s))
+    )
     e = res.estimates
     late = sim.boxes.frame >= 30
     speed_err = e.extra["speed_mps"][late] - sim.speed_mps[late]
@@ -104,34 +107,48 @@ def test_tracking_gives_speed_and_ttc_of_simulated_traffic(with_ids: bool) -> No
 
 def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
     sim = simulate_traffic(CAM, 5, 60, seed=2, box_noise_px=1.0, with_ids=False)
-    boxes = sim.boxes.select(~np.isin(sim.boxes.frame, [10, 11, 12, 13, 14, 15, 16, 17, 18,
-                                                        19, 20, 21, 40]))
+    boxes = sim.boxes.select(
+        ~np.isin(sim.boxes.frame, [10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 40])
+    )
     n = len(sim.timestamps_s)
     track = _at_rest(n)
-    for opts in ({}, {"self_calibrate": True, "yaw_memory": True, "gradient_feedback": True,
-                      "adapt_box_noise": True}):
+    for opts in (
+        {},
+        {
+            "self_calibrate": True,
+            "yaw_memory": True,
+            "gradient_feedback": True,
+            "adapt_box_noise": True,
+        },
+    ):
         batch = estimate_sequence(OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track)
         stream = StreamingEstimator(OursEstimator(CAM, **opts))
         by_frame = boxes.frame_index()
         empty = boxes.select(np.zeros(len(boxes), dtype=bool))
         parts = []
         for k in range(n):
-            out = stream.update(k, float(track.timestamps_s[k]), track.R_world_cam[k],
-                                by_frame.get(k, empty))
+            out = stream.update(
+                k, float(track.timestamps_s[k]), track.R_world_cam[k], by_frame.get(k, empty)
+            )
             parts.append(out.distance_m)
             if k in by_frame:
                 assert set(out.extra) == set(batch.estimates.extra)
         np.testing.assert_array_equal(np.concatenate(parts), batch.estimates.distance_m)
         # reset: the same sequence again gives the same numbers
-        again = estimate_sequence(batch_est := OursEstimator(CAM, **opts), boxes,
-                                  sim.timestamps_s, track)
+        again = estimate_sequence(
+            batch_est := OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track
+        )
         again2 = estimate_sequence(batch_est, boxes, sim.timestamps_s, track)
         np.testing.assert_array_equal(again.estimates.distance_m, again2.estimates.distance_m)
 
 
 ABLATION_LIKE = [
-    {"use_width": False, "yaw_hypotheses": False, "use_ground_contact": False,
-     "motion_model": False},
+    {
+        "use_width": False,
+        "yaw_hypotheses": False,
+        "use_ground_contact": False,
+        "motion_model": False,
+    },
     {"use_ground_contact": False},
     {"motion_model": False, "occlusion_aware": False},
     {"gradient_feedback": True, "yaw_memory": True},
@@ -144,8 +161,9 @@ ABLATION_LIKE = [
 @pytest.mark.parametrize("with_ids", [True, False])
 def test_every_option_set_estimates_simulated_traffic(opts: dict, with_ids: bool) -> None:
     sim = simulate_traffic(CAM, 8, 40, seed=5, box_noise_px=0.3, with_ids=with_ids)
-    res = estimate_sequence(OursEstimator(CAM, **opts), sim.boxes, sim.timestamps_s,
-                            _at_rest(len(sim.timestamps_s)))
+    res = estimate_sequence(
+        OursEstimator(CAM, **opts), sim.boxes, sim.timestamps_s, _at_rest(len(sim.timestamps_s))
+    )
     e = res.estimates
     assert np.all(np.isfinite(e.distance_m)) and np.all(np.isfinite(e.extra["sigma_m"]))
     assert np.median(np.abs(e.distance_m / sim.z_m - 1)) < 0.1
@@ -164,8 +182,9 @@ def test_tracks_keep_their_state_in_rows() -> None:
     assert np.all(np.linalg.eigvalsh(tr.P[0]) > 0)
 
 
-def _approach(est: OursEstimator, k0: int, n: int, z0: float, speed: float, tid: int,
-              dims: np.ndarray) -> list:
+def _approach(
+    est: OursEstimator, k0: int, n: int, z0: float, speed: float, tid: int, dims: np.ndarray
+) -> list:
     outs = []
     for k in range(k0, k0 + n):
         z = z0 + speed * 0.1 * (k - k0)
@@ -211,11 +230,18 @@ def test_box_touching_the_image_border_relies_on_the_other_cues() -> None:
     assert guessed.distance_m[0] == pytest.approx(out.distance_m[0])
 
 
-@pytest.mark.parametrize("x_m,z_m,side", [(10.5, 14.0, True), (-9.0, 12.0, True),
-                                          (18.0, 22.0, True), (1.0, 5.0, False),
-                                          (2.0, 7.0, False), (-3.0, 6.0, False)])
-def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float,
-                                                      side: bool) -> None:
+@pytest.mark.parametrize(
+    "x_m,z_m,side",
+    [
+        (10.5, 14.0, True),
+        (-9.0, 12.0, True),
+        (18.0, 22.0, True),
+        (1.0, 5.0, False),
+        (2.0, 7.0, False),
+        (-3.0, 6.0, False),
+    ],
+)
+def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float, side: bool) -> None:
     # a car at the side of the image (its box cut by the left or right border) or right in
     # front (bottom cut): the cut size cue, and a cut bottom's ground contact, say "at least
     # this far", so the vehicle is at most that far; as bounds they must not pull it away
@@ -230,8 +256,11 @@ def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float,
     frame = _frame(0, cut[None])
     bounded = make_estimator("ours", cam).estimate(frame).distance_m[0]
     soft = make_estimator("ours", cam, censor_border_cuts=False).estimate(frame).distance_m[0]
-    naive = make_estimator("ours", cam, censor_border_cuts=False,
-                           truncation_factor=1.0).estimate(frame).distance_m[0]
+    naive = (
+        make_estimator("ours", cam, censor_border_cuts=False, truncation_factor=1.0)
+        .estimate(frame)
+        .distance_m[0]
+    )
     assert naive > 1.02 * z_m  # the cut cues taken at face value say too far
     assert abs(bounded - z_m) <= abs(soft - z_m) + 1e-9
     if side:  # the height cue is whole
@@ -251,8 +280,9 @@ def test_kitti_sequence_beats_paper(kitti_tracking_dir: Path) -> None:
     rmse = {}
     for m in ("paper", "ours"):
         r = estimate_sequence(make_estimator(m, seq.camera), gt, seq.timestamps_s, track)
-        d = np.minimum(np.where(np.isfinite(r.estimates.distance_m), r.estimates.distance_m,
-                                80.0), 80.0)
+        d = np.minimum(
+            np.where(np.isfinite(r.estimates.distance_m), r.estimates.distance_m, 80.0), 80.0
+        )
         rmse[m] = float(np.sqrt(np.mean((d - r.boxes.extra["z"]) ** 2)))
     assert rmse["ours"] < 0.5 * rmse["paper"]
     assert rmse["ours"] < 2.0

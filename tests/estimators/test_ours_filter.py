@@ -10,16 +10,22 @@ import pytest
 from slopedist.estimators.ours import filter as kf
 
 
-def _run(z0: float, speed: float, n: int, noise_log: float, seed: int = 0,
-         accel: float = 2.0, true_accel: float = 0.0
-         ) -> tuple[np.ndarray, np.ndarray, list[tuple[float, ...]]]:
+def _run(
+    z0: float,
+    speed: float,
+    n: int,
+    noise_log: float,
+    seed: int = 0,
+    accel: float = 2.0,
+    true_accel: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[float, ...]]]:
     """Simulate an approach (white-noise acceleration of density ``true_accel``) measured in
     log distance with white noise; returns the final state and per-step
     ``(z, d, sd, v, vsd, ttc, ttc_sd, true speed)``."""
     rng = np.random.default_rng(seed)
     dt = 0.1
     x = np.array([[math.log(z0) + rng.normal(0, noise_log), 0.0]])
-    P = np.array([[[noise_log ** 2, 0.0], [0.0, 0.5 ** 2]]])
+    P = np.array([[[noise_log**2, 0.0], [0.0, 0.5**2]]])
     out = []
     z, vel = z0, speed
     for _ in range(1, n):
@@ -28,7 +34,7 @@ def _run(z0: float, speed: float, n: int, noise_log: float, seed: int = 0,
         vel += dv
         x, P = kf.cv_predict(x, P, np.array([dt]), accel)
         y = np.array([math.log(z) + rng.normal(0, noise_log)])
-        x, P, _ = kf.cv_update(x, P, y, np.array([noise_log ** 2]))
+        x, P, _ = kf.cv_update(x, P, y, np.array([noise_log**2]))
         d, sd = kf.distance_moments(x, P)
         v, vsd = kf.speed_moments(x, P)
         ttc, ttc_sd = kf.ttc_moments(x, P)
@@ -82,7 +88,7 @@ def test_filter_smooths_white_noise() -> None:
     arr = np.array(out)[:, :2]
     raw = 0.05 * arr[:, 0]
     filt_err = np.abs(arr[20:, 1] - arr[20:, 0])
-    assert np.sqrt(np.mean(filt_err ** 2)) < 0.6 * np.sqrt(np.mean(raw[20:] ** 2))
+    assert np.sqrt(np.mean(filt_err**2)) < 0.6 * np.sqrt(np.mean(raw[20:] ** 2))
 
 
 def test_receding_target_has_no_ttc() -> None:
@@ -93,11 +99,13 @@ def test_receding_target_has_no_ttc() -> None:
 
 
 def test_random_walk_update() -> None:
-    m, v = kf.random_walk_update(np.array([0.0]), np.array([1.0]), 1.0, 1.0, np.array([2.0]),
-                                 np.array([2.0]))
+    m, v = kf.random_walk_update(
+        np.array([0.0]), np.array([1.0]), 1.0, 1.0, np.array([2.0]), np.array([2.0])
+    )
     assert m[0] == pytest.approx(1.0) and v[0] == pytest.approx(1.0)
-    m2, v2 = kf.random_walk_update(np.array([0.5]), np.array([1.0]), 0.0, 0.0,
-                                   np.array([np.nan]), np.array([1.0]))
+    m2, v2 = kf.random_walk_update(
+        np.array([0.5]), np.array([1.0]), 0.0, 0.0, np.array([np.nan]), np.array([1.0])
+    )
     assert m2[0] == 0.5 and v2[0] == 1.0
 
 

@@ -28,9 +28,11 @@ P2 = np.array([[F, 0.0, CX, 0.0], [0.0, F, CY, 0.0], [0.0, 0.0, 1.0, 0.0]])
 def test_fit_yaw_prior_recovers_a_known_mixture() -> None:
     rng = np.random.default_rng(3)
     n = 20000
-    psi = np.r_[rng.normal(0.0, math.radians(1.5), int(0.55 * n)),
-                rng.normal(0.0, math.radians(7.0), int(0.20 * n)),
-                rng.uniform(-0.5 * np.pi, 0.5 * np.pi, int(0.25 * n))]
+    psi = np.r_[
+        rng.normal(0.0, math.radians(1.5), int(0.55 * n)),
+        rng.normal(0.0, math.radians(7.0), int(0.20 * n)),
+        rng.uniform(-0.5 * np.pi, 0.5 * np.pi, int(0.25 * n)),
+    ]
     psi = psi + np.pi * rng.integers(-2, 3, psi.size)  # headings are taken modulo π
     p = fit_yaw_prior(psi)
     assert p.aligned_weight == pytest.approx(0.55, abs=0.03)
@@ -67,18 +69,32 @@ def test_yaw_prior_rejects_bad_weights() -> None:
         YawPrior(0.5, 0.02, 0.2, -1.0)
 
 
-@pytest.mark.parametrize("ry,psi", [(-0.5 * np.pi, 0.0), (0.0, -0.5 * np.pi),
-                                    (0.5 * np.pi, 0.0), (-0.5 * np.pi + 0.1, 0.1),
-                                    (0.5 * np.pi - 0.2, -0.2)])
+@pytest.mark.parametrize(
+    "ry,psi",
+    [
+        (-0.5 * np.pi, 0.0),
+        (0.0, -0.5 * np.pi),
+        (0.5 * np.pi, 0.0),
+        (-0.5 * np.pi + 0.1, 0.1),
+        (0.5 * np.pi - 0.2, -0.2),
+    ],
+)
 def test_kitti_heading_convention(ry: float, psi: float) -> None:
     assert float(kitti_heading(ry)) == pytest.approx(psi, abs=1e-12)
 
 
 @settings(max_examples=40, deadline=None)
-@given(x=st.floats(-8.0, 8.0), z=st.floats(6.0, 70.0), psi_deg=st.floats(-89.0, 89.0),
-       h=st.floats(1.3, 2.5), w=st.floats(1.5, 2.1), ln=st.floats(3.5, 6.0))
+@given(
+    x=st.floats(-8.0, 8.0),
+    z=st.floats(6.0, 70.0),
+    psi_deg=st.floats(-89.0, 89.0),
+    h=st.floats(1.3, 2.5),
+    w=st.floats(1.5, 2.1),
+    ln=st.floats(3.5, 6.0),
+)
 def test_project_kitti_boxes_agrees_with_the_cues_forward_model(
-        x: float, z: float, psi_deg: float, h: float, w: float, ln: float) -> None:
+    x: float, z: float, psi_deg: float, h: float, w: float, ln: float
+) -> None:
     # a KITTI label standing on a flat road H_CAM below a level camera: its location is the
     # bottom centre (y = H_CAM), its rotation_y = ψ − π/2 (kitti_heading inverted)
     psi = math.radians(psi_deg)
@@ -87,7 +103,8 @@ def test_project_kitti_boxes_agrees_with_the_cues_forward_model(
     got = project_kitti_boxes(P2, [[x, H_CAM, z]], [dims], [psi - 0.5 * np.pi])[0]
     assert got == pytest.approx(expected, abs=1e-6)
     assert float(kitti_heading(psi - 0.5 * np.pi)) == pytest.approx(
-        (psi + 0.5 * np.pi) % np.pi - 0.5 * np.pi, abs=1e-12)
+        (psi + 0.5 * np.pi) % np.pi - 0.5 * np.pi, abs=1e-12
+    )
 
 
 def test_project_kitti_boxes_checks_its_input() -> None:
@@ -114,8 +131,9 @@ def test_shipped_defaults_are_the_fit_on_all_shared_sequences(kitti_tracking_dir
     from slopedist.estimators.ours import OursConfig
     from slopedist.estimators.ours.fitting import fit_parameters, kitti_tracking_fit_inputs
 
-    inputs = [kitti_tracking_fit_inputs(kitti_tracking_dir, s)
-              for s in list_sequences(kitti_tracking_dir)]
+    inputs = [
+        kitti_tracking_fit_inputs(kitti_tracking_dir, s) for s in list_sequences(kitti_tracking_dir)
+    ]
     assert len(inputs) == 13
     fitted = fit_parameters(inputs)
     cfg = OursConfig()

@@ -21,11 +21,15 @@ VAN = np.array([2.18, 1.91, 5.08])  # the Van prior: roof above the camera
 
 
 def test_hidden_sides_by_hand() -> None:
-    boxes = np.array([[100, 100, 200, 150],    # right edge on box 1, left edge on box 2
-                      [150, 120, 300, 200],    # nearer than box 0; its edges are clear
-                      [0, 0, 120, 300.0],      # nearest (lowest bottom)
-                      [500, 100, 520, 120],    # alone
-                      [301, 150, 340, 180]])   # left edge touches box 1 (within 1.5 px)
+    boxes = np.array(
+        [
+            [100, 100, 200, 150],  # right edge on box 1, left edge on box 2
+            [150, 120, 300, 200],  # nearer than box 0; its edges are clear
+            [0, 0, 120, 300.0],  # nearest (lowest bottom)
+            [500, 100, 520, 120],  # alone
+            [301, 150, 340, 180],
+        ]
+    )  # left edge touches box 1 (within 1.5 px)
     cut_w, cut_h = cues.hidden_sides(boxes)
     assert cut_w.tolist() == [True, False, False, False, True]
     # box 0: top (row 100) on box 2's rows [0, 300]; bottom (150) on boxes 1 and 2
@@ -54,11 +58,17 @@ def _brute_force(b: np.ndarray, tol: float) -> tuple[list[bool], list[bool]]:
 
 
 @settings(max_examples=80, deadline=None)
-@given(st.lists(st.tuples(st.floats(0, 500), st.floats(0, 300), st.floats(1, 200),
-                          st.floats(1, 100)), min_size=1, max_size=8),
-       st.floats(0.0, 3.0))
-def test_hidden_sides_match_a_brute_force_loop(raw: list[tuple[float, float, float, float]],
-                                               tol: float) -> None:
+@given(
+    st.lists(
+        st.tuples(st.floats(0, 500), st.floats(0, 300), st.floats(1, 200), st.floats(1, 100)),
+        min_size=1,
+        max_size=8,
+    ),
+    st.floats(0.0, 3.0),
+)
+def test_hidden_sides_match_a_brute_force_loop(
+    raw: list[tuple[float, float, float, float]], tol: float
+) -> None:
     b = np.array([[x, y, x + w, y + h] for x, y, w, h in raw])
     cut_w, cut_h = cues.hidden_sides(b, tol)
     assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
@@ -76,10 +86,15 @@ def test_censored_cue_variance() -> None:
     assert cues.occlusion_log_var(cues.unexplained_excess(np.nan, 0.01, 2.0, 0.01), True) == 0.0
 
 
-def _frame(k: int, boxes: np.ndarray, ids: list[int], classes: list[str] | None = None
-           ) -> FrameInput:
-    table = BoxTable.build(np.full(len(boxes), k), boxes, ids,
-                           classes=np.array(classes or ["Car"] * len(boxes), dtype=object))
+def _frame(
+    k: int, boxes: np.ndarray, ids: list[int], classes: list[str] | None = None
+) -> FrameInput:
+    table = BoxTable.build(
+        np.full(len(boxes), k),
+        boxes,
+        ids,
+        classes=np.array(classes or ["Car"] * len(boxes), dtype=object),
+    )
     return FrameInput(k, 0.1 * k, 0.0, table, R_world_cam=np.eye(3))
 
 

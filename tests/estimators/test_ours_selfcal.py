@@ -37,8 +37,13 @@ def test_selfcalibrator_recovers_mount_and_height_from_direct_observations() -> 
         near_true = 6.0 + (keys * 7.3) % 45.0 + 0.1 * (frame % 15)
         size_err = np.exp(0.08 * np.sin(keys * 12.9898) * 1.7)  # constant per vehicle
         bottom = v_true + f * h_true / near_true + rng.normal(0, 1.0, keys.size)
-        cal.update(keys, bottom, np.full(keys.size, v_cfg), np.full(keys.size, theta_cfg),
-                   near_true * size_err)
+        cal.update(
+            keys,
+            bottom,
+            np.full(keys.size, v_cfg),
+            np.full(keys.size, theta_cfg),
+            near_true * size_err,
+        )
     c = cal.calibration()
     assert c.mount_angle_rad == pytest.approx(th0_true, abs=math.radians(0.25))
     assert c.height_m == pytest.approx(h_true, rel=0.06)
@@ -50,8 +55,13 @@ def test_selfcalibrator_recovers_mount_and_height_from_direct_observations() -> 
 def test_selfcalibrator_ignores_unusable_targets_and_rejects_bad_config() -> None:
     cal = SelfCalibrator(721.5, 0.0, 1.65)
     before = cal.calibration()
-    cal.update(np.array([1, 2]), np.array([np.nan, 300.0]), np.array([172.9, 172.9]),
-               np.zeros(2), np.array([10.0, 0.5]))  # NaN row; 0.5 m is closer than min_near
+    cal.update(
+        np.array([1, 2]),
+        np.array([np.nan, 300.0]),
+        np.array([172.9, 172.9]),
+        np.zeros(2),
+        np.array([10.0, 0.5]),
+    )  # NaN row; 0.5 m is closer than min_near
     assert cal.calibration() == before
     with pytest.raises(ConfigurationError):
         SelfCalConfig(height_sigma_m=0.0)
@@ -77,10 +87,12 @@ def test_selfcal_brings_accuracy_back_under_a_wrong_calibration() -> None:
     for seed in range(3):
         sim = simulate_traffic(TRUE, 10, 150, seed=seed, size_spread=0.5)
         track = _at_rest(sim.timestamps_s)
-        for key, cam, opts in (("right", TRUE, {}), ("wrong", WRONG, {}),
-                               ("wrong+selfcal", WRONG, {"self_calibrate": True})):
-            r = estimate_sequence(OursEstimator(cam, **opts), sim.boxes, sim.timestamps_s,
-                                  track)
+        for key, cam, opts in (
+            ("right", TRUE, {}),
+            ("wrong", WRONG, {}),
+            ("wrong+selfcal", WRONG, {"self_calibrate": True}),
+        ):
+            r = estimate_sequence(OursEstimator(cam, **opts), sim.boxes, sim.timestamps_s, track)
             errs[key] += list(r.estimates.distance_m - sim.z_m)
     rmse = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
     assert rmse["wrong"] > 1.05 * rmse["right"]

@@ -63,7 +63,11 @@ def test_numbered_folder_yields_frames_in_order_with_default_fps(tmp_path: Path)
 def test_gap_in_numbering_is_a_missing_frame_and_timing_follows_the_number(tmp_path: Path) -> None:
     frames = list(open_frames(make_folder(tmp_path / "f", [3, 4, 6]), fps=20))
     assert [(f.index, f.status) for f in frames] == [
-        (3, FrameStatus.OK), (4, FrameStatus.OK), (5, FrameStatus.MISSING), (6, FrameStatus.OK)]
+        (3, FrameStatus.OK),
+        (4, FrameStatus.OK),
+        (5, FrameStatus.MISSING),
+        (6, FrameStatus.OK),
+    ]
     assert frames[2].image is None and "5" in frames[2].detail
     assert [f.timestamp_s for f in frames] == pytest.approx([0.15, 0.2, 0.25, 0.3])
 
@@ -74,8 +78,12 @@ def test_unreadable_and_resized_files_are_per_frame_states(tmp_path: Path) -> No
     cv2.imwrite(str(root / "000004.png"), _image(4, 2 * W, H))
     frames = list(open_frames(root))
     assert [f.status for f in frames] == [
-        FrameStatus.OK, FrameStatus.OK, FrameStatus.UNREADABLE, FrameStatus.OK,
-        FrameStatus.SIZE_CHANGED]
+        FrameStatus.OK,
+        FrameStatus.OK,
+        FrameStatus.UNREADABLE,
+        FrameStatus.OK,
+        FrameStatus.SIZE_CHANGED,
+    ]
     assert "000002.png" in frames[2].detail
     assert "128×48" in frames[4].detail and frames[4].image is None
 
@@ -114,9 +122,11 @@ def test_video_frames_and_container_rate(tmp_path: Path) -> None:
     assert src.frame_size() == (W, H)
     # lossy codec: the grey level of each frame survives approximately
     assert [round(float(f.image.mean()) / 10) for f in frames if f.image is not None] == list(
-        range(6))
+        range(6)
+    )
     assert [f.timestamp_s for f in open_frames(tmp_path / "v.mp4", fps=10)][:2] == pytest.approx(
-        [0, 0.1])
+        [0, 0.1]
+    )
 
 
 def test_file_that_is_not_a_video_is_a_clear_error(tmp_path: Path) -> None:
@@ -131,8 +141,10 @@ def test_timestamps_file_seconds_and_kitti_datetimes(tmp_path: Path) -> None:
     secs.write_text("# seconds\n0.0\n0.05\n0.2\n")
     assert read_timestamps(secs) == pytest.approx([0, 0.05, 0.2])
     kitti = tmp_path / "timestamps.txt"
-    kitti.write_text("2011-09-26 13:02:25.964389445\n2011-09-26 13:02:26.074898324\n"
-                     "2011-09-26 13:02:26.185451000\n")
+    kitti.write_text(
+        "2011-09-26 13:02:25.964389445\n2011-09-26 13:02:26.074898324\n"
+        "2011-09-26 13:02:26.185451000\n"
+    )
     assert read_timestamps(kitti) == pytest.approx([0, 0.110509, 0.221062], abs=2e-6)
     frames = list(open_frames(make_folder(tmp_path / "f", [0, 1, 2]), timestamps=secs))
     assert [f.timestamp_s for f in frames] == pytest.approx([0, 0.05, 0.2])
@@ -160,8 +172,9 @@ def test_too_few_timestamps(tmp_path: Path) -> None:
 
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(min_value=0.001, max_value=10.0), min_size=1, max_size=30))
-def test_read_timestamps_round_trips_increasing_seconds(tmp_path_factory: pytest.TempPathFactory,
-                                                        steps: list[float]) -> None:
+def test_read_timestamps_round_trips_increasing_seconds(
+    tmp_path_factory: pytest.TempPathFactory, steps: list[float]
+) -> None:
     t = np.cumsum(steps)
     path = tmp_path_factory.mktemp("ts") / "t.txt"
     path.write_text("".join(f"{float(v)!r}\n" for v in t))
@@ -175,11 +188,14 @@ def test_calibration_matches_kitti_frames() -> None:
     check_calibration(KITTI, 1242, 375)
 
 
-@pytest.mark.parametrize(("size", "message"), [
-    ((621, 188), "principal point c_x = 609.6 px is far from the centre"),
-    ((600, 375), "outside"),
-    ((1242, 700), "c_y = 172.9 px is far from the centre"),
-])
+@pytest.mark.parametrize(
+    ("size", "message"),
+    [
+        ((621, 188), "principal point c_x = 609.6 px is far from the centre"),
+        ((600, 375), "outside"),
+        ((1242, 700), "c_y = 172.9 px is far from the centre"),
+    ],
+)
 def test_calibration_of_other_frames_is_refused(size: tuple[int, int], message: str) -> None:
     with pytest.raises(DataMismatchError, match=message):
         check_calibration(KITTI, *size, where="clip.mp4")

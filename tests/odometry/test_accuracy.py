@@ -25,11 +25,18 @@ def truth(n: int = 25) -> RotationTrack:
     return RotationTrack.from_arrays(np.arange(n) * 0.1, R)
 
 
-def make_run(R: np.ndarray, valid: np.ndarray | None = None,
-             segment: np.ndarray | None = None) -> OdometryRun:
+def make_run(
+    R: np.ndarray, valid: np.ndarray | None = None, segment: np.ndarray | None = None
+) -> OdometryRun:
     n = len(R)
-    return OdometryRun(np.arange(n) * 0.1, R, np.ones(n, bool) if valid is None else valid,
-                       np.zeros(n, np.int64) if segment is None else segment, 0.5, 0.4)
+    return OdometryRun(
+        np.arange(n) * 0.1,
+        R,
+        np.ones(n, bool) if valid is None else valid,
+        np.zeros(n, np.int64) if segment is None else segment,
+        0.5,
+        0.4,
+    )
 
 
 def test_exact_rotations_have_no_error() -> None:
@@ -102,9 +109,11 @@ class _Replay:
 def test_run_odometry_collects_states() -> None:
     gt = truth(6)
     seen = []
-    run = run_odometry(_Replay(gt.R_world_cam),
-                       ((k * 0.1, np.zeros((4, 4), np.uint8)) for k in range(6)),
-                       on_result=lambda k, r: seen.append((k, r.state)))
+    run = run_odometry(
+        _Replay(gt.R_world_cam),
+        ((k * 0.1, np.zeros((4, 4), np.uint8)) for k in range(6)),
+        on_result=lambda k, r: seen.append((k, r.state)),
+    )
     assert run.valid.tolist() == [True, True, True, False, True, True]
     assert np.allclose(run.R_world_cam[3], np.eye(3))
     assert len(seen) == 6 and run.seconds >= 0.0
@@ -123,7 +132,6 @@ def test_rel_rot_error_is_exact_with_rounded_ground_truth() -> None:
     errors = rotation_errors(make_run(R), noisy)
     assert np.allclose(np.degrees(errors.rel_err_rad[15:25]), 0.2, atol=2e-4)
     # the angle itself: a quarter turn and a half turn, exact matrices
-    assert np.isclose(rotation_angle_rad(tv.so3_exp(np.array([0.0, np.pi / 2, 0.0]))),
-                      np.pi / 2)
+    assert np.isclose(rotation_angle_rad(tv.so3_exp(np.array([0.0, np.pi / 2, 0.0]))), np.pi / 2)
     assert np.isclose(rotation_angle_rad(np.diag([1.0, -1.0, -1.0])), np.pi)
     assert rotation_angle_rad(np.eye(3)) == 0.0

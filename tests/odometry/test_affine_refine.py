@@ -23,8 +23,9 @@ def _texture(seed: int = 0) -> NDArray[np.uint8]:
 
 def _warped(image: NDArray[np.uint8], M: NDArray[np.float64]) -> NDArray[np.uint8]:
     """``image`` moved by the affine map ``x' = M[:, :2] x + M[:, 2]`` (x shows at x')."""
-    return np.asarray(cv2.warpAffine(image, M, (W, H), flags=cv2.INTER_CUBIC,
-                                     borderMode=cv2.BORDER_REFLECT))
+    return np.asarray(
+        cv2.warpAffine(image, M, (W, H), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    )
 
 
 def _points() -> NDArray[np.float32]:
@@ -32,18 +33,26 @@ def _points() -> NDArray[np.float32]:
     return g.reshape(-1, 2).astype(np.float32)
 
 
-def _klt(a: NDArray[np.uint8], b: NDArray[np.uint8], p0: NDArray[np.float32],
-         guess: NDArray[np.float32]) -> NDArray[np.float32]:
-    p1, status, _ = cv2.calcOpticalFlowPyrLK(a, b, p0.reshape(-1, 1, 2), guess.reshape(-1, 1, 2),
-                                             winSize=(11, 11), maxLevel=3,
-                                             flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+def _klt(
+    a: NDArray[np.uint8], b: NDArray[np.uint8], p0: NDArray[np.float32], guess: NDArray[np.float32]
+) -> NDArray[np.float32]:
+    p1, status, _ = cv2.calcOpticalFlowPyrLK(
+        a,
+        b,
+        p0.reshape(-1, 1, 2),
+        guess.reshape(-1, 1, 2),
+        winSize=(11, 11),
+        maxLevel=3,
+        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
     assert status.all()
     return np.asarray(p1, np.float32).reshape(-1, 2)
 
 
 @pytest.mark.parametrize("scale,shear", [(1.15, 0.0), (1.25, 0.08), (0.9, -0.05)])
-def test_refinement_finds_the_points_of_a_stretched_and_sheared_image(scale: float,
-                                                                      shear: float) -> None:
+def test_refinement_finds_the_points_of_a_stretched_and_sheared_image(
+    scale: float, shear: float
+) -> None:
     # the road ahead of a car: the next frame enlarges and shears the patch around each track
     a = _texture()
     c = np.array([W / 2, H / 2])

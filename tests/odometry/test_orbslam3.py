@@ -40,8 +40,9 @@ def test_missing_package_is_an_optional_dependency_error(monkeypatch: pytest.Mon
         make_odometry("orbslam3", CAM)
 
 
-def test_vocabulary_from_argument_or_environment(tmp_path: Path,
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+def test_vocabulary_from_argument_or_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.delenv(VOCAB_ENV, raising=False)
     with pytest.raises(MissingInputError, match=f"--vocab PATH or set {VOCAB_ENV}"):
         resolve_vocabulary(None)
@@ -129,12 +130,15 @@ def test_orbslam3_tracks_real_frames(kitti_odometry_dir: Path, tmp_path: Path) -
     # lose track early, so up to three runs are tried for coverage; accuracy is checked strictly
     for _attempt in range(3):
         R = _run(files, camera, voc)
-        pairs = [(k - 10, k) for k in range(10, len(R))
-                 if R[k - 10] is not None and R[k] is not None]
+        pairs = [
+            (k - 10, k) for k in range(10, len(R)) if R[k - 10] is not None and R[k] is not None
+        ]
         if len(pairs) >= 5:
             break
     assert R[0] is None, "monocular ORB-SLAM3 needs two frames to initialise"
     assert len(pairs) >= 5, f"ORB-SLAM3 covered only {len(pairs)} 10-frame windows"
-    err = [float(geo.ego_road_gradient(R[a], R[b]) - geo.ego_road_gradient(gt[a], gt[b]))
-           for a, b in pairs]
+    err = [
+        float(geo.ego_road_gradient(R[a], R[b]) - geo.ego_road_gradient(gt[a], gt[b]))
+        for a, b in pairs
+    ]
     assert np.degrees(np.sqrt(np.mean(np.square(err)))) < 0.3

@@ -64,12 +64,14 @@ def test_missing_pose_file(tmp_path: Path) -> None:
 def test_tum_reader_and_autodetect(tmp_path: Path) -> None:
     q = Rotation.from_euler("x", [[0.0], [2.0]], degrees=True).as_quat()
     path = tmp_path / "tum.txt"
-    path.write_text("".join(f"{t} 0 0 0 {a} {b} {c} {d}\n" for t, (a, b, c, d) in
-                            zip([5.0, 5.5], q)))
+    path.write_text(
+        "".join(f"{t} 0 0 0 {a} {b} {c} {d}\n" for t, (a, b, c, d) in zip([5.0, 5.5], q))
+    )
     track = read_pose_file(path)
     np.testing.assert_allclose(track.timestamps_s, [5.0, 5.5])
     assert geo.ego_road_gradient(track.R_world_cam[0], track.R_world_cam[1]) == pytest.approx(
-        math.radians(2.0))
+        math.radians(2.0)
+    )
     bad = tmp_path / "bad.txt"
     bad.write_text("0 0 0 0 0 0 0 2\n")
     with pytest.raises(InputFileError, match="quaternion norm"):

@@ -18,7 +18,11 @@ def angle_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
 
 
 def correspondences(
-    R: np.ndarray, t: np.ndarray, n: int = 300, noise_px: float = 0.3, outliers: float = 0.0,
+    R: np.ndarray,
+    t: np.ndarray,
+    n: int = 300,
+    noise_px: float = 0.3,
+    outliers: float = 0.0,
     seed: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Points in view 1 (5–80 m ahead) projected into both views, X₂ = R X₁ + t."""

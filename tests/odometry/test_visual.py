@@ -44,8 +44,11 @@ def scene_points(n: int = 1500, seed: int = 0) -> tuple[NDArray[np.float64], NDA
 
 
 def render_blobs(
-    uv: NDArray[np.float64], brightness: NDArray[np.float64], sigma: float = 1.5,
-    background: float = 40.0, image: NDArray[np.float64] | None = None,
+    uv: NDArray[np.float64],
+    brightness: NDArray[np.float64],
+    sigma: float = 1.5,
+    background: float = 40.0,
+    image: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Add Gaussian blobs at pixel positions ``uv`` ``(N, 2)`` to a float image."""
     img = np.full((H, W), background) if image is None else image
@@ -63,7 +66,9 @@ def render_blobs(
 
 
 def render(
-    X: NDArray[np.float64], brightness: NDArray[np.float64], R_world_cam: NDArray[np.float64],
+    X: NDArray[np.float64],
+    brightness: NDArray[np.float64],
+    R_world_cam: NDArray[np.float64],
     centre: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Float image of the world points seen by a camera at ``centre`` with ``R_world_cam``."""
@@ -92,7 +97,9 @@ def trajectory(
 
 
 def run(
-    vo: BuiltinVisualOdometry, images: Sequence[NDArray[np.uint8]], times: Sequence[float],
+    vo: BuiltinVisualOdometry,
+    images: Sequence[NDArray[np.uint8]],
+    times: Sequence[float],
     boxes: NDArray[np.float64] | None = None,
 ) -> list[OdometryResult]:
     return [vo.process(img, t, boxes) for img, t in zip(images, times)]
@@ -126,8 +133,10 @@ def points() -> Points:
     ],
 )
 def test_rotation_over_one_second(
-    points: Points, motion: dict[str, float],
-    median_deg: float, max_deg: float,
+    points: Points,
+    motion: dict[str, float],
+    median_deg: float,
+    max_deg: float,
 ) -> None:
     R, c = trajectory(25, **motion)
     images = [to_uint8(render(*points, R[k], c[k])) for k in range(len(R))]
@@ -272,8 +281,13 @@ def test_match_exposure_undoes_a_gain_and_offset() -> None:
     blank = np.full((60, 80), 40, dtype=np.uint8)
     assert match_exposure(blank, reference, MIN_EXPOSURE_CHANGE) is None  # nothing to match
     # statistics passed in (cached from an earlier frame) give the same mapping
-    again = match_exposure(darker, reference, MIN_EXPOSURE_CHANGE,
-                           image_stats=grey_stats(darker), reference_stats=grey_stats(reference))
+    again = match_exposure(
+        darker,
+        reference,
+        MIN_EXPOSURE_CHANGE,
+        image_stats=grey_stats(darker),
+        reference_stats=grey_stats(reference),
+    )
     assert again is not None and np.array_equal(again, matched)
 
 
@@ -306,8 +320,10 @@ def test_bridged_rotation_is_accurate(points: Points) -> None:
     R, c = trajectory(22, yaw_rate_deg=6.0, pitch_rate_deg=1.5)
     blank = np.full((H, W), 40, dtype=np.uint8)
     vo = BuiltinVisualOdometry(CAMERA)
-    results = [vo.process(blank if k in (12, 13) else to_uint8(render(*points, R[k], c[k])),
-                          k * DT) for k in range(len(R))]
+    results = [
+        vo.process(blank if k in (12, 13) else to_uint8(render(*points, R[k], c[k])), k * DT)
+        for k in range(len(R))
+    ]
     assert results[21].R_world_cam is not None and results[11].R_world_cam is not None
     rel = results[11].R_world_cam.T @ results[21].R_world_cam
     assert np.degrees(geo.rotation_angle_rad(rel.T @ (R[11].T @ R[21]))) < 0.15
@@ -411,9 +427,12 @@ def _seq06_with(
     vo = BuiltinVisualOdometry(seq.camera)
     result = run_odometry(vo, ((t, edit(k, img)) for k, t, img in seq.frames()))
     figures = OdometryEvaluation.from_run(result, seq.ground_truth)
-    return (float(np.degrees(figures.theta_rms_rad)),
-            float(np.degrees(figures.rel_rot_median_rad)), figures.frames_ok - len(seq),
-            vo.segment)
+    return (
+        float(np.degrees(figures.theta_rms_rad)),
+        float(np.degrees(figures.rel_rot_median_rad)),
+        figures.frames_ok - len(seq),
+        vo.segment,
+    )
 
 
 def test_real_kitti_frames_through_exposure_changes(kitti_odometry_dir: Path) -> None:

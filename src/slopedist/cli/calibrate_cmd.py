@@ -25,34 +25,64 @@ from slopedist.pipeline import StreamingEstimator
 
 
 def _row(t: float, c: Calibration) -> list[Any]:
-    return [t, math.degrees(c.mount_angle_rad), math.degrees(c.mount_angle_sigma_rad),
-            c.height_m, c.height_sigma_m, c.n_observations, c.n_tracks]
+    return [
+        t,
+        math.degrees(c.mount_angle_rad),
+        math.degrees(c.mount_angle_sigma_rad),
+        c.height_m,
+        c.height_sigma_m,
+        c.n_observations,
+        c.n_tracks,
+    ]
 
 
 def _as_json(c: Calibration) -> dict[str, Any]:
-    return {"mount_angle_deg": math.degrees(c.mount_angle_rad),
-            "mount_angle_sigma_deg": math.degrees(c.mount_angle_sigma_rad),
-            "height_m": c.height_m, "height_sigma_m": c.height_sigma_m,
-            "n_observations": c.n_observations, "n_tracks": c.n_tracks}
+    return {
+        "mount_angle_deg": math.degrees(c.mount_angle_rad),
+        "mount_angle_sigma_deg": math.degrees(c.mount_angle_sigma_rad),
+        "height_m": c.height_m,
+        "height_sigma_m": c.height_sigma_m,
+        "n_observations": c.n_observations,
+        "n_tracks": c.n_tracks,
+    }
 
 
 @click.command("calibrate")
 @sequence_input_options
-@click.option("--every", "every_s", type=click.FloatRange(min=0, min_open=True), default=5.0,
-              show_default=True, help="Print the running estimate every EVERY seconds.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the final estimate and its history as JSON here.")
+@click.option(
+    "--every",
+    "every_s",
+    type=click.FloatRange(min=0, min_open=True),
+    default=5.0,
+    show_default=True,
+    help="Print the running estimate every EVERY seconds.",
+)
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Also write the final estimate and its history as JSON here.",
+)
 @height_option
 @mount_option
 @lookback_option
 def calibrate(
-    calib: Path, poses: Path, boxes_path: Path, pose_format: str, frame_period: float,
-    score: float | None, every_s: float, json_out: Path | None, height_m: float,
-    mount_angle_deg: float, lookback_s: float,
+    calib: Path,
+    poses: Path,
+    boxes_path: Path,
+    pose_format: str,
+    frame_period: float,
+    score: float | None,
+    every_s: float,
+    json_out: Path | None,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
 ) -> None:
     """Estimate the mount angle θ0 and the camera height from the targets of one sequence."""
-    camera, track, boxes = read_sequence_inputs(calib, poses, boxes_path, pose_format,
-                                                frame_period, score, height_m, mount_angle_deg)
+    camera, track, boxes = read_sequence_inputs(
+        calib, poses, boxes_path, pose_format, frame_period, score, height_m, mount_angle_deg
+    )
     if len(boxes) == 0:
         raise MissingInputError(f"{boxes_path}: no boxes to calibrate from")
     est = OursEstimator(camera, self_calibrate=True)
@@ -72,8 +102,12 @@ def calibrate(
     final = est.calibration()
     if history[-1][0] != t:
         history.append(_row(t, final))
-    click.echo(format_table(["t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets",
-                             "vehicles"], history))
+    click.echo(
+        format_table(
+            ["t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles"],
+            history,
+        )
+    )
     click.echo(
         f"\nmount angle θ0 = {math.degrees(final.mount_angle_rad):.2f}° "
         f"± {math.degrees(final.mount_angle_sigma_rad):.2f}°, camera height h = "
@@ -81,12 +115,20 @@ def calibrate(
         f"(from {final.n_observations} targets of {final.n_tracks} vehicles; prior "
         f"{mount_angle_deg:g}°, {height_m:g} m)\n"
         f"use: --mount-angle {math.degrees(final.mount_angle_rad):.2f} "
-        f"--height {final.height_m:.3f}")
+        f"--height {final.height_m:.3f}"
+    )
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         keys = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
-        json_out.write_text(json.dumps(
-            {"final": _as_json(final), "prior": {"mount_angle_deg": mount_angle_deg,
-                                                 "height_m": height_m},
-             "history": [dict(zip(keys, r)) for r in history]}, indent=2) + "\n")
+        json_out.write_text(
+            json.dumps(
+                {
+                    "final": _as_json(final),
+                    "prior": {"mount_angle_deg": mount_angle_deg, "height_m": height_m},
+                    "history": [dict(zip(keys, r)) for r in history],
+                },
+                indent=2,
+            )
+            + "\n"
+        )
         click.echo(f"wrote {json_out}", err=True)

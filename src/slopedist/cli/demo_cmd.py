@@ -13,30 +13,64 @@ from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_out
 
 
 @click.command("demo")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=DEFAULT_OUT, show_default=True, help="Output folder (created).")
-@click.option("--scenarios", default=",".join(SUITE), show_default=True,
-              help="Comma-separated built-in scenario names or TOML files.")
-@click.option("--methods", default=None,
-              help="Comma-separated methods (default: every available one).")
-@click.option("--odometry", type=click.Choice(["visual", "truth"]), default="visual",
-              show_default=True,
-              help="'visual': built-in visual odometry on the rendered frames; 'truth': the true "
-                   "rotations (a diagnostic that removes odometry error).")
-@click.option("--frames", "max_frames", type=click.IntRange(min=1),
-              help="Only the first N frames of each scenario.")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=DEFAULT_OUT,
+    show_default=True,
+    help="Output folder (created).",
+)
+@click.option(
+    "--scenarios",
+    default=",".join(SUITE),
+    show_default=True,
+    help="Comma-separated built-in scenario names or TOML files.",
+)
+@click.option(
+    "--methods", default=None, help="Comma-separated methods (default: every available one)."
+)
+@click.option(
+    "--odometry",
+    type=click.Choice(["visual", "truth"]),
+    default="visual",
+    show_default=True,
+    help="'visual': built-in visual odometry on the rendered frames; 'truth': the true "
+    "rotations (a diagnostic that removes odometry error).",
+)
+@click.option(
+    "--frames",
+    "max_frames",
+    type=click.IntRange(min=1),
+    help="Only the first N frames of each scenario.",
+)
 @click.option("--no-video", is_flag=True, help="Do not write the overlay videos.")
 @click.option("--no-plots", is_flag=True, help="Do not write the plots.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def demo(out_dir: Path, scenarios: str, methods: str | None, odometry: str,
-         max_frames: int | None, no_video: bool, no_plots: bool, quiet: bool) -> None:
+def demo(
+    out_dir: Path,
+    scenarios: str,
+    methods: str | None,
+    odometry: str,
+    max_frames: int | None,
+    no_video: bool,
+    no_plots: bool,
+    quiet: bool,
+) -> None:
     """Run every method on the synthetic hills, from rendered pixels, and print the tables."""
     names = split_list(methods)
     if names is not None:
         check_methods(names)
-    cfg = DemoConfig(out_dir, tuple(split_list(scenarios) or SUITE),
-                     tuple(names) if names is not None else None, odometry, not no_video,
-                     not no_plots, max_frames, not quiet)
+    cfg = DemoConfig(
+        out_dir,
+        tuple(split_list(scenarios) or SUITE),
+        tuple(names) if names is not None else None,
+        odometry,
+        not no_video,
+        not no_plots,
+        max_frames,
+        not quiet,
+    )
     t0 = time.perf_counter()
     result = run_demo(cfg, echo=lambda s: click.echo(s, err=True))
     click.echo(format_demo_tables(result))

@@ -31,8 +31,14 @@ from slopedist.pipeline import RecordWriter, StreamingEstimator, iter_records
 
 
 def read_sequence_inputs(
-    calib: Path, poses: Path, boxes_path: Path, pose_format: str, frame_period: float,
-    score: float | None, height_m: float, mount_angle_deg: float,
+    calib: Path,
+    poses: Path,
+    boxes_path: Path,
+    pose_format: str,
+    frame_period: float,
+    score: float | None,
+    height_m: float,
+    mount_angle_deg: float,
 ) -> tuple[Camera, RotationTrack, BoxTable]:
     """Camera, rotations and boxes of one sequence as the ``estimate`` options describe them.
 
@@ -57,24 +63,46 @@ def read_sequence_inputs(
 
 def sequence_input_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The options read by :func:`read_sequence_inputs` (shared with ``calibrate``)."""
-    for option in reversed((
-        click.option("--calib", required=True, type=click.Path(dir_okay=False, path_type=Path),
-                     help="KITTI calib file (P2 is used; P0 for odometry calib.txt)."),
-        click.option("--poses", required=True, type=click.Path(dir_okay=False, path_type=Path),
-                     help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format)."),
-        click.option("--boxes", "boxes_path", required=True,
-                     type=click.Path(dir_okay=False, path_type=Path),
-                     help="Boxes: slopedist CSV, KITTI labels or PointRCNN file."),
-        click.option("--pose-format", type=click.Choice(["auto", "kitti", "tum", "oxts"]),
-                     default="auto", show_default=True,
-                     help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, "
-                          "z up)."),
-        click.option("--frame-period", type=click.FloatRange(min=0, min_open=True),
-                     default=0.1, show_default=True,
-                     help="Seconds between frames (KITTI and OXTS poses)."),
-        click.option("--score", type=float, default=None,
-                     help="Keep boxes with score >= SCORE."),
-    )):
+    for option in reversed(
+        (
+            click.option(
+                "--calib",
+                required=True,
+                type=click.Path(dir_okay=False, path_type=Path),
+                help="KITTI calib file (P2 is used; P0 for odometry calib.txt).",
+            ),
+            click.option(
+                "--poses",
+                required=True,
+                type=click.Path(dir_okay=False, path_type=Path),
+                help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).",
+            ),
+            click.option(
+                "--boxes",
+                "boxes_path",
+                required=True,
+                type=click.Path(dir_okay=False, path_type=Path),
+                help="Boxes: slopedist CSV, KITTI labels or PointRCNN file.",
+            ),
+            click.option(
+                "--pose-format",
+                type=click.Choice(["auto", "kitti", "tum", "oxts"]),
+                default="auto",
+                show_default=True,
+                help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
+            ),
+            click.option(
+                "--frame-period",
+                type=click.FloatRange(min=0, min_open=True),
+                default=0.1,
+                show_default=True,
+                help="Seconds between frames (KITTI and OXTS poses).",
+            ),
+            click.option(
+                "--score", type=float, default=None, help="Keep boxes with score >= SCORE."
+            ),
+        )
+    ):
         func = option(func)
     return func
 
@@ -82,22 +110,36 @@ def sequence_input_options(func: Callable[..., Any]) -> Callable[..., Any]:
 @click.command("estimate")
 @sequence_input_options
 @click.option("--method", default="paper", show_default=True, help="Estimator name.")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the records CSV here (default: standard output).")
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the records CSV here (default: standard output).",
+)
 @height_option
 @mount_option
 @lookback_option
 @alphas_option
 @thresholds_option
 def estimate(
-    calib: Path, poses: Path, boxes_path: Path, method: str, out: Path | None, pose_format: str,
-    frame_period: float, score: float | None, height_m: float, mount_angle_deg: float,
-    lookback_s: float, alphas: str, thresholds: str,
+    calib: Path,
+    poses: Path,
+    boxes_path: Path,
+    method: str,
+    out: Path | None,
+    pose_format: str,
+    frame_period: float,
+    score: float | None,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
+    alphas: str,
+    thresholds: str,
 ) -> None:
     """Estimate per-target distances for one sequence, streaming frame by frame."""
     check_methods([method])
-    camera, track, boxes = read_sequence_inputs(calib, poses, boxes_path, pose_format,
-                                                frame_period, score, height_m, mount_angle_deg)
+    camera, track, boxes = read_sequence_inputs(
+        calib, poses, boxes_path, pose_format, frame_period, score, height_m, mount_angle_deg
+    )
     options = paper_options(alphas, thresholds) if method == "paper" else {}
     stream = StreamingEstimator(make_estimator(method, camera, **options), lookback_s)
     by_frame = boxes.frame_index()

@@ -32,29 +32,55 @@ def eval_group() -> None:
 @eval_group.command("kitti-tracking")
 @click.argument("data_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--sequences", help="Comma-separated sequence names, e.g. 0000,0004 (default: all).")
-@click.option("--methods", default="flat,ego,paper", show_default=True,
-              help="Comma-separated estimator names.")
+@click.option(
+    "--methods",
+    default="flat,ego,paper",
+    show_default=True,
+    help="Comma-separated estimator names.",
+)
 @kitti_source_options("")
-@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Depth maps of the depthmap method: DIR/<sequence>/<frame>.png|.npy.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the full report as JSON here.")
+@click.option(
+    "--depth-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Depth maps of the depthmap method: DIR/<sequence>/<frame>.png|.npy.",
+)
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the full report as JSON here.",
+)
 @height_option
 @mount_option
 @lookback_option
 @alphas_option
 @thresholds_option
 def kitti_tracking(
-    data_dir: Path, sequences: str | None, methods: str, rotation: str, boxes: str,
-    score: float | None, depth_dir: Path | None, json_out: Path | None, height_m: float,
-    mount_angle_deg: float, lookback_s: float, alphas: str, thresholds: str,
+    data_dir: Path,
+    sequences: str | None,
+    methods: str,
+    rotation: str,
+    boxes: str,
+    score: float | None,
+    depth_dir: Path | None,
+    json_out: Path | None,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
+    alphas: str,
+    thresholds: str,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
     cfg = KittiEvalConfig(
-        sequences=split_list(sequences), methods=names, rotation=RotationSource(rotation),
-        boxes=BoxSource(boxes), min_score=score, height_m=height_m,
-        mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
+        sequences=split_list(sequences),
+        methods=names,
+        rotation=RotationSource(rotation),
+        boxes=BoxSource(boxes),
+        min_score=score,
+        height_m=height_m,
+        mount_angle_rad=math.radians(mount_angle_deg),
+        lookback_s=lookback_s,
         method_options={m: paper_options(alphas, thresholds) for m in ("paper", "imu")},
         depth_dir=depth_dir,
     )

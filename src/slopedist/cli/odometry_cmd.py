@@ -26,10 +26,19 @@ def odometry_group() -> None:
 
 @odometry_group.command("eval")
 @click.argument("seq_dir", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--backend", type=click.Choice(available_odometry()), default="builtin",
-              show_default=True, help="Visual-odometry backend.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the figures as JSON here.")
+@click.option(
+    "--backend",
+    type=click.Choice(available_odometry()),
+    default="builtin",
+    show_default=True,
+    help="Visual-odometry backend.",
+)
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Also write the figures as JSON here.",
+)
 @lookback_option
 def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s: float) -> None:
     """Rotation accuracy and speed on a KITTI-odometry-style folder SEQ_DIR.
@@ -50,8 +59,9 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # the figure is "on one core"
     try:
-        with tqdm(total=len(seq), unit="frame", desc=seq.root.name, disable=None,
-                  leave=False) as bar:
+        with tqdm(
+            total=len(seq), unit="frame", desc=seq.root.name, disable=None, leave=False
+        ) as bar:
             run = run_odometry(odometry, _frames(seq), on_result=lambda k, r: bar.update())
     finally:
         cv2.setNumThreads(threads)

@@ -32,23 +32,39 @@ def check_methods(names: list[str]) -> list[str]:
 
 
 height_option = click.option(
-    "--height", "height_m", type=float, default=KITTI_CAMERA_HEIGHT_M, show_default=True,
+    "--height",
+    "height_m",
+    type=float,
+    default=KITTI_CAMERA_HEIGHT_M,
+    show_default=True,
     help="Camera height above the road, metres.",
 )
 mount_option = click.option(
-    "--mount-angle", "mount_angle_deg", type=float, default=0.0, show_default=True,
+    "--mount-angle",
+    "mount_angle_deg",
+    type=float,
+    default=0.0,
+    show_default=True,
     help="Camera mount angle θ0 in the yz plane, degrees (paper eq. 2).",
 )
 lookback_option = click.option(
-    "--lookback", "lookback_s", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
-    show_default=True, help="Look-back of the ego road gradient, seconds.",
+    "--lookback",
+    "lookback_s",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="Look-back of the ego road gradient, seconds.",
 )
 alphas_option = click.option(
-    "--alphas", default="3,5,6", show_default=True,
+    "--alphas",
+    default="3,5,6",
+    show_default=True,
     help="Paper method: angle steps α1,α2,α3 in degrees (eq. 7).",
 )
 thresholds_option = click.option(
-    "--thresholds", default="0,-10,-20", show_default=True,
+    "--thresholds",
+    default="0,-10,-20",
+    show_default=True,
     help="Paper method: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
 )
 
@@ -59,8 +75,9 @@ def parse_triple(value: str, name: str) -> tuple[float, float, float]:
     try:
         nums = tuple(float(p) for p in parts)
     except ValueError:
-        raise click.BadParameter(f"'{value}' is not three comma-separated numbers",
-                                 param_hint=name) from None
+        raise click.BadParameter(
+            f"'{value}' is not three comma-separated numbers", param_hint=name
+        ) from None
     if len(nums) != 3:
         raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
     return nums[0], nums[1], nums[2]
@@ -73,8 +90,9 @@ def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
     a = parse_triple(alphas, "--alphas")
     t = parse_triple(thresholds, "--thresholds")
     if not (t[0] > t[1] > t[2]):
-        raise click.BadParameter("thresholds must decrease (t1 > t2 > t3)",
-                                 param_hint="--thresholds")
+        raise click.BadParameter(
+            "thresholds must decrease (t1 > t2 > t3)", param_hint="--thresholds"
+        )
     return {"adjustment": GradientAdjustment.from_degrees(a, t)}
 
 
@@ -83,18 +101,32 @@ def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
     reads a depth map at a box (see :mod:`slopedist.estimators.depthmap`)."""
     from slopedist.estimators.depthmap import DepthSample, DepthScaling
 
-    for option in reversed((
-        click.option("--depth-sample", type=click.Choice([s.value for s in DepthSample]),
-                     default=DepthSample.CENTRE.value, show_default=True,
-                     help="depthmap: box centre pixel, a window around it, or the box's lower "
-                          "part."),
-        click.option("--depth-window", type=int, default=5, show_default=True,
-                     help="depthmap: window side in pixels (odd) for --depth-sample window."),
-        click.option("--depth-scaling", type=click.Choice([s.value for s in DepthScaling]),
-                     default=DepthScaling.NONE.value, show_default=True,
-                     help="depthmap: per-frame median scaling for scale-less depth (contact = "
-                          "flat-ground distances, truth = ground truth; see the README)."),
-    )):
+    for option in reversed(
+        (
+            click.option(
+                "--depth-sample",
+                type=click.Choice([s.value for s in DepthSample]),
+                default=DepthSample.CENTRE.value,
+                show_default=True,
+                help="depthmap: box centre pixel, a window around it, or the box's lower part.",
+            ),
+            click.option(
+                "--depth-window",
+                type=int,
+                default=5,
+                show_default=True,
+                help="depthmap: window side in pixels (odd) for --depth-sample window.",
+            ),
+            click.option(
+                "--depth-scaling",
+                type=click.Choice([s.value for s in DepthScaling]),
+                default=DepthScaling.NONE.value,
+                show_default=True,
+                help="depthmap: per-frame median scaling for scale-less depth (contact = "
+                "flat-ground distances, truth = ground truth; see the README).",
+            ),
+        )
+    ):
         func = option(func)
     return func
 
@@ -109,17 +141,31 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
     with ``prefix``)."""
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
-        for option in reversed((
-            click.option("--rotation", type=click.Choice([r.value for r in RotationSource]),
-                         default=RotationSource.ORBSLAM3.value, show_default=True,
-                         help=f"{prefix}Rotation source of the visual-odometry methods "
-                              "(imu and imu-ego always use oxts)."),
-            click.option("--boxes", type=click.Choice([b.value for b in BoxSource]),
-                         default=BoxSource.GT.value, show_default=True,
-                         help=f"{prefix}Ground-truth boxes or PointRCNN detections."),
-            click.option("--score", type=float, default=None,
-                         help=f"{prefix}Keep detections with score >= SCORE (PointRCNN boxes)."),
-        )):
+        for option in reversed(
+            (
+                click.option(
+                    "--rotation",
+                    type=click.Choice([r.value for r in RotationSource]),
+                    default=RotationSource.ORBSLAM3.value,
+                    show_default=True,
+                    help=f"{prefix}Rotation source of the visual-odometry methods "
+                    "(imu and imu-ego always use oxts).",
+                ),
+                click.option(
+                    "--boxes",
+                    type=click.Choice([b.value for b in BoxSource]),
+                    default=BoxSource.GT.value,
+                    show_default=True,
+                    help=f"{prefix}Ground-truth boxes or PointRCNN detections.",
+                ),
+                click.option(
+                    "--score",
+                    type=float,
+                    default=None,
+                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN boxes).",
+                ),
+            )
+        ):
             command = option(command)
         return command
 

@@ -46,19 +46,32 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 
 @click.command("report")
 @click.argument("source", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("slopedist_report"), show_default=True,
-              help="Output folder: report.md, report.html, figures/, CSV (and Parquet).")
-@click.option("--methods", help="Comma-separated methods [default: every method that can run; "
-                                "depthmap when --depth-dir is given].")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("slopedist_report"),
+    show_default=True,
+    help="Output folder: report.md, report.html, figures/, CSV (and Parquet).",
+)
+@click.option(
+    "--methods",
+    help="Comma-separated methods [default: every method that can run; "
+    "depthmap when --depth-dir is given].",
+)
 @click.option("--sequences", help="KITTI: comma-separated sequences (default: all).")
-@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
-                   "depth PNG, uint16/256 m) or .npy (float metres).")
+@click.option(
+    "--depth-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
+    "depth PNG, uint16/256 m) or .npy (float metres).",
+)
 @depthmap_options
 @kitti_source_options("KITTI: ")
-@click.option("--tracks", help="Tracks to plot over time, SEQUENCE:TRACK_ID,... "
-                               "[default: the longest tracks].")
+@click.option(
+    "--tracks",
+    help="Tracks to plot over time, SEQUENCE:TRACK_ID,... [default: the longest tracks].",
+)
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
 @height_option
 @mount_option
@@ -66,10 +79,24 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 @alphas_option
 @thresholds_option
 def report(
-    source: Path, out_dir: Path, methods: str | None, sequences: str | None,
-    depth_dir: Path | None, depth_sample: str, depth_window: int, depth_scaling: str,
-    rotation: str, boxes: str, score: float | None, tracks: str | None, no_parquet: bool,
-    height_m: float, mount_angle_deg: float, lookback_s: float, alphas: str, thresholds: str,
+    source: Path,
+    out_dir: Path,
+    methods: str | None,
+    sequences: str | None,
+    depth_dir: Path | None,
+    depth_sample: str,
+    depth_window: int,
+    depth_scaling: str,
+    rotation: str,
+    boxes: str,
+    score: float | None,
+    tracks: str | None,
+    no_parquet: bool,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
+    alphas: str,
+    thresholds: str,
 ) -> None:
     """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
     output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
@@ -77,22 +104,35 @@ def report(
     kind = detect_source(source)
     paper = paper_options(alphas, thresholds)
     cfg = KittiEvalConfig(
-        sequences=split_list(sequences), methods=tuple(names),
-        rotation=RotationSource(rotation), boxes=BoxSource(boxes), min_score=score,
-        height_m=height_m, mount_angle_rad=math.radians(mount_angle_deg), lookback_s=lookback_s,
-        method_options={"paper": paper, "imu": paper, "depthmap": depthmap_estimator_options(
-            depth_sample, depth_window, depth_scaling)},
+        sequences=split_list(sequences),
+        methods=tuple(names),
+        rotation=RotationSource(rotation),
+        boxes=BoxSource(boxes),
+        min_score=score,
+        height_m=height_m,
+        mount_angle_rad=math.radians(mount_angle_deg),
+        lookback_s=lookback_s,
+        method_options={
+            "paper": paper,
+            "imu": paper,
+            "depthmap": depthmap_estimator_options(depth_sample, depth_window, depth_scaling),
+        },
         depth_dir=depth_dir,
     )
     opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))
-    data = report_data(source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...",
-                                                                      err=True))
-    written = write_report(data, out_dir, opts.tracks, opts.n_tracks,
-                           parquet=False if no_parquet else None)
+    data = report_data(
+        source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
+    )
+    written = write_report(
+        data, out_dir, opts.tracks, opts.n_tracks, parquet=False if no_parquet else None
+    )
     for t in written.tables:
         if t.key in ("table1_rmse", "table2_time"):
             click.echo(format_text(t) + "\n")
     if kind is SourceKind.RUN and not data.has_truth:
         click.echo("no ground truth in the records: Table 1 is not available", err=True)
-    click.echo(f"wrote {out_dir / 'report.html'}, {out_dir / 'report.md'} and "
-               f"{len(written.files) - 2} other files", err=True)
+    click.echo(
+        f"wrote {out_dir / 'report.html'}, {out_dir / 'report.md'} and "
+        f"{len(written.files) - 2} other files",
+        err=True,
+    )

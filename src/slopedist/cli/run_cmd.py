@@ -48,8 +48,9 @@ DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVE
 """``--depth-output`` values: what the ONNX model's output means."""
 
 
-def build_odometry(name: str, camera: Camera, vocab: Path | None = None,
-                   lookback_s: float = LOOKBACK_S) -> RotationOdometry:
+def build_odometry(
+    name: str, camera: Camera, vocab: Path | None = None, lookback_s: float = LOOKBACK_S
+) -> RotationOdometry:
     """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
 
     The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
@@ -65,10 +66,16 @@ def build_odometry(name: str, camera: Camera, vocab: Path | None = None,
 def parse_size(value: str) -> tuple[int, int]:
     """``"640x192"`` → ``(640, 192)`` (width, height in pixels)."""
     w, sep, h = value.lower().replace("×", "x").partition("x")
-    if not sep or not w.strip().isdigit() or not h.strip().isdigit() or not (
-            int(w) > 0 and int(h) > 0):
-        raise click.BadParameter(f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
-                                 param_hint="--depth-input-size")
+    if (
+        not sep
+        or not w.strip().isdigit()
+        or not h.strip().isdigit()
+        or not (int(w) > 0 and int(h) > 0)
+    ):
+        raise click.BadParameter(
+            f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
+            param_hint="--depth-input-size",
+        )
     return int(w), int(h)
 
 
@@ -96,36 +103,49 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
     """
     if opts.folder is not None and opts.model is not None:
         raise ConfigurationError("give either --depth-dir or --depth-model, not both")
-    model_only = {"--depth-input-size": opts.input_size, "--depth-mean": opts.mean,
-                  "--depth-std": opts.std, "--depth-threads": opts.threads}
+    model_only = {
+        "--depth-input-size": opts.input_size,
+        "--depth-mean": opts.mean,
+        "--depth-std": opts.std,
+        "--depth-threads": opts.threads,
+    }
     stray = [k for k, v in model_only.items() if v is not None]
     stray += ["--depth-output"] if opts.output != "depth" else []
     stray += ["--depth-scale"] if opts.scale != 1.0 else []
     stray += ["--depth-bgr"] if opts.bgr else []
     if opts.model is None and stray:
-        raise ConfigurationError(f"{', '.join(stray)} configure an ONNX depth model: "
-                                 "give it with --depth-model MODEL.onnx")
+        raise ConfigurationError(
+            f"{', '.join(stray)} configure an ONNX depth model: "
+            "give it with --depth-model MODEL.onnx"
+        )
     width, height = frames.frame_size()
     if opts.folder is not None:
         return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
     if opts.model is None:
         return None
     if opts.input_size is None:
-        raise ConfigurationError("--depth-model needs the network's input size: "
-                                 "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)")
+        raise ConfigurationError(
+            "--depth-model needs the network's input size: "
+            "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)"
+        )
     in_w, in_h = parse_size(opts.input_size)
     config = OnnxDepthConfig(
-        opts.model, in_w, in_h,
+        opts.model,
+        in_w,
+        in_h,
         mean=parse_triple(opts.mean, "--depth-mean") if opts.mean else (0.0, 0.0, 0.0),
         std=parse_triple(opts.std, "--depth-std") if opts.std else (1.0, 1.0, 1.0),
-        output_kind=DEPTH_OUTPUTS[opts.output], output_scale=opts.scale, bgr_input=opts.bgr,
+        output_kind=DEPTH_OUTPUTS[opts.output],
+        output_scale=opts.scale,
+        bgr_input=opts.bgr,
         threads=opts.threads,
     )
     return OnnxDepthSource(config)
 
 
-def check_runnable(estimator: Estimator, has_depth: bool = False,
-                   boxes: BoxTable | None = None) -> None:
+def check_runnable(
+    estimator: Estimator, has_depth: bool = False, boxes: BoxTable | None = None
+) -> None:
     """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU),
     depth-map methods without a depth source (or depth without a depth-map method), and the
     ``truth`` depth scaling without a ground-truth column in the boxes."""
@@ -146,8 +166,11 @@ def check_runnable(estimator: Estimator, has_depth: bool = False,
             f"--depth-dir / --depth-model feed depth-map methods; method '{estimator.name}' "
             "does not use depth (use --method depthmap)"
         )
-    if (getattr(estimator, "scaling", None) is DepthScaling.TRUTH and boxes is not None
-            and CSV_TRUTH_COLUMN not in boxes.extra):
+    if (
+        getattr(estimator, "scaling", None) is DepthScaling.TRUTH
+        and boxes is not None
+        and CSV_TRUTH_COLUMN not in boxes.extra
+    ):
         raise ConfigurationError(
             f"--depth-scaling truth needs the ground-truth distance column "
             f"'{CSV_TRUTH_COLUMN}' in the box file"
@@ -156,60 +179,120 @@ def check_runnable(estimator: Estimator, has_depth: bool = False,
 
 @click.command("run")
 @click.argument("frames", type=click.Path(path_type=Path))
-@click.option("--calib", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="KITTI calib file of the frames' camera (P2; P0 for odometry calib.txt).")
-@click.option("--boxes", "boxes_path", required=True,
-              type=click.Path(dir_okay=False, path_type=Path),
-              help="Boxes per frame: slopedist CSV, KITTI labels or PointRCNN file.")
-@click.option("--method", default=None,
-              help=f"Estimator name [default: {DEFAULT_METHOD}].")
-@click.option("--odometry", type=click.Choice(ODOMETRY_BACKENDS), default="builtin",
-              show_default=True,
-              help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
-                   "for methods that do not use them: flat, depthmap).")
-@click.option("--vocab", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="ORB vocabulary (ORBvoc.txt) for --odometry orbslam3 "
-                   "[default: $PYORBSLAM3_VOCAB].")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("slopedist_run"), show_default=True,
-              help="Output folder: records.csv, frames.csv, run.json, overlay.")
-@click.option("--overlay", is_flag=True,
-              help="Also write annotated frames (paper Fig. 3 style).")
-@click.option("--overlay-format", type=click.Choice(["mp4", "png"]), default="mp4",
-              show_default=True, help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.")
-@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=None,
-              help="Frames per second for timestamps [default: 10 for an image folder, the "
-                   "container's rate for a video].")
-@click.option("--timestamps", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Timestamps file, one per frame (seconds or KITTI date-times); "
-                   "overrides --fps.")
+@click.option(
+    "--calib",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="KITTI calib file of the frames' camera (P2; P0 for odometry calib.txt).",
+)
+@click.option(
+    "--boxes",
+    "boxes_path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Boxes per frame: slopedist CSV, KITTI labels or PointRCNN file.",
+)
+@click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
+@click.option(
+    "--odometry",
+    type=click.Choice(ODOMETRY_BACKENDS),
+    default="builtin",
+    show_default=True,
+    help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
+    "for methods that do not use them: flat, depthmap).",
+)
+@click.option(
+    "--vocab",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="ORB vocabulary (ORBvoc.txt) for --odometry orbslam3 [default: $PYORBSLAM3_VOCAB].",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("slopedist_run"),
+    show_default=True,
+    help="Output folder: records.csv, frames.csv, run.json, overlay.",
+)
+@click.option("--overlay", is_flag=True, help="Also write annotated frames (paper Fig. 3 style).")
+@click.option(
+    "--overlay-format",
+    type=click.Choice(["mp4", "png"]),
+    default="mp4",
+    show_default=True,
+    help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
+)
+@click.option(
+    "--fps",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="Frames per second for timestamps [default: 10 for an image folder, the "
+    "container's rate for a video].",
+)
+@click.option(
+    "--timestamps",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Timestamps file, one per frame (seconds or KITTI date-times); overrides --fps.",
+)
 @click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE.")
-@click.option("--sequence", default=None,
-              help="Sequence name written to OUT/run.json, so that `slopedist report` puts runs "
-                   "of different methods on one sequence in one row [default: the frames' "
-                   "folder or video name].")
-@click.option("--depth-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="depthmap: folder of per-frame depth maps named by frame number "
-                   "(KITTI depth PNG, uint16/256 = m, or .npy float metres).")
-@click.option("--depth-model", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="depthmap: ONNX depth model run on every frame with boxes (needs "
-                   "onnxruntime: pip install 'slopedist[onnx]').")
-@click.option("--depth-input-size", default=None,
-              help="ONNX model input size WIDTHxHEIGHT in pixels (e.g. 640x192).")
-@click.option("--depth-mean", default=None,
-              help="ONNX model input mean per channel (RGB, on values in [0, 1]) "
-                   "[default: 0,0,0].")
-@click.option("--depth-std", default=None,
-              help="ONNX model input std per channel (RGB) [default: 1,1,1].")
-@click.option("--depth-output", type=click.Choice(list(DEPTH_OUTPUTS)), default="depth",
-              show_default=True,
-              help="ONNX model output: depth (metres = scale × output) or inverse depth / "
-                   "disparity (metres = scale / output).")
-@click.option("--depth-scale", type=click.FloatRange(min=0, min_open=True), default=1.0,
-              show_default=True, help="ONNX model output scale (see --depth-output).")
+@click.option(
+    "--sequence",
+    default=None,
+    help="Sequence name written to OUT/run.json, so that `slopedist report` puts runs "
+    "of different methods on one sequence in one row [default: the frames' "
+    "folder or video name].",
+)
+@click.option(
+    "--depth-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="depthmap: folder of per-frame depth maps named by frame number "
+    "(KITTI depth PNG, uint16/256 = m, or .npy float metres).",
+)
+@click.option(
+    "--depth-model",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="depthmap: ONNX depth model run on every frame with boxes (needs "
+    "onnxruntime: pip install 'slopedist[onnx]').",
+)
+@click.option(
+    "--depth-input-size",
+    default=None,
+    help="ONNX model input size WIDTHxHEIGHT in pixels (e.g. 640x192).",
+)
+@click.option(
+    "--depth-mean",
+    default=None,
+    help="ONNX model input mean per channel (RGB, on values in [0, 1]) [default: 0,0,0].",
+)
+@click.option(
+    "--depth-std", default=None, help="ONNX model input std per channel (RGB) [default: 1,1,1]."
+)
+@click.option(
+    "--depth-output",
+    type=click.Choice(list(DEPTH_OUTPUTS)),
+    default="depth",
+    show_default=True,
+    help="ONNX model output: depth (metres = scale × output) or inverse depth / "
+    "disparity (metres = scale / output).",
+)
+@click.option(
+    "--depth-scale",
+    type=click.FloatRange(min=0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="ONNX model output scale (see --depth-output).",
+)
 @click.option("--depth-bgr", is_flag=True, help="Feed the ONNX model BGR instead of RGB.")
-@click.option("--depth-threads", type=click.IntRange(min=1), default=None,
-              help="onnxruntime threads [default: its own].")
+@click.option(
+    "--depth-threads",
+    type=click.IntRange(min=1),
+    default=None,
+    help="onnxruntime threads [default: its own].",
+)
 @depthmap_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @height_option
@@ -218,13 +301,36 @@ def check_runnable(estimator: Estimator, has_depth: bool = False,
 @alphas_option
 @thresholds_option
 def run(
-    frames: Path, calib: Path, boxes_path: Path, method: str | None, odometry: str,
-    vocab: Path | None, out_dir: Path, overlay: bool, overlay_format: str, fps: float | None,
-    timestamps: Path | None, score: float | None, sequence: str | None, depth_dir: Path | None,
-    depth_model: Path | None, depth_input_size: str | None, depth_mean: str | None,
-    depth_std: str | None, depth_output: str, depth_scale: float, depth_bgr: bool,
-    depth_threads: int | None, depth_sample: str, depth_window: int, depth_scaling: str,
-    quiet: bool, height_m: float, mount_angle_deg: float, lookback_s: float, alphas: str,
+    frames: Path,
+    calib: Path,
+    boxes_path: Path,
+    method: str | None,
+    odometry: str,
+    vocab: Path | None,
+    out_dir: Path,
+    overlay: bool,
+    overlay_format: str,
+    fps: float | None,
+    timestamps: Path | None,
+    score: float | None,
+    sequence: str | None,
+    depth_dir: Path | None,
+    depth_model: Path | None,
+    depth_input_size: str | None,
+    depth_mean: str | None,
+    depth_std: str | None,
+    depth_output: str,
+    depth_scale: float,
+    depth_bgr: bool,
+    depth_threads: int | None,
+    depth_sample: str,
+    depth_window: int,
+    depth_scaling: str,
+    quiet: bool,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
+    alphas: str,
     thresholds: str,
 ) -> None:
     """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
@@ -244,8 +350,17 @@ def run(
     elif method == "depthmap":
         options = depthmap_estimator_options(depth_sample, depth_window, depth_scaling)
     estimator = make_estimator(method, camera, **options)
-    depth_opts = DepthOptions(depth_dir, depth_model, depth_input_size, depth_mean, depth_std,
-                              depth_output, depth_scale, depth_bgr, depth_threads)
+    depth_opts = DepthOptions(
+        depth_dir,
+        depth_model,
+        depth_input_size,
+        depth_mean,
+        depth_std,
+        depth_output,
+        depth_scale,
+        depth_bgr,
+        depth_threads,
+    )
     check_runnable(estimator, depth_dir is not None or depth_model is not None, boxes)
     depth = build_depth_source(depth_opts, source)
     if odometry == "none" and vocab is not None:
@@ -256,8 +371,17 @@ def run(
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
     result = run_frames(
-        source, camera, boxes, backend, estimator, out_dir, lookback_s=lookback_s,
-        overlay=overlay_path, overlay_fps=overlay_fps, progress=not quiet, sequence=sequence,
+        source,
+        camera,
+        boxes,
+        backend,
+        estimator,
+        out_dir,
+        lookback_s=lookback_s,
+        overlay=overlay_path,
+        overlay_fps=overlay_fps,
+        progress=not quiet,
+        sequence=sequence,
         depth=depth,
     )
     click.echo(summary_text(result, out_dir), err=True)
@@ -278,15 +402,24 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
     if result.depth_source:
         lines.append(f"depth maps ({result.depth_source}): {result.depth_ms_mean:.1f} ms per map")
     if result.frames_without_depth:
-        lines.append(f"warning: {result.frames_without_depth} frames with boxes had no depth map "
-                     "(their targets are missing with reason no_depth)")
-    lines.append(f"sequence '{result.sequence}'; " + (
-        "ground truth (gt_distance_m) kept in the records: score with slopedist report "
-        f"{out_dir}" if result.ground_truth else
-        "no ground truth in the boxes (add a gt_distance_m column to score the run)"))
+        lines.append(
+            f"warning: {result.frames_without_depth} frames with boxes had no depth map "
+            "(their targets are missing with reason no_depth)"
+        )
+    lines.append(
+        f"sequence '{result.sequence}'; "
+        + (
+            "ground truth (gt_distance_m) kept in the records: score with slopedist report "
+            f"{out_dir}"
+            if result.ground_truth
+            else "no ground truth in the boxes (add a gt_distance_m column to score the run)"
+        )
+    )
     if result.boxes_without_frame:
-        lines.append(f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
-                     "in FRAMES and were not used")
+        lines.append(
+            f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
+            "in FRAMES and were not used"
+        )
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")
     return "\n".join(lines)

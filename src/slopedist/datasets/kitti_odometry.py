@@ -78,13 +78,18 @@ def _read_times(path: Path, n: int) -> NDArray[np.float64]:
             try:
                 value = float(line)
             except ValueError:
-                raise InputFileError(path, f"'{line}' is not a number", line=lineno,
-                                     field="time") from None
+                raise InputFileError(
+                    path, f"'{line}' is not a number", line=lineno, field="time"
+                ) from None
             if not np.isfinite(value):
                 raise InputFileError(path, "non-finite time", line=lineno, field="time")
             if values and value <= values[-1]:
-                raise InputFileError(path, f"time {value} s does not follow {values[-1]} s",
-                                     line=lineno, field="time")
+                raise InputFileError(
+                    path,
+                    f"time {value} s does not follow {values[-1]} s",
+                    line=lineno,
+                    field="time",
+                )
             values.append(value)
     if len(values) < n:
         raise DataMismatchError(f"{path} has {len(values)} timestamps for {n} frames")

@@ -92,8 +92,11 @@ def read_velodyne(path: str | Path) -> NDArray[np.float32]:
         raise MissingInputError(f"Velodyne scan not found: {path}")
     raw = np.fromfile(path, dtype=np.float32)
     if raw.size % 4:
-        raise InputFileError(path, f"{raw.size * 4} bytes is not a whole number of 16-byte "
-                             "rows (x y z reflectance as float32)")
+        raise InputFileError(
+            path,
+            f"{raw.size * 4} bytes is not a whole number of 16-byte "
+            "rows (x y z reflectance as float32)",
+        )
     return raw.reshape(-1, 4)
 
 
@@ -104,8 +107,9 @@ def velo_to_rect(points_velo: ArrayLike, calib: KittiRawCalib) -> FloatArray:
     return np.asarray(p @ T[:3, :3].T + T[:3, 3])
 
 
-def project_velo_to_image(points_velo: ArrayLike, calib: KittiRawCalib
-                          ) -> tuple[FloatArray, FloatArray]:
+def project_velo_to_image(
+    points_velo: ArrayLike, calib: KittiRawCalib
+) -> tuple[FloatArray, FloatArray]:
     """Project LiDAR points ``(N, 3+)`` into cam 2: ``P2 · R0_rect · Tr_velo_to_cam · X``.
 
     Returns:
@@ -120,9 +124,14 @@ def project_velo_to_image(points_velo: ArrayLike, calib: KittiRawCalib
     return uv, X[:, 2]
 
 
-def fit_ground_plane(points_velo: ArrayLike, *, max_height_m: float = -1.0,
-                     tolerance_m: float = 0.12, iterations: int = 200, seed: int = 0
-                     ) -> tuple[FloatArray, float]:
+def fit_ground_plane(
+    points_velo: ArrayLike,
+    *,
+    max_height_m: float = -1.0,
+    tolerance_m: float = 0.12,
+    iterations: int = 200,
+    seed: int = 0,
+) -> tuple[FloatArray, float]:
     """RANSAC plane through the ground points of a scan (LiDAR frame, z up).
 
     Candidates are the points with ``z < max_height_m`` (the Velodyne sits about 1.73 m above
@@ -219,7 +228,10 @@ class _Cluster:
 
 
 def lidar_vehicle_boxes(
-    points_velo: ArrayLike, calib: KittiRawCalib, image_size: tuple[int, int], frame: int = 0,
+    points_velo: ArrayLike,
+    calib: KittiRawCalib,
+    image_size: tuple[int, int],
+    frame: int = 0,
     params: VehicleClusterParams | None = None,
 ) -> BoxTable:
     """Vehicle boxes of one scan, with their LiDAR distances (see the module docstring).
@@ -260,8 +272,10 @@ def lidar_vehicle_boxes(
         whole = labels == lab
         extent = np.ptp(pts[whole, :2], axis=0)
         top = float(height[whole].max())
-        if not (prm.min_extent_m <= extent.max() <= prm.max_extent_m
-                and prm.min_top_m <= top <= prm.max_top_m):
+        if not (
+            prm.min_extent_m <= extent.max() <= prm.max_extent_m
+            and prm.min_top_m <= top <= prm.max_top_m
+        ):
             continue
         z_near = float(np.quantile(z[sel], prm.near_quantile))
         if z_near > prm.max_range_m:
@@ -271,12 +285,24 @@ def lidar_vehicle_boxes(
         bottom = float(max(v.max(), np.nanmax(foot_rows)))
         box = np.array([u.min(), v.min(), u.max(), bottom])
         truncated = bool(
-            (sel.sum() < whole.sum() * 0.95) or box[0] <= 1 or box[2] >= w - 2 or box[1] <= 1
-            or box[3] >= h - 1)
+            (sel.sum() < whole.sum() * 0.95)
+            or box[0] <= 1
+            or box[2] >= w - 2
+            or box[1] <= 1
+            or box[3] >= h - 1
+        )
         box = np.clip(box, [0, 0, 0, 0], [w - 1, h - 1, w - 1, h - 1])
-        found.append(_Cluster(box, z_near, float(np.median(z[sel])),
-                              float(np.median(X_rect[sel, 0])), int(sel.sum()), truncated,
-                              np.median(pts[whole, :2], axis=0)))
+        found.append(
+            _Cluster(
+                box,
+                z_near,
+                float(np.median(z[sel])),
+                float(np.median(X_rect[sel, 0])),
+                int(sel.sum()),
+                truncated,
+                np.median(pts[whole, :2], axis=0),
+            )
+        )
     found.sort(key=lambda c: c.z_near)
     return BoxTable.build(
         np.full(len(found), frame, dtype=np.int64),
@@ -316,8 +342,7 @@ class KittiRawDrive:
             raise MissingInputError(f"no {IMAGE_FOLDER}/ folder in {root}")
         velo_dir = next((root / v for v in VELODYNE_FOLDERS if (root / v).is_dir()), None)
         if velo_dir is None:
-            raise MissingInputError(
-                f"no Velodyne folder ({', '.join(VELODYNE_FOLDERS)}) in {root}")
+            raise MissingInputError(f"no Velodyne folder ({', '.join(VELODYNE_FOLDERS)}) in {root}")
         images = {int(p.stem): p for p in (root / IMAGE_FOLDER).glob("*.png") if p.stem.isdigit()}
         scans = {int(p.stem): p for p in velo_dir.glob("*.bin") if p.stem.isdigit()}
         return cls(root, KittiRawCalib.from_file(root / "calib.txt"), images, scans)
@@ -334,12 +359,20 @@ class KittiRawDrive:
         """Frame indices that have both an image and a scan, sorted."""
         return sorted(set(self.image_paths) & set(self.velodyne_paths))
 
-    def lidar_boxes(self, image_size: tuple[int, int], params: VehicleClusterParams | None = None,
-                    max_match_m: float = 2.0) -> BoxTable:
+    def lidar_boxes(
+        self,
+        image_size: tuple[int, int],
+        params: VehicleClusterParams | None = None,
+        max_match_m: float = 2.0,
+    ) -> BoxTable:
         """:func:`lidar_vehicle_boxes` of every frame, with track ids linking each cluster to
         the nearest cluster (ground-plane centre within ``max_match_m``) of the frame before."""
-        parts = [lidar_vehicle_boxes(read_velodyne(self.velodyne_paths[k]), self.calib,
-                                     image_size, k, params) for k in self.frames()]
+        parts = [
+            lidar_vehicle_boxes(
+                read_velodyne(self.velodyne_paths[k]), self.calib, image_size, k, params
+            )
+            for k in self.frames()
+        ]
         return link_tracks(parts, max_match_m)
 
 

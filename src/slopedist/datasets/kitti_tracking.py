@@ -54,12 +54,14 @@ def list_sequences(root: str | Path) -> list[str]:
         raise MissingInputError(
             f"no KITTI tracking data at {root}: expected folders label_02/ and calib/ there"
         )
-    return sorted(p.stem for p in (root / "label_02").glob("*.txt")
-                  if (root / "calib" / p.name).is_file())
+    return sorted(
+        p.stem for p in (root / "label_02").glob("*.txt") if (root / "calib" / p.name).is_file()
+    )
 
 
-def protocol_mask(labels: BoxTable, max_distance_m: float = PROTOCOL_MAX_DISTANCE_M
-                  ) -> NDArray[np.bool_]:
+def protocol_mask(
+    labels: BoxTable, max_distance_m: float = PROTOCOL_MAX_DISTANCE_M
+) -> NDArray[np.bool_]:
     """Label rows kept by the evaluation protocol: Car or Van, truncated = 0, occluded ≤ 1,
     0 < z ≤ ``max_distance_m``."""
     z = labels.extra["z"]
@@ -67,7 +69,8 @@ def protocol_mask(labels: BoxTable, max_distance_m: float = PROTOCOL_MAX_DISTANC
         np.isin(labels.cls.astype(str), PROTOCOL_CLASSES)
         & (labels.extra["truncated"] <= PROTOCOL_MAX_TRUNCATED)
         & (labels.extra["occluded"] <= PROTOCOL_MAX_OCCLUDED)
-        & (z > 0) & (z <= max_distance_m)
+        & (z > 0)
+        & (z <= max_distance_m)
     )
 
 
@@ -117,8 +120,11 @@ class KittiTrackingSequence:
             raise MissingInputError(
                 f"sequence {self.name}: no {source.value} poses, expected {path}"
             )
-        track = (read_kitti_poses(path) if source is RotationSource.ORBSLAM3
-                 else read_oxts_rotations(path, self.calib_path))
+        track = (
+            read_kitti_poses(path)
+            if source is RotationSource.ORBSLAM3
+            else read_oxts_rotations(path, self.calib_path)
+        )
         if len(track) < self.n_frames:
             raise DataMismatchError(
                 f"{path}: {len(track)} poses do not cover the {self.n_frames} frames of "
@@ -137,7 +143,9 @@ class KittiTrackingSequence:
 
 
 def load_sequence(
-    root: str | Path, name: str, height_m: float = KITTI_CAMERA_HEIGHT_M,
+    root: str | Path,
+    name: str,
+    height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
 ) -> KittiTrackingSequence:
     """Read a sequence's calibration (``P2``) and labels."""

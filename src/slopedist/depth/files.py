@@ -43,8 +43,12 @@ def read_kitti_depth_png(path: str | Path) -> NDArray[np.float32]:
         InputFileError: it does not decode, or is not a single-channel 16-bit PNG.
     """
     path = Path(path)
-    raw = read_image_file(path, cv2.IMREAD_UNCHANGED, "depth file",
-                          "does not decode as a PNG image (corrupt or not a PNG)")
+    raw = read_image_file(
+        path,
+        cv2.IMREAD_UNCHANGED,
+        "depth file",
+        "does not decode as a PNG image (corrupt or not a PNG)",
+    )
     if raw.dtype != np.uint16 or raw.ndim != 2:
         channels = 1 if raw.ndim == 2 else raw.shape[2]
         raise InputFileError(
@@ -153,7 +157,9 @@ class FileDepthSource(DepthSource):
     kind = "file read"
 
     def __init__(
-        self, folder: str | Path, missing_ok: bool = False,
+        self,
+        folder: str | Path,
+        missing_ok: bool = False,
         expected_shape: tuple[int, int] | None = None,
     ) -> None:
         super().__init__()

@@ -84,8 +84,9 @@ class OnnxDepthConfig:
         if len(self.mean) != 3 or len(self.std) != 3:
             raise ConfigurationError("ONNX depth model mean and std need three values each")
         if any(not np.isfinite(s) or s == 0 for s in self.std):
-            raise ConfigurationError(f"ONNX depth model std must be finite and non-zero: "
-                                     f"{self.std}")
+            raise ConfigurationError(
+                f"ONNX depth model std must be finite and non-zero: {self.std}"
+            )
         if not np.isfinite(self.output_scale) or self.output_scale <= 0:
             raise ConfigurationError(
                 f"ONNX depth model output scale must be > 0, got {self.output_scale}"
@@ -147,8 +148,7 @@ class OnnxDepthModel:
             )
         cfg = self.config
         img = frame if cfg.bgr_input else cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
-        img = cv2.resize(img, (cfg.input_width, cfg.input_height),
-                         interpolation=cv2.INTER_LINEAR)
+        img = cv2.resize(img, (cfg.input_width, cfg.input_height), interpolation=cv2.INTER_LINEAR)
         x = img.astype(np.float32).transpose(2, 0, 1) / np.float32(255.0)
         x = (x - self._mean) / self._std
         return np.ascontiguousarray(x[None], dtype=np.float32)

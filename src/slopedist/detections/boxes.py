@@ -77,11 +77,17 @@ class BoxTable:
         fr = np.asarray(frame, dtype=np.int64).reshape(-1)
         n = fr.shape[0]
         bx = np.asarray(boxes, dtype=float).reshape(n, 4)
-        tid = np.full(n, NO_TRACK, np.int64) if track_id is None else np.asarray(
-            track_id, dtype=np.int64).reshape(n)
+        tid = (
+            np.full(n, NO_TRACK, np.int64)
+            if track_id is None
+            else np.asarray(track_id, dtype=np.int64).reshape(n)
+        )
         sc = np.full(n, np.nan) if score is None else np.asarray(score, dtype=float).reshape(n)
-        cl = np.full(n, "Car", dtype=object) if classes is None else np.asarray(
-            classes, dtype=object).reshape(n)
+        cl = (
+            np.full(n, "Car", dtype=object)
+            if classes is None
+            else np.asarray(classes, dtype=object).reshape(n)
+        )
         return cls(fr, bx, tid, sc, cl, {k: np.asarray(v) for k, v in extra.items()})
 
     @classmethod
@@ -96,7 +102,11 @@ class BoxTable:
         """Rows where ``mask`` is true (or at the given indices)."""
         m = np.asarray(mask)
         return BoxTable(
-            self.frame[m], self.boxes[m], self.track_id[m], self.score[m], self.cls[m],
+            self.frame[m],
+            self.boxes[m],
+            self.track_id[m],
+            self.score[m],
+            self.cls[m],
             {k: v[m] for k, v in self.extra.items()},
         )
 

@@ -34,12 +34,40 @@ CSV_TRUTH_COLUMN = "gt_distance_m"
 """Optional column of the slopedist box CSV: ground-truth distance (camera z), metres."""
 
 KITTI_LABEL_FIELDS = (
-    "frame", "track_id", "type", "truncated", "occluded", "alpha", "left", "top", "right",
-    "bottom", "height", "width", "length", "x", "y", "z", "rotation_y",
+    "frame",
+    "track_id",
+    "type",
+    "truncated",
+    "occluded",
+    "alpha",
+    "left",
+    "top",
+    "right",
+    "bottom",
+    "height",
+    "width",
+    "length",
+    "x",
+    "y",
+    "z",
+    "rotation_y",
 )
 POINTRCNN_FIELDS = (
-    "frame", "type", "x1", "y1", "x2", "y2", "score", "h", "w", "l", "x", "y", "z",
-    "rotation_y", "alpha",
+    "frame",
+    "type",
+    "x1",
+    "y1",
+    "x2",
+    "y2",
+    "score",
+    "h",
+    "w",
+    "l",
+    "x",
+    "y",
+    "z",
+    "rotation_y",
+    "alpha",
 )
 
 
@@ -93,18 +121,27 @@ def read_kitti_labels(path: str | Path) -> BoxTable:
         trunc.append(_parse(path, lineno, "truncated", f["truncated"], float))
         occl.append(_parse(path, lineno, "occluded", f["occluded"], _int))
         _parse(path, lineno, "alpha", f["alpha"], float)
-        boxes.append([_parse(path, lineno, k, f[k], float) for k in ("left", "top", "right",
-                                                                       "bottom")])
+        boxes.append(
+            [_parse(path, lineno, k, f[k], float) for k in ("left", "top", "right", "bottom")]
+        )
         dims.append([_parse(path, lineno, k, f[k], float) for k in ("height", "width", "length")])
         xyz.append([_parse(path, lineno, k, f[k], float) for k in ("x", "y", "z")])
         ry.append(_parse(path, lineno, "rotation_y", f["rotation_y"], float))
         scores.append(_parse(path, lineno, "score", tok[17], float) if len(tok) == 18 else np.nan)
     xyz_a = np.asarray(xyz, dtype=float).reshape(-1, 3)
     return BoxTable.build(
-        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), tids, scores, types,
-        truncated=np.asarray(trunc, dtype=float), occluded=np.asarray(occl, dtype=np.int64),
-        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3), x=xyz_a[:, 0], y=xyz_a[:, 1],
-        z=xyz_a[:, 2], rotation_y=np.asarray(ry, dtype=float),
+        frames,
+        np.asarray(boxes, dtype=float).reshape(-1, 4),
+        tids,
+        scores,
+        types,
+        truncated=np.asarray(trunc, dtype=float),
+        occluded=np.asarray(occl, dtype=np.int64),
+        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3),
+        x=xyz_a[:, 0],
+        y=xyz_a[:, 1],
+        z=xyz_a[:, 2],
+        rotation_y=np.asarray(ry, dtype=float),
     )
 
 
@@ -119,7 +156,8 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         tok = [t.strip() for t in line.split(",")]
         if len(tok) != len(POINTRCNN_FIELDS):
             raise InputFileError(
-                path, f"expected {len(POINTRCNN_FIELDS)} comma-separated fields, found {len(tok)}",
+                path,
+                f"expected {len(POINTRCNN_FIELDS)} comma-separated fields, found {len(tok)}",
                 line=lineno,
             )
         f = dict(zip(POINTRCNN_FIELDS, tok))
@@ -136,9 +174,13 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         dims.append(dim)
         zs.append(z)
     return BoxTable.build(
-        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), None, scores,
+        frames,
+        np.asarray(boxes, dtype=float).reshape(-1, 4),
+        None,
+        scores,
         np.full(len(frames), "Car", dtype=object),
-        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3), z=np.asarray(zs, dtype=float),
+        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3),
+        z=np.asarray(zs, dtype=float),
     )
 
 
@@ -154,8 +196,10 @@ def read_box_csv(path: str | Path) -> BoxTable:
         missing = [c for c in CSV_REQUIRED if c not in header]
         if missing:
             raise InputFileError(
-                path, f"header lacks column(s) {', '.join(missing)}; expected "
-                f"{','.join(CSV_BOX_COLUMNS)}", line=1,
+                path,
+                f"header lacks column(s) {', '.join(missing)}; expected "
+                f"{','.join(CSV_BOX_COLUMNS)}",
+                line=1,
             )
         reader.fieldnames = header
         has_truth = CSV_TRUTH_COLUMN in header
@@ -165,10 +209,12 @@ def read_box_csv(path: str | Path) -> BoxTable:
             if frame < 0:
                 raise InputFileError(path, "frame index must be ≥ 0", line=lineno, field="frame")
             frames.append(frame)
-            boxes.append([
-                _parse(path, lineno, k, (row[k] or "").strip(), float)
-                for k in ("left", "top", "right", "bottom")
-            ])
+            boxes.append(
+                [
+                    _parse(path, lineno, k, (row[k] or "").strip(), float)
+                    for k in ("left", "top", "right", "bottom")
+                ]
+            )
             tid = (row.get("track_id") or "").strip()
             tids.append(_parse(path, lineno, "track_id", tid, _int) if tid else NO_TRACK)
             sc = (row.get("score") or "").strip()
@@ -178,8 +224,12 @@ def read_box_csv(path: str | Path) -> BoxTable:
                 truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
     extra = {CSV_TRUTH_COLUMN: np.asarray(truth, dtype=float)} if has_truth else {}
     return BoxTable.build(
-        frames, np.asarray(boxes, dtype=float).reshape(-1, 4), tids, scores,
-        np.asarray(classes, dtype=object), **extra,
+        frames,
+        np.asarray(boxes, dtype=float).reshape(-1, 4),
+        tids,
+        scores,
+        np.asarray(classes, dtype=object),
+        **extra,
     )
 
 
@@ -190,9 +240,13 @@ def _truth_distance(path: Path, lineno: int, value: str | None) -> float:
         return float("nan")
     d = float(_parse(path, lineno, CSV_TRUTH_COLUMN, tok, float))
     if not (np.isfinite(d) and d > 0):
-        raise InputFileError(path, f"ground-truth distance must be a finite number of metres "
-                             f"> 0 (or empty = unknown), got '{tok}'", line=lineno,
-                             field=CSV_TRUTH_COLUMN)
+        raise InputFileError(
+            path,
+            f"ground-truth distance must be a finite number of metres "
+            f"> 0 (or empty = unknown), got '{tok}'",
+            line=lineno,
+            field=CSV_TRUTH_COLUMN,
+        )
     return d
 
 
@@ -214,6 +268,8 @@ def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
     if len(first.split()) in (17, 18):
         return read_kitti_labels(path)
     raise InputFileError(
-        path, "unrecognised box file layout (expected the slopedist CSV with a 'frame,left,top,"
-        "right,bottom' header, PointRCNN or KITTI labels)", line=1,
+        path,
+        "unrecognised box file layout (expected the slopedist CSV with a 'frame,left,top,"
+        "right,bottom' header, PointRCNN or KITTI labels)",
+        line=1,
     )

@@ -22,15 +22,19 @@ def write_box_csv(boxes: BoxTable, path: str | Path, extra: tuple[str, ...] | No
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    names = [k for k, v in boxes.extra.items() if np.ndim(v) == 1] if extra is None else list(
-        extra)
+    names = [k for k, v in boxes.extra.items() if np.ndim(v) == 1] if extra is None else list(extra)
     order = np.argsort(boxes.frame, kind="stable")
     with path.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow([*CSV_BOX_COLUMNS, *names])
         for i in order:
-            row: list[object] = [int(boxes.frame[i]), *(_num(v) for v in boxes.boxes[i]),
-                                 int(boxes.track_id[i]), _num(boxes.score[i]), boxes.cls[i]]
+            row: list[object] = [
+                int(boxes.frame[i]),
+                *(_num(v) for v in boxes.boxes[i]),
+                int(boxes.track_id[i]),
+                _num(boxes.score[i]),
+                boxes.cls[i],
+            ]
             row += [_num(boxes.extra[k][i]) for k in names]
             writer.writerow(row)
     return path

@@ -147,14 +147,17 @@ class DepthMapEstimator(Estimator):
         except ValueError as exc:
             raise ConfigurationError(f"depthmap: {exc}") from None
         if window_px < 1 or window_px % 2 == 0:
-            raise ConfigurationError(f"depthmap: window must be an odd number ≥ 1 of pixels, "
-                                     f"got {window_px}")
+            raise ConfigurationError(
+                f"depthmap: window must be an odd number ≥ 1 of pixels, got {window_px}"
+            )
         if not 0 < lower_fraction <= 1:
-            raise ConfigurationError(f"depthmap: lower fraction must be in (0, 1], "
-                                     f"got {lower_fraction}")
+            raise ConfigurationError(
+                f"depthmap: lower fraction must be in (0, 1], got {lower_fraction}"
+            )
         if max_depth_m is not None and not max_depth_m > min_depth_m:
-            raise ConfigurationError(f"depthmap: cap {max_depth_m} m must exceed the minimum "
-                                     f"depth {min_depth_m} m")
+            raise ConfigurationError(
+                f"depthmap: cap {max_depth_m} m must exceed the minimum depth {min_depth_m} m"
+            )
         self.window_px = int(window_px)
         self.lower_fraction = float(lower_fraction)
         self.max_depth_m = max_depth_m
@@ -176,8 +179,9 @@ class DepthMapEstimator(Estimator):
             return np.asarray(frame.boxes.extra[self.truth_column], dtype=float)
         theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
         v = geo.vanishing_line_row(theta_rest, self.camera.f, self.camera.c_y)
-        return geo.ground_contact_distance(self.camera.f, self.camera.height_m,
-                                           geo.box_bottom_row(boxes), v)
+        return geo.ground_contact_distance(
+            self.camera.f, self.camera.height_m, geo.box_bottom_row(boxes), v
+        )
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
@@ -186,16 +190,20 @@ class DepthMapEstimator(Estimator):
         raw = np.full(n, np.nan)
         if frame.depth_m is not None:
             cam = self.camera
-            if cam.image_width is not None and cam.image_height is not None and (
-                    frame.depth_m.shape != (cam.image_height, cam.image_width)):
+            if (
+                cam.image_width is not None
+                and cam.image_height is not None
+                and (frame.depth_m.shape != (cam.image_height, cam.image_width))
+            ):
                 raise DataMismatchError(
                     f"frame {frame.frame_index}: depth map is {frame.depth_m.shape[1]}×"
                     f"{frame.depth_m.shape[0]} pixels, the camera's image "
                     f"{cam.image_width}×{cam.image_height}"
                 )
             ok = reasons == ""
-            raw[ok] = sample_box_depth(frame.depth_m, boxes[ok], self.sample, self.window_px,
-                                       self.lower_fraction)
+            raw[ok] = sample_box_depth(
+                frame.depth_m, boxes[ok], self.sample, self.window_px, self.lower_fraction
+            )
         reasons[(reasons == "") & ~np.isfinite(raw)] = MissingReason.NO_DEPTH.value
         scale = 1.0
         if self.scaling is not DepthScaling.NONE and n:
@@ -212,8 +220,12 @@ class DepthMapEstimator(Estimator):
         theta = np.full(n, frame.theta_rad, dtype=float)
         nan = np.full(n, np.nan)
         return FrameEstimates(
-            theta_rad=theta, theta_adj_rad=theta.copy(), delta_y_px=nan, v_px=nan.copy(),
-            distance_m=d, reason=reasons,
+            theta_rad=theta,
+            theta_adj_rad=theta.copy(),
+            delta_y_px=nan,
+            v_px=nan.copy(),
+            distance_m=d,
+            reason=reasons,
             reference=np.full(n, ReferencePoint.BOX_CENTRE_PIXEL.value, dtype=object),
             extra={"depth_raw_m": raw, "depth_scale": np.full(n, scale, dtype=float)},
         )

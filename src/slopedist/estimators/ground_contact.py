@@ -91,9 +91,7 @@ class PaperEstimator(Estimator):
 
     name: ClassVar[str] = "paper"
 
-    def __init__(
-        self, camera: Camera, adjustment: geo.GradientAdjustment | None = None
-    ) -> None:
+    def __init__(self, camera: Camera, adjustment: geo.GradientAdjustment | None = None) -> None:
         super().__init__(camera)
         self.adjustment = adjustment or geo.GradientAdjustment()
 

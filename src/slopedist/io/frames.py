@@ -135,8 +135,10 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
             value = _parse_time(line, t0)
             if value is None:
                 raise InputFileError(
-                    path, f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
-                    line=lineno, field="timestamp",
+                    path,
+                    f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
+                    line=lineno,
+                    field="timestamp",
                 )
             if isinstance(value, datetime):
                 t0 = t0 or value
@@ -145,8 +147,11 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
                 seconds = value
             if values and not seconds > values[-1]:
                 raise InputFileError(
-                    path, f"timestamp {seconds} s does not increase (line {prev_line} has "
-                    f"{values[-1]} s)", line=lineno, field="timestamp",
+                    path,
+                    f"timestamp {seconds} s does not increase (line {prev_line} has "
+                    f"{values[-1]} s)",
+                    line=lineno,
+                    field="timestamp",
                 )
             values.append(seconds)
             prev_line = lineno
@@ -183,8 +188,10 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
     Raises:
         DataMismatchError: naming the sizes and the offending value.
     """
-    if camera.image_width is not None and camera.image_height is not None and (
-        (camera.image_width, camera.image_height) != (width, height)
+    if (
+        camera.image_width is not None
+        and camera.image_height is not None
+        and ((camera.image_width, camera.image_height) != (width, height))
     ):
         raise DataMismatchError(
             f"{where}: images are {width}×{height} px but the calibration is for "
@@ -207,8 +214,9 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
 class _Timing:
     """Timestamp of a frame index from a frame rate or a timestamps array."""
 
-    def __init__(self, fps: float, timestamps_s: NDArray[np.float64] | None,
-                 timestamps_name: str) -> None:
+    def __init__(
+        self, fps: float, timestamps_s: NDArray[np.float64] | None, timestamps_name: str
+    ) -> None:
         if not (math.isfinite(fps) and fps > 0):
             raise ConfigurationError(f"frame rate must be > 0 frames per second, got {fps}")
         self.fps = fps
@@ -238,8 +246,10 @@ class _SizeCheck:
             self.size = size
             return ""
         if size != self.size:
-            return (f"image is {size[0]}×{size[1]} px, the first frame was "
-                    f"{self.size[0]}×{self.size[1]} px")
+            return (
+                f"image is {size[0]}×{size[1]} px, the first frame was "
+                f"{self.size[0]}×{self.size[1]} px"
+            )
         return ""
 
 
@@ -267,14 +277,19 @@ class ImageFolderSource:
         DataMismatchError: fewer timestamps than frames.
     """
 
-    def __init__(self, path: str | Path, fps: float | None = None,
-                 timestamps_s: NDArray[np.float64] | None = None,
-                 timestamps_name: str = "timestamps") -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        fps: float | None = None,
+        timestamps_s: NDArray[np.float64] | None = None,
+        timestamps_name: str = "timestamps",
+    ) -> None:
         self.path = Path(path)
         if not self.path.is_dir():
             raise MissingInputError(f"frame folder not found: {self.path}")
-        files = sorted(p for p in self.path.iterdir()
-                       if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        files = sorted(
+            p for p in self.path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
+        )
         if not files:
             raise MissingInputError(
                 f"no image files ({', '.join(IMAGE_SUFFIXES)}) in frame folder {self.path}"
@@ -314,13 +329,25 @@ class ImageFolderSource:
             t = self.timing(k)
             path = self.files.get(k)
             if path is None:
-                yield Frame(k, t, None, FrameStatus.MISSING, f"frame {k}",
-                            f"no image file numbered {k} in {self.path}")
+                yield Frame(
+                    k,
+                    t,
+                    None,
+                    FrameStatus.MISSING,
+                    f"frame {k}",
+                    f"no image file numbered {k} in {self.path}",
+                )
                 continue
             image = cv2.imread(str(path), cv2.IMREAD_COLOR)
             if image is None:
-                yield Frame(k, t, None, FrameStatus.UNREADABLE, path.name,
-                            f"{path} could not be decoded as an image")
+                yield Frame(
+                    k,
+                    t,
+                    None,
+                    FrameStatus.UNREADABLE,
+                    path.name,
+                    f"{path} could not be decoded as an image",
+                )
                 continue
             problem = size_check(image)
             if problem:
@@ -343,9 +370,13 @@ class VideoSource:
         InputFileError: the file cannot be opened as a video.
     """
 
-    def __init__(self, path: str | Path, fps: float | None = None,
-                 timestamps_s: NDArray[np.float64] | None = None,
-                 timestamps_name: str = "timestamps") -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        fps: float | None = None,
+        timestamps_s: NDArray[np.float64] | None = None,
+        timestamps_name: str = "timestamps",
+    ) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise MissingInputError(f"video file not found: {self.path}")
@@ -357,8 +388,11 @@ class VideoSource:
             cap.release()
         self.frame_count = count if count > 0 else None
         if fps is None:
-            fps = self.container_fps if (math.isfinite(self.container_fps)
-                                         and self.container_fps > 0) else DEFAULT_FPS
+            fps = (
+                self.container_fps
+                if (math.isfinite(self.container_fps) and self.container_fps > 0)
+                else DEFAULT_FPS
+            )
         self.timing = _Timing(fps, timestamps_s, timestamps_name)
 
     def _open(self) -> cv2.VideoCapture:
@@ -366,8 +400,9 @@ class VideoSource:
         if not cap.isOpened():
             cap.release()
             raise InputFileError(
-                self.path, "cannot be opened as a video (not a video file, or a codec OpenCV "
-                "lacks); give a video file or a folder of PNG/JPG frames"
+                self.path,
+                "cannot be opened as a video (not a video file, or a codec OpenCV "
+                "lacks); give a video file or a folder of PNG/JPG frames",
             )
         return cap
 
@@ -394,9 +429,15 @@ class VideoSource:
                 name = f"{self.path.name}#{k}"
                 if not ok or image is None:
                     if self.frame_count is not None and k < self.frame_count:
-                        yield Frame(k, self.timing(k), None, FrameStatus.UNREADABLE, name,
-                                    f"decoding stopped at frame {k} of the {self.frame_count} "
-                                    "the container announces")
+                        yield Frame(
+                            k,
+                            self.timing(k),
+                            None,
+                            FrameStatus.UNREADABLE,
+                            name,
+                            f"decoding stopped at frame {k} of the {self.frame_count} "
+                            "the container announces",
+                        )
                     return
                 t = self.timing(k)
                 problem = size_check(image)
@@ -409,8 +450,9 @@ class VideoSource:
             cap.release()
 
 
-def open_frames(path: str | Path, fps: float | None = None,
-                timestamps: str | Path | None = None) -> ImageFolderSource | VideoSource:
+def open_frames(
+    path: str | Path, fps: float | None = None, timestamps: str | Path | None = None
+) -> ImageFolderSource | VideoSource:
     """A folder of images or a video file, chosen by what ``path`` is.
 
     Args:

@@ -48,7 +48,8 @@ class OverlayWriter:
         if self._video is None:
             self._size = (int(image.shape[1]), int(image.shape[0]))
             self._video = cv2.VideoWriter(
-                str(self.target), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, self._size)
+                str(self.target), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, self._size
+            )
             if not self._video.isOpened():
                 raise InputFileError(self.target, "OpenCV cannot write an MP4 (mp4v) video here")
         assert self._size is not None
@@ -62,8 +63,9 @@ class OverlayWriter:
         if not self.is_video or self._size is None:
             return
         image = np.full((self._size[1], self._size[0], 3), 64, np.uint8)
-        cv2.putText(image, text, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 1,
-                    cv2.LINE_AA)
+        cv2.putText(
+            image, text, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 1, cv2.LINE_AA
+        )
         self.write(index, image)
 
     def close(self) -> None:

@@ -152,10 +152,13 @@ def rotation_angle_rad(R: FloatArray) -> FloatArray:
     — about +0.003° on a 0.2° error — while the axial part is hardly affected.
     """
     R = np.asarray(R, dtype=float)
-    axial = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                      R[..., 1, 0] - R[..., 0, 1]], axis=-1)
-    return np.asarray(np.arctan2(np.linalg.norm(axial, axis=-1),
-                                 np.trace(R, axis1=-2, axis2=-1) - 1.0))
+    axial = np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
+    return np.asarray(
+        np.arctan2(np.linalg.norm(axial, axis=-1), np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    )
 
 
 def rotation_errors(
@@ -205,7 +208,10 @@ class OdometryEvaluation:
 
     @classmethod
     def from_run(
-        cls, run: OdometryRun, truth: RotationTrack, lookback_s: float = LOOKBACK_S,
+        cls,
+        run: OdometryRun,
+        truth: RotationTrack,
+        lookback_s: float = LOOKBACK_S,
         mount_angle_rad: float = 0.0,
     ) -> OdometryEvaluation:
         """Compare ``run`` with ``truth``."""

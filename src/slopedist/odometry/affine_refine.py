@@ -53,8 +53,11 @@ def _offset_rows(half: int) -> F32:
 
 
 def refine_affine(
-    previous: NDArray[np.uint8] | F32, current: NDArray[np.uint8] | F32,
-    p0: NDArray[np.floating], p1: NDArray[np.floating], half_window: int = HALF_WINDOW_PX,
+    previous: NDArray[np.uint8] | F32,
+    current: NDArray[np.uint8] | F32,
+    p0: NDArray[np.floating],
+    p1: NDArray[np.floating],
+    half_window: int = HALF_WINDOW_PX,
     iterations: int = ITERATIONS,
 ) -> tuple[F32, NDArray[np.bool_]]:
     """Refine the positions ``p1`` in ``current`` of the points ``p0`` of ``previous``.
@@ -97,7 +100,8 @@ def refine_affine(
     sd -= sd.mean(axis=2, keepdims=True)
     H = np.matmul(sd, sd.transpose(0, 2, 1))
     H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(
-        6, dtype=np.float32)
+        6, dtype=np.float32
+    )
     H_inv = np.linalg.inv(H)
     offsets = _offset_rows(half_window)  # (2, M)
     A = np.tile(np.eye(2, dtype=np.float32), (n, 1, 1))
@@ -127,16 +131,22 @@ def refine_affine(
     det = np.abs(A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0])
     root = np.sqrt(np.maximum(frob * frob - 4.0 * det * det, 0.0))
     s_max, s_min = np.sqrt(0.5 * (frob + root)), np.sqrt(np.maximum(0.5 * (frob - root), 0.0))
-    ok = (np.all(np.isfinite(t), axis=1) & np.isfinite(sq) & (sq <= sq0)
-          & (np.linalg.norm(t - p1, axis=1) < MAX_SHIFT_PX)
-          & (s_min > SCALE_RANGE[0]) & (s_max < SCALE_RANGE[1]))
+    ok = (
+        np.all(np.isfinite(t), axis=1)
+        & np.isfinite(sq)
+        & (sq <= sq0)
+        & (np.linalg.norm(t - p1, axis=1) < MAX_SHIFT_PX)
+        & (s_min > SCALE_RANGE[0])
+        & (s_max < SCALE_RANGE[1])
+    )
     return np.where(ok[:, None], t, p1).astype(np.float32), ok
 
 
 def _sample(image: F32, x: F32, y: F32) -> F32:
     """Bilinear samples of ``image`` at ``(x, y)`` (same shape, 2-D), edges replicated."""
-    return np.asarray(cv2.remap(image, x, y, cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_REPLICATE), dtype=np.float32)
+    return np.asarray(
+        cv2.remap(image, x, y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE), dtype=np.float32
+    )
 
 
 def _residuals(image: F32, A: F32, t: F32, offsets: F32, T: F32) -> F32:

@@ -22,9 +22,7 @@ TIME_EPS_S = 1e-6
 """Tolerance when comparing timestamps (k × 0.1 s is not exact in binary floating point)."""
 
 
-def lookback_indices(
-    timestamps_s: ArrayLike, lookback_s: float = LOOKBACK_S
-) -> NDArray[np.intp]:
+def lookback_indices(timestamps_s: ArrayLike, lookback_s: float = LOOKBACK_S) -> NDArray[np.intp]:
     """Index of the look-back frame for every frame.
 
     The look-back frame of frame i is the latest frame j with ``t_j ≤ t_i − lookback``; frames with

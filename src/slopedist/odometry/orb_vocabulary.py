@@ -44,8 +44,7 @@ class _Node:
     weight: float = 0.0
 
 
-def orb_descriptors(image_gray: NDArray[np.uint8], n_features: int = 1000
-                    ) -> NDArray[np.uint8]:
+def orb_descriptors(image_gray: NDArray[np.uint8], n_features: int = 1000) -> NDArray[np.uint8]:
     """ORB descriptors ``(N, 32)`` uint8 of one grey image (8 pyramid levels, scale 1.2)."""
     orb = cv2.ORB.create(nfeatures=n_features, scaleFactor=1.2, nlevels=8, fastThreshold=20)
     _, desc = orb.detectAndCompute(image_gray, None)
@@ -55,11 +54,13 @@ def orb_descriptors(image_gray: NDArray[np.uint8], n_features: int = 1000
 def _hamming(bits_a: NDArray[np.float32], bits_b: NDArray[np.float32]) -> NDArray[np.float32]:
     """Hamming distances between rows of two 0/1 bit matrices ``(N, 256)``, ``(M, 256)``."""
     return np.asarray(
-        bits_a.sum(1, keepdims=True) + bits_b.sum(1)[None, :] - 2.0 * bits_a @ bits_b.T)
+        bits_a.sum(1, keepdims=True) + bits_b.sum(1)[None, :] - 2.0 * bits_a @ bits_b.T
+    )
 
 
-def _k_majority(bits: NDArray[np.float32], k: int, rng: np.random.Generator,
-                iterations: int = 8) -> tuple[NDArray[np.float32], NDArray[np.intp]]:
+def _k_majority(
+    bits: NDArray[np.float32], k: int, rng: np.random.Generator, iterations: int = 8
+) -> tuple[NDArray[np.float32], NDArray[np.intp]]:
     """Cluster binary rows into ``k`` groups: k-means++ seeds, then assign / bitwise majority."""
     n = bits.shape[0]
     centres = [bits[rng.integers(n)]]
@@ -83,8 +84,9 @@ def _k_majority(bits: NDArray[np.float32], k: int, rng: np.random.Generator,
     return C, assign
 
 
-def train_vocabulary(descriptors_per_image: list[NDArray[np.uint8]], k: int = 10, depth: int = 4,
-                     seed: int = 0) -> list[_Node]:
+def train_vocabulary(
+    descriptors_per_image: list[NDArray[np.uint8]], k: int = 10, depth: int = 4, seed: int = 0
+) -> list[_Node]:
     """Build the vocabulary tree; returns the nodes, root first, in DBoW2's id order."""
     if not descriptors_per_image or all(len(d) == 0 for d in descriptors_per_image):
         raise MissingInputError("no ORB features found to train a vocabulary from")
@@ -137,16 +139,18 @@ def images_in(folders: Iterable[str | Path], every: int = 1) -> list[Path]:
     """Image files (png/jpg) of the given folders, sorted, taking every ``every``-th."""
     files: list[Path] = []
     for folder in folders:
-        found = sorted(p for p in Path(folder).iterdir()
-                       if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
+        found = sorted(
+            p for p in Path(folder).iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg")
+        )
         if not found:
             raise MissingInputError(f"no images in {folder}")
         files += found[::every]
     return files
 
 
-def train_from_images(paths: list[Path], out: str | Path, k: int = 10, depth: int = 4,
-                      n_features: int = 1000) -> Path:
+def train_from_images(
+    paths: list[Path], out: str | Path, k: int = 10, depth: int = 4, n_features: int = 1000
+) -> Path:
     """ORB features of every image → vocabulary file ``out``."""
     descs = []
     for p in paths:

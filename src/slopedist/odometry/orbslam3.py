@@ -71,47 +71,53 @@ def resolve_vocabulary(vocabulary: str | Path | None) -> Path:
     with path.open("rb") as fh:
         head = fh.readline(200).split()
     if len(head) != 4 or not all(t.isdigit() for t in head):
-        raise InputFileError(path, "not a DBoW2 text vocabulary (the first line should be "
-                             "'k L scoring weighting')", line=1)
+        raise InputFileError(
+            path,
+            "not a DBoW2 text vocabulary (the first line should be 'k L scoring weighting')",
+            line=1,
+        )
     return path
 
 
-def settings_yaml(camera: Camera, width: int, height: int, fps: float = 10.0,
-                  n_features: int = 2000) -> str:
+def settings_yaml(
+    camera: Camera, width: int, height: int, fps: float = 10.0, n_features: int = 2000
+) -> str:
     """ORB-SLAM3 settings (``File.version 1.0`` layout) for a rectified pinhole ``camera``."""
-    return "\n".join([
-        "%YAML:1.0",
-        'File.version: "1.0"',
-        'Camera.type: "PinHole"',
-        f"Camera1.fx: {camera.f:.6f}",
-        f"Camera1.fy: {camera.f:.6f}",
-        f"Camera1.cx: {camera.c_x:.6f}",
-        f"Camera1.cy: {camera.c_y:.6f}",
-        "Camera1.k1: 0.0",
-        "Camera1.k2: 0.0",
-        "Camera1.p1: 0.0",
-        "Camera1.p2: 0.0",
-        f"Camera.width: {int(width)}",
-        f"Camera.height: {int(height)}",
-        f"Camera.fps: {fps:g}",
-        "Camera.RGB: 1",
-        f"ORBextractor.nFeatures: {int(n_features)}",
-        "ORBextractor.scaleFactor: 1.2",
-        "ORBextractor.nLevels: 8",
-        "ORBextractor.iniThFAST: 20",
-        "ORBextractor.minThFAST: 7",
-        "Viewer.KeyFrameSize: 0.1",
-        "Viewer.KeyFrameLineWidth: 1.0",
-        "Viewer.GraphLineWidth: 1.0",
-        "Viewer.PointSize: 2.0",
-        "Viewer.CameraSize: 0.15",
-        "Viewer.CameraLineWidth: 2.0",
-        "Viewer.ViewpointX: 0.0",
-        "Viewer.ViewpointY: -10.0",
-        "Viewer.ViewpointZ: -0.1",
-        "Viewer.ViewpointF: 2000.0",
-        "",
-    ])
+    return "\n".join(
+        [
+            "%YAML:1.0",
+            'File.version: "1.0"',
+            'Camera.type: "PinHole"',
+            f"Camera1.fx: {camera.f:.6f}",
+            f"Camera1.fy: {camera.f:.6f}",
+            f"Camera1.cx: {camera.c_x:.6f}",
+            f"Camera1.cy: {camera.c_y:.6f}",
+            "Camera1.k1: 0.0",
+            "Camera1.k2: 0.0",
+            "Camera1.p1: 0.0",
+            "Camera1.p2: 0.0",
+            f"Camera.width: {int(width)}",
+            f"Camera.height: {int(height)}",
+            f"Camera.fps: {fps:g}",
+            "Camera.RGB: 1",
+            f"ORBextractor.nFeatures: {int(n_features)}",
+            "ORBextractor.scaleFactor: 1.2",
+            "ORBextractor.nLevels: 8",
+            "ORBextractor.iniThFAST: 20",
+            "ORBextractor.minThFAST: 7",
+            "Viewer.KeyFrameSize: 0.1",
+            "Viewer.KeyFrameLineWidth: 1.0",
+            "Viewer.GraphLineWidth: 1.0",
+            "Viewer.PointSize: 2.0",
+            "Viewer.CameraSize: 0.15",
+            "Viewer.CameraLineWidth: 2.0",
+            "Viewer.ViewpointX: 0.0",
+            "Viewer.ViewpointY: -10.0",
+            "Viewer.ViewpointZ: -0.1",
+            "Viewer.ViewpointF: 2000.0",
+            "",
+        ]
+    )
 
 
 class OrbSlam3Odometry:
@@ -132,8 +138,14 @@ class OrbSlam3Odometry:
         MissingInputError: no vocabulary.
     """
 
-    def __init__(self, camera: Camera, vocabulary: str | Path | None = None, fps: float = 10.0,
-                 n_features: int = 2000, realtime: bool = True) -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        vocabulary: str | Path | None = None,
+        fps: float = 10.0,
+        n_features: int = 2000,
+        realtime: bool = True,
+    ) -> None:
         self._pos = import_pyorbslam3()
         self.realtime = realtime
         self._clock: tuple[float, float] | None = None  # (timestamp, wall time) of last frame
@@ -155,12 +167,17 @@ class OrbSlam3Odometry:
         self._tmp = tempfile.TemporaryDirectory(prefix="slopedist-orbslam3-")
         settings = Path(self._tmp.name) / "settings.yaml"
         settings.write_text(settings_yaml(self.camera, width, height, self.fps, self.n_features))
-        self._slam = self._pos.Slam(str(self.vocabulary), str(settings),
-                                    self._pos.Sensor.MONOCULAR, use_viewer=False)
+        self._slam = self._pos.Slam(
+            str(self.vocabulary), str(settings), self._pos.Sensor.MONOCULAR, use_viewer=False
+        )
         self._size = (width, height)
 
-    def process(self, image_gray: NDArray[np.uint8], timestamp_s: float,
-                mask_boxes: NDArray[np.float64] | None = None) -> OdometryResult:
+    def process(
+        self,
+        image_gray: NDArray[np.uint8],
+        timestamp_s: float,
+        mask_boxes: NDArray[np.float64] | None = None,
+    ) -> OdometryResult:
         """Track one frame; ``mask_boxes`` is not used (see the module docstring)."""
         h, w = image_gray.shape[:2]
         if self._slam is None:
@@ -189,14 +206,16 @@ class OrbSlam3Odometry:
                 self._tracking = True
             R = self._anchor @ R_map
             self._last_R = R
-            return OdometryResult(R, OdometryState.OK, int(result.num_tracked_points),
-                                  self._segment)
+            return OdometryResult(
+                R, OdometryState.OK, int(result.num_tracked_points), self._segment
+            )
         was_tracking = self._tracking
         self._tracking = False
         if self._last_R is None and not was_tracking and state != TS.LOST:
             return OdometryResult(None, OdometryState.NOT_INITIALISED, 0)
-        return OdometryResult(None, OdometryState.LOST, int(result.num_tracked_points),
-                              self._segment)
+        return OdometryResult(
+            None, OdometryState.LOST, int(result.num_tracked_points), self._segment
+        )
 
     def reset(self) -> None:
         """Forget the map (new sequence)."""

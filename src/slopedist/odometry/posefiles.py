@@ -73,7 +73,9 @@ def _check_rotations(path: str | Path, R: NDArray[np.float64], first_line: int =
     bad = np.flatnonzero((err > 1e-3) | (det < 0))
     if bad.size:
         raise InputFileError(
-            path, "rotation part is not a rotation matrix", line=int(bad[0]) + first_line,
+            path,
+            "rotation part is not a rotation matrix",
+            line=int(bad[0]) + first_line,
             field="r00..r22",
         )
 
@@ -99,7 +101,9 @@ def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.fl
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-2)
     if bad.size:
         raise InputFileError(
-            path, f"quaternion norm {norms[bad[0]]:.4f} is not 1", line=int(bad[0]) + 1,
+            path,
+            f"quaternion norm {norms[bad[0]]:.4f} is not 1",
+            line=int(bad[0]) + 1,
             field="qx qy qz qw",
         )
     R = Rotation.from_quat(q / norms[:, None]).as_matrix()

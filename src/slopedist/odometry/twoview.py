@@ -48,11 +48,7 @@ def so3_exp(w: FloatArray) -> FloatArray:
     W = skew(w)
     if angle < 1e-8:
         return _I3 + W + 0.5 * (W @ W)
-    return (
-        _I3
-        + (np.sin(angle) / angle) * W
-        + ((1.0 - np.cos(angle)) / angle**2) * (W @ W)
-    )
+    return _I3 + (np.sin(angle) / angle) * W + ((1.0 - np.cos(angle)) / angle**2) * (W @ W)
 
 
 def so3_log(R: FloatArray) -> FloatArray:
@@ -249,7 +245,11 @@ def _cross_into(out: FloatArray, a: FloatArray, b: FloatArray) -> None:
 
 
 def _sampson_system(
-    R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArray, scale: float,
+    R: FloatArray,
+    t: FloatArray,
+    x1: FloatArray,
+    x2: FloatArray,
+    scale: float,
     redescending: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t.
@@ -376,8 +376,7 @@ def fit_relative_pose(
     r, w, J, _ = _sampson_system(R, t, x1, x2, scale, True)
     A = (J * w[:, None]).T @ J
     try:
-        schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2),
-                                                        A[3:, :3])
+        schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
     except np.linalg.LinAlgError:  # no weight left (every correspondence an outlier)
         return _failed_fit(R, len(x1))
     sigma2 = np.sum(w * r**2) / max(np.sum(w) - 5.0, 1.0)
@@ -387,5 +386,6 @@ def fit_relative_pose(
 
 def _failed_fit(R: FloatArray, n: int) -> TwoViewFit:
     """A fit that explains nothing: no inliers, infinite residuals, no information."""
-    return TwoViewFit(R, np.zeros(3), np.zeros(n, dtype=bool), np.full(n, np.inf), False,
-                      np.zeros((3, 3)))
+    return TwoViewFit(
+        R, np.zeros(3), np.zeros(n, dtype=bool), np.full(n, np.inf), False, np.zeros((3, 3))
+    )

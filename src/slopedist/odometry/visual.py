@@ -125,8 +125,16 @@ class VisualOdometryConfig:
     affine_refinement: bool = True
 
     def __post_init__(self) -> None:
-        positive = ("lookback_s", "min_feature_distance_px", "corner_quality", "klt_max_error",
-                    "inlier_threshold_px", "outlier_px", "static_parallax_px", "max_bridge_s")
+        positive = (
+            "lookback_s",
+            "min_feature_distance_px",
+            "corner_quality",
+            "klt_max_error",
+            "inlier_threshold_px",
+            "outlier_px",
+            "static_parallax_px",
+            "max_bridge_s",
+        )
         for name in positive:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -142,10 +150,13 @@ class VisualOdometryConfig:
             raise ConfigurationError("min_inlier_ratio must lie in (0, 1]")
         if self.max_history_frames < 2:
             raise ConfigurationError("max_history_frames must be ≥ 2")
-        if not (math.isfinite(self.frame_to_frame_floor_rad)
-                and self.frame_to_frame_floor_rad >= 0):
-            raise ConfigurationError("visual odometry frame_to_frame_floor_rad must be ≥ 0, got "
-                                     f"{self.frame_to_frame_floor_rad}")
+        if not (
+            math.isfinite(self.frame_to_frame_floor_rad) and self.frame_to_frame_floor_rad >= 0
+        ):
+            raise ConfigurationError(
+                "visual odometry frame_to_frame_floor_rad must be ≥ 0, got "
+                f"{self.frame_to_frame_floor_rad}"
+            )
 
 
 @dataclass(frozen=True)
@@ -197,8 +208,11 @@ class BuiltinVisualOdometry:
         theta0 = camera.mount_angle_rad
         self._heading = np.array([0.0, -math.sin(theta0), math.cos(theta0)])
         c = self.config
-        self._klt_criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
-                              c.klt_iterations, 0.01)
+        self._klt_criteria = (
+            cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+            c.klt_iterations,
+            0.01,
+        )
         self.reset()
 
     # ------------------------------------------------------------------ public interface
@@ -240,8 +254,7 @@ class BuiltinVisualOdometry:
         self._segment = 0
         self.last_fit: FitInfo | None = None
         if self.camera.image_width is not None and self.camera.image_height is not None:
-            self._size: tuple[int, int] | None = (self.camera.image_width,
-                                                  self.camera.image_height)
+            self._size: tuple[int, int] | None = (self.camera.image_width, self.camera.image_height)
             self._size_source = "the camera calibration"
         else:
             self._size = None
@@ -355,8 +368,13 @@ class BuiltinVisualOdometry:
         # auto-exposure, a flash) track into this frame with its grey levels mapped to the
         # previous frame's mean and spread; the raw frame is kept for the next step
         stats = grey_stats(image)  # this frame's statistics serve again as the next previous
-        jumped = match_exposure(image, self._prev_image, EXPOSURE_JUMP_LEVELS,
-                                image_stats=stats, reference_stats=self._prev_stats)
+        jumped = match_exposure(
+            image,
+            self._prev_image,
+            EXPOSURE_JUMP_LEVELS,
+            image_stats=stats,
+            reference_stats=self._prev_stats,
+        )
         current = image if jumped is None else jumped
         # Lucas–Kanade also needs both frames equally sharp: when one is clearly blurrier (a
         # jolt, motion blur), blur the other to match (a symmetric blur moves no feature)
@@ -369,9 +387,12 @@ class BuiltinVisualOdometry:
         if estimate is None and jumped is None:
             # a smaller exposure change can still break the tracks: retry matched
             matched = match_exposure(
-                current, previous, MIN_EXPOSURE_CHANGE,
+                current,
+                previous,
+                MIN_EXPOSURE_CHANGE,
                 image_stats=stats if current is image else None,
-                reference_stats=self._prev_stats if previous is self._prev_image else None)
+                reference_stats=self._prev_stats if previous is self._prev_image else None,
+            )
             if matched is not None:
                 keep, pts, estimate = self._attempt(previous, matched, boxes, t, dt)
         if estimate is None:
@@ -397,8 +418,13 @@ class BuiltinVisualOdometry:
         else:
             x_prev = tv.normalise_pixels(self._pts[keep], self._K)
             x_cur = tv.normalise_pixels(pts, self._K)
-            r_f2f = tv.epipolar_residuals_px(R_world_cam.T @ prev.R_world_cam, x_prev, x_cur,
-                                             self.camera.f, c.inlier_threshold_px)
+            r_f2f = tv.epipolar_residuals_px(
+                R_world_cam.T @ prev.R_world_cam,
+                x_prev,
+                x_cur,
+                self.camera.f,
+                c.inlier_threshold_px,
+            )
             good &= r_f2f <= c.outlier_px
         ids, pts, vel = ids[good], pts[good], vel[good]
         self._cov = cov
@@ -407,14 +433,18 @@ class BuiltinVisualOdometry:
         self._ids, self._pts, self._vel = ids, pts.astype(np.float32), vel.astype(np.float32)
         self._add_features(image, boxes, small)
         self._commit(image, t, R_world_cam, energy, stats)
-        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers,
-                              self._segment)
+        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers, self._segment)
 
     def _attempt(
-        self, previous: NDArray[np.uint8], image: NDArray[np.uint8], boxes: FloatArray,
-        t: float, dt: float,
+        self,
+        previous: NDArray[np.uint8],
+        image: NDArray[np.uint8],
+        boxes: FloatArray,
+        t: float,
+        dt: float,
     ) -> tuple[
-        NDArray[np.bool_], NDArray[np.float32],
+        NDArray[np.bool_],
+        NDArray[np.float32],
         tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord] | None,
     ]:
         """Track from ``previous`` (the last good frame) into ``image`` from the velocity
@@ -428,13 +458,17 @@ class BuiltinVisualOdometry:
         keep, pts = self._follow(previous, image, guess, boxes)
         estimate = self._estimate(self._ids[keep], pts, t)
         if estimate is None and self._moving:
-            keep, pts = self._follow(previous, image, self._pts + _global_shift(previous, image),
-                                     boxes)
+            keep, pts = self._follow(
+                previous, image, self._pts + _global_shift(previous, image), boxes
+            )
             estimate = self._estimate(self._ids[keep], pts, t)
         return keep, pts, estimate
 
     def _follow(
-        self, previous: NDArray[np.uint8], image: NDArray[np.uint8], guess: NDArray[np.floating],
+        self,
+        previous: NDArray[np.uint8],
+        image: NDArray[np.uint8],
+        guess: NDArray[np.floating],
         boxes: FloatArray,
     ) -> tuple[NDArray[np.bool_], NDArray[np.float32]]:
         """Track the current points into ``image`` by pyramidal Lucas–Kanade from ``guess``.
@@ -445,10 +479,14 @@ class BuiltinVisualOdometry:
         c = self.config
         assert self._size is not None
         p1, status, err = cv2.calcOpticalFlowPyrLK(
-            previous, image, self._pts.reshape(-1, 1, 2),
+            previous,
+            image,
+            self._pts.reshape(-1, 1, 2),
             np.asarray(guess, dtype=np.float32).reshape(-1, 1, 2),
-            winSize=(c.klt_window_px, c.klt_window_px), maxLevel=c.klt_levels,
-            criteria=self._klt_criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+            winSize=(c.klt_window_px, c.klt_window_px),
+            maxLevel=c.klt_levels,
+            criteria=self._klt_criteria,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
         )
         p1 = np.asarray(p1, dtype=np.float32).reshape(-1, 2)
         tracked = (status.ravel() == 1) & (err.ravel() < c.klt_max_error)
@@ -466,8 +504,10 @@ class BuiltinVisualOdometry:
         margin = 0.5 * c.klt_window_px
         keep = (
             tracked
-            & (p1[:, 0] >= margin) & (p1[:, 0] < width - margin)
-            & (p1[:, 1] >= margin) & (p1[:, 1] < height - margin)
+            & (p1[:, 0] >= margin)
+            & (p1[:, 0] < width - margin)
+            & (p1[:, 1] >= margin)
+            & (p1[:, 1] < height - margin)
             & ~_inside_boxes(p1, boxes)
         )
         return keep, p1[keep]
@@ -505,8 +545,9 @@ class BuiltinVisualOdometry:
             candidates.append(newest)  # fallback: the previous frame has the most tracks
         for k in candidates:
             ref = self._history[k]
-            common, i_ref, i_cur = np.intersect1d(ref.ids, ids, assume_unique=True,
-                                                  return_indices=True)
+            common, i_ref, i_cur = np.intersect1d(
+                ref.ids, ids, assume_unique=True, return_indices=True
+            )
             if len(common) < c.min_inliers:
                 continue
             fit = self._fit(ref.pts[i_ref], pts[i_cur], R_pred.T @ ref.R_world_cam)
@@ -517,7 +558,10 @@ class BuiltinVisualOdometry:
         return None
 
     def _fit(
-        self, uv_ref: NDArray[np.float32], uv_cur: NDArray[np.float32], R_init: FloatArray,
+        self,
+        uv_ref: NDArray[np.float32],
+        uv_cur: NDArray[np.float32],
+        R_init: FloatArray,
         kind: str = "direct",
     ) -> tv.TwoViewFit | None:
         """Relative pose reference → current (``X_cur = R X_ref + t``) or None if unreliable.
@@ -553,13 +597,23 @@ class BuiltinVisualOdometry:
         return fit
 
     def _fit_usac(
-        self, uv_ref: NDArray[np.float32], uv_cur: NDArray[np.float32], x1: FloatArray,
+        self,
+        uv_ref: NDArray[np.float32],
+        uv_cur: NDArray[np.float32],
+        x1: FloatArray,
         x2: FloatArray,
     ) -> tv.TwoViewFit | None:
         """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
         c = self.config
-        E, mask = cv2.findEssentialMat(uv_ref, uv_cur, self._K, cv2.USAC_DEFAULT, 0.999,
-                                       c.inlier_threshold_px, USAC_MAX_ITERATIONS)
+        E, mask = cv2.findEssentialMat(
+            uv_ref,
+            uv_cur,
+            self._K,
+            cv2.USAC_DEFAULT,
+            0.999,
+            c.inlier_threshold_px,
+            USAC_MAX_ITERATIONS,
+        )
         if E is None or E.shape != (3, 3):
             return None
         _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self._K, mask=mask)
@@ -585,8 +639,14 @@ class BuiltinVisualOdometry:
         )
 
     # ------------------------------------------------------------------ bookkeeping
-    def _commit(self, image: NDArray[np.uint8], t: float, R_world_cam: FloatArray,
-                energy: float, stats: tuple[float, float]) -> None:
+    def _commit(
+        self,
+        image: NDArray[np.uint8],
+        t: float,
+        R_world_cam: FloatArray,
+        energy: float,
+        stats: tuple[float, float],
+    ) -> None:
         """Record a good frame; ``energy`` (:func:`gradient_energy`) and ``stats``
         (:func:`grey_stats`) are the image's, kept for the next frame's comparisons."""
         self._history.append(_FrameRecord(t, R_world_cam, self._ids.copy(), self._pts.copy()))
@@ -598,8 +658,9 @@ class BuiltinVisualOdometry:
         self._prev_stats = stats
         self._last_R = R_world_cam
 
-    def _add_features(self, image: NDArray[np.uint8], boxes: FloatArray,
-                      small: NDArray[np.uint8]) -> None:
+    def _add_features(
+        self, image: NDArray[np.uint8], boxes: FloatArray, small: NDArray[np.uint8]
+    ) -> None:
         """Detect corners on ``small``, the half-resolution copy of ``image``
         (:func:`_half_size`), away from tracks and masked boxes."""
         c = self.config
@@ -609,8 +670,9 @@ class BuiltinVisualOdometry:
         radius = max(1, round(0.5 * c.min_feature_distance_px))
         if len(self._pts):  # 0 within ``radius`` of a track, 255 elsewhere
             occupied = np.zeros(small.shape, dtype=np.uint8)
-            xy = np.clip((self._pts * 0.5).astype(np.intp), 0,
-                         [small.shape[1] - 1, small.shape[0] - 1])
+            xy = np.clip(
+                (self._pts * 0.5).astype(np.intp), 0, [small.shape[1] - 1, small.shape[0] - 1]
+            )
             occupied[xy[:, 1], xy[:, 0]] = 255
             kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
             mask = np.asarray(cv2.bitwise_not(cv2.dilate(occupied, kernel)))
@@ -622,18 +684,20 @@ class BuiltinVisualOdometry:
         mask[:, :border] = 0
         mask[:, -border:] = 0
         for left, top, right, bottom in boxes * 0.5:
-            mask[max(int(top), 0):max(math.ceil(bottom) + 1, 0),
-                 max(int(left), 0):max(math.ceil(right) + 1, 0)] = 0
-        corners = cv2.goodFeaturesToTrack(small, wanted, c.corner_quality, radius, mask=mask,
-                                          blockSize=3)
+            mask[
+                max(int(top), 0) : max(math.ceil(bottom) + 1, 0),
+                max(int(left), 0) : max(math.ceil(right) + 1, 0),
+            ] = 0
+        corners = cv2.goodFeaturesToTrack(
+            small, wanted, c.corner_quality, radius, mask=mask, blockSize=3
+        )
         if corners is None or len(corners) == 0:
             return
         new = corners.reshape(-1, 2).astype(np.float32) * 2.0 + 0.5
         n = len(new)
         new_ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
         self._next_id += n
-        vel0 = (np.median(self._vel, axis=0) if len(self._vel)
-                else np.zeros(2)).astype(np.float32)
+        vel0 = (np.median(self._vel, axis=0) if len(self._vel) else np.zeros(2)).astype(np.float32)
         self._ids = np.concatenate([self._ids, new_ids])
         self._pts = np.concatenate([self._pts, new])
         self._vel = np.concatenate([self._vel, np.tile(vel0, (n, 1))])
@@ -684,7 +748,9 @@ def grey_stats(image: NDArray[np.uint8]) -> tuple[float, float]:
 
 
 def match_exposure(
-    image: NDArray[np.uint8], reference: NDArray[np.uint8], min_change: float,
+    image: NDArray[np.uint8],
+    reference: NDArray[np.uint8],
+    min_change: float,
     image_stats: tuple[float, float] | None = None,
     reference_stats: tuple[float, float] | None = None,
 ) -> NDArray[np.uint8] | None:
@@ -741,8 +807,9 @@ def blur_to_energy(image: NDArray[np.uint8], target: float) -> NDArray[np.uint8]
     scene)."""
     best: tuple[float, NDArray[np.uint8]] = (math.inf, image)
     for sigma in BLUR_SIGMAS_PX:
-        blurred: NDArray[np.uint8] = np.asarray(cv2.GaussianBlur(image, (0, 0), sigma),
-                                                dtype=np.uint8)
+        blurred: NDArray[np.uint8] = np.asarray(
+            cv2.GaussianBlur(image, (0, 0), sigma), dtype=np.uint8
+        )
         gap = abs(math.log(max(gradient_energy(blurred), 1e-9) / max(target, 1e-9)))
         if gap >= best[0]:
             break  # the energy falls with sigma: past the closest one
@@ -786,5 +853,5 @@ def _inside_boxes(pts: NDArray[np.float32], boxes: FloatArray) -> NDArray[np.boo
         return np.zeros(len(pts), dtype=bool)
     x = pts[:, 0:1]
     y = pts[:, 1:2]
-    inside = ((x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3]))
+    inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
     return np.asarray(inside.any(axis=1))

@@ -27,8 +27,19 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_layout_and_readers(sim: Path) -> None:
     names = {p.name for p in sim.iterdir()}
-    assert {"scenario.toml", "calib.txt", "info.json", "poses.txt", "times.txt", "boxes.csv",
-            "boxes_exact.csv", "truth.csv", "frames.csv", "image_02", "depth"} <= names
+    assert {
+        "scenario.toml",
+        "calib.txt",
+        "info.json",
+        "poses.txt",
+        "times.txt",
+        "boxes.csv",
+        "boxes_exact.csv",
+        "truth.csv",
+        "frames.csv",
+        "image_02",
+        "depth",
+    } <= names
     cam = Camera.from_kitti_calib(sim / "calib.txt")
     assert (cam.f, cam.c_x, cam.c_y) == pytest.approx((721.5377, 609.5593, 172.854))
     track = read_kitti_poses(sim / "poses.txt")
@@ -47,9 +58,9 @@ def test_truth_matches_boxes_and_depth(sim: Path) -> None:
     exact = read_box_csv(sim / "boxes_exact.csv")
     first = next(r for r in rows if r["frame"] == "0" and r["track_id"] == "1")
     row0 = np.flatnonzero((exact.frame == 0) & (exact.track_id == 1))[0]
-    np.testing.assert_allclose(exact.boxes[row0], [float(first[k]) for k in
-                                                   ("left", "top", "right", "bottom")],
-                               rtol=1e-5)
+    np.testing.assert_allclose(
+        exact.boxes[row0], [float(first[k]) for k in ("left", "top", "right", "bottom")], rtol=1e-5
+    )
     # the true depth at the box's bottom-centre pixel is the rear face's distance
     depth = read_kitti_depth_png(sim / "depth" / "000000.png")
     b = exact.boxes[row0]
@@ -59,16 +70,29 @@ def test_truth_matches_boxes_and_depth(sim: Path) -> None:
 
 def test_estimate_runs_on_the_output(sim: Path, tmp_path: Path) -> None:
     out = tmp_path / "est.csv"
-    code = main(["estimate", "--calib", str(sim / "calib.txt"), "--poses",
-                 str(sim / "poses.txt"), "--boxes", str(sim / "boxes.csv"), "--method", "paper",
-                 "--out", str(out)])
+    code = main(
+        [
+            "estimate",
+            "--calib",
+            str(sim / "calib.txt"),
+            "--poses",
+            str(sim / "poses.txt"),
+            "--boxes",
+            str(sim / "boxes.csv"),
+            "--method",
+            "paper",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     rows = list(csv.DictReader(out.open()))
     assert rows and all(r["status"] == "ok" for r in rows)
 
 
-def test_user_mistakes_end_with_exit_code_2(tmp_path: Path, sim: Path,
-                                            capsys: pytest.CaptureFixture[str]) -> None:
+def test_user_mistakes_end_with_exit_code_2(
+    tmp_path: Path, sim: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text("[ego]\nspeed_kmh = -3\n[[target]]\nstart_m = 1\nspeed_kmh = 1\n")
     assert main(["simulate", str(bad), "--out", str(tmp_path / "o")]) == 2

@@ -71,8 +71,10 @@ def test_noise_depends_only_on_seed_and_frame() -> None:
     np.testing.assert_array_equal(two[0], a[0])
 
 
-@pytest.mark.parametrize("kwargs", [{"jitter_px": -1.0}, {"miss_rate": 1.5},
-                                    {"scale_sigma": float("nan")}, {"min_visible": 2.0}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"jitter_px": -1.0}, {"miss_rate": 1.5}, {"scale_sigma": float("nan")}, {"min_visible": 2.0}],
+)
 def test_invalid_noise_parameters(kwargs: dict) -> None:
     with pytest.raises(ConfigurationError):
         BoxNoiseSpec(**kwargs)

@@ -15,8 +15,9 @@ from slopedist.datasets.synthetic.scenarios import load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticSequence
 from slopedist.odometry.base import lookback_indices
 
-visual = pytest.importorskip("slopedist.odometry.visual",
-                             reason="the built-in visual odometry is not in this build")
+visual = pytest.importorskip(
+    "slopedist.odometry.visual", reason="the built-in visual odometry is not in this build"
+)
 
 LIMIT_DEG = 0.05
 RUNS = {"ego_sag": 80, "bumps_and_curves": 40}
@@ -33,8 +34,9 @@ def _errors(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     R_est = []
     for k in frames:
         f = seq.frame(k)
-        res = vo.process(cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY), f.timestamp_s,
-                         f.detections.boxes)
+        res = vo.process(
+            cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY), f.timestamp_s, f.detections.boxes
+        )
         assert res.R_world_cam is not None, f"odometry lost at frame {k}"
         R_est.append(res.R_world_cam)
     R = np.asarray(R_est)
@@ -43,8 +45,9 @@ def _errors(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rel_true = np.swapaxes(R_true[lb], 1, 2) @ R_true
     rel_est = np.swapaxes(R[lb], 1, 2) @ R
     rel_err = np.degrees(geo.rotation_angle_rad(np.swapaxes(rel_true, 1, 2) @ rel_est))
-    theta_err = np.degrees(geo.ego_road_gradient(R[lb], R)
-                           - geo.ego_road_gradient(R_true[lb], R_true))
+    theta_err = np.degrees(
+        geo.ego_road_gradient(R[lb], R) - geo.ego_road_gradient(R_true[lb], R_true)
+    )
     _cache[name] = (theta_err, rel_err, np.degrees(geo.rotation_angle_rad(rel_true)))
     return _cache[name]
 
@@ -60,4 +63,3 @@ def test_ego_gradient_within_005_deg(name: str) -> None:
 def test_rotation_over_the_lookback_within_005_deg(name: str) -> None:
     _, rel_err, _ = _errors(name)
     assert np.median(rel_err) <= LIMIT_DEG
-

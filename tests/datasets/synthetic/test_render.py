@@ -20,18 +20,26 @@ from slopedist.datasets.synthetic.vehicles import CameraRig, VehicleSpec
 H = 1.65
 
 
-def _sequence(road: RoadSpec, targets: tuple[VehicleSpec, ...], seed: int = 3
-              ) -> SyntheticSequence:
-    sc = Scenario("test", "", road, CameraSpec(rig=CameraRig(height_m=H)),
-                  VehicleSpec(-1, -1.75, 0.0, 10.0), targets, duration_s=2.0, seed=seed)
+def _sequence(road: RoadSpec, targets: tuple[VehicleSpec, ...], seed: int = 3) -> SyntheticSequence:
+    sc = Scenario(
+        "test",
+        "",
+        road,
+        CameraSpec(rig=CameraRig(height_m=H)),
+        VehicleSpec(-1, -1.75, 0.0, 10.0),
+        targets,
+        duration_s=2.0,
+        seed=seed,
+    )
     return SyntheticSequence(sc)
 
 
 PIXEL_TOL = 1.5
 
 
-def _back_project(seq: SyntheticSequence, k: int, depth: np.ndarray, mask: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def _back_project(
+    seq: SyntheticSequence, k: int, depth: np.ndarray, mask: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """World points ``(N, 3)`` of the pixels in ``mask`` from the depth map, and their depth."""
     cam = seq.scenario.camera
     ii, jj = np.nonzero(mask)
@@ -54,8 +62,10 @@ def test_rendered_box_bottom_sits_where_eq1_says(distance: float) -> None:
     assert abs(d - z_rear) < z_rear**2 / (cam.f * H)
 
 
-@pytest.mark.parametrize("name,frames", [("target_steep_uphill", (0, 60, 110)),
-                                         ("ego_crest", (30, 90)), ("same_flat", (50,))])
+@pytest.mark.parametrize(
+    "name,frames",
+    [("target_steep_uphill", (0, 60, 110)), ("ego_crest", (30, 90)), ("same_flat", (50,))],
+)
 def test_silhouettes_match_the_exact_boxes(name: str, frames: tuple[int, ...]) -> None:
     seq = SyntheticSequence(load_scenario(name))
     for k in frames:
@@ -71,8 +81,11 @@ def test_silhouettes_match_the_exact_boxes(name: str, frames: tuple[int, ...]) -
 def test_depth_of_road_pixels_lies_on_the_road_surface() -> None:
     # a straight road over a sag and a crest: road pixels back-projected with the depth map
     # must land on the road's surface
-    road = RoadSpec(start_grade_pct=-4.0, grade_changes=(
-        GradeChange(40.0, 8.0, 40.0), GradeChange(120.0, -5.0, 60.0)), s_max_m=400.0)
+    road = RoadSpec(
+        start_grade_pct=-4.0,
+        grade_changes=(GradeChange(40.0, 8.0, 40.0), GradeChange(120.0, -5.0, 60.0)),
+        s_max_m=400.0,
+    )
     seq = _sequence(road, (VehicleSpec(1, -1.75, 20.0, 10.0),))
     for k in (0, 15):
         r = seq.render(k)
@@ -113,8 +126,10 @@ def test_depth_of_vehicle_pixels_lies_on_the_box_faces() -> None:
 
 
 def test_nearer_target_hides_the_farther_one() -> None:
-    seq = _sequence(RoadSpec(s_max_m=300.0), (VehicleSpec(1, -1.75, 14.0, 10.0),
-                                              VehicleSpec(2, -1.75, 30.0, 10.0)))
+    seq = _sequence(
+        RoadSpec(s_max_m=300.0),
+        (VehicleSpec(1, -1.75, 14.0, 10.0), VehicleSpec(2, -1.75, 30.0, 10.0)),
+    )
     share = seq.visible_share(0, seq.render(0))
     assert share[0] == pytest.approx(1.0, abs=0.02)
     assert share[1] < 0.5
@@ -144,8 +159,10 @@ def test_texture_everywhere_below_the_horizon() -> None:
     assert np.bincount(thirds, minlength=3).min() > 100  # left roadside, road, right roadside
 
 
-@pytest.mark.parametrize("name,k", [("ego_crest", 60), ("bumps_and_curves", 30),
-                                    ("target_steep_uphill", 80), ("curve_flat", 45)])
+@pytest.mark.parametrize(
+    "name,k",
+    [("ego_crest", 60), ("bumps_and_curves", 30), ("target_steep_uphill", 80), ("curve_flat", 45)],
+)
 def test_interpolated_cells_match_the_exact_evaluation(name: str, k: int) -> None:
     # the renderer draws most cells from a coarse grid; the same frame evaluated pixel by pixel
     # from each polygon's own plane is the reference: depth equal to float32 rounding on single
@@ -155,8 +172,17 @@ def test_interpolated_cells_match_the_exact_evaluation(name: str, k: int) -> Non
     seq = SyntheticSequence(load_scenario(name))
     fast = seq.render(k)
     r = seq.renderer
-    seq.renderer = Renderer(r.static, r.K, r.width, r.height, r.half, r.lanes, r.lane_width,
-                            seq.scenario.seed, interpolate=False)
+    seq.renderer = Renderer(
+        r.static,
+        r.K,
+        r.width,
+        r.height,
+        r.half,
+        r.lanes,
+        r.lane_width,
+        seq.scenario.seed,
+        interpolate=False,
+    )
     exact = seq.render(k)
     assert np.array_equal(fast.labels, exact.labels)
     sky = ~np.isfinite(exact.depth_m)

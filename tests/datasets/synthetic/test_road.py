@@ -24,16 +24,18 @@ def test_constant_grade_is_a_straight_incline() -> None:
     np.testing.assert_allclose(road.grade_at(s), -0.06, atol=1e-9)
     np.testing.assert_allclose(road.centre(s)[:, 0], s, atol=1e-9)
     # 3D length along the incline
-    np.testing.assert_allclose(road.driven_distance(100.0), 100.0 * math.hypot(1, 0.06),
-                               rtol=1e-9)
+    np.testing.assert_allclose(road.driven_distance(100.0), 100.0 * math.hypot(1, 0.06), rtol=1e-9)
 
 
 def test_vertical_curve_is_a_parabola_between_two_grades() -> None:
     # 0 % → 12 % over 20 m centred at 55 m: z = 0.12/(2·20)·(s − 45)² inside, linear after
     road = Road(RoadSpec(grade_changes=(GradeChange(55.0, 12.0, 20.0),), s_max_m=200.0))
     s = np.array([40.0, 45.0, 50.0, 55.0, 65.0, 100.0])
-    expected = np.where(s <= 45, 0.0, np.where(s <= 65, 0.12 / 40.0 * (s - 45) ** 2,
-                                               0.12 / 40.0 * 400.0 + 0.12 * (s - 65)))
+    expected = np.where(
+        s <= 45,
+        0.0,
+        np.where(s <= 65, 0.12 / 40.0 * (s - 45) ** 2, 0.12 / 40.0 * 400.0 + 0.12 * (s - 65)),
+    )
     np.testing.assert_allclose(road.elevation(s), expected, atol=2e-4)
     assert road.grade_at(100.0) == pytest.approx(0.12, abs=1e-6)
 
@@ -65,20 +67,22 @@ def test_speed_bump_profile() -> None:
 def test_driven_distance_inverse() -> None:
     road = Road(RoadSpec(grade_changes=(GradeChange(50.0, 10.0, 30.0),), s_max_m=300.0))
     s = np.linspace(-20.0, 250.0, 17)
-    np.testing.assert_allclose(road.s_at_driven_distance(road.driven_distance(s)), s,
-                               atol=1e-6)
+    np.testing.assert_allclose(road.s_at_driven_distance(road.driven_distance(s)), s, atol=1e-6)
     with pytest.raises(ConfigurationError, match="leaves the modelled road"):
         road.s_at_driven_distance(1e6)
 
 
-@pytest.mark.parametrize("bad", [
-    lambda: GradeChange(0.0, 50.0),
-    lambda: GradeChange(0.0, 5.0, 0.0),
-    lambda: HorizontalCurve(0.0, 10.0, 10.0),
-    lambda: SpeedBump(0.0, 0.5),
-    lambda: RoadSpec(lanes=0),
-    lambda: RoadSpec(lane_width_m=float("nan")),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        lambda: GradeChange(0.0, 50.0),
+        lambda: GradeChange(0.0, 5.0, 0.0),
+        lambda: HorizontalCurve(0.0, 10.0, 10.0),
+        lambda: SpeedBump(0.0, 0.5),
+        lambda: RoadSpec(lanes=0),
+        lambda: RoadSpec(lane_width_m=float("nan")),
+    ],
+)
 def test_invalid_definitions_are_configuration_errors(bad) -> None:
     with pytest.raises(ConfigurationError):
         bad()

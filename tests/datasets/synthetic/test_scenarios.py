@@ -46,7 +46,7 @@ def _write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
 
 
 def test_the_suite_is_built_in_and_loads() -> None:
-    assert builtin_names()[:len(SUITE)] == list(SUITE)
+    assert builtin_names()[: len(SUITE)] == list(SUITE)
     for name in SUITE:
         sc = load_scenario(name)
         assert sc.name == name and sc.description.strip()
@@ -72,27 +72,55 @@ def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
     assert a.road == b.road and a.targets == b.targets and a.seed == b.seed
 
 
-@pytest.mark.parametrize("text,field,line,words", [
-    (MINIMAL + "[[road.curve]]\nstart_m = 1.0\nlength_m = 5.0\nradius = 100.0\n",
-     "road.curve[0].radius", 11, "unknown field"),
-    (MINIMAL.replace("speed_kmh = 40.0", 'speed_kmh = "fast"'), "target[0].speed_kmh", 7,
-     "must be a number"),
-    (MINIMAL.replace("start_m = 20.0\n", ""), "target[0].start_m", 5, "required"),
-    (MINIMAL.replace("[ego]\nspeed_kmh = 36.0\n", ""), "ego", None, "required table"),
-    (MINIMAL + "[[target]]\nstart_m = 40.0\nspeed_kmh = 30.0\nlane = 4\n", "target[1].lane",
-     11, "a lane of the road"),
-    (MINIMAL + "[[target]]\nid = 1\nstart_m = 40.0\nspeed_kmh = 30.0\n", "target[1].id", 9,
-     "used twice"),
-    (MINIMAL.replace("speed_kmh = 40.0", "speed_kmh = 40.0\nwheelbase_m = 5.0"), "target[0]",
-     5, "wheelbase_m"),
-    (MINIMAL + "[road]\nstart_grade_pct = 55\n", "road.start_grade_pct", 9, "±40"),
-    (MINIMAL + "[noise]\ntruncate = 1\n", "noise.truncate", 9, "true or false"),
-    (MINIMAL + "[camera]\npitch_noise_band_hz = [1.0]\n", "camera.pitch_noise_band_hz", 9,
-     "list of 2"),
-    (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
-])
-def test_mistakes_name_file_line_and_field(tmp_path: Path, text: str, field: str,
-                                           line: int | None, words: str) -> None:
+@pytest.mark.parametrize(
+    "text,field,line,words",
+    [
+        (
+            MINIMAL + "[[road.curve]]\nstart_m = 1.0\nlength_m = 5.0\nradius = 100.0\n",
+            "road.curve[0].radius",
+            11,
+            "unknown field",
+        ),
+        (
+            MINIMAL.replace("speed_kmh = 40.0", 'speed_kmh = "fast"'),
+            "target[0].speed_kmh",
+            7,
+            "must be a number",
+        ),
+        (MINIMAL.replace("start_m = 20.0\n", ""), "target[0].start_m", 5, "required"),
+        (MINIMAL.replace("[ego]\nspeed_kmh = 36.0\n", ""), "ego", None, "required table"),
+        (
+            MINIMAL + "[[target]]\nstart_m = 40.0\nspeed_kmh = 30.0\nlane = 4\n",
+            "target[1].lane",
+            11,
+            "a lane of the road",
+        ),
+        (
+            MINIMAL + "[[target]]\nid = 1\nstart_m = 40.0\nspeed_kmh = 30.0\n",
+            "target[1].id",
+            9,
+            "used twice",
+        ),
+        (
+            MINIMAL.replace("speed_kmh = 40.0", "speed_kmh = 40.0\nwheelbase_m = 5.0"),
+            "target[0]",
+            5,
+            "wheelbase_m",
+        ),
+        (MINIMAL + "[road]\nstart_grade_pct = 55\n", "road.start_grade_pct", 9, "±40"),
+        (MINIMAL + "[noise]\ntruncate = 1\n", "noise.truncate", 9, "true or false"),
+        (
+            MINIMAL + "[camera]\npitch_noise_band_hz = [1.0]\n",
+            "camera.pitch_noise_band_hz",
+            9,
+            "list of 2",
+        ),
+        (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
+    ],
+)
+def test_mistakes_name_file_line_and_field(
+    tmp_path: Path, text: str, field: str, line: int | None, words: str
+) -> None:
     path = _write(tmp_path, text)
     with pytest.raises(InputFileError) as info:
         load_scenario(path)
@@ -118,8 +146,7 @@ def test_unknown_name_and_missing_file() -> None:
 
 def test_field_lines_counts_arrays_of_tables() -> None:
     lines = field_lines("a = 1\n[[t]]\nx = 1\n[[t]]\nx = 2\n[r.c]\ny = 3\n")
-    assert lines == {"a": 1, "t[0]": 2, "t[0].x": 3, "t[1]": 4, "t[1].x": 5, "r.c": 6,
-                     "r.c.y": 7}
+    assert lines == {"a": 1, "t[0]": 2, "t[0].x": 3, "t[1]": 4, "t[1].x": 5, "r.c": 6, "r.c.y": 7}
 
 
 # --- property: any edit of a valid file gives a scenario or an InputFileError -------------------
@@ -143,10 +170,12 @@ def _leaves(d: Any, prefix: tuple = ()) -> list[tuple]:
 
 PATHS = sorted(set(_leaves(BASE)), key=str)
 VALUES = st.one_of(
-    st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=5), st.booleans(), st.lists(st.floats(-100, 100), max_size=4),
-    st.dictionaries(st.sampled_from(["x", "at_m", "speed_kmh"]), st.integers(-5, 5),
-                    max_size=2),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=5),
+    st.booleans(),
+    st.lists(st.floats(-100, 100), max_size=4),
+    st.dictionaries(st.sampled_from(["x", "at_m", "speed_kmh"]), st.integers(-5, 5), max_size=2),
 )
 
 

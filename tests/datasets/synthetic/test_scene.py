@@ -21,10 +21,21 @@ from slopedist.datasets.synthetic.vehicles import (
 H = 1.65
 
 
-def _scenario(road: RoadSpec, targets: tuple[VehicleSpec, ...], rig: CameraRig | None = None,
-              ego_speed: float = 10.0) -> Scenario:
-    return Scenario("t", "", road, CameraSpec(rig=rig or CameraRig(height_m=H)),
-                    VehicleSpec(-1, 0.0, 0.0, ego_speed), targets, duration_s=3.0)
+def _scenario(
+    road: RoadSpec,
+    targets: tuple[VehicleSpec, ...],
+    rig: CameraRig | None = None,
+    ego_speed: float = 10.0,
+) -> Scenario:
+    return Scenario(
+        "t",
+        "",
+        road,
+        CameraSpec(rig=rig or CameraRig(height_m=H)),
+        VehicleSpec(-1, 0.0, 0.0, ego_speed),
+        targets,
+        duration_s=3.0,
+    )
 
 
 def test_vehicle_pitch_follows_the_grade() -> None:
@@ -32,8 +43,7 @@ def test_vehicle_pitch_follows_the_grade() -> None:
     poses = vehicle_poses(road, np.array([0.0, 50.0]), 1.75, 2.7)
     np.testing.assert_allclose(poses.pitch_rad, math.atan(0.10), atol=1e-9)
     # bottom centre on the road surface under the vehicle (straight road: on the chord)
-    np.testing.assert_allclose(poses.origin_world[:, 2], 0.10 * np.array([0.0, 50.0]),
-                               atol=1e-9)
+    np.testing.assert_allclose(poses.origin_world[:, 2], 0.10 * np.array([0.0, 50.0]), atol=1e-9)
     np.testing.assert_allclose(poses.origin_world[:, 1], 1.75, atol=1e-9)
 
 

@@ -47,9 +47,28 @@ from slopedist.geometry import ego_road_gradient
 from slopedist.odometry.base import lookback_indices
 
 TRUTH_FIELDS = (
-    "frame", "timestamp_s", "track_id", "class", "in_view", "detected", "z_m", "z_centre_m",
-    "z_rear_m", "x_m", "y_m", "distance_m", "left", "top", "right", "bottom", "truncation",
-    "visible_share", "target_grade_pct", "target_pitch_deg", "ego_grade_pct", "ego_pitch_deg",
+    "frame",
+    "timestamp_s",
+    "track_id",
+    "class",
+    "in_view",
+    "detected",
+    "z_m",
+    "z_centre_m",
+    "z_rear_m",
+    "x_m",
+    "y_m",
+    "distance_m",
+    "left",
+    "top",
+    "right",
+    "bottom",
+    "truncation",
+    "visible_share",
+    "target_grade_pct",
+    "target_pitch_deg",
+    "ego_grade_pct",
+    "ego_pitch_deg",
 )
 """Columns of ``truth.csv``. ``z_m`` is KITTI's label z: camera z of the 3D box's bottom
 centre (the distance scored); ``z_centre_m`` the camera z of the box centre; ``z_rear_m`` that
@@ -57,8 +76,15 @@ of the middle of the rear bottom edge (the contact point eq. 1 sees); ``distance
 Euclidean distance to the bottom centre; the box is the exact one (projection of the 8
 corners, clipped to the image)."""
 
-FRAME_FIELDS = ("frame", "timestamp_s", "ego_s_m", "ego_grade_pct", "ego_pitch_deg",
-                "camera_pitch_deg", "theta_true_deg")
+FRAME_FIELDS = (
+    "frame",
+    "timestamp_s",
+    "ego_s_m",
+    "ego_grade_pct",
+    "ego_pitch_deg",
+    "camera_pitch_deg",
+    "theta_true_deg",
+)
 """Columns of ``frames.csv``; ``theta_true_deg`` is eq. 4 on the true rotations (1 s look-back)."""
 
 
@@ -99,22 +125,43 @@ class CsvStream:
 
 def box_rows(boxes: BoxTable, extra: tuple[str, ...] = ()) -> list[list[Any]]:
     """Rows of the slopedist box CSV (``CSV_BOX_COLUMNS`` then ``extra`` columns)."""
-    return [[int(boxes.frame[i]), *boxes.boxes[i], int(boxes.track_id[i]), boxes.score[i],
-             boxes.cls[i], *(boxes.extra[k][i] for k in extra)] for i in range(len(boxes))]
+    return [
+        [
+            int(boxes.frame[i]),
+            *boxes.boxes[i],
+            int(boxes.track_id[i]),
+            boxes.score[i],
+            boxes.cls[i],
+            *(boxes.extra[k][i] for k in extra),
+        ]
+        for i in range(len(boxes))
+    ]
 
 
 def with_truth_distance(seq: SyntheticSequence, boxes: BoxTable) -> BoxTable:
     """``boxes`` of one frame with the column ``gt_distance_m``: the true KITTI z (metres) of
     the target of each box's track id."""
     if not len(boxes):
-        return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
-                        {**boxes.extra, CSV_TRUTH_COLUMN: np.zeros(0)})
+        return BoxTable(
+            boxes.frame,
+            boxes.boxes,
+            boxes.track_id,
+            boxes.score,
+            boxes.cls,
+            {**boxes.extra, CSV_TRUTH_COLUMN: np.zeros(0)},
+        )
     ids = seq.truth.track_ids
     m = np.searchsorted(ids, boxes.track_id)
     if np.any(m >= len(ids)) or np.any(ids[np.minimum(m, len(ids) - 1)] != boxes.track_id):
         raise ConfigurationError("a box's track id is not a target of the scenario")
-    return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls,
-                    {**boxes.extra, CSV_TRUTH_COLUMN: seq.truth.z_m[boxes.frame, m]})
+    return BoxTable(
+        boxes.frame,
+        boxes.boxes,
+        boxes.track_id,
+        boxes.score,
+        boxes.cls,
+        {**boxes.extra, CSV_TRUTH_COLUMN: seq.truth.z_m[boxes.frame, m]},
+    )
 
 
 def kitti_calib_line(scenario: Scenario) -> str:
@@ -137,14 +184,29 @@ def truth_rows(seq: SyntheticSequence, frame: SyntheticFrame) -> list[list[Any]]
     detected = set(frame.detections.track_id.tolist())
     rows = []
     for m, spec in enumerate(seq.scenario.targets):
-        rows.append([
-            k, frame.timestamp_s, spec.track_id, spec.cls, bool(tr.in_view[k, m]),
-            spec.track_id in detected, tr.z_m[k, m], tr.z_centre_m[k, m], tr.z_rear_m[k, m],
-            tr.x_m[k, m], tr.y_m[k, m], tr.distance_m[k, m], *tr.box[k, m],
-            tr.truncation[k, m], frame.visible_share[m], 100.0 * tr.target_grade[k, m],
-            math.degrees(tr.target_pitch_rad[k, m]), 100.0 * tr.ego_grade[k],
-            math.degrees(tr.ego_pitch_rad[k]),
-        ])
+        rows.append(
+            [
+                k,
+                frame.timestamp_s,
+                spec.track_id,
+                spec.cls,
+                bool(tr.in_view[k, m]),
+                spec.track_id in detected,
+                tr.z_m[k, m],
+                tr.z_centre_m[k, m],
+                tr.z_rear_m[k, m],
+                tr.x_m[k, m],
+                tr.y_m[k, m],
+                tr.distance_m[k, m],
+                *tr.box[k, m],
+                tr.truncation[k, m],
+                frame.visible_share[m],
+                100.0 * tr.target_grade[k, m],
+                math.degrees(tr.target_pitch_rad[k, m]),
+                100.0 * tr.ego_grade[k],
+                math.degrees(tr.ego_pitch_rad[k]),
+            ]
+        )
     return rows
 
 
@@ -179,8 +241,10 @@ def write_simulation(
     tr = seq.truth
     streams = {
         "boxes": CsvStream(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
-        "exact": CsvStream(out / "boxes_exact.csv", (*CSV_BOX_COLUMNS, "z", "truncation",
-                                                     "visible_share", CSV_TRUTH_COLUMN)),
+        "exact": CsvStream(
+            out / "boxes_exact.csv",
+            (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
+        ),
         "truth": CsvStream(out / "truth.csv", TRUTH_FIELDS),
         "frames": CsvStream(out / "frames.csv", FRAME_FIELDS),
     }
@@ -196,16 +260,29 @@ def write_simulation(
                 write_kitti_depth_png(depth_dir / f"{k:06d}.png", f.depth_m)
             elif depth is DepthFormat.NPY:
                 np.save(depth_dir / f"{k:06d}.npy", f.depth_m)
-            streams["boxes"].rows(box_rows(with_truth_distance(seq, f.detections),
-                                           (CSV_TRUTH_COLUMN,)))
-            streams["exact"].rows(box_rows(with_truth_distance(seq, f.exact),
-                                           ("z", "truncation", "visible_share",
-                                            CSV_TRUTH_COLUMN)))
+            streams["boxes"].rows(
+                box_rows(with_truth_distance(seq, f.detections), (CSV_TRUTH_COLUMN,))
+            )
+            streams["exact"].rows(
+                box_rows(
+                    with_truth_distance(seq, f.exact),
+                    ("z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
+                )
+            )
             streams["truth"].rows(truth_rows(seq, f))
-            streams["frames"].rows([[k, f.timestamp_s, tr.ego_s[k], 100.0 * tr.ego_grade[k],
-                                     math.degrees(tr.ego_pitch_rad[k]),
-                                     math.degrees(tr.camera_pitch_rad[k]),
-                                     math.degrees(theta[k])]])
+            streams["frames"].rows(
+                [
+                    [
+                        k,
+                        f.timestamp_s,
+                        tr.ego_s[k],
+                        100.0 * tr.ego_grade[k],
+                        math.degrees(tr.ego_pitch_rad[k]),
+                        math.degrees(tr.camera_pitch_rad[k]),
+                        math.degrees(theta[k]),
+                    ]
+                ]
+            )
             n_det += len(f.detections)
             if on_frame is not None:
                 on_frame(k)

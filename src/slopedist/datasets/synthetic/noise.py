@@ -99,8 +99,14 @@ def noisy_boxes(
     n = b.shape[0]
     # one generator per row (target), drawn whether it is in view or not: the noise of a
     # target depends only on the seed, the frame and its row
-    draws = np.array([np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame), i, 0xB0C5]
-                                            ).standard_normal(6) for i in range(n)]).reshape(n, 6)
+    draws = np.array(
+        [
+            np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame), i, 0xB0C5]).standard_normal(
+                6
+            )
+            for i in range(n)
+        ]
+    ).reshape(n, 6)
     eps = draws[:, 0] * spec.scale_sigma
     jitter = draws[:, 1:5] * spec.jitter_px
     miss = _normal_cdf(draws[:, 5]) < spec.miss_rate

@@ -121,8 +121,12 @@ class Tex:
 
 
 MATERIAL_TEXTURE = {
-    Material.GROUND: Tex.ROAD, Material.BUILDING: Tex.FACADE, Material.TREES: Tex.FOLIAGE,
-    Material.POST: Tex.POST, Material.OBJECT: Tex.OBJECT, Material.VEHICLE: Tex.VEHICLE,
+    Material.GROUND: Tex.ROAD,
+    Material.BUILDING: Tex.FACADE,
+    Material.TREES: Tex.FOLIAGE,
+    Material.POST: Tex.POST,
+    Material.OBJECT: Tex.OBJECT,
+    Material.VEHICLE: Tex.VEHICLE,
 }
 
 
@@ -147,7 +151,11 @@ def _resampled(img: FloatArray, n: int = TEX_SIZE) -> FloatArray:
     out = np.zeros((n, n), complex)
     h = m // 2
     out[:h, :h], out[:h, -h:], out[-h:, :h], out[-h:, -h:] = (
-        spec[:h, :h], spec[:h, -h:], spec[-h:, :h], spec[-h:, -h:])
+        spec[:h, :h],
+        spec[:h, -h:],
+        spec[-h:, :h],
+        spec[-h:, -h:],
+    )
     res = np.fft.ifft2(out).real
     return np.asarray(res * (img.std() / res.std()))
 
@@ -169,30 +177,48 @@ def _base_textures(seed: int = 20240) -> dict[str, FloatArray]:
     rng = np.random.default_rng(seed)
     n = TEX_SIZE
     speckle = (rng.random((n, n)) < 0.04) * rng.choice([-1.0, 1.0], (n, n))
-    asphalt = (0.50 + 0.10 * _fft_noise(rng, 1.0) + 0.06 * _fft_noise(rng, 3.0)
-               + 0.22 * _fft_blur(speckle, 0.7))
+    asphalt = (
+        0.50
+        + 0.10 * _fft_noise(rng, 1.0)
+        + 0.06 * _fft_noise(rng, 3.0)
+        + 0.22 * _fft_blur(speckle, 0.7)
+    )
     # grass, on the road's tile at 64 texels per metre, and foliage, at 32, keep the features
     # they have at 32 and 24: drawn on smaller tiles (their own streams) and resampled
     own = np.random.default_rng([seed, 1])
-    grass = 0.50 + 0.20 * _resampled(_fft_noise(own, 1.4, n // 2)) + 0.08 * _resampled(
-        _fft_noise(own, 3.0, n // 2))
+    grass = (
+        0.50
+        + 0.20 * _resampled(_fft_noise(own, 1.4, n // 2))
+        + 0.08 * _resampled(_fft_noise(own, 3.0, n // 2))
+    )
     _fft_noise(rng, 1.4), _fft_noise(rng, 3.0)  # the draws the other textures follow
     facade = 0.62 + 0.06 * _fft_noise(rng, 1.2) + 0.06 * _fft_noise(rng, 3.0)
     leaves = _resampled(_fft_noise(own, 1.6, 3 * n // 4))
-    foliage = 0.30 + 0.45 / (1.0 + np.exp(-2.5 * leaves)) + 0.05 * _resampled(
-        _fft_noise(own, 0.8, 3 * n // 4))
+    foliage = (
+        0.30
+        + 0.45 / (1.0 + np.exp(-2.5 * leaves))
+        + 0.05 * _resampled(_fft_noise(own, 0.8, 3 * n // 4))
+    )
     _fft_noise(rng, 1.6), _fft_noise(rng, 0.8)
     obj = 0.55 + 0.14 * _fft_noise(rng, 1.3)
     vehicle = 0.85 + 0.03 * _fft_noise(rng, 2.5)
     cloud = _fft_noise(rng, 3.2)
     cloud = 0.5 + 0.5 * np.tanh(1.5 * (cloud - 0.3))
-    out = dict(asphalt=asphalt, grass=grass, facade=facade, foliage=foliage, object=obj,
-               vehicle=vehicle, cloud=cloud)
+    out = dict(
+        asphalt=asphalt,
+        grass=grass,
+        facade=facade,
+        foliage=foliage,
+        object=obj,
+        vehicle=vehicle,
+        cloud=cloud,
+    )
     return {k: np.clip(v, 0.0, 1.0) for k, v in out.items()}
 
 
-def _coverage(dist: NDArray[np.floating], half_width: float,
-              footprint: NDArray[np.floating] | float) -> NDArray[np.floating]:
+def _coverage(
+    dist: NDArray[np.floating], half_width: float, footprint: NDArray[np.floating] | float
+) -> NDArray[np.floating]:
     """Anti-aliased coverage of a stripe of ``half_width`` at distance ``dist`` from its axis,
     for pixels (texels) of footprint ``footprint`` (same units)."""
     return np.asarray(np.clip((half_width - dist) / np.maximum(footprint, 1e-4) + 0.5, 0.0, 1.0))
@@ -213,8 +239,9 @@ def _blur_wrap_x(img: FloatArray, sigma_x: float, sigma_y: float) -> FloatArray:
     kx, ky = _gauss_kernel(sigma_x), _gauss_kernel(sigma_y)
     pad = kx.shape[0] // 2 + 1
     wide = np.concatenate([img[:, -pad:], img, img[:, :pad]], axis=1).astype(np.float32)
-    out = cv2.sepFilter2D(wide, -1, kx.astype(np.float32), ky.astype(np.float32),
-                          borderType=cv2.BORDER_REFLECT)
+    out = cv2.sepFilter2D(
+        wide, -1, kx.astype(np.float32), ky.astype(np.float32), borderType=cv2.BORDER_REFLECT
+    )
     return np.asarray(out[:, pad:-pad], dtype=np.float64)
 
 
@@ -230,11 +257,17 @@ MARKING_WHITE = 0.93
 ASPHALT_TINT = np.array([0.62, 0.62, 0.64])
 GRASS_TINT = np.array([0.30, 0.55, 0.45])
 
+
 def _grey_tile(tex: int) -> FloatArray:
     """Grey tile of a wall or box texture, ``(ROWS, 512)`` in [0, 1], details baked in."""
     base = _base_textures()
-    name = {Tex.FACADE: "facade", Tex.FOLIAGE: "foliage", Tex.OBJECT: "object",
-            Tex.POST: "object", Tex.VEHICLE: "vehicle"}[tex]
+    name = {
+        Tex.FACADE: "facade",
+        Tex.FOLIAGE: "foliage",
+        Tex.OBJECT: "object",
+        Tex.POST: "object",
+        Tex.VEHICLE: "vehicle",
+    }[tex]
     rows = Tex.ROWS[tex]
     g = np.tile(base[name], (-(-rows // TEX_SIZE), 1))[:rows].copy()
     tpm = float(Tex.TEXELS_PER_M[tex])
@@ -249,14 +282,16 @@ def _grey_tile(tex: int) -> FloatArray:
     elif tex == Tex.POST:  # a dark band
         g = g * (1.0 - 0.85 * _coverage(np.abs(v - 0.75), 0.1, fp))
     elif tex == Tex.VEHICLE:  # windows and a bumper line
-        dark = np.maximum(_coverage(np.abs(v - 1.08), 0.22, fp),
-                          _coverage(np.abs(v - 0.35), 0.12, fp) * 0.8)
+        dark = np.maximum(
+            _coverage(np.abs(v - 1.08), 0.22, fp), _coverage(np.abs(v - 0.35), 0.12, fp) * 0.8
+        )
         g = g * (1.0 - 0.6 * dark)
     return np.asarray(np.broadcast_to(g, (rows, TEX_SIZE)))
 
 
-def _road_tile(half_m: float, lanes: int, lane_width_m: float, ground_half_m: float,
-               tpm_v: float) -> FloatArray:
+def _road_tile(
+    half_m: float, lanes: int, lane_width_m: float, ground_half_m: float, tpm_v: float
+) -> FloatArray:
     """Colour tile of the ground (BGR in [0, 1], ``(rows, 512, 3)``): asphalt with edge lines
     and dashed lane separators within ``±half_m``, grass beyond; columns at
     ``Tex.TEXELS_PER_M[ROAD]``, rows at ``tpm_v`` texels per metre from ``v = −ground_half_m``."""
@@ -306,8 +341,7 @@ def _mip_levels(tile: FloatArray) -> list[NDArray[np.uint8]]:
     out = []
     for lev in range(MIP_LEVELS):
         s, step = _level_sigma(lev), MIP_DECIMATION[lev]
-        chans = [_blur_wrap_x(colour[..., c], s, s)[::step, ::step]
-                 for c in range(colour.shape[2])]
+        chans = [_blur_wrap_x(colour[..., c], s, s)[::step, ::step] for c in range(colour.shape[2])]
         img = np.stack(chans, axis=-1)
         img = np.concatenate([img, img[:, :1]], axis=1)
         if img.shape[2] == 1:
@@ -352,15 +386,17 @@ def _stack(tiles: dict[int, list[NDArray[np.uint8]]]) -> tuple[NDArray[np.uint8]
         for lev, img in enumerate(levels):
             r = y0[t] // MIP_DECIMATION[lev] - TILE_PAD
             padded = np.pad(img, ((TILE_PAD, TILE_PAD), (0, 0), (0, 0)), mode="edge")
-            image[r:r + padded.shape[0], x0[lev]:x0[lev] + img.shape[1]] = padded
+            image[r : r + padded.shape[0], x0[lev] : x0[lev] + img.shape[1]] = padded
     return image, y0
 
 
 @functools.lru_cache(maxsize=1)
 def _shared_levels() -> dict[int, list[NDArray[np.uint8]]]:
     """Mip levels of the wall, box and sky textures."""
-    return {t: _mip_levels(_sky_tile() if t == Tex.SKY else _grey_tile(t))
-            for t in (Tex.FACADE, Tex.FOLIAGE, Tex.OBJECT, Tex.POST, Tex.VEHICLE, Tex.SKY)}
+    return {
+        t: _mip_levels(_sky_tile() if t == Tex.SKY else _grey_tile(t))
+        for t in (Tex.FACADE, Tex.FOLIAGE, Tex.OBJECT, Tex.POST, Tex.VEHICLE, Tex.SKY)
+    }
 
 
 @dataclass(frozen=True)
@@ -391,8 +427,9 @@ def texture_atlas(half_m: float, lanes: int, lane_width_m: float, ground_half_m:
     budget = ATLAS_MAX_ROWS - used - 4 * TILE_PAD * LEVEL_ROW_STEP * (len(shared) + 1)
     tpm_v = Tex.TEXELS_PER_M_V.copy()
     tpm_v[Tex.ROAD] = min(tpm_v[Tex.ROAD], budget / (2.0 * ground_half_m))
-    road = _mip_levels(_road_tile(half_m, lanes, lane_width_m, ground_half_m,
-                                  float(tpm_v[Tex.ROAD])))
+    road = _mip_levels(
+        _road_tile(half_m, lanes, lane_width_m, ground_half_m, float(tpm_v[Tex.ROAD]))
+    )
     image, first = _stack({Tex.ROAD: road, **shared})
     v_min = Tex.V_MIN_M.copy()
     v_min[Tex.ROAD] = -ground_half_m
@@ -454,7 +491,7 @@ class Rendered:
         access: callers that do not need depth do not pay for it)."""
         h, w = self.labels.shape
         o = CELL // 2
-        depth = np.ascontiguousarray(self.depth_work[o:o + h, o:o + w])
+        depth = np.ascontiguousarray(self.depth_work[o : o + h, o : o + w])
         np.putmask(depth, self.labels == 0, np.float32(np.inf))
         return depth
 
@@ -511,8 +548,9 @@ def clip_polygon_near(poly_cam: FloatArray, near: float = NEAR_CLIP_M) -> FloatA
     return _clip_halfplane(poly_cam, 2, near, True)
 
 
-def clip_polygon_rect(poly_px: FloatArray, x0: float, y0: float, x1: float, y1: float
-                      ) -> FloatArray:
+def clip_polygon_rect(
+    poly_px: FloatArray, x0: float, y0: float, x1: float, y1: float
+) -> FloatArray:
     """Clip one polygon ``(n, 2)`` (pixels) to the rectangle ``[x0, x1] × [y0, y1]``."""
     for axis, bound, above in ((0, x0, True), (0, x1, False), (1, y0, True), (1, y1, False)):
         if poly_px.shape[0] < 3:
@@ -567,9 +605,18 @@ class Renderer:
             from its own polygon's plane, the reference the interpolation is tested against).
     """
 
-    def __init__(self, static: Polygons, K: FloatArray, width: int, height: int,
-                 carriageway_half_m: float, lanes: int, lane_width_m: float,
-                 seed: int = 0, interpolate: bool = True) -> None:
+    def __init__(
+        self,
+        static: Polygons,
+        K: FloatArray,
+        width: int,
+        height: int,
+        carriageway_half_m: float,
+        lanes: int,
+        lane_width_m: float,
+        seed: int = 0,
+        interpolate: bool = True,
+    ) -> None:
         self.interpolate = interpolate
         self.static = static
         self.K = np.asarray(K, dtype=float)
@@ -586,8 +633,7 @@ class Renderer:
         else:
             ground_half = self.half + 1.0
         self._combined: Polygons | None = None
-        self._atlas = texture_atlas(self.half, self.lanes, self.lane_width,
-                                    round(ground_half, 3))
+        self._atlas = texture_atlas(self.half, self.lanes, self.lane_width, round(ground_half, 3))
         self._mat_tex = np.zeros(len(Material), np.intp)
         for m, t in MATERIAL_TEXTURE.items():
             self._mat_tex[int(m)] = t
@@ -618,11 +664,11 @@ class Renderer:
         hw = np.arange(CELL * hc, dtype=np.float32)[:, None] - o
         self._log_rn_work = np.log2(self._ray_norm_over_f(ww, hw))
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0015E])
-        noise = np.rint(rng.standard_normal((2 * h + 2 * CELL, 2 * w + 2 * CELL))
-                        * SENSOR_NOISE_GREY)
+        noise = np.rint(
+            rng.standard_normal((2 * h + 2 * CELL, 2 * w + 2 * CELL)) * SENSOR_NOISE_GREY
+        )
         self._noise_pos = np.repeat(np.clip(noise, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
-        self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 3,
-                                    axis=2)
+        self._noise_neg = np.repeat(np.clip(-noise, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
 
     def _ray_norm_over_f(self, x: F32, y: F32) -> F32:
         """``|r| / f`` of the rays through image points ``(x, y)``, ``r = K⁻¹ (x, y, 1)``."""
@@ -646,14 +692,16 @@ class Renderer:
                 getattr(self._combined, name)[n:] = getattr(dynamic, name)
         return self._combined
 
-    def _visible_polygons(self, polys: Polygons, painter: NDArray[np.intp], R_wc: FloatArray,
-                          C_w: FloatArray) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
+    def _visible_polygons(
+        self, polys: Polygons, painter: NDArray[np.intp], R_wc: FloatArray, C_w: FloatArray
+    ) -> tuple[NDArray[np.intp], list[NDArray[np.int32]]]:
         """Cull, clip and project the polygons ``polys[painter]`` (painter order); returns the
         indices (into ``painter``) of the kept ones and their integer pixel outlines
         (``cv2.fillConvexPoly`` coordinates, 4 fractional bits)."""
         verts = polys.verts[painter]
         facing = polys.two_sided[painter] | (
-            np.einsum("pi,pi->p", C_w - verts[:, 0], polys.normal[painter]) > 1e-9)
+            np.einsum("pi,pi->p", C_w - verts[:, 0], polys.normal[painter]) > 1e-9
+        )
         idx = np.flatnonzero(facing)
         vc = (verts[idx] - C_w) @ R_wc  # (p, k, 3): camera frame
         x, y, z = np.ascontiguousarray(vc.transpose(2, 1, 0))  # (k, p) each
@@ -671,8 +719,9 @@ class Renderer:
         huge = (lo_x < -lim) | (lo_y < -lim) | (hi_x > w + lim) | (hi_y > h + lim)
         direct = np.flatnonzero(all_in & onscreen & ~huge)
         px = np.stack([px_x, px_y], axis=-1).transpose(1, 0, 2)  # (p, k, 2)
-        outlines: dict[int, NDArray[np.int32]] = dict(zip(
-            direct.tolist(), np.round(px[direct] * 16.0).astype(np.int32), strict=True))
+        outlines: dict[int, NDArray[np.int32]] = dict(
+            zip(direct.tolist(), np.round(px[direct] * 16.0).astype(np.int32), strict=True)
+        )
         # crossing the near plane, or reaching beyond fillConvexPoly's range: clipped
         for p in np.flatnonzero((any_in & ~all_in) | (all_in & onscreen & huge)).tolist():
             if all_in[p]:
@@ -681,8 +730,13 @@ class Renderer:
                 poly = clip_polygon_near(vc[p])
                 if poly.shape[0] < 3:
                     continue
-                q = np.stack([K[0, 0] * poly[:, 0] / poly[:, 2] + K[0, 2],
-                              K[1, 1] * poly[:, 1] / poly[:, 2] + K[1, 2]], axis=-1)
+                q = np.stack(
+                    [
+                        K[0, 0] * poly[:, 0] / poly[:, 2] + K[0, 2],
+                        K[1, 1] * poly[:, 1] / poly[:, 2] + K[1, 2],
+                    ],
+                    axis=-1,
+                )
             if np.any(q < -lim) or np.any(q > (w + lim, h + lim)):
                 q = clip_polygon_rect(q, -4.0, -4.0, w + 4.0, h + 4.0)
                 if q.shape[0] < 3:
@@ -691,8 +745,14 @@ class Renderer:
         keep = sorted(outlines)  # painter order is index order
         return idx[np.asarray(keep, dtype=np.intp)], [outlines[p] for p in keep]
 
-    def _tables(self, polys: Polygons, surface: NDArray[np.int64], R_wc: FloatArray,
-                C_w: FloatArray, u_base: float) -> _Tables:
+    def _tables(
+        self,
+        polys: Polygons,
+        surface: NDArray[np.int64],
+        R_wc: FloatArray,
+        C_w: FloatArray,
+        u_base: float,
+    ) -> _Tables:
         """The per-label tables of ``polys`` (in label order, label = index + 1)."""
         n = len(polys)
         n_c = polys.normal @ R_wc  # rows: (R_wcᵀ n)ᵀ, the normals in the camera frame
@@ -734,13 +794,18 @@ class Renderer:
         log_tpm = np.log2(tpm) - np.float32(MIP_BIAS)
         log_c = np.log2(np.maximum(plane_c * free, np.float32(1e-3)))
         per_label = np.concatenate([fn.T, log_tpm[None], log_c[None]])
-        return _Tables(np.ascontiguousarray(per_label, dtype=np.float32), tint, tex_l, surf,
-                       turn)
+        return _Tables(np.ascontiguousarray(per_label, dtype=np.float32), tint, tex_l, surf, turn)
 
     # -- frame -----------------------------------------------------------------------------------
 
-    def render(self, R_world_cam: FloatArray, centre_world: FloatArray, s_camera: float,
-               dynamic: Polygons | None = None, frame: int = 0) -> Rendered:
+    def render(
+        self,
+        R_world_cam: FloatArray,
+        centre_world: FloatArray,
+        s_camera: float,
+        dynamic: Polygons | None = None,
+        frame: int = 0,
+    ) -> Rendered:
         """Render one frame.
 
         Args:
@@ -755,8 +820,11 @@ class Renderer:
         C = np.asarray(centre_world, dtype=float)
         st = self.static
         boundary = s_camera + LOD_NEAR_M
-        detail = (st.lod < 0) | ((st.lod == 0) & (st.lod_key < boundary)) | (
-            (st.lod == 1) & (st.lod_key >= boundary))
+        detail = (
+            (st.lod < 0)
+            | ((st.lod == 0) & (st.lod_key < boundary))
+            | ((st.lod == 1) & (st.lod_key >= boundary))
+        )
         near = detail & (st.s_hi >= s_camera - 2.0) & (st.s_lo <= s_camera + VIEW_RANGE_M)
         idx = np.flatnonzero(near)
         polys = self._with_dynamic(dynamic)
@@ -835,8 +903,9 @@ class Renderer:
         add = cv2.convertScaleAbs(own4)
         return np.asarray(mult, np.uint8), np.asarray(add, np.uint8)
 
-    def _shade(self, labels: NDArray[np.uint16], tab: _Tables, R: FloatArray, frame: int
-               ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    def _shade(
+        self, labels: NDArray[np.uint16], tab: _Tables, R: FloatArray, frame: int
+    ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
         """Image and depth: cells seeing one surface from the coarse grid, the others pixel by
         pixel. Works on the frame of the grid's ×CELL upsampling (image pixel ``(y, x)`` at
         ``(y + CELL/2, x + CELL/2)``): the image is cropped at the end, the depth returned on
@@ -858,13 +927,23 @@ class Renderer:
         if sky.size:  # the sky: its texel coordinates with w = 1, its colour as it is
             yy, xx = np.divmod(sky, sky_c.shape[1])
             tx, ty = self._sky(np.take(self._xs, xx), np.take(self._ys, yy), R)
-            for grid, value in ((inv_c, 1.0), (tx_c, tx), (ty_c, ty), (lev_c, 0.0),
-                                (mult_c.view(np.uint32), 0xFFFFFFFF), (add_c.view(np.uint32), 0)):
+            for grid, value in (
+                (inv_c, 1.0),
+                (tx_c, tx),
+                (ty_c, ty),
+                (lev_c, 0.0),
+                (mult_c.view(np.uint32), 0xFFFFFFFF),
+                (add_c.view(np.uint32), 0),
+            ):
                 np.put(grid, sky, value)
         np.clip(lev_c, 0.0, MIP_LEVELS - 1, out=lev_c)  # stays within the levels when interpolated
         # 2. cells: the labels seen in each (its pixels and corners), one surface or not
-        padded = np.asarray(cv2.copyMakeBorder(labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w,
-                                               cv2.BORDER_REPLICATE), dtype=np.uint16)
+        padded = np.asarray(
+            cv2.copyMakeBorder(
+                labels, 0, CELL * ny + 1 - h, 0, CELL * nx + 1 - w, cv2.BORDER_REPLICATE
+            ),
+            dtype=np.uint16,
+        )
         sub = (slice(0, CELL * ny, CELL), slice(0, CELL * nx, CELL))
         lo: NDArray[np.intp] = cv2.erode(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
         hi: NDArray[np.intp] = cv2.dilate(padded, self._kernel, anchor=(0, 0))[sub].astype(np.intp)
@@ -895,12 +974,18 @@ class Renderer:
         cv2.add(texel, add[crop], dst=texel)
         image = cv2.cvtColor(texel, cv2.COLOR_BGRA2BGR)
         oy, ox = (frame * 7919) % h, (frame * 104729) % w
-        cv2.add(image, self._noise_pos[oy:oy + h, ox:ox + w], dst=image)
-        cv2.subtract(image, self._noise_neg[oy:oy + h, ox:ox + w], dst=image)
+        cv2.add(image, self._noise_pos[oy : oy + h, ox : ox + w], dst=image)
+        cv2.subtract(image, self._noise_neg[oy : oy + h, ox : ox + w], dst=image)
         return np.asarray(image, dtype=np.uint8), depth
 
-    def _check_pieces(self, good: NDArray[np.bool_], lo: NDArray[np.intp], hi: NDArray[np.intp],
-                      inv_c: F32, tab: _Tables) -> None:
+    def _check_pieces(
+        self,
+        good: NDArray[np.bool_],
+        lo: NDArray[np.intp],
+        hi: NDArray[np.intp],
+        inv_c: F32,
+        tab: _Tables,
+    ) -> None:
         """Cells seeing several pieces of one surface stay interpolated only where the pieces'
         normals agree to ``TURN_TOLERANCE`` and the planes of the farthest and nearest pieces
         (extreme labels) agree with ``1/z`` at the cell's corners to ``PLANE_TOLERANCE`` (no
@@ -908,8 +993,9 @@ class Renderer:
         multi = good & (lo != hi)
         # every piece between the extreme labels within TURN_TOLERANCE of the others (a bump
         # or a crest between two coplanar pieces is no plane)
-        multi &= ~(np.take(tab.turn, hi, mode="clip") - np.take(tab.turn, lo, mode="clip")
-                   > TURN_TOLERANCE)
+        multi &= ~(
+            np.take(tab.turn, hi, mode="clip") - np.take(tab.turn, lo, mode="clip") > TURN_TOLERANCE
+        )
         good &= (lo == hi) | multi
         cell = np.flatnonzero(multi)  # flat indices into the cells
         if not cell.size:
@@ -927,8 +1013,15 @@ class Renderer:
             ok &= np.all(np.abs(p[0] * x + p[1] * y + p[2] - ref) <= tol, axis=0)
         np.put(good, cell[~ok], False)
 
-    def _interpolated(self, inv_c: F32, tx_c: F32, ty_c: F32, lev_c: F32,
-                      mult_c: NDArray[np.uint8], add_c: NDArray[np.uint8]) -> _Fields:
+    def _interpolated(
+        self,
+        inv_c: F32,
+        tx_c: F32,
+        ty_c: F32,
+        lev_c: F32,
+        mult_c: NDArray[np.uint8],
+        add_c: NDArray[np.uint8],
+    ) -> _Fields:
         """The grid's quantities at every pixel (bilinear, exact within a plane), on the
         upsampling's frame."""
         hc, wc = inv_c.shape
@@ -940,14 +1033,22 @@ class Renderer:
         # (in cells drawn pixel by pixel afterwards the values may be anything)
         return _Fields(*(up(a) for a in (inv_c, tx_c, ty_c, lev_c, mult_c, add_c)))
 
-    def _exact(self, cb: NDArray[np.intp], ca: NDArray[np.intp], padded: NDArray[np.uint16],
-               tab: _Tables, R: FloatArray, fields: _Fields) -> None:
+    def _exact(
+        self,
+        cb: NDArray[np.intp],
+        ca: NDArray[np.intp],
+        padded: NDArray[np.uint16],
+        tab: _Tables,
+        R: FloatArray,
+        fields: _Fields,
+    ) -> None:
         """The pixels of cells ``(cb, ca)`` from their own polygon's plane, written into
         ``fields`` (``padded``: the labels, padded to whole cells and one more row and
         column)."""
         cell = cb * self._cells[1] + ca
-        lab = np.take(padded, np.take(self._cell_labels, cell, axis=0, mode="clip").ravel(),
-                      mode="clip").astype(np.intp)
+        lab = np.take(
+            padded, np.take(self._cell_labels, cell, axis=0, mode="clip").ravel(), mode="clip"
+        ).astype(np.intp)
         where = np.take(self._cell_work, cell, axis=0, mode="clip").ravel()
         x = ((CELL * ca).astype(np.float32)[:, None] + self._cell_dx).ravel()
         y = ((CELL * cb).astype(np.float32)[:, None] + self._cell_dy).ravel()
@@ -996,8 +1097,13 @@ class _Fields(NamedTuple):
     add: NDArray[np.uint8]
 
 
-def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear: FloatArray,
-                     s_front: FloatArray, owners: NDArray[np.int64]) -> Polygons:
+def vehicle_polygons(
+    corners_world: FloatArray,
+    colours_bgr: FloatArray,
+    s_rear: FloatArray,
+    s_front: FloatArray,
+    owners: NDArray[np.int64],
+) -> Polygons:
     """Faces of target boxes from their 8 corners ``(M, 8, 3)`` (order of
     :data:`~slopedist.datasets.synthetic.vehicles.BOX_CORNERS_UNIT`); colours BGR in [0, 1]."""
     c = corners_world
@@ -1005,18 +1111,36 @@ def vehicle_polygons(corners_world: FloatArray, colours_bgr: FloatArray, s_rear:
     lft = c[:, 1] - c[:, 0]
     up = c[:, 4] - c[:, 0]
     fwd, lft, up = (a / np.linalg.norm(a, axis=1, keepdims=True) for a in (fwd, lft, up))
-    faces = [((0, 1, 5, 4), -fwd, lft), ((3, 2, 6, 7), fwd, -lft), ((2, 0, 4, 6), -lft, -fwd),
-             ((1, 3, 7, 5), lft, fwd), ((4, 5, 7, 6), up, lft)]
+    faces = [
+        ((0, 1, 5, 4), -fwd, lft),
+        ((3, 2, 6, 7), fwd, -lft),
+        ((2, 0, 4, 6), -lft, -fwd),
+        ((1, 3, 7, 5), lft, fwd),
+        ((4, 5, 7, 6), up, lft),
+    ]
     m = c.shape[0]
     parts = []
     for idx, normal, axis_u in faces:
         v = c[:, list(idx)]
-        parts.append(Polygons(
-            verts=v, normal=normal, origin=v[:, 0], axis_u=axis_u, axis_v=up,
-            u0=np.zeros(m), key=s_rear.copy(), layer=np.full(m, int(Layer.VEHICLE)),
-            s_lo=s_rear.copy(), s_hi=s_front.copy(), material=np.full(m, int(Material.VEHICLE)),
-            colour=colours_bgr.copy(), owner=owners.astype(np.int64),
-            two_sided=np.zeros(m, bool), lod=np.full(m, -1, np.int8), lod_key=np.zeros(m),
-            surface=np.full(m, -1, np.int64),
-        ))
+        parts.append(
+            Polygons(
+                verts=v,
+                normal=normal,
+                origin=v[:, 0],
+                axis_u=axis_u,
+                axis_v=up,
+                u0=np.zeros(m),
+                key=s_rear.copy(),
+                layer=np.full(m, int(Layer.VEHICLE)),
+                s_lo=s_rear.copy(),
+                s_hi=s_front.copy(),
+                material=np.full(m, int(Material.VEHICLE)),
+                colour=colours_bgr.copy(),
+                owner=owners.astype(np.int64),
+                two_sided=np.zeros(m, bool),
+                lod=np.full(m, -1, np.int8),
+                lod_key=np.zeros(m),
+                surface=np.full(m, -1, np.int64),
+            )
+        )
     return Polygons.concat(parts)

@@ -80,7 +80,8 @@ class HorizontalCurve:
             raise ConfigurationError("curve length_m and transition_m must be ≥ 0 m")
         if abs(self.radius_m) < 30:
             raise ConfigurationError(
-                f"curve radius_m must be at least 30 m in magnitude, got {self.radius_m}")
+                f"curve radius_m must be at least 30 m in magnitude, got {self.radius_m}"
+            )
 
     def curvature(self, s: FloatArray) -> FloatArray:
         """Curvature of this curve at plan distances ``s`` (1/m)."""
@@ -170,8 +171,10 @@ class RoadSpec:
     def lane_offset_m(self, lane: int) -> float:
         """Lateral offset of the centre of lane ``lane`` (0 = rightmost), metres."""
         if not 0 <= lane < self.lanes:
-            raise ConfigurationError(f"lane {lane} does not exist (the road has lanes "
-                                     f"0..{self.lanes - 1}, 0 = rightmost)")
+            raise ConfigurationError(
+                f"lane {lane} does not exist (the road has lanes "
+                f"0..{self.lanes - 1}, 0 = rightmost)"
+            )
         return -self.half_width_m + (lane + 0.5) * self.lane_width_m
 
 
@@ -218,8 +221,13 @@ class Road:
         for c in spec.curves:
             kappa += c.curvature(s)
         self.heading = _cumtrapz(kappa, step_m, i0)
-        self.xy = np.stack([_cumtrapz(np.cos(self.heading), step_m, i0),
-                            _cumtrapz(np.sin(self.heading), step_m, i0)], axis=1)
+        self.xy = np.stack(
+            [
+                _cumtrapz(np.cos(self.heading), step_m, i0),
+                _cumtrapz(np.sin(self.heading), step_m, i0),
+            ],
+            axis=1,
+        )
         self.length3d = _cumtrapz(np.sqrt(1.0 + self.grade**2), step_m, i0)
         self.step_m = step_m
 
@@ -240,8 +248,14 @@ class Road:
     def centre(self, s: ArrayLike) -> FloatArray:
         """Centreline point ``(..., 3)`` in the world frame at ``s``, metres."""
         s = np.asarray(s, dtype=float)
-        return np.stack([np.interp(s, self.s, self.xy[:, 0]), np.interp(s, self.s, self.xy[:, 1]),
-                         np.interp(s, self.s, self.z)], axis=-1)
+        return np.stack(
+            [
+                np.interp(s, self.s, self.xy[:, 0]),
+                np.interp(s, self.s, self.xy[:, 1]),
+                np.interp(s, self.s, self.z),
+            ],
+            axis=-1,
+        )
 
     def left(self, s: ArrayLike) -> FloatArray:
         """Horizontal unit vector ``(..., 3)`` to the left of the centreline at ``s``."""
@@ -271,7 +285,8 @@ class Road:
         if np.any(d < self.length3d[0]) or np.any(d > self.length3d[-1]):
             raise ConfigurationError(
                 f"a vehicle leaves the modelled road (s from {self.s[0]:.0f} to "
-                f"{self.s[-1]:.0f} m); shorten the scenario or move its start")
+                f"{self.s[-1]:.0f} m); shorten the scenario or move its start"
+            )
         return np.interp(d, self.length3d, self.s)
 
 

@@ -69,14 +69,22 @@ class CameraSpec:
         if not (64 <= self.image_width <= 4096 and 48 <= self.image_height <= 4096):
             raise ConfigurationError(
                 f"image size must be within 64×48 .. 4096×4096, got "
-                f"{self.image_width}×{self.image_height}")
+                f"{self.image_width}×{self.image_height}"
+            )
         if not (math.isfinite(self.f) and self.f > 0):
             raise ConfigurationError(f"focal length must be > 0 pixels, got {self.f}")
 
     def camera(self) -> Camera:
         """The :class:`~slopedist.camera.Camera` an estimator should be given."""
-        return Camera(self.f, self.c_x, self.c_y, self.rig.height_m, self.rig.mount_angle_rad,
-                      self.image_width, self.image_height)
+        return Camera(
+            self.f,
+            self.c_x,
+            self.c_y,
+            self.rig.height_m,
+            self.rig.mount_angle_rad,
+            self.image_width,
+            self.image_height,
+        )
 
     @property
     def K(self) -> FloatArray:
@@ -112,11 +120,13 @@ class WorldSpec:
                 raise ConfigurationError(f"world {name} must satisfy 0 < min ≤ max")
         # the renderer's wall textures cover heights up to about 40 m above a segment's start
         if self.structure_height_m[1] > MAX_STRUCTURE_HEIGHT_M:
-            raise ConfigurationError(f"world structure_height_m must be at most "
-                                     f"{MAX_STRUCTURE_HEIGHT_M:g} m")
+            raise ConfigurationError(
+                f"world structure_height_m must be at most {MAX_STRUCTURE_HEIGHT_M:g} m"
+            )
         if self.structure_segment_m[1] > MAX_STRUCTURE_SEGMENT_M:
-            raise ConfigurationError(f"world structure_segment_m must be at most "
-                                     f"{MAX_STRUCTURE_SEGMENT_M:g} m")
+            raise ConfigurationError(
+                f"world structure_segment_m must be at most {MAX_STRUCTURE_SEGMENT_M:g} m"
+            )
         if self.post_spacing_m < 2 or self.object_spacing_m < 2:
             raise ConfigurationError("world post_spacing_m and object_spacing_m must be ≥ 2 m")
 
@@ -158,7 +168,8 @@ class Scenario:
             raise ConfigurationError(f"duration_s must be in (0, 600] s, got {self.duration_s}")
         if not (math.isfinite(self.frame_rate_hz) and 1 <= self.frame_rate_hz <= 100):
             raise ConfigurationError(
-                f"frame_rate_hz must be in [1, 100] Hz, got {self.frame_rate_hz}")
+                f"frame_rate_hz must be in [1, 100] Hz, got {self.frame_rate_hz}"
+            )
         ids = [t.track_id for t in self.targets]
         if len(set(ids)) != len(ids):
             raise ConfigurationError(f"target track ids must be unique, got {ids}")
@@ -245,8 +256,9 @@ def simulate_truth(scenario: Scenario, road: Road | None = None) -> SceneTruth:
     """Drive the scenario and compute the exact ground truth of every frame."""
     road = road or scenario.build_road()
     t = scenario.timestamps_s
-    ego = vehicle_poses(road, scenario.ego.plan_position(road, t), scenario.ego.lateral_m,
-                        scenario.ego.wheelbase_m)
+    ego = vehicle_poses(
+        road, scenario.ego.plan_position(road, t), scenario.ego.lateral_m, scenario.ego.wheelbase_m
+    )
     rig = scenario.camera.rig
     noise = pitch_noise(t, rig.pitch_noise_rad, rig.pitch_noise_band_hz, scenario.seed + 7)
     R_wc, C_w = camera_poses(ego, rig, noise)
@@ -276,21 +288,35 @@ def simulate_truth(scenario: Scenario, road: Road | None = None) -> SceneTruth:
     clipped = np.clip(unclipped, lo, hi)
     area_u = (unclipped[..., 2] - unclipped[..., 0]) * (unclipped[..., 3] - unclipped[..., 1])
     area_c = np.clip(clipped[..., 2] - clipped[..., 0], 0, None) * np.clip(
-        clipped[..., 3] - clipped[..., 1], 0, None)
+        clipped[..., 3] - clipped[..., 1], 0, None
+    )
     with np.errstate(invalid="ignore", divide="ignore"):
         truncation = np.where(ahead, 1.0 - area_c / area_u, np.nan)
     in_view = ahead & (area_c > 1.0)
     ego_pitch = ego.pitch_rad
     cam_fwd = R_wc[:, :, 2]
     return SceneTruth(
-        timestamps_s=t, R_world_cam=R_wc, centre_world=C_w, ego_s=ego.s, ego_grade=ego.grade,
-        ego_pitch_rad=ego_pitch, camera_pitch_rad=np.arcsin(np.clip(cam_fwd[:, 2], -1, 1)),
+        timestamps_s=t,
+        R_world_cam=R_wc,
+        centre_world=C_w,
+        ego_s=ego.s,
+        ego_grade=ego.grade,
+        ego_pitch_rad=ego_pitch,
+        camera_pitch_rad=np.arcsin(np.clip(cam_fwd[:, 2], -1, 1)),
         track_ids=np.array([s.track_id for s in scenario.targets], dtype=np.int64),
-        target_s=s_t, target_grade=grade_t, target_pitch_rad=pitch_t,
-        corners_world=corners_w, corners_cam=corners_c,
-        x_m=bottom_c[..., 0], y_m=bottom_c[..., 1], z_m=bottom_c[..., 2],
-        z_centre_m=centre_c[..., 2], z_rear_m=rear_c[..., 2],
+        target_s=s_t,
+        target_grade=grade_t,
+        target_pitch_rad=pitch_t,
+        corners_world=corners_w,
+        corners_cam=corners_c,
+        x_m=bottom_c[..., 0],
+        y_m=bottom_c[..., 1],
+        z_m=bottom_c[..., 2],
+        z_centre_m=centre_c[..., 2],
+        z_rear_m=rear_c[..., 2],
         distance_m=np.linalg.norm(bottom_c, axis=-1),
-        box_unclipped=unclipped, box=np.where(in_view[..., None], clipped, np.nan),
-        truncation=truncation, in_view=in_view,
+        box_unclipped=unclipped,
+        box=np.where(in_view[..., None], clipped, np.nan),
+        truncation=truncation,
+        in_view=in_view,
     )

@@ -70,12 +70,27 @@ class SyntheticSequence:
         self.camera: Camera = scenario.camera.camera()
         spec = scenario.road
         world = scenario.world
-        polys = static_world(self.road, spec.corridor_half_width_m, spec.half_width_m,
-                             world.structure_height_m, world.structure_segment_m,
-                             world.post_spacing_m, world.object_spacing_m, scenario.seed)
+        polys = static_world(
+            self.road,
+            spec.corridor_half_width_m,
+            spec.half_width_m,
+            world.structure_height_m,
+            world.structure_segment_m,
+            world.post_spacing_m,
+            world.object_spacing_m,
+            scenario.seed,
+        )
         cam = scenario.camera
-        self.renderer = Renderer(polys, cam.K, cam.image_width, cam.image_height,
-                                 spec.half_width_m, spec.lanes, spec.lane_width_m, scenario.seed)
+        self.renderer = Renderer(
+            polys,
+            cam.K,
+            cam.image_width,
+            cam.image_height,
+            spec.half_width_m,
+            spec.lanes,
+            spec.lane_width_m,
+            scenario.seed,
+        )
         self._colours = np.array([t.colour_bgr for t in scenario.targets], dtype=float)
         self._half_len = np.array([0.5 * t.length_m for t in scenario.targets])
 
@@ -92,8 +107,13 @@ class SyntheticSequence:
         tr = self.truth
         s_cam = float(tr.ego_s[k] + self.scenario.camera.rig.forward_m)
         s_t = tr.target_s[k]
-        dyn = vehicle_polygons(tr.corners_world[k], self._colours, s_t - self._half_len,
-                               s_t + self._half_len, np.arange(len(s_t)))
+        dyn = vehicle_polygons(
+            tr.corners_world[k],
+            self._colours,
+            s_t - self._half_len,
+            s_t + self._half_len,
+            np.arange(len(s_t)),
+        )
         return self.renderer.render(tr.R_world_cam[k], tr.centre_world[k], s_cam, dyn, k)
 
     def visible_share(self, k: int, rendered: Rendered) -> FloatArray:
@@ -103,8 +123,9 @@ class SyntheticSequence:
         counts = rendered.visible_pixels(len(tr.track_ids))
         K = self.scenario.camera.K
         share = np.zeros(len(tr.track_ids))
-        rect = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]],
-                        np.float32)
+        rect = np.array(
+            [[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]], np.float32
+        )
         for m in np.flatnonzero(tr.in_view[k]):
             pc = tr.corners_cam[k, m]
             px = (pc[:, :2] * K[0, 0]) / pc[:, 2:3] + K[:2, 2]
@@ -120,26 +141,40 @@ class SyntheticSequence:
         m = np.flatnonzero(tr.in_view[k])
         vis = visible_share[m] if visible_share is not None else np.full(len(m), np.nan)
         cls = np.array([self.scenario.targets[i].cls for i in m], dtype=object)
-        return BoxTable.build(np.full(len(m), k), tr.box[k, m], tr.track_ids[m],
-                              np.ones(len(m)), cls, z=tr.z_m[k, m],
-                              truncation=tr.truncation[k, m], visible_share=vis)
+        return BoxTable.build(
+            np.full(len(m), k),
+            tr.box[k, m],
+            tr.track_ids[m],
+            np.ones(len(m)),
+            cls,
+            z=tr.z_m[k, m],
+            truncation=tr.truncation[k, m],
+            visible_share=vis,
+        )
 
     def detections(self, k: int, visible_share: FloatArray) -> BoxTable:
         """The noisy detector boxes of frame ``k`` (see :mod:`.noise`)."""
         tr = self.truth
-        boxes, found = noisy_boxes(tr.box[k], visible_share, self.noise, self.image_size,
-                                   self.scenario.seed, k)
+        boxes, found = noisy_boxes(
+            tr.box[k], visible_share, self.noise, self.image_size, self.scenario.seed, k
+        )
         m = np.flatnonzero(found)
         cls = np.array([self.scenario.targets[i].cls for i in m], dtype=object)
-        return BoxTable.build(np.full(len(m), k), boxes[m], tr.track_ids[m], np.ones(len(m)),
-                              cls)
+        return BoxTable.build(np.full(len(m), k), boxes[m], tr.track_ids[m], np.ones(len(m)), cls)
 
     def frame(self, k: int) -> SyntheticFrame:
         """Render frame ``k`` with its boxes."""
         r = self.render(k)
         share = self.visible_share(k, r)
-        return SyntheticFrame(k, float(self.truth.timestamps_s[k]), r.image, r, share,
-                              self.exact_boxes(k, share), self.detections(k, share))
+        return SyntheticFrame(
+            k,
+            float(self.truth.timestamps_s[k]),
+            r.image,
+            r,
+            share,
+            self.exact_boxes(k, share),
+            self.detections(k, share),
+        )
 
     def __iter__(self) -> Iterator[SyntheticFrame]:
         for k in range(len(self)):

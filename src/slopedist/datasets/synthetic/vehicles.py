@@ -60,8 +60,16 @@ class VehicleSpec:
     cls: str = "Car"
 
     def __post_init__(self) -> None:
-        for name in ("lateral_m", "start_m", "speed_mps", "accel_mps2", "length_m", "width_m",
-                     "height_m", "wheelbase_m"):
+        for name in (
+            "lateral_m",
+            "start_m",
+            "speed_mps",
+            "accel_mps2",
+            "length_m",
+            "width_m",
+            "height_m",
+            "wheelbase_m",
+        ):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigurationError(f"vehicle {self.track_id}: {name} must be finite")
         if self.speed_mps < 0:
@@ -72,7 +80,8 @@ class VehicleSpec:
         if self.wheelbase_m >= self.length_m:
             raise ConfigurationError(
                 f"vehicle {self.track_id}: wheelbase_m ({self.wheelbase_m}) must be shorter "
-                f"than length_m ({self.length_m})")
+                f"than length_m ({self.length_m})"
+            )
 
     def travelled_m(self, t_s: ArrayLike) -> FloatArray:
         """Distance driven along the road after ``t_s`` seconds, metres."""
@@ -84,8 +93,7 @@ class VehicleSpec:
 
     def plan_position(self, road: Road, t_s: ArrayLike) -> FloatArray:
         """Plan distance ``s`` of the vehicle's centre at times ``t_s``, metres."""
-        return road.s_at_driven_distance(road.driven_distance(self.start_m)
-                                         + self.travelled_m(t_s))
+        return road.s_at_driven_distance(road.driven_distance(self.start_m) + self.travelled_m(t_s))
 
 
 @dataclass(frozen=True)
@@ -131,8 +139,9 @@ bottom face first (z = 0), then top; within a face (rear-right, rear-left, front
 front-left)."""
 
 
-def box_corners_world(poses: VehiclePoses, length_m: float, width_m: float,
-                      height_m: float) -> FloatArray:
+def box_corners_world(
+    poses: VehiclePoses, length_m: float, width_m: float, height_m: float
+) -> FloatArray:
     """The 8 corners ``(T, 8, 3)`` of the vehicle's box in the world frame (order of
     :data:`BOX_CORNERS_UNIT`)."""
     local = BOX_CORNERS_UNIT * np.array([length_m, width_m, height_m])
@@ -164,12 +173,14 @@ class CameraRig:
             raise ConfigurationError("camera pitch noise must be ≥ 0")
         lo, hi = self.pitch_noise_band_hz
         if not 0 < lo <= hi:
-            raise ConfigurationError(f"pitch noise band must satisfy 0 < low ≤ high, got "
-                                     f"({lo}, {hi})")
+            raise ConfigurationError(
+                f"pitch noise band must satisfy 0 < low ≤ high, got ({lo}, {hi})"
+            )
 
 
-def pitch_noise(t_s: ArrayLike, rms_rad: float, band_hz: tuple[float, float],
-                seed: int, n_waves: int = 4) -> FloatArray:
+def pitch_noise(
+    t_s: ArrayLike, rms_rad: float, band_hz: tuple[float, float], seed: int, n_waves: int = 4
+) -> FloatArray:
     """Smooth suspension pitch noise: a sum of ``n_waves`` sinusoids of random frequency in
     ``band_hz`` and random phase, scaled to RMS ``rms_rad`` (radians). Deterministic in ``seed``."""
     t = np.asarray(t_s, dtype=float)
@@ -179,12 +190,14 @@ def pitch_noise(t_s: ArrayLike, rms_rad: float, band_hz: tuple[float, float],
     freqs = rng.uniform(band_hz[0], band_hz[1], n_waves)
     phases = rng.uniform(0.0, 2.0 * np.pi, n_waves)
     amp = rms_rad * math.sqrt(2.0 / n_waves)
-    return np.asarray(amp * np.sin(2.0 * np.pi * freqs[None, :] * t[..., None]
-                                   + phases).sum(axis=-1))
+    return np.asarray(
+        amp * np.sin(2.0 * np.pi * freqs[None, :] * t[..., None] + phases).sum(axis=-1)
+    )
 
 
-def camera_poses(ego: VehiclePoses, rig: CameraRig, pitch_offset_rad: ArrayLike = 0.0
-                 ) -> tuple[FloatArray, FloatArray]:
+def camera_poses(
+    ego: VehiclePoses, rig: CameraRig, pitch_offset_rad: ArrayLike = 0.0
+) -> tuple[FloatArray, FloatArray]:
     """Camera-to-world rotations ``(T, 3, 3)`` and camera centres ``(T, 3)`` (world frame).
 
     The camera is pitched up about the ego's left axis by θ0 + ``pitch_offset_rad``.
@@ -202,7 +215,8 @@ def camera_poses(ego: VehiclePoses, rig: CameraRig, pitch_offset_rad: ArrayLike 
     return R, centre
 
 
-def world_to_camera(points_world: FloatArray, R_world_cam: FloatArray,
-                    centre_world: FloatArray) -> FloatArray:
+def world_to_camera(
+    points_world: FloatArray, R_world_cam: FloatArray, centre_world: FloatArray
+) -> FloatArray:
     """Points ``(..., 3)`` from the world frame into the camera frame: ``Rᵀ (X − C)``."""
     return np.einsum("ji,...j->...i", R_world_cam, points_world - centre_world)

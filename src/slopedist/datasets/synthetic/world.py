@@ -125,9 +125,16 @@ class Polygons:
 
 
 def box_polygons(
-    bottom_centre: FloatArray, R_world_box: FloatArray, size_lwh: FloatArray,
-    colour: FloatArray, material: NDArray[np.int64] | int, s_near: FloatArray, s_far: FloatArray,
-    layer: Layer, owner: NDArray[np.int64] | int = -1, with_bottom: bool = False,
+    bottom_centre: FloatArray,
+    R_world_box: FloatArray,
+    size_lwh: FloatArray,
+    colour: FloatArray,
+    material: NDArray[np.int64] | int,
+    s_near: FloatArray,
+    s_far: FloatArray,
+    layer: Layer,
+    owner: NDArray[np.int64] | int = -1,
+    with_bottom: bool = False,
 ) -> Polygons:
     """The faces of ``N`` boxes (rear, front, right, left, top; bottom optional).
 
@@ -140,8 +147,11 @@ def box_polygons(
     """
     n = bottom_centre.shape[0]
     f, lft, up = R_world_box[:, :, 0], R_world_box[:, :, 1], R_world_box[:, :, 2]
-    hl, hw, h = (0.5 * size_lwh[:, 0])[:, None], (0.5 * size_lwh[:, 1])[:, None], \
-        size_lwh[:, 2][:, None]
+    hl, hw, h = (
+        (0.5 * size_lwh[:, 0])[:, None],
+        (0.5 * size_lwh[:, 1])[:, None],
+        size_lwh[:, 2][:, None],
+    )
     c = bottom_centre
 
     def corner(sx: float, sy: float, sz: float) -> FloatArray:
@@ -156,26 +166,41 @@ def box_polygons(
         ([corner(-1, -1, 1), corner(-1, 1, 1), corner(1, 1, 1), corner(1, -1, 1)], up, lft),
     ]
     if with_bottom:
-        faces.append(([corner(-1, -1, 0), corner(1, -1, 0), corner(1, 1, 0), corner(-1, 1, 0)],
-                      -up, lft))
+        faces.append(
+            ([corner(-1, -1, 0), corner(1, -1, 0), corner(1, 1, 0), corner(-1, 1, 0)], -up, lft)
+        )
     parts = []
     mat = np.broadcast_to(np.asarray(material, dtype=np.int64), (n,))
     own = np.broadcast_to(np.asarray(owner, dtype=np.int64), (n,))
     for verts, normal, axis_u in faces:
         v = np.stack(verts, axis=1)
-        parts.append(Polygons(
-            verts=v, normal=normal.copy(), origin=v[:, 0].copy(), axis_u=axis_u.copy(),
-            axis_v=up.copy(), u0=np.zeros(n), key=s_near.copy(),
-            layer=np.full(n, int(layer), np.int64), s_lo=s_near.copy(), s_hi=s_far.copy(),
-            material=mat.copy(), colour=colour.copy(), owner=own.copy(),
-            two_sided=np.zeros(n, bool), lod=np.full(n, -1, np.int8), lod_key=np.zeros(n),
-            surface=np.full(n, -1, np.int64),
-        ))
+        parts.append(
+            Polygons(
+                verts=v,
+                normal=normal.copy(),
+                origin=v[:, 0].copy(),
+                axis_u=axis_u.copy(),
+                axis_v=up.copy(),
+                u0=np.zeros(n),
+                key=s_near.copy(),
+                layer=np.full(n, int(layer), np.int64),
+                s_lo=s_near.copy(),
+                s_hi=s_far.copy(),
+                material=mat.copy(),
+                colour=colour.copy(),
+                owner=own.copy(),
+                two_sided=np.zeros(n, bool),
+                lod=np.full(n, -1, np.int8),
+                lod_key=np.zeros(n),
+                surface=np.full(n, -1, np.int64),
+            )
+        )
     return Polygons.concat(parts)
 
 
-def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP_M,
-                    lod: int = 0) -> Polygons:
+def ground_polygons(
+    road: Road, half_width_m: float, step_m: float = GROUND_STEP_M, lod: int = 0
+) -> Polygons:
     """Ground strips across ``±half_width_m`` between cross-sections ``step_m`` apart, on a
     grid that starts 1 m into the road (level of detail ``lod``; groups of
     ``COARSE_GROUND_M``)."""
@@ -184,8 +209,9 @@ def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP
     a, b = s[:-1], s[1:]
     n = a.shape[0]
     w = np.full(n, half_width_m)
-    verts = np.stack([road.point(a, -w), road.point(a, w), road.point(b, w), road.point(b, -w)],
-                     axis=1)
+    verts = np.stack(
+        [road.point(a, -w), road.point(a, w), road.point(b, w), road.point(b, -w)], axis=1
+    )
     mid = 0.5 * (a + b)
     t = road.tangent(mid)
     lft = road.left(mid)
@@ -193,29 +219,58 @@ def ground_polygons(road: Road, half_width_m: float, step_m: float = GROUND_STEP
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
     grey = np.ones((n, 3))
     return Polygons(
-        verts=verts, normal=normal, origin=road.centre(mid), axis_u=t, axis_v=lft,
-        u0=road.driven_distance(mid), key=b.copy(), layer=np.full(n, int(Layer.GROUND)),
-        s_lo=a.copy(), s_hi=b.copy(), material=np.full(n, int(Material.GROUND)), colour=grey,
-        owner=np.full(n, -1), two_sided=np.ones(n, bool), lod=np.full(n, lod, np.int8),
+        verts=verts,
+        normal=normal,
+        origin=road.centre(mid),
+        axis_u=t,
+        axis_v=lft,
+        u0=road.driven_distance(mid),
+        key=b.copy(),
+        layer=np.full(n, int(Layer.GROUND)),
+        s_lo=a.copy(),
+        s_hi=b.copy(),
+        material=np.full(n, int(Material.GROUND)),
+        colour=grey,
+        owner=np.full(n, -1),
+        two_sided=np.ones(n, bool),
+        lod=np.full(n, lod, np.int8),
         lod_key=origin + np.floor((a - origin) / COARSE_GROUND_M + 1e-9) * COARSE_GROUND_M,
         surface=np.full(n, GROUND_SURFACE, np.int64),
     )
 
 
-BUILDING_COLOURS = np.array([
-    [0.62, 0.70, 0.78], [0.55, 0.60, 0.72], [0.70, 0.72, 0.70], [0.45, 0.50, 0.62],
-    [0.60, 0.62, 0.55], [0.75, 0.78, 0.82], [0.50, 0.55, 0.60],
-])
+BUILDING_COLOURS = np.array(
+    [
+        [0.62, 0.70, 0.78],
+        [0.55, 0.60, 0.72],
+        [0.70, 0.72, 0.70],
+        [0.45, 0.50, 0.62],
+        [0.60, 0.62, 0.55],
+        [0.75, 0.78, 0.82],
+        [0.50, 0.55, 0.60],
+    ]
+)
 """BGR colours of building fronts (light plaster, brick, concrete)."""
 TREE_COLOURS = np.array([[0.20, 0.42, 0.28], [0.18, 0.36, 0.30], [0.25, 0.45, 0.35]])
-OBJECT_COLOURS = np.array([
-    [0.18, 0.45, 0.25], [0.22, 0.38, 0.30], [0.55, 0.55, 0.55], [0.30, 0.40, 0.55],
-    [0.65, 0.60, 0.30], [0.20, 0.30, 0.50],
-])
+OBJECT_COLOURS = np.array(
+    [
+        [0.18, 0.45, 0.25],
+        [0.22, 0.38, 0.30],
+        [0.55, 0.55, 0.55],
+        [0.30, 0.40, 0.55],
+        [0.65, 0.60, 0.30],
+        [0.20, 0.30, 0.50],
+    ]
+)
 
 
-def structure_polygons(road: Road, half_width_m: float, height_range: tuple[float, float],
-                       length_range: tuple[float, float], rng: np.random.Generator) -> Polygons:
+def structure_polygons(
+    road: Road,
+    half_width_m: float,
+    height_range: tuple[float, float],
+    length_range: tuple[float, float],
+    rng: np.random.Generator,
+) -> Polygons:
     """Walls of buildings and tree lines at lateral offsets ``±half_width_m``; each wall
     segment is one surface (ids from ``GROUND_SURFACE + 1``)."""
     parts = []
@@ -235,15 +290,39 @@ def structure_polygons(road: Road, half_width_m: float, height_range: tuple[floa
         surface = next_surface + np.arange(a.shape[0])
         next_surface += a.shape[0]
         for lod, piece_m in ((0, WALL_PIECE_M), (1, COARSE_WALL_PIECE_M)):
-            parts.append(_wall_pieces(road, side, half_width_m, a, b, height, trees,
-                                      colour_index, shade, surface, piece_m, lod))
+            parts.append(
+                _wall_pieces(
+                    road,
+                    side,
+                    half_width_m,
+                    a,
+                    b,
+                    height,
+                    trees,
+                    colour_index,
+                    shade,
+                    surface,
+                    piece_m,
+                    lod,
+                )
+            )
     return Polygons.concat(parts)
 
 
-def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b: FloatArray,
-                 height: FloatArray, trees: NDArray[np.bool_], colour_index: NDArray[np.int64],
-                 shade: FloatArray, surface: NDArray[np.int64], piece_m: float,
-                 lod: int) -> Polygons:
+def _wall_pieces(
+    road: Road,
+    side: float,
+    half_width_m: float,
+    a: FloatArray,
+    b: FloatArray,
+    height: FloatArray,
+    trees: NDArray[np.bool_],
+    colour_index: NDArray[np.int64],
+    shade: FloatArray,
+    surface: NDArray[np.int64],
+    piece_m: float,
+    lod: int,
+) -> Polygons:
     """The wall segments ``[a, b]`` of one side cut into pieces of at most ``piece_m``.
 
     Texture frame of every piece of a segment: ``u`` = distance driven along the centreline
@@ -273,20 +352,34 @@ def _wall_pieces(road: Road, side: float, half_width_m: float, a: FloatArray, b:
     along = pb - pa
     along /= np.linalg.norm(along, axis=1, keepdims=True)
     normal = -side * road.left(0.5 * (a + b))  # inward: from the wall to the road
-    colour = np.where(trees[:, None], TREE_COLOURS[colour_index % len(TREE_COLOURS)],
-                      BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)])
+    colour = np.where(
+        trees[:, None],
+        TREE_COLOURS[colour_index % len(TREE_COLOURS)],
+        BUILDING_COLOURS[colour_index % len(BUILDING_COLOURS)],
+    )
     colour = colour * shade[:, None]
     origin = pa.copy()
     origin[:, 2] = base_z  # v = height above the segment's start
     # u at the piece's start stays the driven distance there
     u0 = road.driven_distance(a) - (pa[:, 2] - base_z) * along[:, 2]
     return Polygons(
-        verts=verts, normal=normal, origin=origin, axis_u=along,
-        axis_v=np.broadcast_to(up, (n, 3)).copy(), u0=u0,
-        key=b.copy(), layer=np.full(n, int(Layer.STRUCTURE)), s_lo=a.copy(), s_hi=b.copy(),
+        verts=verts,
+        normal=normal,
+        origin=origin,
+        axis_u=along,
+        axis_v=np.broadcast_to(up, (n, 3)).copy(),
+        u0=u0,
+        key=b.copy(),
+        layer=np.full(n, int(Layer.STRUCTURE)),
+        s_lo=a.copy(),
+        s_hi=b.copy(),
         material=np.where(trees, int(Material.TREES), int(Material.BUILDING)),
-        colour=np.clip(colour, 0, 1), owner=np.full(n, -1), two_sided=np.zeros(n, bool),
-        lod=np.full(n, lod, np.int8), lod_key=group, surface=surface.astype(np.int64),
+        colour=np.clip(colour, 0, 1),
+        owner=np.full(n, -1),
+        two_sided=np.zeros(n, bool),
+        lod=np.full(n, lod, np.int8),
+        lod_key=group,
+        surface=surface.astype(np.int64),
     )
 
 
@@ -299,50 +392,86 @@ def _level_boxes_on_road(road: Road, s: FloatArray, w: FloatArray) -> tuple[Floa
     return road.point(s, w), np.stack([f, lft, up], axis=2)
 
 
-def roadside_polygons(road: Road, carriageway_half_m: float, corridor_half_m: float,
-                      post_spacing_m: float, object_spacing_m: float,
-                      rng: np.random.Generator) -> Polygons:
+def roadside_polygons(
+    road: Road,
+    carriageway_half_m: float,
+    corridor_half_m: float,
+    post_spacing_m: float,
+    object_spacing_m: float,
+    rng: np.random.Generator,
+) -> Polygons:
     """Delineator posts on both edges and random objects in the verges."""
     s0, s1 = road.s[0] + 2.0, road.s[-1] - 2.0
     # posts
     sp = np.arange(s0 + rng.uniform(0, post_spacing_m), s1, post_spacing_m)
     s_post = np.concatenate([sp, sp])
-    w_post = np.concatenate([np.full(sp.shape, carriageway_half_m + 0.8),
-                             np.full(sp.shape, -(carriageway_half_m + 0.8))])
+    w_post = np.concatenate(
+        [
+            np.full(sp.shape, carriageway_half_m + 0.8),
+            np.full(sp.shape, -(carriageway_half_m + 0.8)),
+        ]
+    )
     c, R = _level_boxes_on_road(road, s_post, w_post)
     n = s_post.shape[0]
     size = np.tile([0.12, 0.12, 1.0], (n, 1))
-    posts = box_polygons(c, R, size, np.tile([0.92, 0.92, 0.92], (n, 1)), int(Material.POST),
-                         s_post - 0.06, s_post + 0.06, Layer.OBJECT)
+    posts = box_polygons(
+        c,
+        R,
+        size,
+        np.tile([0.92, 0.92, 0.92], (n, 1)),
+        int(Material.POST),
+        s_post - 0.06,
+        s_post + 0.06,
+        Layer.OBJECT,
+    )
     # objects
     count = int((s1 - s0) / object_spacing_m * 2)
     s_obj = rng.uniform(s0, s1, count)
     side = np.where(rng.random(count) < 0.5, -1.0, 1.0)
     lo, hi = carriageway_half_m + 1.6, corridor_half_m - 0.8
-    size = np.stack([rng.uniform(0.4, 2.5, count), rng.uniform(0.4, 1.5, count),
-                     rng.uniform(0.4, 2.8, count)], axis=1)
-    w_obj = side * np.clip(rng.uniform(lo, hi, count), lo + 0.5 * size[:, 1],
-                           hi - 0.5 * size[:, 1])
+    size = np.stack(
+        [rng.uniform(0.4, 2.5, count), rng.uniform(0.4, 1.5, count), rng.uniform(0.4, 2.8, count)],
+        axis=1,
+    )
+    w_obj = side * np.clip(rng.uniform(lo, hi, count), lo + 0.5 * size[:, 1], hi - 0.5 * size[:, 1])
     c, R = _level_boxes_on_road(road, s_obj, w_obj)
     colour = OBJECT_COLOURS[rng.integers(0, len(OBJECT_COLOURS), count)] * rng.uniform(
-        0.8, 1.2, (count, 1))
-    objects = box_polygons(c, R, size, np.clip(colour, 0, 1), int(Material.OBJECT),
-                           s_obj - 0.5 * size[:, 0], s_obj + 0.5 * size[:, 0], Layer.OBJECT)
+        0.8, 1.2, (count, 1)
+    )
+    objects = box_polygons(
+        c,
+        R,
+        size,
+        np.clip(colour, 0, 1),
+        int(Material.OBJECT),
+        s_obj - 0.5 * size[:, 0],
+        s_obj + 0.5 * size[:, 0],
+        Layer.OBJECT,
+    )
     return Polygons.concat([posts, objects])
 
 
-def static_world(road: Road, corridor_half_m: float, carriageway_half_m: float,
-                 structure_height_m: tuple[float, float],
-                 structure_segment_m: tuple[float, float], post_spacing_m: float,
-                 object_spacing_m: float, seed: int) -> Polygons:
+def static_world(
+    road: Road,
+    corridor_half_m: float,
+    carriageway_half_m: float,
+    structure_height_m: tuple[float, float],
+    structure_segment_m: tuple[float, float],
+    post_spacing_m: float,
+    object_spacing_m: float,
+    seed: int,
+) -> Polygons:
     """All static polygons of the world, in painter order (far to near, ground first)."""
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x5EED])
-    polys = Polygons.concat([
-        ground_polygons(road, corridor_half_m, GROUND_STEP_M, 0),
-        ground_polygons(road, corridor_half_m, COARSE_GROUND_M, 1),
-        structure_polygons(road, corridor_half_m, structure_height_m, structure_segment_m, rng),
-        roadside_polygons(road, carriageway_half_m, corridor_half_m, post_spacing_m,
-                          object_spacing_m, rng),
-    ])
+    polys = Polygons.concat(
+        [
+            ground_polygons(road, corridor_half_m, GROUND_STEP_M, 0),
+            ground_polygons(road, corridor_half_m, COARSE_GROUND_M, 1),
+            structure_polygons(road, corridor_half_m, structure_height_m, structure_segment_m, rng),
+            roadside_polygons(
+                road, carriageway_half_m, corridor_half_m, post_spacing_m, object_spacing_m, rng
+            ),
+        ]
+    )
     order = np.lexsort((polys.layer, -polys.key))
     return polys.select(order)

@@ -28,6 +28,7 @@ from scipy import special
 
 FloatArray = NDArray[np.float64]
 
+
 def all_true(mask: NDArray[np.bool_]) -> bool:
     """``mask.all()`` for the small arrays of one frame (counting is cheaper than reducing)."""
     return bool(np.count_nonzero(mask) == mask.size)
@@ -45,8 +46,10 @@ _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
 def depth_half_extent(yaw_rad: ArrayLike, width_m: ArrayLike, length_m: ArrayLike) -> FloatArray:
     """Half the depth extent ``e`` of a box footprint at heading ψ: ``(L|cos ψ| + W|sin ψ|)/2``."""
     psi = np.asarray(yaw_rad, dtype=float)
-    return np.asarray(0.5 * (np.asarray(length_m) * np.abs(np.cos(psi))
-                             + np.asarray(width_m) * np.abs(np.sin(psi))))
+    return np.asarray(
+        0.5
+        * (np.asarray(length_m) * np.abs(np.cos(psi)) + np.asarray(width_m) * np.abs(np.sin(psi)))
+    )
 
 
 def footprint_corners(
@@ -65,8 +68,14 @@ def footprint_corners(
 
 
 def project_box(
-    f: float, c_x: float, v: ArrayLike, cam_height_m: ArrayLike, x_m: ArrayLike, z_m: ArrayLike,
-    yaw_rad: ArrayLike, dims_hwl_m: ArrayLike,
+    f: float,
+    c_x: float,
+    v: ArrayLike,
+    cam_height_m: ArrayLike,
+    x_m: ArrayLike,
+    z_m: ArrayLike,
+    yaw_rad: ArrayLike,
+    dims_hwl_m: ArrayLike,
 ) -> FloatArray:
     """2D box ``(left, top, right, bottom)`` of a 3D box standing on a flat road (pixels).
 
@@ -93,7 +102,11 @@ def project_box(
 
 
 def height_cue(
-    top: ArrayLike, bottom: ArrayLike, f: float, cam_height_m: ArrayLike, height_m: ArrayLike,
+    top: ArrayLike,
+    bottom: ArrayLike,
+    f: float,
+    cam_height_m: ArrayLike,
+    height_m: ArrayLike,
     half_extent_m: ArrayLike,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Distance from the box height ``D = b − t`` and the target's height H (size cue, eq. S1).
@@ -119,15 +132,24 @@ def height_cue(
     S = np.sqrt(H * H + 2.0 * d2 * (d * ee + e * two_h_minus_H))
     Zq = (H + S) / d2
     inv_S = 1.0 / S
-    outs = (Zq, (ee - Zq * Zq) * (inv_S * (1.0 / f)), (Zq - e) * inv_S,
-            (d2 * e + two_h_minus_H) * inv_S, (2.0 * e) * inv_S)
+    outs = (
+        Zq,
+        (ee - Zq * Zq) * (inv_S * (1.0 / f)),
+        (Zq - e) * inv_S,
+        (d2 * e + two_h_minus_H) * inv_S,
+        (2.0 * e) * inv_S,
+    )
     roof_above = h < H
     if not any_true(roof_above):
         return outs
     Zt = H / d + e
-    return (np.where(roof_above, Zt, outs[0]), np.where(roof_above, -H / (d * d) / f, outs[1]),
-            np.where(roof_above, 1.0 / d, outs[2]), np.where(roof_above, 1.0, outs[3]),
-            np.where(roof_above, 0.0 * d, outs[4]))
+    return (
+        np.where(roof_above, Zt, outs[0]),
+        np.where(roof_above, -H / (d * d) / f, outs[1]),
+        np.where(roof_above, 1.0 / d, outs[2]),
+        np.where(roof_above, 1.0, outs[3]),
+        np.where(roof_above, 0.0 * d, outs[4]),
+    )
 
 
 class SizeCue(NamedTuple):
@@ -150,9 +172,15 @@ class SizeCue(NamedTuple):
 
 
 def height_cue_log(
-    box_height_px: FloatArray, f: float, cam_height_m: float, sigma_px: float,
-    cam_height_sigma_m: float, height_m: FloatArray, half_extent_m: FloatArray,
-    half_extent_var_m2: FloatArray, roof_above: NDArray[np.bool_] | None = None,
+    box_height_px: FloatArray,
+    f: float,
+    cam_height_m: float,
+    sigma_px: float,
+    cam_height_sigma_m: float,
+    height_m: FloatArray,
+    half_extent_m: FloatArray,
+    half_extent_var_m2: FloatArray,
+    roof_above: NDArray[np.bool_] | None = None,
 ) -> SizeCue:
     """:func:`height_cue` as a :class:`SizeCue` in closed form (the estimator's per-frame path).
 
@@ -197,8 +225,14 @@ def height_cue_log(
 
 
 def _width_terms(
-    left: FloatArray, right: FloatArray, f: float, c_x: float, half_w_cos: FloatArray,
-    half_w_sin: FloatArray, half_l_cos: FloatArray, half_l_sin: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
+    f: float,
+    c_x: float,
+    half_w_cos: FloatArray,
+    half_w_sin: FloatArray,
+    half_l_cos: FloatArray,
+    half_l_sin: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """The width cue's depth, the width's share and the two extreme corners' depth offsets,
     with the box width (see :func:`width_cue`)."""
@@ -223,8 +257,13 @@ def _width_terms(
 
 
 def width_cue(
-    left: ArrayLike, right: ArrayLike, f: float, c_x: float, yaw_rad: ArrayLike,
-    width_m: ArrayLike, length_m: ArrayLike,
+    left: ArrayLike,
+    right: ArrayLike,
+    f: float,
+    c_x: float,
+    yaw_rad: ArrayLike,
+    width_m: ArrayLike,
+    length_m: ArrayLike,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Distance from the box's left and right columns, a heading ψ and the footprint (size cue).
 
@@ -250,15 +289,23 @@ def width_cue(
     lft = np.asarray(left, dtype=float)
     rgt = np.asarray(right, dtype=float)
     rgt = np.where(rgt > lft, rgt, np.nan)  # NaN (every output) where not ordered
-    Z, share, dz_l, dz_r, width_px = _width_terms(lft, rgt, f, c_x, 0.5 * W * c, 0.5 * W * s,
-                                                  0.5 * L * c, 0.5 * L * s)
+    Z, share, dz_l, dz_r, width_px = _width_terms(
+        lft, rgt, f, c_x, 0.5 * W * c, 0.5 * W * s, 0.5 * L * c, 0.5 * L * s
+    )
     return Z, np.hypot(Z + dz_l, Z + dz_r) / width_px, share
 
 
 def width_cue_log(
-    left: FloatArray, right: FloatArray, f: float, c_x: float, sigma_px: float,
-    half_w_cos: FloatArray, half_w_sin: FloatArray, half_l_cos: FloatArray,
-    half_l_sin: FloatArray, min_depth_m: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
+    f: float,
+    c_x: float,
+    sigma_px: float,
+    half_w_cos: FloatArray,
+    half_w_sin: FloatArray,
+    half_l_cos: FloatArray,
+    half_l_sin: FloatArray,
+    min_depth_m: FloatArray,
 ) -> SizeCue:
     """:func:`width_cue` as a :class:`SizeCue` (the estimator's per-frame path): its lever is
     the width's share, its ``var_other`` 0 (the caller adds the length's share); the depth is
@@ -271,8 +318,9 @@ def width_cue_log(
             ``L cos ψ/2``, ``L sin ψ/2`` of the class and hypotheses, ``(N, K)``, metres.
         min_depth_m: ``(N, K)`` the smallest centre depth accepted.
     """
-    Z, share, dz_l, dz_r, width_px = _width_terms(left, right, f, c_x, half_w_cos, half_w_sin,
-                                                  half_l_cos, half_l_sin)
+    Z, share, dz_l, dz_r, width_px = _width_terms(
+        left, right, f, c_x, half_w_cos, half_w_sin, half_l_cos, half_l_sin
+    )
     Zm = np.maximum(Z, min_depth_m)
     zl, zr = Z + dz_l, Z + dz_r  # the extreme corners' depths
     white = (zl * zl + zr * zr) / (Zm * Zm) * ((sigma_px * sigma_px) / (width_px * width_px))
@@ -280,7 +328,11 @@ def width_cue_log(
 
 
 def ground_contact_cue(
-    bottom: ArrayLike, v: ArrayLike, f: float, cam_height_m: ArrayLike, half_extent_m: ArrayLike,
+    bottom: ArrayLike,
+    v: ArrayLike,
+    f: float,
+    cam_height_m: ArrayLike,
+    half_extent_m: ArrayLike,
 ) -> FloatArray:
     """Gradient-aware ground-contact distance to the target's centre (eq. 1 plus the half extent).
 
@@ -289,13 +341,16 @@ def ground_contact_cue(
     """
     gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
     gap = np.where(gap > 0, gap, np.nan)  # NaN propagates without a warning
-    return np.asarray(f * np.asarray(cam_height_m, dtype=float) / gap
-                      + np.asarray(half_extent_m))
+    return np.asarray(f * np.asarray(cam_height_m, dtype=float) / gap + np.asarray(half_extent_m))
 
 
 def ground_contact_sigma(
-    distance_near_m: ArrayLike, f: float, cam_height_m: ArrayLike, row_sigma_px: ArrayLike,
-    theta_sigma_rad: ArrayLike, height_sigma_m: ArrayLike = 0.0,
+    distance_near_m: ArrayLike,
+    f: float,
+    cam_height_m: ArrayLike,
+    row_sigma_px: ArrayLike,
+    theta_sigma_rad: ArrayLike,
+    height_sigma_m: ArrayLike = 0.0,
 ) -> FloatArray:
     """Propagated 1σ of the ground-contact distance (m): it grows as ``d²/(f·h)``.
 
@@ -306,13 +361,19 @@ def ground_contact_sigma(
     d = np.asarray(distance_near_m, dtype=float)
     h = np.asarray(cam_height_m, dtype=float)
     gain = d * d / (f * h)
-    return np.asarray(np.sqrt((gain ** 2) * (np.square(row_sigma_px)
-                                             + (f * np.asarray(theta_sigma_rad)) ** 2)
-                              + (d * np.asarray(height_sigma_m) / h) ** 2))
+    return np.asarray(
+        np.sqrt(
+            (gain**2) * (np.square(row_sigma_px) + (f * np.asarray(theta_sigma_rad)) ** 2)
+            + (d * np.asarray(height_sigma_m) / h) ** 2
+        )
+    )
 
 
 def expected_centre_offset_px(
-    distance_m: ArrayLike, f: float, cam_height_m: ArrayLike, height_m: ArrayLike,
+    distance_m: ArrayLike,
+    f: float,
+    cam_height_m: ArrayLike,
+    height_m: ArrayLike,
     half_extent_m: ArrayLike,
 ) -> FloatArray:
     """Δy of eq. 6 (box centre row minus horizon row, px) of a target on the ego's road plane."""
@@ -329,8 +390,12 @@ def expected_centre_offset_px(
 
 
 def target_gradient(
-    delta_y_px: ArrayLike, distance_m: ArrayLike, f: float, cam_height_m: ArrayLike,
-    height_m: ArrayLike, half_extent_m: ArrayLike,
+    delta_y_px: ArrayLike,
+    distance_m: ArrayLike,
+    f: float,
+    cam_height_m: ArrayLike,
+    height_m: ArrayLike,
+    half_extent_m: ArrayLike,
 ) -> FloatArray:
     """Continuous road gradient of a target relative to the ego gradient θ (radians).
 
@@ -343,9 +408,9 @@ def target_gradient(
     return np.asarray(np.arctan((flat - np.asarray(delta_y_px, dtype=float)) / f))
 
 
-
-def hidden_sides(boxes: ArrayLike, tol_px: float = 1.5) -> tuple[NDArray[np.bool_],
-                                                                  NDArray[np.bool_]]:
+def hidden_sides(
+    boxes: ArrayLike, tol_px: float = 1.5
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Whether each box's width and height may be cut short by a nearer box.
 
     Box ``j`` is nearer than box ``i`` when its bottom is lower in the image (``b_j > b_i``:
@@ -376,23 +441,29 @@ def hidden_sides(boxes: ArrayLike, tol_px: float = 1.5) -> tuple[NDArray[np.bool
     i, j = np.nonzero(near)  # few pairs: test their edges only
     lo_j, hi_j = lo[j], hi[j]
     bi = b[i]
-    on = (((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
-          | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j)))  # right / bottom edge of i on j
+    on = (
+        ((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
+        | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j))
+    )  # right / bottom edge of i on j
     cut = np.zeros((b.shape[0], 2), dtype=bool)
     np.logical_or.at(cut, i, on)
     return cut[:, 0], cut[:, 1]
 
 
 def unexplained_excess(
-    y_cue: ArrayLike, var_cue: ArrayLike, y_ref: ArrayLike, var_ref: ArrayLike,
+    y_cue: ArrayLike,
+    var_cue: ArrayLike,
+    y_ref: ArrayLike,
+    var_ref: ArrayLike,
     gate_sigma: float = 3.0,
 ) -> FloatArray:
     """How far a log-distance cue says farther than a reference beyond their own noise:
     ``max(y_cue − y_ref, 0)² − gate_sigma²·(var_cue + var_ref)`` (log², > 0 only for an
     outlier on the far side; NaN where either is missing)."""
     excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), 0.0)
-    return np.asarray(excess * excess
-                      - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref)))
+    return np.asarray(
+        excess * excess - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref))
+    )
 
 
 def occlusion_log_var(unexplained: ArrayLike, cut: ArrayLike) -> FloatArray:
@@ -435,10 +506,17 @@ class LogCue(NamedTuple):
 
 
 def fuse_size_cues(
-    y_h: FloatArray, r_h_white: FloatArray | float, r_h_other: FloatArray | float,
-    c_h: FloatArray, y_w: FloatArray, r_w_white: FloatArray | float,
-    r_w_other: FloatArray | float, c_w: FloatArray, sigma_log_h: FloatArray | float,
-    sigma_log_w: FloatArray | float, corr_hw: FloatArray | float,
+    y_h: FloatArray,
+    r_h_white: FloatArray | float,
+    r_h_other: FloatArray | float,
+    c_h: FloatArray,
+    y_w: FloatArray,
+    r_w_white: FloatArray | float,
+    r_w_other: FloatArray | float,
+    c_w: FloatArray,
+    sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float,
+    corr_hw: FloatArray | float,
 ) -> LogCue:
     """Fuse the height and width cues (log distances) under the class size prior.
 
@@ -467,18 +545,26 @@ def fuse_size_cues(
     both = np.isfinite(den)
     if all_true(both):
         return LogCue(mean, var, white, loglik)
-    return LogCue(np.where(both, mean, yh), np.where(both, var, C11),
-                  np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
-                  np.where(both, loglik, 0.0))
+    return LogCue(
+        np.where(both, mean, yh),
+        np.where(both, var, C11),
+        np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
+        np.where(both, loglik, 0.0),
+    )
 
 
 _HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
 
 
 def ground_contact_log_cue(
-    bottom: FloatArray, v: FloatArray | float, f: float, cam_height_m: FloatArray | float,
-    half_extent_m: FloatArray | float, row_var_white: FloatArray | float,
-    row_var_other: FloatArray | float, height_sigma_m: FloatArray | float = 0.0,
+    bottom: FloatArray,
+    v: FloatArray | float,
+    f: float,
+    cam_height_m: FloatArray | float,
+    half_extent_m: FloatArray | float,
+    row_var_white: FloatArray | float,
+    row_var_other: FloatArray | float,
+    height_sigma_m: FloatArray | float = 0.0,
     half_extent_sigma_m: FloatArray | float = 0.0,
 ) -> LogCue:
     """:func:`ground_contact_cue` as a log distance with its propagated variance.
@@ -526,12 +612,15 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     ll = (diff * diff * inv_tot + np.log(tot)) * -0.5 - _HALF_LOG_2PI
     if every:
         return LogCue(mean, var, white, a.loglik + ll)
-    return LogCue(np.where(ok, mean, a.mean), np.where(ok, var, a.var),
-                  np.where(ok, white, a.var_white), a.loglik + np.where(ok, ll, 0.0))
+    return LogCue(
+        np.where(ok, mean, a.mean),
+        np.where(ok, var, a.var),
+        np.where(ok, white, a.var_white),
+        a.loglik + np.where(ok, ll, 0.0),
+    )
 
 
-def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike,
-                 where: ArrayLike) -> LogCue:
+def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike, where: ArrayLike) -> LogCue:
     """Condition a log-distance cue on an upper bound ``ℓ ≤ bound`` known up to noise of
     variance ``bound_var`` (a censored measurement), where ``where`` is true and the bound finite.
 
@@ -552,9 +641,12 @@ def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike,
     lam = np.exp(-0.5 * a * a - log_cdf) * _INV_SQRT_2PI
     factor = 1.0 - var / tot * lam * (lam + a)
     use = np.asarray(where, dtype=bool) & np.isfinite(a)
-    return LogCue(np.where(use, mu - var / root * lam, mu), np.where(use, var * factor, var),
-                  np.where(use, cue.var_white * factor, cue.var_white),
-                  np.where(use, cue.loglik + log_cdf, cue.loglik))
+    return LogCue(
+        np.where(use, mu - var / root * lam, mu),
+        np.where(use, var * factor, var),
+        np.where(use, cue.var_white * factor, cue.var_white),
+        np.where(use, cue.loglik + log_cdf, cue.loglik),
+    )
 
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)

@@ -78,10 +78,22 @@ from slopedist.estimators.ours.tracking import (
 FloatArray = NDArray[np.float64]
 
 EXTRA_COLUMNS = (
-    "sigma_m", "distance_nearest_face_m", "speed_mps", "speed_sigma_mps", "ttc_s", "ttc_sigma_s",
-    "target_gradient_rad", "target_gradient_sigma_rad", "yaw_rad", "distance_size_m",
-    "distance_ground_contact_m", "track_uid", "calib_mount_angle_rad",
-    "calib_mount_angle_sigma_rad", "calib_height_m", "calib_height_sigma_m",
+    "sigma_m",
+    "distance_nearest_face_m",
+    "speed_mps",
+    "speed_sigma_mps",
+    "ttc_s",
+    "ttc_sigma_s",
+    "target_gradient_rad",
+    "target_gradient_sigma_rad",
+    "yaw_rad",
+    "distance_size_m",
+    "distance_ground_contact_m",
+    "track_uid",
+    "calib_mount_angle_rad",
+    "calib_mount_angle_sigma_rad",
+    "calib_height_m",
+    "calib_height_sigma_m",
 )
 """Method-specific columns of ``ours`` (all float; NaN where not defined)."""
 
@@ -195,22 +207,35 @@ class OursConfig:
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 
     def __post_init__(self) -> None:
-        for name in ("box_sigma_px", "theta_sigma_rad", "no_rotation_theta_sigma_rad",
-                     "gradient_sigma_rad", "height_sigma_m", "mount_sigma_rad",
-                     "rate_sigma_per_s", "yaw_memory_s", "max_age_s", "gate_sigma",
-                     "truncation_factor", "yaw_evidence_weight", "occlusion_gate_sigma"):
+        for name in (
+            "box_sigma_px",
+            "theta_sigma_rad",
+            "no_rotation_theta_sigma_rad",
+            "gradient_sigma_rad",
+            "height_sigma_m",
+            "mount_sigma_rad",
+            "rate_sigma_per_s",
+            "yaw_memory_s",
+            "max_age_s",
+            "gate_sigma",
+            "truncation_factor",
+            "yaw_evidence_weight",
+            "occlusion_gate_sigma",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigurationError(f"ours option {name} must be a finite number > 0, "
-                                         f"got {value!r}")
+                raise ConfigurationError(
+                    f"ours option {name} must be a finite number > 0, got {value!r}"
+                )
         if not 0.0 <= self.min_iou <= 1.0:
             raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
 
     @property
     def tracking(self) -> bool:
         """Whether any state is carried from frame to frame (so boxes must be associated)."""
-        return (self.motion_model or self.yaw_memory or self.gradient_feedback
-                or self.adapt_box_noise)
+        return (
+            self.motion_model or self.yaw_memory or self.gradient_feedback or self.adapt_box_noise
+        )
 
 
 class OursEstimator(Estimator):
@@ -234,17 +259,21 @@ class OursEstimator(Estimator):
             if unknown:
                 raise ConfigurationError(
                     f"unknown option(s) for method 'ours': {', '.join(unknown)} "
-                    f"(known: {', '.join(sorted(known))})")
+                    f"(known: {', '.join(sorted(known))})"
+                )
             config = dataclasses.replace(config, **overrides)
         self.config = config
         grid = yaw_grid() if config.yaw_hypotheses else np.zeros(1)
         self._yaw = grid
-        self._log_yaw_prior = np.log(yaw_prior_weights(grid, config.yaw_prior)) if grid.size > 1 \
-            else np.zeros(1)
-        self.selfcal = SelfCalibrator(camera.f, camera.mount_angle_rad, camera.height_m,
-                                      config.selfcal)
-        self._theta_rest = float(geo.ego_road_gradient(np.eye(3), np.eye(3),
-                                                       camera.mount_angle_rad))
+        self._log_yaw_prior = (
+            np.log(yaw_prior_weights(grid, config.yaw_prior)) if grid.size > 1 else np.zeros(1)
+        )
+        self.selfcal = SelfCalibrator(
+            camera.f, camera.mount_angle_rad, camera.height_m, config.selfcal
+        )
+        self._theta_rest = float(
+            geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
+        )
         self._classes = _ClassTable(config.priors, grid)
         modes = [(1.0, 1.0 - config.atypical_height_weight)]
         if config.atypical_height_weight > 0:
@@ -253,8 +282,9 @@ class OursEstimator(Estimator):
         self._log_mode = np.repeat(np.log([p for _, p in modes]), grid.size)
         self._log_prior_all = (np.tile(self._log_yaw_prior, len(modes)) + self._log_mode)[None, :]
         self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
-        self._fixed_calib = _CalibInUse(0.0, config.mount_sigma_rad, camera.height_m,
-                                        config.height_sigma_m)
+        self._fixed_calib = _CalibInUse(
+            0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
+        )
         self._image_size_known = bool(camera.image_width and camera.image_height)
         self.reset()
 
@@ -301,23 +331,35 @@ class OursEstimator(Estimator):
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
         # every box finite with right > left and bottom > top (the common case, checked cheaply)
-        all_usable = (np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n
-                      and bool(np.isfinite(np.add.reduce(boxes, axis=None))))
-        usable = (np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0])
-                  & (boxes[:, 3] > boxes[:, 1])) if not all_usable else None
+        all_usable = np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n and bool(
+            np.isfinite(np.add.reduce(boxes, axis=None))
+        )
+        usable = (
+            (
+                np.isfinite(boxes).all(axis=1)
+                & (boxes[:, 2] > boxes[:, 0])
+                & (boxes[:, 3] > boxes[:, 1])
+            )
+            if not all_usable
+            else None
+        )
         # the reasons of unusable_box_reasons(frame, needs_rotation=False)
         reasons = _object_column("", n) if all_usable else box_problems(boxes)
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
         theta_f = (theta_in if theta_ok else self._theta_rest) + calib.delta
-        jitter = (self.config.theta_sigma_rad if theta_ok
-                  else self.config.no_rotation_theta_sigma_rad)
+        jitter = (
+            self.config.theta_sigma_rad if theta_ok else self.config.no_rotation_theta_sigma_rad
+        )
         good = np.arange(n) if usable is None else np.flatnonzero(usable)
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
-        values = (self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
-                  if good.size else {})
+        values = (
+            self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+            if good.size
+            else {}
+        )
         if self.config.self_calibrate and good.size:
             cal = self.selfcal.calibration()
             values["calib_mount_angle_rad"] = _filled(good.size, cal.mount_angle_rad)
@@ -336,9 +378,15 @@ class OursEstimator(Estimator):
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
 
-    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], all_good: bool,
-                        theta_f: float, jitter_rad: float, calib: _CalibInUse
-                        ) -> dict[str, FloatArray]:
+    def _estimate_boxes(
+        self,
+        frame: FrameInput,
+        good: NDArray[np.intp],
+        all_good: bool,
+        theta_f: float,
+        jitter_rad: float,
+        calib: _CalibInUse,
+    ) -> dict[str, FloatArray]:
         """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates).
 
         Per (target, heading hypothesis) quantities are ``(n, K)`` arrays; the class constants
@@ -367,12 +415,31 @@ class OursEstimator(Estimator):
 
         # --- size cues per (target, heading hypothesis) -----------------------------------
         tall = pri[:, 0] > h  # the roof above the camera
-        hc = cues.height_cue_log(bottom - top, f, h, sigma_px, calib.sigma_height, G[_P_H],
-                                 e, var_e, tall[:, None] if any_true(tall) else None)
+        hc = cues.height_cue_log(
+            bottom - top,
+            f,
+            h,
+            sigma_px,
+            calib.sigma_height,
+            G[_P_H],
+            e,
+            var_e,
+            tall[:, None] if any_true(tall) else None,
+        )
         y_h, c_h, r_h_white, r_h_other = hc
         if cfg.use_width:
-            wc = cues.width_cue_log(left, right, f, cam.c_x, sigma_px, G[_P_HWC], G[_P_HWS],
-                                    G[_P_HLC], G[_P_HLS], G[_P_E_MIN])
+            wc = cues.width_cue_log(
+                left,
+                right,
+                f,
+                cam.c_x,
+                sigma_px,
+                G[_P_HWC],
+                G[_P_HWS],
+                G[_P_HLC],
+                G[_P_HLS],
+                G[_P_E_MIN],
+            )
             y_w, share_w, r_w_white = wc.mean, wc.lever, wc.var_white
             r_w_other = (1.0 - share_w) * G[_P_LS_L]
             r_w_other *= r_w_other
@@ -383,7 +450,7 @@ class OursEstimator(Estimator):
         bounds: list[tuple[FloatArray, FloatArray, NDArray[np.bool_]]] = []
         if cuts is not None:
             trunc_lr, trunc_top, trunc_bottom = cuts
-            infl = cfg.truncation_factor ** 2
+            infl = cfg.truncation_factor**2
             cut_h = (trunc_top | trunc_bottom)[:, None]
             if any_true(cut_h):
                 if cfg.censor_border_cuts:
@@ -392,8 +459,9 @@ class OursEstimator(Estimator):
                 r_h_other = np.where(cut_h, r_h_other * infl, r_h_other)
             if cfg.use_width and any_true(trunc_lr):
                 if cfg.censor_border_cuts:
-                    bounds.append((y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other,
-                                   trunc_lr[:, None]))
+                    bounds.append(
+                        (y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other, trunc_lr[:, None])
+                    )
                 r_w_white = np.where(trunc_lr[:, None], r_w_white * infl, r_w_white)
 
         # --- what the tracks carry --------------------------------------------------------
@@ -418,14 +486,15 @@ class OursEstimator(Estimator):
         any_old = r_old.size > 0
         S_old = tr.state[:, r_old]  # (a copy) the continued tracks' states, rows as ROW_*
         dt_old = t - S_old[ROW_LAST_T]
-        grad_v_old = S_old[ROW_GRAD_VAR] + cfg.process.gradient_rad ** 2 * dt_old  # predict
+        grad_v_old = S_old[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * dt_old  # predict
         if cfg.adapt_box_noise and any_old and pred_boxes is not None:
             self._learn_box_noise(B[old] - pred_boxes[r_old], r_old, t)
         log_pi = None  # the heading prior of every target (else per target)
         if cfg.yaw_memory and any_old:
             mix = 1.0 - np.exp(-dt_old / cfg.yaw_memory_s)
-            carried = ((1.0 - mix[:, None]) * np.exp(S_old[ROW_LOG_W:].T)
-                       + mix[:, None] * np.exp(self._log_yaw_prior))
+            carried = (1.0 - mix[:, None]) * np.exp(S_old[ROW_LOG_W:].T) + mix[:, None] * np.exp(
+                self._log_yaw_prior
+            )
             log_pi = np.broadcast_to(self._log_yaw_prior[None, :], e.shape).copy()
             log_pi[old] = np.log(np.maximum(carried, 1e-300))
         if cfg.gradient_feedback:  # each target's gradient so far, predicted to now
@@ -440,41 +509,60 @@ class OursEstimator(Estimator):
             alpha: FloatArray | float = a_m[:, None]
             alpha_var: FloatArray | float = a_v[:, None]
         else:  # the prior, the same for every target
-            alpha, alpha_var = 0.0, cfg.gradient_sigma_rad ** 2
+            alpha, alpha_var = 0.0, cfg.gradient_sigma_rad**2
 
         # --- ground-contact cue and fusion ---------------------------------------------------
         v_frame = cam.c_y - f * math.tan(theta_f)
         if cfg.use_ground_contact:
             cos2 = math.cos(theta_f) ** 2
             v_target = cam.c_y - f * np.tan(theta_f + alpha) if cfg.gradient_feedback else v_frame
-            row_white = sigma_px ** 2 + (f * jitter_rad / cos2) ** 2
-            row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta ** 2)
-            gc = cues.ground_contact_log_cue(bottom, v_target, f, h, e, row_white, row_other,
-                                             calib.sigma_height, G[_P_SD_E])
+            row_white = sigma_px**2 + (f * jitter_rad / cos2) ** 2
+            row_other = (f / cos2) ** 2 * (alpha_var + calib.sigma_delta**2)
+            gc = cues.ground_contact_log_cue(
+                bottom, v_target, f, h, e, row_white, row_other, calib.sigma_height, G[_P_SD_E]
+            )
             if cuts is not None and any_true(cuts[2]):
                 if cfg.censor_border_cuts:
                     bounds.append((gc.mean, gc.var, cuts[2][:, None]))
-                gc = _inflate(gc, cuts[2][:, None], cfg.truncation_factor ** 2)
+                gc = _inflate(gc, cuts[2][:, None], cfg.truncation_factor**2)
         if cfg.occlusion_aware and cfg.use_ground_contact and n > 1:
             # a size cue that says too far may show only part of a vehicle hidden behind a
             # nearer one (censored): which sides nearer boxes may cut, then the outlier test
             gate = cfg.occlusion_gate_sigma
             cut_w, cut_o = cues.hidden_sides(B, gate * sigma_px)
             if any_true(cut_o):
-                r_h_other = r_h_other + cues.occlusion_log_var(cues.unexplained_excess(
-                    y_h, (c_h * ls_h) ** 2 + r_h_white + r_h_other, gc.mean, gc.var,
-                    gate), cut_o[:, None])
+                r_h_other = r_h_other + cues.occlusion_log_var(
+                    cues.unexplained_excess(
+                        y_h, (c_h * ls_h) ** 2 + r_h_white + r_h_other, gc.mean, gc.var, gate
+                    ),
+                    cut_o[:, None],
+                )
             if cfg.use_width and any_true(cut_w):
-                r_w_other = r_w_other + cues.occlusion_log_var(cues.unexplained_excess(
-                    y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other, gc.mean, gc.var,
-                    gate), cut_w[:, None])
+                r_w_other = r_w_other + cues.occlusion_log_var(
+                    cues.unexplained_excess(
+                        y_w, (share_w * ls_w) ** 2 + r_w_white + r_w_other, gc.mean, gc.var, gate
+                    ),
+                    cut_w[:, None],
+                )
         # a class mixes body styles: a vehicle is typical (the prior's σ) or, less often, of
         # atypical height (σ × atypical_height_factor); both are hypotheses next to the heading
         n_modes = len(self._height_modes)
-        size_modes = [cues.fuse_size_cues(
-            y_h, r_h_white, r_h_other, c_h, y_w, r_w_white, r_w_other, share_w,
-            ls_h if k == 1.0 else k * ls_h, ls_w, G[_P_CORR])
-            for k in self._height_modes]
+        size_modes = [
+            cues.fuse_size_cues(
+                y_h,
+                r_h_white,
+                r_h_other,
+                c_h,
+                y_w,
+                r_w_white,
+                r_w_other,
+                share_w,
+                ls_h if k == 1.0 else k * ls_h,
+                ls_w,
+                G[_P_CORR],
+            )
+            for k in self._height_modes
+        ]
         size = size_modes[0] if n_modes == 1 else _concat_cues(size_modes)
         e_all = np.tile(e, n_modes) if n_modes > 1 else e
         if cfg.use_ground_contact:
@@ -485,8 +573,9 @@ class OursEstimator(Estimator):
             if n_modes > 1:
                 bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
             fused = cues.censor_upper(fused, bound, bound_var, rows_cut)
-        log_prior_all = (self._log_prior_rows(n) if log_pi is None
-                         else np.tile(log_pi, n_modes) + self._log_mode)
+        log_prior_all = (
+            self._log_prior_rows(n) if log_pi is None else np.tile(log_pi, n_modes) + self._log_mode
+        )
         meas, w_all = cues.collapse_hypotheses(fused, log_prior_all + fused.loglik)
         size_c = cues.mix_hypotheses(size, w_all)
         e_mean = np.add.reduce(w_all * e_all, axis=1)
@@ -498,16 +587,21 @@ class OursEstimator(Estimator):
         continued = np.zeros(n, dtype=bool)
         if cfg.motion_model and any_old:
             prior = S_old[ROW_FILTER]
-            ratio = (depth_ratio[r_old] if depth_ratio is not None
-                     else depth_ratios(S_old[ROW_LAST_BOX], f, cam.c_x, cam.c_y,
-                                       S_old[ROW_ROT], R_now))
+            ratio = (
+                depth_ratio[r_old]
+                if depth_ratio is not None
+                else depth_ratios(S_old[ROW_LAST_BOX], f, cam.c_x, cam.c_y, S_old[ROW_ROT], R_now)
+            )
             prior[0] += np.log(np.maximum(ratio, 0.1))
             pred = kf.cv_predict_rows(prior, dt_old, cfg.process.accel_mps2)
-            m_old, v_old, w_old = ((meas.mean, meas.var, meas.var_white) if every_old
-                                   else (meas.mean[old], meas.var[old], meas.var_white[old]))
+            m_old, v_old, w_old = (
+                (meas.mean, meas.var, meas.var_white)
+                if every_old
+                else (meas.mean[old], meas.var[old], meas.var_white[old])
+            )
             upd, _ = kf.cv_update_rows(pred, m_old, w_old)
             dev = m_old - pred[0]
-            same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma ** 2
+            same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
             if every_old and all_true(same):  # every target continues its track
                 filt = upd
                 continued[:] = True
@@ -524,8 +618,9 @@ class OursEstimator(Estimator):
         if any_true(continued):
             speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(filt)
             if not all_true(continued):
-                speed, speed_sd, ttc, ttc_sd = (np.where(continued, a, np.nan)
-                                                for a in (speed, speed_sd, ttc, ttc_sd))
+                speed, speed_sd, ttc, ttc_sd = (
+                    np.where(continued, a, np.nan) for a in (speed, speed_sd, ttc, ttc_sd)
+                )
         else:
             speed = speed_sd = ttc = ttc_sd = _filled(n, np.nan)
 
@@ -535,14 +630,17 @@ class OursEstimator(Estimator):
         flat = cues.expected_centre_offset_px(z_size, f, h, pri[:, 0], e_mean)
         a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
         gain2 = flat * flat * (1.0 / (f * f))
-        a_white = gain2 * size_c.var_white + (sigma_px ** 2 + (f * jitter_rad) ** 2) / f ** 2
+        a_white = gain2 * size_c.var_white + (sigma_px**2 + (f * jitter_rad) ** 2) / f**2
         z_h_sd = pri[:, 3] * 0.5 / z_size
         a_other = gain2 * (size_c.var - size_c.var_white) + z_h_sd * z_h_sd
         g_mean, g_var = kf.random_walk_update(
-            *_gradient_prior(rows, old, every_old, S_old[ROW_GRAD_MEAN], grad_v_old), 0.0,
-            0.0, a_obs, a_white)
-        alpha_out, alpha_out_var = _shrink_to_prior(g_mean, g_var + a_other,
-                                                    cfg.gradient_sigma_rad)
+            *_gradient_prior(rows, old, every_old, S_old[ROW_GRAD_MEAN], grad_v_old),
+            0.0,
+            0.0,
+            a_obs,
+            a_white,
+        )
+        alpha_out, alpha_out_var = _shrink_to_prior(g_mean, g_var + a_other, cfg.gradient_sigma_rad)
 
         belief: FloatArray | None = None
         if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
@@ -550,9 +648,23 @@ class OursEstimator(Estimator):
             if n_modes > 1:  # correlate
                 belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
             belief = belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
-        uid = (self._store(rows, ids, filt, belief, g_mean, g_var, a_other, B, t, R_now,
-                           turned if box_motion else None) if cfg.tracking
-               else self._new_uids(n))
+        uid = (
+            self._store(
+                rows,
+                ids,
+                filt,
+                belief,
+                g_mean,
+                g_var,
+                a_other,
+                B,
+                t,
+                R_now,
+                turned if box_motion else None,
+            )
+            if cfg.tracking
+            else self._new_uids(n)
+        )
         if cfg.self_calibrate:
             usable = pri[:, 7] <= SELFCAL_MAX_LOG_SIGMA
             if cuts is not None:
@@ -563,8 +675,13 @@ class OursEstimator(Estimator):
             self.selfcal.update(uid, B[:, 3], _filled(n, v_cfg), _filled(n, theta_cfg), near)
         gc_plain = cues.ground_contact_cue(B[:, 3], v_frame, f, h, e_mean)
         return {
-            "distance": dist, "sigma_m": sigma, "distance_nearest_face_m": dist - e_mean,
-            "speed_mps": speed, "speed_sigma_mps": speed_sd, "ttc_s": ttc, "ttc_sigma_s": ttc_sd,
+            "distance": dist,
+            "sigma_m": sigma,
+            "distance_nearest_face_m": dist - e_mean,
+            "speed_mps": speed,
+            "speed_sigma_mps": speed_sd,
+            "ttc_s": ttc,
+            "ttc_sigma_s": ttc_sd,
             "target_gradient_rad": alpha_out,
             "target_gradient_sigma_rad": np.sqrt(alpha_out_var),
             "yaw_rad": self._yaw[w.argmax(axis=1)],
@@ -582,7 +699,7 @@ class OursEstimator(Estimator):
         filt = np.zeros((5, meas.mean.shape[0]))
         filt[0] = meas.mean
         filt[2] = meas.var_white
-        filt[4] = self.config.rate_sigma_per_s ** 2
+        filt[4] = self.config.rate_sigma_per_s**2
         return filt
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
@@ -592,11 +709,20 @@ class OursEstimator(Estimator):
 
     # -- state handling ---------------------------------------------------------------------
 
-    def _store(self, rows: NDArray[np.int64], ext_ids: NDArray[np.int64], filt: FloatArray,
-               log_w: FloatArray | None, g_mean: FloatArray, g_var: FloatArray,
-               g_other: FloatArray, boxes: FloatArray, t: float,
-               R_now: NDArray[np.float64] | None, turned: FloatArray | None
-               ) -> NDArray[np.int64]:
+    def _store(
+        self,
+        rows: NDArray[np.int64],
+        ext_ids: NDArray[np.int64],
+        filt: FloatArray,
+        log_w: FloatArray | None,
+        g_mean: FloatArray,
+        g_var: FloatArray,
+        g_other: FloatArray,
+        boxes: FloatArray,
+        t: float,
+        R_now: NDArray[np.float64] | None,
+        turned: FloatArray | None,
+    ) -> NDArray[np.int64]:
         """Write the updated states back; returns the track uid of every target.
 
         ``filt`` holds the distance filter's rows (:data:`ROW_FILTER`) of every target.
@@ -618,8 +744,10 @@ class OursEstimator(Estimator):
             uid = np.empty(n, np.int64)
             uid[cont] = tr.uid[r]
         if r.size:
+
             def pick(a: np.ndarray) -> np.ndarray:
                 return a if every else a[..., cont]
+
             S = tr.state[:, r]
             b = pick(boxes.T)
             S[ROW_FILTER] = pick(filt)
@@ -627,8 +755,7 @@ class OursEstimator(Estimator):
             S[ROW_GRAD_VAR] = pick(g_var)
             S[ROW_GRAD_OTHER] = pick(g_other)
             if turned is not None:  # the box motion (else not needed: see _estimate_boxes)
-                S[ROW_BOX_VEL] = ((b - turned[r].T)
-                                  / np.maximum(t - S[ROW_LAST_T], 1e-6))
+                S[ROW_BOX_VEL] = (b - turned[r].T) / np.maximum(t - S[ROW_LAST_T], 1e-6)
             S[ROW_PREV_T] = S[ROW_LAST_T]
             S[ROW_LAST_T] = t
             S[ROW_LAST_BOX] = b
@@ -650,10 +777,23 @@ class OursEstimator(Estimator):
             if e >= 0 and (e in taken or e in seen):
                 ext[i] = -1
             seen.add(e)
-        log_w_new = (np.broadcast_to(self._log_yaw_prior, (k, self._yaw.size))
-                     if log_w is None else log_w[new])
-        add = TrackArrays.start(new_uid, ext, filt[:, new], log_w_new, g_mean[new],
-                                g_var[new], g_other[new], t, boxes[new], R)
+        log_w_new = (
+            np.broadcast_to(self._log_yaw_prior, (k, self._yaw.size))
+            if log_w is None
+            else log_w[new]
+        )
+        add = TrackArrays.start(
+            new_uid,
+            ext,
+            filt[:, new],
+            log_w_new,
+            g_mean[new],
+            g_var[new],
+            g_other[new],
+            t,
+            boxes[new],
+            R,
+        )
         claimed = ext[ext >= 0]
         if claimed.size and len(tr):
             replaced = (tr.ext_id[:, None] == claimed[None, :]).any(axis=1)
@@ -668,8 +808,11 @@ class OursEstimator(Estimator):
         tr = self.tracks
         dt1 = t - tr.last_t[rows]
         dt0 = tr.last_t[rows] - tr.prev_t[rows]
-        even = np.isfinite(dt0) & (np.abs(dt1 - dt0) <= 0.2 * dt0) & np.all(
-            np.isfinite(tr.box_vel[rows]), axis=1)
+        even = (
+            np.isfinite(dt0)
+            & (np.abs(dt1 - dt0) <= 0.2 * dt0)
+            & np.all(np.isfinite(tr.box_vel[rows]), axis=1)
+        )
         if not np.any(even):
             return
         d2 = miss[even]
@@ -689,8 +832,12 @@ class OursEstimator(Estimator):
         cfg = self.config
         if cfg.self_calibrate:
             cov = self.selfcal.covariance
-            return _CalibInUse(self.selfcal.horizon_offset_rad, math.sqrt(cov[0, 0]),
-                               self.selfcal.height_m, math.sqrt(cov[1, 1]))
+            return _CalibInUse(
+                self.selfcal.horizon_offset_rad,
+                math.sqrt(cov[0, 0]),
+                self.selfcal.height_m,
+                math.sqrt(cov[1, 1]),
+            )
         return self._fixed_calib
 
     def _truncation(self, boxes: FloatArray) -> tuple[NDArray[np.bool_], ...] | None:
@@ -708,10 +855,16 @@ class OursEstimator(Estimator):
             seen_right, seen_bottom = np.maximum.reduce(boxes[:, 2:4], axis=0).tolist()
             self._max_right = max(self._max_right, seen_right)
             self._max_bottom = max(self._max_bottom, seen_bottom)
-            right = (cam.image_width - 1.0 if cam.image_width
-                     else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf))
-            bottom = (cam.image_height - 1.0 if cam.image_height
-                      else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf))
+            right = (
+                cam.image_width - 1.0
+                if cam.image_width
+                else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf)
+            )
+            bottom = (
+                cam.image_height - 1.0
+                if cam.image_height
+                else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf)
+            )
         if self._border_high[2] != right - 0.5 or self._border_high[3] != bottom - 0.5:
             self._border_high = np.array([math.inf, math.inf, right - 0.5, bottom - 0.5])
         cut = (boxes <= _BORDER_LOW) | (boxes >= self._border_high)
@@ -729,8 +882,9 @@ _OUTPUT_KEYS = ("distance", "theta_adj", "v", "delta_y", *EXTRA_COLUMNS)
 _ABSENT: dict[tuple[str, ...], list[str]] = {}
 
 
-def _scatter(values: dict[str, FloatArray], keys: tuple[str, ...],
-             rows: NDArray[np.intp] | None, n: int) -> dict[str, FloatArray]:
+def _scatter(
+    values: dict[str, FloatArray], keys: tuple[str, ...], rows: NDArray[np.intp] | None, n: int
+) -> dict[str, FloatArray]:
     """Per-box outputs of length ``n``: ``values`` (of the boxes ``rows``; all boxes when None)
     placed in NaN-filled columns; keys without values stay NaN."""
     if rows is None:
@@ -783,21 +937,44 @@ class _ClassTable:
 
     def _build(self) -> None:
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
-        H, W, L, sH, sW, sL, corr = (a[:, k:k + 1] for k in range(7))
+        H, W, L, sH, sW, sL, corr = (a[:, k : k + 1] for k in range(7))
         psi = self._yaw[None, :]
         self.scalars = np.concatenate([a, sH / H, sW / W, sL / L], axis=1)
         e = cues.depth_half_extent(psi, W, L)
         var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
-        planes = {_P_E: e, _P_VAR_E: var_e, _P_SD_E: np.sqrt(var_e),
-                  _P_E_MIN: e + _MIN_NEAR_M,  # the nearest face at least _MIN_NEAR_M away
-                  _P_H: H, _P_LS_H: sH / H, _P_LS_W: sW / W, _P_LS_L: sL / L, _P_CORR: corr,
-                  _P_HWC: 0.5 * W * np.cos(psi), _P_HWS: 0.5 * W * np.sin(psi),
-                  _P_HLC: 0.5 * L * np.cos(psi), _P_HLS: 0.5 * L * np.sin(psi)}
+        planes = {
+            _P_E: e,
+            _P_VAR_E: var_e,
+            _P_SD_E: np.sqrt(var_e),
+            _P_E_MIN: e + _MIN_NEAR_M,  # the nearest face at least _MIN_NEAR_M away
+            _P_H: H,
+            _P_LS_H: sH / H,
+            _P_LS_W: sW / W,
+            _P_LS_L: sL / L,
+            _P_CORR: corr,
+            _P_HWC: 0.5 * W * np.cos(psi),
+            _P_HWS: 0.5 * W * np.sin(psi),
+            _P_HLC: 0.5 * L * np.cos(psi),
+            _P_HLS: 0.5 * L * np.sin(psi),
+        }
         self.planes = np.stack([np.broadcast_to(planes[k], e.shape) for k in range(_N_PLANES)])
 
 
-(_P_E, _P_VAR_E, _P_SD_E, _P_E_MIN, _P_H, _P_LS_H, _P_LS_W, _P_LS_L, _P_CORR, _P_HWC, _P_HWS,
- _P_HLC, _P_HLS) = range(13)
+(
+    _P_E,
+    _P_VAR_E,
+    _P_SD_E,
+    _P_E_MIN,
+    _P_H,
+    _P_LS_H,
+    _P_LS_W,
+    _P_LS_L,
+    _P_CORR,
+    _P_HWC,
+    _P_HWS,
+    _P_HLC,
+    _P_HLS,
+) = range(13)
 _N_PLANES = 13
 """Planes of :attr:`_ClassTable.planes`: per class and heading hypothesis, the footprint's
 half depth extent e (m), its variance and 1σ, the smallest centre distance accepted, the
@@ -813,8 +990,13 @@ class _CalibInUse:
     sigma_height: float
 
 
-def _gradient_prior(rows: NDArray[np.int64], old: NDArray[np.bool_], every_old: bool,
-                    mean_old: FloatArray, var_old: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _gradient_prior(
+    rows: NDArray[np.int64],
+    old: NDArray[np.bool_],
+    every_old: bool,
+    mean_old: FloatArray,
+    var_old: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
     """Mean and variance (rad, rad²) of each target's road gradient before this frame: its
     track's random walk predicted to now (``mean_old``, ``var_old``: of the targets ``old``
     that were associated with a track), or (0, 10⁶) for a target that starts a track (``rows``
@@ -847,8 +1029,9 @@ def _object_column(value: str, n: int) -> NDArray[np.object_]:
     return tmpl[:n].copy()
 
 
-def _shrink_to_prior(mean: FloatArray, var: FloatArray, prior_sigma: float
-                     ) -> tuple[FloatArray, FloatArray]:
+def _shrink_to_prior(
+    mean: FloatArray, var: FloatArray, prior_sigma: float
+) -> tuple[FloatArray, FloatArray]:
     """Combine an estimate (mean, var; var may be inf) with a zero-mean prior of spread
     ``prior_sigma``: the posterior mean and variance."""
     s2 = prior_sigma * prior_sigma
@@ -856,20 +1039,27 @@ def _shrink_to_prior(mean: FloatArray, var: FloatArray, prior_sigma: float
     if all_true(finite):
         return mean * s2 / (s2 + var), s2 * var / (s2 + var)
     v = np.where(finite, var, 1.0)
-    return (np.where(finite, mean * s2 / (s2 + v), 0.0),
-            np.where(finite, s2 * v / (s2 + v), s2))
+    return (np.where(finite, mean * s2 / (s2 + v), 0.0), np.where(finite, s2 * v / (s2 + v), s2))
 
 
 def _concat_cues(parts: list[cues.LogCue]) -> cues.LogCue:
     """Log cues side by side along the hypothesis axis."""
-    return cues.LogCue(*(np.concatenate([getattr(p, k) for p in parts], axis=-1)
-                         for k in ("mean", "var", "var_white", "loglik")))
+    return cues.LogCue(
+        *(
+            np.concatenate([getattr(p, k) for p in parts], axis=-1)
+            for k in ("mean", "var", "var_white", "loglik")
+        )
+    )
 
 
 def _inflate(cue: cues.LogCue, mask: NDArray[np.bool_], factor: float) -> cues.LogCue:
     """The cue with its variances multiplied by ``factor`` where ``mask``."""
-    return cues.LogCue(cue.mean, np.where(mask, cue.var * factor, cue.var),
-                       np.where(mask, cue.var_white * factor, cue.var_white), cue.loglik)
+    return cues.LogCue(
+        cue.mean,
+        np.where(mask, cue.var * factor, cue.var),
+        np.where(mask, cue.var_white * factor, cue.var_white),
+        cue.loglik,
+    )
 
 
 class OursSelfCalibratingEstimator(OursEstimator):

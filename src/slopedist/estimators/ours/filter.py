@@ -82,8 +82,7 @@ def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatAr
 
 def rows_of(x: FloatArray, P: FloatArray) -> FloatArray:
     """State rows ``(5, ...)`` of states ``(..., 2)`` and covariances ``(..., 2, 2)``."""
-    return np.stack([x[..., IDX_LOG_Z], x[..., IDX_RATE], P[..., 0, 0], P[..., 0, 1],
-                     P[..., 1, 1]])
+    return np.stack([x[..., IDX_LOG_Z], x[..., IDX_RATE], P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]])
 
 
 def states_of(s: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -101,8 +100,11 @@ def cv_predict(
     The growth factor ``1 + r·dt`` is kept ≥ 0.2 so a target is never propagated through the
     camera.
     """
-    return states_of(cv_predict_rows(rows_of(np.asarray(x, dtype=float),
-                                             np.asarray(P, dtype=float)), dt_s, accel_mps2))
+    return states_of(
+        cv_predict_rows(
+            rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)), dt_s, accel_mps2
+        )
+    )
 
 
 def cv_update(
@@ -112,13 +114,20 @@ def cv_update(
 
     Returns the new state, covariance and the normalised innovation squared.
     """
-    rows, nis = cv_update_rows(rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)),
-                               np.asarray(y, dtype=float), np.asarray(r, dtype=float))
+    rows, nis = cv_update_rows(
+        rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)),
+        np.asarray(y, dtype=float),
+        np.asarray(r, dtype=float),
+    )
     return (*states_of(rows), nis)
 
 
 def random_walk_update(
-    mean: FloatArray, var: FloatArray, dt_s: FloatArray | float, rate: float, obs: FloatArray,
+    mean: FloatArray,
+    var: FloatArray,
+    dt_s: FloatArray | float,
+    rate: float,
+    obs: FloatArray,
     obs_var: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
     """Predict a scalar random walk over ``dt_s`` then update it with ``obs`` (variance
@@ -132,8 +141,9 @@ def random_walk_update(
     return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
 
 
-def distance_moments_rows(s: FloatArray, extra_log_var: FloatArray | float = 0.0
-                          ) -> tuple[FloatArray, FloatArray]:
+def distance_moments_rows(
+    s: FloatArray, extra_log_var: FloatArray | float = 0.0
+) -> tuple[FloatArray, FloatArray]:
     """:func:`distance_moments` of state rows (see :func:`cv_predict_rows`)."""
     s2 = np.maximum(s[2] + extra_log_var, 0.0)
     mean = np.exp(s[0] + s2 * 0.5)
@@ -186,4 +196,3 @@ def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
     r_ = np.where(approaching, r, -1.0)
     sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
     return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
-

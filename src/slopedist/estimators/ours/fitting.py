@@ -60,14 +60,20 @@ def fit_yaw_prior(headings_rad: ArrayLike) -> YawPrior:
         a, s1, s2 = unpack(p)
         if not (1e-4 < s1 < 1.0 and 1e-4 < s2 < 1.0):
             return math.inf
-        dens = (a[0] * wrapped_normal(x, s1) + a[1] * wrapped_normal(x, s2) + a[2] / np.pi)
+        dens = a[0] * wrapped_normal(x, s1) + a[1] * wrapped_normal(x, s2) + a[2] / np.pi
         return -float(np.sum(np.log(dens)))
 
     best = None
-    for start in ([1.0, 0.5, math.log(0.02), math.log(0.08)],
-                  [1.0, 1.0, math.log(0.01), math.log(0.05)]):
-        res = optimize.minimize(nll, np.asarray(start), method="Nelder-Mead",
-                                options={"maxiter": 5000, "xatol": 1e-7, "fatol": 1e-7})
+    for start in (
+        [1.0, 0.5, math.log(0.02), math.log(0.08)],
+        [1.0, 1.0, math.log(0.01), math.log(0.05)],
+    ):
+        res = optimize.minimize(
+            nll,
+            np.asarray(start),
+            method="Nelder-Mead",
+            options={"maxiter": 5000, "xatol": 1e-7, "fatol": 1e-7},
+        )
         if best is None or res.fun < best.fun:
             best = res
     assert best is not None
@@ -95,8 +101,9 @@ def kitti_box_corners(
     ys = -h * np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0])
     zs = w * np.array([0.5, -0.5, -0.5, 0.5, 0.5, -0.5, -0.5, 0.5])
     c, s = np.cos(ry)[:, None], np.sin(ry)[:, None]
-    return np.stack([c * xs + s * zs + loc[:, 0:1], ys + loc[:, 1:2],
-                     -s * xs + c * zs + loc[:, 2:3]], axis=-1)
+    return np.stack(
+        [c * xs + s * zs + loc[:, 0:1], ys + loc[:, 1:2], -s * xs + c * zs + loc[:, 2:3]], axis=-1
+    )
 
 
 def project_kitti_boxes(
@@ -135,8 +142,9 @@ def box_edge_noise_px(boxes: ArrayLike, reference: ArrayLike) -> float:
     b = np.asarray(boxes, dtype=float)
     r = np.asarray(reference, dtype=float)
     if b.shape != r.shape or b.ndim != 2 or b.shape[1] != 4:
-        raise ConfigurationError(f"boxes and reference must both be (N, 4), got {b.shape} "
-                                 f"and {r.shape}")
+        raise ConfigurationError(
+            f"boxes and reference must both be (N, 4), got {b.shape} and {r.shape}"
+        )
     res = b - r
     res = res[np.all(np.isfinite(res), axis=1)]
     if res.shape[0] < 10:
@@ -171,9 +179,11 @@ def kitti_tracking_fit_inputs(root: str | Path, name: str) -> LabelFitInputs:
     gt = seq.labels.select(protocol_mask(seq.labels))
     P2 = read_kitti_calib(seq.calib_path)["P2"].reshape(3, 4)
     loc = np.stack([gt.extra["x"], gt.extra["y"], gt.extra["z"]], axis=1)
-    return LabelFitInputs(kitti_heading(gt.extra["rotation_y"]), gt.boxes,
-                          project_kitti_boxes(P2, loc, gt.extra["dims_hwl"],
-                                              gt.extra["rotation_y"]))
+    return LabelFitInputs(
+        kitti_heading(gt.extra["rotation_y"]),
+        gt.boxes,
+        project_kitti_boxes(P2, loc, gt.extra["dims_hwl"], gt.extra["rotation_y"]),
+    )
 
 
 def fit_parameters(inputs: Sequence[LabelFitInputs]) -> dict[str, Any]:
@@ -183,12 +193,15 @@ def fit_parameters(inputs: Sequence[LabelFitInputs]) -> dict[str, Any]:
     0.01 px). The defaults of :class:`~slopedist.estimators.ours.OursConfig` are this fit on all
     13 shared KITTI tracking sequences."""
     fit = fit_yaw_prior(np.concatenate([i.headings_rad for i in inputs]))
-    sigma = box_edge_noise_px(np.concatenate([i.boxes for i in inputs]),
-                              np.concatenate([i.projected for i in inputs]))
+    sigma = box_edge_noise_px(
+        np.concatenate([i.boxes for i in inputs]), np.concatenate([i.projected for i in inputs])
+    )
     return {
-        "yaw_prior": YawPrior(round(fit.aligned_weight, 3),
-                              math.radians(round(math.degrees(fit.aligned_sigma_rad), 2)),
-                              round(fit.broad_weight, 3),
-                              math.radians(round(math.degrees(fit.broad_sigma_rad), 2))),
+        "yaw_prior": YawPrior(
+            round(fit.aligned_weight, 3),
+            math.radians(round(math.degrees(fit.aligned_sigma_rad), 2)),
+            round(fit.broad_weight, 3),
+            math.radians(round(math.degrees(fit.broad_sigma_rad), 2)),
+        ),
         "box_sigma_px": round(sigma, 2),
     }

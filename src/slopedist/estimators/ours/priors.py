@@ -48,8 +48,14 @@ class DimensionPrior:
     corr_hw: float = 0.3
 
     def __post_init__(self) -> None:
-        values = (self.height_m, self.width_m, self.length_m, self.height_sigma_m,
-                  self.width_sigma_m, self.length_sigma_m)
+        values = (
+            self.height_m,
+            self.width_m,
+            self.length_m,
+            self.height_sigma_m,
+            self.width_sigma_m,
+            self.length_sigma_m,
+        )
         if not all(math.isfinite(v) and v > 0 for v in values):
             raise ConfigurationError(f"dimension prior values must be finite and > 0: {self}")
         if not -1.0 < self.corr_hw < 1.0:
@@ -70,9 +76,18 @@ CLASS_PRIORS: dict[str, DimensionPrior] = {
 UNKNOWN_CLASS_PRIOR = DimensionPrior(1.80, 1.75, 4.20, 0.45, 0.35, 1.60)
 """Prior for any other class name (``Misc``, detector-specific names): a broad vehicle."""
 
-CLASS_ALIASES = {"car": "Car", "van": "Van", "truck": "Truck", "tram": "Tram",
-                 "pedestrian": "Pedestrian", "person": "Pedestrian", "cyclist": "Cyclist",
-                 "bicycle": "Cyclist", "person_sitting": "Person_sitting", "bus": "Truck"}
+CLASS_ALIASES = {
+    "car": "Car",
+    "van": "Van",
+    "truck": "Truck",
+    "tram": "Tram",
+    "pedestrian": "Pedestrian",
+    "person": "Pedestrian",
+    "cyclist": "Cyclist",
+    "bicycle": "Cyclist",
+    "person_sitting": "Person_sitting",
+    "bus": "Truck",
+}
 
 
 def prior_for(class_name: str) -> DimensionPrior:
@@ -96,9 +111,7 @@ class PriorArrays:
     corr_hw: NDArray[np.float64]
 
 
-def priors_for(
-    classes: ArrayLike, table: dict[str, DimensionPrior] | None = None
-) -> PriorArrays:
+def priors_for(classes: ArrayLike, table: dict[str, DimensionPrior] | None = None) -> PriorArrays:
     """Per-target prior arrays for an array of class names.
 
     Args:
@@ -117,8 +130,9 @@ def priors_for(
     return PriorArrays(*(a[:, k] for k in range(7)))
 
 
-def resolve_prior(class_name: object, table: dict[str, DimensionPrior] | None = None
-                  ) -> DimensionPrior:
+def resolve_prior(
+    class_name: object, table: dict[str, DimensionPrior] | None = None
+) -> DimensionPrior:
     """The prior of one class name: ``table``'s entry (default :data:`CLASS_PRIORS`), else the
     built-in prior of its alias, else the broad :data:`UNKNOWN_CLASS_PRIOR`."""
     lookup = table if table is not None else CLASS_PRIORS
@@ -127,8 +141,15 @@ def resolve_prior(class_name: object, table: dict[str, DimensionPrior] | None = 
 
 def prior_row(p: DimensionPrior) -> tuple[float, float, float, float, float, float, float]:
     """``(H, W, L, σH, σW, σL, corr_hw)`` of a prior, the column order of :class:`PriorArrays`."""
-    return (p.height_m, p.width_m, p.length_m, p.height_sigma_m, p.width_sigma_m,
-            p.length_sigma_m, p.corr_hw)
+    return (
+        p.height_m,
+        p.width_m,
+        p.length_m,
+        p.height_sigma_m,
+        p.width_sigma_m,
+        p.length_sigma_m,
+        p.corr_hw,
+    )
 
 
 @dataclass(frozen=True)
@@ -161,7 +182,8 @@ class YawPrior:
         if self.aligned_weight + self.broad_weight > 1.0 + 1e-9:
             raise ConfigurationError(
                 f"aligned_weight + broad_weight must be <= 1, got "
-                f"{self.aligned_weight} + {self.broad_weight}")
+                f"{self.aligned_weight} + {self.broad_weight}"
+            )
         for name in ("aligned_sigma_rad", "broad_sigma_rad"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -175,13 +197,29 @@ class YawPrior:
     def density(self, yaw_rad: ArrayLike) -> FloatArray:
         """Probability density of ψ (per radian, over a half circle of length π)."""
         x = np.asarray(yaw_rad, dtype=float)
-        return np.asarray(self.aligned_weight * wrapped_normal(x, self.aligned_sigma_rad)
-                          + self.broad_weight * wrapped_normal(x, self.broad_sigma_rad)
-                          + self.uniform_weight / np.pi)
+        return np.asarray(
+            self.aligned_weight * wrapped_normal(x, self.aligned_sigma_rad)
+            + self.broad_weight * wrapped_normal(x, self.broad_sigma_rad)
+            + self.uniform_weight / np.pi
+        )
 
 
-YAW_GRID_DEG = (-90.0, -60.0, -35.0, -20.0, -12.0, -7.0, -3.5, 0.0, 3.5, 7.0, 12.0, 20.0, 35.0,
-                60.0)
+YAW_GRID_DEG = (
+    -90.0,
+    -60.0,
+    -35.0,
+    -20.0,
+    -12.0,
+    -7.0,
+    -3.5,
+    0.0,
+    3.5,
+    7.0,
+    12.0,
+    20.0,
+    35.0,
+    60.0,
+)
 """Heading hypotheses ψ (degrees) the size cue is evaluated at; −90° is the same as +90°."""
 
 
@@ -200,9 +238,11 @@ def yaw_prior_weights(grid_rad: ArrayLike, prior: YawPrior = YawPrior()) -> NDAr
     nxt = np.r_[g[1:], g[0] + np.pi]
     prv = np.r_[g[-1] - np.pi, g[:-1]]
     lo, hi = 0.5 * (prv + g), 0.5 * (g + nxt)
-    w = (prior.aligned_weight * _wrapped_normal_mass(lo, hi, prior.aligned_sigma_rad)
-         + prior.broad_weight * _wrapped_normal_mass(lo, hi, prior.broad_sigma_rad)
-         + prior.uniform_weight * (hi - lo) / np.pi)
+    w = (
+        prior.aligned_weight * _wrapped_normal_mass(lo, hi, prior.aligned_sigma_rad)
+        + prior.broad_weight * _wrapped_normal_mass(lo, hi, prior.broad_sigma_rad)
+        + prior.uniform_weight * (hi - lo) / np.pi
+    )
     return np.asarray(w / w.sum())
 
 
@@ -212,12 +252,15 @@ _IMAGES = (-np.pi, 0.0, np.pi)
 
 def wrapped_normal(x: NDArray[np.float64], sigma: float) -> NDArray[np.float64]:
     """Density of N(0, σ) wrapped to a period of π."""
-    return np.asarray(sum(np.exp(-0.5 * ((x + k) / sigma) ** 2) for k in _IMAGES)
-                      / (sigma * math.sqrt(2.0 * math.pi)))
+    return np.asarray(
+        sum(np.exp(-0.5 * ((x + k) / sigma) ** 2) for k in _IMAGES)
+        / (sigma * math.sqrt(2.0 * math.pi))
+    )
 
 
-def _wrapped_normal_mass(lo: NDArray[np.float64], hi: NDArray[np.float64], sigma: float
-                         ) -> NDArray[np.float64]:
+def _wrapped_normal_mass(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], sigma: float
+) -> NDArray[np.float64]:
     """Mass of N(0, σ) wrapped to a period of π on the intervals [lo, hi]."""
     s = sigma * math.sqrt(2.0)
     return np.asarray(sum(0.5 * (_erf((hi + k) / s) - _erf((lo + k) / s)) for k in _IMAGES))

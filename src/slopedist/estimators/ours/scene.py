@@ -47,11 +47,20 @@ class SimulatedTraffic:
 
 
 def simulate_traffic(
-    camera: Camera, n_vehicles: int, n_frames: int, seed: int = 0, *,
-    true_height_m: float | None = None, true_mount_rad: float | None = None,
-    frame_period_s: float = 0.1, z_range_m: tuple[float, float] = (8.0, 70.0),
-    speed_range_mps: tuple[float, float] = (-10.0, 6.0), lateral_m: float = 10.0,
-    box_noise_px: float = 0.0, with_ids: bool = True, size_spread: float = 1.0,
+    camera: Camera,
+    n_vehicles: int,
+    n_frames: int,
+    seed: int = 0,
+    *,
+    true_height_m: float | None = None,
+    true_mount_rad: float | None = None,
+    frame_period_s: float = 0.1,
+    z_range_m: tuple[float, float] = (8.0, 70.0),
+    speed_range_mps: tuple[float, float] = (-10.0, 6.0),
+    lateral_m: float = 10.0,
+    box_noise_px: float = 0.0,
+    with_ids: bool = True,
+    size_spread: float = 1.0,
 ) -> SimulatedTraffic:
     """Vehicles driving along the camera's axis at constant relative speeds.
 
@@ -64,11 +73,14 @@ def simulate_traffic(
     theta0 = camera.mount_angle_rad if true_mount_rad is None else true_mount_rad
     v = camera.c_y + camera.f * math.tan(theta0)
     p = CLASS_PRIORS["Car"]
-    dims = np.stack([
-        p.height_m + size_spread * p.height_sigma_m * rng.standard_normal(n_vehicles),
-        p.width_m + size_spread * p.width_sigma_m * rng.standard_normal(n_vehicles),
-        p.length_m + size_spread * p.length_sigma_m * rng.standard_normal(n_vehicles),
-    ], axis=1)
+    dims = np.stack(
+        [
+            p.height_m + size_spread * p.height_sigma_m * rng.standard_normal(n_vehicles),
+            p.width_m + size_spread * p.width_sigma_m * rng.standard_normal(n_vehicles),
+            p.length_m + size_spread * p.length_sigma_m * rng.standard_normal(n_vehicles),
+        ],
+        axis=1,
+    )
     z0 = rng.uniform(*z_range_m, n_vehicles)
     speed = rng.uniform(*speed_range_mps, n_vehicles)
     lane = rng.uniform(-lateral_m, lateral_m, n_vehicles)
@@ -90,9 +102,17 @@ def simulate_traffic(
         spd.append(speed[vis])
     frame = np.concatenate(frames) if frames else np.zeros(0, np.int64)
     vehicle = np.concatenate(veh) if veh else np.zeros(0, np.int64)
-    table = BoxTable.build(frame, np.concatenate(boxes) if boxes else np.zeros((0, 4)),
-                           vehicle if with_ids else np.full(len(vehicle), -1),
-                           classes=np.full(len(vehicle), "Car", dtype=object))
-    return SimulatedTraffic(table, np.asarray(t, dtype=float),
-                            np.concatenate(zs) if zs else np.zeros(0), vehicle,
-                            np.concatenate(spd) if spd else np.zeros(0), dims)
+    table = BoxTable.build(
+        frame,
+        np.concatenate(boxes) if boxes else np.zeros((0, 4)),
+        vehicle if with_ids else np.full(len(vehicle), -1),
+        classes=np.full(len(vehicle), "Car", dtype=object),
+    )
+    return SimulatedTraffic(
+        table,
+        np.asarray(t, dtype=float),
+        np.concatenate(zs) if zs else np.zeros(0),
+        vehicle,
+        np.concatenate(spd) if spd else np.zeros(0),
+        dims,
+    )

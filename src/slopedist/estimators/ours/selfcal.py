@@ -57,12 +57,21 @@ class SelfCalConfig:
     max_near_m: float = 60.0
 
     def __post_init__(self) -> None:
-        for name in ("mount_sigma_rad", "height_sigma_m", "size_sigma_log", "gradient_sigma_rad",
-                     "row_sigma_px", "huber_k", "min_near_m", "max_near_m"):
+        for name in (
+            "mount_sigma_rad",
+            "height_sigma_m",
+            "size_sigma_log",
+            "gradient_sigma_rad",
+            "row_sigma_px",
+            "huber_k",
+            "min_near_m",
+            "max_near_m",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ConfigurationError(f"self-calibration {name} must be finite and > 0, "
-                                         f"got {value}")
+                raise ConfigurationError(
+                    f"self-calibration {name} must be finite and > 0, got {value}"
+                )
 
 
 @dataclass(frozen=True)
@@ -98,16 +107,17 @@ class SelfCalibrator:
         config: priors and noise levels.
     """
 
-    def __init__(self, f: float, mount_angle_rad: float, height_m: float,
-                 config: SelfCalConfig | None = None) -> None:
+    def __init__(
+        self, f: float, mount_angle_rad: float, height_m: float, config: SelfCalConfig | None = None
+    ) -> None:
         self.f = float(f)
         self.config = config or SelfCalConfig()
         self.mount0 = float(mount_angle_rad)
         self.height0 = float(height_m)
         c = self.config
-        self._prior_info = np.diag([1.0 / c.mount_sigma_rad ** 2, 1.0 / c.height_sigma_m ** 2])
+        self._prior_info = np.diag([1.0 / c.mount_sigma_rad**2, 1.0 / c.height_sigma_m**2])
         self._prior_mean = np.array([0.0, self.height0])
-        self._omega_inv = np.diag([1.0 / c.size_sigma_log ** 2, 1.0 / c.gradient_sigma_rad ** 2])
+        self._omega_inv = np.diag([1.0 / c.size_sigma_log**2, 1.0 / c.gradient_sigma_rad**2])
         self.reset()
 
     def reset(self) -> None:
@@ -139,12 +149,24 @@ class SelfCalibrator:
 
     def calibration(self) -> Calibration:
         """The current estimate with its uncertainty."""
-        return Calibration(self.mount0 - float(self._p[0]), math.sqrt(self._cov[0, 0]),
-                           float(self._p[1]), math.sqrt(self._cov[1, 1]), float(self._p[0]),
-                           self._n_obs, len(self._row_of))
+        return Calibration(
+            self.mount0 - float(self._p[0]),
+            math.sqrt(self._cov[0, 0]),
+            float(self._p[1]),
+            math.sqrt(self._cov[1, 1]),
+            float(self._p[0]),
+            self._n_obs,
+            len(self._row_of),
+        )
 
-    def update(self, track_keys: NDArray[np.int64], bottom_px: FloatArray, horizon_px: FloatArray,
-               theta_rad: FloatArray, near_m: FloatArray) -> None:
+    def update(
+        self,
+        track_keys: NDArray[np.int64],
+        bottom_px: FloatArray,
+        horizon_px: FloatArray,
+        theta_rad: FloatArray,
+        near_m: FloatArray,
+    ) -> None:
         """Add one frame's targets and refresh the estimate.
 
         Args:
@@ -155,8 +177,14 @@ class SelfCalibrator:
             near_m: ``(N,)`` size-cue distance to the nearest face, metres.
         """
         c = self.config
-        ok = (np.isfinite(bottom_px) & np.isfinite(horizon_px) & np.isfinite(near_m)
-              & np.isfinite(theta_rad) & (near_m >= c.min_near_m) & (near_m <= c.max_near_m))
+        ok = (
+            np.isfinite(bottom_px)
+            & np.isfinite(horizon_px)
+            & np.isfinite(near_m)
+            & np.isfinite(theta_rad)
+            & (near_m >= c.min_near_m)
+            & (near_m <= c.max_near_m)
+        )
         m = int(np.count_nonzero(ok))
         if not m:
             return
@@ -166,18 +194,26 @@ class SelfCalibrator:
         a1 = f / near_m[ok]
         A = np.stack([a0, a1], axis=1)
         U = np.stack([a1 * self._p[1], np.full(m, -f)], axis=1)
-        d = np.full(m, c.row_sigma_px ** 2)
+        d = np.full(m, c.row_sigma_px**2)
         resid = y - A @ self._p
-        total = np.sqrt(d + (U[:, 0] * c.size_sigma_log) ** 2
-                        + (U[:, 1] * c.gradient_sigma_rad) ** 2)
+        total = np.sqrt(
+            d + (U[:, 0] * c.size_sigma_log) ** 2 + (U[:, 1] * c.gradient_sigma_rad) ** 2
+        )
         z = np.abs(resid) / total
         w = np.where(z > c.huber_k, c.huber_k / np.maximum(z, 1e-12), 1.0)
         inv_d = w / d
         Ad, Ud = A * inv_d[:, None], U * inv_d[:, None]
-        add = np.concatenate([(Ad[:, :, None] * A[:, None, :]).reshape(m, 4),
-                              (Ad[:, :, None] * U[:, None, :]).reshape(m, 4),
-                              (Ud[:, :, None] * U[:, None, :]).reshape(m, 4),
-                              Ad * y[:, None], Ud * y[:, None], np.zeros((m, 6))], axis=1)
+        add = np.concatenate(
+            [
+                (Ad[:, :, None] * A[:, None, :]).reshape(m, 4),
+                (Ad[:, :, None] * U[:, None, :]).reshape(m, 4),
+                (Ud[:, :, None] * U[:, None, :]).reshape(m, 4),
+                Ad * y[:, None],
+                Ud * y[:, None],
+                np.zeros((m, 6)),
+            ],
+            axis=1,
+        )
         rows = self._rows(np.asarray(track_keys)[ok].tolist())
         if len(set(rows.tolist())) == m:
             self._sums[rows, :_N_STATS] += add[:, :_N_STATS]

@@ -69,10 +69,19 @@ class TrackArrays:
         return cls(z, z.copy(), np.zeros((ROW_LOG_W + n_hypotheses, 0)))
 
     @classmethod
-    def start(cls, uid: IntArray, ext_id: IntArray, filter_rows: FloatArray,
-              log_w: FloatArray, grad_mean: FloatArray, grad_var: FloatArray,
-              grad_var_other: FloatArray, t: float, boxes: FloatArray,
-              R_world_cam: FloatArray) -> TrackArrays:
+    def start(
+        cls,
+        uid: IntArray,
+        ext_id: IntArray,
+        filter_rows: FloatArray,
+        log_w: FloatArray,
+        grad_mean: FloatArray,
+        grad_var: FloatArray,
+        grad_var_other: FloatArray,
+        t: float,
+        boxes: FloatArray,
+        R_world_cam: FloatArray,
+    ) -> TrackArrays:
         """New tracks after their first update at time ``t``: ``filter_rows`` ``(5, k)`` (the
         :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, the others
         ``(k,)``."""
@@ -104,7 +113,7 @@ class TrackArrays:
     @property
     def x(self) -> FloatArray:
         """``(T, 2)`` distance filter states (ℓ, r)."""
-        return self.state[ROW_L:ROW_RATE + 1].T
+        return self.state[ROW_L : ROW_RATE + 1].T
 
     @property
     def P(self) -> FloatArray:
@@ -168,13 +177,21 @@ class TrackArrays:
 
     def concat(self, other: TrackArrays) -> TrackArrays:
         """These tracks followed by ``other``'s."""
-        return TrackArrays(np.concatenate([self.uid, other.uid]),
-                           np.concatenate([self.ext_id, other.ext_id]),
-                           np.concatenate([self.state, other.state], axis=1))
+        return TrackArrays(
+            np.concatenate([self.uid, other.uid]),
+            np.concatenate([self.ext_id, other.ext_id]),
+            np.concatenate([self.state, other.state], axis=1),
+        )
 
 
-def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: FloatArray,
-               R_now: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+def turn_boxes(
+    boxes: FloatArray,
+    f: float,
+    c_x: float,
+    c_y: float,
+    R_last: FloatArray,
+    R_now: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
     """Where boxes ``(T, 4)`` seen at camera-to-world rotations ``R_last`` ``(T, 3, 3)`` go
     when the camera has turned to ``R_now`` ``(3, 3)`` (pixels), and the depth ratio
     ``Z_new/Z_old`` ``(T,)`` of the points seen at their centres (the ego's own rotation
@@ -201,8 +218,14 @@ def turn_boxes(boxes: FloatArray, f: float, c_x: float, c_y: float, R_last: Floa
     return b + np.concatenate([shift, shift], axis=1), z
 
 
-def depth_ratios(box_rows: FloatArray, f: float, c_x: float, c_y: float, rot_rows: FloatArray,
-                 R_now: FloatArray | None) -> FloatArray:
+def depth_ratios(
+    box_rows: FloatArray,
+    f: float,
+    c_x: float,
+    c_y: float,
+    rot_rows: FloatArray,
+    R_now: FloatArray | None,
+) -> FloatArray:
     """The second output of :func:`turn_boxes` alone: ``Z_new/Z_old`` ``(T,)`` of the points
     seen at the centres of the boxes ``box_rows`` ``(4, T)`` (l, t, r, b rows) when the camera
     turns from the camera-to-world rotations ``rot_rows`` ``(9, T)`` (row-major entries) to
@@ -213,11 +236,13 @@ def depth_ratios(box_rows: FloatArray, f: float, c_x: float, c_y: float, rot_row
     # the new depth of the old ray ((u − c_x)/f, (v − c_y)/f, 1) is R_now's z axis (in the
     # world) · R_last·ray, i.e. ray · (R_lastᵀ·R_now[:, 2])
     m = b.shape[1]
-    q = (np.asarray(R_now, dtype=float)[:, 2] @ np.asarray(rot_rows).reshape(3, 3 * m)
-         ).reshape(3, m)
+    q = (np.asarray(R_now, dtype=float)[:, 2] @ np.asarray(rot_rows).reshape(3, 3 * m)).reshape(
+        3, m
+    )
     inv_2f = 0.5 / f
-    return ((b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0]
-            + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2])
+    return (
+        (b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0] + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2]
+    )
 
 
 def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray:
@@ -228,7 +253,10 @@ def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray
 
 
 def associate(
-    tracks: TrackArrays, boxes: FloatArray, track_ids: IntArray, min_iou: float = 0.3,
+    tracks: TrackArrays,
+    boxes: FloatArray,
+    track_ids: IntArray,
+    min_iou: float = 0.3,
     predicted: FloatArray | None = None,
 ) -> IntArray:
     """Row of ``tracks`` each box continues, or −1 for a new track.
