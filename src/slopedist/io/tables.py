@@ -1,0 +1,166 @@
+"""The output layer: how every table and summary slopedist writes is formatted.
+
+One place for the rules every output file follows:
+
+- numbers in CSV cells: integers as integers, floats with 6 significant digits (``.6g``), NaN and
+  ±inf as an empty field, booleans as ``0``/``1``;
+- CSV files: UTF-8, LF line ends, a header row, flushed after every :meth:`CsvStreamWriter.
+  write_rows` call (one frame), so a killed run leaves whole rows;
+- JSON: strict (RFC 8259): NaN and ±inf become ``null``, numpy scalars and arrays become numbers
+  and lists, paths become strings; ``-`` as the path writes to standard output.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import enum
+import json
+import math
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+STDOUT_PATH = "-"
+"""The path that means standard output in ``--json -`` and friends."""
+
+
+def format_cell(value: Any) -> Any:
+    """One CSV cell: ints as ints, floats ``.6g`` (non-finite → ``""``), bools 0/1, else as is."""
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        x = float(value)
+        return f"{x:.6g}" if math.isfinite(x) else ""
+    if isinstance(value, enum.Enum):
+        return value.value
+    return value
+
+
+def format_row(row: Mapping[str, Any]) -> dict[str, Any]:
+    """:func:`format_cell` applied to every value of a record."""
+    return {k: format_cell(v) for k, v in row.items()}
+
+
+class CsvStreamWriter:
+    """A CSV table written as it is produced: LF line ends, flushed after each batch of rows.
+
+    The header is ``fields`` when given, otherwise the keys of the first row written (so that
+    method-specific extra columns are included). Keys a row lacks are written empty; a key not in
+    the header is an error of the caller (``ValueError``).
+    """
+
+    def __init__(self, stream: IO[str], fields: Sequence[str] | None = None) -> None:
+        self._stream = stream
+        self._writer: csv.DictWriter[str] | None = None
+        self._owned = False
+        if fields is not None:
+            self._start(fields)
+
+    @classmethod
+    def open(cls, path: str | Path, fields: Sequence[str] | None = None) -> CsvStreamWriter:
+        """Create (truncate) ``path`` as UTF-8 and return a writer that closes it."""
+        fh = Path(path).open("w", newline="", encoding="utf-8")  # noqa: SIM115 (closed by close())
+        writer = cls(fh, fields)
+        writer._owned = True
+        return writer
+
+    def _start(self, fields: Sequence[str]) -> csv.DictWriter[str]:
+        self._writer = csv.DictWriter(
+            self._stream, fieldnames=list(fields), lineterminator="\n", restval=""
+        )
+        self._writer.writeheader()
+        self._stream.flush()
+        return self._writer
+
+    @property
+    def fields(self) -> list[str] | None:
+        """The header, once known."""
+        return None if self._writer is None else list(self._writer.fieldnames)
+
+    def write_rows(self, rows: Iterable[Mapping[str, Any]]) -> int:
+        """Write ``rows`` (formatted with :func:`format_cell`), then flush; returns the count."""
+        n = 0
+        for row in rows:
+            writer = self._writer if self._writer is not None else self._start(list(row))
+            writer.writerow(format_row(row))
+            n += 1
+        self._stream.flush()
+        return n
+
+    def write_row(self, row: Mapping[str, Any]) -> None:
+        """Write one row and flush."""
+        self.write_rows((row,))
+
+    def close(self) -> None:
+        """Flush, and close the file if this writer opened it."""
+        if self._owned:
+            self._stream.close()
+        else:
+            self._stream.flush()
+
+    def __enter__(self) -> CsvStreamWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write_csv(
+    path: str | Path, rows: Iterable[Mapping[str, Any]], fields: Sequence[str] | None = None
+) -> Path:
+    """Write a whole table at once (same format as :class:`CsvStreamWriter`); returns ``path``."""
+    path = Path(path)
+    with CsvStreamWriter.open(path, fields) as writer:
+        writer.write_rows(rows)
+    return path
+
+
+def json_ready(value: Any) -> Any:
+    """``value`` with every non-finite float as None and numpy/paths/enums/dataclasses as plain
+    JSON types, recursively (dict keys become strings)."""
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        x = float(value)
+        return x if math.isfinite(x) else None
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, enum.Enum):
+        return json_ready(value.value)
+    if isinstance(value, Path):
+        return str(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return json_ready(dataclasses.asdict(value))
+    if isinstance(value, Mapping):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [json_ready(v) for v in value]
+    raise TypeError(f"cannot write a {type(value).__name__} as JSON")
+
+
+def dumps_json(value: Any, indent: int | None = 2) -> str:
+    """Strict JSON text of ``value`` (see :func:`json_ready`), ending with a newline."""
+    return json.dumps(json_ready(value), indent=indent, allow_nan=False) + "\n"
+
+
+def write_json(path: str | Path, value: Any, indent: int | None = 2) -> str:
+    """Write ``value`` as strict JSON to ``path`` (``-``: standard output); returns the text."""
+    text = dumps_json(value, indent)
+    if str(path) == STDOUT_PATH:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    else:
+        Path(path).write_text(text, encoding="utf-8")
+    return text

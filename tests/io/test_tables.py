@@ -1,0 +1,77 @@
+"""The output layer: cell formatting, LF CSV streaming, strict JSON."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from slopedist.io.tables import CsvStreamWriter, dumps_json, format_cell, write_csv, write_json
+
+
+def test_format_cell_hand_values() -> None:
+    assert format_cell(3) == 3
+    assert format_cell(np.int64(7)) == 7
+    assert format_cell(True) == 1
+    assert format_cell(1.0 / 3.0) == "0.333333"
+    assert format_cell(np.float32(2.5)) == "2.5"
+    assert format_cell(math.nan) == ""
+    assert format_cell(-math.inf) == ""
+    assert format_cell(None) == ""
+    assert format_cell("car") == "car"
+
+
+def test_csv_stream_writer_lf_header_from_first_row_and_flush(tmp_path: Path) -> None:
+    path = tmp_path / "t.csv"
+    w = CsvStreamWriter.open(path)
+    w.write_rows([{"a": 1, "b": math.nan}, {"a": 2.0, "b": "x"}])
+    # flushed: readable before close
+    assert path.read_bytes() == b"a,b\n1,\n2,x\n"
+    w.close()
+    assert b"\r" not in path.read_bytes()
+
+
+def test_csv_stream_writer_fixed_fields_missing_key_empty() -> None:
+    buf = io.StringIO()
+    w = CsvStreamWriter(buf, fields=("a", "b"))
+    w.write_row({"a": 1})
+    assert buf.getvalue() == "a,b\n1,\n"
+    with pytest.raises(ValueError):
+        w.write_row({"c": 1})
+
+
+def test_write_csv_whole_table(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "w.csv", [], fields=("x",))
+    assert path.read_text() == "x\n"
+
+
+def test_json_strict_nan_inf_numpy(tmp_path: Path) -> None:
+    value = {"a": math.nan, "b": [np.float64(math.inf), np.int32(3)], 4: np.array([1.5, np.nan])}
+    text = write_json(tmp_path / "o.json", value)
+    parsed = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict token {c}"))
+    assert parsed == {"a": None, "b": [None, 3], "4": [1.5, None]}
+
+
+def test_json_dash_writes_stdout(capsys: pytest.CaptureFixture[str]) -> None:
+    write_json("-", {"x": 1.0}, indent=None)
+    assert capsys.readouterr().out == '{"x": 1.0}\n'
+
+
+@given(
+    st.recursive(
+        st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
+        lambda children: (
+            st.lists(children, max_size=4)
+            | st.dictionaries(st.text(max_size=3), children, max_size=4)
+        ),
+        max_leaves=20,
+    )
+)
+def test_dumps_json_always_strict(value: object) -> None:
+    json.loads(dumps_json(value), parse_constant=lambda c: pytest.fail(c))
