@@ -13,14 +13,11 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import (
-    ALLOWED,
     CASES,
-    MUTATIONS,
     Case,
     Corpus,
     bad_ok_rows,
     build_corpus,
-    log_outcome,
     run_case,
 )
 
