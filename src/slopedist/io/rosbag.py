@@ -1,0 +1,455 @@
+"""Drive logs as frame sources: ROS 1 bags, ROS 2 bags (sqlite3 or MCAP storage), bare ``.mcap``.
+
+Read with the pure-Python ``rosbags`` package (optional extra ``rosbag``; no ROS installation).
+
+Convention: images are BGR ``H×W×3`` uint8; frame times are the image messages' header stamps,
+in seconds after the first image's stamp (:attr:`LogFrameSource.t0_ns` keeps that origin in
+nanoseconds, for other topics of the same log).
+
+Frame numbering: frame ``k`` is the ``k``-th slot of the nominal frame period ``T`` (the
+``fps`` given, or the median of the first stamp differences). A stamp step of more than
+:data:`GAP_FACTOR` × ``T`` is a gap: the skipped slots are yielded as frames of status
+``missing`` (as a gap in a numbered image folder), so the indices of the frames after it stay
+those of a recording without drops. A stamp that does not increase (out of order or repeated)
+gives a frame of status ``unreadable`` whose detail names both stamps; it keeps the next index.
+
+Image encodings: ``sensor_msgs/Image`` in ``bgr8``, ``rgb8``, ``bgra8``, ``rgba8``, ``mono8``,
+``mono16`` (high byte kept) and ``bayer_{rggb,bggr,gbrg,grbg}8`` (OpenCV demosaicing);
+``sensor_msgs/CompressedImage`` in any format ``cv2.imdecode`` reads (JPEG, PNG). Other
+encodings give ``unreadable`` frames naming the encoding.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
+from slopedist.errors import (
+    ConfigurationError,
+    InputFileError,
+    MissingInputError,
+    OptionalDependencyError,
+)
+from slopedist.io.frames import Frame, FrameStatus
+
+IMAGE_TYPE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE_TYPE = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+IMAGE_TYPES = (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE)
+
+GAP_FACTOR = 1.5
+"""A stamp step longer than this many nominal frame periods is a gap (missing frames)."""
+
+PERIOD_SAMPLES = 9
+"""Stamp differences whose median is the nominal frame period when no ``fps`` is given."""
+
+LOG_SUFFIXES = (".bag", ".mcap", ".db3")
+"""File endings read as logs (a folder with a ``metadata.yaml`` is a ROS 2 bag)."""
+
+_BAYER = {
+    "bayer_rggb8": cv2.COLOR_BayerBG2BGR,
+    "bayer_bggr8": cv2.COLOR_BayerRG2BGR,
+    "bayer_gbrg8": cv2.COLOR_BayerGR2BGR,
+    "bayer_grbg8": cv2.COLOR_BayerGB2BGR,
+}
+# ROS names a Bayer pattern by the first row's first two pixels, OpenCV by the second row's
+# second and third (cv_bridge's table), hence RGGB → OpenCV's "BG".
+_CHANNELS = {"bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4, "mono8": 1, "8uc1": 1, "8uc3": 3}
+_TO_BGR = {
+    "rgb8": cv2.COLOR_RGB2BGR,
+    "bgra8": cv2.COLOR_BGRA2BGR,
+    "rgba8": cv2.COLOR_RGBA2BGR,
+    "mono8": cv2.COLOR_GRAY2BGR,
+    "8uc1": cv2.COLOR_GRAY2BGR,
+}
+
+
+def is_log_path(path: str | Path) -> bool:
+    """True for a ``.bag`` / ``.mcap`` / ``.db3`` file or a ROS 2 bag folder (``metadata.yaml``)."""
+    path = Path(path)
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file()
+    return path.suffix.lower() in LOG_SUFFIXES
+
+
+def _anyreader() -> Any:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as exc:
+        raise OptionalDependencyError(
+            "rosbags", "rosbag", "reading ROS bags and MCAP logs"
+        ) from exc
+    return AnyReader, get_typestore(Stores.ROS2_HUMBLE)
+
+
+@contextmanager
+def open_log(path: str | Path) -> Iterator[Any]:
+    """An open ``rosbags.highlevel.AnyReader`` on ``path`` (message types from the log, ROS 2
+    Humble's when the log carries none).
+
+    Raises:
+        MissingInputError: no such file or folder.
+        InputFileError: not a readable ROS 1 / ROS 2 log.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingInputError(f"log not found: {path}")
+    any_reader, typestore = _anyreader()
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+
+    try:
+        reader = any_reader([path], default_typestore=typestore)
+        reader.open()
+    except (AnyReaderError, Reader1Error, Reader2Error, KeyError, ValueError) as exc:
+        raise InputFileError(path, f"not a readable ROS 1 / ROS 2 log: {exc}") from None
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def connections_of(reader: Any, topic: str, types: tuple[str, ...], path: Path) -> list[Any]:
+    """The connections of ``topic``, which must carry one of ``types``.
+
+    Raises:
+        ConfigurationError: no such topic (the message lists the topics there are), or another
+            message type.
+    """
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        have = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections}))
+        raise ConfigurationError(f"{path} has no topic {topic}; its topics: {have or 'none'}")
+    bad = sorted({c.msgtype for c in conns if c.msgtype not in types})
+    if bad:
+        raise ConfigurationError(
+            f"topic {topic} in {path} carries {', '.join(bad)}; expected {' or '.join(types)}"
+        )
+    return conns
+
+
+def stamp_ns(msg: Any) -> int:
+    """Header stamp of a message, integer nanoseconds."""
+    stamp = msg.header.stamp
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def decode_image(msg: Any) -> tuple[NDArray[np.uint8] | None, str]:
+    """``(BGR image, "")`` from a ``sensor_msgs`` Image or CompressedImage, or ``(None, why)``."""
+    if hasattr(msg, "format"):  # CompressedImage
+        buf = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+        image = cv2.imdecode(buf, cv2.IMREAD_COLOR) if buf.size else None
+        if image is None:
+            return None, f"compressed image ({msg.format or 'no format'}) does not decode"
+        return np.asarray(image, dtype=np.uint8), ""
+    return _raw_image(msg)
+
+
+def _raw_image(msg: Any) -> tuple[NDArray[np.uint8] | None, str]:
+    enc = str(msg.encoding).lower()
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+    if enc == "mono16" or enc == "16uc1":
+        if data.size < h * step or step < 2 * w:
+            return None, f"{enc} image of {w}×{h} px has {data.size} bytes (step {step})"
+        rows = data[: h * step].reshape(h, step)[:, : 2 * w]
+        words = rows.view(">u2" if msg.is_bigendian else "<u2")
+        return np.asarray(cv2.cvtColor((words >> 8).astype(np.uint8), cv2.COLOR_GRAY2BGR)), ""
+    channels = 1 if enc in _BAYER else _CHANNELS.get(enc)
+    if channels is None:
+        return None, f"image encoding '{msg.encoding}' is not supported"
+    if data.size < h * step or step < channels * w:
+        return None, f"{enc} image of {w}×{h} px has {data.size} bytes (step {step})"
+    rows = data[: h * step].reshape(h, step)[:, : channels * w]
+    image = rows.reshape(h, w, channels) if channels > 1 else rows
+    if enc in _BAYER:
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), _BAYER[enc])), ""
+    if enc in _TO_BGR:
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), _TO_BGR[enc])), ""
+    return np.ascontiguousarray(image), ""
+
+
+class _Slots:
+    """Frame index of each stamp: slots of the nominal period, gaps and non-increasing stamps."""
+
+    def __init__(self, period_ns: float | None) -> None:
+        self.period_ns = period_ns
+        self.diffs: list[int] = []
+        self.last_ns: int | None = None
+        self.index = -1
+
+    def period(self) -> float | None:
+        if self.period_ns is not None:
+            return self.period_ns
+        return statistics.median(self.diffs) if self.diffs else None
+
+    def place(self, t_ns: int) -> tuple[int, int, str]:
+        """``(first skipped index, index of this frame, problem)`` for the stamp ``t_ns``."""
+        first_skipped = self.index + 1
+        if self.last_ns is None:
+            self.last_ns, self.index = t_ns, 0
+            return 0, 0, ""
+        step = t_ns - self.last_ns
+        if step <= 0:
+            self.index += 1
+            return (
+                self.index,
+                self.index,
+                (
+                    f"header stamp {t_ns * 1e-9:.9f} s does not increase (the frame before has "
+                    f"{self.last_ns * 1e-9:.9f} s)"
+                ),
+            )
+        period = self.period()
+        slots = 1
+        if period is not None and step > GAP_FACTOR * period:
+            slots = max(round(step / period), 1)
+        elif len(self.diffs) < PERIOD_SAMPLES:
+            self.diffs.append(step)
+        self.index += slots
+        self.last_ns = t_ns
+        return first_skipped, self.index, ""
+
+
+class LogFrameSource:
+    """Frames of one image topic of a drive log (see the module docstring).
+
+    Args:
+        path: ``.bag`` file (ROS 1), ROS 2 bag folder, ``.db3`` or ``.mcap`` file.
+        image_topic: topic of ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage``.
+        fps: nominal frames per second (None: from the median of the first stamp steps).
+
+    Raises:
+        MissingInputError / InputFileError: see :func:`open_log`; also a topic without messages.
+        ConfigurationError: no such topic, or not an image topic.
+    """
+
+    def __init__(self, path: str | Path, image_topic: str, fps: float | None = None) -> None:
+        self.path = Path(path)
+        self.image_topic = image_topic
+        if fps is not None and not fps > 0:
+            raise ConfigurationError(f"frame rate must be > 0 frames per second, got {fps}")
+        self.period_ns = None if fps is None else 1e9 / fps
+        with open_log(self.path) as reader:
+            conns = connections_of(reader, image_topic, IMAGE_TYPES, self.path)
+            self.message_count = sum(int(c.msgcount) for c in conns)
+            first = next(self._messages(reader), None)
+        if first is None:
+            raise InputFileError(self.path, f"topic {image_topic} has no messages")
+        self.t0_ns = stamp_ns(first)
+
+    def _messages(self, reader: Any) -> Iterator[Any]:
+        conns = [c for c in reader.connections if c.topic == self.image_topic]
+        for conn, _, raw in reader.messages(connections=conns):
+            yield reader.deserialize(raw, conn.msgtype)
+
+    def expected_frames(self) -> int:
+        """Image messages on the topic (missing slots of gaps not counted)."""
+        return self.message_count
+
+    def frame_size(self) -> tuple[int, int]:
+        with open_log(self.path) as reader:
+            for msg in self._messages(reader):
+                image, _ = decode_image(msg)
+                if image is not None:
+                    return int(image.shape[1]), int(image.shape[0])
+        raise InputFileError(self.path, f"no image on {self.image_topic} decodes")
+
+    def seconds(self, t_ns: int) -> float:
+        """Log time ``t_ns`` (nanoseconds) → frame time, seconds after the first image."""
+        return (t_ns - self.t0_ns) / 1e9
+
+    def __iter__(self) -> Iterator[Frame]:
+        slots = _Slots(self.period_ns)
+        size: tuple[int, int] | None = None
+        with open_log(self.path) as reader:
+            for msg in self._messages(reader):
+                t_ns = stamp_ns(msg)
+                skipped, k, problem = slots.place(t_ns)
+                yield from self._gap(skipped, k, slots, t_ns)
+                name = f"{self.image_topic}#{k}"
+                t = self.seconds(t_ns)
+                if problem:
+                    yield Frame(k, t, None, FrameStatus.UNREADABLE, name, problem)
+                    continue
+                image, why = decode_image(msg)
+                if image is None:
+                    yield Frame(k, t, None, FrameStatus.UNREADABLE, name, why)
+                    continue
+                this = (int(image.shape[1]), int(image.shape[0]))
+                size = size or this
+                if this != size:
+                    why = f"image is {this[0]}×{this[1]} px, the first was {size[0]}×{size[1]} px"
+                    yield Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, why)
+                    continue
+                yield Frame(k, t, image, FrameStatus.OK, name)
+
+    def _gap(self, first: int, k: int, slots: _Slots, t_ns: int) -> Iterator[Frame]:
+        period = slots.period() or 0.0
+        for j in range(first, k):
+            t = self.seconds(round(t_ns - (k - j) * period))
+            yield Frame(
+                j,
+                t,
+                None,
+                FrameStatus.MISSING,
+                f"{self.image_topic}#{j}",
+                f"no message on {self.image_topic} for this frame (stamp gap)",
+            )
+
+
+@dataclass(frozen=True)
+class LogTopic:
+    """One topic of a log: name, message type, message count, first and last log time (ns)."""
+
+    topic: str
+    msgtype: str
+    count: int
+    first_ns: int
+    last_ns: int
+
+    @property
+    def span_s(self) -> float:
+        """Seconds from the first to the last message."""
+        return (self.last_ns - self.first_ns) / 1e9
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean message rate, messages per second (NaN with fewer than two messages)."""
+        span = self.span_s
+        return (self.count - 1) / span if self.count > 1 and span > 0 else float("nan")
+
+
+def log_topics(path: str | Path) -> list[LogTopic]:
+    """Every topic of a log with its type, message count and log-time span (sorted by name)."""
+    path = Path(path)
+    with open_log(path) as reader:
+        first: dict[str, int] = {}
+        last: dict[str, int] = {}
+        count: dict[str, int] = {}
+        types = {c.topic: c.msgtype for c in reader.connections}
+        for conn, t_ns, _ in reader.messages():
+            first.setdefault(conn.topic, t_ns)
+            last[conn.topic] = t_ns
+            count[conn.topic] = count.get(conn.topic, 0) + 1
+    return [
+        LogTopic(topic, types[topic], count.get(topic, 0), first.get(topic, 0), last.get(topic, 0))
+        for topic in sorted(types)
+    ]
+
+
+def camera_info_topic(image_topic: str) -> str:
+    """The ``camera_info`` topic next to an image topic (``/cam/image_raw`` →
+    ``/cam/camera_info``; ``/cam/image_raw/compressed`` → ``/cam/camera_info``)."""
+    parts = image_topic.rstrip("/").split("/")
+    if parts[-1] == "compressed":
+        parts = parts[:-1]
+    return "/".join([*parts[:-1], "camera_info"])
+
+
+def read_camera_info(
+    path: str | Path,
+    topic: str,
+    height_m: float = KITTI_CAMERA_HEIGHT_M,
+    mount_angle_rad: float = 0.0,
+) -> Camera:
+    """The camera of the first ``sensor_msgs/CameraInfo`` message on ``topic``.
+
+    The intrinsics are the projection matrix ``P`` (the rectified image's) when it is set, else
+    ``K``; f is ``f_x`` (square pixels assumed). The image size is the message's.
+
+    Raises:
+        ConfigurationError: no such topic.
+        InputFileError: no message, a zero focal length, distortion without a rectified ``P``,
+            or ``f_x`` and ``f_y`` more than 1 % apart.
+    """
+    path = Path(path)
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, (CAMERA_INFO_TYPE,), path)
+        msg = next(
+            (reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)), None
+        )
+    if msg is None:
+        raise InputFileError(path, f"topic {topic} has no messages")
+    return camera_from_info(msg, path, topic, height_m, mount_angle_rad)
+
+
+def camera_from_info(
+    msg: Any, path: Path, topic: str, height_m: float, mount_angle_rad: float
+) -> Camera:
+    """:class:`Camera` from a CameraInfo message (ROS 1 ``K``/``P`` or ROS 2 ``k``/``p``)."""
+    K = np.asarray(getattr(msg, "k", getattr(msg, "K", None)), dtype=float).reshape(3, 3)
+    P = np.asarray(getattr(msg, "p", getattr(msg, "P", None)), dtype=float).reshape(3, 4)
+    D = np.asarray(getattr(msg, "d", getattr(msg, "D", ())), dtype=float)
+    M = P[:, :3] if P[0, 0] > 0 else K
+    if M[0, 0] <= 0 or M[1, 1] <= 0:
+        raise InputFileError(path, "no focal length (K and P are zero)", field=topic)
+    if P[0, 0] <= 0 and np.any(D != 0):
+        raise InputFileError(
+            path, "distortion but no rectified P; use rectified images", field=topic
+        )
+    if abs(M[0, 0] - M[1, 1]) > 0.01 * M[0, 0]:
+        raise InputFileError(
+            path,
+            f"f_x = {M[0, 0]:.2f} and f_y = {M[1, 1]:.2f} px differ (non-square pixels)",
+            field=topic,
+        )
+    camera = Camera(float(M[0, 0]), float(M[0, 2]), float(M[1, 2]), height_m, mount_angle_rad)
+    if int(msg.width) > 0 and int(msg.height) > 0:
+        camera = camera.with_image_size(int(msg.width), int(msg.height))
+    return camera
+
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
+ORIENTATION_TYPES = (IMU_TYPE, ODOMETRY_TYPE, *POSE_TYPES)
+
+
+def _orientation(msg: Any) -> Any:
+    if hasattr(msg, "orientation"):  # Imu
+        return msg.orientation
+    pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose  # Odometry, PoseStamped
+    return pose.orientation
+
+
+def read_orientations(
+    path: str | Path, topic: str
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and orientation quaternions (``(N, 4)``, x y z w, body-to-
+    world) of ``topic``: ``sensor_msgs/Imu``, ``nav_msgs/Odometry`` or a ``geometry_msgs`` pose.
+
+    Raises:
+        ConfigurationError: no such topic or another type.
+        InputFileError: no messages, or an IMU that reports no orientation (covariance[0] = −1,
+            the ``sensor_msgs/Imu`` convention).
+    """
+    path = Path(path)
+    stamps: list[int] = []
+    quats: list[tuple[float, float, float, float]] = []
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, ORIENTATION_TYPES, path)
+        for conn, _, raw in reader.messages(conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            cov = getattr(msg, "orientation_covariance", None)
+            if cov is not None and float(cov[0]) == -1.0:
+                raise InputFileError(
+                    path, "the IMU reports no orientation (covariance[0] = -1)", field=topic
+                )
+            q = _orientation(msg)
+            stamps.append(stamp_ns(msg))
+            quats.append((float(q.x), float(q.y), float(q.z), float(q.w)))
+    if not stamps:
+        raise InputFileError(path, "no messages", field=topic)
+    return np.asarray(stamps, dtype=np.int64), np.asarray(quats, dtype=float)
