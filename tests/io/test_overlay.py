@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-av = pytest.importorskip("av")
-
 from slopedist.io.overlay import OverlayWriter, even_size
+
+av = pytest.importorskip("av")
 
 REPO = Path(__file__).resolve().parents[2]
 
