@@ -84,7 +84,7 @@ class H264Writer:
         # OpenCV's BT.601 conversion: decoders give back the colours within 2 levels (swscale's
         # default conversion is 3-4 levels off)
         i420 = cv2.cvtColor(np.ascontiguousarray(even_size(image)), cv2.COLOR_BGR2YUV_I420)
-        frame = av.VideoFrame.from_ndarray(np.asarray(i420), format="yuv420p")
+        frame = av.VideoFrame.from_ndarray(np.asarray(i420, dtype=np.uint8), format="yuv420p")
         pts = max(round(timestamp_s / float(MP4_TIME_BASE)), self._last_pts + 1)
         frame.pts, frame.time_base = pts, MP4_TIME_BASE
         self._last_pts = pts
