@@ -27,7 +27,6 @@ Convention: radians inside, degrees in files and tables; distances in metres; ti
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable, Iterator
@@ -43,16 +42,30 @@ from tqdm import tqdm
 
 from slopedist import viz
 from slopedist.camera import Camera
-from slopedist.datasets.synthetic.export import CsvStream, true_theta
+from slopedist.datasets.synthetic.export import true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
+from slopedist.datasets.synthetic.scene import Scenario
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
-from slopedist.estimators import DEFAULT_METHOD, available_methods, make_estimator
+from slopedist.estimators import (
+    DEFAULT_METHOD,
+    EstimatorConfig,
+    available_methods,
+    build_estimator,
+)
 from slopedist.estimators.base import FrameEstimates, MissingReason
 from slopedist.evaluation import cap_estimates, distance_metrics, format_table
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.tables import CsvStreamWriter, write_csv, write_json
 from slopedist.odometry.base import LOOKBACK_S, OdometryResult, OdometryState, RotationOdometry
-from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstimator, iter_records
+from slopedist.pipeline import (
+    RECORD_FIELDS,
+    EgoGradientTracker,
+    FrameStep,
+    close_records,
+    iter_records,
+    open_records,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -126,6 +139,7 @@ class DemoConfig:
         video: write the overlay videos; plots: write the plots.
         max_frames: only the first frames of each scenario (None = all).
         progress: show a progress bar.
+        estimator: the methods' options (its method is set per method).
     """
 
     out_dir: Path = DEFAULT_OUT
@@ -136,6 +150,7 @@ class DemoConfig:
     plots: bool = True
     max_frames: int | None = None
     progress: bool = True
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
 
     def __post_init__(self) -> None:
         if self.odometry not in ("visual", "truth"):
@@ -152,14 +167,17 @@ class MethodPlan:
     skipped: str = ""
 
 
-def plan_methods(names: list[str], camera: Camera) -> list[MethodPlan]:
+def plan_methods(
+    names: list[str], camera: Camera, config: EstimatorConfig | None = None
+) -> list[MethodPlan]:
     """Decide for each method what it is fed; methods that need something the demo cannot give
-    are kept with a ``skipped`` reason."""
+    are kept with a ``skipped`` reason. ``config`` holds the methods' options."""
+    config = config if config is not None else EstimatorConfig()
     plans = []
     for name in names:
         plan = MethodPlan(name)
         try:
-            est = make_estimator(name, camera)
+            est = build_estimator(config.with_method(name), camera)
         except (SlopedistError, TypeError) as exc:
             plan.skipped = f"cannot be built with default options ({exc})"
             plans.append(plan)
@@ -298,127 +316,190 @@ def _overlay_writer(folder: Path, fps: float) -> OverlayWriter | _GifWriter:
     return _GifWriter(folder / "overlay.gif", fps)
 
 
+DEMO_RECORD_FIELDS = (*RECORD_FIELDS, "truth_z_m")
+"""Columns of a scenario's ``records.csv`` (one file for every method, so no method's extra
+columns)."""
+
+
+class _ScenarioLoop:
+    """One scenario frame by frame: odometry, one look-back per rotation feed (θ computed once
+    per frame and feed, never across an odometry restart), every method's frame step, outputs."""
+
+    def __init__(
+        self, scenario: Scenario, cfg: DemoConfig, plans: list[MethodPlan], folder: Path
+    ) -> None:
+        self.scenario, self.cfg, self.folder = scenario, cfg, folder
+        self.seq = SyntheticSequence(scenario)
+        camera = self.camera = self.seq.camera
+        self.active = [p for p in plans if not p.skipped]
+        self.n = len(self.seq) if cfg.max_frames is None else min(len(self.seq), cfg.max_frames)
+        R_true = self.seq.truth.poses_cam0()[:, :3, :3]
+        self.odometry: RotationOdometry = (
+            visual_odometry(camera) if cfg.odometry == "visual" else TrueRotationOdometry(R_true)
+        )
+        self.R_imu = _imu_rotations(R_true, scenario.seed)
+        self.depth_noise = (
+            _DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
+            if any(p.depth for p in self.active)
+            else None
+        )
+        self.gradients = {
+            feed: EgoGradientTracker(camera.mount_angle_rad, LOOKBACK_S)
+            for feed in ("odometry", "imu")
+        }
+        self.steps = {
+            p.name: FrameStep(build_estimator(cfg.estimator.with_method(p.name), camera))
+            for p in self.active
+        }
+        self.scores = {p.name: MethodScores() for p in plans}
+        self.overlay_method = (
+            DEFAULT_METHOD if DEFAULT_METHOD in self.steps else next(iter(self.steps), None)
+        )
+        self.theta_true = true_theta(self.seq.truth, camera.mount_angle_rad)
+        self.theta_est = np.full(self.n, np.nan)
+        self.render_s = self.odometry_s = 0.0
+        self.states: dict[str, int] = {}
+
+    def run(self, bar: tqdm | None) -> list[str]:
+        """Every frame; returns the files written."""
+        records = open_records(self.folder / "records.csv", DEMO_RECORD_FIELDS)
+        frame_log = CsvStreamWriter.open(self.folder / "frames.csv", DEMO_FRAME_FIELDS)
+        painter = (
+            _overlay_writer(self.folder, self.scenario.frame_rate_hz) if self.cfg.video else None
+        )
+        try:
+            for k in range(self.n):
+                self.frame(k, records, frame_log, painter)
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            close_records(records)
+            frame_log.close()
+            if painter is not None:
+                painter.close()
+        files = [str(self.folder / "records.csv"), str(self.folder / "frames.csv")]
+        if painter is not None:
+            files.append(
+                str(painter.target if isinstance(painter, OverlayWriter) else painter.path)
+            )
+        return files
+
+    def frame(
+        self,
+        k: int,
+        records: CsvStreamWriter,
+        frame_log: CsvStreamWriter,
+        painter: OverlayWriter | _GifWriter | None,
+    ) -> None:
+        """Render frame ``k``, run the odometry and every method, write the outputs."""
+        t0 = time.perf_counter()
+        frame: SyntheticFrame = self.seq.frame(k)
+        t1 = time.perf_counter()
+        gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+        res = self.odometry.process(gray, frame.timestamp_s, frame.detections.boxes)
+        t2 = time.perf_counter()
+        self.render_s += t1 - t0
+        self.odometry_s += t2 - t1
+        self.states[res.state.value] = self.states.get(res.state.value, 0) + 1
+        t = frame.timestamp_s
+        feeds = {
+            "odometry": (
+                res.R_world_cam,
+                self.gradients["odometry"].update(t, res.R_world_cam, res.segment),
+            ),
+            "imu": (self.R_imu[k], self.gradients["imu"].update(t, self.R_imu[k])),
+            "none": (None, math.nan),
+        }
+        self.theta_est[k] = feeds["odometry"][1]
+        frame_log.write_row(
+            {
+                "frame": k,
+                "timestamp_s": t,
+                "odometry_state": res.state.value,
+                "theta_deg": math.degrees(self.theta_est[k]),
+                "theta_true_deg": math.degrees(self.theta_true[k]),
+                "odometry_ms": 1e3 * (t2 - t1),
+            }
+        )
+        shown = self.estimate(k, frame, feeds, records)
+        if painter is not None and shown is not None:
+            painter.write(k, self.overlay(k, frame, shown, res.state.value))
+
+    def estimate(
+        self,
+        k: int,
+        frame: SyntheticFrame,
+        feeds: dict[str, tuple[FloatArray | None, float]],
+        records: CsvStreamWriter,
+    ) -> FrameEstimates | None:
+        """Every method's estimates of frame ``k`` (scored and written); returns those of the
+        overlay's method."""
+        boxes = frame.detections
+        truth_z = self.seq.truth.z_m[k, np.searchsorted(self.seq.truth.track_ids, boxes.track_id)]
+        depth = self.depth_noise(frame.depth_m, k) if self.depth_noise is not None else None
+        shown = None
+        for p in self.active:
+            score = self.scores[p.name]
+            if score.failed:
+                continue
+            R, theta = feeds[p.rotation]
+            t3 = time.perf_counter()
+            try:
+                est = self.steps[p.name].estimate(
+                    k, frame.timestamp_s, theta, R, boxes, frame.image, depth if p.depth else None
+                )
+            except SlopedistError as exc:
+                score.failed = f"frame {k}: {exc}"
+                continue
+            score.seconds += time.perf_counter() - t3
+            score.add(k, boxes.track_id, est, truth_z)
+            records.write_rows(
+                {**{f: row[f] for f in RECORD_FIELDS}, "truth_z_m": float(z)}
+                for row, z in zip(iter_records(boxes, frame.timestamp_s, est, p.name), truth_z)
+            )
+            if p.name == self.overlay_method:
+                shown = est
+        return shown
+
+    def overlay(
+        self, k: int, frame: SyntheticFrame, shown: FrameEstimates, state: str
+    ) -> NDArray[np.uint8]:
+        """The Fig. 3 style overlay of frame ``k`` with the overlay method's estimates."""
+        th = self.theta_est[k]
+        head = (
+            f"{self.scenario.name}  frame {k}  t {frame.timestamp_s:4.1f} s  "
+            f"{self.overlay_method}: theta {math.degrees(th):+.2f} deg (true "
+            f"{math.degrees(self.theta_true[k]):+.2f})"
+            if math.isfinite(th)
+            else f"{self.scenario.name}  frame {k}  no rotation ({state})"
+        )
+        return viz.draw_fig3_overlay(frame.image, self.camera, frame.detections, shown, None, head)
+
+
 def run_scenario(
     name: str, cfg: DemoConfig, method_names: list[str], bar: tqdm | None = None
 ) -> tuple[ScenarioRun, list[MethodPlan]]:
     """Run every method on one scenario (see the module docstring)."""
     scenario = load_scenario(name)
-    seq = SyntheticSequence(scenario)
-    camera = seq.camera
-    plans = plan_methods(method_names, camera)
-    active = [p for p in plans if not p.skipped]
-    n = len(seq) if cfg.max_frames is None else min(len(seq), cfg.max_frames)
     folder = cfg.out_dir / scenario.name
     folder.mkdir(parents=True, exist_ok=True)
-    R_true = seq.truth.poses_cam0()[:, :3, :3]
-    odometry: RotationOdometry = (
-        visual_odometry(camera) if cfg.odometry == "visual" else TrueRotationOdometry(R_true)
-    )
-    R_imu = _imu_rotations(R_true, scenario.seed)
-    depth_noise = (
-        _DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
-        if any(p.depth for p in active)
-        else None
-    )
-    streams = {
-        p.name: StreamingEstimator(make_estimator(p.name, camera), LOOKBACK_S) for p in active
-    }
-    scores = {p.name: MethodScores() for p in plans}
-    overlay_method = DEFAULT_METHOD if DEFAULT_METHOD in streams else next(iter(streams), None)
-    painter = _overlay_writer(folder, scenario.frame_rate_hz) if cfg.video else None
-    theta_true = true_theta(seq.truth, camera.mount_angle_rad)
-    theta_est = np.full(n, np.nan)
-    render_s = odo_s = 0.0
-    states: dict[str, int] = {}
-    timestamps = seq.truth.timestamps_s
-    gradient = EgoGradientTracker(camera.mount_angle_rad, LOOKBACK_S)
-    records = RecordWriter.open(folder / "records.csv")
-    frame_log = CsvStream(folder / "frames.csv", DEMO_FRAME_FIELDS)
-    try:
-        for k in range(n):
-            t0 = time.perf_counter()
-            frame: SyntheticFrame = seq.frame(k)
-            t1 = time.perf_counter()
-            gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
-            res = odometry.process(gray, frame.timestamp_s, frame.detections.boxes)
-            t2 = time.perf_counter()
-            render_s += t1 - t0
-            odo_s += t2 - t1
-            states[res.state.value] = states.get(res.state.value, 0) + 1
-            theta_est[k] = gradient.update(frame.timestamp_s, res.R_world_cam)
-            frame_log.rows(
-                [
-                    [
-                        k,
-                        frame.timestamp_s,
-                        res.state.value,
-                        math.degrees(theta_est[k]),
-                        math.degrees(theta_true[k]),
-                        1e3 * (t2 - t1),
-                    ]
-                ]
-            )
-            boxes = frame.detections
-            m_idx = np.searchsorted(seq.truth.track_ids, boxes.track_id)
-            truth_z = seq.truth.z_m[k, m_idx]
-            depth = depth_noise(frame.depth_m, k) if depth_noise is not None else None
-            shown: FrameEstimates | None = None
-            for p in active:
-                if scores[p.name].failed:
-                    continue
-                R = {"odometry": res.R_world_cam, "imu": R_imu[k], "none": None}[p.rotation]
-                t3 = time.perf_counter()
-                try:
-                    est = streams[p.name].update(
-                        k, frame.timestamp_s, R, boxes, frame.image, depth if p.depth else None
-                    )
-                except SlopedistError as exc:
-                    scores[p.name].failed = f"frame {k}: {exc}"
-                    continue
-                scores[p.name].seconds += time.perf_counter() - t3
-                scores[p.name].add(k, boxes.track_id, est, truth_z)
-                rows = list(iter_records(boxes, timestamps, est, p.name))
-                for row, z in zip(rows, truth_z):
-                    row["truth_z_m"] = float(z)
-                records.write(rows)
-                if p.name == overlay_method:
-                    shown = est
-            if painter is not None and shown is not None:
-                th = theta_est[k]
-                head = (
-                    f"{scenario.name}  frame {k}  t {frame.timestamp_s:4.1f} s  "
-                    f"{overlay_method}: theta {math.degrees(th):+.2f} deg (true "
-                    f"{math.degrees(theta_true[k]):+.2f})"
-                    if math.isfinite(th)
-                    else f"{scenario.name}  frame {k}  no rotation ({res.state.value})"
-                )
-                painter.write(
-                    k, viz.draw_fig3_overlay(frame.image, camera, boxes, shown, None, head)
-                )
-            if bar is not None:
-                bar.update(1)
-    finally:
-        records.close()
-        frame_log.close()
-        if painter is not None:
-            painter.close()
-    files = [str(folder / "records.csv"), str(folder / "frames.csv")]
-    if painter is not None:
-        files.append(str(painter.target if isinstance(painter, OverlayWriter) else painter.path))
+    plans = plan_methods(method_names, SyntheticSequence(scenario).camera, cfg.estimator)
+    loop = _ScenarioLoop(scenario, cfg, plans, folder)
+    files = loop.run(bar)
     run = ScenarioRun(
         scenario.name,
         scenario.description.strip(),
-        n,
-        scores,
-        render_s,
-        odo_s,
-        states,
-        theta_est,
-        theta_true[:n],
+        loop.n,
+        loop.scores,
+        loop.render_s,
+        loop.odometry_s,
+        loop.states,
+        loop.theta_est,
+        loop.theta_true[: loop.n],
         files,
     )
     if cfg.plots:
-        run.files += _plots(run, seq, folder, [p.name for p in active])
+        run.files += _plots(run, loop.seq, folder, [p.name for p in loop.active])
     return run, plans
 
 
@@ -632,8 +713,7 @@ def _write_results(result: DemoResult) -> None:
         ("rmse.csv", rmse_rows(result)),
         ("timing.csv", timing_rows(result)),
     ):
-        lines = [",".join(headers)] + [",".join(_csv(v) for v in r) for r in rows]
-        (out / fname).write_text("\n".join(lines) + "\n")
+        write_csv(out / fname, (dict(zip(headers, r)) for r in rows), headers)
     (out / "summary.txt").write_text(format_demo_tables(result) + "\n")
     data = {
         "config": {
@@ -677,28 +757,7 @@ def _write_results(result: DemoResult) -> None:
         },
         "elapsed_s": result.elapsed_s,
     }
-    (out / "results.json").write_text(json.dumps(_clean(data), indent=2) + "\n")
-
-
-def _csv(v: Any) -> str:
-    if isinstance(v, float):
-        return "" if not math.isfinite(v) else f"{v:.4f}"
-    return str(v)
-
-
-def _clean(v: Any) -> Any:
-    """JSON-ready copy: numpy scalars to Python, NaN and ±inf to null."""
-    if isinstance(v, dict):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (int, np.integer)):
-        return int(v)
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(float(v)) else None
-    return v
+    write_json(out / "results.json", data)
 
 
 def iter_outputs(result: DemoResult) -> Iterator[str]:
