@@ -37,7 +37,6 @@ from typing import Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from slopedist import viz
@@ -45,8 +44,16 @@ from slopedist.camera import Camera
 from slopedist.datasets.synthetic.export import true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
 from slopedist.datasets.synthetic.scene import Scenario
+from slopedist.datasets.synthetic.sensors import (
+    DEPTH_PIXEL_SIGMA,
+    DEPTH_SCALE_SIGMA,
+    IMU_PITCH_NOISE_RAD,
+    DepthNoise,
+    TrueRotationOdometry,
+    imu_rotations,
+)
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
-from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
+from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators import (
     DEFAULT_METHOD,
     EstimatorConfig,
@@ -54,10 +61,11 @@ from slopedist.estimators import (
     build_estimator,
 )
 from slopedist.estimators.base import FrameEstimates, MissingReason
+from slopedist.estimators.imu import IMU_ROTATION_SOURCE
 from slopedist.evaluation import cap_estimates, distance_metrics, format_table
-from slopedist.io.overlay import OverlayWriter
+from slopedist.io.overlay import GifWriter, OverlayWriter, open_overlay_video
 from slopedist.io.tables import CsvStreamWriter, write_csv, write_json
-from slopedist.odometry.base import LOOKBACK_S, OdometryResult, OdometryState, RotationOdometry
+from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.pipeline import (
     RECORD_FIELDS,
     EgoGradientTracker,
@@ -81,37 +89,6 @@ DEMO_FRAME_FIELDS = (
 """Columns of a scenario's ``frames.csv`` (θ of eq. 4 in degrees, 1 s look-back)."""
 CAP_M = 80.0
 """Cap of the published protocol, metres."""
-IMU_PITCH_NOISE_RAD = math.radians(0.03)
-"""Standard deviation of the simulated IMU's pitch and roll error per frame (an OXTS RT3000 is
-specified at 0.03°), radians."""
-DEPTH_SCALE_SIGMA = 0.05
-"""Simulated depth network: per-frame log-scale error (5 %)."""
-DEPTH_PIXEL_SIGMA = 0.03
-"""Simulated depth network: per-pixel log error (3 %)."""
-IMU_SOURCE = "oxts"
-"""``Estimator.rotation_source`` of methods bound to an IMU."""
-
-
-class TrueRotationOdometry:
-    """Rotation source that returns the scene's true camera rotations (a diagnostic: it
-    separates odometry error from method error; ``slopedist demo --odometry truth``)."""
-
-    def __init__(self, R_world_cam: FloatArray) -> None:
-        self._R = R_world_cam
-        self._k = 0
-
-    def process(
-        self,
-        image_gray: NDArray[np.uint8],
-        timestamp_s: float,
-        mask_boxes: NDArray[np.float64] | None = None,
-    ) -> OdometryResult:
-        R = self._R[self._k]
-        self._k += 1
-        return OdometryResult(R, OdometryState.OK, 0)
-
-    def reset(self) -> None:
-        self._k = 0
 
 
 def visual_odometry(camera: Camera) -> RotationOdometry:
@@ -185,7 +162,7 @@ def plan_methods(
         source = getattr(est, "rotation_source", None)
         if not est.needs_rotation:
             plan.rotation = "none"
-        elif source == IMU_SOURCE:
+        elif source == IMU_ROTATION_SOURCE:
             plan.rotation = "imu"
         elif source is not None:
             plan.skipped = f"needs rotations from '{source}', which the demo does not simulate"
@@ -248,74 +225,6 @@ class ScenarioRun:
     files: list[str]
 
 
-def _imu_rotations(R_true: FloatArray, seed: int) -> FloatArray:
-    """True camera rotations with IMU-like pitch and roll noise (radians, per frame)."""
-    rng = np.random.default_rng([seed, 0x1A1])
-    eps = rng.normal(0.0, IMU_PITCH_NOISE_RAD, (len(R_true), 3)) * np.array([1.0, 0.0, 1.0])
-    return np.asarray(R_true @ Rotation.from_rotvec(eps).as_matrix())
-
-
-class _DepthNoise:
-    """Simulated metric depth network: true depth × per-frame scale × per-pixel noise."""
-
-    def __init__(self, height: int, width: int, seed: int) -> None:
-        rng = np.random.default_rng([seed, 0xDE9])
-        self._field = np.exp(rng.normal(0.0, DEPTH_PIXEL_SIGMA, (2 * height, 2 * width))).astype(
-            np.float32
-        )
-        self._seed = seed
-        self._h, self._w = height, width
-
-    def __call__(self, depth: NDArray[np.float32], k: int) -> NDArray[np.float32]:
-        scale = math.exp(
-            np.random.default_rng([self._seed, k, 0xDE9]).normal(0.0, DEPTH_SCALE_SIGMA)
-        )
-        oy, ox = (k * 131) % self._h, (k * 977) % self._w
-        out = depth * self._field[oy : oy + self._h, ox : ox + self._w] * np.float32(scale)
-        out[~np.isfinite(depth)] = np.nan
-        return np.asarray(out, dtype=np.float32)
-
-
-class _GifWriter:
-    """Animated GIF fallback for the overlay (half resolution)."""
-
-    def __init__(self, path: Path, fps: float) -> None:
-        self.path = path
-        self.fps = fps
-        self.frames: list[Any] = []
-
-    def write(self, index: int, image: NDArray[np.uint8]) -> None:
-        from PIL import Image
-
-        small = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2))
-        self.frames.append(Image.fromarray(cv2.cvtColor(small, cv2.COLOR_BGR2RGB)))
-
-    def close(self) -> None:
-        if self.frames:
-            self.frames[0].save(
-                self.path,
-                save_all=True,
-                append_images=self.frames[1:],
-                duration=int(1000 / self.fps),
-                loop=0,
-            )
-
-
-def _overlay_writer(folder: Path, fps: float) -> OverlayWriter | _GifWriter:
-    try:
-        writer = OverlayWriter(folder / "overlay.mp4", fps)
-        probe = cv2.VideoWriter(
-            str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
-        )
-        ok = probe.isOpened()
-        probe.release()
-        if ok:
-            return writer
-    except InputFileError:
-        pass
-    return _GifWriter(folder / "overlay.gif", fps)
-
-
 DEMO_RECORD_FIELDS = (*RECORD_FIELDS, "truth_z_m")
 """Columns of a scenario's ``records.csv`` (one file for every method, so no method's extra
 columns)."""
@@ -337,9 +246,9 @@ class _ScenarioLoop:
         self.odometry: RotationOdometry = (
             visual_odometry(camera) if cfg.odometry == "visual" else TrueRotationOdometry(R_true)
         )
-        self.R_imu = _imu_rotations(R_true, scenario.seed)
+        self.R_imu = imu_rotations(R_true, scenario.seed)
         self.depth_noise = (
-            _DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
+            DepthNoise(camera.image_height or 0, camera.image_width or 0, scenario.seed)
             if any(p.depth for p in self.active)
             else None
         )
@@ -365,7 +274,7 @@ class _ScenarioLoop:
         records = open_records(self.folder / "records.csv", DEMO_RECORD_FIELDS)
         frame_log = CsvStreamWriter.open(self.folder / "frames.csv", DEMO_FRAME_FIELDS)
         painter = (
-            _overlay_writer(self.folder, self.scenario.frame_rate_hz) if self.cfg.video else None
+            open_overlay_video(self.folder, self.scenario.frame_rate_hz) if self.cfg.video else None
         )
         try:
             for k in range(self.n):
@@ -389,7 +298,7 @@ class _ScenarioLoop:
         k: int,
         records: CsvStreamWriter,
         frame_log: CsvStreamWriter,
-        painter: OverlayWriter | _GifWriter | None,
+        painter: OverlayWriter | GifWriter | None,
     ) -> None:
         """Render frame ``k``, run the odometry and every method, write the outputs."""
         t0 = time.perf_counter()
