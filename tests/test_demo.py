@@ -130,6 +130,33 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--out", str(tmp_path / "e"), "--scenarios", "nope.toml"]) == 2
 
 
+def test_cli_estimator_options_reach_the_methods(tmp_path: Path) -> None:
+    """``--alphas`` configures ``paper`` and ``imu`` in the demo as in every other command."""
+    args = ["demo", "--scenarios", "target_steep_uphill", "--frames", "3", "--methods"]
+    args += ["paper,imu,ego", "--odometry", "truth", "--no-video", "--no-plots", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "default")]) == 0
+    # every target below the last threshold: θ + α3
+    steep = ["--alphas", "20,30,40", "--thresholds", "1000,999,998"]
+    assert main([*args, "--out", str(tmp_path / "steep"), *steep]) == 0
+
+    def adjusted(folder: str) -> dict[str, list[str]]:
+        path = tmp_path / folder / "target_steep_uphill" / "records.csv"
+        rows = list(csv.DictReader(path.open()))
+        return {
+            m: [r["theta_adj_deg"] for r in rows if r["method"] == m]
+            for m in ("paper", "imu", "ego")
+        }
+
+    default, steeper = adjusted("default"), adjusted("steep")
+    assert default["ego"] == steeper["ego"]
+    for m in ("paper", "imu"):
+        assert default[m] != steeper[m], m
+        assert all(
+            float(a) - float(d) == pytest.approx(40.0, abs=1e-3)
+            for a, d in zip(steeper[m], default[m])
+        )
+
+
 RESTART = 5
 """Frame at which the stub odometry below restarts (segment 1)."""
 

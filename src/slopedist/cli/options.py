@@ -65,13 +65,13 @@ alphas_option = click.option(
     "--alphas",
     default="3,5,6",
     show_default=True,
-    help="Paper method: angle steps α1,α2,α3 in degrees (eq. 7).",
+    help="paper, imu: angle steps α1,α2,α3 in degrees (eq. 7).",
 )
 thresholds_option = click.option(
     "--thresholds",
     default="0,-10,-20",
     show_default=True,
-    help="Paper method: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
+    help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
 )
 
 
