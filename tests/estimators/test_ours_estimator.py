@@ -132,7 +132,9 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
         for k in range(n):
             t = float(track.timestamps_s[k])
             fb = by_frame.get(k, empty)
-            out = stream.estimate(FrameInput(k, t, float(theta[k]), fb, R_world_cam=track.R_world_cam[k]))
+            out = stream.estimate(
+                FrameInput(k, t, float(theta[k]), fb, R_world_cam=track.R_world_cam[k])
+            )
             parts.append(out.distance_m)
             if k in by_frame:
                 assert set(out.extra) == set(batch.estimates.extra)
