@@ -113,9 +113,9 @@ class FrameStep:
         Raises:
             DataMismatchError: if ``timestamp_s`` does not increase.
         """
-        self._check_time(frame_index, timestamp_s)
+        self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         theta = self.gradient.update(timestamp_s, R_world_cam, segment)
-        est = self._estimate(frame_index, timestamp_s, theta, R_world_cam, boxes, image, depth_m)
+        est = self.estimate(frame_index, timestamp_s, theta, R_world_cam, boxes, image, depth_m)
         return FrameResult(theta, est)
 
     def estimate(
@@ -136,8 +136,12 @@ class FrameStep:
             DataMismatchError: if ``timestamp_s`` does not increase.
         """
         self._check_time(frame_index, timestamp_s)
-        return self._estimate(
-            frame_index, timestamp_s, theta_rad, R_world_cam, boxes, image, depth_m
+        self._last_timestamp = timestamp_s
+        if boxes is None or not len(boxes):
+            return FrameEstimates.empty()
+        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
+        return self.estimator.estimate(
+            FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
@@ -146,24 +150,6 @@ class FrameStep:
                 f"frame {frame_index}: timestamp {timestamp_s} s does not follow "
                 f"{self._last_timestamp} s"
             )
-        self._last_timestamp = timestamp_s
-
-    def _estimate(
-        self,
-        frame_index: int,
-        timestamp_s: float,
-        theta_rad: float,
-        R_world_cam: NDArray[np.float64] | None,
-        boxes: BoxTable | None,
-        image: NDArray[np.uint8] | None,
-        depth_m: NDArray[np.float32] | None,
-    ) -> FrameEstimates:
-        if boxes is None or not len(boxes):
-            return FrameEstimates.empty()
-        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
-        return self.estimator.estimate(
-            FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
-        )
 
 
 def stream_track(
