@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from slopedist import demo
+from slopedist import demo_scenario
 from slopedist.cli import main
 from slopedist.datasets.synthetic.scenarios import load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticSequence
@@ -189,7 +189,9 @@ def test_theta_does_not_look_back_across_an_odometry_restart(
     seq = SyntheticSequence(load_scenario(scenario))
     R_true = seq.truth.poses_cam0()[:n, :3, :3]
     t = seq.truth.timestamps_s[:n]
-    monkeypatch.setattr(demo, "visual_odometry", lambda camera: _RestartingOdometry(R_true))
+    monkeypatch.setattr(
+        demo_scenario, "visual_odometry", lambda camera: _RestartingOdometry(R_true)
+    )
     cfg = DemoConfig(tmp_path, (scenario,), ("ego",), "visual", False, False, n, False)
     run = run_demo(cfg, echo=lambda s: None).runs[0]
     # θ of each segment on its own (the batch path), never from the other segment's rotations

@@ -14,7 +14,8 @@ import slopedist
 PACKAGE = Path(slopedist.__file__).parent
 LOWER = ("camera", "geometry", "errors", "detections", "estimators", "odometry", "io", "depth")
 LOWER += ("datasets",)
-UPPER = ("pipeline", "runner", "demo", "report", "kitti_eval", "evaluation", "viz", "cli")
+UPPER = ("pipeline", "runner", "demo", "demo_scenario", "report", "kitti_eval", "evaluation")
+UPPER += ("viz", "cli")
 CLI_SHARED = ("slopedist.cli.options",)
 
 
