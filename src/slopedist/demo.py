@@ -43,7 +43,7 @@ from tqdm import tqdm
 
 from slopedist import viz
 from slopedist.camera import Camera
-from slopedist.datasets.synthetic.export import CsvStream, true_theta
+from slopedist.datasets.synthetic.export import true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
@@ -51,6 +51,7 @@ from slopedist.estimators import DEFAULT_METHOD, available_methods, make_estimat
 from slopedist.estimators.base import FrameEstimates, MissingReason
 from slopedist.evaluation import cap_estimates, distance_metrics, format_table
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, OdometryResult, OdometryState, RotationOdometry
 from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstimator, iter_records
 
@@ -333,7 +334,7 @@ def run_scenario(
     timestamps = seq.truth.timestamps_s
     gradient = EgoGradientTracker(camera.mount_angle_rad, LOOKBACK_S)
     records = RecordWriter.open(folder / "records.csv")
-    frame_log = CsvStream(folder / "frames.csv", DEMO_FRAME_FIELDS)
+    frame_log = CsvStreamWriter.open(folder / "frames.csv", DEMO_FRAME_FIELDS)
     try:
         for k in range(n):
             t0 = time.perf_counter()
@@ -346,7 +347,7 @@ def run_scenario(
             odo_s += t2 - t1
             states[res.state.value] = states.get(res.state.value, 0) + 1
             theta_est[k] = gradient.update(frame.timestamp_s, res.R_world_cam)
-            frame_log.rows(
+            frame_log.write_values(
                 [
                     [
                         k,
