@@ -27,7 +27,7 @@ def test_json_with_a_missing_method_is_strict(
     report = _strict(text)
     assert report["methods"]["imu"]["overall"]["rmse"] is None
     assert report["methods"]["flat"]["overall"]["rmse"] == pytest.approx(16.15, abs=0.01)
-    assert "RMSE (m) per sequence" in capsys.readouterr().out
+    assert "Table 1: RMSE (m) per sequence" in capsys.readouterr().out
     assert b"\r" not in out.read_bytes()
 
 
@@ -43,5 +43,5 @@ def test_json_dash_writes_only_json_to_stdout(
     assert main([*args, "--sequences", "0014", "--json", "-"]) == 0
     captured = capsys.readouterr()
     assert _strict(captured.out)["protocol"]["sequences"] == ["0014"]
-    assert "RMSE (m) per sequence" in captured.err
+    assert "Table 1: RMSE (m) per sequence" in captured.err
     assert not (tmp_path / "-").exists()

@@ -19,9 +19,9 @@ from slopedist.cli.options import (
     thresholds_option,
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.evaluation import format_report_tables
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.score_tables import format_report_tables
 
 
 @click.group("eval")
