@@ -40,8 +40,10 @@ from slopedist.report.data import (
     SourceKind,
 )
 from slopedist.report.figures import Figure, report_figures
-from slopedist.report.runs import THETA_TRUTH_COLUMNS, TRUTH_COLUMNS
+from slopedist.report.kitti import kitti_report_data
+from slopedist.report.runs import THETA_TRUTH_COLUMNS, TRUTH_COLUMNS, run_report_data
 from slopedist.report.sources import detect_source, report_data
+from slopedist.report.synthetic import synthetic_report_data
 from slopedist.report.tables import report_tables
 from slopedist.report.writer import WrittenReport, write_report
 
@@ -57,8 +59,11 @@ __all__ = [
     "SourceKind",
     "WrittenReport",
     "detect_source",
+    "kitti_report_data",
     "report_data",
     "report_figures",
     "report_tables",
+    "run_report_data",
+    "synthetic_report_data",
     "write_report",
 ]
