@@ -6,6 +6,7 @@ import math
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -91,14 +92,13 @@ def _timing(evaluation: KittiEvaluation, method: str) -> dict[str, float]:
     }
 
 
-def _notes(protocol: dict[str, object], boxes: BoxSource) -> list[str]:
+def _notes(protocol: dict[str, Any], boxes: BoxSource) -> list[str]:
     boxes_kind = (
         "ground-truth boxes"
         if boxes is BoxSource.GT
         else "PointRCNN detections matched to the truth by IoU"
     )
-    rotations = protocol["rotation_per_method"]
-    assert isinstance(rotations, dict)
+    rotations: dict[str, str | None] = protocol["rotation_per_method"]
     return [
         f"Protocol: {boxes_kind}; "
         f"ground truth = KITTI label z of Car/Van, truncated 0, occluded <= 1, 0 < z <= 80 m; "
