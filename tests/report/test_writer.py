@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from slopedist.report import ReportOptions, report_data, write_report
-from tests.test_report import _record, write_run
+from tests.report.test_report import _record, write_run
 
 
 def test_every_csv_has_lf_line_ends_and_the_json_is_strict(tmp_path: Path) -> None:
