@@ -251,38 +251,47 @@ def png_bytes(fig: Any, dpi: int = 90) -> bytes:
     return buf.getvalue()
 
 
+def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSeries) -> None:
+    """One target's distances over time on the matplotlib axes ``ax``: the truth in black, each
+    method in its :func:`method_colour`, and a triangle at the top where a method's box bottom
+    was at or above its vanishing line. The y axis runs from 0 to twice the largest true
+    distance or a little over the largest estimate, whichever is more (20 to 100 m)."""
+    finite = series.truth[np.isfinite(series.truth)]
+    if finite.size:
+        ax.plot(t_s, series.truth, color="black", lw=2.0, label="truth")
+    values = [2.0 * finite.max()] if finite.size else [100.0]
+    values += [
+        1.05 * float(np.nanmax(d)) for d in series.estimates.values() if np.isfinite(d).any()
+    ]
+    top = float(np.clip(max(values), 20.0, 100.0))
+    for i, (name, d) in enumerate(series.estimates.items()):
+        colour = method_colour(name)
+        ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
+        miss = series.below_horizon.get(name)
+        if miss is not None and miss.any():
+            marks = np.full(int(miss.sum()), top * (0.97 - 0.03 * i))
+            ax.plot(t_s[miss], marks, "v", color=colour, ms=4)
+    ax.set_ylim(0.0, top)
+    ax.grid(alpha=0.3)
+
+
+BELOW_HORIZON_NOTE = "▼ = box bottom at or above the vanishing line"
+"""What the triangles of :func:`draw_distance_panel` mean (for an axis label or caption)."""
+
+
 def plot_distance_series(
     path: str | Path, t_s: NDArray[np.float64], series: list[DistanceSeries], title: str = ""
 ) -> Path:
-    """Distance vs. truth over time, one panel per target; saved as PNG (Agg, no display).
-
-    Frames where a method's box bottom is at or above its vanishing line are marked by a
-    triangle at the top of the panel.
-    """
+    """Distance vs. truth over time, one panel per target (:func:`draw_distance_panel`);
+    saved as PNG (Agg, no display)."""
     path = Path(path)
     fig = new_figure(10, 2.6 * max(len(series), 1))
     axes = fig.subplots(max(len(series), 1), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, series):
-        ax.plot(t_s, s.truth, color="black", lw=2.0, label="truth")
-        finite = s.truth[np.isfinite(s.truth)]
-        top = float(min(max(2.0 * finite.max(), 20.0), 100.0)) if finite.size else 100.0
-        for i, (name, d) in enumerate(s.estimates.items()):
-            colour = method_colour(name)
-            ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
-            miss = s.below_horizon.get(name)
-            if miss is not None and miss.any():
-                ax.plot(
-                    t_s[miss],
-                    np.full(int(miss.sum()), top * (0.97 - 0.03 * i)),
-                    "v",
-                    color=colour,
-                    ms=4,
-                )
-        ax.set_ylim(0.0, top)
+        draw_distance_panel(ax, t_s, s)
         ax.set_ylabel(f"target {s.track_id}: z (m)")
-        ax.grid(alpha=0.3)
     axes[0].legend(loc="upper left", ncol=4, fontsize=8)
-    axes[-1].set_xlabel("time (s)   (▼ = box bottom at or above the vanishing line)")
+    axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
     if title:
         fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -9,11 +9,20 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.errors import ConfigurationError
+from slopedist.estimators.base import MissingReason
 from slopedist.evaluation import compact_names
 from slopedist.report.data import ReportData
-from slopedist.viz import method_colour, new_figure, png_bytes
+from slopedist.viz import (
+    BELOW_HORIZON_NOTE,
+    DistanceSeries,
+    draw_distance_panel,
+    method_colour,
+    new_figure,
+    png_bytes,
+)
 
 ERROR_BIN_M = 5.0
 """Width of the ground-truth distance bins of the error-vs-distance figure, metres."""
@@ -45,35 +54,51 @@ def choose_tracks(data: ReportData, n: int) -> list[tuple[str, int]]:
     return [(s, t) for s, (_, t) in sorted(ranked)]
 
 
+def track_series(
+    data: ReportData, sequence: str, track: int
+) -> tuple[NDArray[np.float64], DistanceSeries]:
+    """The records of one track as a :class:`~slopedist.viz.DistanceSeries` on the track's own
+    time axis (seconds; NaN where a method has no estimate).
+
+    Raises:
+        ConfigurationError: the track has no records.
+    """
+    rec = data.records
+    sel = (rec.array("sequence", object) == sequence) & (rec.array("track_id", int) == track)
+    if not sel.any():
+        raise ConfigurationError(f"track {track} of sequence {sequence} has no records to plot")
+    t = rec.array("timestamp_s")[sel]
+    meth = rec.array("method", object)[sel]
+    d = rec.array("distance_m")[sel]
+    below = rec.array("reason", object)[sel] == MissingReason.BELOW_HORIZON.value
+    t_s = np.unique(t)
+    at = np.searchsorted(t_s, t)
+    truth = np.full(len(t_s), np.nan)
+    truth[at] = rec.array("gt_distance_m")[sel]
+    estimates: dict[str, NDArray[np.float64]] = {}
+    below_horizon: dict[str, NDArray[np.bool_]] = {}
+    for m in data.methods:
+        ms = meth == m
+        estimates[m] = np.full(len(t_s), np.nan)
+        estimates[m][at[ms]] = d[ms]
+        below_horizon[m] = np.zeros(len(t_s), bool)
+        below_horizon[m][at[ms]] = below[ms]
+    return t_s, DistanceSeries(track, truth, estimates, below_horizon)
+
+
 def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure | None:
-    """Distance vs. truth over time for the chosen tracks."""
+    """Distance vs. truth over time for the chosen tracks (:func:`~slopedist.viz.
+    draw_distance_panel`, as in the demo's plots)."""
     if not tracks:
         return None
-    seq = np.asarray(data.records.data["sequence"], dtype=object)
-    tid = data.records.array("track_id", int)
-    meth = np.asarray(data.records.data["method"], dtype=object)
-    t = data.records.array("timestamp_s")
-    d = data.records.array("distance_m")
-    g = data.records.array("gt_distance_m")
     fig = new_figure(9, 2.6 * len(tracks))
-    axes = fig.subplots(len(tracks), 1, squeeze=False)
-    for ax, (s, track) in zip(axes[:, 0], tracks):
-        sel = (seq == s) & (tid == track)
-        if not sel.any():
-            raise ConfigurationError(f"track {track} of sequence {s} has no records to plot")
-        for m in data.methods:
-            ms = sel & (meth == m)
-            order = np.argsort(t[ms])
-            ax.plot(t[ms][order], d[ms][order], ".-", ms=3, lw=1, color=method_colour(m), label=m)
-        first = sel & (meth == data.methods[0]) if (sel & (meth == data.methods[0])).any() else sel
-        order = np.argsort(t[first])
-        if np.isfinite(g[first]).any():
-            ax.plot(t[first][order], g[first][order], "k-", lw=2, label="truth")
+    axes = fig.subplots(len(tracks), 1, squeeze=False)[:, 0]
+    for ax, (s, track) in zip(axes, tracks):
+        draw_distance_panel(ax, *track_series(data, s, track))
         ax.set_title(f"sequence {s}, track {track}", fontsize=9)
         ax.set_ylabel("distance (m)")
-        ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time (s)")
-    axes[0, 0].legend(fontsize=7, ncol=min(len(data.methods) + 1, 7), loc="upper right")
+    axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
+    axes[0].legend(fontsize=7, ncol=min(len(data.methods) + 1, 7), loc="upper right")
     return Figure(
         "distance_over_time.png",
         "Estimated distance against the truth over time for chosen tracks "
