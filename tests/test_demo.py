@@ -215,3 +215,17 @@ def test_theta_does_not_look_back_across_an_odometry_restart(
         float(r["theta_deg"]) for r in csv.DictReader((tmp_path / scenario / "frames.csv").open())
     ]
     np.testing.assert_allclose(logged, np.degrees(expected), atol=1e-4)
+
+
+def test_tables_and_frame_logs_have_lf_line_ends_and_results_json_is_strict(demo_run) -> None:
+    out = demo_run.config.out_dir
+    csvs = [out / "rmse.csv", out / "timing.csv", *sorted(out.glob("*/frames.csv"))]
+    assert len(csvs) == 2 + len(SCENARIOS)
+    for path in csvs:
+        assert b"\r" not in path.read_bytes(), path
+    json.loads(
+        (out / "results.json").read_text(),
+        parse_constant=lambda c: pytest.fail(f"non-strict JSON token {c}"),
+    )
+    rmse = list(csv.DictReader((out / "rmse.csv").open()))
+    assert [r["scenario"] for r in rmse] == [*SCENARIOS, "overall"]

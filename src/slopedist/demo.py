@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from slopedist import viz
+from slopedist import score_tables, viz
 from slopedist.camera import Camera
 from slopedist.datasets.synthetic.scenarios import load_scenario
 from slopedist.datasets.synthetic.sensors import (
@@ -52,7 +52,6 @@ from slopedist.demo_scenario import (
     DEFAULT_OUT,
     DemoConfig,
     MethodPlan,
-    MethodScores,
     ScenarioLoop,
     ScenarioRun,
     plan_methods,
@@ -60,8 +59,9 @@ from slopedist.demo_scenario import (
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import available_methods
 from slopedist.estimators.base import MissingReason
-from slopedist.evaluation import format_table
+from slopedist.evaluation import ScoredSet, pool_methods
 from slopedist.io.tables import write_csv, write_json
+from slopedist.tables import Table, format_texts
 
 FloatArray = NDArray[np.float64]
 
@@ -196,45 +196,45 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
     return result
 
 
-# --- tables -----------------------------------------------------------------------------------
+# --- tables ---------------------------------------------------------------------------------
 
 
-def _pooled(runs: list[ScenarioRun], method: str) -> MethodScores:
-    out = MethodScores()
-    for r in runs:
-        s = r.scores[method]
-        out.distance += s.distance
-        out.reason += s.reason
-        out.truth += s.truth
-        out.seconds += s.seconds
-    return out
+def _scored_sets(result: DemoResult) -> dict[str, dict[str, ScoredSet]]:
+    """``{scenario: {method: scored set}}`` of the methods that ran."""
+    return {r.name: {m: r.scores[m].scored_set() for m in result.methods} for r in result.runs}
 
 
-def rmse_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
-    """Table 1: RMSE (m) per scenario × method, and the pooled row."""
-    methods = result.methods
-    rows: list[list[Any]] = []
-    for r in result.runs:
-        first = r.scores[methods[0]].metrics() if methods else {"n": 0}
-        rows.append([r.name, first["n"], *(r.scores[m].metrics()["rmse"] for m in methods)])
-    pooled = [_pooled(result.runs, m).metrics() for m in methods]
-    rows.append(["overall", pooled[0]["n"] if pooled else 0, *(p["rmse"] for p in pooled)])
-    return ["scenario", "n", *methods], rows
+def rmse_table(result: DemoResult) -> Table:
+    """Table 1: RMSE (m) per scenario × method, and each method pooled over the scenarios."""
+    odo = (
+        "the built-in visual odometry on the rendered frames"
+        if result.config.odometry == "visual"
+        else "the TRUE rotations (diagnostic, --odometry truth)"
+    )
+    title = (
+        f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
+        f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
+        f"the vanishing line counts as {CAP_M:g} m"
+    )
+    scores = pool_methods(_scored_sets(result), result.methods)
+    return score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
 
 
-def missing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def missing_table(result: DemoResult) -> Table:
     """Targets at or above the vanishing line (scored as 80 m) per scenario × method."""
     methods = result.methods
-    rows = [
+    rows: list[list[Any]] = [
         [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs
     ]
-    return ["scenario", *methods], rows
+    title = f"Targets at or above the vanishing line (counted as {CAP_M:g} m)"
+    return Table("below_horizon", title, ["scenario", *methods], rows)
 
 
-def timing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def timing_table(result: DemoResult) -> Table:
     """Table 2: milliseconds per frame: odometry and estimation apart."""
     frames = sum(r.frames for r in result.runs)
     odo_ms = 1e3 * sum(r.odometry_s for r in result.runs) / max(frames, 1)
+    render_ms = 1e3 * sum(r.render_s for r in result.runs) / max(frames, 1)
     rows: list[list[Any]] = []
     for p in result.plans:
         if p.skipped:
@@ -247,10 +247,15 @@ def timing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
             "none": "-",
         }[p.rotation] + (" + depth map" if p.depth else "")
         rows.append([p.name, src, odo, est_ms, odo + est_ms])
-    return ["method", "inputs", "odometry_ms", "estimation_ms", "total_ms"], rows
+    title = (
+        "Table 2. Time per frame (ms; the detector is external and not counted; rendering "
+        f"{render_ms:.1f} ms/frame is not counted)"
+    )
+    headers = ["method", "inputs", "odometry_ms", "estimation_ms", "total_ms"]
+    return Table("timing", title, headers, rows)
 
 
-def odometry_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def odometry_table(result: DemoResult) -> Table:
     """Ego gradient θ from the odometry against θ from the true rotations (degrees)."""
     rows: list[list[Any]] = []
     for r in result.runs:
@@ -266,58 +271,31 @@ def odometry_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
                 float(np.max(np.abs(np.degrees(r.theta_true)))),
             ]
         )
-    return [
+    headers = [
         "scenario",
         "frames_ok",
         "frames",
         "theta_rms_err_deg",
         "theta_max_err_deg",
         "theta_true_max_deg",
-    ], rows
+    ]
+    title = "Ego gradient θ (eq. 4) from the odometry vs. from the true rotations (degrees)"
+    return Table("odometry", title, headers, rows)
+
+
+def demo_tables(result: DemoResult) -> list[Table]:
+    """Every table of the summary, in order (the first and the third are also CSV files)."""
+    return [rmse_table(result), missing_table(result), timing_table(result), odometry_table(result)]
 
 
 def format_demo_tables(result: DemoResult) -> str:
     """The printed summary."""
-    cfg = result.config
-    h1, r1 = rmse_rows(result)
-    h2, r2 = timing_rows(result)
-    h3, r3 = odometry_rows(result)
-    hm, rm = missing_rows(result)
-    frames = sum(r.frames for r in result.runs)
-    render_ms = 1e3 * sum(r.render_s for r in result.runs) / max(frames, 1)
-    odo = (
-        "the built-in visual odometry on the rendered frames"
-        if cfg.odometry == "visual"
-        else "the TRUE rotations (diagnostic, --odometry truth)"
-    )
-    out = [
-        f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
-        f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
-        f"the vanishing line counts as {CAP_M:g} m",
-        format_table(h1, r1),
-        "",
-        f"Targets at or above the vanishing line (counted as {CAP_M:g} m)",
-        format_table(hm, rm),
-        "",
-        "Table 2. Time per frame (ms; the detector is external and not counted; rendering "
-        f"{render_ms:.1f} ms/frame is not counted)",
-        format_table(h2, r2),
-        "",
-        "Ego gradient θ (eq. 4) from the odometry vs. from the true rotations (degrees)",
-        format_table(h3, r3),
-    ]
-    return "\n".join(out)
+    return format_texts(demo_tables(result))
 
 
-def _write_results(result: DemoResult) -> None:
-    out = result.config.out_dir
-    for fname, (headers, rows) in (
-        ("rmse.csv", rmse_rows(result)),
-        ("timing.csv", timing_rows(result)),
-    ):
-        write_csv(out / fname, (dict(zip(headers, r)) for r in rows), headers)
-    (out / "summary.txt").write_text(format_demo_tables(result) + "\n")
-    data = {
+def _results_json(result: DemoResult) -> dict[str, Any]:
+    """Every figure behind the tables, and the noise models (``results.json``)."""
+    return {
         "config": {
             "scenarios": list(result.config.scenarios),
             "odometry": result.config.odometry,
@@ -359,7 +337,15 @@ def _write_results(result: DemoResult) -> None:
         },
         "elapsed_s": result.elapsed_s,
     }
-    write_json(out / "results.json", data)
+
+
+def _write_results(result: DemoResult) -> None:
+    out = result.config.out_dir
+    tables = demo_tables(result)
+    for fname, table in (("rmse.csv", tables[0]), ("timing.csv", tables[2])):
+        write_csv(out / fname, table.records(), table.headers)
+    (out / "summary.txt").write_text(format_texts(tables) + "\n", encoding="utf-8")
+    write_json(out / "results.json", _results_json(result))
 
 
 def iter_outputs(result: DemoResult) -> Iterator[str]:

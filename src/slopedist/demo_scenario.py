@@ -36,7 +36,7 @@ from slopedist.estimators import (
 )
 from slopedist.estimators.base import FrameEstimates, MissingReason
 from slopedist.estimators.imu import IMU_ROTATION_SOURCE
-from slopedist.evaluation import cap_estimates, distance_metrics
+from slopedist.evaluation import ScoredSet, cap_estimates, distance_metrics
 from slopedist.io.overlay import GifWriter, OverlayWriter, open_overlay_video
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
@@ -170,6 +170,12 @@ class MethodScores:
         self.truth += truth.tolist()
         self.theta_adj += est.theta_adj_rad.tolist()
         self.delta_y += est.delta_y_px.tolist()
+
+    def scored_set(self) -> ScoredSet:
+        """The capped estimates against the truth (:meth:`metrics`'s rule) as a scored set."""
+        capped, ok = cap_estimates(np.asarray(self.distance, dtype=float), self.reason, CAP_M)
+        truth = np.asarray(self.truth, dtype=float)
+        return ScoredSet(capped[ok], truth[ok], len(truth), int(np.sum(~ok)), self.seconds)
 
     def metrics(self) -> dict[str, Any]:
         """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m,

@@ -19,9 +19,9 @@ from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.errors import MissingInputError
 from slopedist.estimators import EstimatorConfig, Method, build_estimator
 from slopedist.estimators.ours import Calibration, OursEstimator
-from slopedist.evaluation import format_table
 from slopedist.io.tables import write_json
 from slopedist.pipeline import FrameStep, stream_track
+from slopedist.tables import format_table
 
 
 def _row(t: float, c: Calibration) -> list[Any]:
