@@ -7,12 +7,16 @@ on disk, so a run killed part-way leaves a file that plays up to its last second
 the frames' own timestamps (variable frame rate kept), in milliseconds. Without PyAV the video
 falls back to OpenCV's MPEG-4 Part 2 (``mp4v``; plays in desktop players, not in browsers).
 
+Where neither can write MP4, :func:`open_overlay_video` falls back to an animated GIF (needs
+Pillow).
+
 Convention: images are BGR ``H×W×3`` uint8; odd widths or heights are padded with one black
 column / row (``yuv420p`` needs even sizes).
 """
 
 from __future__ import annotations
 
+import importlib.util
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -190,3 +194,49 @@ class OverlayWriter:
         if self._video is not None:
             self._video.close()
             self._video = None
+
+
+class GifWriter:
+    """Animated GIF fallback for the overlay (half resolution, nominal frame rate)."""
+
+    def __init__(self, path: Path, fps: float) -> None:
+        self.path = path
+        self.fps = fps
+        self.frames: list[Any] = []
+
+    def write(
+        self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None
+    ) -> None:
+        from PIL import Image
+
+        small = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2))
+        self.frames.append(Image.fromarray(cv2.cvtColor(small, cv2.COLOR_BGR2RGB)))
+
+    def close(self) -> None:
+        if self.frames:
+            self.frames[0].save(
+                self.path,
+                save_all=True,
+                append_images=self.frames[1:],
+                duration=int(1000 / self.fps),
+                loop=0,
+            )
+
+
+def open_overlay_video(folder: Path, fps: float) -> OverlayWriter | GifWriter:
+    """``folder/overlay.mp4`` (H.264 with PyAV, else OpenCV's mp4v), or an animated
+    ``folder/overlay.gif`` where neither can write MP4."""
+    try:
+        writer = OverlayWriter(folder / "overlay.mp4", fps)
+        if importlib.util.find_spec("av") is not None:
+            return writer
+        probe = cv2.VideoWriter(
+            str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
+        )
+        ok = probe.isOpened()
+        probe.release()
+        if ok:
+            return writer
+    except InputFileError:
+        pass
+    return GifWriter(folder / "overlay.gif", fps)

@@ -14,7 +14,7 @@ pytest.importorskip("mcap")
 
 from slopedist.detections.boxes import BoxTable
 from slopedist.estimators.base import FrameEstimates
-from slopedist.io.export_mcap import (
+from slopedist.export_mcap import (
     ANNOTATIONS_TOPIC,
     FRAME_TOPIC,
     GRADIENT_TOPIC,
