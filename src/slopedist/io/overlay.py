@@ -204,9 +204,7 @@ class GifWriter:
         self.fps = fps
         self.frames: list[Any] = []
 
-    def write(
-        self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None
-    ) -> None:
+    def write(self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None) -> None:
         from PIL import Image
 
         small = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2))
