@@ -1,0 +1,110 @@
+"""Any frame input of ``slopedist run``: a drive log, a video file or an image folder.
+
+- Drive log (:func:`slopedist.io.rosbag.is_log_path`: ``.bag``, ``.mcap``, ``.db3`` or a ROS 2
+  bag folder): one image topic, header stamps as frame times
+  (:class:`~slopedist.io.rosbag.LogFrameSource`); its ``camera_info`` can be the calibration
+  (:func:`log_camera`) and an IMU / odometry / pose topic the rotation source
+  (:func:`log_rotation_source`).
+- Video file: presentation timestamps with PyAV, OpenCV's nominal rate without it or with a
+  forced ``fps`` (:func:`slopedist.io.video.open_video`).
+- Image folder: :class:`~slopedist.io.frames.ImageFolderSource`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
+from slopedist.errors import ConfigurationError, MissingInputError
+from slopedist.io.frames import FrameSource, ImageFolderSource, read_timestamps
+from slopedist.io.rosbag import (
+    LogFrameSource,
+    camera_info_topic,
+    is_log_path,
+    read_camera_info,
+    read_orientations,
+)
+from slopedist.io.video import open_video
+from slopedist.odometry.imu import TrackRotationSource, camera_rotations
+
+
+def open_source(
+    path: str | Path,
+    fps: float | None = None,
+    timestamps: str | Path | None = None,
+    image_topic: str | None = None,
+) -> FrameSource:
+    """The frame source at ``path`` (see the module docstring).
+
+    Args:
+        path: drive log, video file or image folder.
+        fps: nominal frames per second (logs: the slot period; videos: forces OpenCV's
+            ``index / fps``; folders: 10 when None).
+        timestamps: timestamps file for folders and videos (logs carry their own).
+        image_topic: the image topic of a drive log (required for logs, refused otherwise).
+
+    Raises:
+        ConfigurationError: a log without ``image_topic``, ``image_topic`` for something else,
+            or a timestamps file for a log.
+        MissingInputError: nothing at ``path``.
+    """
+    path = Path(path)
+    if is_log_path(path):
+        if image_topic is None:
+            raise ConfigurationError(
+                f"{path} is a drive log: name its image topic with --image-topic "
+                f"(list the topics with: slopedist log info {path})"
+            )
+        if timestamps is not None:
+            raise ConfigurationError(
+                "a drive log's frame times are its header stamps; --timestamps is for image "
+                "folders and videos"
+            )
+        return LogFrameSource(path, image_topic, fps)
+    if image_topic is not None:
+        raise ConfigurationError(
+            f"--image-topic is for drive logs (.bag, .mcap, .db3 or a ROS 2 bag folder), not {path}"
+        )
+    ts = read_timestamps(timestamps) if timestamps is not None else None
+    name = str(timestamps) if timestamps is not None else "timestamps"
+    if path.is_dir():
+        return ImageFolderSource(path, fps, ts, name)
+    if path.is_file():
+        return open_video(path, fps, ts, name)
+    raise MissingInputError(
+        f"frames not found: {path} (expected an image folder, a video file or a drive log)"
+    )
+
+
+def log_camera(
+    source: FrameSource,
+    height_m: float = KITTI_CAMERA_HEIGHT_M,
+    mount_angle_rad: float = 0.0,
+) -> Camera:
+    """The camera of a drive log's image topic, from its ``camera_info`` topic.
+
+    Raises:
+        ConfigurationError: ``source`` is not a drive log (give a calibration file), or the log
+            has no ``camera_info`` next to the image topic.
+    """
+    if not isinstance(source, LogFrameSource):
+        raise ConfigurationError(
+            f"{source.path}: a calibration file (--calib) is needed for image folders and "
+            "videos (drive logs can use their camera_info topic)"
+        )
+    topic = camera_info_topic(source.image_topic)
+    return read_camera_info(source.path, topic, height_m, mount_angle_rad)
+
+
+def log_rotation_source(source: FrameSource, topic: str) -> TrackRotationSource:
+    """Camera rotations from an orientation topic of the same drive log, on the frames' time
+    axis (:mod:`slopedist.odometry.imu`, KITTI's body-to-camera axes).
+
+    Raises:
+        ConfigurationError: ``source`` is not a drive log.
+    """
+    if not isinstance(source, LogFrameSource):
+        raise ConfigurationError(f"--rotation-topic needs a drive log, not {source.path}")
+    stamps_ns, quats = read_orientations(source.path, topic)
+    times_s = [source.seconds(int(t)) for t in stamps_ns]
+    return TrackRotationSource(camera_rotations(times_s, quats), f"{source.path}: {topic}")
