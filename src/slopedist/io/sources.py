@@ -7,7 +7,7 @@
   (:func:`log_rotation_source`).
 - Video file: presentation timestamps with PyAV, OpenCV's nominal rate without it or with a
   forced ``fps`` (:func:`slopedist.io.video.open_video`).
-- Image folder: :class:`~slopedist.io.frames.ImageFolderSource`.
+- Image folder: :func:`~slopedist.io.frames.open_frames`.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
-from slopedist.errors import ConfigurationError, MissingInputError
-from slopedist.io.frames import FrameSource, ImageFolderSource, read_timestamps
+from slopedist.errors import ConfigurationError
+from slopedist.io.frames import FrameSource, open_frames, read_timestamps
 from slopedist.io.rosbag import (
     LogFrameSource,
     camera_info_topic,
@@ -46,7 +46,7 @@ def open_source(
     Raises:
         ConfigurationError: a log without ``image_topic``, ``image_topic`` for something else,
             or a timestamps file for a log.
-        MissingInputError: nothing at ``path``.
+        MissingInputError: nothing at ``path`` (from :func:`~slopedist.io.frames.open_frames`).
     """
     path = Path(path)
     if is_log_path(path):
@@ -65,15 +65,10 @@ def open_source(
         raise ConfigurationError(
             f"--image-topic is for drive logs (.bag, .mcap, .db3 or a ROS 2 bag folder), not {path}"
         )
-    ts = read_timestamps(timestamps) if timestamps is not None else None
-    name = str(timestamps) if timestamps is not None else "timestamps"
-    if path.is_dir():
-        return ImageFolderSource(path, fps, ts, name)
     if path.is_file():
-        return open_video(path, fps, ts, name)
-    raise MissingInputError(
-        f"frames not found: {path} (expected an image folder, a video file or a drive log)"
-    )
+        ts = read_timestamps(timestamps) if timestamps is not None else None
+        return open_video(path, fps, ts, str(timestamps or "timestamps"))
+    return open_frames(path, fps, timestamps)
 
 
 def log_camera(
