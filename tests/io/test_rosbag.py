@@ -256,3 +256,42 @@ def test_real_frames_read_back_like_the_folder(
         np.testing.assert_array_equal(a.image, expected_pixels(b.image, enc))
     got = read_camera_info(path, TOPICS.camera_info, camera.height_m)
     assert got == camera
+
+
+# --- damaged logs -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt", list(LogFormat))
+def test_damaged_logs_give_clean_errors_or_unreadable_frames(
+    tmp_path: Path, fmt: LogFormat
+) -> None:
+    from slopedist.errors import SlopedistError
+
+    path = write(tmp_path, fmt, ImageEncoding.RAW, [k * PERIOD_NS for k in range(4)])
+    storage = path if path.is_file() else next(p for p in path.iterdir() if p.suffix != ".yaml")
+    data = storage.read_bytes()
+    rng = np.random.default_rng(7)
+    readers = (
+        lambda p: log_topics(p),
+        lambda p: list(LogFrameSource(p, TOPICS.image)),
+        lambda p: read_camera_info(p, TOPICS.camera_info),
+        lambda p: read_orientations(p, TOPICS.imu),
+    )
+    outcomes = {"ok": 0, "clean": 0}
+    for case in range(24):
+        damaged = bytearray(data)
+        if case % 2:
+            damaged = damaged[: int(rng.integers(0, len(damaged)))]
+        else:
+            for _ in range(5):
+                damaged[int(rng.integers(0, len(damaged)))] = int(rng.integers(0, 256))
+        target = tmp_path / f"damaged{case}{storage.suffix}"
+        target.write_bytes(bytes(damaged))
+        for read in readers:
+            try:
+                read(target)
+                outcomes["ok"] += 1
+            except SlopedistError as exc:
+                assert str(target) in str(exc)
+                outcomes["clean"] += 1
+    assert outcomes["clean"] > 12 and outcomes["ok"] > 12

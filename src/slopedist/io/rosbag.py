@@ -21,7 +21,9 @@ encodings give ``unreadable`` frames naming the encoding.
 
 from __future__ import annotations
 
+import sqlite3
 import statistics
+import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -105,19 +107,67 @@ def open_log(path: str | Path) -> Iterator[Any]:
     if not path.exists():
         raise MissingInputError(f"log not found: {path}")
     any_reader, typestore = _anyreader()
-    from rosbags.highlevel import AnyReaderError
-    from rosbags.rosbag1 import ReaderError as Reader1Error
-    from rosbags.rosbag2 import ReaderError as Reader2Error
-
     try:
         reader = any_reader([path], default_typestore=typestore)
         reader.open()
-    except (AnyReaderError, Reader1Error, Reader2Error, KeyError, ValueError) as exc:
+    except log_errors() as exc:
         raise InputFileError(path, f"not a readable ROS 1 / ROS 2 log: {exc}") from None
     try:
         yield reader
     finally:
         reader.close()
+
+
+def log_errors() -> tuple[type[BaseException], ...]:
+    """What ``rosbags`` and its storage back ends raise on a damaged log (corrupt or truncated
+    file, a message that does not deserialise); rosbags checks some of its formats with
+    ``assert``, hence ``AssertionError``."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+
+    errors: list[type[BaseException]] = [
+        AnyReaderError,
+        Reader1Error,
+        Reader2Error,
+        KeyError,
+        ValueError,
+        IndexError,
+        EOFError,
+        AssertionError,
+        OverflowError,
+        struct.error,
+        sqlite3.Error,
+    ]
+    try:
+        import apsw  # rosbags' sqlite3 back end
+
+        errors.append(apsw.Error)
+    except ImportError:
+        pass
+    return tuple(errors)
+
+
+def iter_messages(
+    reader: Any, connections: list[Any], path: Path
+) -> Iterator[tuple[Any, int, Any]]:
+    """``(connection, log time ns, raw bytes)`` of ``connections`` in log-time order.
+
+    Raises:
+        InputFileError: the log is damaged (naming the file and how many messages were read).
+    """
+    messages = reader.messages(connections=connections)
+    errors = log_errors()
+    count = 0
+    while True:
+        try:
+            item = next(messages)
+        except StopIteration:
+            return
+        except errors as exc:
+            raise InputFileError(path, f"log damaged after {count} messages: {exc}") from None
+        count += 1
+        yield item
 
 
 def connections_of(reader: Any, topic: str, types: tuple[str, ...], path: Path) -> list[Any]:
@@ -137,6 +187,14 @@ def connections_of(reader: Any, topic: str, types: tuple[str, ...], path: Path) 
             f"topic {topic} in {path} carries {', '.join(bad)}; expected {' or '.join(types)}"
         )
     return conns
+
+
+def deserialize(reader: Any, raw: Any, msgtype: str, path: Path, topic: str) -> Any:
+    """One message; a message that does not deserialise → :class:`InputFileError`."""
+    try:
+        return reader.deserialize(raw, msgtype)
+    except log_errors() as exc:
+        raise InputFileError(path, f"message does not deserialise: {exc}", field=topic) from None
 
 
 def stamp_ns(msg: Any) -> int:
@@ -247,12 +305,25 @@ class LogFrameSource:
             first = next(self._messages(reader), None)
         if first is None:
             raise InputFileError(self.path, f"topic {image_topic} has no messages")
-        self.t0_ns = stamp_ns(first)
+        self.t0_ns = first[0]
 
-    def _messages(self, reader: Any) -> Iterator[Any]:
+    def _messages(self, reader: Any) -> Iterator[tuple[int, Any, str]]:
+        """``(stamp ns, message or None, why not)`` of the image messages: the header stamp, or
+        the log time for unstamped messages and those that do not deserialise."""
         conns = [c for c in reader.connections if c.topic == self.image_topic]
-        for conn, _, raw in reader.messages(connections=conns):
-            yield reader.deserialize(raw, conn.msgtype)
+        errors = log_errors()
+        for conn, log_ns, raw in iter_messages(reader, conns, self.path):
+            try:
+                msg = reader.deserialize(raw, conn.msgtype)
+            except errors as exc:
+                yield int(log_ns), None, f"message does not deserialise: {exc}"
+                continue
+            try:
+                stamp = stamp_ns(msg)
+            except AttributeError:
+                yield int(log_ns), None, "message has no header (damaged type definition?)"
+                continue
+            yield stamp or int(log_ns), msg, ""
 
     def expected_frames(self) -> int:
         """Image messages on the topic (missing slots of gaps not counted)."""
@@ -260,8 +331,8 @@ class LogFrameSource:
 
     def frame_size(self) -> tuple[int, int]:
         with open_log(self.path) as reader:
-            for msg in self._messages(reader):
-                image, _ = decode_image(msg)
+            for _, msg, _ in self._messages(reader):
+                image = decode_image(msg)[0] if msg is not None else None
                 if image is not None:
                     return int(image.shape[1]), int(image.shape[0])
         raise InputFileError(self.path, f"no image on {self.image_topic} decodes")
@@ -274,26 +345,44 @@ class LogFrameSource:
         slots = _Slots(self.period_ns)
         size: tuple[int, int] | None = None
         with open_log(self.path) as reader:
-            for msg in self._messages(reader):
-                t_ns = stamp_ns(msg)
-                skipped, k, problem = slots.place(t_ns)
+            messages = self._messages(reader)
+            while True:
+                try:
+                    t_ns, msg, problem = next(messages)
+                except StopIteration:
+                    return
+                except InputFileError as exc:  # damaged from here on: say so and stop
+                    k = slots.index + 1
+                    t = self.seconds(slots.last_ns or self.t0_ns) + (slots.period() or 0) / 1e9
+                    yield Frame(
+                        k, t, None, FrameStatus.UNREADABLE, f"{self.image_topic}#{k}", str(exc)
+                    )
+                    return
+                skipped, k, order_problem = slots.place(t_ns)
                 yield from self._gap(skipped, k, slots, t_ns)
-                name = f"{self.image_topic}#{k}"
-                t = self.seconds(t_ns)
-                if problem:
-                    yield Frame(k, t, None, FrameStatus.UNREADABLE, name, problem)
-                    continue
-                image, why = decode_image(msg)
-                if image is None:
-                    yield Frame(k, t, None, FrameStatus.UNREADABLE, name, why)
-                    continue
-                this = (int(image.shape[1]), int(image.shape[0]))
-                size = size or this
-                if this != size:
-                    why = f"image is {this[0]}×{this[1]} px, the first was {size[0]}×{size[1]} px"
-                    yield Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, why)
-                    continue
-                yield Frame(k, t, image, FrameStatus.OK, name)
+                frame = self._frame(k, t_ns, msg, problem or order_problem, size)
+                if size is None and frame.image is not None:
+                    size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
+                yield frame
+
+    def _frame(
+        self, k: int, t_ns: int, msg: Any, problem: str, size: tuple[int, int] | None
+    ) -> Frame:
+        """Frame ``k`` from its message (``problem``: why it is unusable, "" if it is not)."""
+        name, t = f"{self.image_topic}#{k}", self.seconds(t_ns)
+        if problem or msg is None:
+            return Frame(k, t, None, FrameStatus.UNREADABLE, name, problem)
+        try:
+            image, why = decode_image(msg)
+        except AttributeError as exc:
+            image, why = None, f"message lacks an image field ({exc}); damaged type definition?"
+        if image is None:
+            return Frame(k, t, None, FrameStatus.UNREADABLE, name, why)
+        this = (int(image.shape[1]), int(image.shape[0]))
+        if size is not None and this != size:
+            why = f"image is {this[0]}×{this[1]} px, the first was {size[0]}×{size[1]} px"
+            return Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, why)
+        return Frame(k, t, image, FrameStatus.OK, name)
 
     def _gap(self, first: int, k: int, slots: _Slots, t_ns: int) -> Iterator[Frame]:
         period = slots.period() or 0.0
@@ -339,7 +428,7 @@ def log_topics(path: str | Path) -> list[LogTopic]:
         last: dict[str, int] = {}
         count: dict[str, int] = {}
         types = {c.topic: c.msgtype for c in reader.connections}
-        for conn, t_ns, _ in reader.messages():
+        for conn, t_ns, _ in iter_messages(reader, list(reader.connections), path):
             first.setdefault(conn.topic, t_ns)
             last[conn.topic] = t_ns
             count[conn.topic] = count.get(conn.topic, 0) + 1
@@ -378,11 +467,18 @@ def read_camera_info(
     with open_log(path) as reader:
         conns = connections_of(reader, topic, (CAMERA_INFO_TYPE,), path)
         msg = next(
-            (reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)), None
+            (
+                deserialize(reader, raw, c.msgtype, path, topic)
+                for c, _, raw in iter_messages(reader, conns, path)
+            ),
+            None,
         )
     if msg is None:
         raise InputFileError(path, f"topic {topic} has no messages")
-    return camera_from_info(msg, path, topic, height_m, mount_angle_rad)
+    try:
+        return camera_from_info(msg, path, topic, height_m, mount_angle_rad)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
 
 
 def camera_from_info(
@@ -440,16 +536,21 @@ def read_orientations(
     quats: list[tuple[float, float, float, float]] = []
     with open_log(path) as reader:
         conns = connections_of(reader, topic, ORIENTATION_TYPES, path)
-        for conn, _, raw in reader.messages(conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+        for conn, _, raw in iter_messages(reader, conns, path):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
             cov = getattr(msg, "orientation_covariance", None)
             if cov is not None and float(cov[0]) == -1.0:
                 raise InputFileError(
                     path, "the IMU reports no orientation (covariance[0] = -1)", field=topic
                 )
-            q = _orientation(msg)
-            stamps.append(stamp_ns(msg))
-            quats.append((float(q.x), float(q.y), float(q.z), float(q.w)))
+            try:
+                q = _orientation(msg)
+                stamps.append(stamp_ns(msg))
+                quats.append((float(q.x), float(q.y), float(q.z), float(q.w)))
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise InputFileError(
+                    path, f"message {len(stamps)} has no usable orientation: {exc}", field=topic
+                ) from None
     if not stamps:
         raise InputFileError(path, "no messages", field=topic)
     return np.asarray(stamps, dtype=np.int64), np.asarray(quats, dtype=float)
