@@ -18,6 +18,8 @@ Outputs under the output folder:
   θ (degrees), number of boxes and of estimated distances, odometry, estimation and depth time
   (ms; ``depth_ms`` = reading or inferring the frame's depth map, for depth-map methods, on
   frames with boxes).
+- ``tracks.csv``: one row per track (:mod:`slopedist.tracks`): first and last time, closest
+  distance, smallest TTC, TTC events.
 - ``run.json``: a summary (:class:`RunResult`), also written when the run stops on an error;
   its ``"sequence"`` names the sequence, so that the report lines up runs of different methods
   on one sequence.
@@ -54,11 +56,13 @@ from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
+from slopedist.tracks import TrackSummaries
 from slopedist.viz import draw_fig3_overlay, lead_index
 
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
+TRACKS_NAME = "tracks.csv"
 MCAP_NAME = "run.mcap"
 TRAJECTORY_NAME = "trajectory.tum"
 
@@ -345,6 +349,7 @@ class _RunLoop:
             else None
         )
         self.trajectory = TumPoseWriter(config.trajectory) if config.trajectory else None
+        self.tracks = TrackSummaries()
         self.bar: tqdm | None = None
         self.start = time.perf_counter()
 
@@ -388,6 +393,7 @@ class _RunLoop:
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates)
         self.frame_log.write_row(
             {
                 "frame": k,
@@ -504,6 +510,7 @@ class _RunLoop:
             self.bar.close()
         close_records(self.records)
         self.frame_log.close()
+        self.tracks.write(Path(self.config.out_dir) / TRACKS_NAME)
         for output in (self.painter, self.export, self.trajectory):
             if output is not None:
                 output.close()

@@ -163,6 +163,8 @@ def test_imu_topic_is_the_rotation_source_and_exports_read_back(
     )
     assert exported[0][0] == 1_317_000_000 * 10**9  # log time of the first image stamp
     assert (out / "overlay.mp4").stat().st_size > 1000
+    tracks = read_csv(out / "tracks.csv")
+    assert [(r["track_id"], r["frames"]) for r in tracks] == [("1", str(N)), ("2", str(N))]
 
 
 def test_log_needs_an_image_topic_and_folders_a_calib(
