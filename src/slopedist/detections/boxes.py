@@ -5,7 +5,7 @@ Convention: boxes are ``(left, top, right, bottom)`` in pixels, origin top-left,
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,3 +126,20 @@ class BoxTable:
     def frame_index(self) -> dict[int, BoxTable]:
         """``{frame index: boxes of that frame}``."""
         return dict(self.by_frame())
+
+
+def concat_tables(tables: Iterable[BoxTable]) -> BoxTable:
+    """One table holding the rows of ``tables`` in order; extra columns present in every table
+    are kept, the others dropped."""
+    parts = list(tables)
+    if not parts:
+        return BoxTable.empty()
+    common = [k for k in parts[0].extra if all(k in t.extra for t in parts[1:])]
+    return BoxTable(
+        np.concatenate([t.frame for t in parts]).astype(np.int64),
+        np.concatenate([t.boxes for t in parts]).reshape(-1, 4).astype(np.float64),
+        np.concatenate([t.track_id for t in parts]).astype(np.int64),
+        np.concatenate([t.score for t in parts]).astype(np.float64),
+        np.concatenate([t.cls for t in parts]).astype(object),
+        {k: np.concatenate([t.extra[k] for t in parts]) for k in common},
+    )
