@@ -13,6 +13,7 @@ import click
 
 from slopedist import __version__
 from slopedist.cli.calibrate_cmd import calibrate
+from slopedist.cli.convert_cmd import convert
 from slopedist.cli.demo_cmd import demo
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
@@ -37,6 +38,7 @@ cli.add_command(run)
 cli.add_command(simulate)
 cli.add_command(demo)
 cli.add_command(calibrate)
+cli.add_command(convert)
 
 
 def main(argv: list[str] | None = None) -> int:
