@@ -13,7 +13,7 @@
   […]}``, ``distortion_model``, ``distortion_coefficients``) or a ``camera_info`` message dump
   (``K``/``D``, ``k``/``d``, ``width``/``height``).
 
-The result is :class:`Calibration`: the :class:`~slopedist.io.intrinsics.Intrinsics` (with the
+The result is :class:`CameraCalibration`: the :class:`~slopedist.io.intrinsics.Intrinsics` (with
 lens distortion) and the ideal square-pixel :class:`~slopedist.camera.Camera` the estimators use,
 into which boxes are mapped (see :mod:`slopedist.io.intrinsics`).
 """
@@ -40,7 +40,7 @@ FISHEYE_MODELS = ("equidistant", "fisheye", "kannala_brandt")
 
 
 @dataclass(frozen=True)
-class Calibration:
+class CameraCalibration:
     """What a calibration file gives: the :class:`Intrinsics` and the ideal :class:`Camera` the
     estimators use (boxes must go through :meth:`Intrinsics.rectify_table` first unless
     ``intrinsics.is_ideal``)."""
@@ -54,11 +54,11 @@ def read_calibration(
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
     kitti_key: str = "P2",
-) -> Calibration:
+) -> CameraCalibration:
     """Read a calibration file of any supported form (see the module docstring); the mount is
     given in metres and radians."""
     intrinsics = read_intrinsics(path, kitti_key)
-    return Calibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
+    return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 
 def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
