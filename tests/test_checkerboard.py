@@ -112,3 +112,22 @@ def test_errors() -> None:
         calibrate_checkerboard([blank, np.zeros((10, 10), np.uint8)], PATTERN, SQUARE_M)
     with pytest.raises(ConfigurationError, match="inner corners"):
         calibrate_checkerboard([blank], (1, 5), SQUARE_M)
+
+
+def test_camera_calibrate_command(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from slopedist.cli import main
+    from slopedist.io.calibration import read_calibration
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, (r, t) in enumerate(_poses(6, seed=7, spread=0.5)):
+        cv2.imwrite(str(folder / f"{i:04d}.png"), render(r, t))
+    out = tmp_path / "cam.yaml"
+    code = main(["camera", "calibrate", str(folder), "--pattern", "9x6", "--out", str(out)])
+    assert code == 0
+    captured = capsys.readouterr()
+    assert "RMS reprojection error" in captured.out and "only" in captured.err
+    cal = read_calibration(out)
+    assert cal.intrinsics.image_size == (W, H)
+    assert cal.camera.f == pytest.approx(K_TRUE[1, 1], rel=0.03)
+    assert main(["camera", "calibrate", str(folder), "--pattern", "9", "--out", str(out)]) == 2

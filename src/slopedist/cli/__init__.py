@@ -13,6 +13,7 @@ import click
 
 from slopedist import __version__
 from slopedist.cli.calibrate_cmd import calibrate
+from slopedist.cli.camera_cmd import camera_group
 from slopedist.cli.convert_cmd import convert
 from slopedist.cli.demo_cmd import demo
 from slopedist.cli.estimate_cmd import estimate
@@ -39,6 +40,7 @@ cli.add_command(simulate)
 cli.add_command(demo)
 cli.add_command(calibrate)
 cli.add_command(convert)
+cli.add_command(camera_group)
 
 
 def main(argv: list[str] | None = None) -> int:

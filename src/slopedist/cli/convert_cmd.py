@@ -6,20 +6,8 @@ from pathlib import Path
 
 import click
 
+from slopedist.cli.options import parse_size
 from slopedist.detections.convert import WRITABLE, BoxFileOptions, BoxFormat, convert_boxes
-
-
-def parse_size(value: str | None) -> tuple[int, int] | None:
-    """``"1280x720"`` → ``(1280, 720)`` pixels; None → None."""
-    if not value:
-        return None
-    try:
-        w, h = (int(v) for v in value.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"expected WIDTHxHEIGHT in pixels, got '{value}'") from None
-    if w <= 0 or h <= 0:
-        raise click.BadParameter(f"image size must be positive, got '{value}'")
-    return w, h
 
 
 @click.command("convert")

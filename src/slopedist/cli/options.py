@@ -170,3 +170,16 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
         return command
 
     return decorate
+
+
+def parse_size(value: str | None, what: str = "WIDTHxHEIGHT in pixels") -> tuple[int, int] | None:
+    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None."""
+    if not value:
+        return None
+    try:
+        a, b = (int(v) for v in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected {what}, got '{value}'") from None
+    if a <= 0 or b <= 0:
+        raise click.BadParameter(f"expected {what} (positive), got '{value}'")
+    return a, b
