@@ -230,3 +230,21 @@ def test_detect_frames_concatenates_and_times(tmp_path: Path) -> None:
     table, timings = detect_frames(OnnxDetector(path), [(3, _frame()), (4, _frame())])
     assert table.frame.tolist() == [3, 3, 3, 4, 4, 4]
     assert len(timings) == 2 and all(isinstance(t, DetectionTiming) for t in timings)
+
+
+@pytest.mark.parametrize(("bgr", "scale", "centre"), [(False, 1 / 255, True), (True, 1.0, False)])
+def test_preprocess_equals_letterbox_then_blob(
+    tmp_path: Path, bgr: bool, scale: float, centre: bool
+) -> None:
+    import cv2
+
+    path = constant_model(tmp_path / "v8.onnx", {"output0": yolov8_tensor()})
+    det = OnnxDetector(path, bgr_input=bgr, pixel_scale=scale, pad_centre=centre)
+    rng = np.random.default_rng(0)
+    for shape in [(360, 640, 3), (300, 200, 3), (360, 640, 3)]:  # the buffer is refilled
+        img = rng.integers(0, 256, shape, dtype=np.uint8)
+        blob, box = det.preprocess(img)
+        padded, ref_box = letterbox(img, (IN_W, IN_H), centre)
+        ref = cv2.dnn.blobFromImage(padded, scale, swapRB=not bgr)
+        assert box == ref_box
+        np.testing.assert_allclose(blob, ref, rtol=1e-6)

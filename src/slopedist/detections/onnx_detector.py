@@ -95,22 +95,38 @@ class Letterbox:
         return out
 
 
+def fit_letterbox(
+    image_size: tuple[int, int], size: tuple[int, int], centre: bool = True
+) -> tuple[tuple[int, int], Letterbox]:
+    """How an image of ``image_size = (width, height)`` fits into ``size``: its scaled size
+    (``r = min(w_in/W, h_in/H)``, aspect kept) and the :class:`Letterbox` that places it."""
+    w, h = image_size
+    in_w, in_h = size
+    r = min(in_w / w, in_h / h)
+    new_w, new_h = max(1, round(w * r)), max(1, round(h * r))
+    dw, dh = (in_w - new_w) / 2.0, (in_h - new_h) / 2.0
+    left, top = (round(dw - 0.1), round(dh - 0.1)) if centre else (0, 0)
+    return (new_w, new_h), Letterbox(new_w / w, new_h / h, left, top)
+
+
 def letterbox(
     image: NDArray[np.uint8], size: tuple[int, int], centre: bool = True
 ) -> tuple[NDArray[np.uint8], Letterbox]:
     """``image`` scaled into ``size = (width, height)`` keeping its aspect ratio, padded."""
     h, w = image.shape[:2]
-    in_w, in_h = size
-    r = min(in_w / w, in_h / h)
-    new_w, new_h = max(1, round(w * r)), max(1, round(h * r))
+    (new_w, new_h), box = fit_letterbox((w, h), size, centre)
     resized = image if (new_w, new_h) == (w, h) else cv2.resize(image, (new_w, new_h))
-    dw, dh = (in_w - new_w) / 2.0, (in_h - new_h) / 2.0
-    left, top = (round(dw - 0.1), round(dh - 0.1)) if centre else (0, 0)
-    right, bottom = in_w - new_w - left, in_h - new_h - top
+    right, bottom = size[0] - new_w - box.pad_x, size[1] - new_h - box.pad_y
     padded = cv2.copyMakeBorder(
-        resized, top, bottom, left, right, cv2.BORDER_CONSTANT, value=(LETTERBOX_FILL,) * 3
+        resized,
+        box.pad_y,
+        bottom,
+        box.pad_x,
+        right,
+        cv2.BORDER_CONSTANT,
+        value=(LETTERBOX_FILL,) * 3,
     )
-    return np.asarray(padded, np.uint8), Letterbox(new_w / w, new_h / h, left, top)
+    return np.asarray(padded, np.uint8), box
 
 
 def class_aware_nms(cand: Candidates, iou_threshold: float) -> NDArray[np.int64]:
@@ -197,6 +213,8 @@ class OnnxDetector:
             else requested
         )
         self.last_timing = DetectionTiming()
+        self._buffer: NDArray[np.float32] | None = None
+        self._buffer_box: Letterbox | None = None
 
     def _load(self, threads: int | None) -> Any:
         ort = _import_onnxruntime()
@@ -229,15 +247,33 @@ class OnnxDetector:
         return int(w), int(h)
 
     def preprocess(self, image_bgr: NDArray[np.uint8]) -> tuple[NDArray[np.float32], Letterbox]:
-        """The network input ``1×3×h×w`` float32 of a BGR frame, and its letterbox."""
+        """The network input ``1×3×h×w`` float32 of a BGR frame, and its letterbox.
+
+        The input is one buffer reused by every call (only the image region is rewritten), so
+        it is valid until the next call.
+        """
         frame = np.asarray(image_bgr)
         if frame.ndim == 2:
             frame = np.asarray(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR))
         if frame.ndim != 3 or frame.shape[2] != 3:
             raise DataMismatchError(f"detector needs an H×W×3 colour frame, got {frame.shape}")
-        padded, box = letterbox(frame, self.input_size, self.pad_centre)
-        blob = cv2.dnn.blobFromImage(padded, self.pixel_scale, swapRB=not self.bgr_input)
-        return np.asarray(blob, np.float32), box
+        h, w = frame.shape[:2]
+        (new_w, new_h), box = fit_letterbox((w, h), self.input_size, self.pad_centre)
+        resized = frame if (new_w, new_h) == (w, h) else cv2.resize(frame, (new_w, new_h))
+        blob = self._input_buffer(box)
+        region = blob[0, :, box.pad_y : box.pad_y + new_h, box.pad_x : box.pad_x + new_w]
+        scale = np.float32(self.pixel_scale)
+        for channel, source in enumerate((0, 1, 2) if self.bgr_input else (2, 1, 0)):
+            np.multiply(resized[:, :, source], scale, out=region[channel], casting="unsafe")
+        return blob, box
+
+    def _input_buffer(self, box: Letterbox) -> NDArray[np.float32]:
+        """The reused input buffer, its padding filled for this letterbox geometry."""
+        if self._buffer is None or self._buffer_box != box:
+            w, h = self.input_size
+            self._buffer = np.full((1, 3, h, w), LETTERBOX_FILL * self.pixel_scale, np.float32)
+            self._buffer_box = box
+        return self._buffer
 
     def postprocess(
         self, outputs: list[NDArray], box: Letterbox, width: int, height: int, frame: int
