@@ -105,6 +105,12 @@ def detr_tensors() -> tuple[np.ndarray, np.ndarray]:
     return boxes[None], logits[None]
 
 
+def detr_fused_tensor() -> np.ndarray:
+    boxes, logits = detr_tensors()
+    rows = np.concatenate([boxes, 1 / (1 + np.exp(-logits))], axis=2)
+    return np.concatenate([rows, np.zeros((1, 14, rows.shape[2]))], axis=1)  # 300 queries in life
+
+
 LAYOUT_OUTPUTS = {
     OutputLayout.YOLOV8: lambda: {"output0": yolov8_tensor()},
     OutputLayout.YOLOV5: lambda: {"output": yolov5_tensor()},
@@ -147,6 +153,13 @@ def test_forced_layout_and_custom_class_map(tmp_path: Path) -> None:
     np.testing.assert_allclose(table.boxes, [[20.0, 60.0, 60.0, 140.0]])
     with pytest.raises(Exception, match="end-to-end output needs 6 columns"):
         OnnxDetector(path, layout=OutputLayout.END_TO_END).detect(_frame())
+
+
+def test_fused_detr_layout_must_be_chosen(tmp_path: Path) -> None:
+    path = constant_model(tmp_path / "rtdetr.onnx", {"output0": detr_fused_tensor()})
+    assert OnnxDetector(path).layout is OutputLayout.YOLOV5  # same shape: not guessable
+    det = OnnxDetector(path, layout="detr-fused")
+    _check(det.detect(_frame()))
 
 
 def test_detr_softmax_with_no_object_class(tmp_path: Path) -> None:

@@ -12,7 +12,10 @@ index (the model's, e.g. COCO's) per candidate, before any score threshold or NM
   ``[1, N, 6]`` of ``x1, y1, x2, y2, score, class`` (input pixels);
 - :attr:`OutputLayout.DETR` — DETR-style pairs (RT-DETR, DETR): boxes ``[1, N, 4]`` as
   ``cx, cy, w, h`` normalised to ``[0, 1]`` of the input, and logits ``[1, N, C]`` (sigmoid per
-  class, or softmax with a trailing no-object class, see :class:`LogitKind`).
+  class, or softmax with a trailing no-object class, see :class:`LogitKind`);
+- :attr:`OutputLayout.DETR_FUSED` — ultralytics' RT-DETR export: one tensor ``[1, N, 4 + C]`` of
+  normalised ``cx, cy, w, h`` then ``C`` class scores in ``[0, 1]``. Its shape is that of the
+  YOLOv5 layout, so it is never guessed: choose it.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ class OutputLayout(str, Enum):
     YOLOV5 = "yolov5"
     END_TO_END = "end2end"
     DETR = "detr"
+    DETR_FUSED = "detr-fused"
 
 
 class LogitKind(str, Enum):
@@ -172,6 +176,18 @@ def decode_detr(
     return Candidates(_centre_to_corners(b * np.array([w, h, w, h], float)), best, cls)
 
 
+def decode_detr_fused(output: NDArray, input_size: tuple[int, int]) -> Candidates:
+    """``[1, N, 4 + C]``: normalised ``cx, cy, w, h`` then class scores (ultralytics RT-DETR)."""
+    arr = _squeeze_batch(output, OutputLayout.DETR_FUSED)
+    if arr.shape[1] < 5:
+        raise DataMismatchError(
+            f"fused DETR output needs ≥ 5 columns (4 box + classes), got shape {np.shape(output)}"
+        )
+    best, cls = _best_class(arr[:, 4:])
+    w, h = input_size
+    return Candidates(_centre_to_corners(arr[:, :4] * np.array([w, h, w, h], float)), best, cls)
+
+
 def guess_layout(shapes: Sequence[Sequence[int | str | None]]) -> OutputLayout:
     """The layout of a model from its output shapes (symbolic dimensions as str or None).
 
@@ -211,6 +227,8 @@ def decode(
         return decode_yolov5(outputs[0], min_score)
     if layout is OutputLayout.END_TO_END:
         return decode_end_to_end(outputs[0], min_score)
+    if layout is OutputLayout.DETR_FUSED:
+        return decode_detr_fused(outputs[0], input_size)
     if layout is OutputLayout.DETR:
         if len(outputs) < 2:
             raise DataMismatchError("the DETR layout needs two outputs (boxes, logits)")
