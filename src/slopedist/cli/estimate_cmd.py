@@ -25,6 +25,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import read_box_file
 from slopedist.errors import DataMismatchError
 from slopedist.estimators import make_estimator
+from slopedist.io.calibration import read_calibration
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
 from slopedist.pipeline import RecordWriter, StreamingEstimator, iter_records
@@ -45,14 +46,15 @@ def read_sequence_inputs(
     Raises:
         DataMismatchError: the poses do not cover the boxes' frames.
     """
-    camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
+    calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
+    camera = calibration.camera
     if pose_format == "oxts":
         track = read_oxts_rotations(poses, calib, frame_period)
     elif pose_format == "auto":
         track = read_pose_file(poses, None, frame_period)
     else:
         track = read_pose_file(poses, PoseFormat(pose_format), frame_period)
-    boxes = read_box_file(boxes_path, score)
+    boxes = calibration.intrinsics.rectify_table(read_box_file(boxes_path, score))
     if len(boxes) and int(boxes.frame.max()) >= len(track):
         raise DataMismatchError(
             f"{poses}: {len(track)} poses do not cover the boxes of {boxes_path}, which go up "
@@ -69,7 +71,9 @@ def sequence_input_options(func: Callable[..., Any]) -> Callable[..., Any]:
                 "--calib",
                 required=True,
                 type=click.Path(dir_okay=False, path_type=Path),
-                help="KITTI calib file (P2 is used; P0 for odometry calib.txt).",
+                help="Calibration: KITTI (P2; P0 for odometry calib.txt), 3×3 K text, OpenCV "
+                "or ROS camera_info YAML/JSON; lens distortion and fx ≠ fy are removed from "
+                "the boxes (docs/calibration.md).",
             ),
             click.option(
                 "--poses",
