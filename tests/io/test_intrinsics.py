@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.io.intrinsics import Intrinsics
 
@@ -112,10 +112,20 @@ def test_ideal_intrinsics_leave_boxes_alone_and_table_keeps_columns() -> None:
     st.floats(5, 200),
     st.floats(5, 200),
 )
-def test_mapped_box_is_a_valid_box(u: float, v: float, w: float, h: float) -> None:
+def test_mapped_box_is_valid_or_unmappable(u: float, v: float, w: float, h: float) -> None:
     box = np.array([[u, v, u + w, v + h]])
     mapped = Intrinsics(K, STRONG).rectify_boxes(box)[0]
-    assert np.all(np.isfinite(mapped)) and mapped[0] < mapped[2] and mapped[1] < mapped[3]
+    assert box_problems(mapped[None])[0] in ("", "non_finite_box")
+    if np.all(np.isfinite(mapped)):
+        assert mapped[0] < mapped[2] and mapped[1] < mapped[3]
+
+
+def test_points_the_model_cannot_invert_are_nan() -> None:
+    cam = Intrinsics(K, STRONG)
+    corner = cam.rectify_points([[1188.5, 50.0], [1188.5, 55.0], [640.0, 360.0]])
+    assert np.all(np.isnan(corner[:2])) and np.allclose(corner[2], [640.0, 360.0])
+    box = cam.rectify_boxes([[1173.0, 50.0, 1204.0, 55.0]])
+    assert box_problems(box)[0] == "non_finite_box"  # estimators record it as missing
 
 
 @pytest.mark.parametrize(

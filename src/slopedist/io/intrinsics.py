@@ -34,6 +34,9 @@ UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10
 """Iterations of the undistortion: OpenCV's default (5) leaves pixels of error under strong
 barrel distortion; 50 reach 1e-6 px."""
 
+MAX_ROUND_TRIP_PX = 0.01
+"""A mapped point must distort back to within this many pixels of the input point."""
+
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -95,14 +98,34 @@ class Intrinsics:
         return cam if self.image_size is None else cam.with_image_size(*self.image_size)
 
     def rectify_points(self, points: ArrayLike) -> NDArray[np.float64]:
-        """``(N, 2)`` pixel points (u, v) of the real camera → pixels of the ideal camera."""
+        """``(N, 2)`` pixel points (u, v) of the real camera → pixels of the ideal camera.
+
+        A point the undistortion cannot invert (near the image corners of a strongly distorted
+        lens the model folds over, and the iteration lands elsewhere) is NaN: the mapped point
+        is checked by distorting it again, and rejected when it misses by more than
+        :data:`MAX_ROUND_TRIP_PX`.
+        """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 1, 2)
         if self.is_ideal or pts.shape[0] == 0:
             return pts.reshape(-1, 2).copy()
+        ideal = self.ideal_K
         undistort: Any = cv2.fisheye.undistortPoints if self.fisheye else cv2.undistortPoints
-        out = undistort(
-            pts, self.K, self.dist, R=np.eye(3), P=self.ideal_K, criteria=UNDISTORT_CRITERIA
-        )
+        out = undistort(pts, self.K, self.dist, R=np.eye(3), P=ideal, criteria=UNDISTORT_CRITERIA)
+        mapped = np.asarray(out, dtype=np.float64).reshape(-1, 2)
+        normalised = (mapped - ideal[:2, 2]) / ideal[1, 1]
+        miss = np.linalg.norm(self.distort_normalised(normalised) - pts.reshape(-1, 2), axis=1)
+        mapped[~(miss <= MAX_ROUND_TRIP_PX)] = np.nan
+        return mapped
+
+    def distort_normalised(self, points: ArrayLike) -> NDArray[np.float64]:
+        """``(N, 2)`` normalised image points (x/z, y/z) → pixels of the real camera."""
+        xy = np.asarray(points, dtype=np.float64).reshape(-1, 1, 2)
+        if self.fisheye:
+            out = cv2.fisheye.distortPoints(xy, self.K, self.dist)
+        else:
+            xyz = np.concatenate([xy, np.ones((xy.shape[0], 1, 1))], axis=2)
+            zero = np.zeros(3)
+            out, _ = cv2.projectPoints(xyz, zero, zero, self.K, self.dist)
         return np.asarray(out, dtype=np.float64).reshape(-1, 2)
 
     def rectify_boxes(self, boxes: ArrayLike) -> NDArray[np.float64]:
