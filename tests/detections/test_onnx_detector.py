@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -40,32 +41,6 @@ EXPECTED = [  # frame pixels: (x_in − 0) / 0.5, (y_in − 70) / 0.5
     ((202.0, 160.0, 320.0, 240.0), "Truck", 0.70),
     ((400.0, 100.0, 520.0, 200.0), "Bus", 0.60),
 ]
-
-
-def constant_model(path: Path, outputs: dict[str, np.ndarray], in_shape=(1, 3, IN_H, IN_W)) -> Path:
-    """A model whose outputs are constants (it ignores its image input)."""
-    from onnx import TensorProto, helper, numpy_helper
-
-    nodes = [
-        helper.make_node(
-            "Constant", [], [name], value=numpy_helper.from_array(v.astype(np.float32))
-        )
-        for name, v in outputs.items()
-    ]
-    graph = helper.make_graph(
-        nodes,
-        "constant_detector",
-        [helper.make_tensor_value_info("images", TensorProto.FLOAT, list(in_shape))],
-        [
-            helper.make_tensor_value_info(n, TensorProto.FLOAT, list(v.shape))
-            for n, v in outputs.items()
-        ],
-    )
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
-    model.ir_version = 8
-    onnx.checker.check_model(model)
-    onnx.save(model, str(path))
-    return path
 
 
 def _cxcywh(box: tuple[float, float, float, float]) -> list[float]:
@@ -133,7 +108,7 @@ def _check(table, frame: int = 0) -> None:
 
 @pytest.mark.parametrize("layout", list(LAYOUT_OUTPUTS))
 def test_each_layout_detected_from_shapes_and_decoded_to_frame_pixels(
-    tmp_path: Path, layout: OutputLayout
+    tmp_path: Path, constant_model: Callable[..., Path], layout: OutputLayout
 ) -> None:
     path = constant_model(tmp_path / f"{layout.value}.onnx", LAYOUT_OUTPUTS[layout]())
     det = OnnxDetector(path, score_threshold=0.25, iou_threshold=0.5)
@@ -145,7 +120,9 @@ def test_each_layout_detected_from_shapes_and_decoded_to_frame_pixels(
     )
 
 
-def test_forced_layout_and_custom_class_map(tmp_path: Path) -> None:
+def test_forced_layout_and_custom_class_map(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
     path = constant_model(tmp_path / "v8.onnx", LAYOUT_OUTPUTS[OutputLayout.YOLOV8]())
     det = OnnxDetector(path, class_map={0: "Pedestrian"}, layout="yolov8")
     table = det.detect(_frame())
@@ -155,14 +132,18 @@ def test_forced_layout_and_custom_class_map(tmp_path: Path) -> None:
         OnnxDetector(path, layout=OutputLayout.END_TO_END).detect(_frame())
 
 
-def test_fused_detr_layout_must_be_chosen(tmp_path: Path) -> None:
+def test_fused_detr_layout_must_be_chosen(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
     path = constant_model(tmp_path / "rtdetr.onnx", {"output0": detr_fused_tensor()})
     assert OnnxDetector(path).layout is OutputLayout.YOLOV5  # same shape: not guessable
     det = OnnxDetector(path, layout="detr-fused")
     _check(det.detect(_frame()))
 
 
-def test_detr_softmax_with_no_object_class(tmp_path: Path) -> None:
+def test_detr_softmax_with_no_object_class(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
     boxes, _ = detr_tensors()
     logits = np.full((len(CANDIDATES), N_CLASSES + 1), 0.0)
     for i, (_, cls, score) in enumerate(CANDIDATES):  # softmax over (cls, no-object) = score
@@ -174,10 +155,10 @@ def test_detr_softmax_with_no_object_class(tmp_path: Path) -> None:
     _check(det.detect(_frame()))
 
 
-def test_dynamic_input_size_needs_an_explicit_size(tmp_path: Path) -> None:
-    path = constant_model(
-        tmp_path / "dyn.onnx", {"output0": yolov8_tensor()}, in_shape=(1, 3, "h", "w")
-    )
+def test_dynamic_input_size_needs_an_explicit_size(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
+    path = constant_model(tmp_path / "dyn.onnx", {"output0": yolov8_tensor()}, (1, 3, "h", "w"))
     with pytest.raises(InputFileError, match="dynamic"):
         OnnxDetector(path)
     _check(OnnxDetector(path, input_size=(IN_W, IN_H)).detect(_frame()))
@@ -238,7 +219,9 @@ def test_missing_onnxruntime_is_a_clear_error(
         OnnxDetector(tmp_path / "m.onnx")
 
 
-def test_detect_frames_concatenates_and_times(tmp_path: Path) -> None:
+def test_detect_frames_concatenates_and_times(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
     path = constant_model(tmp_path / "v8.onnx", {"output0": yolov8_tensor()})
     table, timings = detect_frames(OnnxDetector(path), [(3, _frame()), (4, _frame())])
     assert table.frame.tolist() == [3, 3, 3, 4, 4, 4]
@@ -247,7 +230,7 @@ def test_detect_frames_concatenates_and_times(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("bgr", "scale", "centre"), [(False, 1 / 255, True), (True, 1.0, False)])
 def test_preprocess_equals_letterbox_then_blob(
-    tmp_path: Path, bgr: bool, scale: float, centre: bool
+    tmp_path: Path, constant_model: Callable[..., Path], bgr: bool, scale: float, centre: bool
 ) -> None:
     import cv2
 
