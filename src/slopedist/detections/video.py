@@ -9,7 +9,7 @@ not readable).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +17,7 @@ from pathlib import Path
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.onnx_detector import DetectionTiming, Detector
 from slopedist.detections.readers import CSV_BOX_COLUMNS
+from slopedist.detections.writers import box_values
 from slopedist.io.frames import Frame
 from slopedist.io.tables import CsvStreamWriter
 
@@ -40,22 +41,6 @@ class DetectionSummary:
     boxes: int
     mean_inference_ms: float
     mean_detection_ms: float
-
-
-def box_rows(table: BoxTable) -> Iterator[dict[str, object]]:
-    """Rows of the slopedist box CSV for ``table``."""
-    for i in range(len(table)):
-        left, top, right, bottom = table.boxes[i]
-        yield {
-            "frame": int(table.frame[i]),
-            "left": left,
-            "top": top,
-            "right": right,
-            "bottom": bottom,
-            "track_id": int(table.track_id[i]),
-            "score": table.score[i],
-            "class": table.cls[i],
-        }
 
 
 def _timing_row(frame: Frame, n: int, t: DetectionTiming | None) -> dict[str, object]:
@@ -95,7 +80,7 @@ def detect_video(
                 n_detected += 1
                 inference_ms += t.inference_s * 1e3
                 detection_ms += t.total_s * 1e3
-            n_boxes += writer.write_rows(box_rows(table))
+            n_boxes += writer.write_values(box_values(table))
             if timing is not None:
                 timing.write_row(_timing_row(frame, len(table), t))
     mean = 1.0 / n_detected if n_detected else float("nan")
