@@ -118,11 +118,6 @@ def estimator_config(
         raise click.BadParameter(str(exc), param_hint="--method") from None
 
 
-def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
-    """Constructor options of the ``paper`` estimator from the command-line strings."""
-    return estimator_config(alphas, thresholds).options("paper")
-
-
 _DEPTHMAP_OPTIONS = (
     click.option(
         "--depth-sample",
@@ -153,19 +148,6 @@ def _apply(options: tuple[Any, ...], func: Callable[..., Any]) -> Callable[..., 
     for option in reversed(options):
         func = option(func)
     return func
-
-
-def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """``--depth-sample``, ``--depth-window``, ``--depth-scaling``: how the ``depthmap`` method
-    reads a depth map at a box (see :mod:`slopedist.estimators.depthmap`)."""
-    return _apply(_DEPTHMAP_OPTIONS, func)
-
-
-def depthmap_estimator_options(sample: str, window_px: int, scaling: str) -> dict[str, object]:
-    """Constructor options of the ``depthmap`` estimator from the command-line values."""
-    return estimator_config(
-        depth_sample=sample, depth_window=window_px, depth_scaling=scaling
-    ).options("depthmap")
 
 
 def estimator_options(
