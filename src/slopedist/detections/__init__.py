@@ -2,7 +2,7 @@
 detections in memory, and an ONNX detector."""
 
 from slopedist.detections.adapters import from_supervision, from_ultralytics
-from slopedist.detections.boxes import BoxTable, box_problems, concat_tables, iou_matrix
+from slopedist.detections.boxes import BoxTable, box_problems, concat_boxes, iou_matrix
 from slopedist.detections.convert import BoxFileOptions, BoxFormat, read_boxes, write_boxes
 from slopedist.detections.layouts import OutputLayout
 from slopedist.detections.onnx_detector import (
@@ -31,7 +31,7 @@ __all__ = [
     "OnnxDetector",
     "OutputLayout",
     "box_problems",
-    "concat_tables",
+    "concat_boxes",
     "detect_frames",
     "from_supervision",
     "from_ultralytics",

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import NO_TRACK, BoxTable, concat_tables
+from slopedist.detections.boxes import NO_TRACK, BoxTable, concat_boxes
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.errors import DataMismatchError
 
@@ -81,8 +81,8 @@ def from_ultralytics(
 ) -> BoxTable:
     """One ultralytics ``Results`` (one frame), or a list of them (frames ``frame, frame+1, …``)."""
     if isinstance(results, (list, tuple)):
-        return concat_tables(
-            from_ultralytics(r, frame + i, class_map) for i, r in enumerate(results)
+        return concat_boxes(
+            [from_ultralytics(r, frame + i, class_map) for i, r in enumerate(results)]
         )
     boxes = getattr(results, "boxes", None)
     if boxes is None or not hasattr(boxes, "xyxy"):
@@ -125,4 +125,4 @@ def from_frames(
             tables.append(from_ultralytics(det, index, class_map))
         else:
             tables.append(from_supervision(det, index, class_map))
-    return concat_tables(tables)
+    return concat_boxes(tables)

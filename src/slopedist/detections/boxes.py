@@ -5,7 +5,7 @@ Convention: boxes are ``(left, top, right, bottom)`` in pixels, origin top-left,
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -128,18 +128,16 @@ class BoxTable:
         return dict(self.by_frame())
 
 
-def concat_tables(tables: Iterable[BoxTable]) -> BoxTable:
-    """One table holding the rows of ``tables`` in order; extra columns present in every table
-    are kept, the others dropped."""
-    parts = list(tables)
+def concat_boxes(parts: list[BoxTable]) -> BoxTable:
+    """Concatenate box tables (columns present in every part are kept)."""
     if not parts:
         return BoxTable.empty()
-    common = [k for k in parts[0].extra if all(k in t.extra for t in parts[1:])]
+    keys = set.intersection(*(set(p.extra) for p in parts))
     return BoxTable(
-        np.concatenate([t.frame for t in parts]).astype(np.int64),
-        np.concatenate([t.boxes for t in parts]).reshape(-1, 4).astype(np.float64),
-        np.concatenate([t.track_id for t in parts]).astype(np.int64),
-        np.concatenate([t.score for t in parts]).astype(np.float64),
-        np.concatenate([t.cls for t in parts]).astype(object),
-        {k: np.concatenate([t.extra[k] for t in parts]) for k in common},
+        np.concatenate([p.frame for p in parts]),
+        np.concatenate([p.boxes for p in parts]),
+        np.concatenate([p.track_id for p in parts]),
+        np.concatenate([p.score for p in parts]),
+        np.concatenate([p.cls for p in parts]),
+        {k: np.concatenate([p.extra[k] for p in parts]) for k in keys},
     )

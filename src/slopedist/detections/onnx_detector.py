@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import BoxTable, concat_tables
+from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.detections.layouts import (
     Candidates,
     LogitKind,
@@ -317,4 +317,4 @@ def detect_frames(
     for index, image in frames:
         tables.append(detector.detect(image, index))
         timings.append(detector.last_timing)
-    return concat_tables(tables), timings
+    return concat_boxes(tables), timings
