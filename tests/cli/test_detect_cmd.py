@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -73,3 +74,101 @@ def test_detect_bad_class_map_and_missing_model(tmp_path: Path, frames: Path) ->
     args = ["detect", str(frames), "--detector", str(tmp_path / "none.onnx")]
     assert main(args) == 2
     assert main([*args, "--classes", "car"]) == 2
+
+
+# One car (with a worse duplicate) and a person, in network-input pixels of a 320×320 input:
+# (left, top, right, bottom), class, score.
+SCENE = [
+    ((100, 180, 160, 220), 2, 0.9),
+    ((101, 181, 161, 221), 2, 0.6),
+    ((230, 175, 270, 205), 0, 0.8),
+]
+CAR_IN_FRAME = [200.0, 220.0, 320.0, 300.0]  # (x / 0.5, (y − 70) / 0.5) in the 640×360 frame
+
+
+def _cxcywh(b: tuple[int, int, int, int]) -> list[float]:
+    return [(b[0] + b[2]) / 2, (b[1] + b[3]) / 2, b[2] - b[0], b[3] - b[1]]
+
+
+def _layout_outputs(layout: str) -> dict[str, np.ndarray]:
+    """The scene as each output layout, padded to more candidates than columns."""
+    n, c = 20, 8
+    if layout == "yolov8":
+        out = np.zeros((4 + c, n))
+        for j, (b, cls, s) in enumerate(SCENE):
+            out[:4, j], out[4 + cls, j] = _cxcywh(b), s
+        return {"output0": out[None]}
+    if layout == "yolov5":
+        out = np.zeros((n, 5 + c))
+        for j, (b, cls, s) in enumerate(SCENE):
+            out[j, :4], out[j, 4], out[j, 5 + cls] = _cxcywh(b), 1.0, s
+        return {"output": out[None]}
+    if layout == "end2end":
+        rows = [[*b, s, cls] for i, (b, cls, s) in enumerate(SCENE) if i != 1]
+        return {"output0": np.asarray(rows + [[0] * 6] * 5, float)[None]}
+    boxes = np.array([_cxcywh(b) for b, _, _ in SCENE]) / 320
+    logits = np.full((len(SCENE), c), -20.0)
+    for j, (_, cls, s) in enumerate(SCENE):
+        logits[j, cls] = np.log(s / (1 - s))
+    return {"pred_boxes": boxes[None], "pred_logits": logits[None]}
+
+
+def _run(tmp_path: Path, frames: Path, model: Path, method: str, *extra: str) -> Path:
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 500 0 320 0 0 500 180 0 0 0 1 0\n")
+    out = tmp_path / f"run_{method}"
+    args = ["run", str(frames), "--calib", str(calib), "--detector", str(model), "--out", str(out)]
+    assert main([*args, "--method", method, "--quiet", *extra]) == 0
+    return out
+
+
+@pytest.mark.parametrize("layout", ["yolov8", "yolov5", "end2end", "detr"])
+def test_run_with_a_detector_of_each_layout(
+    tmp_path: Path, frames: Path, constant_model: Callable[..., Path], layout: str
+) -> None:
+    model = constant_model(tmp_path / f"{layout}.onnx", _layout_outputs(layout))
+    out = _run(tmp_path, frames, model, "flat", "--odometry", "none")
+    records = list(csv.DictReader((out / "records.csv").open()))
+    assert [r["frame"] for r in records] == ["0", "1", "2"]  # one car per readable frame
+    for r in records:
+        assert [float(r[k]) for k in ("left", "top", "right", "bottom")] == CAR_IN_FRAME
+        assert r["class"] == "Car" and r["status"] == "ok"
+    log = list(csv.DictReader((out / "frames.csv").open()))
+    assert all(float(f["detection_ms"]) > 0 for f in log[:3]) and log[3]["detection_ms"] == ""
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["detector"].endswith(f"{layout}.onnx") and summary["detection_ms_mean"] > 0
+
+
+@pytest.mark.parametrize("method", ["flat", "ego", "paper", "ours", "ours-selfcal", "depthmap"])
+def test_run_with_a_detector_and_every_estimator(
+    tmp_path: Path, frames: Path, constant_model: Callable[..., Path], method: str
+) -> None:
+    model = constant_model(tmp_path / "yolo.onnx", _layout_outputs("yolov8"))
+    extra: list[str] = []
+    if method == "depthmap":
+        depth = tmp_path / "depth"
+        depth.mkdir()
+        for i in range(3):
+            np.save(depth / f"{i:06d}.npy", np.full((360, 640), 7.0, np.float32))
+        extra = ["--depth-dir", str(depth), "--odometry", "none"]
+    out = _run(tmp_path, frames, model, method, *extra)
+    records = list(csv.DictReader((out / "records.csv").open()))
+    assert len(records) == 3 and {r["method"] for r in records} == {method}
+    if method in ("flat", "depthmap"):
+        assert all(r["status"] == "ok" for r in records)
+    if method == "depthmap":
+        assert float(records[0]["distance_m"]) == pytest.approx(7.0, rel=0.05)
+
+
+def test_run_needs_exactly_one_box_source(
+    tmp_path: Path, frames: Path, constant_model: Callable[..., Path], capsys: pytest.CaptureFixture
+) -> None:
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 500 0 320 0 0 500 180 0 0 0 1 0\n")
+    args = ["run", str(frames), "--calib", str(calib), "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    assert "--boxes" in capsys.readouterr().err
+    model = constant_model(tmp_path / "yolo.onnx", _layout_outputs("yolov8"))
+    boxes = tmp_path / "b.csv"
+    boxes.write_text("frame,left,top,right,bottom\n")
+    assert main([*args, "--boxes", str(boxes), "--detector", str(model)]) == 2

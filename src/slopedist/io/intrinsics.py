@@ -16,7 +16,8 @@ Distortion coefficients are OpenCV's order ``k1, k2, p1, p2[, k3[, k4, k5, k6[, 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import time
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -25,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import DetectionTiming, Detector
 from slopedist.errors import ConfigurationError
 
 DISTORTION_COUNTS = (0, 4, 5, 8, 12, 14)
@@ -167,3 +169,23 @@ class Intrinsics:
             table.cls,
             dict(table.extra),
         )
+
+
+class RectifiedDetector:
+    """A :class:`~slopedist.detections.onnx_detector.Detector` whose boxes are mapped into the
+    ideal camera of ``intrinsics`` (:meth:`Intrinsics.rectify_table`); the mapping is counted in
+    its post-processing time."""
+
+    def __init__(self, detector: Detector, intrinsics: Intrinsics) -> None:
+        self.detector, self.intrinsics = detector, intrinsics
+        self.model_path = getattr(detector, "model_path", None)
+        self.last_timing = DetectionTiming()
+
+    def detect(self, image_bgr: NDArray[np.uint8], frame: int = 0) -> BoxTable:
+        """The wrapped detector's boxes, in the ideal camera."""
+        table = self.detector.detect(image_bgr, frame)
+        t0 = time.perf_counter()
+        mapped = self.intrinsics.rectify_table(table)
+        t = self.detector.last_timing
+        self.last_timing = replace(t, postprocess_s=t.postprocess_s + time.perf_counter() - t0)
+        return mapped
