@@ -172,3 +172,15 @@ def test_run_needs_exactly_one_box_source(
     boxes = tmp_path / "b.csv"
     boxes.write_text("frame,left,top,right,bottom\n")
     assert main([*args, "--boxes", str(boxes), "--detector", str(model)]) == 2
+
+
+def test_report_table2_has_the_detection_column(
+    tmp_path: Path, frames: Path, constant_model: Callable[..., Path]
+) -> None:
+    model = constant_model(tmp_path / "yolo.onnx", _layout_outputs("yolov8"))
+    out = _run(tmp_path, frames, model, "flat", "--odometry", "none")
+    report = tmp_path / "report"
+    assert main(["report", str(out), "--out", str(report)]) == 0
+    rows = list(csv.DictReader((report / "table2_time.csv").open()))
+    assert float(rows[0]["detection"]) > 0 and float(rows[0]["estimation"]) > 0
+    assert float(rows[0]["total"]) == pytest.approx(float(rows[0]["estimation"]), rel=1e-3)
