@@ -174,11 +174,22 @@ def test_run_needs_exactly_one_box_source(
     assert main([*args, "--boxes", str(boxes), "--detector", str(model)]) == 2
 
 
-def test_report_table2_has_the_detection_column(
+def test_video_calibration_yaml_detector_overlay_report(
     tmp_path: Path, frames: Path, constant_model: Callable[..., Path]
 ) -> None:
+    """The README's "your own video" path: OpenCV YAML calibration, ONNX detector, overlay,
+    report with the detection time in Table 2."""
     model = constant_model(tmp_path / "yolo.onnx", _layout_outputs("yolov8"))
-    out = _run(tmp_path, frames, model, "flat", "--odometry", "none")
+    calib = tmp_path / "cam.yaml"
+    fs = cv2.FileStorage(str(calib), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_matrix", np.array([[500.0, 0, 320], [0, 500, 180], [0, 0, 1]]))
+    fs.write("distortion_coefficients", np.zeros((1, 5)))
+    fs.release()
+    out = tmp_path / "run"
+    args = ["run", str(frames), "--calib", str(calib), "--detector", str(model), "--out", str(out)]
+    overlay = ["--overlay", "--overlay-format", "png"]
+    assert main([*args, "--method", "flat", "--odometry", "none", "--quiet", *overlay]) == 0
+    assert len(list((out / "overlay").glob("*.png"))) >= 3  # the readable frames
     report = tmp_path / "report"
     assert main(["report", str(out), "--out", str(report)]) == 0
     rows = list(csv.DictReader((report / "table2_time.csv").open()))
