@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
@@ -139,3 +141,45 @@ def test_yolo_errors(tmp_path: Path) -> None:
         read_yolo_folder(tmp_path / "a", (0, 10))
     with pytest.raises(MissingInputError):
         read_yolo_folder(tmp_path / "none", (10, 10))
+
+
+json_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-5, 5)
+    | st.floats(allow_nan=False)
+    | st.text(max_size=3),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=3), inner, max_size=3)
+    ),
+    max_leaves=8,
+)
+coco_items = st.lists(
+    st.fixed_dictionaries(
+        {},
+        optional={
+            "image_id": json_values,
+            "category_id": st.sampled_from([3, 8, 1]) | json_values,
+            "bbox": st.lists(st.integers(0, 50) | json_values, max_size=5),
+            "score": json_values,
+            "track_id": json_values,
+        },
+    )
+    | json_values,
+    max_size=4,
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(coco_items)
+def test_coco_reader_fails_only_with_a_named_error(
+    tmp_path_factory: pytest.TempPathFactory, items: list
+) -> None:
+    path = tmp_path_factory.mktemp("coco") / "r.json"
+    path.write_text(json.dumps(items))
+    try:
+        table = read_coco(path)
+    except InputFileError as exc:
+        assert "r.json" in str(exc)
+    else:
+        assert table.boxes.shape == (len(table), 4)  # non-finite boxes: flagged by estimators
