@@ -191,6 +191,9 @@ def test_guess_layout_from_shapes() -> None:
     assert guess_layout([[1, 84, "anchors"]]) is OutputLayout.YOLOV8
     assert guess_layout([[1, 25200, 85]]) is OutputLayout.YOLOV5
     assert guess_layout([[1, 300, 6]]) is OutputLayout.END_TO_END
+    assert guess_layout([[1, "n", 6]]) is OutputLayout.END_TO_END
+    assert guess_layout([[1, 25200, 6]]) is OutputLayout.YOLOV5  # one-class YOLOv5
+    assert guess_layout([[1, 5, 8400]]) is OutputLayout.YOLOV8  # one-class YOLOv8
     assert guess_layout([[1, 300, 4], [1, 300, 80]]) is OutputLayout.DETR
     with pytest.raises(ConfigurationError, match="cannot tell"):
         guess_layout([[1, "a", "b"]])

@@ -32,6 +32,11 @@ from slopedist.errors import ConfigurationError, DataMismatchError
 FloatArray = NDArray[np.float64]
 
 
+MAX_END_TO_END_DETECTIONS = 1000
+"""Most rows an end-to-end output ``[1, N, 6]`` is taken to have (exports keep 100–300); more
+rows of 6 are a one-class YOLOv5 output."""
+
+
 class OutputLayout(str, Enum):
     """How a detector's outputs are laid out (see the module docstring)."""
 
@@ -191,7 +196,8 @@ def decode_detr_fused(output: NDArray, input_size: tuple[int, int]) -> Candidate
 def guess_layout(shapes: Sequence[Sequence[int | str | None]]) -> OutputLayout:
     """The layout of a model from its output shapes (symbolic dimensions as str or None).
 
-    Two outputs, one ending in 4 → DETR; one output ``[1, a, 6]`` → end-to-end; one output
+    Two outputs, one ending in 4 → DETR; one output ``[1, a, 6]`` with ``a`` ≤
+    :data:`MAX_END_TO_END_DETECTIONS` → end-to-end; one output
     ``[1, a, b]`` with ``a < b`` (classes × candidates) → YOLOv8, with ``a > b`` → YOLOv5.
     """
     dims = [[d if isinstance(d, int) else None for d in s] for s in shapes]
@@ -199,8 +205,8 @@ def guess_layout(shapes: Sequence[Sequence[int | str | None]]) -> OutputLayout:
         return OutputLayout.DETR
     if len(dims) == 1 and len(dims[0]) in (2, 3):
         a, b = dims[0][-2], dims[0][-1]
-        if b == 6:
-            return OutputLayout.END_TO_END
+        if b == 6 and (a is None or a <= MAX_END_TO_END_DETECTIONS):
+            return OutputLayout.END_TO_END  # [1, 25200, 6] is a one-class YOLOv5
         if a is not None and b is not None and a != b:
             return OutputLayout.YOLOV8 if a < b else OutputLayout.YOLOV5
         if a is not None and b is None:
