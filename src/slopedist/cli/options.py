@@ -318,88 +318,86 @@ def parse_class_map(value: str | None) -> dict[int, str] | None:
 DEFAULT_CLASSES = ",".join(f"{k}={v}" for k, v in COCO_VEHICLES.items())
 
 
-def _detector_option_specs() -> list[tuple[str, str, dict[str, Any]]]:
-    """``(option name, parameter, click keywords)`` of each detector option."""
-    return [
-        (
-            "score",
-            "detector_score",
-            {
-                "type": click.FloatRange(0, 1),
-                "default": 0.25,
-                "show_default": True,
-                "help": "Minimum detector score.",
-            },
-        ),
-        (
-            "iou",
-            "detector_iou",
-            {
-                "type": click.FloatRange(0, 1, min_open=True),
-                "default": 0.45,
-                "show_default": True,
-                "help": "NMS IoU threshold (per class).",
-            },
-        ),
-        (
-            "classes",
-            "detector_classes",
-            {
-                "default": DEFAULT_CLASSES,
-                "show_default": True,
-                "help": "Model class index = slopedist class name; other classes are dropped.",
-            },
-        ),
-        (
-            "layout",
-            "detector_layout",
-            {
-                "type": click.Choice([v.value for v in OutputLayout]),
-                "default": OutputLayout.AUTO.value,
-                "show_default": True,
-                "help": "Output layout of the model (auto: from its output shapes; "
-                "docs/detectors.md).",
-            },
-        ),
-        (
-            "input-size",
-            "detector_input_size",
-            {"help": "WIDTHxHEIGHT network input, for models with a dynamic input size."},
-        ),
-        ("bgr", "detector_bgr", {"is_flag": True, "help": "Feed BGR instead of RGB (YOLOX)."}),
-        (
-            "pixel-scale",
-            "detector_pixel_scale",
-            {
-                "type": float,
-                "default": 1 / 255,
-                "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
-            },
-        ),
-        (
-            "pad-top-left",
-            "detector_pad_top_left",
-            {
-                "is_flag": True,
-                "help": "Letterbox padding at the bottom/right only (YOLOX) instead of centred.",
-            },
-        ),
-        (
-            "logits",
-            "detector_logits",
-            {
-                "type": click.Choice([v.value for v in LogitKind]),
-                "default": LogitKind.SIGMOID.value,
-                "show_default": True,
-                "help": "DETR logits: one sigmoid per class, or softmax with a no-object class.",
-            },
-        ),
-        (
-            "threads",
-            "detector_threads",
-            {"type": int, "help": "onnxruntime threads [default: its own]."},
-        ),
-    ]
+DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    (
+        "score",
+        "detector_score",
+        {
+            "type": click.FloatRange(0, 1),
+            "default": 0.25,
+            "show_default": True,
+            "help": "Minimum detector score.",
+        },
+    ),
+    (
+        "iou",
+        "detector_iou",
+        {
+            "type": click.FloatRange(0, 1, min_open=True),
+            "default": 0.45,
+            "show_default": True,
+            "help": "NMS IoU threshold (per class).",
+        },
+    ),
+    (
+        "classes",
+        "detector_classes",
+        {
+            "default": DEFAULT_CLASSES,
+            "show_default": True,
+            "help": "Model class index = slopedist class name; other classes are dropped.",
+        },
+    ),
+    (
+        "layout",
+        "detector_layout",
+        {
+            "type": click.Choice([v.value for v in OutputLayout]),
+            "default": OutputLayout.AUTO.value,
+            "show_default": True,
+            "help": "Output layout of the model (auto: from its output shapes; docs/detectors.md).",
+        },
+    ),
+    (
+        "input-size",
+        "detector_input_size",
+        {"help": "WIDTHxHEIGHT network input, for models with a dynamic input size."},
+    ),
+    ("bgr", "detector_bgr", {"is_flag": True, "help": "Feed BGR instead of RGB (YOLOX)."}),
+    (
+        "pixel-scale",
+        "detector_pixel_scale",
+        {
+            "type": float,
+            "default": 1 / 255,
+            "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
+        },
+    ),
+    (
+        "pad-top-left",
+        "detector_pad_top_left",
+        {
+            "is_flag": True,
+            "help": "Letterbox padding at the bottom/right only (YOLOX) instead of centred.",
+        },
+    ),
+    (
+        "logits",
+        "detector_logits",
+        {
+            "type": click.Choice([v.value for v in LogitKind]),
+            "default": LogitKind.SIGMOID.value,
+            "show_default": True,
+            "help": "DETR logits: one sigmoid per class, or softmax with a no-object class.",
+        },
+    ),
+    (
+        "threads",
+        "detector_threads",
+        {"type": int, "help": "onnxruntime threads [default: its own]."},
+    ),
+)
+"""``(option name without prefix, parameter, click keywords)`` of each detector option."""
 
 
 def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -407,7 +405,7 @@ def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callabl
     etc. (``run`` uses the prefix ``detector-``, its ``--score`` being the box files')."""
 
     def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
-        for name, param, kwargs in reversed(_detector_option_specs()):
+        for name, param, kwargs in reversed(DETECTOR_OPTION_SPECS):
             func = click.option(f"--{prefix}{name}", param, **kwargs)(func)
         return func
 
