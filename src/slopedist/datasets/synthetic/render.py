@@ -51,7 +51,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.datasets.synthetic.world import Layer, Material, Polygons
+from slopedist.datasets.synthetic.polygons import Material, Polygons
 
 FloatArray = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -1087,52 +1087,3 @@ class _Fields(NamedTuple):
     level: F32
     mult: NDArray[np.uint8]
     add: NDArray[np.uint8]
-
-
-def vehicle_polygons(
-    corners_world: FloatArray,
-    colours_bgr: FloatArray,
-    s_rear: FloatArray,
-    s_front: FloatArray,
-    owners: NDArray[np.int64],
-) -> Polygons:
-    """Faces of target boxes from their 8 corners ``(M, 8, 3)`` (order of
-    :data:`~slopedist.datasets.synthetic.vehicles.BOX_CORNERS_UNIT`); colours BGR in [0, 1]."""
-    c = corners_world
-    fwd = c[:, 2] - c[:, 0]
-    lft = c[:, 1] - c[:, 0]
-    up = c[:, 4] - c[:, 0]
-    fwd, lft, up = (a / np.linalg.norm(a, axis=1, keepdims=True) for a in (fwd, lft, up))
-    faces = [
-        ((0, 1, 5, 4), -fwd, lft),
-        ((3, 2, 6, 7), fwd, -lft),
-        ((2, 0, 4, 6), -lft, -fwd),
-        ((1, 3, 7, 5), lft, fwd),
-        ((4, 5, 7, 6), up, lft),
-    ]
-    m = c.shape[0]
-    parts = []
-    for idx, normal, axis_u in faces:
-        v = c[:, list(idx)]
-        parts.append(
-            Polygons(
-                verts=v,
-                normal=normal,
-                origin=v[:, 0],
-                axis_u=axis_u,
-                axis_v=up,
-                u0=np.zeros(m),
-                key=s_rear.copy(),
-                layer=np.full(m, int(Layer.VEHICLE)),
-                s_lo=s_rear.copy(),
-                s_hi=s_front.copy(),
-                material=np.full(m, int(Material.VEHICLE)),
-                colour=colours_bgr.copy(),
-                owner=owners.astype(np.int64),
-                two_sided=np.zeros(m, bool),
-                lod=np.full(m, -1, np.int8),
-                lod_key=np.zeros(m),
-                surface=np.full(m, -1, np.int64),
-            )
-        )
-    return Polygons.concat(parts)

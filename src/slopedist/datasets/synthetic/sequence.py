@@ -16,7 +16,8 @@ from numpy.typing import NDArray
 
 from slopedist.camera import Camera
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec, noisy_boxes
-from slopedist.datasets.synthetic.render import Rendered, Renderer, vehicle_polygons
+from slopedist.datasets.synthetic.polygons import vehicle_polygons
+from slopedist.datasets.synthetic.render import Rendered, Renderer
 from slopedist.datasets.synthetic.scene import Scenario, SceneTruth, simulate_truth
 from slopedist.datasets.synthetic.world import static_world
 from slopedist.detections.boxes import BoxTable
