@@ -13,13 +13,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from slopedist.datasets.synthetic.scenario_file import parse_scenario
+from slopedist.datasets.synthetic.scenario_reader import field_lines
 from slopedist.datasets.synthetic.scenarios import (
     SUITE,
     builtin_names,
     builtin_text,
-    field_lines,
     load_scenario,
-    parse_scenario,
 )
 from slopedist.datasets.synthetic.scene import Scenario, simulate_truth
 from slopedist.errors import InputFileError, MissingInputError
