@@ -29,9 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.errors import InputFileError, MissingInputError
-from slopedist.pipeline import concat_boxes
 
 FloatArray = NDArray[np.float64]
 
