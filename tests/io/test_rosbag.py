@@ -79,7 +79,7 @@ def test_frames_timestamps_and_camera_read_back(
     for f, image in zip(frames, synthetic_images(n)):
         assert f.image is not None
         np.testing.assert_array_equal(f.image, expected_pixels(image, enc))
-    assert read_camera_info(path, camera_info_topic(TOPICS.image)) == CAMERA
+    assert read_camera_info(path, camera_info_topic(TOPICS.image)).camera() == CAMERA
     stamps, quats = read_orientations(path, TOPICS.imu)
     assert np.array_equal(stamps - stamps[0], np.arange(n) * PERIOD_NS)
     np.testing.assert_array_equal(quats, np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)))
@@ -223,6 +223,46 @@ def test_decode_failures_are_reasons_not_exceptions() -> None:
     assert image is None and "bytes" in why
 
 
+def camera_info_msg(D: list[float], model: str = "plumb_bob") -> object:
+    from rosbags.typesys import Stores, get_typestore
+
+    T = get_typestore(Stores.ROS2_HUMBLE).types
+    K = np.array([[500.0, 0, 320], [0, 498.0, 240], [0, 0, 1]])
+    P = np.array([[480.0, 0, 322, 0], [0, 480.0, 238, 0], [0, 0, 1, 0]])
+    return T["sensor_msgs/msg/CameraInfo"](
+        header=T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id=""
+        ),
+        height=480,
+        width=640,
+        distortion_model=model,
+        d=np.array(D, dtype=float),
+        k=K.reshape(-1),
+        r=np.eye(3).reshape(-1),
+        p=P.reshape(-1),
+        binning_x=0,
+        binning_y=0,
+        roi=T["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        ),
+    )
+
+
+def test_camera_info_raw_stream_keeps_the_distortion_rectified_stream_uses_p() -> None:
+    from slopedist.io.rosbag import intrinsics_from_info
+
+    raw = intrinsics_from_info(camera_info_msg([-0.3, 0.1, 0.0, 0.0, 0.0]), rectified=False)
+    assert raw.K[0, 0] == 500.0 and raw.K[1, 1] == 498.0
+    assert raw.dist.tolist() == [-0.3, 0.1, 0.0, 0.0, 0.0] and not raw.is_ideal
+    assert raw.image_size == (640, 480)
+    rect = intrinsics_from_info(camera_info_msg([-0.3, 0.1, 0.0, 0.0, 0.0]), rectified=True)
+    assert rect.is_ideal and rect.camera().f == 480.0 and rect.camera().c_x == 322.0
+    fisheye = intrinsics_from_info(camera_info_msg([0.1, 0.01, 0, 0], "equidistant"), False)
+    assert fisheye.fisheye and fisheye.dist.size == 4
+    undistorted = intrinsics_from_info(camera_info_msg([0.0] * 5), rectified=False)
+    assert undistorted.is_ideal and undistorted.K[0, 0] == 480.0  # P, as for a mono camera
+
+
 def test_camera_info_topic_names() -> None:
     assert camera_info_topic("/cam/image_raw") == "/cam/camera_info"
     assert camera_info_topic("/cam/image_rect/compressed") == "/cam/camera_info"
@@ -254,8 +294,8 @@ def test_real_frames_read_back_like_the_folder(
     for a, b in zip(read, folder):
         assert a.image is not None and b.image is not None
         np.testing.assert_array_equal(a.image, expected_pixels(b.image, enc))
-    got = read_camera_info(path, TOPICS.camera_info, camera.height_m)
-    assert got == camera
+    got = read_camera_info(path, TOPICS.camera_info)
+    assert got.is_ideal and got.camera(camera.height_m) == camera
 
 
 # --- damaged logs -----------------------------------------------------------------------------

@@ -34,14 +34,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.errors import (
     ConfigurationError,
     InputFileError,
     MissingInputError,
     OptionalDependencyError,
 )
+from slopedist.io.calibration import FISHEYE_MODELS, _trim
 from slopedist.io.frames import Frame, FrameStatus
+from slopedist.io.intrinsics import Intrinsics
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE_TYPE = "sensor_msgs/msg/CompressedImage"
@@ -447,21 +448,13 @@ def camera_info_topic(image_topic: str) -> str:
     return "/".join([*parts[:-1], "camera_info"])
 
 
-def read_camera_info(
-    path: str | Path,
-    topic: str,
-    height_m: float = KITTI_CAMERA_HEIGHT_M,
-    mount_angle_rad: float = 0.0,
-) -> Camera:
-    """The camera of the first ``sensor_msgs/CameraInfo`` message on ``topic``.
-
-    The intrinsics are the projection matrix ``P`` (the rectified image's) when it is set, else
-    ``K``; f is ``f_x`` (square pixels assumed). The image size is the message's.
+def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
+    """The intrinsics of the first ``sensor_msgs/CameraInfo`` message on ``topic``
+    (:func:`intrinsics_from_info`).
 
     Raises:
         ConfigurationError: no such topic.
-        InputFileError: no message, a zero focal length, distortion without a rectified ``P``,
-            or ``f_x`` and ``f_y`` more than 1 % apart.
+        InputFileError: no message, or no usable calibration in it.
     """
     path = Path(path)
     with open_log(path) as reader:
@@ -476,35 +469,29 @@ def read_camera_info(
     if msg is None:
         raise InputFileError(path, f"topic {topic} has no messages")
     try:
-        return camera_from_info(msg, path, topic, height_m, mount_angle_rad)
-    except (AttributeError, TypeError, ValueError) as exc:
+        return intrinsics_from_info(msg, rectified)
+    except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
         raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
 
 
-def camera_from_info(
-    msg: Any, path: Path, topic: str, height_m: float, mount_angle_rad: float
-) -> Camera:
-    """:class:`Camera` from a CameraInfo message (ROS 1 ``K``/``P`` or ROS 2 ``k``/``p``)."""
+def intrinsics_from_info(msg: Any, rectified: bool) -> Intrinsics:
+    """:class:`~slopedist.io.intrinsics.Intrinsics` of a CameraInfo message (ROS 1 ``K``/``D``/
+    ``P`` or ROS 2 ``k``/``d``/``p``), with the message's image size.
+
+    Images of the rectified stream (``rectified``, e.g. ``image_rect``) and cameras without
+    distortion use ``P``'s left 3×3 (``K`` when ``P`` is zero) and no distortion; the raw stream
+    of a distorted camera uses ``K`` and ``D`` (``equidistant`` → the fisheye model), through
+    which slopedist maps the boxes (:mod:`slopedist.io.intrinsics`).
+    """
     K = np.asarray(getattr(msg, "k", getattr(msg, "K", None)), dtype=float).reshape(3, 3)
     P = np.asarray(getattr(msg, "p", getattr(msg, "P", None)), dtype=float).reshape(3, 4)
-    D = np.asarray(getattr(msg, "d", getattr(msg, "D", ())), dtype=float)
-    M = P[:, :3] if P[0, 0] > 0 else K
-    if M[0, 0] <= 0 or M[1, 1] <= 0:
-        raise InputFileError(path, "no focal length (K and P are zero)", field=topic)
-    if P[0, 0] <= 0 and np.any(D != 0):
-        raise InputFileError(
-            path, "distortion but no rectified P; use rectified images", field=topic
-        )
-    if abs(M[0, 0] - M[1, 1]) > 0.01 * M[0, 0]:
-        raise InputFileError(
-            path,
-            f"f_x = {M[0, 0]:.2f} and f_y = {M[1, 1]:.2f} px differ (non-square pixels)",
-            field=topic,
-        )
-    camera = Camera(float(M[0, 0]), float(M[0, 2]), float(M[1, 2]), height_m, mount_angle_rad)
-    if int(msg.width) > 0 and int(msg.height) > 0:
-        camera = camera.with_image_size(int(msg.width), int(msg.height))
-    return camera
+    D = np.asarray(getattr(msg, "d", getattr(msg, "D", ())), dtype=float).reshape(-1)
+    width, height = int(msg.width), int(msg.height)
+    size = (width, height) if width > 0 and height > 0 else None
+    if rectified or not np.any(D != 0):
+        return Intrinsics(P[:, :3] if P[0, 0] > 0 else K, image_size=size)
+    fisheye = str(msg.distortion_model).strip().lower() in FISHEYE_MODELS
+    return Intrinsics(K, _trim(D, fisheye), fisheye, size)
 
 
 IMU_TYPE = "sensor_msgs/msg/Imu"

@@ -3,7 +3,7 @@
 - Drive log (:func:`slopedist.io.rosbag.is_log_path`: ``.bag``, ``.mcap``, ``.db3`` or a ROS 2
   bag folder): one image topic, header stamps as frame times
   (:class:`~slopedist.io.rosbag.LogFrameSource`); its ``camera_info`` can be the calibration
-  (:func:`log_camera`) and an IMU / odometry / pose topic the rotation source
+  (:func:`log_calibration`) and an IMU / odometry / pose topic the rotation source
   (:func:`log_rotation_source`).
 - Video file: presentation timestamps with PyAV, OpenCV's nominal rate without it or with a
   forced ``fps`` (:func:`slopedist.io.video.open_video`).
@@ -14,8 +14,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.errors import ConfigurationError
+from slopedist.io.calibration import CameraCalibration
 from slopedist.io.frames import FrameSource, open_frames, read_timestamps
 from slopedist.io.rosbag import (
     LogFrameSource,
@@ -71,12 +72,14 @@ def open_source(
     return open_frames(path, fps, timestamps)
 
 
-def log_camera(
+def log_calibration(
     source: FrameSource,
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
-) -> Camera:
-    """The camera of a drive log's image topic, from its ``camera_info`` topic.
+) -> CameraCalibration:
+    """The calibration of a drive log's image topic, from the ``camera_info`` topic next to it
+    (rectified intrinsics for an ``image_rect…`` topic; see
+    :func:`slopedist.io.rosbag.intrinsics_from_info`); the mount in metres and radians.
 
     Raises:
         ConfigurationError: ``source`` is not a drive log (give a calibration file), or the log
@@ -88,7 +91,9 @@ def log_camera(
             "videos (drive logs can use their camera_info topic)"
         )
     topic = camera_info_topic(source.image_topic)
-    return read_camera_info(source.path, topic, height_m, mount_angle_rad)
+    rectified = "image_rect" in source.image_topic  # image_rect, image_rect_color, …
+    intrinsics = read_camera_info(source.path, topic, rectified)
+    return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 
 def log_rotation_source(source: FrameSource, topic: str) -> TrackRotationSource:
