@@ -73,3 +73,25 @@ def test_bad_files(tmp_path: Path) -> None:
     bad.write_bytes(b"no video here")
     with pytest.raises(InputFileError, match="cannot be opened"):
         PyAVVideoSource(bad)
+
+
+def test_run_on_a_vfr_video_writes_the_true_times_to_frames_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import csv
+
+    from slopedist.cli import main
+    from slopedist.detections.boxes import BoxTable
+    from slopedist.detections.writers import write_box_csv
+
+    video = write_vfr(tmp_path / "dashcam.mp4", VFR_TIMES)
+    (tmp_path / "calib.txt").write_text("P2: 60 0 32 0 0 60 24 0 0 0 1 0\n")
+    n = len(VFR_TIMES)
+    boxes = BoxTable.build(np.arange(n), np.tile([20.0, 30.0, 40.0, 40.0], (n, 1)))
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    args = ["run", str(video), "--calib", str(tmp_path / "calib.txt")]
+    args += ["--boxes", str(tmp_path / "boxes.csv"), "--method", "flat", "--odometry", "none"]
+    assert main([*args, "--out", str(tmp_path / "out"), "--quiet"]) == 0, capsys.readouterr().err
+    with (tmp_path / "out" / "frames.csv").open(newline="") as fh:
+        times = [float(r["timestamp_s"]) for r in csv.DictReader(fh)]
+    assert times == pytest.approx(VFR_TIMES, abs=1e-6)
