@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -236,6 +237,8 @@ class RunConfig:
         trajectory: path of a TUM trajectory of the rotation source's rotations, or None.
         time_origin_ns: log time of frame time 0 in the MCAP export, nanoseconds (a drive log's
             first image stamp, so the export plays in sync with the log).
+        ego_speed: the ego speed (m/s) at a frame time (s), for the headway time of
+            ``tracks.csv``; None when unknown.
     """
 
     out_dir: Path
@@ -247,6 +250,7 @@ class RunConfig:
     mcap: Path | None = None
     trajectory: Path | None = None
     time_origin_ns: int = 0
+    ego_speed: Callable[[float], float] | None = None
 
 
 def run_frames(
@@ -411,7 +415,8 @@ class _RunLoop:
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
-        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates)
+        speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
+        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         self.frame_log.write_row(
             {
                 "frame": k,

@@ -31,6 +31,8 @@ CAMERA = Camera(500.0, 160.0, 100.0).with_image_size(W, H)
 TIMING = {"odometry_ms", "estimation_ms", "depth_ms", "source"}
 PITCH_RATE = math.radians(0.8)
 """Nose-up pitch rate of the synthetic IMU, rad/s."""
+EGO_SPEED_MPS = 12.5
+"""Ego speed of the synthetic odometry topic, m/s."""
 
 
 def textured_frames(folder: Path, n: int = N) -> Path:
@@ -60,7 +62,7 @@ def imu_quaternion(t_s: float) -> tuple[float, float, float, float]:
 
 def write_frames_log(folder: Path, path: Path, fmt: LogFormat, enc: ImageEncoding) -> Path:
     frames = [
-        LogFrame(f.index * 100_000_000, f.image, imu_quaternion(f.index / 10))
+        LogFrame(f.index * 100_000_000, f.image, imu_quaternion(f.index / 10), EGO_SPEED_MPS)
         for f in ImageFolderSource(folder)
         if f.image is not None
     ]
@@ -130,6 +132,8 @@ def test_imu_topic_is_the_rotation_source_and_exports_read_back(
             LogTopics().image,
             "--rotation-topic",
             LogTopics().imu,
+            "--speed-topic",
+            LogTopics().odometry,
             "--boxes",
             str(boxes),
             "--method",
@@ -165,6 +169,10 @@ def test_imu_topic_is_the_rotation_source_and_exports_read_back(
     assert (out / "overlay.mp4").stat().st_size > 1000
     tracks = read_csv(out / "tracks.csv")
     assert [(r["track_id"], r["frames"]) for r in tracks] == [("1", str(N)), ("2", str(N))]
+    # headway time = distance / ego speed, averaged over the track's frames
+    for track in tracks:
+        z = [float(r["distance_m"]) for r in records if r["track_id"] == track["track_id"]]
+        assert float(track["mean_headway_s"]) == pytest.approx(np.mean(z) / EGO_SPEED_MPS, rel=1e-5)
 
 
 def test_log_needs_an_image_topic_and_folders_a_calib(

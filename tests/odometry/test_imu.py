@@ -67,3 +67,15 @@ def test_source_interpolates_between_samples_and_reports_outside() -> None:
     assert source.process(grey, 1.0 - MAX_EXTRAPOLATION_S / 2).state is OdometryState.OK
     assert source.process(grey, 0.5).state is OdometryState.NOT_INITIALISED
     assert source.process(grey, 2.5).state is OdometryState.LOST
+
+
+def test_speed_track_interpolates_and_is_nan_outside() -> None:
+    from slopedist.odometry.imu import SpeedTrack
+
+    speed = SpeedTrack([0.0, 1.0, 1.0, 2.0], [10.0, 12.0, 99.0, 8.0])
+    assert speed(0.5) == pytest.approx(11.0)
+    assert speed(1.5) == pytest.approx(10.0)  # the repeated time's sample is dropped
+    assert speed(2.0 + MAX_EXTRAPOLATION_S / 2) == 8.0
+    assert math.isnan(speed(3.0)) and math.isnan(speed(-1.0))
+    with pytest.raises(DataMismatchError):
+        SpeedTrack([], [])

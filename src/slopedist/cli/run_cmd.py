@@ -41,7 +41,7 @@ from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource
 from slopedist.io.intrinsics import RectifiedDetector
-from slopedist.io.sources import log_calibration, log_rotation_source, open_source
+from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.runner import (
@@ -217,6 +217,12 @@ def check_runnable(
     "replaces the visual odometry (body x forward, y left, z up; see docs/viewers.md).",
 )
 @click.option(
+    "--speed-topic",
+    default=None,
+    help="Drive log: a nav_msgs/Odometry or TwistStamped topic giving the ego speed, for the "
+    "headway time in OUT/tracks.csv.",
+)
+@click.option(
     "--export",
     "exports",
     type=click.Choice([e.value for e in RunExport]),
@@ -350,6 +356,7 @@ def run(
     calib: Path | None,
     image_topic: str | None,
     rotation_topic: str | None,
+    speed_topic: str | None,
     exports: tuple[str, ...],
     boxes_path: Path | None,
     detector_model: Path | None,
@@ -437,6 +444,7 @@ def run(
         mcap=out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None,
         trajectory=out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None,
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
+        ego_speed=log_speed(source, speed_topic) if speed_topic else None,
     )
     result = run_frames(source, boxes, backend, estimator, config, depth, detector)
     click.echo(summary_text(result, out_dir), err=True)

@@ -541,3 +541,35 @@ def read_orientations(
     if not stamps:
         raise InputFileError(path, "no messages", field=topic)
     return np.asarray(stamps, dtype=np.int64), np.asarray(quats, dtype=float)
+
+
+SPEED_TYPES = (ODOMETRY_TYPE, "geometry_msgs/msg/TwistStamped")
+
+
+def read_speeds(path: str | Path, topic: str) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and ego speeds (m/s, ``(N,)``: the norm of the linear
+    velocity) of a ``nav_msgs/Odometry`` or ``geometry_msgs/TwistStamped`` topic.
+
+    Raises:
+        ConfigurationError: no such topic or another type.
+        InputFileError: no messages, or a message without a usable velocity.
+    """
+    path = Path(path)
+    stamps: list[int] = []
+    speeds: list[float] = []
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, SPEED_TYPES, path)
+        for conn, _, raw in iter_messages(reader, conns, path):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
+            try:
+                twist = msg.twist.twist if hasattr(msg.twist, "twist") else msg.twist
+                v = twist.linear
+                stamps.append(stamp_ns(msg))
+                speeds.append(float(np.linalg.norm([v.x, v.y, v.z])))
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise InputFileError(
+                    path, f"message {len(stamps)} has no usable velocity: {exc}", field=topic
+                ) from None
+    if not stamps:
+        raise InputFileError(path, "no messages", field=topic)
+    return np.asarray(stamps, dtype=np.int64), np.asarray(speeds, dtype=float)

@@ -2,7 +2,8 @@
 
 For tests, benchmarks and for turning an image folder into a log that other ROS tools read:
 images as ``sensor_msgs/Image`` (``bgr8``) or ``sensor_msgs/CompressedImage`` (JPEG), a
-``sensor_msgs/CameraInfo`` per frame and optionally a ``sensor_msgs/Imu`` orientation per frame.
+``sensor_msgs/CameraInfo`` per frame and optionally a ``sensor_msgs/Imu`` orientation and a
+``nav_msgs/Odometry`` speed per frame.
 Header stamps are ``start_ns`` plus the frame's time; the log time of a message is its stamp.
 
 Convention: images BGR ``H×W×3`` uint8; orientations body-to-world quaternions x y z w in the
@@ -52,11 +53,13 @@ JPEG_QUALITY = 95
 
 @dataclass(frozen=True)
 class LogFrame:
-    """One frame to write: time after the start (ns), BGR image, optional orientation."""
+    """One frame to write: time after the start (ns), BGR image, optional orientation (an IMU
+    message) and ego speed (m/s, forward; a ``nav_msgs/Odometry`` message)."""
 
     t_ns: int
     image: NDArray[np.uint8]
     orientation_xyzw: tuple[float, float, float, float] | None = None
+    speed_mps: float | None = None
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,7 @@ class LogTopics:
     image: str = "/camera/image_raw"
     camera_info: str = "/camera/camera_info"
     imu: str = "/imu/data"
+    odometry: str = "/odom"
 
 
 class _Messages:
@@ -146,6 +150,24 @@ class _Messages:
             linear_acceleration_covariance=np.full(9, -1.0),
         )
 
+    def odometry(self, header: Any, speed_mps: float) -> Any:
+        V = self.T["geometry_msgs/msg/Vector3"]
+        pose = self.T["geometry_msgs/msg/Pose"](
+            position=self.T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+            orientation=self.T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        )
+        twist = self.T["geometry_msgs/msg/Twist"](
+            linear=V(x=speed_mps, y=0.0, z=0.0), angular=V(x=0.0, y=0.0, z=0.0)
+        )
+        return self.T["nav_msgs/msg/Odometry"](
+            header=header,
+            child_frame_id="base_link",
+            pose=self.T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+            twist=self.T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=twist, covariance=np.zeros(36)
+            ),
+        )
+
     def serialize(self, msg: Any) -> bytes:
         if self.ros1:
             return bytes(self.store.serialize_ros1(msg, msg.__msgtype__))
@@ -201,4 +223,7 @@ def write_log(
             put(topics.camera_info, msgs.camera_info(header, camera, w, h), t)
             if frame.orientation_xyzw is not None:
                 put(topics.imu, msgs.imu(msgs.header(t, seq, "imu"), frame.orientation_xyzw), t)
+            if frame.speed_mps is not None:
+                header = msgs.header(t, seq, "odom")
+                put(topics.odometry, msgs.odometry(header, frame.speed_mps), t)
     return path

@@ -3,8 +3,8 @@
 - Drive log (:func:`slopedist.io.rosbag.is_log_path`: ``.bag``, ``.mcap``, ``.db3`` or a ROS 2
   bag folder): one image topic, header stamps as frame times
   (:class:`~slopedist.io.rosbag.LogFrameSource`); its ``camera_info`` can be the calibration
-  (:func:`log_calibration`) and an IMU / odometry / pose topic the rotation source
-  (:func:`log_rotation_source`).
+  (:func:`log_calibration`), an IMU / odometry / pose topic the rotation source
+  (:func:`log_rotation_source`) and an odometry / twist topic the ego speed (:func:`log_speed`).
 - Video file: presentation timestamps with PyAV, OpenCV's nominal rate without it or with a
   forced ``fps`` (:func:`slopedist.io.video.open_video`).
 - Image folder: :func:`~slopedist.io.frames.open_frames`.
@@ -24,9 +24,10 @@ from slopedist.io.rosbag import (
     is_log_path,
     read_camera_info,
     read_orientations,
+    read_speeds,
 )
 from slopedist.io.video import open_video
-from slopedist.odometry.imu import TrackRotationSource, camera_rotations
+from slopedist.odometry.imu import SpeedTrack, TrackRotationSource, camera_rotations
 
 
 def open_source(
@@ -108,3 +109,15 @@ def log_rotation_source(source: FrameSource, topic: str) -> TrackRotationSource:
     stamps_ns, quats = read_orientations(source.path, topic)
     times_s = [source.seconds(int(t)) for t in stamps_ns]
     return TrackRotationSource(camera_rotations(times_s, quats), f"{source.path}: {topic}")
+
+
+def log_speed(source: FrameSource, topic: str) -> SpeedTrack:
+    """Ego speed (m/s) from a velocity topic of the same drive log, on the frames' time axis.
+
+    Raises:
+        ConfigurationError: ``source`` is not a drive log.
+    """
+    if not isinstance(source, LogFrameSource):
+        raise ConfigurationError(f"--speed-topic needs a drive log, not {source.path}")
+    stamps_ns, speeds = read_speeds(source.path, topic)
+    return SpeedTrack([source.seconds(int(t)) for t in stamps_ns], speeds)

@@ -1,4 +1,5 @@
-"""Camera rotations from a logged orientation (IMU, odometry or pose topic), fed like odometry.
+"""Camera rotations from a logged orientation (IMU, odometry or pose topic), fed like odometry;
+and the ego speed from a logged velocity (:class:`SpeedTrack`).
 
 Extrinsic convention (documented default, KITTI's): the body (IMU / ``base_link``) frame is
 x forward, y left, z up; the camera frame is x right, y down, z forward. A body orientation
@@ -104,3 +105,30 @@ class TrackRotationSource:
 
     def reset(self) -> None:
         """Nothing to reset (the track is fixed)."""
+
+
+class SpeedTrack:
+    """Ego speed over time (m/s), linearly interpolated at a frame's time (seconds); NaN more
+    than :data:`MAX_EXTRAPOLATION_S` outside the samples.
+
+    Args:
+        timestamps_s: ``(N,)`` sample times, seconds, on the frames' time axis (increasing;
+            repeated times are dropped).
+        speeds_mps: ``(N,)`` speeds, m/s.
+    """
+
+    def __init__(self, timestamps_s: ArrayLike, speeds_mps: ArrayLike) -> None:
+        t = np.asarray(timestamps_s, dtype=float).reshape(-1)
+        v = np.asarray(speeds_mps, dtype=float).reshape(-1)
+        if t.size == 0 or t.shape != v.shape:
+            raise DataMismatchError(
+                f"need as many speeds as times (≥ 1), got {v.size} and {t.size}"
+            )
+        keep = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
+        self.t, self.v = t[keep], v[keep]
+
+    def __call__(self, timestamp_s: float) -> float:
+        """Speed at ``timestamp_s`` seconds, m/s (NaN outside the samples)."""
+        if not self.t[0] - MAX_EXTRAPOLATION_S <= timestamp_s <= self.t[-1] + MAX_EXTRAPOLATION_S:
+            return float("nan")
+        return float(np.interp(timestamp_s, self.t, self.v))
