@@ -60,13 +60,12 @@ from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
-from slopedist.tracks import TrackSummaries
+from slopedist.tracks import TRACKS_NAME, TrackSummaries
 from slopedist.viz import draw_fig3_overlay, lead_index
 
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
-TRACKS_NAME = "tracks.csv"
 MCAP_NAME = "run.mcap"
 TRAJECTORY_NAME = "trajectory.tum"
 

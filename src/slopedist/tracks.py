@@ -28,6 +28,9 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.estimators.base import FrameEstimates
 from slopedist.io.tables import write_csv
 
+TRACKS_NAME = "tracks.csv"
+"""File name of the summary in a run's output folder."""
+
 TTC_THRESHOLD_S = 2.0
 """Default time-to-collision below which a track has an event, seconds."""
 
