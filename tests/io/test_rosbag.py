@@ -335,3 +335,28 @@ def test_damaged_logs_give_clean_errors_or_unreadable_frames(
                 assert str(target) in str(exc)
                 outcomes["clean"] += 1
     assert outcomes["clean"] > 12 and outcomes["ok"] > 12
+
+
+def test_imu_without_orientation_is_refused(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    V = T["geometry_msgs/msg/Vector3"]
+    msg = T["sensor_msgs/msg/Imu"](
+        header=T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="imu"
+        ),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=np.array([-1.0, *[0.0] * 8]),
+        angular_velocity=V(x=0.0, y=0.0, z=0.0),
+        angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=V(x=0.0, y=0.0, z=9.81),
+        linear_acceleration_covariance=np.zeros(9),
+    )
+    with Writer(tmp_path / "imu", version=9) as writer:
+        conn = writer.add_connection("/imu", msg.__msgtype__, typestore=store)
+        writer.write(conn, 1_000_000_000, store.serialize_cdr(msg, msg.__msgtype__))
+    with pytest.raises(InputFileError, match=r"field '/imu'.*no orientation"):
+        read_orientations(tmp_path / "imu", "/imu")

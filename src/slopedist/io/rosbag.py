@@ -24,7 +24,7 @@ from __future__ import annotations
 import sqlite3
 import statistics
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -500,11 +500,45 @@ POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovari
 ORIENTATION_TYPES = (IMU_TYPE, ODOMETRY_TYPE, *POSE_TYPES)
 
 
-def _orientation(msg: Any) -> Any:
+def _orientation(msg: Any) -> list[float]:
+    """x y z w of an Imu, Odometry or pose message (an IMU without orientation is refused)."""
+    cov = getattr(msg, "orientation_covariance", None)
+    if cov is not None and float(cov[0]) == -1.0:
+        raise ValueError("the IMU reports no orientation (covariance[0] = -1)")
     if hasattr(msg, "orientation"):  # Imu
-        return msg.orientation
-    pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose  # Odometry, PoseStamped
-    return pose.orientation
+        q = msg.orientation
+    else:  # Odometry, PoseWithCovarianceStamped, PoseStamped
+        q = (msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose).orientation
+    return [float(q.x), float(q.y), float(q.z), float(q.w)]
+
+
+def _speed(msg: Any) -> list[float]:
+    """The norm of the linear velocity of an Odometry or TwistStamped message, m/s."""
+    twist = msg.twist.twist if hasattr(msg.twist, "twist") else msg.twist
+    v = twist.linear
+    return [float(np.linalg.norm([v.x, v.y, v.z]))]
+
+
+def _read_series(
+    path: str | Path, topic: str, types: tuple[str, ...], values: Callable[[Any], list[float]]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and ``values(message)`` (``(N, M)``) of every message of
+    ``topic``, which must carry one of ``types``."""
+    path = Path(path)
+    stamps: list[int] = []
+    rows: list[list[float]] = []
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, types, path)
+        for conn, _, raw in iter_messages(reader, conns, path):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
+            try:
+                rows.append(values(msg))
+                stamps.append(stamp_ns(msg))
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise InputFileError(path, f"message {len(stamps)}: {exc}", field=topic) from None
+    if not stamps:
+        raise InputFileError(path, "no messages", field=topic)
+    return np.asarray(stamps, dtype=np.int64), np.asarray(rows, dtype=float)
 
 
 def read_orientations(
@@ -515,32 +549,10 @@ def read_orientations(
 
     Raises:
         ConfigurationError: no such topic or another type.
-        InputFileError: no messages, or an IMU that reports no orientation (covariance[0] = −1,
-            the ``sensor_msgs/Imu`` convention).
+        InputFileError: no messages, or a message without an orientation (an IMU that reports
+            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention).
     """
-    path = Path(path)
-    stamps: list[int] = []
-    quats: list[tuple[float, float, float, float]] = []
-    with open_log(path) as reader:
-        conns = connections_of(reader, topic, ORIENTATION_TYPES, path)
-        for conn, _, raw in iter_messages(reader, conns, path):
-            msg = deserialize(reader, raw, conn.msgtype, path, topic)
-            cov = getattr(msg, "orientation_covariance", None)
-            if cov is not None and float(cov[0]) == -1.0:
-                raise InputFileError(
-                    path, "the IMU reports no orientation (covariance[0] = -1)", field=topic
-                )
-            try:
-                q = _orientation(msg)
-                stamps.append(stamp_ns(msg))
-                quats.append((float(q.x), float(q.y), float(q.z), float(q.w)))
-            except (AttributeError, TypeError, ValueError) as exc:
-                raise InputFileError(
-                    path, f"message {len(stamps)} has no usable orientation: {exc}", field=topic
-                ) from None
-    if not stamps:
-        raise InputFileError(path, "no messages", field=topic)
-    return np.asarray(stamps, dtype=np.int64), np.asarray(quats, dtype=float)
+    return _read_series(path, topic, ORIENTATION_TYPES, _orientation)
 
 
 SPEED_TYPES = (ODOMETRY_TYPE, "geometry_msgs/msg/TwistStamped")
@@ -554,22 +566,5 @@ def read_speeds(path: str | Path, topic: str) -> tuple[NDArray[np.int64], NDArra
         ConfigurationError: no such topic or another type.
         InputFileError: no messages, or a message without a usable velocity.
     """
-    path = Path(path)
-    stamps: list[int] = []
-    speeds: list[float] = []
-    with open_log(path) as reader:
-        conns = connections_of(reader, topic, SPEED_TYPES, path)
-        for conn, _, raw in iter_messages(reader, conns, path):
-            msg = deserialize(reader, raw, conn.msgtype, path, topic)
-            try:
-                twist = msg.twist.twist if hasattr(msg.twist, "twist") else msg.twist
-                v = twist.linear
-                stamps.append(stamp_ns(msg))
-                speeds.append(float(np.linalg.norm([v.x, v.y, v.z])))
-            except (AttributeError, TypeError, ValueError) as exc:
-                raise InputFileError(
-                    path, f"message {len(stamps)} has no usable velocity: {exc}", field=topic
-                ) from None
-    if not stamps:
-        raise InputFileError(path, "no messages", field=topic)
-    return np.asarray(stamps, dtype=np.int64), np.asarray(speeds, dtype=float)
+    stamps, speeds = _read_series(path, topic, SPEED_TYPES, _speed)
+    return stamps, speeds[:, 0]
