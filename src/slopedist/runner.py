@@ -40,10 +40,10 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from slopedist.depth.base import DepthSource
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
-from slopedist.estimators.base import Estimator, FrameEstimates
+from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
 from slopedist.io.tables import CsvStreamWriter, write_json
@@ -131,7 +131,9 @@ class RunResult:
         sequence: the sequence the frames belong to (Table 1 row of ``slopedist report``).
         frames: frames seen; ``frame_status``: count per :class:`~slopedist.io.frames.FrameStatus`.
         odometry_states: count per odometry state (frames with pixels only).
-        records: per-target rows written; ``estimated``: rows with a distance.
+        records: per-target rows written; ``estimated``: rows with status ``ok``;
+            ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
+            of the image); ``not_vehicles``: rows of classes that are not vehicles.
         boxes_without_frame: boxes whose frame index never came from the frame source.
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
@@ -151,6 +153,8 @@ class RunResult:
     odometry_states: dict[str, int] = field(default_factory=dict)
     records: int = 0
     estimated: int = 0
+    upper_bounds: int = 0
+    not_vehicles: int = 0
     boxes_without_frame: int = 0
     elapsed_s: float = 0.0
     frames_per_s: float = 0.0
@@ -201,6 +205,8 @@ class RunConfig:
         progress: show a progress bar on stderr.
         sequence: sequence name written to ``run.json`` (None:
             :func:`default_sequence_name` of the frames).
+        vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
+            ``not_a_vehicle``).
     """
 
     out_dir: Path
@@ -209,6 +215,7 @@ class RunConfig:
     overlay_fps: float = 10.0
     progress: bool = True
     sequence: str | None = None
+    vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
 
 
 def run_frames(
@@ -228,7 +235,9 @@ def run_frames(
         odometry: rotation source fed every readable frame, or None (no rotations: for methods
             that do not use them, e.g. ``flat`` and ``depthmap``).
         estimator: distance method; its camera is the frames' calibration (checked against the
-            frame size first).
+            frame size first); a camera that knows the image size
+            (:meth:`~slopedist.camera.Camera.with_image_size`, as ``slopedist run`` sets it)
+            flags boxes cut by the image border and boxes outside it.
         config: output folder and options.
         depth: depth maps for a method that ``needs_depth`` (asked for every readable frame
             with boxes; a frame without a map gives its targets the reason ``no_depth``).
@@ -296,7 +305,7 @@ class _RunLoop:
         self.odometry, self.depth, self.config, self.result = odometry, depth, config, result
         self.camera = estimator.camera
         self.method = estimator.name
-        self.step = FrameStep(estimator, config.lookback_s)
+        self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
         self.by_frame = boxes.frame_index()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
@@ -413,9 +422,11 @@ class _RunLoop:
             for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
                 row[CSV_TRUTH_COLUMN] = float(g)
         self.records.write_rows(rows)
-        n_est = int(np.sum(est.reason == ""))
+        n_est = int(np.sum(est.status == EstimateStatus.OK.value))
         self.result.records += len(rows)
         self.result.estimated += n_est
+        self.result.upper_bounds += int(np.sum(est.status == EstimateStatus.UPPER_BOUND.value))
+        self.result.not_vehicles += int(np.sum(est.reason == MissingReason.NOT_A_VEHICLE.value))
         return n_est
 
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:

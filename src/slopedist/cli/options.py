@@ -13,6 +13,7 @@ import click
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
@@ -282,3 +283,37 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
         return command
 
     return decorate
+
+
+def parse_size(value: str, param_hint: str = "--image-size") -> tuple[int, int]:
+    """``"640x192"`` → ``(640, 192)`` (width, height in pixels; at most 100000 each)."""
+    w, sep, h = value.lower().replace("×", "x").partition("x")
+    w, h = w.strip(), h.strip()
+    if not (sep and w.isdigit() and h.isdigit() and len(w) <= 6 and len(h) <= 6):
+        ok = False
+    else:
+        ok = 0 < int(w) <= 100_000 and 0 < int(h) <= 100_000
+    if not ok:
+        raise click.BadParameter(
+            f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 1242x375", param_hint=param_hint
+        )
+    return int(w), int(h)
+
+
+def _vehicle_classes(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
+    names = split_list(value)
+    if not names:
+        raise click.BadParameter("give at least one class name", param_hint="--vehicle-classes")
+    return tuple(names)
+
+
+vehicle_classes_option = click.option(
+    "--vehicle-classes",
+    "vehicle_classes",
+    default=",".join(DEFAULT_VEHICLE_CLASSES),
+    show_default=True,
+    callback=_vehicle_classes,
+    help="Comma-separated class names scored as vehicles (case-insensitive); boxes of other "
+    "classes (Pedestrian, Cyclist, Tram, Misc, DontCare, ...) keep a row with status missing, "
+    "reason not_a_vehicle.",
+)

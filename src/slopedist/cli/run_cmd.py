@@ -20,7 +20,9 @@ from slopedist.cli.options import (
     height_option,
     lookback_option,
     mount_option,
+    parse_size,
     parse_triple,
+    vehicle_classes_option,
 )
 from slopedist.depth import (
     DepthOutputKind,
@@ -57,22 +59,6 @@ def build_odometry(
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
     return make_odometry(name, camera, lookback_s=lookback_s)
-
-
-def parse_size(value: str) -> tuple[int, int]:
-    """``"640x192"`` → ``(640, 192)`` (width, height in pixels)."""
-    w, sep, h = value.lower().replace("×", "x").partition("x")
-    if (
-        not sep
-        or not w.strip().isdigit()
-        or not h.strip().isdigit()
-        or not (int(w) > 0 and int(h) > 0)
-    ):
-        raise click.BadParameter(
-            f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
-            param_hint="--depth-input-size",
-        )
-    return int(w), int(h)
 
 
 @dataclass(frozen=True)
@@ -124,7 +110,7 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
             "--depth-model needs the network's input size: "
             "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)"
         )
-    in_w, in_h = parse_size(opts.input_size)
+    in_w, in_h = parse_size(opts.input_size, "--depth-input-size")
     config = OnnxDepthConfig(
         opts.model,
         in_w,
@@ -290,6 +276,7 @@ def check_runnable(
     help="onnxruntime threads [default: its own].",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@vehicle_classes_option
 @height_option
 @mount_option
 @lookback_option
@@ -318,6 +305,7 @@ def run(
     depth_bgr: bool,
     depth_threads: int | None,
     quiet: bool,
+    vehicle_classes: tuple[str, ...],
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
@@ -333,6 +321,7 @@ def run(
     check_methods([method])
     camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
     source = open_frames(frames, fps, timestamps)
+    camera = camera.with_image_size(*source.frame_size())  # the border test of every box
     boxes = read_box_file(boxes_path, score)
     estimator = build_estimator(estimator_config.with_method(method), camera)
     depth_opts = DepthOptions(
@@ -355,7 +344,9 @@ def run(
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    config = RunConfig(out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence)
+    config = RunConfig(
+        out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes
+    )
     result = run_frames(source, boxes, backend, estimator, config, depth)
     click.echo(summary_text(result, out_dir), err=True)
 
@@ -365,8 +356,8 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
     states = ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items())) or "none"
     status = ", ".join(f"{k} {v}" for k, v in sorted(result.frame_status.items()))
     lines = [
-        f"wrote {result.records} records ({result.estimated} with a distance, method "
-        f"{result.method}) to {out_dir / RECORDS_NAME}",
+        f"wrote {result.records} records ({result.estimated} ok, {result.upper_bounds} upper "
+        f"bounds, method {result.method}) to {out_dir / RECORDS_NAME}",
         f"frames: {result.frames} ({status}); odometry: {states}; per-frame log "
         f"{out_dir / FRAMES_NAME}",
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
@@ -388,6 +379,11 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
             else "no ground truth in the boxes (add a gt_distance_m column to score the run)"
         )
     )
+    if result.not_vehicles:
+        lines.append(
+            f"{result.not_vehicles} boxes are not of a vehicle class (missing, reason "
+            "not_a_vehicle; see --vehicle-classes)"
+        )
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "

@@ -200,7 +200,7 @@ class DepthMapEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = len(boxes)
-        reasons = unusable_box_reasons(frame, False)
+        reasons = unusable_box_reasons(frame, False, self.camera)
         raw = np.full(n, np.nan)
         if frame.depth_m is not None:
             cam = self.camera
