@@ -23,6 +23,16 @@ Outputs under the output folder:
   on one sequence.
 - optionally an overlay (PNG folder or MP4, :func:`slopedist.viz.draw_fig3_overlay`).
 
+Crash safety: the files are written under temporary names (``records.partial.csv``,
+``frames.partial.csv``, ``overlay.partial.mp4`` / ``overlay.partial/``) and renamed when the run
+ends, so a previous run in the folder stays whole until the new one is finished: after a kill
+that leaves no chance to finish (SIGKILL, power loss) the previous run is intact and the
+``.partial`` files mark the new one as partial. The run also ends, writing ``run.json``, on an
+error, on a full disk (rows written before are whole; the message names the file and frame)
+and on a stop request (:func:`stop_on_signals`: SIGTERM/SIGINT stop it after the current frame).
+``run.json`` is written last, through a temporary name; the previous one is removed before the
+new files take their names, so it never describes other records.
+
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
 """
 
@@ -45,8 +55,15 @@ from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.outputs import (
+    OutputFiles,
+    OutputWriteError,
+    RunStoppedError,
+    StopFlag,
+    partial_path,
+)
 from slopedist.io.overlay import OverlayWriter
-from slopedist.io.tables import CsvStreamWriter, write_json
+from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
 from slopedist.viz import draw_fig3_overlay
@@ -54,7 +71,6 @@ from slopedist.viz import draw_fig3_overlay
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
-
 FRAME_FIELDS = (
     "frame",
     "timestamp_s",
@@ -142,7 +158,10 @@ class RunResult:
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
         overlay: overlay path, or None.
-        error: why the run stopped early, or None; ``failed_frame``: its frame index.
+        complete: whether every frame was processed.
+        last_complete_frame: index of the last frame whose rows are all written (None: none).
+        error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
+            (its rows are not written; None for a stop request, which ends between frames).
     """
 
     out_dir: str
@@ -165,6 +184,8 @@ class RunResult:
     frames_without_depth: int = 0
     ground_truth: bool = False
     overlay: str | None = None
+    complete: bool = False
+    last_complete_frame: int | None = None
     error: str | None = None
     failed_frame: int | None = None
 
@@ -207,6 +228,9 @@ class RunConfig:
             :func:`default_sequence_name` of the frames).
         vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
             ``not_a_vehicle``).
+        stop: checked after every frame; once its ``signum`` is set the run ends there
+            (:func:`stop_on_signals`), raising :class:`RunAbortedError` from
+            :class:`RunStoppedError`.
     """
 
     out_dir: Path
@@ -216,6 +240,7 @@ class RunConfig:
     progress: bool = True
     sequence: str | None = None
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    stop: StopFlag | None = None
 
 
 def run_frames(
@@ -319,10 +344,19 @@ class _RunLoop:
         }
         out = Path(config.out_dir)
         self.records_path = out / RECORDS_NAME
-        self.records = open_records(self.records_path)
-        self.frame_log = CsvStreamWriter.open(out / FRAMES_NAME, FRAME_FIELDS)
-        self.painter = OverlayWriter(config.overlay, config.overlay_fps) if config.overlay else None
+        self.files = OutputFiles(
+            out, (RECORDS_NAME, FRAMES_NAME), [config.overlay] if config.overlay else []
+        )
+        self.files.reserve(SUMMARY_NAME)
+        self.records = open_records(partial_path(self.records_path))
+        self.frame_log = CsvStreamWriter.open(partial_path(out / FRAMES_NAME), FRAME_FIELDS)
+        self.painter = (
+            OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            if config.overlay
+            else None
+        )
         self.bar: tqdm | None = None
+        self.summary_failed = ""
         self.start = time.perf_counter()
 
     def run(self, frames: FrameSource) -> RunResult:
@@ -338,7 +372,12 @@ class _RunLoop:
         try:
             for frame in frames:
                 self.process(frame)
+                self.result.last_complete_frame = frame.index
                 self.bar.update(1)
+                stop = self.config.stop
+                if stop is not None and stop.signum is not None:
+                    frame = None  # it is complete: the run ends between frames
+                    raise RunStoppedError(stop.signum)
         except (Exception, KeyboardInterrupt) as exc:
             self.result.error = f"{type(exc).__name__}: {exc}"
             self.result.failed_frame = frame.index if frame is not None else None
@@ -346,6 +385,7 @@ class _RunLoop:
             if isinstance(exc, (SlopedistError, OSError)):
                 raise self._aborted(exc, frame) from exc
             raise
+        self.result.complete = True
         self.finish()
         return self.result
 
@@ -365,24 +405,25 @@ class _RunLoop:
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
-        self.frame_log.write_row(
-            {
-                "frame": k,
-                "timestamp_s": frame.timestamp_s,
-                "source": frame.source,
-                "frame_status": frame.status.value,
-                "detail": frame.detail,
-                "odometry_state": odo.state,
-                "inliers": odo.inliers,
-                "segment": self.segment,
-                "theta_deg": math.degrees(res.theta_rad),
-                "boxes": len(frame_boxes),
-                "estimated": n_est,
-                "odometry_ms": odo.ms,
-                "estimation_ms": estimation_ms,
-                "depth_ms": depth_ms,
-            }
-        )
+        with self.files.writing(FRAMES_NAME):
+            self.frame_log.write_row(
+                {
+                    "frame": k,
+                    "timestamp_s": frame.timestamp_s,
+                    "source": frame.source,
+                    "frame_status": frame.status.value,
+                    "detail": frame.detail,
+                    "odometry_state": odo.state,
+                    "inliers": odo.inliers,
+                    "segment": self.segment,
+                    "theta_deg": math.degrees(res.theta_rad),
+                    "boxes": len(frame_boxes),
+                    "estimated": n_est,
+                    "odometry_ms": odo.ms,
+                    "estimation_ms": estimation_ms,
+                    "depth_ms": depth_ms,
+                }
+            )
         self._paint(frame, frame_boxes, res, odo.state)
         self.result.frames += 1
 
@@ -421,7 +462,8 @@ class _RunLoop:
         if self.result.ground_truth:
             for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
                 row[CSV_TRUTH_COLUMN] = float(g)
-        self.records.write_rows(rows)
+        with self.files.writing(RECORDS_NAME):
+            self.records.write_rows(rows)
         n_est = int(np.sum(est.status == EstimateStatus.OK.value))
         self.result.records += len(rows)
         self.result.estimated += n_est
@@ -460,18 +502,31 @@ class _RunLoop:
         )
         if self.bar is not None:
             self.bar.close()
-        close_records(self.records)
-        self.frame_log.close()
+        files = self.files
+        files.close(RECORDS_NAME, lambda: close_records(self.records))
+        files.close(FRAMES_NAME, self.frame_log.close)
         if self.painter is not None:
-            self.painter.close()
-        write_json(Path(self.config.out_dir) / SUMMARY_NAME, result)
+            files.close(self.painter.target.name, self.painter.close)
+        if files.failed and result.error is None:
+            result.error = files.failed
+        files.promote(SUMMARY_NAME)
+        try:
+            files.write_summary(SUMMARY_NAME, result)
+        except OSError as exc:
+            if result.error is None:
+                raise OutputWriteError(Path(self.config.out_dir) / SUMMARY_NAME, exc) from exc
+            self.summary_failed = f"; {SUMMARY_NAME} could not be written: {exc.strerror or exc}"
 
     def _aborted(self, exc: BaseException, frame: Frame | None) -> RunAbortedError:
-        where = f"frame {frame.index} ({frame.source})" if frame is not None else "the first frame"
+        last = self.result.last_complete_frame
+        if frame is not None:
+            where = f"frame {frame.index} ({frame.source})"
+        else:
+            where = "the first frame" if last is None else f"the end of frame {last}"
         return RunAbortedError(
             f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
             f"before it are in {self.records_path} (per-frame log "
-            f"{Path(self.config.out_dir) / FRAMES_NAME})",
+            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.summary_failed}",
             self.result.failed_frame,
             self.records_path,
         )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import click
@@ -16,6 +18,7 @@ from slopedist.cli.options import (
 )
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
 
 
@@ -48,6 +51,7 @@ def estimate(
 ) -> None:
     """Estimate per-target distances for one sequence, streaming frame by frame."""
     check_methods([method])
+    check_outputs_spare_inputs([out], [files.calib, files.poses, files.boxes])
     size = parse_size(image_size) if image_size is not None else None
     seq = read_sequence_files(files)
     camera = seq.camera.with_image_size(*size) if size is not None else seq.camera
@@ -58,7 +62,19 @@ def estimate(
     try:
         for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
             n += writer.write_rows(iter_records(frame_boxes, t, result.estimates, method))
-    finally:
         close_records(writer)
+    except BrokenPipeError:
+        if out is not None:
+            raise
+        quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
+        return
     if out:
         click.echo(f"wrote {n} records to {out}", err=True)
+
+
+def quiet_closed_stdout() -> None:
+    """Point standard output at the null device, so that nothing more (not even Python's own
+    flush at exit) fails on a pipe whose reader is gone."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)

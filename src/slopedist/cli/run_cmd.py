@@ -37,9 +37,24 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.frames import FrameSource, open_frames
+from slopedist.io.outputs import (
+    RunStoppedError,
+    StopFlag,
+    check_outputs_spare_inputs,
+    partial_path,
+    stop_on_signals,
+)
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
+from slopedist.runner import (
+    FRAMES_NAME,
+    RECORDS_NAME,
+    SUMMARY_NAME,
+    RunAbortedError,
+    RunConfig,
+    RunResult,
+    run_frames,
+)
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
@@ -316,6 +331,11 @@ def run(
     The camera rotation comes from visual odometry on the frames; records are written to
     OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
     gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
+
+    The files are written under temporary names (records.partial.csv, ...) and renamed at the
+    end, so a previous run in OUT stays whole until this one ends. SIGTERM or Ctrl-C stops the
+    run after the current frame: OUT/run.json then says how far it got (last_complete_frame,
+    error) and the exit code is 128 + the signal number.
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
@@ -344,10 +364,24 @@ def run(
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    config = RunConfig(
-        out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes
+    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME)]
+    check_outputs_spare_inputs(
+        [*outputs, *(partial_path(o) for o in outputs), overlay_path],
+        [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab],
+        out_dir,
     )
-    result = run_frames(source, boxes, backend, estimator, config, depth)
+    stop = StopFlag()
+    config = RunConfig(
+        out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes, stop
+    )
+    with stop_on_signals(stop):
+        try:
+            result = run_frames(source, boxes, backend, estimator, config, depth)
+        except RunAbortedError as exc:
+            if not isinstance(exc.__cause__, RunStoppedError):
+                raise
+            click.echo(f"slopedist: {exc}", err=True)
+            raise SystemExit(128 + exc.__cause__.signum) from None
     click.echo(summary_text(result, out_dir), err=True)
 
 
