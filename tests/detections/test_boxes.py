@@ -99,3 +99,30 @@ def test_vehicle_mask_is_case_insensitive_and_configurable() -> None:
     names = ["Car", " van", "TRUCK", "bus", "DontCare", "Misc", "Pedestrian", "Cyclist", "Tram"]
     assert list(vehicle_mask(names)) == [True] * 4 + [False] * 5
     assert list(vehicle_mask(names, ["tram"])) == [False] * 8 + [True]
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+COORD = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(-2000, 2000),
+    st.sampled_from([0.0, 1.0, 373.0, 374.0, 375.0, 1240.0, 1241.0, 1242.0, -0.5]),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(COORD, min_size=4, max_size=4), min_size=1, max_size=6))
+def test_a_usable_box_has_a_size_and_overlaps_the_image(boxes: list[list[float]]) -> None:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        reasons = box_problems(boxes, SIZE)
+        labels = cut_labels(border_cuts(boxes, SIZE))
+    b = np.asarray(boxes)
+    for r, (left, top, right, bottom), label in zip(reasons, b, labels):
+        assert isinstance(label, str)
+        if r == "":
+            assert right - left >= 1 and bottom - top >= 1
+            assert right > -0.5 and bottom > -0.5 and left < SIZE[0] - 0.5 and top < SIZE[1] - 0.5

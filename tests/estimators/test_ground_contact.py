@@ -139,3 +139,37 @@ def test_the_kitti_raw_lead_car_cut_by_the_bottom_reads_at_least_its_lidar_dista
         assert not (est.status[~cut] == "upper_bound").any()
         seen += int(cut.sum())
     assert seen >= 5
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.lists(
+            st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-500, 1800)),
+            min_size=4,
+            max_size=4,
+        ),
+        min_size=1,
+        max_size=5,
+    ),
+    st.sampled_from(["flat", "paper", "depthmap", "ours"]),
+)
+def test_ok_is_a_promise_for_any_box(boxes: list[list[float]], method: str) -> None:
+    """Whatever the boxes, an ``ok`` row has a finite positive distance and a usable box, and
+    an ``upper_bound`` row a box cut by the bottom."""
+    step = FrameStep(make_estimator(method, CAMERA))
+    table = BoxTable.build(np.zeros(len(boxes)), boxes)
+    depth = np.full((H, W), 12.0, dtype=np.float32)
+    est = step.estimate(0, 0.0, 0.0, np.eye(3), table, None, depth)
+    for i in range(len(boxes)):
+        if est.status[i] == "ok":
+            assert np.isfinite(est.distance_m[i]) and est.distance_m[i] > 0
+            assert est.reason[i] == ""
+        elif est.status[i] == "upper_bound":
+            assert "bottom" in est.cut[i] and est.distance_m[i] > 0
+        else:
+            assert est.status[i] == "missing" and est.reason[i] and np.isnan(est.distance_m[i])

@@ -30,6 +30,8 @@ _CUT_LABELS = np.array(
     ["+".join(e for i, e in enumerate(EDGES) if m & (1 << i)) for m in range(16)], dtype=object
 )
 
+_EDGE_BITS = np.array([1, 2, 4, 8])
+
 DEFAULT_VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus", "Motorcycle", "Motorbike")
 """Class names scored as vehicles (case-insensitive). KITTI's ``Pedestrian``,
 ``Person_sitting``, ``Cyclist``, ``Tram``, ``Misc`` and ``DontCare`` are not: the ground
@@ -46,22 +48,23 @@ def box_problems(
     whose pixels span ``[−0.5, width − 0.5] × [−0.5, height − 0.5]``)."""
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     reasons = np.full(b.shape[0], "", dtype=object)
-    finite = np.all(np.isfinite(b), axis=1)
-    with np.errstate(invalid="ignore", over="ignore"):
-        w, h = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
-        inverted = finite & ((w < 0) | (h < 0))
-        if image_size is None:
-            absurd = np.any(np.abs(b) > ABSURD_COORDINATE_PX, axis=1)
-            outside = np.zeros(b.shape[0], dtype=bool)
-        else:
-            size = np.array(image_size * 2, dtype=float)
-            low, high = -ABSURD_IMAGE_SIZES * size, (1 + ABSURD_IMAGE_SIZES) * size
-            absurd = np.any((b < low) | (b > high), axis=1)
-            edge = size - 0.5
-            outside = (b[:, 2] <= -0.5) | (b[:, 3] <= -0.5) | (b[:, 0] >= edge[0])
-            outside |= b[:, 1] >= edge[1]
-        degenerate = finite & ~inverted & ((w < MIN_BOX_SIZE_PX) | (h < MIN_BOX_SIZE_PX) | absurd)
-    reasons[finite & ~inverted & ~degenerate & outside] = "outside_image"
+    if image_size is None:
+        low, high = -ABSURD_COORDINATE_PX, ABSURD_COORDINATE_PX
+    else:
+        size = np.array(image_size * 2, dtype=float)
+        low, high = -ABSURD_IMAGE_SIZES * size, (1 + ABSURD_IMAGE_SIZES) * size
+    finite = np.isfinite(b).all(axis=1)
+    sane = finite & ~((b < low) | (b > high)).any(axis=1)  # comparisons with NaN are False
+    s = b if sane.all() else np.where(sane[:, None], b, 0.0)  # no overflow in differences
+    w, h = s[:, 2] - s[:, 0], s[:, 3] - s[:, 1]
+    inverted = sane & ((w < 0) | (h < 0))
+    degenerate = finite & ~inverted & ((w < MIN_BOX_SIZE_PX) | (h < MIN_BOX_SIZE_PX))
+    if image_size is not None:
+        edge = np.array(image_size, dtype=float) - 0.5
+        outside = (s[:, 2] <= -0.5) | (s[:, 3] <= -0.5) | (s[:, 0] >= edge[0])
+        reasons[(outside | (s[:, 1] >= edge[1])) & sane & ~inverted & ~degenerate] = (
+            "outside_image"
+        )
     reasons[degenerate] = "degenerate_box"
     reasons[inverted] = "inverted_box"
     reasons[~finite] = "non_finite_box"
@@ -81,23 +84,17 @@ def border_cuts(
     if image_size is None:
         return np.zeros(b.shape, dtype=bool)
     width, height = image_size
-    with np.errstate(invalid="ignore"):
-        return np.stack(
-            [
-                b[:, 0] <= tol_px,
-                b[:, 1] <= tol_px,
-                b[:, 2] >= width - 1 - tol_px,
-                b[:, 3] >= height - 1 - tol_px,
-            ],
-            axis=1,
-        )
+    cut = np.empty(b.shape, dtype=bool)
+    cut[:, :2] = b[:, :2] <= tol_px
+    cut[:, 2:] = b[:, 2:] >= np.array([width - 1 - tol_px, height - 1 - tol_px])
+    return cut
 
 
 def cut_labels(cuts: NDArray[np.bool_]) -> NDArray[np.object_]:
     """The ``cut`` column of :func:`border_cuts` flags: ``""`` or the cut edges in
     :data:`EDGES` order joined by ``+`` (``"bottom"``, ``"left+bottom"``)."""
     c = np.asarray(cuts, dtype=bool).reshape(-1, 4)
-    return np.asarray(_CUT_LABELS[c @ np.array([1, 2, 4, 8])], dtype=object)
+    return _CUT_LABELS[c.dot(_EDGE_BITS)]
 
 
 def vehicle_mask(
