@@ -145,6 +145,9 @@ def draw_fig3_overlay(
         if ok:
             lines = [f"{float(estimates.distance_m[i]):.1f} m", dy_text]
             colour = FIG3_TEXT
+        elif estimates.status[i] == "upper_bound":  # a bound, not a distance to trust
+            lines = [f"<= {float(estimates.distance_m[i]):.1f} m ({estimates.reason[i]})", dy_text]
+            colour = FIG3_MISSING
         else:
             lines = [f"missing: {estimates.reason[i]}", dy_text]
             colour = FIG3_MISSING
