@@ -209,3 +209,41 @@ def test_disk_full_names_the_file_and_frame_and_keeps_whole_rows(
         assert int(rows[-1]["frame"]) <= summary["failed_frame"]
     finally:
         subprocess.run(["umount", str(disk)], check=False)
+
+
+def test_run_knows_the_image_size_and_estimate_takes_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A box reaching the bottom row of the frames is an upper bound in ``run``; ``estimate``
+    does the same with ``--image-size`` and tests nothing without it."""
+    args = make_inputs(tmp_path, 3)
+    boxes = BoxTable.build(
+        [0, 0, 1, 2],
+        [[100, 120, 150, H - 1.0], [100, 110, 150, 150], [400, 10, 450, 50], [0, 120, 50, 180]],
+        classes=["Car", "Car", "Car", "Pedestrian"],
+    )
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    out = tmp_path / "out"
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]) == 0
+    rows = read_rows(out / "records.csv")
+    assert [(r["status"], r["reason"], r["cut"]) for r in rows] == [
+        ("upper_bound", "cut_bottom", "bottom"),
+        ("ok", "", ""),
+        ("missing", "outside_image", ""),
+        ("missing", "not_a_vehicle", "left"),
+    ]
+    assert float(rows[0]["distance_m"]) == pytest.approx(500 * 1.65 / (H - 1 - 100))
+    summary = json.loads((out / "run.json").read_text())
+    assert (summary["estimated"], summary["upper_bounds"], summary["not_vehicles"]) == (1, 1, 1)
+    capsys.readouterr()
+
+    est = _estimate_args(tmp_path)
+    (tmp_path / "b.csv").write_text("frame,left,top,right,bottom\n0,500,180,600,374\n")
+    assert main([*est, "--image-size", "1242x375"]) == 0
+    row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert (row["status"], row["cut"]) == ("upper_bound", "bottom")
+    assert main(est) == 0
+    row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert (row["status"], row["cut"]) == ("ok", "")
+    assert main([*est, "--image-size", "1242"]) == 2
+    assert "WIDTHxHEIGHT" in capsys.readouterr().err
