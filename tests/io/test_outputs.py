@@ -31,11 +31,14 @@ def test_a_failed_write_names_the_file_and_cuts_it_back_to_whole_rows(tmp_path: 
     with path.open("w") as fh, files.writing("t.csv"):
         fh.write("a,b\n1,2\n")
         fh.flush()  # as CsvStreamWriter does after every batch
-    with pytest.raises(OutputWriteError, match=r"t\.csv: No space left"):
-        with path.open("a") as fh, files.writing("t.csv"):
-            fh.write("3,")
-            fh.flush()
-            raise OSError(28, "No space left on device")
+    with (
+        pytest.raises(OutputWriteError, match=r"t\.csv: No space left"),
+        path.open("a") as fh,
+        files.writing("t.csv"),
+    ):
+        fh.write("3,")
+        fh.flush()
+        raise OSError(28, "No space left on device")
     assert path.read_text() == "a,b\n1,2\n"
     files.promote("s.json")
     files.write_summary("s.json", {"rows": 1})

@@ -61,10 +61,9 @@ def box_problems(
     degenerate = finite & ~inverted & ((w < MIN_BOX_SIZE_PX) | (h < MIN_BOX_SIZE_PX))
     if image_size is not None:
         edge = np.array(image_size, dtype=float) - 0.5
-        outside = (s[:, 2] <= -0.5) | (s[:, 3] <= -0.5) | (s[:, 0] >= edge[0])
-        reasons[(outside | (s[:, 1] >= edge[1])) & sane & ~inverted & ~degenerate] = (
-            "outside_image"
-        )
+        outside = (s[:, 2] <= -0.5) | (s[:, 3] <= -0.5)
+        outside |= (s[:, 0] >= edge[0]) | (s[:, 1] >= edge[1])
+        reasons[outside & sane & ~inverted & ~degenerate] = "outside_image"
     reasons[degenerate] = "degenerate_box"
     reasons[inverted] = "inverted_box"
     reasons[~finite] = "non_finite_box"
