@@ -49,7 +49,8 @@ def box_problems(
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     reasons = np.full(b.shape[0], "", dtype=object)
     if image_size is None:
-        low, high = -ABSURD_COORDINATE_PX, ABSURD_COORDINATE_PX
+        size = np.full(4, ABSURD_COORDINATE_PX)
+        low, high = -size, size
     else:
         size = np.array(image_size * 2, dtype=float)
         low, high = -ABSURD_IMAGE_SIZES * size, (1 + ABSURD_IMAGE_SIZES) * size
