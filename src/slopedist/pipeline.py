@@ -90,7 +90,9 @@ class FrameStep:
     them, exactly as in batch use, so that streaming equals batch) and settles the per-box
     states no method may overrule (:func:`~slopedist.estimators.base.settle_states`: the
     ``cut`` flag from the camera's image size, boxes outside the image or degenerate, classes
-    not in ``vehicle_classes``). Loops differ only in where frames come from and where the
+    not in ``vehicle_classes``, and for a method that does not handle border cuts itself
+    (:attr:`~slopedist.estimators.base.Estimator.handles_border_cuts`) a bottom cut makes an
+    ``ok`` row an ``upper_bound``). Loops differ only in where frames come from and where the
     results go.
 
     Example::
@@ -162,7 +164,13 @@ class FrameStep:
         est = self.estimator.estimate(
             FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
-        return settle_states(est, boxes, self.estimator.camera, self.vehicle_classes)
+        return settle_states(
+            est,
+            boxes,
+            self.estimator.camera,
+            self.vehicle_classes,
+            not self.estimator.handles_border_cuts,
+        )
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
         if self._last_timestamp is not None and timestamp_s <= self._last_timestamp:

@@ -96,10 +96,14 @@ def test_other_classes_are_missing_not_a_vehicle_for_every_method() -> None:
 
 
 def test_the_box_states_hold_for_ours_too() -> None:
-    """Whatever a method says, outside/degenerate boxes are missing and cut boxes flagged."""
-    est = settled("ours", [[1300, 200, 1400, 300], [500, 200, 500.2, 300], [0, 200, 300, 300]])
-    assert list(est.reason[:2]) == ["outside_image", "degenerate_box"]
-    assert list(est.status[:2]) == ["missing", "missing"] and est.cut[2] == "left"
+    """Whatever a method says, outside/degenerate boxes are missing and cut boxes flagged; a
+    method that does not handle border cuts itself (``ours`` for now) gets the cautious rule:
+    a bottom cut is an upper bound."""
+    boxes = [[1300, 200, 1400, 300], [500, 200, 500.2, 300], [0, 200, 300, 300]]
+    est = settled("ours", [*boxes, [560, 190, 680, 374.0]])
+    assert list(est.reason) == ["outside_image", "degenerate_box", "", "cut_bottom"]
+    assert list(est.status) == ["missing", "missing", "ok", "upper_bound"]
+    assert list(est.cut) == ["", "", "left", "bottom"] and est.distance_m[3] > 0
 
 
 def test_records_carry_status_and_cut_and_an_upper_bound_is_not_scored() -> None:

@@ -180,6 +180,10 @@ class Estimator:
     rotation_source: ClassVar[str | None] = None
     """Rotation source this method must be fed (e.g. ``"oxts"`` for the IMU baseline), or None
     for whichever source the caller uses; evaluations honour it per method."""
+    handles_border_cuts: ClassVar[bool] = False
+    """Whether the method states itself what it can say about a box cut by the image border.
+    When False, :func:`settle_states` applies the cautious rule: an ``ok`` box cut by the
+    bottom becomes an ``upper_bound`` (:func:`bottom_cut_is_upper_bound`)."""
 
     def __init__(self, camera: Camera) -> None:
         self.camera = camera
@@ -229,8 +233,10 @@ def settle_states(
     boxes: BoxTable,
     camera: Camera,
     vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
+    bottom_cut_bound: bool = False,
 ) -> FrameEstimates:
-    """The states no method may overrule, applied after any method (in place; returned).
+    """The states no method may overrule, applied after any method (returned; the method's
+    arrays are copied, not changed).
 
     - ``cut``: the image edges that cut each usable box (``camera``'s image size; none known,
       no flag);
@@ -239,6 +245,8 @@ def settle_states(
     - a box whose class is not in ``vehicle_classes`` is ``missing`` with reason
       ``not_a_vehicle`` (the row is kept, so every input box has one record; methods that
       track may still use it, e.g. as an occluder);
+    - with ``bottom_cut_bound`` (a method that does not handle border cuts itself), an
+      ``ok`` box cut by the bottom of the image becomes ``upper_bound``, reason ``cut_bottom``;
     - an ``ok`` or ``upper_bound`` row without a finite positive distance is ``missing``
       (``ok`` is a promise).
     """
@@ -254,6 +262,8 @@ def settle_states(
     est.distance_m[bad] = np.nan
     other = ~bad & ~vehicle_mask(boxes.cls, vehicle_classes)
     est.set_state(other, EstimateStatus.MISSING, MissingReason.NOT_A_VEHICLE)
+    if bottom_cut_bound:
+        bottom_cut_is_upper_bound(est, boxes.boxes, camera)
     d = est.distance_m
     with np.errstate(invalid="ignore"):
         unfounded = (est.status != EstimateStatus.MISSING.value) & ~(np.isfinite(d) & (d > 0))

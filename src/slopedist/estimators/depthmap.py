@@ -140,6 +140,7 @@ class DepthMapEstimator(Estimator):
     """
 
     name: ClassVar[str] = "depthmap"
+    handles_border_cuts: ClassVar[bool] = True
     needs_rotation: ClassVar[bool] = False
     needs_depth: ClassVar[bool] = True
 

@@ -74,6 +74,7 @@ class FlatGroundEstimator(Estimator):
     """
 
     name: ClassVar[str] = "flat"
+    handles_border_cuts: ClassVar[bool] = True
     needs_rotation: ClassVar[bool] = False
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
@@ -89,6 +90,7 @@ class EgoGradientEstimator(Estimator):
     """The paper's ablation "before updating": eq. 1 with v from the ego gradient θ (eq. 4–5)."""
 
     name: ClassVar[str] = "ego"
+    handles_border_cuts: ClassVar[bool] = True
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
@@ -102,6 +104,7 @@ class PaperEstimator(Estimator):
     """The paper's method: ego gradient plus the per-target adjustment of eq. 6–7."""
 
     name: ClassVar[str] = "paper"
+    handles_border_cuts: ClassVar[bool] = True
 
     def __init__(self, camera: Camera, adjustment: geo.GradientAdjustment | None = None) -> None:
         super().__init__(camera)
