@@ -24,6 +24,11 @@ def test_concat_of_nothing_is_empty() -> None:
     assert len(concat_boxes([])) == 0
 
 
+def test_empty_table_has_no_frames() -> None:
+    empty = BoxTable.empty()
+    assert list(empty.by_frame()) == [] and empty.frame_index() == {}
+
+
 # --- box checks against the image (hand-computed, 1242 × 375 image) ---------------------------
 
 from slopedist.detections.boxes import (  # noqa: E402

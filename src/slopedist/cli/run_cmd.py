@@ -8,17 +8,21 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import click
 
 from slopedist.camera import Camera
 from slopedist.cli.options import (
     check_methods,
+    detector_options,
     estimator_options,
     height_option,
     lookback_option,
+    make_detector,
     mount_option,
     parse_size,
     parse_triple,
@@ -32,11 +36,14 @@ from slopedist.depth import (
     OnnxDepthSource,
 )
 from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
+from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource, open_frames
+from slopedist.io.intrinsics import RectifiedDetector
 from slopedist.io.outputs import (
     RunStoppedError,
     StopFlag,
@@ -120,12 +127,13 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
         return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
     if opts.model is None:
         return None
-    if opts.input_size is None:
+    size = parse_size(opts.input_size, "--depth-input-size WIDTHxHEIGHT in pixels, e.g. 640x192")
+    if size is None:
         raise ConfigurationError(
             "--depth-model needs the network's input size: "
             "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)"
         )
-    in_w, in_h = parse_size(opts.input_size, "--depth-input-size")
+    in_w, in_h = size
     config = OnnxDepthConfig(
         opts.model,
         in_w,
@@ -180,14 +188,22 @@ def check_runnable(
     "--calib",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
-    help="KITTI calib file of the frames' camera (P2; P0 for odometry calib.txt).",
+    help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
+    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md).",
 )
 @click.option(
     "--boxes",
     "boxes_path",
-    required=True,
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Boxes per frame: slopedist CSV, KITTI labels or PointRCNN file.",
+    help="Boxes per frame: slopedist CSV, KITTI labels, PointRCNN, MOTChallenge or COCO JSON "
+    "file (or --detector).",
+)
+@click.option(
+    "--detector",
+    "detector_model",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="ONNX detector run on every frame instead of --boxes (needs onnxruntime: pip install "
+    "'slopedist[onnx]'; docs/detectors.md); options --detector-*.",
 )
 @click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
 @click.option(
@@ -296,10 +312,12 @@ def check_runnable(
 @mount_option
 @lookback_option
 @estimator_options(depth=True)
+@detector_options("detector-")
 def run(
     frames: Path,
     calib: Path,
-    boxes_path: Path,
+    boxes_path: Path | None,
+    detector_model: Path | None,
     method: str | None,
     odometry: str,
     vocab: Path | None,
@@ -325,6 +343,7 @@ def run(
     mount_angle_deg: float,
     lookback_s: float,
     estimator_config: EstimatorConfig,
+    **detector_opts: Any,
 ) -> None:
     """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
 
@@ -339,10 +358,14 @@ def run(
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
-    camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
+    calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
+    camera = calibration.camera
     source = open_frames(frames, fps, timestamps)
     camera = camera.with_image_size(*source.frame_size())  # the border test of every box
-    boxes = read_box_file(boxes_path, score)
+    boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
+    boxes = calibration.intrinsics.rectify_table(boxes)
+    if detector is not None and not calibration.intrinsics.is_ideal:
+        detector = RectifiedDetector(detector, calibration.intrinsics)
     estimator = build_estimator(estimator_config.with_method(method), camera)
     depth_opts = DepthOptions(
         depth_dir,
@@ -367,22 +390,45 @@ def run(
     outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME)]
     check_outputs_spare_inputs(
         [*outputs, *(partial_path(o) for o in outputs), overlay_path],
-        [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab],
+        [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model],
         out_dir,
     )
     stop = StopFlag()
     config = RunConfig(
         out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes, stop
     )
+    result = run_until_stopped(
+        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), stop
+    )
+    click.echo(summary_text(result, out_dir), err=True)
+
+
+def boxes_or_detector(
+    boxes_path: Path | None,
+    score: float | None,
+    detector_model: Path | None,
+    detector_opts: dict[str, Any],
+) -> tuple[BoxTable, Detector | None]:
+    """The box file's boxes, or no boxes and the ONNX detector (exactly one must be given)."""
+    if boxes_path is not None and detector_model is None:
+        return read_box_file(boxes_path, score), None
+    if detector_model is not None and boxes_path is None:
+        return BoxTable.empty(), make_detector(detector_model, **detector_opts)
+    raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
+
+
+def run_until_stopped(start: Callable[[], RunResult], stop: StopFlag) -> RunResult:
+    """``start()`` (a :func:`~slopedist.runner.run_frames` call checking ``stop``) with
+    SIGTERM/SIGINT turned into a stop after the current frame; a stopped run exits with code
+    128 + the signal number."""
     with stop_on_signals(stop):
         try:
-            result = run_frames(source, boxes, backend, estimator, config, depth)
+            return start()
         except RunAbortedError as exc:
             if not isinstance(exc.__cause__, RunStoppedError):
                 raise
             click.echo(f"slopedist: {exc}", err=True)
             raise SystemExit(128 + exc.__cause__.signum) from None
-    click.echo(summary_text(result, out_dir), err=True)
 
 
 def summary_text(result: RunResult, out_dir: Path) -> str:
@@ -397,6 +443,8 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
         f"estimation {result.estimation_ms_mean:.2f} ms per frame",
     ]
+    if result.detector:
+        lines.append(f"detector ({result.detector}): {result.detection_ms_mean:.1f} ms per frame")
     if result.depth_source:
         lines.append(f"depth maps ({result.depth_source}): {result.depth_ms_mean:.1f} ms per map")
     if result.frames_without_depth:
