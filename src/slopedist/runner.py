@@ -238,7 +238,7 @@ class RunConfig:
         vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
             ``not_a_vehicle``).
         stop: checked after every frame; once its ``signum`` is set the run ends there
-            (:func:`stop_on_signals`), raising :class:`RunAbortedError` from
+            (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
             :class:`RunStoppedError`.
     """
 
@@ -249,7 +249,7 @@ class RunConfig:
     progress: bool = True
     sequence: str | None = None
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
-    stop: StopFlag | None = None
+    stop: StopFlag = field(default_factory=StopFlag)
 
 
 def run_frames(
@@ -394,10 +394,10 @@ class _RunLoop:
                 self.process(frame)
                 self.result.last_complete_frame = frame.index
                 self.bar.update(1)
-                stop = self.config.stop
-                if stop is not None and stop.signum is not None:
+                signum = self.config.stop.signum
+                if signum is not None:
                     frame = None  # it is complete: the run ends between frames
-                    raise RunStoppedError(stop.signum)
+                    raise RunStoppedError(signum)
         except (Exception, KeyboardInterrupt) as exc:
             self.result.error = f"{type(exc).__name__}: {exc}"
             self.result.failed_frame = frame.index if frame is not None else None

@@ -46,7 +46,6 @@ from slopedist.io.frames import FrameSource, open_frames
 from slopedist.io.intrinsics import RectifiedDetector
 from slopedist.io.outputs import (
     RunStoppedError,
-    StopFlag,
     check_outputs_spare_inputs,
     partial_path,
     stop_on_signals,
@@ -351,17 +350,14 @@ def run(
     OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
     gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
 
-    The files are written under temporary names (records.partial.csv, ...) and renamed at the
-    end, so a previous run in OUT stays whole until this one ends. SIGTERM or Ctrl-C stops the
-    run after the current frame: OUT/run.json then says how far it got (last_complete_frame,
-    error) and the exit code is 128 + the signal number.
+    Files are renamed from *.partial.* when the run ends; SIGTERM or Ctrl-C stops it after the
+    current frame (OUT/run.json says how far it got; exit code 128 + signal).
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
     calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
-    camera = calibration.camera
     source = open_frames(frames, fps, timestamps)
-    camera = camera.with_image_size(*source.frame_size())  # the border test of every box
+    camera = calibration.camera.with_image_size(*source.frame_size())  # for the border test
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes = calibration.intrinsics.rectify_table(boxes)
     if detector is not None and not calibration.intrinsics.is_ideal:
@@ -387,20 +383,23 @@ def run(
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME)]
-    check_outputs_spare_inputs(
-        [*outputs, *(partial_path(o) for o in outputs), overlay_path],
-        [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model],
-        out_dir,
-    )
-    stop = StopFlag()
+    inputs = [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model]
+    check_run_outputs(out_dir, overlay_path, inputs)
     config = RunConfig(
-        out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes, stop
+        out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence, vehicle_classes
     )
     result = run_until_stopped(
-        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), stop
+        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config
     )
     click.echo(summary_text(result, out_dir), err=True)
+
+
+def check_run_outputs(out_dir: Path, overlay: Path | None, inputs: list[Path | None]) -> None:
+    """Fail before anything is written if an output of the run (or its temporary name) is one
+    of its ``inputs``, or ``out_dir`` is."""
+    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME)]
+    outputs += [partial_path(o) for o in outputs]
+    check_outputs_spare_inputs([*outputs, overlay], inputs, out_dir)
 
 
 def boxes_or_detector(
@@ -417,11 +416,11 @@ def boxes_or_detector(
     raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
-def run_until_stopped(start: Callable[[], RunResult], stop: StopFlag) -> RunResult:
-    """``start()`` (a :func:`~slopedist.runner.run_frames` call checking ``stop``) with
-    SIGTERM/SIGINT turned into a stop after the current frame; a stopped run exits with code
-    128 + the signal number."""
-    with stop_on_signals(stop):
+def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
+    """``start()`` (a :func:`~slopedist.runner.run_frames` call with ``config``) with
+    SIGTERM/SIGINT turned into a stop after the current frame (:attr:`RunConfig.stop`); a
+    stopped run exits with code 128 + the signal number."""
+    with stop_on_signals(config.stop):
         try:
             return start()
         except RunAbortedError as exc:
