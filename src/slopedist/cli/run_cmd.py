@@ -357,7 +357,7 @@ def run(
     check_methods([method])
     calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
     source = open_frames(frames, fps, timestamps)
-    camera = calibration.camera.with_image_size(*source.frame_size())  # for the border test
+    camera = with_frame_size(calibration.camera, source)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes = calibration.intrinsics.rectify_table(boxes)
     if detector is not None and not calibration.intrinsics.is_ideal:
@@ -392,6 +392,14 @@ def run(
         lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config
     )
     click.echo(summary_text(result, out_dir), err=True)
+
+
+def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
+    """``camera`` knowing the image size for the border test of every box: the frames' size,
+    unless the calibration states its own (then the run checks that the two agree)."""
+    if camera.image_width is not None and camera.image_height is not None:
+        return camera
+    return camera.with_image_size(*frames.frame_size())
 
 
 def check_run_outputs(out_dir: Path, overlay: Path | None, inputs: list[Path | None]) -> None:
