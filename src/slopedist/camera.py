@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.io.text import numbered_lines
 
 KITTI_CAMERA_HEIGHT_M = 1.65
 """Height of KITTI's cam 2 above the road, metres."""
@@ -121,41 +122,46 @@ def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
     Matrices ``P*``/``Tr*`` must have 12 numbers, ``R0_rect``/``R_rect`` 9.
     """
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"calibration file not found: {path}")
     out: dict[str, np.ndarray] = {}
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line:
-                continue
-            if ":" in line:
-                name, _, rest = line.partition(":")
-                name = name.strip()
-                tokens = rest.split()
-            else:
-                name = f"P{len(out)}"
-                tokens = line.split()
-            values = []
-            for i, tok in enumerate(tokens):
-                try:
-                    values.append(float(tok))
-                except ValueError:
-                    raise InputFileError(
-                        path, f"'{tok}' is not a number", line=lineno, field=f"{name}[{i}]"
-                    ) from None
-            expected = 9 if name.startswith("R") else 12
-            if len(values) != expected:
-                raise InputFileError(
-                    path,
-                    f"expected {expected} numbers, found {len(values)}",
-                    line=lineno,
-                    field=name,
-                )
-            arr = np.asarray(values)
-            if not np.all(np.isfinite(arr)):
-                raise InputFileError(path, "non-finite value", line=lineno, field=name)
-            out[name] = arr
+    first_line: dict[str, int] = {}
+    for lineno, line in numbered_lines(path, "calibration file", comment=None):
+        if ":" in line:
+            name, _, rest = line.partition(":")
+            name = name.strip()
+            tokens = rest.split()
+        else:
+            name = f"P{len(out)}"
+            tokens = line.split()
+        if name in out:
+            raise InputFileError(
+                path,
+                f"second '{name}:' line (the first is line {first_line[name]})",
+                line=lineno,
+                field=name,
+            )
+        out[name] = _calib_values(path, lineno, name, tokens)
+        first_line[name] = lineno
     if not out:
         raise InputFileError(path, "file is empty")
     return out
+
+
+def _calib_values(path: Path, lineno: int, name: str, tokens: list[str]) -> np.ndarray:
+    """The numbers of one calib line: 9 for ``R*`` names, else 12, all finite."""
+    values = []
+    for i, tok in enumerate(tokens):
+        try:
+            values.append(float(tok))
+        except ValueError:
+            raise InputFileError(
+                path, f"'{tok}' is not a number", line=lineno, field=f"{name}[{i}]"
+            ) from None
+    expected = 9 if name.startswith("R") else 12
+    if len(values) != expected:
+        raise InputFileError(
+            path, f"expected {expected} numbers, found {len(values)}", line=lineno, field=name
+        )
+    arr = np.asarray(values)
+    if not np.all(np.isfinite(arr)):
+        raise InputFileError(path, "non-finite value", line=lineno, field=name)
+    return arr

@@ -27,19 +27,19 @@ from dataclasses import dataclass
 from datetime import datetime
 from enum import Enum
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
 from slopedist.errors import (
     ConfigurationError,
     DataMismatchError,
     InputFileError,
     MissingInputError,
 )
+from slopedist.io.text import numbered_lines
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 """File name endings an image folder is read from (case-insensitive)."""
@@ -51,6 +51,9 @@ MAX_PRINCIPAL_POINT_OFFSET = 0.25
 """Largest accepted distance of the principal point from the image centre, as a fraction of the
 image width (for c_x) or height (for c_y); beyond it the calibration is taken to belong to
 other (resized or cropped) frames."""
+
+if TYPE_CHECKING:  # slopedist.camera reads its files through slopedist.io.text
+    from slopedist.camera import Camera
 
 _KITTI_TIME = re.compile(r"^(\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2})(\.\d+)?$")
 
@@ -122,39 +125,32 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
             (naming the line).
     """
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"timestamps file not found: {path}")
     values: list[float] = []
     t0: datetime | None = None
     prev_line = 0
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            value = _parse_time(line, t0)
-            if value is None:
-                raise InputFileError(
-                    path,
-                    f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
-                    line=lineno,
-                    field="timestamp",
-                )
-            if isinstance(value, datetime):
-                t0 = t0 or value
-                seconds = (value - t0).total_seconds()
-            else:
-                seconds = value
-            if values and not seconds > values[-1]:
-                raise InputFileError(
-                    path,
-                    f"timestamp {seconds} s does not increase (line {prev_line} has "
-                    f"{values[-1]} s)",
-                    line=lineno,
-                    field="timestamp",
-                )
-            values.append(seconds)
-            prev_line = lineno
+    for lineno, line in numbered_lines(path, "timestamps file"):
+        value = _parse_time(line, t0)
+        if value is None:
+            raise InputFileError(
+                path,
+                f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
+                line=lineno,
+                field="timestamp",
+            )
+        if isinstance(value, datetime):
+            t0 = t0 or value
+            seconds = (value - t0).total_seconds()
+        else:
+            seconds = value
+        if values and not seconds > values[-1]:
+            raise InputFileError(
+                path,
+                f"timestamp {seconds} s does not increase (line {prev_line} has {values[-1]} s)",
+                line=lineno,
+                field="timestamp",
+            )
+        values.append(seconds)
+        prev_line = lineno
     if not values:
         raise InputFileError(path, "no timestamps in file")
     return np.asarray(values, dtype=float)
