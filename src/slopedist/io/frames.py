@@ -55,6 +55,10 @@ other (resized or cropped) frames."""
 if TYPE_CHECKING:  # slopedist.camera reads its files through slopedist.io.text
     from slopedist.camera import Camera
 
+FIELD_OF_VIEW_RANGE_DEG = (3.0, 170.0)
+"""Accepted horizontal field of view ``2·atan(width / 2f)``, degrees: outside it the focal
+length does not belong to images of that width (a calibration of other, resized frames)."""
+
 _KITTI_TIME = re.compile(r"^(\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2})(\.\d+)?$")
 
 
@@ -179,7 +183,9 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
     """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
 
     Checks the image size the camera knows (if any), that the principal point lies inside the
-    image and that it is within :data:`MAX_PRINCIPAL_POINT_OFFSET` of the image centre.
+    image and that it is within :data:`MAX_PRINCIPAL_POINT_OFFSET` of the image centre, and
+    that the focal length gives a horizontal field of view within
+    :data:`FIELD_OF_VIEW_RANGE_DEG`.
 
     Raises:
         DataMismatchError: naming the sizes and the offending value.
@@ -205,6 +211,14 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
                 f"centre ({size / 2:.1f} px) of the {width}×{height} px images; were the frames "
                 "resized or cropped after calibration?"
             )
+    fov = math.degrees(2.0 * math.atan(width / (2.0 * camera.f)))
+    lo, hi = FIELD_OF_VIEW_RANGE_DEG
+    if not lo <= fov <= hi:
+        raise DataMismatchError(
+            f"{where}: the calibration's focal length f = {camera.f:g} px gives the "
+            f"{width} px wide images a field of view of {fov:.1f}°, outside {lo:g}..{hi:g}°; "
+            "does the calibration belong to these frames?"
+        )
 
 
 class _Timing:
