@@ -115,7 +115,10 @@ class BoxTable:
         return np.unique(self.frame)
 
     def by_frame(self) -> Iterator[tuple[int, BoxTable]]:
-        """Yield ``(frame index, boxes of that frame)`` in frame order."""
+        """Yield ``(frame index, boxes of that frame)`` in frame order (nothing for an empty
+        table)."""
+        if len(self) == 0:
+            return
         order = np.argsort(self.frame, kind="stable")
         sorted_frames = self.frame[order]
         starts = np.flatnonzero(np.r_[True, np.diff(sorted_frames) != 0])
