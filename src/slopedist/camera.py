@@ -84,7 +84,9 @@ class Camera:
             ("c_x", self.c_x, self.image_width),
             ("c_y", self.c_y, self.image_height),
         ):
-            if size is not None and not (isinstance(size, (int, np.integer)) and 0 < size <= 1_000_000):
+            if size is not None and not (
+                isinstance(size, (int, np.integer)) and 0 < size <= 1_000_000
+            ):
                 raise ConfigurationError(f"camera image size must be 1..1000000 px, got {size}")
             high = MAX_PRINCIPAL_POINT_PX if size is None else float(size)
             low = -MAX_PRINCIPAL_POINT_PX if size is None else 0.0

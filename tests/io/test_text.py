@@ -22,10 +22,10 @@ from slopedist.detections import (
     read_kitti_labels,
     read_pointrcnn,
 )
-from slopedist.detections.readers import MAX_INDEX
 from slopedist.errors import InputFileError, MissingInputError, SlopedistError
 from slopedist.io.frames import read_timestamps
 from slopedist.io.text import MAX_LINE_BYTES, CsvRows, decoded_lines, numbered_lines, read_text
+from slopedist.limits import MAX_INDEX
 from slopedist.odometry import read_kitti_poses, read_oxts_rotations, read_pose_file, read_tum_poses
 
 CALIB = "\n".join(

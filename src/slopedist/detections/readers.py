@@ -28,6 +28,7 @@ import numpy as np
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.errors import InputFileError
 from slopedist.io.text import CsvRows, numbered_lines
+from slopedist.limits import MAX_ABS_PIXEL, MAX_INDEX
 
 CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
 CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")
@@ -73,14 +74,6 @@ POINTRCNN_FIELDS = (
 )
 
 
-MAX_INDEX = 1_000_000_000
-"""Largest accepted frame index or track id (a day of 30 fps video is 2.6 million frames)."""
-
-MAX_ABS_PIXEL = 1e6
-"""Largest accepted magnitude of a box coordinate, pixels; beyond it a value is not a pixel of
-any camera image (NaN and ±inf are read and then flagged per box, see ``box_problems``)."""
-
-
 def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[str], Any]) -> Any:
     try:
         value = kind(tok)
@@ -113,8 +106,9 @@ def _index(path: str | Path, lineno: int, name: str, tok: str, lowest: int = 0) 
 
 
 def _box(path: str | Path, lineno: int, names: Sequence[str], toks: Sequence[str]) -> list[float]:
-    """Four box coordinates in pixels; NaN/inf pass (flagged per box later), a finite value
-    beyond :data:`MAX_ABS_PIXEL` is an error."""
+    """Four box coordinates in pixels; NaN/inf pass (flagged per box later, see
+    ``box_problems``), a finite value beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` is an
+    error."""
     box = [float(_parse(path, lineno, k, t, float)) for k, t in zip(names, toks)]
     for k, v in zip(names, box):
         if abs(v) > MAX_ABS_PIXEL and np.isfinite(v):

@@ -5,10 +5,15 @@ top-left; timestamps are float64 seconds. Memory holds one frame at a time, what
 
 Frame numbering:
 
-- Image folder: files ``*.png``, ``*.jpg``, ``*.jpeg`` (any case). When every file name is an
-  integer (``0000000000.png``, ``000123.jpg``), that integer is the frame index, and a gap in the
-  numbering yields frames of status ``missing``; otherwise the frames are numbered 0, 1, ... in
-  sorted name order.
+- Image folder (:func:`list_frame_files`): files ``*.png``, ``*.jpg``, ``*.jpeg`` (any case)
+  whose name does not start with ``.``. When at least one file name is a number
+  (``0000000000.png``, ``000123.jpg``: ASCII digits only), the numbered files are the frames and
+  that number is the frame index; every other image file (``0000000004b.png``, ``-1.png``) is
+  skipped and reported, never renumbering the folder. A gap in the numbering yields frames of
+  status ``missing``; a gap of more than :data:`~slopedist.limits.MAX_FRAME_GAP` frames, or a
+  number over :data:`~slopedist.limits.MAX_INDEX`, is an error naming the file. When no file
+  name is a number, the frames are numbered 0, 1, ... in sorted name order. Hidden files (macOS
+  ``._0001.png``) are always skipped and reported.
 - Video file: frames are numbered 0, 1, ... in decoding order.
 
 Timestamps: ``index / fps`` (``fps`` 10 by default for folders, the container's frame rate for
@@ -20,6 +25,8 @@ so a long run records it and goes on.
 
 from __future__ import annotations
 
+import itertools
+import logging
 import math
 import re
 from collections.abc import Iterator
@@ -39,7 +46,9 @@ from slopedist.errors import (
     InputFileError,
     MissingInputError,
 )
+from slopedist.io.images import header_image_size, image_size_problem
 from slopedist.io.text import numbered_lines
+from slopedist.limits import DEFAULT_MAX_PIXELS, MAX_FRAME_GAP, MAX_INDEX
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 """File name endings an image folder is read from (case-insensitive)."""
@@ -58,6 +67,11 @@ if TYPE_CHECKING:  # slopedist.camera reads its files through slopedist.io.text
 FIELD_OF_VIEW_RANGE_DEG = (3.0, 170.0)
 """Accepted horizontal field of view ``2·atan(width / 2f)``, degrees: outside it the focal
 length does not belong to images of that width (a calibration of other, resized frames)."""
+
+_FRAME_NUMBER = re.compile(r"[0-9]+")
+"""A file stem that is a frame number (ASCII digits only: no sign, letters or other digits)."""
+
+_log = logging.getLogger(__name__)
 
 _KITTI_TIME = re.compile(r"^(\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2})(\.\d+)?$")
 
@@ -271,6 +285,87 @@ def _as_bgr(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return image
 
 
+@dataclass(frozen=True)
+class FolderFrames:
+    """The frames of an image folder (see :func:`list_frame_files`).
+
+    Attributes:
+        files: ``{frame index: file}``.
+        numbered: True when the indices are the numbers in the file names.
+        skipped: ``(file name, reason)`` of the image files that are not frames.
+    """
+
+    files: dict[int, Path]
+    numbered: bool
+    skipped: tuple[tuple[str, str], ...]
+
+
+def _image_files(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        raise MissingInputError(f"frame folder not found: {folder}")
+    return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+
+
+def list_frame_files(folder: str | Path) -> FolderFrames:
+    """The frame files of an image folder, by the rule of the module docstring.
+
+    Skipped files are logged as one warning (logger ``slopedist.io.frames``).
+
+    Raises:
+        MissingInputError: no such folder, or no frame file in it.
+        InputFileError: two files with one frame number (``5.png``, ``005.png``), a number over
+            :data:`~slopedist.limits.MAX_INDEX`, or a gap over
+            :data:`~slopedist.limits.MAX_FRAME_GAP` (naming the file after it).
+    """
+    folder = Path(folder)
+    images = _image_files(folder)
+    skipped = [(p.name, "hidden file") for p in images if p.name.startswith(".")]
+    visible = [p for p in images if not p.name.startswith(".")]
+    numbered = [p for p in visible if _FRAME_NUMBER.fullmatch(p.stem)]
+    if numbered:
+        skipped += [(p.name, "name is not a frame number") for p in visible if p not in numbered]
+        files = _numbered_files(numbered)
+    else:
+        files = dict(enumerate(visible))
+    if not files:
+        raise MissingInputError(
+            f"no image files ({', '.join(IMAGE_SUFFIXES)}) in frame folder {folder}"
+        )
+    if skipped:
+        shown = ", ".join(f"{name} ({why})" for name, why in skipped[:5])
+        more = f" and {len(skipped) - 5} more" if len(skipped) > 5 else ""
+        _log.warning(
+            "warning: %s: skipped %d image file(s) that are not frames: %s%s",
+            folder,
+            len(skipped),
+            shown,
+            more,
+        )
+    return FolderFrames(files, bool(numbered), tuple(skipped))
+
+
+def _numbered_files(paths: list[Path]) -> dict[int, Path]:
+    """``{number: file}`` of files named by a frame number, checking duplicates and gaps."""
+    files: dict[int, Path] = {}
+    for p in paths:
+        k = int(p.stem)
+        if k > MAX_INDEX:
+            raise InputFileError(p, f"frame number {k} is over the largest accepted {MAX_INDEX}")
+        if k in files:
+            raise InputFileError(p, f"frame number {k} also used by {files[k].name}")
+        files[k] = p
+    order = sorted(files)
+    for before, after in itertools.pairwise(order):
+        if after - before - 1 > MAX_FRAME_GAP:
+            raise InputFileError(
+                files[after],
+                f"frame number {after} follows {before}: {after - before - 1} frames missing "
+                f"(more than {MAX_FRAME_GAP}); is this file part of the sequence? Rename or "
+                "remove it",
+            )
+    return files
+
+
 class ImageFolderSource:
     """Frames from the image files of a folder (see the module docstring for numbering).
 
@@ -280,10 +375,16 @@ class ImageFolderSource:
             (:data:`DEFAULT_FPS` when None).
         timestamps_s: one timestamp per frame index, seconds (e.g. from :func:`read_timestamps`).
         timestamps_name: where the timestamps came from, for messages.
+        max_pixels: frames whose header claims more pixels are not decoded (status
+            ``unreadable``; :meth:`frame_size` raises).
+
+    Attributes:
+        skipped: ``(file name, reason)`` of the image files that are not frames (see
+            :func:`list_frame_files`).
 
     Raises:
         MissingInputError: the folder does not exist or holds no image files.
-        InputFileError: two files with the same frame number.
+        InputFileError: two files with the same frame number, or a huge gap.
         DataMismatchError: fewer timestamps than frames.
     """
 
@@ -293,28 +394,15 @@ class ImageFolderSource:
         fps: float | None = None,
         timestamps_s: NDArray[np.float64] | None = None,
         timestamps_name: str = "timestamps",
+        max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
         self.path = Path(path)
-        if not self.path.is_dir():
-            raise MissingInputError(f"frame folder not found: {self.path}")
-        files = sorted(
-            p for p in self.path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-        )
-        if not files:
-            raise MissingInputError(
-                f"no image files ({', '.join(IMAGE_SUFFIXES)}) in frame folder {self.path}"
-            )
+        listing = list_frame_files(self.path)
+        self.files = listing.files
+        self.numbered = listing.numbered
+        self.skipped = listing.skipped
+        self.max_pixels = max_pixels
         self.timing = _Timing(DEFAULT_FPS if fps is None else fps, timestamps_s, timestamps_name)
-        self.numbered = all(p.stem.isdigit() for p in files)
-        self.files: dict[int, Path] = {}
-        if self.numbered:
-            for p in files:
-                k = int(p.stem)
-                if k in self.files:
-                    raise InputFileError(p, f"frame number {k} also used by {self.files[k].name}")
-                self.files[k] = p
-        else:
-            self.files = dict(enumerate(files))
         self.first = min(self.files)
         self.last = max(self.files)
         if timestamps_s is not None and len(timestamps_s) <= self.last:
@@ -327,8 +415,20 @@ class ImageFolderSource:
         return self.last - self.first + 1
 
     def frame_size(self) -> tuple[int, int]:
+        """Size of the first readable frame, from its header when it is a PNG or JPEG.
+
+        Raises:
+            InputFileError: that frame is over ``max_pixels`` or damaged, or no file decodes.
+        """
         for k in sorted(self.files):
-            image = cv2.imread(str(self.files[k]), cv2.IMREAD_UNCHANGED)
+            path = self.files[k]
+            problem = image_size_problem(path, self.max_pixels)
+            if problem:
+                raise InputFileError(path, f"not decoded: {problem}")
+            size = header_image_size(path)
+            if size is not None:
+                return size
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
             if image is not None:
                 return int(image.shape[1]), int(image.shape[0])
         raise InputFileError(self.path, "none of the image files could be read")
@@ -348,7 +448,8 @@ class ImageFolderSource:
                     f"no image file numbered {k} in {self.path}",
                 )
                 continue
-            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            problem = image_size_problem(path, self.max_pixels)
+            image = None if problem else cv2.imread(str(path), cv2.IMREAD_COLOR)
             if image is None:
                 yield Frame(
                     k,
@@ -356,7 +457,9 @@ class ImageFolderSource:
                     None,
                     FrameStatus.UNREADABLE,
                     path.name,
-                    f"{path} could not be decoded as an image",
+                    f"{path}: not decoded: {problem}"
+                    if problem
+                    else f"{path} could not be decoded as an image",
                 )
                 continue
             problem = size_check(image)
@@ -374,10 +477,13 @@ class VideoSource:
         fps: frames per second for timestamps; None uses the container's frame rate (or
             :data:`DEFAULT_FPS` when the container reports none).
         timestamps_s: one timestamp per frame, seconds; overrides ``fps``.
+        max_pixels: largest frame accepted, pixels (the container's announced size is checked
+            before any frame is decoded).
 
     Raises:
         MissingInputError: no such file.
-        InputFileError: the file cannot be opened as a video.
+        InputFileError: the file cannot be opened as a video, or its frames are over
+            ``max_pixels``.
     """
 
     def __init__(
@@ -386,6 +492,7 @@ class VideoSource:
         fps: float | None = None,
         timestamps_s: NDArray[np.float64] | None = None,
         timestamps_name: str = "timestamps",
+        max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
         self.path = Path(path)
         if not self.path.is_file():
@@ -394,8 +501,15 @@ class VideoSource:
         try:
             self.container_fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
             count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+            width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH) or 0)
+            height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
         finally:
             cap.release()
+        if width * height > max_pixels:
+            raise InputFileError(
+                self.path,
+                f"its frames are {width}×{height} px, over the limit of {max_pixels / 1e6:g} Mpx",
+            )
         self.frame_count = count if count > 0 else None
         if fps is None:
             fps = (
@@ -461,7 +575,10 @@ class VideoSource:
 
 
 def open_frames(
-    path: str | Path, fps: float | None = None, timestamps: str | Path | None = None
+    path: str | Path,
+    fps: float | None = None,
+    timestamps: str | Path | None = None,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
 ) -> ImageFolderSource | VideoSource:
     """A folder of images or a video file, chosen by what ``path`` is.
 
@@ -469,12 +586,13 @@ def open_frames(
         path: image folder or video file.
         fps: frames per second (None: 10 for folders, the container's rate for videos).
         timestamps: optional timestamps file (:func:`read_timestamps`); overrides ``fps``.
+        max_pixels: largest frame decoded, pixels.
     """
     path = Path(path)
     ts = read_timestamps(timestamps) if timestamps is not None else None
     name = str(timestamps) if timestamps is not None else "timestamps"
     if path.is_dir():
-        return ImageFolderSource(path, fps, ts, name)
+        return ImageFolderSource(path, fps, ts, name, max_pixels)
     if path.is_file():
-        return VideoSource(path, fps, ts, name)
+        return VideoSource(path, fps, ts, name, max_pixels)
     raise MissingInputError(f"frames not found: {path} (expected an image folder or a video file)")
