@@ -93,8 +93,8 @@ def image_size_problem(path: str | Path, max_pixels: int = DEFAULT_MAX_PIXELS) -
             return f"its header claims an empty {width}×{height} px image"
         if width * height > max_pixels:
             return (
-                f"its header claims {width}×{height} px = {width * height / 1e6:.0f} Mpx, over "
-                f"the limit of {max_pixels / 1e6:g} Mpx (a corrupt or hostile file?)"
+                f"its header claims {width}×{height} px = {width * height / 1e6:.3g} Mpx, over "
+                f"the limit of {max_pixels / 1e6:.3g} Mpx (a corrupt or hostile file?)"
             )
         return ""
     if path.stat().st_size > 4 * max_pixels:
