@@ -54,7 +54,7 @@ def test_decompression_bomb_is_refused_from_its_header(tmp_path: Path) -> None:
     assert header_image_size(bomb) == (30_000, 30_000)
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     with pytest.raises(
-        InputFileError, match=r"000001\.png: not decoded: .*30000×30000 px = 900 Mpx"
+        InputFileError, match=r"000001\.png: not an image; .*30000×30000 px = 900 Mpx"
     ):
         read_image_file(bomb, cv2.IMREAD_COLOR, "image", "not an image")
     source = open_frames(frames)
@@ -74,7 +74,7 @@ def test_decompression_bomb_is_refused_from_its_header(tmp_path: Path) -> None:
 
 
 def test_depth_png_bomb_is_refused(tmp_path: Path) -> None:
-    with pytest.raises(InputFileError, match="not decoded"):
+    with pytest.raises(InputFileError, match="8000×8000 px = 64 Mpx, over the limit"):
         read_kitti_depth_png(png_bomb(tmp_path / "0000000000.png", side=8_000))
 
 

@@ -113,15 +113,15 @@ def read_image_file(
 
     Raises:
         MissingInputError: the file does not exist (``"{what} not found: {path}"``).
-        InputFileError: it is too large (see :func:`image_size_problem`) or cannot be decoded
-            (message ``not_decoded``).
+        InputFileError: it cannot be decoded (message ``not_decoded``), or must not be (then
+            followed by the reason from :func:`image_size_problem`).
     """
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"{what} not found: {path}")
     problem = image_size_problem(path, max_pixels)
     if problem:
-        raise InputFileError(path, f"not decoded: {problem}")
+        raise InputFileError(path, f"{not_decoded}; {problem}")
     image = cv2.imread(str(path), flags)
     if image is None:
         raise InputFileError(path, not_decoded)
