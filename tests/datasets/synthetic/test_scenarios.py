@@ -198,3 +198,27 @@ def test_edited_files_never_crash(edits: list[tuple[tuple, Any]]) -> None:
         return
     assert isinstance(sc, Scenario)
     assert math.isfinite(sc.duration_s) and np.isfinite(sc.road.start_grade_pct)
+
+
+@pytest.mark.parametrize("value", ["1e308", "-1e308", "2e6"])
+def test_huge_numbers_are_clear_errors(tmp_path: Path, value: str) -> None:
+    text = builtin_text("bumps_and_curves").replace("start_m = 20.0", f"start_m = {value}", 1)
+    path = tmp_path / "evil.toml"
+    path.write_text(text)
+    line = text.splitlines().index(f"start_m = {value}") + 1
+    with pytest.raises(
+        InputFileError,
+        match=rf"line {line}, field 'target\[0\]\.start_m': must be finite and within",
+    ):
+        load_scenario(path)
+
+
+def test_non_utf8_and_oversized_scenario_files(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'name = "x"\ndescription = "caf\xe9"\n')
+    with pytest.raises(InputFileError, match=r"line 2: not UTF-8 text"):
+        load_scenario(path)
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"# " + b"x" * 1_000_000 + b"\n")
+    with pytest.raises(InputFileError, match="larger than"):
+        load_scenario(big)

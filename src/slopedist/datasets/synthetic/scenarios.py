@@ -105,6 +105,7 @@ from slopedist.datasets.synthetic.road import GradeChange, HorizontalCurve, Road
 from slopedist.datasets.synthetic.scene import CameraSpec, Scenario, WorldSpec
 from slopedist.datasets.synthetic.vehicles import CameraRig, VehicleSpec
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.io.text import read_text
 
 if TYPE_CHECKING:
     from importlib.abc import Traversable
@@ -164,6 +165,14 @@ def field_lines(text: str) -> dict[str, int]:
             key = k.group(1).strip('"')
             lines.setdefault(f"{prefix}.{key}" if prefix else key, lineno)
     return lines
+
+
+MAX_MAGNITUDE = 1e6
+"""Largest magnitude of any number in a scenario (metres, km/h, pixels, ...): a road of
+1000 km is more than any scenario needs, and larger values only overflow the renderer."""
+
+MAX_SCENARIO_BYTES = 1_000_000
+"""Largest scenario file read, bytes."""
 
 
 class _Reader:
@@ -233,8 +242,8 @@ class _Reader:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(field, f"must be a number, got {_kind(value)}")
         value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(field, f"must be finite, got {value}")
+        if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+            raise self.fail(field, f"must be finite and within ±{MAX_MAGNITUDE:g}, got {value:g}")
         if check is not None and not check(value):
             raise self.fail(field, f"must be {expect}, got {value:g}")
         return value
@@ -275,7 +284,10 @@ class _Reader:
             not isinstance(value, list)
             or len(value) != n
             or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and math.isfinite(v)
+                and abs(v) <= MAX_MAGNITUDE
                 for v in value
             )
         ):
@@ -650,11 +662,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     """
     p = Path(name_or_path)
     if p.is_file():
-        try:
-            text = p.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputFileError(p, "not a UTF-8 text file") from None
-        return load_scenario_text(text, str(p), p.stem)
+        if p.stat().st_size > MAX_SCENARIO_BYTES:
+            raise InputFileError(p, f"larger than {MAX_SCENARIO_BYTES} bytes: not a scenario")
+        return load_scenario_text(read_text(p, "scenario file"), str(p), p.stem)
     name = str(name_or_path)
     if name in builtin_names():
         return load_scenario_text(builtin_text(name), f"builtin:{name}", name)
