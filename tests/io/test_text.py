@@ -24,7 +24,14 @@ from slopedist.detections import (
 )
 from slopedist.errors import InputFileError, MissingInputError, SlopedistError
 from slopedist.io.frames import read_timestamps
-from slopedist.io.text import MAX_LINE_BYTES, CsvRows, decoded_lines, numbered_lines, read_text
+from slopedist.io.text import (
+    MAX_LINE_BYTES,
+    CsvRows,
+    decoded_lines,
+    numbered_lines,
+    read_json,
+    read_text,
+)
 from slopedist.limits import MAX_INDEX
 from slopedist.odometry import read_kitti_poses, read_oxts_rotations, read_pose_file, read_tum_poses
 
@@ -276,3 +283,21 @@ def test_mutated_inputs_give_a_valid_result_or_a_slopedist_error(case: tuple[str
         except SlopedistError:
             return
         _check_valid(result)
+
+
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        (b'{"a": 1,\n "b": }\n', r"line 2: not valid JSON"),
+        (b'{"a": NaN}\n', r"not valid JSON \(NaN is not a JSON number\)"),
+        (b'{"a": "caf\xe9"}\n', r"line 1: not UTF-8"),
+        (b"[" * 100_000 + b"]" * 100_000, r"not valid JSON"),
+    ],
+)
+def test_read_json_errors_name_the_line(tmp_path: Path, data: bytes, match: str) -> None:
+    with pytest.raises(InputFileError, match=match):
+        read_json(_write(tmp_path, data), "run summary")
+
+
+def test_read_json_reads_strict_json(tmp_path: Path) -> None:
+    assert read_json(_write(tmp_path, b'\xef\xbb\xbf{"a": [1, null]}'), "t") == {"a": [1, None]}

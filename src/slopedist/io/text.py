@@ -1,7 +1,8 @@
 """Reading user text files: strict UTF-8, real line numbers, clear errors.
 
 Every text reader of slopedist (calibration, labels, detections, box CSV, poses, timestamps,
-run records, ``run.json``) goes through these helpers, so a bad byte, an over-long CSV field or
+scenarios; run records and ``run.json`` through :class:`CsvRows` and :func:`read_json`) goes
+through these helpers, so a bad byte, an over-long CSV field or
 a truncated quote ends in one :class:`~slopedist.errors.InputFileError` naming the file and the
 line (1-based, counting every physical line, comments and blank lines included), never a
 ``UnicodeDecodeError`` or ``_csv.Error``.
@@ -13,8 +14,10 @@ or ``\\r\\n``.
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from slopedist.errors import InputFileError, MissingInputError
 
@@ -83,6 +86,29 @@ def read_text(path: str | Path, what: str) -> str:
         InputFileError: a byte that is not UTF-8, naming its line.
     """
     return "".join(decoded_lines(path, what))
+
+
+def read_json(path: str | Path, what: str) -> Any:
+    """The JSON document in ``path`` (strict UTF-8; ``NaN``/``Infinity`` are not JSON and are
+    refused, as :func:`slopedist.io.tables.dumps_json` never writes them).
+
+    Raises:
+        MissingInputError: no such file.
+        InputFileError: bad UTF-8 or invalid JSON, naming the line.
+    """
+    text = read_text(path, what)
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise InputFileError(path, f"not valid JSON ({exc.msg})", line=exc.lineno) from None
+    except ValueError as exc:
+        raise InputFileError(path, f"not valid JSON ({exc})") from None
+    except RecursionError:
+        raise InputFileError(path, "not valid JSON (nested too deeply)") from None
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a JSON number")
 
 
 class CsvRows:
