@@ -61,8 +61,9 @@ from slopedist.estimators.ours.fitting import (
     fit_parameters,
     kitti_tracking_fit_inputs,
 )
-from slopedist.evaluation import cap_estimates, format_table
+from slopedist.evaluation import cap_estimates
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.tables import format_table
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 
