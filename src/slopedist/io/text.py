@@ -115,16 +115,19 @@ class CsvRows:
     """Rows of a CSV file with a header, as ``{column: text}`` dicts, with real line numbers.
 
     ``header`` holds the stripped column names; iterating yields ``(line, row)`` where ``line``
-    is the physical line the row ends on and missing trailing fields are ``None``.
+    is the physical line the row ends on. With ``strict`` a row of another field count than the
+    header is an error; otherwise missing trailing fields are ``None`` and extra ones dropped.
 
     Raises (while reading):
         MissingInputError: no such file.
         InputFileError: bad UTF-8, an over-long line or field (the ``csv`` module's field size
-            limit), an unterminated quote or a NUL byte, naming the line.
+            limit), an unterminated quote or a NUL byte, or (``strict``) a row of the wrong
+            width, naming the line.
     """
 
-    def __init__(self, path: str | Path, what: str) -> None:
+    def __init__(self, path: str | Path, what: str, strict: bool = False) -> None:
         self.path = Path(path)
+        self.strict = strict
         _require_file(self.path, what)
         self._lines = decoded_lines(self.path, what)
         self._reader = csv.reader(self._lines)
@@ -144,6 +147,12 @@ class CsvRows:
         while (fields := self._next()) is not None:
             if not any(f.strip() for f in fields):
                 continue
+            if self.strict and len(fields) != len(self.header):
+                raise InputFileError(
+                    self.path,
+                    f"row has {len(fields)} fields, the header has {len(self.header)}",
+                    line=self._reader.line_num,
+                )
             row: dict[str, str | None] = dict.fromkeys(self.header)
             row.update(zip(self.header, fields))
             yield self._reader.line_num, row

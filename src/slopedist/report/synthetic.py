@@ -5,13 +5,13 @@ against the synthetic truth, θ of the odometry against the true θ, times from
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 from slopedist.errors import InputFileError
 from slopedist.evaluation import compact_names
+from slopedist.io.text import read_json
 from slopedist.report.data import ReportData, ReportOptions, SourceKind
 from slopedist.report.runs import demo_number, run_report_data
 
@@ -20,10 +20,7 @@ DEMO_RESULTS = "results.json"
 
 
 def _read_results(path: Path) -> dict[str, Any]:
-    try:
-        results = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputFileError(path, f"not valid JSON ({exc})") from None
+    results = read_json(path, "demo results")
     if not isinstance(results, dict) or not isinstance(results.get("scenarios"), dict):
         raise InputFileError(path, "lacks 'scenarios' (not a slopedist demo output?)")
     return results
