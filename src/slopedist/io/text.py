@@ -2,10 +2,10 @@
 
 Every text reader of slopedist (calibration, labels, detections, box CSV, poses, timestamps,
 scenarios; run records and ``run.json`` through :class:`CsvRows` and :func:`read_json`) goes
-through these helpers, so a bad byte, an over-long CSV field or
-a truncated quote ends in one :class:`~slopedist.errors.InputFileError` naming the file and the
-line (1-based, counting every physical line, comments and blank lines included), never a
-``UnicodeDecodeError`` or ``_csv.Error``.
+through these helpers, so a bad byte, an over-long line or CSV field or a broken quote ends in
+one :class:`~slopedist.errors.InputFileError` naming the file and the line (1-based, counting
+every physical line, comments and blank lines included), never a ``UnicodeDecodeError`` or
+``_csv.Error``.
 
 Rules: text is UTF-8 (a leading byte-order mark is allowed and dropped); lines end with ``\\n``
 or ``\\r\\n``.
@@ -37,7 +37,7 @@ def _not_utf8(path: Path, lineno: int, raw: bytes, exc: UnicodeDecodeError) -> I
     byte = raw[exc.start : exc.start + 1].hex()
     return InputFileError(
         path,
-        f"not UTF-8 text (byte 0x{byte} at column {exc.start + 1}); save the file as UTF-8",
+        f"not UTF-8 text (byte 0x{byte}, byte {exc.start + 1} of the line); save it as UTF-8",
         line=lineno,
     )
 
