@@ -1,4 +1,5 @@
-"""The box table: an empty table (no vehicle seen, every score filtered) is a normal case."""
+"""The box table: an empty table (no vehicle seen, every score filtered) is a normal case;
+concatenation keeps the rows in order and the columns every part has."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from slopedist.detections import BoxTable, read_box_csv, read_box_file, read_kitti_labels
+from slopedist.detections.boxes import concat_boxes
 
 LABEL = "0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12"
 DONTCARE = "1 -1 DontCare -1 -1 -10 100 150 200 190 -1 -1 -1 -1000 -1000 -1000 -10"
@@ -56,3 +58,20 @@ def test_by_frame_groups_in_frame_order() -> None:
     t = BoxTable.build([3, 1, 3, 0], np.arange(16.0).reshape(4, 4))
     groups = [(k, list(b.boxes[:, 0])) for k, b in t.by_frame()]
     assert groups == [(0, [12.0]), (1, [4.0]), (3, [0.0, 8.0])]
+
+
+def test_concat_boxes_keeps_order_and_common_columns() -> None:
+    a = BoxTable.build([0, 0], [[0, 0, 1, 1], [1, 1, 2, 2]], [1, 2])
+    a.extra.update({"gt": np.array([5.0, 6.0]), "only_a": np.array([1.0, 1.0])})
+    b = BoxTable.build([3], [[2, 2, 3, 3]], [7])
+    b.extra["gt"] = np.array([9.0])
+    out = concat_boxes([a, b])
+    np.testing.assert_array_equal(out.frame, [0, 0, 3])
+    np.testing.assert_array_equal(out.track_id, [1, 2, 7])
+    np.testing.assert_array_equal(out.boxes[2], [2, 2, 3, 3])
+    assert set(out.extra) == {"gt"}
+    np.testing.assert_array_equal(out.extra["gt"], [5.0, 6.0, 9.0])
+
+
+def test_concat_of_nothing_is_empty() -> None:
+    assert len(concat_boxes([])) == 0
