@@ -74,3 +74,13 @@ def test_non_utf8_records_frames_and_run_json(tmp_path: Path) -> None:
     (folder / "run.json").write_text('{"sequence": ')
     with pytest.raises(InputFileError, match=r"run\.json, line 1: not valid JSON"):
         report_data(folder, ReportOptions())
+
+
+@pytest.mark.parametrize("column", [1, 8, 9])
+@pytest.mark.parametrize("value", ["inf", "-inf", "1e308", "-2e12"])
+def test_infinite_or_huge_numbers_are_errors(tmp_path: Path, column: int, value: str) -> None:
+    cells = GOOD[1].split(",")
+    cells[column] = value
+    name = HEADER.split(",")[column]
+    with pytest.raises(InputFileError, match=rf"line 3, field '{name}'"):
+        report_data(_run(tmp_path / "r", [GOOD[0], ",".join(cells)]), ReportOptions())

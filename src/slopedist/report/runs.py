@@ -43,6 +43,10 @@ TIME_COLUMNS = ("odometry_ms", "estimation_ms", "depth_ms")
 
 NOT_IN_RECORDS = "not in records"
 
+MAX_RECORD_MAGNITUDE = 1e12
+"""Largest magnitude of a number in a run's CSVs (metres, degrees, seconds since the epoch,
+milliseconds); beyond it, or infinite, a value is corrupt and would break the figures."""
+
 
 def run_folders(root: Path) -> list[Path]:
     """The run output folders (with ``records.csv``) at ``root``: ``root`` itself, its
@@ -56,17 +60,26 @@ def run_folders(root: Path) -> list[Path]:
 
 
 def _float(value: str | None, path: Path, line: int, name: str) -> float:
-    """A CSV cell as a number (empty = NaN).
+    """A CSV cell as a number (empty or ``nan`` = NaN).
 
     Raises:
-        InputFileError: the cell is not a number (names file, line and field).
+        InputFileError: the cell is not a number, infinite or beyond ±
+            :data:`MAX_RECORD_MAGNITUDE` (names file, line and field).
     """
     if value is None or value.strip() == "":
         return math.nan
     try:
-        return float(value)
+        x = float(value)
     except ValueError:
         raise InputFileError(path, f"'{value}' is not a number", line=line, field=name) from None
+    if abs(x) > MAX_RECORD_MAGNITUDE:
+        raise InputFileError(
+            path,
+            f"'{value}' is beyond ±{MAX_RECORD_MAGNITUDE:g} (a corrupt record?)",
+            line=line,
+            field=name,
+        )
+    return x
 
 
 def _index(value: str | None, path: Path, line: int, name: str, lowest: int = 0) -> int:
