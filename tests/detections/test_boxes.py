@@ -75,3 +75,10 @@ def test_concat_boxes_keeps_order_and_common_columns() -> None:
 
 def test_concat_of_nothing_is_empty() -> None:
     assert len(concat_boxes([])) == 0
+
+
+def test_concat_of_nothing_keeps_the_columns_of_like() -> None:
+    like = BoxTable.build([4], [[1, 2, 3, 4]], row=np.array([7]))
+    out = concat_boxes([], like=like)
+    assert len(out) == 0 and set(out.extra) == {"row"} and out.extra["row"].shape == (0,)
+    _assert_empty(out)
