@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from slopedist.errors import ConfigurationError, InputFileError
-from slopedist.io.text import numbered_lines
+from slopedist.textfiles import numbered_lines
 
 KITTI_CAMERA_HEIGHT_M = 1.65
 """Height of KITTI's cam 2 above the road, metres."""

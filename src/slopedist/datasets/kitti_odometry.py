@@ -23,9 +23,9 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.images import read_image_file
-from slopedist.io.text import numbered_lines
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses
+from slopedist.textfiles import numbered_lines
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
 

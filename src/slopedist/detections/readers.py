@@ -27,8 +27,8 @@ import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.errors import InputFileError
-from slopedist.io.text import CsvRows, numbered_lines
 from slopedist.limits import MAX_ABS_PIXEL, MAX_INDEX
+from slopedist.textfiles import CsvRows, numbered_lines
 
 CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
 CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")

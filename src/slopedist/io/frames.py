@@ -27,12 +27,13 @@ from dataclasses import dataclass
 from datetime import datetime
 from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.camera import Camera
 from slopedist.errors import (
     ConfigurationError,
     DataMismatchError,
@@ -41,8 +42,8 @@ from slopedist.errors import (
 )
 from slopedist.io.framefiles import list_frame_files
 from slopedist.io.images import header_image_size, image_size_problem
-from slopedist.io.text import numbered_lines
 from slopedist.limits import DEFAULT_MAX_PIXELS
+from slopedist.textfiles import numbered_lines
 
 DEFAULT_FPS = 10.0
 """Frame rate assumed for image folders without a timestamps file (KITTI's 10 Hz)."""
@@ -51,9 +52,6 @@ MAX_PRINCIPAL_POINT_OFFSET = 0.25
 """Largest accepted distance of the principal point from the image centre, as a fraction of the
 image width (for c_x) or height (for c_y); beyond it the calibration is taken to belong to
 other (resized or cropped) frames."""
-
-if TYPE_CHECKING:  # slopedist.camera reads its files through slopedist.io.text
-    from slopedist.camera import Camera
 
 FIELD_OF_VIEW_RANGE_DEG = (3.0, 170.0)
 """Accepted horizontal field of view ``2·atan(width / 2f)``, degrees: outside it the focal

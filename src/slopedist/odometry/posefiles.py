@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 
 from slopedist.camera import read_kitti_calib
 from slopedist.errors import InputFileError
-from slopedist.io.text import numbered_lines
 from slopedist.odometry.base import RotationTrack
+from slopedist.textfiles import numbered_lines
 
 KITTI_FRAME_PERIOD_S = 0.1
 """KITTI records at 10 Hz."""

@@ -21,7 +21,6 @@ import numpy as np
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import ESTIMATORS
 from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_methods
-from slopedist.io.text import CsvRows, read_json
 from slopedist.limits import MAX_INDEX
 from slopedist.report.data import (
     RECORD_COLUMNS,
@@ -31,6 +30,7 @@ from slopedist.report.data import (
     ReportOptions,
     SourceKind,
 )
+from slopedist.textfiles import CsvRows, read_json
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""

@@ -11,9 +11,9 @@ from typing import Any
 
 from slopedist.errors import InputFileError
 from slopedist.evaluation import compact_names
-from slopedist.io.text import read_json
 from slopedist.report.data import ReportData, ReportOptions, SourceKind
 from slopedist.report.runs import demo_number, run_report_data
+from slopedist.textfiles import read_json
 
 DEMO_RESULTS = "results.json"
 """File that marks a ``slopedist demo`` output folder (with ``<scenario>/records.csv``)."""

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from slopedist.datasets.synthetic.scenario_file import load_scenario_text
 from slopedist.datasets.synthetic.scene import Scenario
 from slopedist.errors import InputFileError, MissingInputError
-from slopedist.io.text import read_text
+from slopedist.textfiles import read_text
 
 if TYPE_CHECKING:
     from importlib.abc import Traversable

@@ -24,7 +24,9 @@ from slopedist.detections import (
 )
 from slopedist.errors import InputFileError, MissingInputError, SlopedistError
 from slopedist.io.frames import read_timestamps
-from slopedist.io.text import (
+from slopedist.limits import MAX_INDEX
+from slopedist.odometry import read_kitti_poses, read_oxts_rotations, read_pose_file, read_tum_poses
+from slopedist.textfiles import (
     MAX_LINE_BYTES,
     CsvRows,
     decoded_lines,
@@ -32,8 +34,6 @@ from slopedist.io.text import (
     read_json,
     read_text,
 )
-from slopedist.limits import MAX_INDEX
-from slopedist.odometry import read_kitti_poses, read_oxts_rotations, read_pose_file, read_tum_poses
 
 CALIB = "\n".join(
     [
