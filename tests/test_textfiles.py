@@ -22,8 +22,11 @@ from slopedist.detections import (
     read_kitti_labels,
     read_pointrcnn,
 )
+from slopedist.detections.formats import read_coco, read_mot
 from slopedist.errors import InputFileError, MissingInputError, SlopedistError
+from slopedist.io.calibration import read_intrinsics
 from slopedist.io.frames import read_timestamps
+from slopedist.io.intrinsics import Intrinsics
 from slopedist.limits import MAX_INDEX
 from slopedist.odometry import read_kitti_poses, read_oxts_rotations, read_pose_file, read_tum_poses
 from slopedist.textfiles import (
@@ -81,6 +84,19 @@ TUM_POSES = "\n".join(
     ]
 )
 TIMES = "\n".join(["# seconds", "0.0", "0.1", "0.2", "0.31"])
+MOT = "\n".join(
+    ["1,-1,296.7,161.7,158.5,130.6,0.9", "2,-1,300,160,160,135,0.8", "3,-1,10,20,20,20,0.5"]
+)
+COCO = "\n".join(
+    [
+        "[",
+        '{"image_id": 0, "category_id": 3, "bbox": [296.7, 161.7, 158.5, 130.6], "score": 0.9},',
+        '{"image_id": 1, "category_id": 3, "bbox": [300, 160, 160, 135], "score": 0.8},',
+        '{"image_id": 2, "category_id": 3, "bbox": [10, 20, 20, 20], "score": 0.5}',
+        "]",
+    ]
+)
+K_TEXT = "\n".join(["721.5 0 609.5", "0 721.5 172.8", "0 0 1", "0.01 -0.02 0 0 0"])
 
 
 def _calib_camera(path: Path) -> Any:
@@ -105,6 +121,10 @@ READERS: dict[str, tuple[str, Callable[[Path], Any]]] = {
     "oxts poses": (TUM_POSES, _oxts),
     "pose file (auto)": (TUM_POSES, read_pose_file),
     "timestamps": (TIMES, read_timestamps),
+    "mot": (MOT, read_mot),
+    "coco json": (COCO, read_coco),
+    "intrinsics (kitti)": (CALIB, read_intrinsics),
+    "intrinsics (K text)": (K_TEXT, read_intrinsics),
 }
 
 
@@ -264,6 +284,8 @@ def _check_valid(result: Any) -> None:
         assert np.all(np.abs(result.boxes[finite]) <= 1e6)
     elif isinstance(result, dict):
         assert all(np.all(np.isfinite(v)) for v in result.values())
+    elif isinstance(result, Intrinsics):
+        assert np.all(np.isfinite(result.K))
     elif isinstance(result, Camera):
         assert np.isfinite([result.f, result.c_x, result.c_y]).all()
     elif isinstance(result, np.ndarray):

@@ -82,3 +82,8 @@ def test_concat_of_nothing_keeps_the_columns_of_like() -> None:
     out = concat_boxes([], like=like)
     assert len(out) == 0 and set(out.extra) == {"row"} and out.extra["row"].shape == (0,)
     _assert_empty(out)
+
+
+def test_empty_table_has_no_frames() -> None:
+    empty = BoxTable.empty()
+    assert list(empty.by_frame()) == [] and empty.frame_index() == {}
