@@ -130,3 +130,12 @@ def test_estimate_with_no_box_writes_an_empty_table(
     assert main(argv + (["--score", score] if score else [])) == 0
     rows = list(csv.reader(out.open()))
     assert rows[0][:2] == ["frame", "timestamp_s"] and len(rows) == 1
+
+
+@pytest.mark.kitti
+def test_eval_with_every_detection_filtered_out(
+    kitti_tracking_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "paper"]
+    assert main([*argv, "--boxes", "pointrcnn", "--score", "100"]) == 0
+    assert "Pooled over all sequences" in capsys.readouterr().out
