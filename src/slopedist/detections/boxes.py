@@ -195,7 +195,8 @@ class BoxTable:
         return np.unique(self.frame)
 
     def by_frame(self) -> Iterator[tuple[int, BoxTable]]:
-        """Yield ``(frame index, boxes of that frame)`` in frame order."""
+        """Yield ``(frame index, boxes of that frame)`` in frame order (nothing for an empty
+        table)."""
         if len(self) == 0:
             return
         order = np.argsort(self.frame, kind="stable")
@@ -210,10 +211,14 @@ class BoxTable:
         return dict(self.by_frame())
 
 
-def concat_boxes(parts: list[BoxTable]) -> BoxTable:
-    """Concatenate box tables (columns present in every part are kept)."""
+def concat_boxes(parts: list[BoxTable], like: BoxTable | None = None) -> BoxTable:
+    """Concatenate box tables (columns present in every part are kept).
+
+    With no part, the result is empty with the columns of ``like`` (e.g. the table the parts
+    were cut from), so that a sequence without any box keeps its extra columns.
+    """
     if not parts:
-        return BoxTable.empty()
+        return BoxTable.empty() if like is None else like.select(np.zeros(len(like), bool))
     keys = set.intersection(*(set(p.extra) for p in parts))
     return BoxTable(
         np.concatenate([p.frame for p in parts]),

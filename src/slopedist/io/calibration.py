@@ -29,8 +29,9 @@ import cv2
 import numpy as np
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
+from slopedist.textfiles import read_text
 
 MATRIX_KEYS = ("camera_matrix", "K", "k", "cameraMatrix", "intrinsic_matrix")
 DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "D", "d", "distCoeffs", "distortion")
@@ -64,9 +65,7 @@ def read_calibration(
 def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     """:class:`Intrinsics` from a KITTI, K-text, OpenCV or ROS calibration file."""
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"calibration file not found: {path}")
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = read_text(path, "calibration file")
     if path.suffix.lower() in (".yaml", ".yml", ".json", ".xml"):
         return read_filestorage(path)
     if re.search(r"^\s*P\d\s*:", text, re.MULTILINE) or _first_line_count(text) == 12:
@@ -162,7 +161,9 @@ def _open_filestorage(path: Path) -> cv2.FileStorage:
 def _image_size(fs: cv2.FileStorage) -> tuple[int, int] | None:
     _, w = _first(fs, WIDTH_KEYS)
     _, h = _first(fs, HEIGHT_KEYS)
-    if w is None or h is None or w.size != 1 or h.size != 1 or w[0] <= 0 or h[0] <= 0:
+    if w is None or h is None or w.size != 1 or h.size != 1:
+        return None
+    if not (0 < w[0] <= 1_000_000 and 0 < h[0] <= 1_000_000):  # NaN, inf and 1e308 too
         return None
     return int(w[0]), int(h[0])
 
