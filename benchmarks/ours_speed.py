@@ -7,7 +7,7 @@ not counted (as in the paper's comparison). Two workloads:
 1. KITTI tracking label boxes of every road-user class (Car, Van, Truck, Pedestrian, Cyclist,
    Tram, Misc, Person_sitting — not only the protocol's evaluated ones), ORB-SLAM3 rotations,
    all 13 sequences: the traffic density of real urban scenes.
-2. Simulated traffic (:func:`slopedist.estimators.ours.scene.simulate_traffic`) with a fixed
+2. Simulated traffic (:func:`slopedist.datasets.synthetic.traffic.simulate_traffic`) with a fixed
    number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
 
 Usage::
@@ -35,9 +35,9 @@ from slopedist.datasets.kitti_tracking import (  # noqa: E402
     list_sequences,
     load_sequence,
 )
+from slopedist.datasets.synthetic.traffic import simulate_traffic  # noqa: E402
 from slopedist.estimators import make_estimator  # noqa: E402
 from slopedist.estimators.base import FrameInput  # noqa: E402
-from slopedist.estimators.ours.scene import simulate_traffic  # noqa: E402
 from slopedist.evaluation import format_table  # noqa: E402
 from slopedist.pipeline import ego_gradients  # noqa: E402
 

@@ -113,7 +113,7 @@ class OursConfig:
 
     Defaults are physical priors set without looking at evaluation results, except
     ``yaw_prior`` and ``box_sigma_px``: those are fitted on the labels of the 13 shared KITTI
-    tracking sequences (:func:`~slopedist.estimators.ours.fitting.fit_parameters`: the
+    tracking sequences (:func:`~slopedist.offline.ours_fitting.fit_parameters`: the
     distribution of the labels' headings; the spread of the labels' 2D box edges around their
     3D boxes' projection — never a distance error), and ``benchmarks/ours_kitti.py`` reports the
     figures with each sequence scored under the fit on the other twelve.
