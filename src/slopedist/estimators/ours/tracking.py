@@ -11,6 +11,7 @@ update all tracks of a frame at once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -182,6 +183,110 @@ class TrackArrays:
             np.concatenate([self.ext_id, other.ext_id]),
             np.concatenate([self.state, other.state], axis=1),
         )
+
+
+class TrackUpdate(NamedTuple):
+    """What a frame writes into the tracks, one column per box of the frame.
+
+    Attributes:
+        rows: ``(n,)`` the track column each box continues, −1 where it starts a track.
+        track_ids: ``(n,)`` the boxes' track ids (−1: none).
+        filter_rows: ``(5, n)`` the distance filter's rows (:data:`ROW_FILTER`).
+        log_heading_belief: ``(n, K)`` the heading belief, or None when it is not kept (tracks
+            then carry the prior).
+        gradient_mean_rad, gradient_var_rad2: ``(n,)`` the target gradient's random walk.
+        gradient_var_other_rad2: ``(n,)`` per-vehicle variance of the latest observation.
+        boxes_px: ``(n, 4)`` this frame's boxes.
+        time_s: the frame's time.
+        R_world_cam: ``(3, 3)`` camera-to-world rotation (identity when unknown).
+        turned_boxes_px: ``(T, 4)`` the tracks' last boxes turned with the camera, or None when
+            the box motion is not kept (only id-less tracks and the box-noise estimate use it).
+    """
+
+    rows: IntArray
+    track_ids: IntArray
+    filter_rows: FloatArray
+    log_heading_belief: FloatArray | None
+    gradient_mean_rad: FloatArray
+    gradient_var_rad2: FloatArray
+    gradient_var_other_rad2: FloatArray
+    boxes_px: FloatArray
+    time_s: float
+    R_world_cam: FloatArray
+    turned_boxes_px: FloatArray | None
+
+
+def write_continued(
+    tracks: TrackArrays, update: TrackUpdate, continued: NDArray[np.bool_] | None
+) -> None:
+    """Write the update of the boxes that continue a track into ``tracks`` (in place);
+    ``continued`` is None when every box does."""
+    r = update.rows if continued is None else update.rows[continued]
+    if not r.size:
+        return
+
+    def pick(a: np.ndarray) -> np.ndarray:
+        return a if continued is None else a[..., continued]
+
+    S = tracks.state[:, r]
+    b = pick(update.boxes_px.T)
+    t = update.time_s
+    S[ROW_FILTER] = pick(update.filter_rows)
+    S[ROW_GRAD_MEAN] = pick(update.gradient_mean_rad)
+    S[ROW_GRAD_VAR] = pick(update.gradient_var_rad2)
+    S[ROW_GRAD_OTHER] = pick(update.gradient_var_other_rad2)
+    if update.turned_boxes_px is not None:
+        S[ROW_BOX_VEL] = (b - update.turned_boxes_px[r].T) / np.maximum(t - S[ROW_LAST_T], 1e-6)
+    S[ROW_PREV_T] = S[ROW_LAST_T]
+    S[ROW_LAST_T] = t
+    S[ROW_LAST_BOX] = b
+    S[ROW_ROT] = update.R_world_cam.reshape(9, 1)
+    S[ROW_N_OBS] += 1.0
+    if update.log_heading_belief is not None:
+        S[ROW_LOG_W:] = pick(update.log_heading_belief.T)
+    tracks.state[:, r] = S
+
+
+def start_tracks(
+    tracks: TrackArrays,
+    update: TrackUpdate,
+    new: NDArray[np.bool_],
+    new_uid: IntArray,
+    prior_log_w: FloatArray,
+) -> TrackArrays:
+    """``tracks`` with new tracks for the boxes ``new`` (uids ``new_uid``) appended.
+
+    A new track that carries a box track id replaces any live track with that id (its vehicle
+    failed the gate); a second box with an id already continued in this frame gets an id-less
+    track. Tracks whose belief is not kept start with ``prior_log_w`` ``(K,)``.
+    """
+    ext = update.track_ids[new].copy()
+    taken = set(tracks.ext_id[update.rows[~new]].tolist())  # ids continued in this frame
+    seen: set[int] = set()
+    for i, e in enumerate(ext.tolist()):
+        if e >= 0 and (e in taken or e in seen):
+            ext[i] = -1
+        seen.add(e)
+    belief = update.log_heading_belief
+    k = new_uid.shape[0]
+    add = TrackArrays.start(
+        new_uid,
+        ext,
+        update.filter_rows[:, new],
+        np.broadcast_to(prior_log_w, (k, prior_log_w.size)) if belief is None else belief[new],
+        update.gradient_mean_rad[new],
+        update.gradient_var_rad2[new],
+        update.gradient_var_other_rad2[new],
+        update.time_s,
+        update.boxes_px[new],
+        update.R_world_cam,
+    )
+    claimed = ext[ext >= 0]
+    if claimed.size and len(tracks):
+        replaced = np.isin(tracks.ext_id, claimed)
+        if np.count_nonzero(replaced):
+            tracks = tracks.keep(~replaced)
+    return tracks.concat(add)
 
 
 def turn_boxes(
