@@ -18,6 +18,7 @@ from slopedist.camera import Camera
 from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
@@ -70,10 +71,10 @@ def size_cues(
         )
         length_share = (1.0 - width.lever) * hyp.log_sigma_length
         length_share *= length_share
-        width = width._replace(var_other=length_share)
+        width = SizeCue(width.mean, width.lever, width.var_white, length_share)
     else:
         nan = np.full(hyp.half_extent_m.shape, np.nan)
-        width = cues.SizeCue(nan, nan, nan, nan)
+        width = SizeCue(nan, nan, nan, nan)
     return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
 
 
@@ -88,16 +89,21 @@ def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues
     if any_true(cut_h):
         if cfg.censor_border_cuts:
             bounds.append(UpperBound(height.mean, _total_var(height, hyp.log_sigma_height), cut_h))
-        height = height._replace(
-            var_white=np.where(cut_h, height.var_white * inflation, height.var_white),
-            var_other=np.where(cut_h, height.var_other * inflation, height.var_other),
+        height = SizeCue(
+            height.mean,
+            height.lever,
+            np.where(cut_h, height.var_white * inflation, height.var_white),
+            np.where(cut_h, height.var_other * inflation, height.var_other),
         )
     if cfg.use_width and any_true(cuts.sides):
         cut_w = cuts.sides[:, None]
         if cfg.censor_border_cuts:
             bounds.append(UpperBound(width.mean, _total_var(width, hyp.log_sigma_width), cut_w))
-        width = width._replace(
-            var_white=np.where(cut_w, width.var_white * inflation, width.var_white)
+        width = SizeCue(
+            width.mean,
+            width.lever,
+            np.where(cut_w, width.var_white * inflation, width.var_white),
+            width.var_other,
         )
     return SizeCues(height, width, bounds)
 
@@ -161,16 +167,14 @@ def occlusion_adjusted(
         excess = unexplained_excess(
             height.mean, _total_var(height, hyp.log_sigma_height), ground.mean, ground.var, gate
         )
-        height = height._replace(
-            var_other=height.var_other + occlusion_log_var(excess, cut_h[:, None])
-        )
+        extra = occlusion_log_var(excess, cut_h[:, None])
+        height = SizeCue(height.mean, height.lever, height.var_white, height.var_other + extra)
     if cfg.use_width and any_true(cut_w):
         excess = unexplained_excess(
             width.mean, _total_var(width, hyp.log_sigma_width), ground.mean, ground.var, gate
         )
-        width = width._replace(
-            var_other=width.var_other + occlusion_log_var(excess, cut_w[:, None])
-        )
+        extra = occlusion_log_var(excess, cut_w[:, None])
+        width = SizeCue(width.mean, width.lever, width.var_white, width.var_other + extra)
     return SizeCues(height, width, bounds)
 
 
@@ -329,7 +333,7 @@ def _motion_outputs(
     return speed, speed_sd, ttc, ttc_sd
 
 
-def _total_var(cue: cues.SizeCue, log_sigma: FloatArray) -> FloatArray:
+def _total_var(cue: SizeCue, log_sigma: FloatArray) -> FloatArray:
     """Total variance of a size cue's log distance: its noise and the class's size spread
     (relative spread ``log_sigma`` times the cue's lever)."""
     return (cue.lever * log_sigma) ** 2 + cue.var_white + cue.var_other
