@@ -74,6 +74,21 @@ def test_hidden_sides_match_a_brute_force_loop(
     assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
 
 
+@settings(max_examples=8, deadline=None)
+@given(st.integers(0, 2**31), st.floats(0.0, 3.0))
+def test_hidden_sides_of_many_boxes_match_a_brute_force_loop(seed: int, tol: float) -> None:
+    """Above a few dozen boxes only the overlapping pairs are visited (a sweep): same flags."""
+    rng = np.random.default_rng(seed)
+    n = occlusion._DENSE_MAX_BOXES + 70
+    x, y = rng.uniform(0, 1200, n).round(1), rng.uniform(100, 250, n).round(1)
+    w, h = rng.uniform(1, 120, n).round(1), rng.uniform(1, 80, n).round(1)
+    b = np.stack([x, y, x + w, y + h], axis=1)
+    b[:5, 2:] = b[5:10, :2] - tol  # edges exactly touching a widened neighbour
+    b[:5, :2] = b[:5, 2:] - 10.0
+    cut_w, cut_h = occlusion.hidden_sides(b, tol)
+    assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
+
+
 def test_censored_cue_variance() -> None:
     # a cue 0.5 (log) farther than the reference, noise 0.01 + 0.01: 3σ test → 0.25 − 0.18
     ux = occlusion.unexplained_excess(math.log(30.0) + 0.5, 0.01, math.log(30.0), 0.01, 3.0)

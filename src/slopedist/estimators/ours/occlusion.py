@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from slopedist.detections.boxes import overlapping_pairs
 from slopedist.estimators.ours.fusion import any_true
 
 FloatArray = NDArray[np.float64]
@@ -40,21 +41,42 @@ def hidden_sides(
     lo = b[:, :2] - tol_px  # each box's extent (columns, rows), widened by tol
     hi = b[:, 2:] + tol_px
     # pairs (i, j) whose boxes overlap or touch (both axes), with j nearer (its bottom lower)
-    reach = np.minimum(b[:, None, 2:], hi[None]) > np.maximum(b[:, None, :2], lo[None])
-    near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
-    if not any_true(near):
-        z = np.zeros(b.shape[0], dtype=bool)
-        return z, z.copy()
-    i, j = np.nonzero(near)  # few pairs: test their edges only
+    if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all():
+        i, j = _nearer_pairs_dense(b, lo, hi)
+    else:  # many boxes: only the pairs that overlap, O(n log n + pairs)
+        i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))
+        nearer = b[j, 3] > b[i, 3]
+        i, j = i[nearer], j[nearer]
+    cut = np.zeros((b.shape[0], 2), dtype=bool)
+    if not i.size:
+        return cut[:, 0], cut[:, 1]
     lo_j, hi_j = lo[j], hi[j]
     bi = b[i]
     on = (
         ((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
         | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j))
     )  # right / bottom edge of i on j
-    cut = np.zeros((b.shape[0], 2), dtype=bool)
-    np.logical_or.at(cut, i, on)
+    cut[i[on[:, 0]], 0] = True
+    cut[i[on[:, 1]], 1] = True
     return cut[:, 0], cut[:, 1]
+
+
+_DENSE_MAX_BOXES = 48
+"""Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
+
+
+def _nearer_pairs_dense(
+    b: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Pairs (i, j), row-major, of boxes ``b[i]`` overlapping the widened box ``(lo, hi)[j]``
+    with ``j`` nearer (its bottom lower), every pair tested."""
+    reach = np.minimum(b[:, None, 2:], hi[None]) > np.maximum(b[:, None, :2], lo[None])
+    near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
+    if not any_true(near):
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    i, j = np.nonzero(near)
+    return i, j
 
 
 def unexplained_excess(

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import iou_matrix
+from slopedist.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -385,16 +385,15 @@ def associate(
     has_id = track_ids >= 0
     if np.count_nonzero(has_id) == n:
         return rows
-    used: set[int] = set()  # id-less tracks are never taken by an id
     free_boxes = np.flatnonzero(~has_id)
     free_tracks = np.flatnonzero(tracks.ext_id < 0)
     if free_boxes.size and free_tracks.size:
         ref = tracks.last_box if predicted is None else predicted
-        iou = iou_matrix(boxes[free_boxes], ref[free_tracks])
-        bi, ti = np.nonzero(iou >= min_iou)
-        order = np.argsort(-iou[bi, ti], kind="stable")
+        bi, ti, iou = _iou_candidates(boxes[free_boxes], ref[free_tracks], min_iou)
+        order = np.argsort(-iou, kind="stable")
         taken_b: set[int] = set()
-        for o in order:
+        used: set[int] = set()  # id-less tracks are never taken by an id
+        for o in order.tolist():
             b, t = int(bi[o]), int(free_tracks[ti[o]])
             if b in taken_b or t in used:
                 continue
@@ -402,3 +401,27 @@ def associate(
             taken_b.add(b)
             used.add(t)
     return rows
+
+
+_DENSE_MAX_PAIRS = 2048
+"""Up to this many (box, track) pairs every IoU is computed at once (cheaper than sorting)."""
+
+
+def _iou_candidates(
+    boxes: FloatArray, tracks: FloatArray, min_iou: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """The (box, track) pairs with IoU ≥ ``min_iou``, row-major, and their IoU.
+
+    With ``min_iou > 0`` only overlapping boxes can qualify, so for many boxes the IoU is
+    computed for the overlapping pairs only (:func:`overlapping_pairs`: near linear in the
+    number of boxes); the pairs and values are the same as from the full matrix.
+    """
+    if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
+        iou = iou_matrix(boxes, tracks)
+        bi, ti = np.nonzero(iou >= min_iou)
+        return bi, ti, iou[bi, ti]
+    bi, ti = overlapping_pairs(boxes, tracks)
+    iou = pair_iou(boxes, tracks, bi, ti)
+    keep = np.flatnonzero(iou >= min_iou)
+    keep = keep[np.lexsort((ti[keep], bi[keep]))]  # row-major, as np.nonzero gives them
+    return bi[keep], ti[keep], iou[keep]
