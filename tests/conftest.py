@@ -10,6 +10,19 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
 
 
+KITTI_FIXTURES = frozenset(
+    {"kitti_tracking_dir", "kitti_odometry_dir", "kitti_raw_lead_dir", "kitti_report"}
+)
+"""Fixtures that hand out real KITTI data; a test using one is marked ``kitti``."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark each test that uses the real data ``kitti`` (``pytest -m "not kitti"`` skips them)."""
+    for item in items:
+        if KITTI_FIXTURES.intersection(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.kitti)
+
+
 def shared_data_path(*parts: str) -> Path:
     """Path under ../shared/data, or skip the test with a message when it is absent."""
     path = SHARED_DATA.joinpath(*parts)

@@ -122,3 +122,17 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert str(tmp_path / "d" / "summary.txt") in out
     assert main(["demo", "--out", str(tmp_path / "e"), "--methods", "nope"]) == 2
     assert main(["demo", "--out", str(tmp_path / "e"), "--scenarios", "nope.toml"]) == 2
+
+
+def test_tables_and_frame_logs_have_lf_line_ends_and_results_json_is_strict(demo_run) -> None:
+    out = demo_run.config.out_dir
+    csvs = [out / "rmse.csv", out / "timing.csv", *sorted(out.glob("*/frames.csv"))]
+    assert len(csvs) == 2 + len(SCENARIOS)
+    for path in csvs:
+        assert b"\r" not in path.read_bytes(), path
+    json.loads(
+        (out / "results.json").read_text(),
+        parse_constant=lambda c: pytest.fail(f"non-strict JSON token {c}"),
+    )
+    rmse = list(csv.DictReader((out / "rmse.csv").open()))
+    assert [r["scenario"] for r in rmse] == [*SCENARIOS, "overall"]

@@ -27,7 +27,6 @@ Convention: radians inside, degrees in files and tables; distances in metres; ti
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable, Iterator
@@ -41,18 +40,20 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from slopedist import viz
+from slopedist import score_tables, viz
 from slopedist.camera import Camera
-from slopedist.datasets.synthetic.export import CsvStream, true_theta
+from slopedist.datasets.synthetic.export import true_theta
 from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticFrame, SyntheticSequence
 from slopedist.errors import ConfigurationError, InputFileError, SlopedistError
 from slopedist.estimators import DEFAULT_METHOD, available_methods, make_estimator
 from slopedist.estimators.base import FrameEstimates, MissingReason
-from slopedist.evaluation import cap_estimates, distance_metrics, format_table
+from slopedist.evaluation import ScoredSet, cap_estimates, distance_metrics, pool_methods
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.tables import CsvStreamWriter, write_csv, write_json
 from slopedist.odometry.base import LOOKBACK_S, OdometryResult, OdometryState, RotationOdometry
 from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstimator, iter_records
+from slopedist.tables import Table, format_texts
 
 FloatArray = NDArray[np.float64]
 
@@ -202,6 +203,12 @@ class MethodScores:
         self.theta_adj += est.theta_adj_rad.tolist()
         self.delta_y += est.delta_y_px.tolist()
 
+    def scored_set(self) -> ScoredSet:
+        """The capped estimates against the truth (:meth:`metrics`'s rule) as a scored set."""
+        capped, ok = cap_estimates(np.asarray(self.distance, dtype=float), self.reason, CAP_M)
+        truth = np.asarray(self.truth, dtype=float)
+        return ScoredSet(capped[ok], truth[ok], len(truth), int(np.sum(~ok)), self.seconds)
+
     def metrics(self) -> dict[str, Any]:
         """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m,
         ``unscored`` (other missing reasons)."""
@@ -333,7 +340,7 @@ def run_scenario(
     timestamps = seq.truth.timestamps_s
     gradient = EgoGradientTracker(camera.mount_angle_rad, LOOKBACK_S)
     records = RecordWriter.open(folder / "records.csv")
-    frame_log = CsvStream(folder / "frames.csv", DEMO_FRAME_FIELDS)
+    frame_log = CsvStreamWriter.open(folder / "frames.csv", DEMO_FRAME_FIELDS)
     try:
         for k in range(n):
             t0 = time.perf_counter()
@@ -346,7 +353,7 @@ def run_scenario(
             odo_s += t2 - t1
             states[res.state.value] = states.get(res.state.value, 0) + 1
             theta_est[k] = gradient.update(frame.timestamp_s, res.R_world_cam)
-            frame_log.rows(
+            frame_log.write_values(
                 [
                     [
                         k,
@@ -513,45 +520,45 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
     return result
 
 
-# --- tables -----------------------------------------------------------------------------------
+# --- tables ---------------------------------------------------------------------------------
 
 
-def _pooled(runs: list[ScenarioRun], method: str) -> MethodScores:
-    out = MethodScores()
-    for r in runs:
-        s = r.scores[method]
-        out.distance += s.distance
-        out.reason += s.reason
-        out.truth += s.truth
-        out.seconds += s.seconds
-    return out
+def _scored_sets(result: DemoResult) -> dict[str, dict[str, ScoredSet]]:
+    """``{scenario: {method: scored set}}`` of the methods that ran."""
+    return {r.name: {m: r.scores[m].scored_set() for m in result.methods} for r in result.runs}
 
 
-def rmse_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
-    """Table 1: RMSE (m) per scenario × method, and the pooled row."""
-    methods = result.methods
-    rows: list[list[Any]] = []
-    for r in result.runs:
-        first = r.scores[methods[0]].metrics() if methods else {"n": 0}
-        rows.append([r.name, first["n"], *(r.scores[m].metrics()["rmse"] for m in methods)])
-    pooled = [_pooled(result.runs, m).metrics() for m in methods]
-    rows.append(["overall", pooled[0]["n"] if pooled else 0, *(p["rmse"] for p in pooled)])
-    return ["scenario", "n", *methods], rows
+def rmse_table(result: DemoResult) -> Table:
+    """Table 1: RMSE (m) per scenario × method, and each method pooled over the scenarios."""
+    odo = (
+        "the built-in visual odometry on the rendered frames"
+        if result.config.odometry == "visual"
+        else "the TRUE rotations (diagnostic, --odometry truth)"
+    )
+    title = (
+        f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
+        f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
+        f"the vanishing line counts as {CAP_M:g} m"
+    )
+    scores = pool_methods(_scored_sets(result), result.methods)
+    return score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
 
 
-def missing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def missing_table(result: DemoResult) -> Table:
     """Targets at or above the vanishing line (scored as 80 m) per scenario × method."""
     methods = result.methods
-    rows = [
+    rows: list[list[Any]] = [
         [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs
     ]
-    return ["scenario", *methods], rows
+    title = f"Targets at or above the vanishing line (counted as {CAP_M:g} m)"
+    return Table("below_horizon", title, ["scenario", *methods], rows)
 
 
-def timing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def timing_table(result: DemoResult) -> Table:
     """Table 2: milliseconds per frame: odometry and estimation apart."""
     frames = sum(r.frames for r in result.runs)
     odo_ms = 1e3 * sum(r.odometry_s for r in result.runs) / max(frames, 1)
+    render_ms = 1e3 * sum(r.render_s for r in result.runs) / max(frames, 1)
     rows: list[list[Any]] = []
     for p in result.plans:
         if p.skipped:
@@ -564,10 +571,15 @@ def timing_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
             "none": "-",
         }[p.rotation] + (" + depth map" if p.depth else "")
         rows.append([p.name, src, odo, est_ms, odo + est_ms])
-    return ["method", "inputs", "odometry_ms", "estimation_ms", "total_ms"], rows
+    title = (
+        "Table 2. Time per frame (ms; the detector is external and not counted; rendering "
+        f"{render_ms:.1f} ms/frame is not counted)"
+    )
+    headers = ["method", "inputs", "odometry_ms", "estimation_ms", "total_ms"]
+    return Table("timing", title, headers, rows)
 
 
-def odometry_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
+def odometry_table(result: DemoResult) -> Table:
     """Ego gradient θ from the odometry against θ from the true rotations (degrees)."""
     rows: list[list[Any]] = []
     for r in result.runs:
@@ -583,59 +595,31 @@ def odometry_rows(result: DemoResult) -> tuple[list[str], list[list[Any]]]:
                 float(np.max(np.abs(np.degrees(r.theta_true)))),
             ]
         )
-    return [
+    headers = [
         "scenario",
         "frames_ok",
         "frames",
         "theta_rms_err_deg",
         "theta_max_err_deg",
         "theta_true_max_deg",
-    ], rows
+    ]
+    title = "Ego gradient θ (eq. 4) from the odometry vs. from the true rotations (degrees)"
+    return Table("odometry", title, headers, rows)
+
+
+def demo_tables(result: DemoResult) -> list[Table]:
+    """Every table of the summary, in order (the first and the third are also CSV files)."""
+    return [rmse_table(result), missing_table(result), timing_table(result), odometry_table(result)]
 
 
 def format_demo_tables(result: DemoResult) -> str:
     """The printed summary."""
-    cfg = result.config
-    h1, r1 = rmse_rows(result)
-    h2, r2 = timing_rows(result)
-    h3, r3 = odometry_rows(result)
-    hm, rm = missing_rows(result)
-    frames = sum(r.frames for r in result.runs)
-    render_ms = 1e3 * sum(r.render_s for r in result.runs) / max(frames, 1)
-    odo = (
-        "the built-in visual odometry on the rendered frames"
-        if cfg.odometry == "visual"
-        else "the TRUE rotations (diagnostic, --odometry truth)"
-    )
-    out = [
-        f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
-        f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
-        f"the vanishing line counts as {CAP_M:g} m",
-        format_table(h1, r1),
-        "",
-        f"Targets at or above the vanishing line (counted as {CAP_M:g} m)",
-        format_table(hm, rm),
-        "",
-        "Table 2. Time per frame (ms; the detector is external and not counted; rendering "
-        f"{render_ms:.1f} ms/frame is not counted)",
-        format_table(h2, r2),
-        "",
-        "Ego gradient θ (eq. 4) from the odometry vs. from the true rotations (degrees)",
-        format_table(h3, r3),
-    ]
-    return "\n".join(out)
+    return format_texts(demo_tables(result))
 
 
-def _write_results(result: DemoResult) -> None:
-    out = result.config.out_dir
-    for fname, (headers, rows) in (
-        ("rmse.csv", rmse_rows(result)),
-        ("timing.csv", timing_rows(result)),
-    ):
-        lines = [",".join(headers)] + [",".join(_csv(v) for v in r) for r in rows]
-        (out / fname).write_text("\n".join(lines) + "\n")
-    (out / "summary.txt").write_text(format_demo_tables(result) + "\n")
-    data = {
+def _results_json(result: DemoResult) -> dict[str, Any]:
+    """Every figure behind the tables, and the noise models (``results.json``)."""
+    return {
         "config": {
             "scenarios": list(result.config.scenarios),
             "odometry": result.config.odometry,
@@ -677,28 +661,15 @@ def _write_results(result: DemoResult) -> None:
         },
         "elapsed_s": result.elapsed_s,
     }
-    (out / "results.json").write_text(json.dumps(_clean(data), indent=2) + "\n")
 
 
-def _csv(v: Any) -> str:
-    if isinstance(v, float):
-        return "" if not math.isfinite(v) else f"{v:.4f}"
-    return str(v)
-
-
-def _clean(v: Any) -> Any:
-    """JSON-ready copy: numpy scalars to Python, NaN and ±inf to null."""
-    if isinstance(v, dict):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (int, np.integer)):
-        return int(v)
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(float(v)) else None
-    return v
+def _write_results(result: DemoResult) -> None:
+    out = result.config.out_dir
+    tables = demo_tables(result)
+    for fname, table in (("rmse.csv", tables[0]), ("timing.csv", tables[2])):
+        write_csv(out / fname, table.records(), table.headers)
+    (out / "summary.txt").write_text(format_texts(tables) + "\n", encoding="utf-8")
+    write_json(out / "results.json", _results_json(result))
 
 
 def iter_outputs(result: DemoResult) -> Iterator[str]:

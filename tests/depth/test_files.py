@@ -149,6 +149,7 @@ def _lidar_depth(root: Path, k: int, shape: tuple[int, int]) -> tuple[np.ndarray
     return depth, np.r_[box, np.median(z[near])]
 
 
+@pytest.mark.kitti
 def test_lidar_depth_png_gives_the_lead_car_distance(tmp_path: Path) -> None:
     root = shared_data_path("kitti_raw_lead")
     image = cv2.imread(str(root / "image_02" / "0000000000.png"))

@@ -19,15 +19,14 @@ from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.base import OdometryResult, OdometryState, lookback_indices
 from slopedist.odometry.factory import make_odometry
-from slopedist.odometry.visual import (
+from slopedist.odometry.image_stats import (
     MIN_EXPOSURE_CHANGE,
-    BuiltinVisualOdometry,
-    VisualOdometryConfig,
     blur_to_energy,
     gradient_energy,
     grey_stats,
     match_exposure,
 )
+from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
 
 Points = tuple[NDArray[np.float64], NDArray[np.float64]]
 W, H, F = 640, 240, 400.0

@@ -20,8 +20,8 @@ from slopedist.cli.estimate_cmd import read_sequence_inputs, sequence_input_opti
 from slopedist.cli.options import height_option, lookback_option, mount_option
 from slopedist.errors import MissingInputError
 from slopedist.estimators.ours import Calibration, OursEstimator
-from slopedist.evaluation import format_table
 from slopedist.pipeline import StreamingEstimator
+from slopedist.tables import format_table
 
 
 def _row(t: float, c: Calibration) -> list[Any]:

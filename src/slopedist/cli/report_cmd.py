@@ -27,10 +27,10 @@ from slopedist.report import (
     ReportOptions,
     SourceKind,
     detect_source,
-    format_text,
     report_data,
     write_report,
 )
+from slopedist.tables import format_text
 
 
 def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:

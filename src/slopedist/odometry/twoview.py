@@ -389,3 +389,23 @@ def _failed_fit(R: FloatArray, n: int) -> TwoViewFit:
     return TwoViewFit(
         R, np.zeros(3), np.zeros(n, dtype=bool), np.full(n, np.inf), False, np.zeros((3, 3))
     )
+
+
+def rotation_covariance(information: FloatArray, Q: FloatArray) -> FloatArray:
+    """Covariance (rad²) of ``R_world_cam`` from a fit's information on ``R_rel = Q``.
+
+    ``R_world_cam = R_ref · R_relᵀ``; a right perturbation ``R_rel·exp(ω)`` is the perturbation
+    ``R_world_cam·exp(−Q ω)`` of the output, hence ``Σ = Q Λ⁻¹ Qᵀ``.
+    """
+    return np.asarray(Q @ np.linalg.inv(information + 1e-12 * np.eye(3)) @ Q.T)
+
+
+def fuse_rotations(
+    R_a: FloatArray, cov_a: FloatArray, R_b: FloatArray, cov_b: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Information-weighted mean of two rotations with covariances of right perturbations."""
+    info_a = np.linalg.inv(cov_a + 1e-14 * np.eye(3))
+    info_b = np.linalg.inv(cov_b + 1e-14 * np.eye(3))
+    info = info_a + info_b
+    phi = np.asarray(np.linalg.solve(info, info_b @ so3_log(R_a.T @ R_b)), dtype=np.float64)
+    return np.asarray(R_a @ so3_exp(phi)), np.asarray(np.linalg.inv(info))

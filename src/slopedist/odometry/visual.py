@@ -28,12 +28,11 @@ rotation cannot be estimated is ``LOST`` (tracking then continues from the last 
 bridges dropped or blurred frames); when no good frame has been seen for ``max_bridge_s`` the
 next frame with enough corners starts a new *segment* (its rotation continues from the last good
 one, which assumes no rotation during the gap; :attr:`BuiltinVisualOdometry.segment` counts the
-restarts). Before the first origin the state is ``NOT_INITIALISED``. An exposure jump (a tunnel, a
-flash, auto-exposure) is tracked through by mapping the new frame's grey levels to the previous
-frame's mean and spread (:func:`match_exposure`) before Lucas–Kanade, which assumes constant
-brightness; for the same reason, of two consecutive frames of clearly different sharpness (a jolt,
-motion blur) the sharper is blurred to match (:func:`blur_to_energy`), and a frame far blurrier
-than the last good one (:data:`MAX_BLUR_RATIO`) is ``LOST`` and bridged.
+restarts). Before the first origin the state is ``NOT_INITIALISED``. An exposure jump (a tunnel,
+a flash, auto-exposure) or a change of sharpness (a jolt, motion blur) is tracked through by
+matching the frames' grey levels and sharpness (:mod:`~slopedist.odometry.image_stats`) before
+Lucas–Kanade, which assumes both constant; a frame far blurrier than the last good one
+(:data:`~slopedist.odometry.image_stats.MAX_BLUR_RATIO`) is ``LOST`` and bridged.
 
 Memory is bounded: the tracks (``max_features``) and one look-back of frame records.
 
@@ -49,13 +48,16 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.errors import DataMismatchError
+from slopedist.odometry import image_stats
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.affine_refine import refine_affine
-from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, OdometryResult, OdometryState
+from slopedist.odometry.base import TIME_EPS_S, OdometryResult, OdometryState
+from slopedist.odometry.masks import check_boxes, grown_boxes, inside_boxes
+from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
 
 FloatArray = NDArray[np.float64]
 
@@ -64,119 +66,6 @@ USAC_MAX_ITERATIONS = 300
 
 MAX_WARM_START_DEG = 15.0
 """A previous translation direction warm-starts a fit only within this angle of the chord."""
-
-
-@dataclass(frozen=True)
-class VisualOdometryConfig:
-    """Parameters of :class:`BuiltinVisualOdometry` (pixels are full-resolution pixels).
-
-    Attributes:
-        lookback_s: interval over which rotations are estimated directly, seconds; use the same
-            look-back as the gradient (1 s).
-        max_features: number of tracks kept alive.
-        min_feature_distance_px: minimum distance between tracks, pixels.
-        corner_quality: Shi–Tomasi quality level relative to the best corner of the frame.
-        klt_window_px: side of the Lucas–Kanade window, pixels.
-        klt_levels: pyramid levels above the full-resolution image.
-        klt_iterations: maximum Lucas–Kanade iterations per level.
-        klt_max_error: tracks whose mean absolute patch difference (grey levels) exceeds this
-            are dropped.
-        inlier_threshold_px: inlier threshold and robust-loss scale of the fits, pixels.
-        outlier_px: tracks with a larger residual in a fit are dropped, pixels.
-        min_inliers: fewer inliers than this make a frame ``LOST``.
-        min_inlier_ratio: fits explaining a smaller fraction of the tracks are retried with
-            OpenCV's USAC solver and, failing that, rejected.
-        static_parallax_px: when the rotation-only model explains the tracks with a median
-            residual below this (pixels), it is used instead of the essential matrix.
-        max_bridge_s: after this long without a good frame, tracking restarts (new segment).
-        max_history_frames: hard cap on the frame records kept for the look-back.
-        fuse_frame_to_frame: when the direct fit reaches further back than the previous frame,
-            fuse it with the rotation chained from the previous frame's (information-weighted:
-            the chain helps where the direct fit is weak, e.g. yaw against a sideways
-            translation with few tracks).
-        frame_to_frame_floor_rad: standard deviation added per axis to every frame-to-frame
-            step of the chain, radians: a fit between consecutive frames has systematic errors
-            its residuals do not show (on the rendered hills about 0.005–0.01° per step, in
-            pitch and roll, the same sign from step to step), which add up over the ten steps of
-            a look-back; without this floor the fusion trusts the chain most where it is
-            biased.
-        affine_refinement: refine every Lucas–Kanade position with an affine fit of the patch
-            (:mod:`~slopedist.odometry.affine_refine`; its stretch and shear bias the
-            translational fit on the road near the camera).
-    """
-
-    lookback_s: float = LOOKBACK_S
-    max_features: int = 250
-    min_feature_distance_px: float = 12.0
-    corner_quality: float = 0.01
-    klt_window_px: int = 11
-    klt_levels: int = 3
-    klt_iterations: int = 12
-    klt_max_error: float = 40.0
-    inlier_threshold_px: float = 1.0
-    outlier_px: float = 3.0
-    min_inliers: int = 20
-    min_inlier_ratio: float = 0.5
-    static_parallax_px: float = 0.7
-    max_bridge_s: float = 0.5
-    max_history_frames: int = 256
-    fuse_frame_to_frame: bool = True
-    frame_to_frame_floor_rad: float = math.radians(0.02)
-    affine_refinement: bool = True
-
-    def __post_init__(self) -> None:
-        positive = (
-            "lookback_s",
-            "min_feature_distance_px",
-            "corner_quality",
-            "klt_max_error",
-            "inlier_threshold_px",
-            "outlier_px",
-            "static_parallax_px",
-            "max_bridge_s",
-        )
-        for name in positive:
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ConfigurationError(f"visual odometry {name} must be > 0, got {value}")
-        if self.max_features < self.min_inliers or self.min_inliers < 8:
-            raise ConfigurationError(
-                "visual odometry needs 8 ≤ min_inliers ≤ max_features, got "
-                f"min_inliers={self.min_inliers}, max_features={self.max_features}"
-            )
-        if self.klt_window_px < 5 or self.klt_levels < 0 or self.klt_iterations < 1:
-            raise ConfigurationError("klt_window_px ≥ 5, klt_levels ≥ 0, klt_iterations ≥ 1")
-        if not 0 < self.min_inlier_ratio <= 1:
-            raise ConfigurationError("min_inlier_ratio must lie in (0, 1]")
-        if self.max_history_frames < 2:
-            raise ConfigurationError("max_history_frames must be ≥ 2")
-        if not (
-            math.isfinite(self.frame_to_frame_floor_rad) and self.frame_to_frame_floor_rad >= 0
-        ):
-            raise ConfigurationError(
-                "visual odometry frame_to_frame_floor_rad must be ≥ 0, got "
-                f"{self.frame_to_frame_floor_rad}"
-            )
-
-
-@dataclass(frozen=True)
-class FitInfo:
-    """Diagnostics of the last rotation fit.
-
-    Attributes:
-        interval_s: time between the reference frame and the current one, seconds (the
-            look-back when the tracks allow it).
-        correspondences: tracks common to both frames.
-        inliers: inliers of the fit.
-        model: ``"rotation"`` (no parallax) or ``"essential"``.
-        usac: True when the local fit failed and OpenCV's USAC solver was used.
-    """
-
-    interval_s: float
-    correspondences: int
-    inliers: int
-    model: str
-    usac: bool
 
 
 @dataclass(frozen=True)
@@ -280,7 +169,7 @@ class BuiltinVisualOdometry:
         """
         image = self._check_image(image_gray)
         t = self._check_timestamp(timestamp_s)
-        boxes = _check_boxes(mask_boxes)
+        boxes = check_boxes(mask_boxes)
         if not self._history:
             return self._start(image, t, boxes)
         if t - self._history[-1].timestamp_s > self.config.max_bridge_s:
@@ -333,7 +222,7 @@ class BuiltinVisualOdometry:
         self._ids = np.empty(0, dtype=np.int64)
         self._pts = np.empty((0, 2), dtype=np.float32)
         self._vel = np.empty((0, 2), dtype=np.float32)
-        small = _half_size(image)
+        small = image_stats.half_size(image)
         self._add_features(image, boxes, small)
         if len(self._ids) < self.config.min_inliers:
             state = OdometryState.NOT_INITIALISED if self._last_R is None else OdometryState.LOST
@@ -347,7 +236,13 @@ class BuiltinVisualOdometry:
         self._cov = np.zeros((3, 3))
         self._omega = np.zeros(3)
         self._moving = False
-        self._commit(image, t, R, gradient_energy(image, small=small), grey_stats(image))
+        self._commit(
+            image,
+            t,
+            R,
+            image_stats.gradient_energy(image, small=small),
+            image_stats.grey_stats(image),
+        )
         return OdometryResult(R.copy(), OdometryState.OK, 0, self._segment)
 
     # ------------------------------------------------------------------ tracking
@@ -359,19 +254,21 @@ class BuiltinVisualOdometry:
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         self._usac_budget = 1
-        small = _half_size(image)  # also where new corners are detected
-        energy = gradient_energy(image, small=small)
-        if self._prev_energy > MAX_BLUR_RATIO * energy:
+        small = image_stats.half_size(image)  # also where new corners are detected
+        energy = image_stats.gradient_energy(image, small=small)
+        if self._prev_energy > image_stats.MAX_BLUR_RATIO * energy:
             # so blurred that its rotation would be poor: bridge it from the last sharp frame
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         # Lucas–Kanade assumes constant brightness: after an exposure jump (a tunnel,
         # auto-exposure, a flash) track into this frame with its grey levels mapped to the
         # previous frame's mean and spread; the raw frame is kept for the next step
-        stats = grey_stats(image)  # this frame's statistics serve again as the next previous
-        jumped = match_exposure(
+        stats = image_stats.grey_stats(
+            image
+        )  # this frame's statistics serve again as the next previous
+        jumped = image_stats.match_exposure(
             image,
             self._prev_image,
-            EXPOSURE_JUMP_LEVELS,
+            image_stats.EXPOSURE_JUMP_LEVELS,
             image_stats=stats,
             reference_stats=self._prev_stats,
         )
@@ -379,17 +276,17 @@ class BuiltinVisualOdometry:
         # Lucas–Kanade also needs both frames equally sharp: when one is clearly blurrier (a
         # jolt, motion blur), blur the other to match (a symmetric blur moves no feature)
         previous = self._prev_image
-        if energy > SHARPNESS_RATIO * self._prev_energy:
-            current = blur_to_energy(current, self._prev_energy)
-        elif self._prev_energy > SHARPNESS_RATIO * energy:
-            previous = blur_to_energy(previous, energy)
+        if energy > image_stats.SHARPNESS_RATIO * self._prev_energy:
+            current = image_stats.blur_to_energy(current, self._prev_energy)
+        elif self._prev_energy > image_stats.SHARPNESS_RATIO * energy:
+            previous = image_stats.blur_to_energy(previous, energy)
         keep, pts, estimate = self._attempt(previous, current, boxes, t, dt)
         if estimate is None and jumped is None:
             # a smaller exposure change can still break the tracks: retry matched
-            matched = match_exposure(
+            matched = image_stats.match_exposure(
                 current,
                 previous,
-                MIN_EXPOSURE_CHANGE,
+                image_stats.MIN_EXPOSURE_CHANGE,
                 image_stats=stats if current is image else None,
                 reference_stats=self._prev_stats if previous is self._prev_image else None,
             )
@@ -400,7 +297,7 @@ class BuiltinVisualOdometry:
         ids = self._ids[keep]
         vel = (pts - self._pts[keep]) / dt
         R_world_cam, fit, fit_ids, ref = estimate
-        cov = _rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
+        cov = tv.rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
         good = ~np.isin(ids, fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True)
         # frame to frame: drop outliers among the young tracks too, and (when the direct fit
         # reached further back and the fusion is on) fuse the chained rotation
@@ -414,7 +311,7 @@ class BuiltinVisualOdometry:
             vote = prev.R_world_cam @ f2f.R.T
             step_cov = np.linalg.inv(f2f.information) + c.frame_to_frame_floor_rad**2 * np.eye(3)
             cov_vote = f2f.R @ (step_cov + self._cov) @ f2f.R.T
-            R_world_cam, cov = _fuse(R_world_cam, cov, vote, cov_vote)
+            R_world_cam, cov = tv.fuse_rotations(R_world_cam, cov, vote, cov_vote)
         else:
             x_prev = tv.normalise_pixels(self._pts[keep], self._K)
             x_cur = tv.normalise_pixels(pts, self._K)
@@ -454,12 +351,12 @@ class BuiltinVisualOdometry:
         if self._moving:
             guess = self._pts + self._vel * dt
         else:  # no motion known yet (first step of a segment): global shift of the image
-            guess = self._pts + _global_shift(previous, image)
+            guess = self._pts + image_stats.global_shift(previous, image)
         keep, pts = self._follow(previous, image, guess, boxes)
         estimate = self._estimate(self._ids[keep], pts, t)
         if estimate is None and self._moving:
             keep, pts = self._follow(
-                previous, image, self._pts + _global_shift(previous, image), boxes
+                previous, image, self._pts + image_stats.global_shift(previous, image), boxes
             )
             estimate = self._estimate(self._ids[keep], pts, t)
         return keep, pts, estimate
@@ -492,7 +389,7 @@ class BuiltinVisualOdometry:
         tracked = (status.ravel() == 1) & (err.ravel() < c.klt_max_error)
         if c.affine_refinement:  # the patch's stretch and shear (the road near the camera)
             # not where the window reaches into a masked box: one rigid surface per window
-            near = _inside_boxes(p1, _grown(boxes, 0.5 * c.klt_window_px + 1.0))
+            near = inside_boxes(p1, grown_boxes(boxes, 0.5 * c.klt_window_px + 1.0))
             refine = tracked & ~near
             prev_f = self._float_image if previous is self._float_source else None
             if prev_f is None or previous is image:
@@ -508,7 +405,7 @@ class BuiltinVisualOdometry:
             & (p1[:, 0] < width - margin)
             & (p1[:, 1] >= margin)
             & (p1[:, 1] < height - margin)
-            & ~_inside_boxes(p1, boxes)
+            & ~inside_boxes(p1, boxes)
         )
         return keep, p1[keep]
 
@@ -662,7 +559,7 @@ class BuiltinVisualOdometry:
         self, image: NDArray[np.uint8], boxes: FloatArray, small: NDArray[np.uint8]
     ) -> None:
         """Detect corners on ``small``, the half-resolution copy of ``image``
-        (:func:`_half_size`), away from tracks and masked boxes."""
+        (:func:`~slopedist.odometry.image_stats.half_size`), away from tracks and masked boxes."""
         c = self.config
         wanted = c.max_features - len(self._ids)
         if wanted < max(8, c.max_features // 10):
@@ -701,157 +598,3 @@ class BuiltinVisualOdometry:
         self._ids = np.concatenate([self._ids, new_ids])
         self._pts = np.concatenate([self._pts, new])
         self._vel = np.concatenate([self._vel, np.tile(vel0, (n, 1))])
-
-
-def _rotation_covariance(information: FloatArray, Q: FloatArray) -> FloatArray:
-    """Covariance (rad²) of ``R_world_cam`` from a fit's information on ``R_rel = Q``.
-
-    ``R_world_cam = R_ref · R_relᵀ``; a right perturbation ``R_rel·exp(ω)`` is the perturbation
-    ``R_world_cam·exp(−Q ω)`` of the output, hence ``Σ = Q Λ⁻¹ Qᵀ``.
-    """
-    return np.asarray(Q @ np.linalg.inv(information + 1e-12 * np.eye(3)) @ Q.T)
-
-
-def _fuse(
-    R_a: FloatArray, cov_a: FloatArray, R_b: FloatArray, cov_b: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Information-weighted mean of two rotations with covariances of right perturbations."""
-    info_a = np.linalg.inv(cov_a + 1e-14 * np.eye(3))
-    info_b = np.linalg.inv(cov_b + 1e-14 * np.eye(3))
-    info = info_a + info_b
-    phi = np.asarray(np.linalg.solve(info, info_b @ tv.so3_log(R_a.T @ R_b)), dtype=np.float64)
-    return np.asarray(R_a @ tv.so3_exp(phi)), np.asarray(np.linalg.inv(info))
-
-
-def _half_size(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """Half-resolution copy (2×2 block means; an odd last row/column is dropped)."""
-    h, w = image.shape
-    even = image[: h - h % 2, : w - w % 2]
-    return np.asarray(cv2.resize(even, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
-
-
-MIN_EXPOSURE_STD = 2.0
-"""Frames whose grey-level standard deviation is below this (blank, black) are not rescaled."""
-EXPOSURE_JUMP_LEVELS = 16.0
-"""Frames whose exposure match (:func:`match_exposure`) moves some grey level by this much are
-tracked matched from the start. Between KITTI frames, changes of the scene alone move the
-mean by up to ~7 levels and the spread by up to ~7 %, which maps some level by at most ~15."""
-MIN_EXPOSURE_CHANGE = 3.0
-"""After a failed frame, an exposure match that moves no grey level by this much (levels) is
-not worth a retry."""
-
-
-def grey_stats(image: NDArray[np.uint8]) -> tuple[float, float]:
-    """Mean and standard deviation of a frame's grey levels."""
-    mean, std = (float(v) for v in np.ravel(cv2.meanStdDev(image)))
-    return mean, std
-
-
-def match_exposure(
-    image: NDArray[np.uint8],
-    reference: NDArray[np.uint8],
-    min_change: float,
-    image_stats: tuple[float, float] | None = None,
-    reference_stats: tuple[float, float] | None = None,
-) -> NDArray[np.uint8] | None:
-    """``image`` with its grey levels mapped affinely to the mean and standard deviation of
-    ``reference`` (a global gain and offset, as an exposure or gain change of the camera makes).
-
-    ``image_stats``, ``reference_stats``: the frames' :func:`grey_stats` when already known.
-    Returns None when either frame is nearly uniform (nothing to match) or when the mapping
-    would change no grey level by ``min_change`` (grey levels) or more.
-    """
-    mean_i, std_i = grey_stats(image) if image_stats is None else image_stats
-    mean_r, std_r = grey_stats(reference) if reference_stats is None else reference_stats
-    if std_i < MIN_EXPOSURE_STD or std_r < MIN_EXPOSURE_STD:
-        return None
-    gain = std_r / std_i
-    levels = np.arange(256, dtype=np.float64)
-    mapped = np.clip(np.rint(mean_r + gain * (levels - mean_i)), 0, 255)
-    if np.max(np.abs(mapped - levels)) < min_change:
-        return None
-    return np.asarray(cv2.LUT(image, mapped.astype(np.uint8)))
-
-
-SHARPNESS_RATIO = 1.5
-"""When one of two consecutive frames has this many times the other's gradient energy, the
-sharper one is blurred to match before tracking. Between the shared KITTI frames the ratio
-stays below 1.23; a Gaussian blur of 1.3–1.4 px reaches 1.5."""
-MAX_BLUR_RATIO = 8.0
-"""A frame with less than 1/this of the previous good frame's gradient energy (a Gaussian blur
-of about 4 px on KITTI frames) is ``LOST``, and the next sharp frame is tracked from the last
-sharp one: on the sharp turn with three frames blurred by 10 px that gives θ 0.09° RMS, against
-0.15° when they are tracked."""
-BLUR_SIGMAS_PX = (0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0)
-"""Gaussian blurs tried by :func:`blur_to_energy`, pixels."""
-
-
-def gradient_energy(image: NDArray[np.uint8], small: NDArray[np.uint8] | None = None) -> float:
-    """Sharpness of a frame: the mean squared Sobel gradient of its half-size copy divided by
-    its grey-level variance (per pixel², independent of the exposure's gain and offset);
-    comparable between frames of the same scene. ``small``: the half-size copy
-    (:func:`_half_size`) when already made."""
-    if small is None:
-        small = _half_size(image)
-    square_sum = 0.0
-    for dx, dy in ((1, 0), (0, 1)):  # E[g²] = std² + mean², per axis (OpenCV, int16 Sobel)
-        mean, std = cv2.meanStdDev(cv2.Sobel(small, cv2.CV_16S, dx, dy, ksize=3))
-        square_sum += float(std[0, 0]) ** 2 + float(mean[0, 0]) ** 2
-    grey_std = float(cv2.meanStdDev(small)[1][0, 0])
-    return square_sum / max(grey_std**2, 1.0)
-
-
-def blur_to_energy(image: NDArray[np.uint8], target: float) -> NDArray[np.uint8]:
-    """``image`` blurred (Gaussian, one of :data:`BLUR_SIGMAS_PX`) so that its
-    :func:`gradient_energy` comes closest to ``target`` (that of a blurrier frame of the same
-    scene)."""
-    best: tuple[float, NDArray[np.uint8]] = (math.inf, image)
-    for sigma in BLUR_SIGMAS_PX:
-        blurred: NDArray[np.uint8] = np.asarray(
-            cv2.GaussianBlur(image, (0, 0), sigma), dtype=np.uint8
-        )
-        gap = abs(math.log(max(gradient_energy(blurred), 1e-9) / max(target, 1e-9)))
-        if gap >= best[0]:
-            break  # the energy falls with sigma: past the closest one
-        best = (gap, blurred)
-    return best[1]
-
-
-def _global_shift(image_a: NDArray[np.uint8], image_b: NDArray[np.uint8]) -> FloatArray:
-    """Dominant image shift a → b in pixels ``(2,)`` by phase correlation at quarter size."""
-    h, w = image_a.shape
-    size = (max(w // 4, 8), max(h // 4, 8))
-    a = cv2.resize(image_a, size, interpolation=cv2.INTER_AREA).astype(np.float32)
-    b = cv2.resize(image_b, size, interpolation=cv2.INTER_AREA).astype(np.float32)
-    (dx, dy), response = cv2.phaseCorrelate(a, b)
-    if not (math.isfinite(dx) and math.isfinite(dy)) or response < 0.05:
-        return np.zeros(2)
-    return np.array([dx * w / size[0], dy * h / size[1]])
-
-
-def _check_boxes(mask_boxes: ArrayLike | None) -> FloatArray:
-    if mask_boxes is None:
-        return np.empty((0, 4))
-    boxes = np.asarray(mask_boxes, dtype=float)
-    if boxes.size == 0:
-        return np.empty((0, 4))
-    if boxes.ndim != 2 or boxes.shape[1] != 4:
-        raise DataMismatchError(
-            f"mask_boxes must be (N, 4) (left, top, right, bottom) pixels, got {boxes.shape}"
-        )
-    return boxes
-
-
-def _grown(boxes: FloatArray, margin_px: float) -> FloatArray:
-    """``(M, 4)`` boxes (left, top, right, bottom) grown by ``margin_px`` on every side."""
-    return boxes + np.array([-margin_px, -margin_px, margin_px, margin_px])
-
-
-def _inside_boxes(pts: NDArray[np.float32], boxes: FloatArray) -> NDArray[np.bool_]:
-    """``(N,)`` True for points inside any of the ``(M, 4)`` boxes (left, top, right, bottom)."""
-    if len(boxes) == 0 or len(pts) == 0:
-        return np.zeros(len(pts), dtype=bool)
-    x = pts[:, 0:1]
-    y = pts[:, 1:2]
-    inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
-    return np.asarray(inside.any(axis=1))

@@ -26,13 +26,11 @@ percent, timestamps in seconds, boxes ``(left, top, right, bottom)`` pixels.
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Callable
 from enum import Enum
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import cv2
 import numpy as np
@@ -44,6 +42,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.geometry import ego_road_gradient
+from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import lookback_indices
 
 TRUTH_FIELDS = (
@@ -94,33 +93,6 @@ class DepthFormat(str, Enum):
     PNG = "png"
     NPY = "npy"
     NONE = "none"
-
-
-def _fmt(value: Any) -> Any:
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return "" if not math.isfinite(value) else f"{float(value):.6g}"
-    return value
-
-
-class CsvStream:
-    """A CSV file written row by row (flushed after every frame)."""
-
-    def __init__(self, path: Path, fields: tuple[str, ...] | list[str]) -> None:
-        self.path = path
-        self._fh: IO[str] = path.open("w", newline="")
-        self._writer = csv.writer(self._fh)
-        self._writer.writerow(fields)
-
-    def rows(self, rows: list[list[Any]]) -> None:
-        self._writer.writerows([[_fmt(v) for v in r] for r in rows])
-        self._fh.flush()
-
-    def close(self) -> None:
-        self._fh.close()
 
 
 def box_rows(boxes: BoxTable, extra: tuple[str, ...] = ()) -> list[list[Any]]:
@@ -240,13 +212,13 @@ def write_simulation(
     theta = true_theta(seq.truth, sc.camera.rig.mount_angle_rad)
     tr = seq.truth
     streams = {
-        "boxes": CsvStream(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
-        "exact": CsvStream(
+        "boxes": CsvStreamWriter.open(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
+        "exact": CsvStreamWriter.open(
             out / "boxes_exact.csv",
             (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
         ),
-        "truth": CsvStream(out / "truth.csv", TRUTH_FIELDS),
-        "frames": CsvStream(out / "frames.csv", FRAME_FIELDS),
+        "truth": CsvStreamWriter.open(out / "truth.csv", TRUTH_FIELDS),
+        "frames": CsvStreamWriter.open(out / "frames.csv", FRAME_FIELDS),
     }
     n_det = 0
     try:
@@ -260,17 +232,17 @@ def write_simulation(
                 write_kitti_depth_png(depth_dir / f"{k:06d}.png", f.depth_m)
             elif depth is DepthFormat.NPY:
                 np.save(depth_dir / f"{k:06d}.npy", f.depth_m)
-            streams["boxes"].rows(
+            streams["boxes"].write_values(
                 box_rows(with_truth_distance(seq, f.detections), (CSV_TRUTH_COLUMN,))
             )
-            streams["exact"].rows(
+            streams["exact"].write_values(
                 box_rows(
                     with_truth_distance(seq, f.exact),
                     ("z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
                 )
             )
-            streams["truth"].rows(truth_rows(seq, f))
-            streams["frames"].rows(
+            streams["truth"].write_values(truth_rows(seq, f))
+            streams["frames"].write_values(
                 [
                     [
                         k,
@@ -304,5 +276,5 @@ def write_simulation(
         "depth": depth.value,
         "images": images,
     }
-    (out / "info.json").write_text(json.dumps(info, indent=2) + "\n")
+    write_json(out / "info.json", info)
     return info

@@ -6,9 +6,7 @@ Convention:
     :mod:`~slopedist.datasets.synthetic.road`. Images are BGR ``H×W×3`` uint8; depth maps are
     float32 metres along the camera's z axis, ``+inf`` where a pixel sees the sky.
 
-How it works (numpy + OpenCV, no GPU, one thread; about 14 ms of CPU per 1242×375 frame on the
-shared 2-core machine with the depth map, 13.5 ms without, against 16 ms before the last round of
-work in the same conditions, ``benchmarks/synthetic_hills.py``):
+How it works (numpy + OpenCV, no GPU, one thread; speed in ``benchmarks/synthetic_hills.py``):
 
 1. Visibility: every planar polygon of the world (:mod:`~slopedist.datasets.synthetic.world`)
    and of the target vehicles near the camera is projected, back faces culled, polygons crossing
@@ -36,14 +34,8 @@ work in the same conditions, ``benchmarks/synthetic_hills.py``):
    levels chosen per pixel by the footprint), times the polygon's colour and sun shading with
    distance haze, and a fixed sensor-noise pattern shifted per frame; uint8 arithmetic.
 
-Where the time goes (pyinstrument, one core): the pixel-by-pixel cells ~2 ms (about 2 000–3 700
-of the 29 000 cells, the edges; the gather of each pixel's plane and colour dominates), the
-remap ~1.8 ms, the upsampling (six ``cv2.resize``) ~1.5 ms, the atlas coordinates (texture wrap,
-level scale and column) ~1 ms, colour and noise ~1 ms, the coarse grid and the cell tests
-~2 ms, and the polygon stage (projection 0.7 ms, ``fillConvexPoly`` of ~700 polygons 1.5 ms)
-~2.5 ms. Carrying the level as a uint8 code in the colour term's alpha (one resize fewer) moved
-level edges enough to change the built-in odometry's error on ``ego_sag`` from 0.031° to 0.052°,
-so the level keeps its float field.
+The level of detail keeps a float field (a uint8 code would move level edges enough to change
+the odometry's error on the rendered frames).
 
 Everything is deterministic: textures from a fixed seed, the world from the scenario's seed.
 """

@@ -280,6 +280,7 @@ def test_bad_sources_and_files(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "SEQUENCE:TRACK_ID" in capsys.readouterr().err
 
 
+@pytest.mark.kitti
 def test_depthmap_needs_a_depth_folder_and_unknown_tracks(tmp_path: Path) -> None:
     kitti = shared_data_path("kitti_tracking")
     opts = ReportOptions(eval=KittiEvalConfig(sequences=["0000"], methods=("depthmap",)))

@@ -1,0 +1,64 @@
+"""The fuzz suite's long profile: mutated inputs over every reader and command, counts by outcome.
+
+Builds the small valid corpus of ``tests/fuzz/harness.py`` once, then runs ``--cases`` cases
+(default 2,000), each a command with one input file mutated (truncation, random or non-UTF-8
+bytes, NaN/inf/1e308 numbers, empty files, header only, wrong column counts, huge fields, BOM),
+drawn with a fixed seed (``--seed``), every command and mutation in turn. Unlike the fast profile
+in the tests (hypothesis, which stops at the first defect), every case runs, and the counts by
+outcome are printed: the allowed ``clean_error`` and ``ok``, and the defects ``bad_ok``,
+``internal_error``, ``traceback`` and ``hang`` with examples.
+
+Usage (from the repository root)::
+
+    python benchmarks/fuzz_inputs.py [--cases 2000] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import random
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fuzz"))
+from harness import ALLOWED, CASES, MUTATIONS, build_corpus, run_case
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", type=int, default=2000)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    mutations = sorted(MUTATIONS)
+    counts: collections.Counter[str] = collections.Counter()
+    per_case: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
+    defects = []
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        corpus = build_corpus(Path(tmp) / "corpus")
+        for i in range(args.cases):
+            case = CASES[i % len(CASES)]
+            mutation = mutations[(i // len(CASES)) % len(mutations)]
+            outcome = run_case(corpus, case, mutation, rng.randrange(2**31), Path(tmp) / "work")
+            counts[outcome.kind] += 1
+            per_case[case.name][outcome.kind] += 1
+            if outcome.kind not in ALLOWED:
+                defects.append(outcome)
+    print(f"{args.cases} cases over {len(CASES)} command lines × {len(mutations)} mutations")
+    print(f"({time.perf_counter() - start:.0f} s)")
+    for kind in ("ok", "clean_error", "bad_ok", "internal_error", "traceback", "hang"):
+        print(f"  {kind:15s} {counts.get(kind, 0)}")
+    for o in defects[:25]:
+        print(f"  DEFECT {o.kind}: {o.case} / {o.mutation}: {o.detail[:160]}")
+    if defects:
+        worst = collections.Counter(o.case for o in defects).most_common(8)
+        print("defects per command line:", ", ".join(f"{k} {v}" for k, v in worst))
+    return 1 if defects else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

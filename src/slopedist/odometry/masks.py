@@ -1,0 +1,41 @@
+"""Vehicle boxes as masks of the built-in visual odometry: features are not taken inside them.
+
+Boxes are ``(M, 4)`` arrays ``(left, top, right, bottom)`` in full-resolution pixels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from slopedist.errors import DataMismatchError
+
+FloatArray = NDArray[np.float64]
+
+
+def check_boxes(mask_boxes: ArrayLike | None) -> FloatArray:
+    if mask_boxes is None:
+        return np.empty((0, 4))
+    boxes = np.asarray(mask_boxes, dtype=float)
+    if boxes.size == 0:
+        return np.empty((0, 4))
+    if boxes.ndim != 2 or boxes.shape[1] != 4:
+        raise DataMismatchError(
+            f"mask_boxes must be (N, 4) (left, top, right, bottom) pixels, got {boxes.shape}"
+        )
+    return boxes
+
+
+def grown_boxes(boxes: FloatArray, margin_px: float) -> FloatArray:
+    """``(M, 4)`` boxes (left, top, right, bottom) grown by ``margin_px`` on every side."""
+    return boxes + np.array([-margin_px, -margin_px, margin_px, margin_px])
+
+
+def inside_boxes(pts: NDArray[np.float32], boxes: FloatArray) -> NDArray[np.bool_]:
+    """``(N,)`` True for points inside any of the ``(M, 4)`` boxes (left, top, right, bottom)."""
+    if len(boxes) == 0 or len(pts) == 0:
+        return np.zeros(len(pts), dtype=bool)
+    x = pts[:, 0:1]
+    y = pts[:, 1:2]
+    inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
+    return np.asarray(inside.any(axis=1))

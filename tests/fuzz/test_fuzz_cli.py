@@ -1,0 +1,46 @@
+"""Fuzz every reader and command with mutated inputs: only a clean error or a trustworthy output.
+
+The fast profile runs ``SLOPEDIST_FUZZ_EXAMPLES`` cases (default 40) here; the long profile is
+``python benchmarks/fuzz_inputs.py`` (≥ 2,000 cases, counts by outcome).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from harness import (
+    CASES,
+    Case,
+    Corpus,
+    bad_ok_rows,
+    build_corpus,
+    run_case,
+)
+
+
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory: pytest.TempPathFactory) -> Corpus:
+    return build_corpus(tmp_path_factory.mktemp("fuzz_corpus"))
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("fuzz_work")
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
+def test_unmutated_corpus_runs_clean(corpus: Corpus, work: Path, case: Case) -> None:
+    """The harness's baseline: every command succeeds on the valid corpus (crlf keeps it valid)."""
+    outcome = run_case(corpus, case, "crlf", 0, work)
+    assert outcome.kind == "ok", outcome
+
+
+def test_bad_ok_rows_sees_implausible_distances(tmp_path: Path) -> None:
+    (tmp_path / "records.csv").write_text(
+        "frame,distance_m,status\n0,12.5,ok\n1,,missing\n2,-3,ok\n3,1e9,ok\n4,nan,ok\n"
+    )
+    assert len(bad_ok_rows(tmp_path)) == 3
