@@ -31,7 +31,11 @@ class ImageBorder:
 
     def __init__(self, camera: Camera) -> None:
         self._camera = camera
-        self._size_known = bool(camera.image_width and camera.image_height)
+        self._known_extent = (
+            (float(camera.image_width) - 1.0, float(camera.image_height) - 1.0)
+            if camera.image_width and camera.image_height
+            else None
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -42,7 +46,7 @@ class ImageBorder:
     def cuts(self, boxes: FloatArray) -> BorderCuts | None:
         """Boxes ``(n, 4)`` touching the border: (left or right, top, bottom) flags, or None
         when no box touches it."""
-        right, bottom = self._extent(boxes)
+        right, bottom = self._known_extent or self._seen_extent(boxes)
         if self._high[2] != right - 0.5 or self._high[3] != bottom - 0.5:
             self._high = np.array([math.inf, math.inf, right - 0.5, bottom - 0.5])
         cut = (boxes <= _BORDER_LOW) | (boxes >= self._high)
@@ -50,11 +54,10 @@ class ImageBorder:
             return None
         return BorderCuts(cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3])
 
-    def _extent(self, boxes: FloatArray) -> tuple[float, float]:
-        """The last column and row of the image (inf while unknown)."""
+    def _seen_extent(self, boxes: FloatArray) -> tuple[float, float]:
+        """The last column and row of the image as far as the boxes show it (inf while
+        unknown)."""
         cam = self._camera
-        if self._size_known:
-            return float(cam.image_width or 0) - 1.0, float(cam.image_height or 0) - 1.0
         seen_right, seen_bottom = np.maximum.reduce(boxes[:, 2:4], axis=0).tolist()
         self._max_right = max(self._max_right, seen_right)
         self._max_bottom = max(self._max_bottom, seen_bottom)

@@ -90,6 +90,9 @@ FloatArray = NDArray[np.float64]
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
+_CENTRE = ReferencePoint.CENTRE.value
+"""The reference point of every distance (an enum's value, looked up once)."""
+
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
 
@@ -221,7 +224,7 @@ class OursEstimator(Estimator):
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(ReferencePoint.CENTRE.value, n),
+            reference=object_column(_CENTRE, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
 

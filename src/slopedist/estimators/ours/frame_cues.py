@@ -293,13 +293,14 @@ def box_estimates(
     dist, sigma = kf.distance_moments_rows(filt, meas.var - meas.var_white)
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
     v_frame = cam.c_y - f * math.tan(theta_rad)
+    theta_adj = theta_rad + gradient.gradient_rad  # the target's road: θ + α
     ground = cues.ground_contact_cue(
         targets.boxes_px[:, 3], v_frame, f, calib.height_m, fused.half_extent_m
     )
     return BoxEstimates(
         distance_m=dist,
-        theta_adj_rad=theta_rad + gradient.gradient_rad,
-        v_px=cam.c_y - f * np.tan(theta_rad + gradient.gradient_rad),
+        theta_adj_rad=theta_adj,
+        v_px=cam.c_y - f * np.tan(theta_adj),
         delta_y_px=gradient.delta_y_px,
         sigma_m=sigma,
         distance_nearest_face_m=dist - fused.half_extent_m,

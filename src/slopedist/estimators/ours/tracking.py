@@ -224,17 +224,22 @@ def write_continued(
     r = update.rows if continued is None else update.rows[continued]
     if not r.size:
         return
-
-    def pick(a: np.ndarray) -> np.ndarray:
-        return a if continued is None else a[..., continued]
-
+    b, filt = update.boxes_px.T, update.filter_rows
+    g_mean, g_var = update.gradient_mean_rad, update.gradient_var_rad2
+    g_other = update.gradient_var_other_rad2
+    belief = update.log_heading_belief
+    log_w = None if belief is None else belief.T
+    if continued is not None:
+        b, filt, g_mean, g_var, g_other = (
+            a[..., continued] for a in (b, filt, g_mean, g_var, g_other)
+        )
+        log_w = None if log_w is None else log_w[..., continued]
     S = tracks.state[:, r]
-    b = pick(update.boxes_px.T)
     t = update.time_s
-    S[ROW_FILTER] = pick(update.filter_rows)
-    S[ROW_GRAD_MEAN] = pick(update.gradient_mean_rad)
-    S[ROW_GRAD_VAR] = pick(update.gradient_var_rad2)
-    S[ROW_GRAD_OTHER] = pick(update.gradient_var_other_rad2)
+    S[ROW_FILTER] = filt
+    S[ROW_GRAD_MEAN] = g_mean
+    S[ROW_GRAD_VAR] = g_var
+    S[ROW_GRAD_OTHER] = g_other
     if update.turned_boxes_px is not None:
         S[ROW_BOX_VEL] = (b - update.turned_boxes_px[r].T) / np.maximum(t - S[ROW_LAST_T], 1e-6)
     S[ROW_PREV_T] = S[ROW_LAST_T]
@@ -242,8 +247,8 @@ def write_continued(
     S[ROW_LAST_BOX] = b
     S[ROW_ROT] = update.R_world_cam.reshape(9, 1)
     S[ROW_N_OBS] += 1.0
-    if update.log_heading_belief is not None:
-        S[ROW_LOG_W:] = pick(update.log_heading_belief.T)
+    if log_w is not None:
+        S[ROW_LOG_W:] = log_w
     tracks.state[:, r] = S
 
 
@@ -283,7 +288,11 @@ def start_tracks(
     )
     claimed = ext[ext >= 0]
     if claimed.size and len(tracks):
-        replaced = np.isin(tracks.ext_id, claimed)
+        replaced = (
+            (tracks.ext_id[:, None] == claimed[None, :]).any(axis=1)
+            if claimed.size * len(tracks) <= 4096  # cheaper than np.isin for a few
+            else np.isin(tracks.ext_id, claimed)
+        )
         if np.count_nonzero(replaced):
             tracks = tracks.keep(~replaced)
     return tracks.concat(add)
