@@ -415,8 +415,9 @@ def section_calibration(data: Path) -> None:
 def section_synthetic(scenarios: Sequence[str]) -> None:
     from slopedist.datasets.synthetic.scenarios import load_scenario
     from slopedist.datasets.synthetic.sequence import SyntheticSequence
+    from slopedist.detections.boxes import concat_boxes
     from slopedist.odometry.base import RotationTrack
-    from slopedist.pipeline import concat_boxes, estimate_sequence
+    from slopedist.pipeline import estimate_sequence
 
     print("5. Synthetic hills (noisy detector boxes, true rotations, 80 m cap): RMSE (m)")
     rows = []

@@ -46,6 +46,17 @@ def test_csv_stream_writer_fixed_fields_missing_key_empty() -> None:
         w.write_row({"c": 1})
 
 
+def test_write_header_only_before_the_first_row() -> None:
+    empty = io.StringIO()
+    CsvStreamWriter(empty).write_header(("a", "b"))
+    assert empty.getvalue() == "a,b\n"
+    started = io.StringIO()
+    w = CsvStreamWriter(started)
+    w.write_row({"x": 1})
+    w.write_header(("a", "b"))
+    assert started.getvalue() == "x\n1\n"
+
+
 def test_csv_stream_writer_positional_rows() -> None:
     buf = io.StringIO()
     w = CsvStreamWriter(buf, fields=("a", "b"))

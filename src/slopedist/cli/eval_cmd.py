@@ -8,17 +8,16 @@ from pathlib import Path
 import click
 
 from slopedist.cli.options import (
-    alphas_option,
     check_methods,
+    estimator_options,
     height_option,
     kitti_source_options,
     lookback_option,
     mount_option,
-    paper_options,
     split_list,
-    thresholds_option,
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -54,8 +53,7 @@ def eval_group() -> None:
 @height_option
 @mount_option
 @lookback_option
-@alphas_option
-@thresholds_option
+@estimator_options()
 def kitti_tracking(
     data_dir: Path,
     sequences: str | None,
@@ -68,8 +66,7 @@ def kitti_tracking(
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
-    alphas: str,
-    thresholds: str,
+    estimator_config: EstimatorConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
@@ -82,7 +79,7 @@ def kitti_tracking(
         height_m=height_m,
         mount_angle_rad=math.radians(mount_angle_deg),
         lookback_s=lookback_s,
-        method_options={m: paper_options(alphas, thresholds) for m in ("paper", "imu")},
+        method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
     )
     report = evaluate_kitti_tracking(

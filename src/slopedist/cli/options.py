@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import click
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.estimators import available_methods
+from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
+from slopedist.detections.layouts import LogitKind, OutputLayout
+from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.depthmap import DepthSample, DepthScaling
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -59,13 +67,13 @@ alphas_option = click.option(
     "--alphas",
     default="3,5,6",
     show_default=True,
-    help="Paper method: angle steps α1,α2,α3 in degrees (eq. 7).",
+    help="paper, imu: angle steps α1,α2,α3 in degrees (eq. 7).",
 )
 thresholds_option = click.option(
     "--thresholds",
     default="0,-10,-20",
     show_default=True,
-    help="Paper method: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
+    help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
 )
 
 
@@ -83,57 +91,164 @@ def parse_triple(value: str, name: str) -> tuple[float, float, float]:
     return nums[0], nums[1], nums[2]
 
 
-def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
-    """Constructor options of the ``paper`` estimator from the command-line strings."""
-    from slopedist.geometry import GradientAdjustment
-
+def estimator_config(
+    alphas: str = "3,5,6",
+    thresholds: str = "0,-10,-20",
+    depth_sample: str = DepthSample.CENTRE.value,
+    depth_window: int = 5,
+    depth_scaling: str = DepthScaling.NONE.value,
+    method: str | None = None,
+) -> EstimatorConfig:
+    """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
+    errors name the option)."""
     a = parse_triple(alphas, "--alphas")
     t = parse_triple(thresholds, "--thresholds")
     if not (t[0] > t[1] > t[2]):
         raise click.BadParameter(
             "thresholds must decrease (t1 > t2 > t3)", param_hint="--thresholds"
         )
-    return {"adjustment": GradientAdjustment.from_degrees(a, t)}
-
-
-def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """``--depth-sample``, ``--depth-window``, ``--depth-scaling``: how the ``depthmap`` method
-    reads a depth map at a box (see :mod:`slopedist.estimators.depthmap`)."""
-    from slopedist.estimators.depthmap import DepthSample, DepthScaling
-
-    for option in reversed(
-        (
-            click.option(
-                "--depth-sample",
-                type=click.Choice([s.value for s in DepthSample]),
-                default=DepthSample.CENTRE.value,
-                show_default=True,
-                help="depthmap: box centre pixel, a window around it, or the box's lower part.",
-            ),
-            click.option(
-                "--depth-window",
-                type=int,
-                default=5,
-                show_default=True,
-                help="depthmap: window side in pixels (odd) for --depth-sample window.",
-            ),
-            click.option(
-                "--depth-scaling",
-                type=click.Choice([s.value for s in DepthScaling]),
-                default=DepthScaling.NONE.value,
-                show_default=True,
-                help="depthmap: per-frame median scaling for scale-less depth (contact = "
-                "flat-ground distances, truth = ground truth; see the README).",
-            ),
+    try:
+        config = EstimatorConfig(
+            alphas_deg=a,
+            thresholds_px=t,
+            depth_sample=DepthSample(depth_sample),
+            depth_window_px=depth_window,
+            depth_scaling=DepthScaling(depth_scaling),
         )
-    ):
+        return config if method is None else config.with_method(method)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--method") from None
+
+
+_DEPTHMAP_OPTIONS = (
+    click.option(
+        "--depth-sample",
+        type=click.Choice([s.value for s in DepthSample]),
+        default=DepthSample.CENTRE.value,
+        show_default=True,
+        help="depthmap: box centre pixel, a window around it, or the box's lower part.",
+    ),
+    click.option(
+        "--depth-window",
+        type=int,
+        default=5,
+        show_default=True,
+        help="depthmap: window side in pixels (odd) for --depth-sample window.",
+    ),
+    click.option(
+        "--depth-scaling",
+        type=click.Choice([s.value for s in DepthScaling]),
+        default=DepthScaling.NONE.value,
+        show_default=True,
+        help="depthmap: per-frame median scaling for scale-less depth (contact = "
+        "flat-ground distances, truth = ground truth; see the README).",
+    ),
+)
+
+
+def _apply(options: tuple[Any, ...], func: Callable[..., Any]) -> Callable[..., Any]:
+    for option in reversed(options):
         func = option(func)
     return func
 
 
-def depthmap_estimator_options(sample: str, window_px: int, scaling: str) -> dict[str, object]:
-    """Constructor options of the ``depthmap`` estimator from the command-line values."""
-    return {"sample": sample, "window_px": window_px, "scaling": scaling}
+def estimator_options(
+    depth: bool = False,
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options of every estimator (``--alphas``, ``--thresholds``; with ``depth`` also
+    the ``--depth-sample/-window/-scaling`` of ``depthmap``), handed to the command as one
+    ``estimator_config`` (:class:`~slopedist.estimators.EstimatorConfig`; the command sets its
+    method with :meth:`~slopedist.estimators.EstimatorConfig.with_method`)."""
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(*args: Any, alphas: str, thresholds: str, **kwargs: Any) -> Any:
+            depth_values = {
+                k: kwargs.pop(k)
+                for k in ("depth_sample", "depth_window", "depth_scaling")
+                if k in kwargs
+            }
+            kwargs["estimator_config"] = estimator_config(alphas, thresholds, **depth_values)
+            return command(*args, **kwargs)
+
+        options = (alphas_option, thresholds_option) + (_DEPTHMAP_OPTIONS if depth else ())
+        return _apply(options, wrapper)
+
+    return decorate
+
+
+_SEQUENCE_FILE_OPTIONS = (
+    click.option(
+        "--calib",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="Calibration: KITTI (P2; P0 for odometry calib.txt), 3×3 K text, OpenCV or ROS "
+        "camera_info YAML/JSON; lens distortion and fx ≠ fy are removed from the boxes.",
+    ),
+    click.option(
+        "--poses",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).",
+    ),
+    click.option(
+        "--boxes",
+        "boxes_path",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="Boxes: slopedist CSV, KITTI labels or PointRCNN file.",
+    ),
+    click.option(
+        "--pose-format",
+        type=click.Choice([p.value for p in PoseFileLayout]),
+        default=PoseFileLayout.AUTO.value,
+        show_default=True,
+        help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
+    ),
+    click.option(
+        "--frame-period",
+        type=click.FloatRange(min=0, min_open=True),
+        default=0.1,
+        show_default=True,
+        help="Seconds between frames (KITTI and OXTS poses).",
+    ),
+    click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE."),
+    height_option,
+    mount_option,
+)
+
+
+def sequence_file_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """``--calib``, ``--poses``, ``--boxes``, ``--pose-format``, ``--frame-period``,
+    ``--score``, ``--height``, ``--mount-angle``: one sequence given as files, handed to the
+    command as one ``files`` (:class:`~slopedist.datasets.sequence_files.SequenceFiles`)."""
+
+    @functools.wraps(command)
+    def wrapper(
+        *args: Any,
+        calib: Path,
+        poses: Path,
+        boxes_path: Path,
+        pose_format: str,
+        frame_period: float,
+        score: float | None,
+        height_m: float,
+        mount_angle_deg: float,
+        **kwargs: Any,
+    ) -> Any:
+        kwargs["files"] = SequenceFiles(
+            calib,
+            poses,
+            boxes_path,
+            PoseFileLayout(pose_format),
+            frame_period,
+            score,
+            height_m,
+            math.radians(mount_angle_deg),
+        )
+        return command(*args, **kwargs)
+
+    return _apply(_SEQUENCE_FILE_OPTIONS, wrapper)
 
 
 def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -170,3 +285,145 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
         return command
 
     return decorate
+
+
+def parse_size(value: str | None, what: str = "WIDTHxHEIGHT in pixels") -> tuple[int, int] | None:
+    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None."""
+    if not value:
+        return None
+    try:
+        a, b = (int(v) for v in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected {what}, got '{value}'") from None
+    if a <= 0 or b <= 0:
+        raise click.BadParameter(f"expected {what} (positive), got '{value}'")
+    return a, b
+
+
+def parse_class_map(value: str | None) -> dict[int, str] | None:
+    """``"2=Car,7=Truck"`` → ``{2: "Car", 7: "Truck"}``; None or empty → None (the default)."""
+    if not value:
+        return None
+    out: dict[int, str] = {}
+    for item in value.split(","):
+        index, sep, name = item.partition("=")
+        if not sep or not index.strip().isdigit() or not name.strip():
+            raise click.BadParameter(
+                f"class map: expected INDEX=NAME pairs such as 2=Car,7=Truck, got '{item}'"
+            )
+        out[int(index)] = name.strip()
+    return out
+
+
+DEFAULT_CLASSES = ",".join(f"{k}={v}" for k, v in COCO_VEHICLES.items())
+
+
+DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    (
+        "score",
+        "detector_score",
+        {
+            "type": click.FloatRange(0, 1),
+            "default": 0.25,
+            "show_default": True,
+            "help": "Minimum detector score.",
+        },
+    ),
+    (
+        "iou",
+        "detector_iou",
+        {
+            "type": click.FloatRange(0, 1, min_open=True),
+            "default": 0.45,
+            "show_default": True,
+            "help": "NMS IoU threshold (per class).",
+        },
+    ),
+    (
+        "classes",
+        "detector_classes",
+        {
+            "default": DEFAULT_CLASSES,
+            "show_default": True,
+            "help": "Model class index = slopedist class name; other classes are dropped.",
+        },
+    ),
+    (
+        "layout",
+        "detector_layout",
+        {
+            "type": click.Choice([v.value for v in OutputLayout]),
+            "default": OutputLayout.AUTO.value,
+            "show_default": True,
+            "help": "Output layout of the model (auto: from its output shapes; docs/detectors.md).",
+        },
+    ),
+    (
+        "input-size",
+        "detector_input_size",
+        {"help": "WIDTHxHEIGHT network input, for models with a dynamic input size."},
+    ),
+    ("bgr", "detector_bgr", {"is_flag": True, "help": "Feed BGR instead of RGB (YOLOX)."}),
+    (
+        "pixel-scale",
+        "detector_pixel_scale",
+        {
+            "type": float,
+            "default": 1 / 255,
+            "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
+        },
+    ),
+    (
+        "pad-top-left",
+        "detector_pad_top_left",
+        {
+            "is_flag": True,
+            "help": "Letterbox padding at the bottom/right only (YOLOX) instead of centred.",
+        },
+    ),
+    (
+        "logits",
+        "detector_logits",
+        {
+            "type": click.Choice([v.value for v in LogitKind]),
+            "default": LogitKind.SIGMOID.value,
+            "show_default": True,
+            "help": "DETR logits: one sigmoid per class, or softmax with a no-object class.",
+        },
+    ),
+    (
+        "threads",
+        "detector_threads",
+        {"type": int, "help": "onnxruntime threads [default: its own]."},
+    ),
+)
+"""``(option name without prefix, parameter, click keywords)`` of each detector option."""
+
+
+def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options :func:`make_detector` reads (model file excluded), named ``--<prefix>score``
+    etc. (``run`` uses the prefix ``detector-``, its ``--score`` being the box files')."""
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        for name, param, kwargs in reversed(DETECTOR_OPTION_SPECS):
+            func = click.option(f"--{prefix}{name}", param, **kwargs)(func)
+        return func
+
+    return decorate
+
+
+def make_detector(model: Path, **opts: Any) -> OnnxDetector:
+    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`."""
+    settings = DetectorSettings(
+        score_threshold=opts["detector_score"],
+        iou_threshold=opts["detector_iou"],
+        class_map=parse_class_map(opts["detector_classes"]),
+        layout=opts["detector_layout"],
+        input_size=parse_size(opts["detector_input_size"]),
+        bgr_input=opts["detector_bgr"],
+        pixel_scale=opts["detector_pixel_scale"],
+        pad_centre=not opts["detector_pad_top_left"],
+        logit_kind=opts["detector_logits"],
+        threads=opts["detector_threads"],
+    )
+    return OnnxDetector(model, settings)

@@ -95,6 +95,12 @@ class CsvStreamWriter:
         self._stream.flush()
         return n
 
+    def write_header(self, fields: Sequence[str]) -> None:
+        """Write ``fields`` as the header now if none is written yet (an empty table keeps its
+        columns); no effect otherwise."""
+        if self._writer is None:
+            self._start(fields)
+
     def write_row(self, row: Mapping[str, Any]) -> None:
         """Write one row and flush."""
         self.write_rows((row,))
