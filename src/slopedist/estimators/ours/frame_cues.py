@@ -79,33 +79,43 @@ def size_cues(
 
 
 def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
+    """The size cues with the dimensions cut by the image border (height: top or bottom;
+    width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
     cuts = targets.border_cuts
     if cuts is None:
         return size
     hyp = targets.classes.hypotheses
     height, width, bounds = size
-    inflation = cfg.truncation_factor**2
     cut_h = (cuts.top | cuts.bottom)[:, None]
     if any_true(cut_h):
-        if cfg.censor_border_cuts:
-            bounds.append(UpperBound(height.mean, _total_var(height, hyp.log_sigma_height), cut_h))
-        height = SizeCue(
-            height.mean,
-            height.lever,
-            np.where(cut_h, height.var_white * inflation, height.var_white),
-            np.where(cut_h, height.var_other * inflation, height.var_other),
-        )
+        height = _cut_by_border(cfg, height, hyp.log_sigma_height, cut_h, bounds, True)
     if cfg.use_width and any_true(cuts.sides):
-        cut_w = cuts.sides[:, None]
-        if cfg.censor_border_cuts:
-            bounds.append(UpperBound(width.mean, _total_var(width, hyp.log_sigma_width), cut_w))
-        width = SizeCue(
-            width.mean,
-            width.lever,
-            np.where(cut_w, width.var_white * inflation, width.var_white),
-            width.var_other,
-        )
+        width = _cut_by_border(cfg, width, hyp.log_sigma_width, cuts.sides[:, None], bounds, False)
     return SizeCues(height, width, bounds)
+
+
+def _cut_by_border(
+    cfg: OursConfig,
+    cue: SizeCue,
+    log_sigma: FloatArray,
+    rows: NDArray[np.bool_],
+    bounds: list[UpperBound],
+    inflate_other: bool,
+) -> SizeCue:
+    """``cue`` with its white variance (and its other variance when ``inflate_other``)
+    multiplied by ``truncation_factor²`` where ``rows`` ``(n, 1)``; the cue as it was becomes
+    an upper bound there (appended to ``bounds``) when ``censor_border_cuts``."""
+    if cfg.censor_border_cuts:
+        bounds.append(UpperBound(cue.mean, _total_var(cue, log_sigma), rows))
+    inflation = cfg.truncation_factor**2
+    return SizeCue(
+        cue.mean,
+        cue.lever,
+        np.where(rows, cue.var_white * inflation, cue.var_white),
+        np.where(rows, cue.var_other * inflation, cue.var_other)
+        if inflate_other
+        else cue.var_other,
+    )
 
 
 def ground_contact_cue(
