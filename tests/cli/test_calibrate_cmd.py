@@ -11,8 +11,8 @@ import pytest
 
 from slopedist.camera import Camera
 from slopedist.cli import main
+from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.estimators.ours import EXTRA_COLUMNS
-from slopedist.estimators.ours.scene import simulate_traffic
 
 F, CX, CY = 721.5, 609.6, 172.9
 
