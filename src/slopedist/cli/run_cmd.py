@@ -53,7 +53,7 @@ from slopedist.io.outputs import (
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import (
+from slopedist.run_config import (
     FRAMES_NAME,
     MCAP_NAME,
     RECORDS_NAME,
@@ -63,8 +63,8 @@ from slopedist.runner import (
     RunConfig,
     RunExport,
     RunResult,
-    run_frames,
 )
+from slopedist.runner import run_frames
 from slopedist.tracks import TRACKS_NAME
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
