@@ -35,12 +35,19 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
-from slopedist.detections.boxes import box_problems
+from slopedist.detections.boxes import (
+    ABSURD_COORDINATE_PX,
+    ABSURD_IMAGE_SIZES,
+    MIN_BOX_SIZE_PX,
+    box_problems,
+)
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
+    EstimateStatus,
     Estimator,
     FrameEstimates,
     FrameInput,
+    MissingReason,
     ReferencePoint,
 )
 from slopedist.estimators.ours import filter as kf
@@ -108,6 +115,7 @@ class OursEstimator(Estimator):
 
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
+    handles_border_cuts: ClassVar[bool] = True
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -145,6 +153,7 @@ class OursEstimator(Estimator):
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
         self._border = ImageBorder(camera)
+        self._box_low, self._box_high = _usable_box_range(self._border.known_size)
         self.reset()
 
     def _log_prior_rows(self, n: int) -> FloatArray:
@@ -187,21 +196,13 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        # every box finite with right > left and bottom > top (the common case, checked cheaply)
-        all_usable = np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n and bool(
-            np.isfinite(np.add.reduce(boxes, axis=None))
-        )
+        all_usable = self._all_usable(boxes)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
-        else:
-            good = np.flatnonzero(
-                np.isfinite(boxes).all(axis=1)
-                & (boxes[:, 2] > boxes[:, 0])
-                & (boxes[:, 3] > boxes[:, 1])
-            )
-            # the reasons of unusable_box_reasons(frame, needs_rotation=False)
-            reasons = box_problems(boxes)
+        else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
+            reasons = box_problems(boxes, self._border.known_size)
+            good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
@@ -217,7 +218,7 @@ class OursEstimator(Estimator):
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
-        return FrameEstimates(
+        est = FrameEstimates(
             theta_rad=filled(n, theta_in),
             theta_adj_rad=out["theta_adj_rad"],
             delta_y_px=out["delta_y_px"],
@@ -227,6 +228,52 @@ class OursEstimator(Estimator):
             reference=object_column(_CENTRE, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
+        if self._border.known_size is not None and good.size:
+            self._settle_border_cuts(est, boxes, good)
+        return est
+
+    def _all_usable(self, boxes: FloatArray) -> bool:
+        """Whether every box ``(n, 4)`` is certainly usable (finite, at least
+        :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, overlapping the
+        image and within sane coordinates): the common case, checked cheaply; otherwise
+        :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
+        n = boxes.shape[0]
+        size = boxes[:, 2:] - boxes[:, :2]
+        inside = (boxes > self._box_low) & (boxes < self._box_high)  # False for NaN
+        return (
+            np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+        )
+
+    def _settle_border_cuts(
+        self, est: FrameEstimates, boxes: FloatArray, good: NDArray[np.intp]
+    ) -> None:
+        """The states of the usable boxes ``good`` cut by the image border (the ``cut``
+        column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box keeps ``ok``
+        while one of its cues is uncut (the height: neither top nor bottom cut; the width: no
+        side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
+        reason ``cut_bottom``, whose distance is the least of the cut contact and width cues
+        (each says at least the true distance: the lowest visible row lies above the contact
+        row, the visible width is less than the vehicle's)."""
+        cut = np.zeros((boxes.shape[0], 4), dtype=bool)
+        cut[good] = self._border.cut_edges(boxes[good])
+        if not any_true(cut):
+            return
+        cfg = self.config
+        side = cut[:, 0] | cut[:, 2]
+        top, bottom = cut[:, 1], cut[:, 3]
+        uncut = ~top & ~bottom  # the height cue
+        if cfg.use_width:
+            uncut |= ~side
+        if cfg.use_ground_contact:
+            uncut |= ~bottom
+        bounded = ~uncut & (est.status == EstimateStatus.OK.value)
+        if not any_true(bounded):
+            return
+        contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
+        width = np.where(side, est.extra["distance_width_m"], np.inf)
+        bound = np.fmin(contact, width)  # NaN where a cue is missing: the other
+        est.distance_m[bounded] = bound[bounded]
+        est.set_state(bounded, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
         """The self-calibration in use, as columns of ``n`` boxes."""
@@ -559,6 +606,18 @@ class OursEstimator(Estimator):
                 math.sqrt(cov[1, 1]),
             )
         return self._fixed_calib
+
+
+def _usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
+    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
+    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
+    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
+    if size is None:
+        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
+    w, h = float(size[0]), float(size[1])
+    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
+    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
+    return low, high
 
 
 class OursSelfCalibratingEstimator(OursEstimator):

@@ -242,6 +242,7 @@ def fuse_hypotheses(
         log_prior,
         heading_weights,
         np.add.reduce(weights * extent, axis=1),
+        np.add.reduce(heading_weights * width.mean, axis=1),
     )
 
 
@@ -323,6 +324,7 @@ def box_estimates(
         yaw_rad=yaw_grid_rad[fused.heading_weights.argmax(axis=1)],
         distance_size_m=gradient.size_distance_m,
         distance_ground_contact_m=ground,
+        distance_width_m=np.exp(fused.width_log),
         track_uid=uid.astype(float),
     )
 

@@ -33,6 +33,7 @@ EXTRA_COLUMNS = (
     "yaw_rad",
     "distance_size_m",
     "distance_ground_contact_m",
+    "distance_width_m",
     "track_uid",
     "calib_mount_angle_rad",
     "calib_mount_angle_sigma_rad",
@@ -150,6 +151,8 @@ class FusedCues(NamedTuple):
         log_prior: ``(n, K·modes)`` their log prior.
         heading_weights: ``(n, K)`` posterior weight of each heading hypothesis.
         half_extent_m: ``(n,)`` posterior mean half depth extent (centre to nearest face).
+        width_log: ``(n,)`` the width cue's log centre distance, mixed over the headings by
+            their posterior weights (NaN without the width cue).
     """
 
     measurement: LogCue
@@ -158,6 +161,7 @@ class FusedCues(NamedTuple):
     log_prior: FloatArray
     heading_weights: FloatArray
     half_extent_m: FloatArray
+    width_log: FloatArray
 
 
 class DistanceFilterResult(NamedTuple):
@@ -214,6 +218,7 @@ class BoxEstimates(NamedTuple):
     yaw_rad: FloatArray
     distance_size_m: FloatArray
     distance_ground_contact_m: FloatArray
+    distance_width_m: FloatArray
     track_uid: FloatArray
 
 
