@@ -65,6 +65,15 @@ def test_detections_report_recall(kitti_tracking_dir: Path) -> None:
     assert overall["n"] < 12335
 
 
+def test_rrc_camera_detections_are_matched_like_pointrcnn(kitti_tracking_dir: Path) -> None:
+    """The issue's figures: RRC boxes at score >= 0.5 reach a recall of about 0.90."""
+    cfg = KittiEvalConfig(boxes=BoxSource.RRC, min_score=0.5, methods=("flat",))
+    report = evaluate_kitti_tracking(kitti_tracking_dir, cfg)
+    overall = report["methods"]["flat"]["overall"]
+    assert overall["recall"] == pytest.approx(0.90, abs=0.01)
+    assert report["protocol"]["boxes"] == "rrc" and report["protocol"]["matching"]
+
+
 def test_unknown_sequence(kitti_tracking_dir: Path) -> None:
     with pytest.raises(MissingInputError, match="9999"):
         evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["9999"]))

@@ -98,7 +98,7 @@ class KittiEvalConfig:
             "min_score": self.min_score,
             "matching": (
                 f"greedy one-to-one by 2D IoU >= {self.min_iou}, best pair first"
-                if BoxSource(self.boxes) is BoxSource.POINTRCNN
+                if BoxSource(self.boxes).is_detector
                 else None
             ),
             "cap_m": self.cap_m,
@@ -122,7 +122,7 @@ class KittiEvalConfig:
 def _boxes_for(seq: KittiTrackingSequence, cfg: KittiEvalConfig, gt: BoxTable) -> BoxTable:
     if BoxSource(cfg.boxes) is BoxSource.GT:
         return gt
-    return seq.detections(cfg.min_score)
+    return seq.detections(cfg.min_score, BoxSource(cfg.boxes))
 
 
 @dataclass
@@ -231,7 +231,7 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     """
     gt = seq.labels.select(protocol_mask(seq.labels))
     boxes = _boxes_for(seq, cfg, gt)
-    with_detections = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
+    with_detections = BoxSource(cfg.boxes).is_detector
     det_rows, gt_rows = (
         match_by_frame(boxes, gt, cfg.min_iou)
         if with_detections
@@ -341,7 +341,7 @@ class KittiEvaluation:
         per_seq = {
             s: {m: run.scored(m) for m in self.config.methods} for s, run in self.runs.items()
         }
-        with_recall = BoxSource(self.config.boxes) is BoxSource.POINTRCNN
+        with_recall = BoxSource(self.config.boxes).is_detector
         return pool_methods(per_seq, self.config.methods, with_recall)
 
     def report(self) -> dict[str, Any]:

@@ -272,13 +272,13 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
                     type=click.Choice([b.value for b in BoxSource]),
                     default=BoxSource.GT.value,
                     show_default=True,
-                    help=f"{prefix}Ground-truth boxes or PointRCNN detections.",
+                    help=f"{prefix}Ground-truth boxes, PointRCNN or RRC (camera) detections.",
                 ),
                 click.option(
                     "--score",
                     type=float,
                     default=None,
-                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN boxes).",
+                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN, RRC boxes).",
                 ),
             )
         ):

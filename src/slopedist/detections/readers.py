@@ -201,6 +201,42 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
     )
 
 
+RRC_FIELDS = ("frame", "x1", "y1", "x2", "y2", "score")
+"""Fields of an RRC detection file line (comma-separated, no header)."""
+
+
+def read_rrc(path: str | Path, min_score: float | None = None) -> BoxTable:
+    """RRC car detections (Ren et al., CVPR 2017, as the DeepFusionMOT repository shares them):
+    ``frame,x1,y1,x2,y2,score`` per line, box in pixels; class ``Car`` for every box.
+
+    Rows with ``score < min_score`` are dropped when ``min_score`` is given.
+    """
+    frames, boxes, scores = [], [], []
+    for lineno, line in numbered_lines(path, "RRC detection file"):
+        tok = [t.strip() for t in line.split(",")]
+        if len(tok) != len(RRC_FIELDS):
+            raise InputFileError(
+                path,
+                f"expected {len(RRC_FIELDS)} comma-separated fields, found {len(tok)}",
+                line=lineno,
+            )
+        frame = _index(path, lineno, "frame", tok[0])
+        box = _box(path, lineno, RRC_FIELDS[1:5], tok[1:5])
+        score = _parse(path, lineno, "score", tok[5], float)
+        if min_score is not None and score < min_score:
+            continue
+        frames.append(frame)
+        boxes.append(box)
+        scores.append(score)
+    return BoxTable.build(
+        frames,
+        np.asarray(boxes, dtype=float).reshape(-1, 4),
+        None,
+        scores,
+        np.full(len(frames), "Car", dtype=object),
+    )
+
+
 def read_box_csv(path: str | Path) -> BoxTable:
     """The slopedist box CSV (see the module docstring for its columns)."""
     rows = CsvRows(path, "box CSV")
