@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import (
+    DETECTOR_CLASSES,
     PROTOCOL_CLASSES,
     PROTOCOL_MAX_DISTANCE_M,
     PROTOCOL_MAX_OCCLUDED,
@@ -36,6 +37,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
 from slopedist.estimators.depthmap import TRUTH_COLUMN
+from slopedist.estimators.ours import OursEstimator
 from slopedist.evaluation import (
     PooledScores,
     ScoredSet,
@@ -65,6 +67,22 @@ class KittiEvalConfig:
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     depth_dir: Path | None = None
     """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
+    generic_detector_class: bool = True
+    """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
+    of vehicle types (option ``generic_classes``), unless its options say otherwise."""
+
+    def options_of(self, method: str) -> dict[str, Any]:
+        """Constructor options of ``method`` on this evaluation's boxes."""
+        options = dict(self.method_options.get(method, {}))
+        factory = ESTIMATORS.get(method)
+        if (
+            self.generic_detector_class
+            and BoxSource(self.boxes).is_detector
+            and isinstance(factory, type)
+            and issubclass(factory, OursEstimator)
+        ):
+            options.setdefault("generic_classes", DETECTOR_CLASSES)
+        return options
 
     def rotation_of(self, method: str) -> str | None:
         """Rotation source ``method`` is fed: the one it declares, else :attr:`rotation`; None
@@ -99,6 +117,11 @@ class KittiEvalConfig:
             "matching": (
                 f"greedy one-to-one by 2D IoU >= {self.min_iou}, best pair first"
                 if BoxSource(self.boxes).is_detector
+                else None
+            ),
+            "detector_classes": (
+                "generic: ours reads Car as a mixture of vehicle types"
+                if self.generic_detector_class and BoxSource(self.boxes).is_detector
                 else None
             ),
             "cap_m": self.cap_m,
@@ -268,7 +291,7 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     runs: dict[str, MethodRun] = {}
     n = len(boxes)
     for name in cfg.methods:
-        estimator = make_estimator(name, seq.camera, **cfg.method_options.get(name, {}))
+        estimator = make_estimator(name, seq.camera, **cfg.options_of(name))
         declared = estimator.rotation_source is not None
         source = RotationSource(estimator.rotation_source or cfg.rotation)
         track = track_for(source, declared) if estimator.needs_rotation else None

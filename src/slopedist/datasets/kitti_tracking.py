@@ -50,6 +50,9 @@ class BoxSource(str, Enum):
         return self is not BoxSource.GT
 
 
+DETECTOR_CLASSES = ("Car",)
+"""The class every detector box of the shared data carries, whatever the vehicle's type."""
+
 DETECTION_FOLDERS = {BoxSource.POINTRCNN: "pointrcnn_car", BoxSource.RRC: "rrc_car"}
 """Folder of each detector's boxes in a KITTI tracking root (``<folder>/NNNN.txt``)."""
 

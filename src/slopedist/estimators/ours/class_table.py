@@ -13,7 +13,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours import cues
-from slopedist.estimators.ours.priors import DimensionPrior, prior_row, resolve_prior
+from slopedist.estimators.ours.priors import (
+    VEHICLE_TYPE_MIXTURE,
+    DimensionPrior,
+    prior_row,
+    resolve_prior,
+)
+from slopedist.estimators.ours.vehicle_types import TypeModes, own_type_mixture, type_modes
 
 FloatArray = NDArray[np.float64]
 
@@ -59,12 +65,19 @@ class TargetClasses(NamedTuple):
         height_sigma_m: ``(n,)`` its spread σH.
         height_log_sigma: ``(n,)`` its relative spread σH/H.
         hypotheses: the per-heading constants.
+        generic: ``(n,)`` whether the class is generic (its vehicle type unknown).
+        types: the vehicle types of every target, ``(n, T)`` and ``(n, T, K)`` arrays
+            (:class:`~slopedist.estimators.ours.vehicle_types.TypeModes`; a class that names
+            its type has its own prior as the only type of weight), or None when no target's
+            class is generic.
     """
 
     height_m: FloatArray
     height_sigma_m: FloatArray
     height_log_sigma: FloatArray
     hypotheses: HypothesisConstants
+    generic: NDArray[np.bool_]
+    types: TypeModes | None
 
 
 class ClassTable:
@@ -73,13 +86,26 @@ class ClassTable:
     Args:
         priors: class → dimension prior (None = the built-in table).
         yaw_rad: ``(K,)`` the heading hypotheses.
+        generic_classes: class names that do not name the vehicle type (a class-blind
+            detector's one class): their targets are read under ``type_mixture``.
+        type_mixture: ``(name, prior, weight)`` per vehicle type.
     """
 
-    def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
+    def __init__(
+        self,
+        priors: dict[str, DimensionPrior] | None,
+        yaw_rad: FloatArray,
+        generic_classes: tuple[str, ...] = (),
+        type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE,
+    ) -> None:
         self._priors = priors
         self._yaw = yaw_rad
+        self._generic_names = frozenset(generic_classes)
+        self._mixture = type_mixture
         self._index: dict[object, int] = {}
         self._rows: list[tuple[float, ...]] = []
+        self._types: list[TypeModes] = []
+        self._generic_rows: list[bool] = []
         self._build()
 
     def gather(self, classes: NDArray[np.object_]) -> TargetClasses:
@@ -88,8 +114,17 @@ class ClassTable:
         scalars = self._scalars[rows]
         # rows gathered along the second axis: each plane of a frame is contiguous
         planes = self._planes[:, rows]
+        generic = self._generic[rows]
+        types = None
+        if self._generic_names and generic.any():
+            types = TypeModes(*(a[rows] for a in self._type_arrays))
         return TargetClasses(
-            scalars[:, 0], scalars[:, 3], scalars[:, 7], HypothesisConstants(*planes)
+            scalars[:, 0],
+            scalars[:, 3],
+            scalars[:, 7],
+            HypothesisConstants(*planes),
+            generic,
+            types,
         )
 
     def _row_indices(self, classes: NDArray[np.object_]) -> NDArray[np.intp]:
@@ -100,9 +135,18 @@ class ClassTable:
             for c in classes:
                 if c not in index:
                     index[c] = len(self._rows)
-                    self._rows.append(prior_row(resolve_prior(c, self._priors)))
+                    self._add_row(c)
             self._build()
             return np.array([index[c] for c in classes], dtype=np.intp)
+
+    def _add_row(self, name: object) -> None:
+        """A new class name's prior and its vehicle types."""
+        prior = resolve_prior(name, self._priors)
+        self._rows.append(prior_row(prior))
+        generic = name in self._generic_names
+        mixture = self._mixture if generic else own_type_mixture(prior, len(self._mixture))
+        self._generic_rows.append(generic)
+        self._types.append(type_modes(prior, mixture, self._yaw))
 
     def _build(self) -> None:
         """Scalars ``(rows, 10)``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; planes
@@ -129,3 +173,8 @@ class ClassTable:
             half_length_sin_m=0.5 * L * np.sin(psi),
         )
         self._planes = np.stack([np.broadcast_to(p, e.shape) for p in planes])
+        self._generic = np.array(self._generic_rows, dtype=bool)
+        self._type_arrays = [
+            np.stack([getattr(t, k) for t in self._types]) if self._types else np.zeros(0)
+            for k in TypeModes._fields
+        ]

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours.priors import DimensionPrior, YawPrior
+from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
 
 
@@ -80,6 +80,15 @@ class OursConfig:
             (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
             for an edge touching a nearer box.
         priors: class → dimension prior (None = the built-in table).
+        generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
+            a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
+            RRC's boxes; ``slopedist eval kitti-tracking`` sets it for detector boxes): their
+            size cues are read under ``type_mixture``
+            (:mod:`~slopedist.estimators.ours.vehicle_types`; the body-style modes of
+            ``atypical_height_weight`` are then not used in that frame).
+        type_mixture: vehicle types ``(name, prior, weight)`` behind a generic class
+            (default the published frequencies of
+            :data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`).
         selfcal: self-calibration priors and noise levels.
     """
 
@@ -112,6 +121,8 @@ class OursConfig:
     occlusion_aware: bool = True
     occlusion_gate_sigma: float = 3.0
     priors: dict[str, DimensionPrior] | None = None
+    generic_classes: tuple[str, ...] = ()
+    type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 
     def __post_init__(self) -> None:

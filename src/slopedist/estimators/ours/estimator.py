@@ -141,7 +141,9 @@ class OursEstimator(Estimator):
         self._theta_rest = float(
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
-        self._classes = ClassTable(config.priors, grid)
+        self._classes = ClassTable(
+            config.priors, grid, tuple(config.generic_classes), config.type_mixture
+        )
         modes = [(1.0, 1.0 - config.atypical_height_weight)]
         if config.atypical_height_weight > 0:
             modes.append((config.atypical_height_factor, config.atypical_height_weight))
@@ -315,7 +317,7 @@ class OursEstimator(Estimator):
             if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
                 size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
         fused = frame_cues.fuse_hypotheses(
-            targets, size, ground, self._log_prior(match), self._height_modes
+            targets, size, ground, self._log_prior(match, targets), self._height_modes
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         gradient = frame_cues.target_gradient(
@@ -386,9 +388,20 @@ class OursEstimator(Estimator):
             rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
-    def _log_prior(self, match: TrackMatch) -> FloatArray:
-        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes)."""
+    def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
+        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
+        headings × vehicle types when a target's class is generic)."""
         log_heading_prior = self._carried_heading_prior(match)
+        types = targets.classes.types
+        if types is not None:
+            if log_heading_prior is None:
+                log_heading_prior = np.broadcast_to(
+                    self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
+                )
+            n_types = types.log_weight.shape[1]
+            return np.tile(log_heading_prior, n_types) + np.repeat(
+                types.log_weight, self._yaw.size, axis=1
+            )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
@@ -509,7 +522,7 @@ class OursEstimator(Estimator):
         """``(n, K)`` normalised log heading belief after this frame: the prior times the
         cues' likelihood, tempered (consecutive frames are correlated evidence)."""
         belief = fused.log_prior + self.config.yaw_evidence_weight * fused.loglik
-        n_modes = len(self._height_modes)
+        n_modes = belief.shape[1] // self._yaw.size
         if n_modes > 1:
             n = belief.shape[0]
             belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
@@ -528,7 +541,9 @@ class OursEstimator(Estimator):
         by the top or bottom border: their bottom rows and nearest-face size distances."""
         cam = self.camera
         n = uid.shape[0]
-        usable = targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        usable = (
+            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        ) & ~targets.classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom

@@ -34,6 +34,7 @@ from slopedist.estimators.ours.records import (
     filled,
 )
 from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN
+from slopedist.estimators.ours.vehicle_types import cues_under_type
 
 FloatArray = NDArray[np.float64]
 
@@ -196,16 +197,18 @@ def fuse_hypotheses(
     height_modes: list[float],
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
-    vehicles and, less often, ones of atypical height), censor by the bounds, and collapse
-    the hypotheses by their posterior weights.
+    vehicles and, less often, ones of atypical height; or headings × vehicle types when a
+    target's class is generic), censor by the bounds, and collapse the hypotheses by their
+    posterior weights.
 
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
     factor of each body-style mode (1: the class prior's).
     """
     hyp = targets.classes.hypotheses
-    n = targets.boxes_px.shape[0]
-    n_modes = len(height_modes)
     height, width = size.height, size.width
+    if targets.classes.types is not None:
+        return _fuse_vehicle_types(targets, size, ground, log_prior)
+    n_modes = len(height_modes)
     size_modes = [
         fusion.fuse_size_cues(
             height.mean,
@@ -228,21 +231,92 @@ def fuse_hypotheses(
         fused = fusion.fuse_log_cues(
             size_cue, ground if n_modes == 1 else fusion.concat_cues([ground] * n_modes)
         )
+    extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
+    return _collapse(size, size_cue, fused, n_modes, log_prior, extent)
+
+
+def _fuse_vehicle_types(
+    targets: FrameTargets, size: SizeCues, ground: LogCue | None, log_prior: FloatArray
+) -> FusedCues:
+    """:func:`fuse_hypotheses` with the vehicle types as the modes
+    (:func:`~slopedist.estimators.ours.vehicle_types.cues_under_type`)."""
+    hyp = targets.classes.hypotheses
+    types = targets.classes.types
+    assert types is not None
+    generic = targets.classes.generic[:, None]
+    size_parts, fused_parts, extents = [], [], []
+    for t in range(types.log_weight.shape[1]):
+        c = cues_under_type(types, t, size.height, size.width, ground, hyp.log_sigma_length)
+        size_t = fusion.fuse_size_cues(
+            c.height.mean,
+            c.height.var_white,
+            c.height.var_other,
+            c.height.lever,
+            c.width.mean,
+            c.width.var_white,
+            c.width.var_other,
+            c.width.lever,
+            np.where(generic, c.log_sigma_height, hyp.log_sigma_height),
+            np.where(generic, c.log_sigma_width, hyp.log_sigma_width),
+            hyp.corr_height_width,
+        )
+        size_parts.append(size_t)
+        fused_parts.append(size_t if c.ground is None else fusion.fuse_log_cues(size_t, c.ground))
+        extents.append(np.where(generic, c.half_extent_m, hyp.half_extent_m))
+    n_types = len(size_parts)
+    return _collapse(
+        size,
+        fusion.concat_cues(size_parts),
+        fusion.concat_cues(fused_parts),
+        n_types,
+        log_prior,
+        np.concatenate(extents, axis=1),
+        most_likely_mode=True,
+    )
+
+
+def _collapse(
+    size: SizeCues,
+    size_cue: LogCue,
+    fused: LogCue,
+    n_modes: int,
+    log_prior: FloatArray,
+    extent: FloatArray,
+    most_likely_mode: bool = False,
+) -> FusedCues:
+    """Censor the fused cues ``(n, K·modes)`` by the border bounds and collapse them over
+    the hypotheses by their posterior weights (``extent``: each hypothesis's half depth
+    extent, m).
+
+    With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
+    headings collapsed) and the other modes only widen the variance: a type the cues cannot
+    tell apart from the common one leaves the estimate where the common one puts it instead of
+    pulling it by the rarer types' prior weight.
+    """
+    n = fused.mean.shape[0]
     for bound, bound_var, rows_cut in size.bounds:
         if n_modes > 1:
             bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
-    extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
-    heading_weights = weights.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else weights
+    by_mode = weights.reshape(n, n_modes, -1)
+    heading_weights = by_mode.sum(axis=1) if n_modes > 1 else weights
+    size_mix = fusion.mix_hypotheses(size_cue, weights)
+    if most_likely_mode and n_modes > 1:
+        best = by_mode.sum(axis=2).argmax(axis=1)
+        w_best = np.zeros_like(by_mode)
+        w_best[np.arange(n), best] = by_mode[np.arange(n), best]
+        w_best = w_best.reshape(n, -1) / np.add.reduce(w_best.reshape(n, -1), axis=1, keepdims=True)
+        measurement = fusion.widen_to_mixture(fused, w_best, weights)
+        size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
     return FusedCues(
         measurement,
-        fusion.mix_hypotheses(size_cue, weights),
+        size_mix,
         fused.loglik,
         log_prior,
         heading_weights,
         np.add.reduce(weights * extent, axis=1),
-        np.add.reduce(heading_weights * width.mean, axis=1),
+        np.add.reduce(heading_weights * size.width.mean, axis=1),
     )
 
 

@@ -181,6 +181,17 @@ def mix_hypotheses(cue: LogCue, weight: FloatArray) -> LogCue:
     return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))
 
 
+def widen_to_mixture(cue: LogCue, mean_weight: FloatArray, weight: FloatArray) -> LogCue:
+    """One log cue from hypotheses ``(..., K)``: the mean of the weights ``mean_weight``, the
+    variance of the whole mixture ``weight`` about that mean (both normalised over the last
+    axis): the other hypotheses widen the cue, they do not move it."""
+    mean = np.add.reduce(mean_weight * cue.mean, axis=-1)
+    dev = cue.mean - mean[..., None]
+    var = np.add.reduce(weight * (cue.var + dev * dev), axis=-1)
+    white = np.add.reduce(mean_weight * cue.var_white, axis=-1)
+    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))
+
+
 def concat_cues(parts: list[LogCue]) -> LogCue:
     """Log cues side by side along the hypothesis axis."""
     return LogCue(
