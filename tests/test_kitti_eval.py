@@ -77,3 +77,22 @@ def test_rrc_camera_detections_are_matched_like_pointrcnn(kitti_tracking_dir: Pa
 def test_unknown_sequence(kitti_tracking_dir: Path) -> None:
     with pytest.raises(MissingInputError, match="9999"):
         evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["9999"]))
+
+
+def test_a_generic_detector_class_reaches_ours_only(kitti_tracking_dir: Path) -> None:
+    cfg = KittiEvalConfig(boxes=BoxSource.RRC, generic_detector_class=True)
+    assert cfg.options_of("ours")["generic_classes"] == ("Car",)
+    assert "generic_classes" not in cfg.options_of("paper")
+    assert "generic_classes" not in KittiEvalConfig(generic_detector_class=True).options_of("ours")
+    report = evaluate_kitti_tracking(
+        kitti_tracking_dir,
+        KittiEvalConfig(
+            sequences=["0003"],
+            boxes=BoxSource.RRC,
+            min_score=0.5,
+            methods=("ours",),
+            generic_detector_class=True,
+        ),
+    )
+    assert report["protocol"]["detector_classes"].startswith("generic")
+    assert report["methods"]["ours"]["overall"]["rmse"] < 2.0

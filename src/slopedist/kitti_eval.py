@@ -67,7 +67,7 @@ class KittiEvalConfig:
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     depth_dir: Path | None = None
     """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
-    generic_detector_class: bool = True
+    generic_detector_class: bool = False
     """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
     of vehicle types (option ``generic_classes``), unless its options say otherwise."""
 

@@ -175,7 +175,7 @@ def test_rrc_reader_crlf_score_filter_and_error(tmp_path: Path) -> None:
     kept = read_rrc(path, min_score=0.6)
     assert len(kept) == 1 and kept.score[0] == pytest.approx(0.993477)
     path.write_text("0,296.0,160.1,452.2\n1,1,2,3,4,0.5\n")
-    with pytest.raises(InputFileError, match="line 1.*6 comma-separated fields, found 4"):
+    with pytest.raises(InputFileError, match=r"line 1.*6 comma-separated fields, found 4"):
         read_rrc(path)
     path.write_text("0,296.0,160.1,452.2,288.3,0.5\n-1,1,2,3,4,0.5\n")
     with pytest.raises(InputFileError, match="line 2, field 'frame'"):

@@ -50,6 +50,13 @@ def eval_group() -> None:
     help="Write the full report as strict JSON here ('-': standard output, the tables then "
     "go to standard error).",
 )
+@click.option(
+    "--generic-class/--class-as-given",
+    default=False,
+    show_default=True,
+    help="With detector boxes (every box 'Car'), let ours read the class as generic: a "
+    "mixture of car/van/truck/bus (option generic_classes).",
+)
 @height_option
 @mount_option
 @lookback_option
@@ -63,6 +70,7 @@ def kitti_tracking(
     score: float | None,
     depth_dir: Path | None,
     json_out: Path | None,
+    generic_class: bool,
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
@@ -81,6 +89,7 @@ def kitti_tracking(
         lookback_s=lookback_s,
         method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
+        generic_detector_class=generic_class,
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)

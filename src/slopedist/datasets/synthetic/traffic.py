@@ -2,8 +2,10 @@
 
 For the unit tests and the speed benchmark (the rendered hill scenarios of
 :mod:`slopedist.datasets.synthetic` are the realistic counterpart). Vehicles are Cars whose
-dimensions scatter around the class prior; the camera is at rest at height ``true_height_m``
-with mount angle ``true_mount_rad``, so the horizon is the row ``c_y + f·tan θ0``.
+dimensions scatter around the class prior (or, with ``vehicle_types``, Cars, Vans and Trucks
+around theirs, all labelled ``Car`` as a class-blind detector would unless ``label_types``); the
+camera is at rest at height ``true_height_m`` with mount angle ``true_mount_rad``, so the horizon
+is the row ``c_y + f·tan θ0``.
 
 Convention: camera x right, y down, z forward; metres, seconds, radians, pixels.
 """
@@ -36,6 +38,7 @@ class SimulatedTraffic:
         vehicle: ``(N,)`` index of the vehicle of each box.
         speed_mps: ``(N,)`` true relative speed Ż of each box.
         dims_hwl: ``(n_vehicles, 3)`` true dimensions.
+        types: ``(n_vehicles,)`` true class of each vehicle (``Car``, ``Van``, ...).
     """
 
     boxes: BoxTable
@@ -44,6 +47,7 @@ class SimulatedTraffic:
     vehicle: NDArray[np.int64]
     speed_mps: FloatArray
     dims_hwl: FloatArray
+    types: NDArray[np.object_]
 
 
 def simulate_traffic(
@@ -61,12 +65,17 @@ def simulate_traffic(
     box_noise_px: float = 0.0,
     with_ids: bool = True,
     size_spread: float = 1.0,
+    vehicle_types: dict[str, float] | None = None,
+    label_types: bool = False,
 ) -> SimulatedTraffic:
     """Vehicles driving along the camera's axis at constant relative speeds.
 
     Each vehicle keeps its lane (lateral offset) and heading (aligned, ±2°); it is visible
     while 4 m ≤ Z ≤ 90 m. Dimensions scatter around the Car prior by ``size_spread`` times the
-    prior's spread. ``box_noise_px`` adds white noise to every box edge.
+    prior's spread. ``box_noise_px`` adds white noise to every box edge. ``vehicle_types``
+    (class name → probability, classes of :data:`CLASS_PRIORS`) draws each vehicle's class and
+    scatters its dimensions around that class's prior instead; the boxes are labelled ``Car``
+    (a class-blind detector) unless ``label_types``.
     """
     rng = np.random.default_rng(seed)
     h = camera.height_m if true_height_m is None else true_height_m
@@ -85,6 +94,9 @@ def simulate_traffic(
     speed = rng.uniform(*speed_range_mps, n_vehicles)
     lane = rng.uniform(-lateral_m, lateral_m, n_vehicles)
     yaw = np.radians(rng.uniform(-2.0, 2.0, n_vehicles))
+    types = np.full(n_vehicles, "Car", dtype=object)
+    if vehicle_types:
+        types, dims = _draw_types(rng, vehicle_types, n_vehicles, size_spread)
     t = np.arange(n_frames) * frame_period_s
     frames, boxes, zs, veh, spd = [], [], [], [], []
     for k, tk in enumerate(t):
@@ -106,7 +118,7 @@ def simulate_traffic(
         frame,
         np.concatenate(boxes) if boxes else np.zeros((0, 4)),
         vehicle if with_ids else np.full(len(vehicle), -1),
-        classes=np.full(len(vehicle), "Car", dtype=object),
+        classes=types[vehicle] if label_types else np.full(len(vehicle), "Car", dtype=object),
     )
     return SimulatedTraffic(
         table,
@@ -115,4 +127,22 @@ def simulate_traffic(
         vehicle,
         np.concatenate(spd) if spd else np.zeros(0),
         dims,
+        types,
     )
+
+
+def _draw_types(
+    rng: np.random.Generator, probability: dict[str, float], n: int, size_spread: float
+) -> tuple[NDArray[np.object_], FloatArray]:
+    """Each vehicle's class (drawn by ``probability``) and dimensions ``(n, 3)`` (H, W, L, m)
+    scattered around its class prior by ``size_spread`` times the prior's spread."""
+    names = list(probability)
+    p = np.array([probability[k] for k in names], dtype=float)
+    types = np.array(names, dtype=object)[rng.choice(len(names), n, p=p / p.sum())]
+    priors = [CLASS_PRIORS[str(t)] for t in types]
+    mean = np.array([[q.height_m, q.width_m, q.length_m] for q in priors]).reshape(n, 3)
+    sigma = np.array(
+        [[q.height_sigma_m, q.width_sigma_m, q.length_sigma_m] for q in priors]
+    ).reshape(n, 3)
+    dims = mean + size_spread * sigma * rng.standard_normal((n, 3))
+    return types, np.maximum(dims, 0.3 * mean)

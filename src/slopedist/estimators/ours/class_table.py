@@ -19,7 +19,7 @@ from slopedist.estimators.ours.priors import (
     prior_row,
     resolve_prior,
 )
-from slopedist.estimators.ours.vehicle_types import TypeModes, own_type_mixture, type_modes
+from slopedist.estimators.ours.vehicle_types import TypeMixture, type_rows
 
 FloatArray = NDArray[np.float64]
 
@@ -66,10 +66,9 @@ class TargetClasses(NamedTuple):
         height_log_sigma: ``(n,)`` its relative spread σH/H.
         hypotheses: the per-heading constants.
         generic: ``(n,)`` whether the class is generic (its vehicle type unknown).
-        types: the vehicle types of every target, ``(n, T)`` and ``(n, T, K)`` arrays
-            (:class:`~slopedist.estimators.ours.vehicle_types.TypeModes`; a class that names
-            its type has its own prior as the only type of weight), or None when no target's
-            class is generic.
+        type_log_weight: ``(n, T)`` log prior weight of each vehicle type when a target's
+            class is generic (then :attr:`hypotheses` are ``(n, T·K)``, type-major:
+            :mod:`~slopedist.estimators.ours.vehicle_types`), else None.
     """
 
     height_m: FloatArray
@@ -77,7 +76,7 @@ class TargetClasses(NamedTuple):
     height_log_sigma: FloatArray
     hypotheses: HypothesisConstants
     generic: NDArray[np.bool_]
-    types: TypeModes | None
+    type_log_weight: FloatArray | None
 
 
 class ClassTable:
@@ -96,7 +95,7 @@ class ClassTable:
         priors: dict[str, DimensionPrior] | None,
         yaw_rad: FloatArray,
         generic_classes: tuple[str, ...] = (),
-        type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE,
+        type_mixture: TypeMixture = VEHICLE_TYPE_MIXTURE,
     ) -> None:
         self._priors = priors
         self._yaw = yaw_rad
@@ -104,7 +103,8 @@ class ClassTable:
         self._mixture = type_mixture
         self._index: dict[object, int] = {}
         self._rows: list[tuple[float, ...]] = []
-        self._types: list[TypeModes] = []
+        self._type_rows: list[tuple[float, ...]] = []  # T per class row
+        self._type_weights: list[FloatArray] = []
         self._generic_rows: list[bool] = []
         self._build()
 
@@ -113,18 +113,18 @@ class ClassTable:
         rows = self._row_indices(classes)
         scalars = self._scalars[rows]
         # rows gathered along the second axis: each plane of a frame is contiguous
-        planes = self._planes[:, rows]
         generic = self._generic[rows]
-        types = None
         if self._generic_names and generic.any():
-            types = TypeModes(*(a[rows] for a in self._type_arrays))
+            planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
+        else:
+            planes, type_log_weight = self._planes[:, rows], None
         return TargetClasses(
             scalars[:, 0],
             scalars[:, 3],
             scalars[:, 7],
             HypothesisConstants(*planes),
             generic,
-            types,
+            type_log_weight,
         )
 
     def _row_indices(self, classes: NDArray[np.object_]) -> NDArray[np.intp]:
@@ -144,17 +144,30 @@ class ClassTable:
         prior = resolve_prior(name, self._priors)
         self._rows.append(prior_row(prior))
         generic = name in self._generic_names
-        mixture = self._mixture if generic else own_type_mixture(prior, len(self._mixture))
+        rows, log_weight = type_rows(prior, self._mixture, generic)
         self._generic_rows.append(generic)
-        self._types.append(type_modes(prior, mixture, self._yaw))
+        self._type_rows.extend(rows)
+        self._type_weights.append(log_weight)
 
     def _build(self) -> None:
         """Scalars ``(rows, 10)``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; planes
-        ``(13, rows, K)`` in the order of :class:`HypothesisConstants`."""
+        ``(13, rows, K)`` in the order of :class:`HypothesisConstants`; with generic classes
+        also the type planes ``(13, rows, T·K)``, type-major."""
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
+        self._scalars = np.concatenate([a, a[:, 3:6] / a[:, 0:3]], axis=1)
+        self._planes = self._planes_of(a)
+        self._generic = np.array(self._generic_rows, dtype=bool)
+        if self._generic_names:
+            n_types = len(self._mixture)
+            by_type = np.asarray(self._type_rows, dtype=float).reshape(-1, n_types, 7)
+            planes = [self._planes_of(by_type[:, t]) for t in range(n_types)]
+            self._type_planes = np.concatenate(planes, axis=2)
+            self._type_log_weight = np.asarray(self._type_weights, dtype=float).reshape(-1, n_types)
+
+    def _planes_of(self, a: FloatArray) -> FloatArray:
+        """The per-heading planes ``(13, rows, K)`` of prior rows ``a`` ``(rows, 7)``."""
         H, W, L, sH, sW, sL, corr = (a[:, k : k + 1] for k in range(7))
         psi = self._yaw[None, :]
-        self._scalars = np.concatenate([a, sH / H, sW / W, sL / L], axis=1)
         e = cues.depth_half_extent(psi, W, L)
         var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
         planes = HypothesisConstants(
@@ -172,9 +185,4 @@ class ClassTable:
             half_length_cos_m=0.5 * L * np.cos(psi),
             half_length_sin_m=0.5 * L * np.sin(psi),
         )
-        self._planes = np.stack([np.broadcast_to(p, e.shape) for p in planes])
-        self._generic = np.array(self._generic_rows, dtype=bool)
-        self._type_arrays = [
-            np.stack([getattr(t, k) for t in self._types]) if self._types else np.zeros(0)
-            for k in TypeModes._fields
-        ]
+        return np.stack([np.broadcast_to(p, e.shape) for p in planes])

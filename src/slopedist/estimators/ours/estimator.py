@@ -392,15 +392,15 @@ class OursEstimator(Estimator):
         """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
         headings × vehicle types when a target's class is generic)."""
         log_heading_prior = self._carried_heading_prior(match)
-        types = targets.classes.types
-        if types is not None:
+        type_weight = targets.classes.type_log_weight
+        if type_weight is not None:
             if log_heading_prior is None:
                 log_heading_prior = np.broadcast_to(
                     self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
                 )
-            n_types = types.log_weight.shape[1]
+            n_types = type_weight.shape[1]
             return np.tile(log_heading_prior, n_types) + np.repeat(
-                types.log_weight, self._yaw.size, axis=1
+                type_weight, self._yaw.size, axis=1
             )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])

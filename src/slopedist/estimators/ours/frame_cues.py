@@ -34,7 +34,6 @@ from slopedist.estimators.ours.records import (
     filled,
 )
 from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN
-from slopedist.estimators.ours.vehicle_types import cues_under_type
 
 FloatArray = NDArray[np.float64]
 
@@ -45,7 +44,7 @@ def size_cues(
     """Height and width cues per (target, heading hypothesis); a dimension cut by the image
     border keeps a weak Gaussian weight and bounds the distance from above."""
     hyp = targets.classes.hypotheses
-    tall = targets.classes.height_m > calib.height_m  # the roof above the camera
+    tall = hyp.height_m > calib.height_m  # the roof above the camera, per hypothesis
     height = cues.height_cue_log(
         targets.bottom_px - targets.top_px,
         cam.f,
@@ -55,7 +54,7 @@ def size_cues(
         hyp.height_m,
         hyp.half_extent_m,
         hyp.half_extent_var_m2,
-        tall[:, None] if any_true(tall) else None,
+        tall if any_true(tall) else None,
     )
     if cfg.use_width:
         width = cues.width_cue_log(
@@ -197,18 +196,17 @@ def fuse_hypotheses(
     height_modes: list[float],
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
-    vehicles and, less often, ones of atypical height; or headings × vehicle types when a
-    target's class is generic), censor by the bounds, and collapse the hypotheses by their
-    posterior weights.
+    vehicles and, less often, ones of atypical height; or, when a target's class is generic,
+    the vehicle types × headings the cues were computed for), censor by the bounds, and
+    collapse the hypotheses by their posterior weights.
 
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
     factor of each body-style mode (1: the class prior's).
     """
     hyp = targets.classes.hypotheses
     height, width = size.height, size.width
-    if targets.classes.types is not None:
-        return _fuse_vehicle_types(targets, size, ground, log_prior)
-    n_modes = len(height_modes)
+    type_weight = targets.classes.type_log_weight
+    n_modes = len(height_modes) if type_weight is None else 1
     size_modes = [
         fusion.fuse_size_cues(
             height.mean,
@@ -223,7 +221,7 @@ def fuse_hypotheses(
             hyp.log_sigma_width,
             hyp.corr_height_width,
         )
-        for k in height_modes
+        for k in (height_modes if type_weight is None else [1.0])
     ]
     size_cue = size_modes[0] if n_modes == 1 else fusion.concat_cues(size_modes)
     fused = size_cue
@@ -231,47 +229,15 @@ def fuse_hypotheses(
         fused = fusion.fuse_log_cues(
             size_cue, ground if n_modes == 1 else fusion.concat_cues([ground] * n_modes)
         )
+    for bound, bound_var, rows_cut in size.bounds:
+        if n_modes > 1:
+            bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
+        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
-    return _collapse(size, size_cue, fused, n_modes, log_prior, extent)
-
-
-def _fuse_vehicle_types(
-    targets: FrameTargets, size: SizeCues, ground: LogCue | None, log_prior: FloatArray
-) -> FusedCues:
-    """:func:`fuse_hypotheses` with the vehicle types as the modes
-    (:func:`~slopedist.estimators.ours.vehicle_types.cues_under_type`)."""
-    hyp = targets.classes.hypotheses
-    types = targets.classes.types
-    assert types is not None
-    generic = targets.classes.generic[:, None]
-    size_parts, fused_parts, extents = [], [], []
-    for t in range(types.log_weight.shape[1]):
-        c = cues_under_type(types, t, size.height, size.width, ground, hyp.log_sigma_length)
-        size_t = fusion.fuse_size_cues(
-            c.height.mean,
-            c.height.var_white,
-            c.height.var_other,
-            c.height.lever,
-            c.width.mean,
-            c.width.var_white,
-            c.width.var_other,
-            c.width.lever,
-            np.where(generic, c.log_sigma_height, hyp.log_sigma_height),
-            np.where(generic, c.log_sigma_width, hyp.log_sigma_width),
-            hyp.corr_height_width,
-        )
-        size_parts.append(size_t)
-        fused_parts.append(size_t if c.ground is None else fusion.fuse_log_cues(size_t, c.ground))
-        extents.append(np.where(generic, c.half_extent_m, hyp.half_extent_m))
-    n_types = len(size_parts)
+    if type_weight is not None:
+        n_modes = type_weight.shape[1]
     return _collapse(
-        size,
-        fusion.concat_cues(size_parts),
-        fusion.concat_cues(fused_parts),
-        n_types,
-        log_prior,
-        np.concatenate(extents, axis=1),
-        most_likely_mode=True,
+        size, size_cue, fused, n_modes, log_prior, extent, most_likely_mode=type_weight is not None
     )
 
 
@@ -284,9 +250,8 @@ def _collapse(
     extent: FloatArray,
     most_likely_mode: bool = False,
 ) -> FusedCues:
-    """Censor the fused cues ``(n, K·modes)`` by the border bounds and collapse them over
-    the hypotheses by their posterior weights (``extent``: each hypothesis's half depth
-    extent, m).
+    """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
+    posterior weights (``extent``: each hypothesis's half depth extent, m).
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -294,21 +259,21 @@ def _collapse(
     pulling it by the rarer types' prior weight.
     """
     n = fused.mean.shape[0]
-    for bound, bound_var, rows_cut in size.bounds:
-        if n_modes > 1:
-            bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
-        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
     by_mode = weights.reshape(n, n_modes, -1)
     heading_weights = by_mode.sum(axis=1) if n_modes > 1 else weights
     size_mix = fusion.mix_hypotheses(size_cue, weights)
+    width_mean = size.width.mean
     if most_likely_mode and n_modes > 1:
+        rows = np.arange(n)
         best = by_mode.sum(axis=2).argmax(axis=1)
-        w_best = np.zeros_like(by_mode)
-        w_best[np.arange(n), best] = by_mode[np.arange(n), best]
-        w_best = w_best.reshape(n, -1) / np.add.reduce(w_best.reshape(n, -1), axis=1, keepdims=True)
+        in_best = np.zeros_like(by_mode)
+        in_best[rows, best] = by_mode[rows, best]
+        w_best = in_best.reshape(n, -1)
+        w_best /= np.add.reduce(w_best, axis=1, keepdims=True)
         measurement = fusion.widen_to_mixture(fused, w_best, weights)
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
+        width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
     return FusedCues(
         measurement,
         size_mix,
@@ -316,7 +281,7 @@ def _collapse(
         log_prior,
         heading_weights,
         np.add.reduce(weights * extent, axis=1),
-        np.add.reduce(heading_weights * size.width.mean, axis=1),
+        np.add.reduce(heading_weights * width_mean, axis=1),
     )
 
 
