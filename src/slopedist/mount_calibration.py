@@ -26,20 +26,25 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.detections.boxes import BoxTable, concat_boxes
+from slopedist.detections.onnx_detector import Detector
+from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration, OursSelfCalibratingEstimator
-from slopedist.odometry.base import LOOKBACK_S, RotationTrack
+from slopedist.io.frames import Frame
+from slopedist.odometry.base import LOOKBACK_S, OdometryState, RotationOdometry, RotationTrack
 from slopedist.pipeline import FrameStep, stream_track
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -179,6 +184,59 @@ def self_calibrate(
         if on_frame is not None:
             on_frame(t, est.calibration())
     return est.calibration()
+
+
+def drive_from_frames(
+    frames: Iterable[Frame],
+    odometry: RotationOdometry,
+    boxes: BoxTable | None = None,
+    detector: Detector | None = None,
+    on_frame: Callable[[Frame], None] | None = None,
+) -> tuple[RotationTrack, BoxTable]:
+    """The rotations of a drive from its pixels, and its boxes.
+
+    Each readable frame (BGR) goes, in grey, to ``odometry`` with its boxes masked out; the boxes
+    are the frame's rows of ``boxes`` or, without them, ``detector``'s on the frame. Both stay in
+    the frames' own pixels (map boxes into the ideal camera afterwards). Frames that cannot be
+    read, and frame indices the source skips, are invalid rotations; their timestamps are
+    interpolated. Returns the track (indexed by frame index) and the boxes used.
+
+    Raises:
+        ConfigurationError: neither or both of ``boxes`` and ``detector``.
+        MissingInputError: no readable frame.
+    """
+    if (boxes is None) == (detector is None):
+        raise ConfigurationError("give the boxes as a table or a detector (exactly one)")
+    by_frame = boxes.frame_index() if boxes is not None else {}
+    index: list[int] = []
+    times: list[float] = []
+    rotations: dict[int, FloatArray] = {}
+    detected: list[BoxTable] = []
+    for frame in frames:
+        index.append(frame.index)
+        times.append(frame.timestamp_s)
+        if frame.image is not None:
+            if detector is not None:
+                frame_boxes = detector.detect(frame.image, frame.index)
+                detected.append(frame_boxes)
+            else:
+                frame_boxes = by_frame.get(frame.index, BoxTable.empty())
+            gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+            result = odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
+            if result.state is OdometryState.OK and result.R_world_cam is not None:
+                rotations[frame.index] = np.asarray(result.R_world_cam, dtype=float)
+        if on_frame is not None:
+            on_frame(frame)
+    if not index:
+        raise MissingInputError("no frames to calibrate from")
+    n = max(index) + 1
+    t = np.interp(np.arange(n), index, times)
+    R = np.tile(np.eye(3), (n, 1, 1))
+    valid = np.zeros(n, dtype=bool)
+    for k, rot in rotations.items():
+        R[k], valid[k] = rot, True
+    track = RotationTrack.from_arrays(t, R, valid)
+    return track, (boxes if boxes is not None else concat_boxes(detected))
 
 
 def split_by_frame(boxes: BoxTable, n: int) -> list[BoxTable]:

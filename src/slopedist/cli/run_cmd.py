@@ -16,6 +16,7 @@ import click
 
 from slopedist.camera import Camera
 from slopedist.cli.options import (
+    calibration_options,
     check_methods,
     detector_options,
     estimator_options,
@@ -40,7 +41,7 @@ from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, bui
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource, open_frames
-from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
@@ -181,13 +182,7 @@ def check_runnable(
 
 @click.command("run")
 @click.argument("frames", type=click.Path(path_type=Path))
-@click.option(
-    "--calib",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
-    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md).",
-)
+@calibration_options
 @click.option(
     "--boxes",
     "boxes_path",
@@ -311,7 +306,7 @@ def check_runnable(
 @detector_options("detector-")
 def run(
     frames: Path,
-    calib: Path,
+    calib: Path | Intrinsics,
     boxes_path: Path | None,
     detector_model: Path | None,
     method: str | None,

@@ -50,14 +50,15 @@ class CameraCalibration:
 
 
 def read_calibration(
-    path: str | Path,
+    path: str | Path | Intrinsics,
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
     kitti_key: str = "P2",
 ) -> CameraCalibration:
-    """Read a calibration file of any supported form (see the module docstring); the mount is
-    given in metres and radians."""
-    intrinsics = read_intrinsics(path, kitti_key)
+    """Read a calibration file of any supported form (see the module docstring), or take
+    ``Intrinsics`` given as values (``--fx --fy --cx --cy``); the mount is given in metres and
+    radians."""
+    intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 
