@@ -36,11 +36,15 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from slopedist.camera import Camera
+from slopedist.datasets.sequence_files import SequenceFiles
 from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.detections.onnx_detector import Detector
+from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration, OursSelfCalibratingEstimator
+from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.frames import Frame
+from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, OdometryState, RotationOdometry, RotationTrack
 from slopedist.pipeline import FrameStep, stream_track
 
@@ -239,6 +243,14 @@ def drive_from_frames(
     return track, (boxes if boxes is not None else concat_boxes(detected))
 
 
+def odometry_point_map(calibration: CameraCalibration) -> dict[str, Any]:
+    """The built-in odometry's options that map its tracked points into the ideal camera
+    (none when the calibration is ideal)."""
+    if calibration.intrinsics.is_ideal:
+        return {}
+    return {"point_map": calibration.intrinsics.rectify_points}
+
+
 def split_by_frame(boxes: BoxTable, n: int) -> list[BoxTable]:
     """``boxes`` cut into ``n`` stretches of consecutive frames with about as many boxes each."""
     if len(boxes) == 0:
@@ -354,3 +366,34 @@ def judge_mount(
         abs(d_height) > limit_height,
         tuple(reasons),
     )
+
+
+def advise_from_frames(
+    frames: Iterable[Frame],
+    files: SequenceFiles,
+    detector: Detector | None = None,
+    lookback_s: float = LOOKBACK_S,
+    floor: MountSigma = MODEL_FLOOR,
+    on_frame: Callable[[float, Calibration], None] | None = None,
+) -> MountAdvice:
+    """:func:`advise_mount` of a drive given as frames: the built-in visual odometry computes
+    the rotations (tracked points mapped into the ideal camera when the calibration has lens
+    distortion or fx ≠ fy); the boxes are ``files.boxes`` (``files.poses`` is not used) or,
+    without a box file, ``detector``'s. ``files`` gives the calibration and the configured mount
+    (the prior).
+
+    Raises:
+        ConfigurationError: neither or both of a box file and a detector.
+        MissingInputError: no frames, or no boxes to calibrate from.
+    """
+    calibration = read_calibration(files.calib, files.height_m, files.mount_angle_rad)
+    boxes = None if files.boxes is None else read_box_file(files.boxes, files.min_score)
+    odometry = make_odometry(
+        "builtin", calibration.camera, lookback_s=lookback_s, **odometry_point_map(calibration)
+    )
+    track, raw = drive_from_frames(frames, odometry, boxes, detector)
+    if len(raw) == 0:
+        where = files.boxes if files.boxes is not None else "the detector"
+        raise MissingInputError(f"{where}: no boxes to calibrate from")
+    ideal = calibration.intrinsics.rectify_table(raw)
+    return advise_mount(calibration.camera, track, ideal, lookback_s, floor, on_frame=on_frame)
