@@ -256,7 +256,7 @@ def split_by_frame(boxes: BoxTable, n: int) -> list[BoxTable]:
     if len(boxes) == 0:
         return [boxes] * n
     order = np.sort(boxes.frame)
-    cuts = [int(order[min(len(order) - 1, (len(order) * i) // n)]) for i in range(1, n)]
+    cuts = [int(order[max(0, (len(order) * i) // n - 1)]) for i in range(1, n)]
     edges = [-1, *cuts, int(order[-1])]
     return [
         boxes.select((boxes.frame > lo) & (boxes.frame <= hi))
