@@ -42,7 +42,7 @@ from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration, OursSelfCalibratingEstimator
-from slopedist.io.calibration import CameraCalibration, read_calibration
+from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import Frame
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, OdometryState, RotationOdometry, RotationTrack
@@ -243,14 +243,6 @@ def drive_from_frames(
     return track, (boxes if boxes is not None else concat_boxes(detected))
 
 
-def odometry_point_map(calibration: CameraCalibration) -> dict[str, Any]:
-    """The built-in odometry's options that map its tracked points into the ideal camera
-    (none when the calibration is ideal)."""
-    if calibration.intrinsics.is_ideal:
-        return {}
-    return {"point_map": calibration.intrinsics.rectify_points}
-
-
 def split_by_frame(boxes: BoxTable, n: int) -> list[BoxTable]:
     """``boxes`` cut into ``n`` stretches of consecutive frames with about as many boxes each."""
     if len(boxes) == 0:
@@ -389,7 +381,7 @@ def advise_from_frames(
     calibration = read_calibration(files.calib, files.height_m, files.mount_angle_rad)
     boxes = None if files.boxes is None else read_box_file(files.boxes, files.min_score)
     odometry = make_odometry(
-        "builtin", calibration.camera, lookback_s=lookback_s, **odometry_point_map(calibration)
+        "builtin", calibration.camera, lookback_s=lookback_s, point_map=calibration.point_map
     )
     track, raw = drive_from_frames(frames, odometry, boxes, detector)
     if len(raw) == 0:

@@ -44,6 +44,7 @@ from slopedist.io.frames import FrameSource, open_frames
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.point_map import PointMap
 from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
@@ -52,17 +53,24 @@ DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVE
 
 
 def build_odometry(
-    name: str, camera: Camera, vocab: Path | None = None, lookback_s: float = LOOKBACK_S
+    name: str,
+    camera: Camera,
+    vocab: Path | None = None,
+    lookback_s: float = LOOKBACK_S,
+    point_map: PointMap | None = None,
 ) -> RotationOdometry:
     """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
 
     The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
-    look-back of the gradient); ORB-SLAM3 tracks a map and has no such setting.
+    look-back of the gradient) and maps its tracked points into the ideal ``camera`` with
+    ``point_map`` (lens distortion, fx ≠ fy); ORB-SLAM3 tracks a map and has neither setting.
     """
     if vocab is not None and name != "orbslam3":
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
+    if point_map is not None:
+        return make_odometry(name, camera, lookback_s=lookback_s, point_map=point_map)
     return make_odometry(name, camera, lookback_s=lookback_s)
 
 
@@ -366,7 +374,11 @@ def run(
     depth = build_depth_source(depth_opts, source)
     if odometry == "none" and vocab is not None:
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    backend = None if odometry == "none" else build_odometry(odometry, camera, vocab, lookback_s)
+    backend = (
+        None
+        if odometry == "none"
+        else build_odometry(odometry, camera, vocab, lookback_s, calibration.point_map)
+    )
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")

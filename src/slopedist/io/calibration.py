@@ -27,6 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
@@ -47,6 +48,12 @@ class CameraCalibration:
 
     intrinsics: Intrinsics
     camera: Camera
+
+    @property
+    def point_map(self) -> Callable[[NDArray[np.float64]], NDArray[np.float64]] | None:
+        """Pixels of the real camera → pixels of :attr:`camera` (``(N, 2)``; what the built-in
+        odometry's ``point_map`` takes), or None when the camera is ideal already."""
+        return None if self.intrinsics.is_ideal else self.intrinsics.rectify_points
 
 
 def read_calibration(
