@@ -5,8 +5,10 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from slopedist.camera import Camera
@@ -179,3 +181,22 @@ def test_calibrate_from_real_frames_alone(
     assert sigma["total"]["height_m"] >= max(sigma["fit"]["height_m"], sigma["floor"]["height_m"])
     history = json.loads(out.read_text())["history"]
     assert history[-1]["t_s"] == pytest.approx(7.7)
+
+
+def test_calibrate_frames_with_a_detector(
+    kitti_raw_lead_dir: Path,
+    tmp_path: Path,
+    constant_model: Callable[..., Path],
+    capsys: pytest.CaptureFixture,
+) -> None:
+    """``calibrate FRAMES --detector``: a test-built YOLOv8-layout model that sees one car in
+    every frame; one vehicle cannot calibrate a mount, so the command runs and declines."""
+    output = np.zeros((1, 84, 100), np.float32)
+    output[0, :4, 0] = (160.0, 170.0, 40.0, 30.0)  # centre x, y, width, height (input pixels)
+    output[0, 4 + 2, 0] = 0.9  # COCO class 2: car
+    model = constant_model(tmp_path / "yolo.onnx", {"output0": output})
+    calib = str(kitti_raw_lead_dir / "calib.txt")
+    frames = str(kitti_raw_lead_dir / "image_02")
+    assert main(["calibrate", frames, "--calib", calib, "--detector", str(model)]) == 0
+    text = capsys.readouterr().out
+    assert "too little data" in text and "no advice: keep the configured mount" in text
