@@ -23,7 +23,11 @@ Usage::
     PYTHONPATH=src python benchmarks/calibrate_advice.py [--data ../shared/data/kitti_tracking]
         [--scenario known|all] [--json OUT]
 
-Exit status 1 when a sequence worsens by more than 2 %. Takes a few minutes (2 cores).
+Exit status 1 when, in the ``known`` scenario (the shared sequences as configured: issue 12's
+check), a sequence's ``paper`` or ``ours`` worsens by more than 2 %. The wrong-mount scenarios are
+reported, not checked: there the advice lowers ``paper``'s RMSE on most runs, but ``ours``, which
+hardly depends on the mount, moves by a few per cent either way. Takes about 7 minutes (2 cores;
+``--scenario known``: 2).
 """
 
 from __future__ import annotations
@@ -125,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     scenarios = ["known"] if args.scenario == "known" else list(SCENARIOS)
     known_cases = [run_advice(root, n, s, KNOWN) for n in names for s in SOURCES]
     print(f"model floor over all sequences: {describe(floor_from(known_cases))}")
-    failures = 0
+    failures: dict[str, int] = {}
     out: dict[str, Any] = {"floor_all": floor_from(known_cases).__dict__, "scenarios": {}}
     for scenario in scenarios:
         prior = SCENARIOS[scenario]
@@ -139,20 +143,42 @@ def main(argv: list[str] | None = None) -> int:
             f"{'seq':5} {'boxes':9} {'θ0 est':>14} {'h est':>15} {'advice':>16} "
             + " ".join(f"{m + ' before→after':>22}" for m in METHODS)
         )
-        rows = []
+        rows, failures[scenario] = [], 0
         for case in cases:
             others = [c for c in known_cases if c.sequence != case.sequence]
             advice = judge_mount(
                 case.raw.estimate, case.raw.segments, case.raw.prior, floor_from(others)
             )
             row, bad = evaluate(root, case, advice)
-            failures += bad
+            failures[scenario] += bad
             rows.append(row)
         out["scenarios"][scenario] = rows
+        print(summary(rows))
     if args.json is not None:
         write_json(args.json, out)
-    print(f"\n{failures} sequence/method pairs worse by more than {100 * (TOLERANCE - 1):.0f} %")
-    return 1 if failures else 0
+    print(
+        "\nsequence/method pairs worse by more than "
+        f"{100 * (TOLERANCE - 1):.0f} %: {failures} (the check: scenario known)"
+    )
+    return 1 if failures["known"] else 0
+
+
+def summary(rows: list[dict[str, Any]]) -> str:
+    """Advised runs, runs better/worse by more than the tolerance and the mean RMSE per method."""
+    advised = sum(
+        1 for r in rows if r["advice"]["advise"]["mount_angle"] or r["advice"]["advise"]["height"]
+    )
+    parts = [f"advised {advised} of {len(rows)}"]
+    for m in METHODS:
+        before = [r["rmse_before"][m] for r in rows]
+        after = [r["rmse_after"][m] for r in rows]
+        better = sum(1 for b, a in zip(before, after) if a < b / TOLERANCE)
+        worse = sum(1 for b, a in zip(before, after) if a > b * TOLERANCE)
+        parts.append(
+            f"{m}: {better} better, {worse} worse, mean RMSE "
+            f"{sum(before) / len(before):.2f} → {sum(after) / len(after):.2f} m"
+        )
+    return "; ".join(parts)
 
 
 def describe(s: MountSigma) -> str:
