@@ -188,7 +188,8 @@ _CALIBRATION_OPTIONS = (
         default=None,
         help="Calibration: KITTI (P2; P0 for odometry calib.txt), 3×3 K text, OpenCV or ROS "
         "camera_info YAML/JSON (docs/calibration.md); lens distortion and fx ≠ fy are removed "
-        "from the boxes. Or give --fx --fy --cx --cy instead.",
+        "from the boxes. Or give --fx --fy --cx --cy instead. [run, a drive log: default its "
+        "camera_info topic]",
     ),
     *(
         click.option(
@@ -218,17 +219,22 @@ _CALIBRATION_OPTIONS = (
 
 
 def calibration_source(
-    calib: Path | None, values: dict[str, float | None], image_size: str | None
-) -> Path | Intrinsics:
+    calib: Path | None,
+    values: dict[str, float | None],
+    image_size: str | None,
+    required: bool = True,
+) -> Path | Intrinsics | None:
     """The calibration of ``--calib FILE`` or of ``--fx --fy --cx --cy [--image-size]``
-    (exactly one form; usage errors name the options)."""
+    (exactly one form, or none when not ``required``; usage errors name the options)."""
     given = [f"--{k}" for k, v in values.items() if v is not None]
     if calib is not None:
         if given or image_size:
             extra = ", ".join(given + (["--image-size"] if image_size else []))
             raise click.UsageError(f"give the calibration as --calib or as {extra}, not both")
         return calib
-    if not given:
+    if not given and not image_size:
+        if not required:
+            return None
         raise click.UsageError(
             "give the camera calibration: --calib FILE, or --fx --fy --cx --cy (pixels)"
         )
@@ -242,18 +248,29 @@ def calibration_source(
         raise click.BadParameter(str(exc), param_hint="--fx/--fy/--cx/--cy") from None
 
 
-def calibration_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """``--calib`` or ``--fx --fy --cx --cy [--image-size]``, handed to the command as one
-    ``calib`` (a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
-    :func:`~slopedist.io.calibration.read_calibration` reads)."""
+def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(
+            *args: Any, calib: Path | None, calib_image_size: str | None, **kwargs: Any
+        ) -> Any:
+            values = {k: kwargs.pop(k) for k in CALIBRATION_FLAGS}
+            kwargs["calib"] = calibration_source(calib, values, calib_image_size, required)
+            return command(*args, **kwargs)
 
-    @functools.wraps(command)
-    def wrapper(*args: Any, calib: Path | None, calib_image_size: str | None, **kwargs: Any) -> Any:
-        values = {k: kwargs.pop(k) for k in CALIBRATION_FLAGS}
-        kwargs["calib"] = calibration_source(calib, values, calib_image_size)
-        return command(*args, **kwargs)
+        return _apply(_CALIBRATION_OPTIONS, wrapper)
 
-    return _apply(_CALIBRATION_OPTIONS, wrapper)
+    return decorate
+
+
+calibration_options = _calibration_decorator(required=True)
+"""``--calib`` or ``--fx --fy --cx --cy [--image-size]``, handed to the command as one ``calib``
+(a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
+:func:`~slopedist.io.calibration.read_calibration` reads)."""
+
+optional_calibration_options = _calibration_decorator(required=False)
+""":data:`calibration_options`, with ``calib`` None when neither form is given (``run`` takes a
+drive log's ``camera_info`` then)."""
 
 
 def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
