@@ -367,12 +367,14 @@ def advise_from_frames(
     lookback_s: float = LOOKBACK_S,
     floor: MountSigma = MODEL_FLOOR,
     on_frame: Callable[[float, Calibration], None] | None = None,
+    on_read: Callable[[Frame], None] | None = None,
 ) -> MountAdvice:
     """:func:`advise_mount` of a drive given as frames: the built-in visual odometry computes
     the rotations (tracked points mapped into the ideal camera when the calibration has lens
     distortion or fx ≠ fy); the boxes are ``files.boxes`` (``files.poses`` is not used) or,
     without a box file, ``detector``'s. ``files`` gives the calibration and the configured mount
-    (the prior).
+    (the prior). ``on_read(frame)`` is called after each frame's odometry (progress),
+    ``on_frame(t_s, calibration)`` after each frame's self-calibration.
 
     Raises:
         ConfigurationError: neither or both of a box file and a detector.
@@ -383,7 +385,7 @@ def advise_from_frames(
     odometry = make_odometry(
         "builtin", calibration.camera, lookback_s=lookback_s, point_map=calibration.point_map
     )
-    track, raw = drive_from_frames(frames, odometry, boxes, detector)
+    track, raw = drive_from_frames(frames, odometry, boxes, detector, on_read)
     if len(raw) == 0:
         where = files.boxes if files.boxes is not None else "the detector"
         raise MissingInputError(f"{where}: no boxes to calibrate from")

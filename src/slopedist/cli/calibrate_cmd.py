@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import click
+from tqdm import tqdm
 
 from slopedist.cli.options import (
     detector_options,
@@ -167,7 +168,16 @@ def calibrate(
             None if detector_model is None else make_detector(detector_model, **detector_opts)
         )
         source = open_frames(frames, fps, timestamps)
-        advice = advise_from_frames(source, files, detector, lookback_s, on_frame=history)
+        bar = tqdm(total=source.expected_frames(), unit="frame", desc="odometry", disable=None)
+        with bar:
+            advice = advise_from_frames(
+                source,
+                files,
+                detector,
+                lookback_s,
+                on_frame=history,
+                on_read=lambda _: bar.update(),
+            )
     rows = history.finish()
     click.echo(format_table(list(HISTORY_KEYS), rows))
     click.echo("\n" + advice_text(advice))
