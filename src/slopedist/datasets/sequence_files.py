@@ -57,6 +57,12 @@ class SequenceFiles:
     height_m: float = KITTI_CAMERA_HEIGHT_M
     mount_angle_rad: float = 0.0
 
+    @property
+    def input_files(self) -> list[Path]:
+        """The files given (the calibration only when it is a file)."""
+        given = (self.calib, self.poses, self.boxes)
+        return [p for p in given if isinstance(p, Path)]
+
 
 @dataclass(frozen=True)
 class SequenceInputs:
