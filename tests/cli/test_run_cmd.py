@@ -246,7 +246,7 @@ def test_intrinsics_flags_instead_of_a_calibration_file(tmp_path: Path) -> None:
     assert main(["run", *args, "--method", "flat", "--odometry", "none"]) == 0
     with_file = records(tmp_path)
     i = args.index("--calib")
-    flags = ["--fx", "500", "--fy", "500", "--cx", "160", "--cy", "100", "--image-size", "320x200"]
+    flags = ["--fx", "500", "--fy", "500", "--cx", "160", "--cy", "100"]
     args[i : i + 2] = flags
     assert main(["run", *args, "--method", "flat", "--odometry", "none"]) == 0
     assert records(tmp_path) == with_file and with_file

@@ -209,31 +209,23 @@ _CALIBRATION_OPTIONS = (
             ),
         )
     ),
-    click.option(
-        "--image-size",
-        "calib_image_size",
-        default=None,
-        help="With --fx --fy --cx --cy: WIDTHxHEIGHT of the frames, pixels (checked on the "
-        "frames).",
-    ),
 )
 
 
 def calibration_source(
-    calib: Path | None,
-    values: dict[str, float | None],
-    image_size: str | None,
-    required: bool = True,
+    calib: Path | None, values: dict[str, float | None], required: bool = True
 ) -> Path | Intrinsics | None:
-    """The calibration of ``--calib FILE`` or of ``--fx --fy --cx --cy [--image-size]``
-    (exactly one form, or none when not ``required``; usage errors name the options)."""
+    """The calibration of ``--calib FILE`` or of ``--fx --fy --cx --cy`` (exactly one form, or
+    none when not ``required``; usage errors name the options). The image size comes from the
+    frames (``run``, ``calibrate FRAMES``) or ``estimate --image-size``."""
     given = [f"--{k}" for k, v in values.items() if v is not None]
     if calib is not None:
-        if given or image_size:
-            extra = ", ".join(given + (["--image-size"] if image_size else []))
-            raise click.UsageError(f"give the calibration as --calib or as {extra}, not both")
+        if given:
+            raise click.UsageError(
+                f"give the calibration as --calib or as {', '.join(given)}, not both"
+            )
         return calib
-    if not given and not image_size:
+    if not given:
         if not required:
             return None
         raise click.UsageError(
@@ -244,7 +236,7 @@ def calibration_source(
         raise click.UsageError(f"--fx --fy --cx --cy go together: missing {', '.join(missing)}")
     fx, fy, cx, cy = (float(values[k] or 0.0) for k in CALIBRATION_FLAGS)
     try:
-        return Intrinsics.from_values(fx, fy, cx, cy, image_size=parse_size(image_size))
+        return Intrinsics.from_values(fx, fy, cx, cy)
     except ConfigurationError as exc:
         raise click.BadParameter(str(exc), param_hint="--fx/--fy/--cx/--cy") from None
 
@@ -252,11 +244,9 @@ def calibration_source(
 def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
-        def wrapper(
-            *args: Any, calib: Path | None, calib_image_size: str | None, **kwargs: Any
-        ) -> Any:
+        def wrapper(*args: Any, calib: Path | None, **kwargs: Any) -> Any:
             values = {k: kwargs.pop(k) for k in CALIBRATION_FLAGS}
-            kwargs["calib"] = calibration_source(calib, values, calib_image_size, required)
+            kwargs["calib"] = calibration_source(calib, values, required)
             return command(*args, **kwargs)
 
         return _apply(_CALIBRATION_OPTIONS, wrapper)
@@ -265,7 +255,7 @@ def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Cal
 
 
 calibration_options = _calibration_decorator(required=True)
-"""``--calib`` or ``--fx --fy --cx --cy [--image-size]``, handed to the command as one ``calib``
+"""``--calib`` or ``--fx --fy --cx --cy``, handed to the command as one ``calib``
 (a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
 :func:`~slopedist.io.calibration.read_calibration` reads)."""
 
