@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.typing import NDArray
-from slopedist.estimators.ours.scene import simulate_traffic
 
 from slopedist.camera import Camera
 from slopedist.datasets.sequence_files import SequenceFiles
+from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration
