@@ -12,6 +12,7 @@ import sys
 import click
 
 from slopedist import __version__
+from slopedist.cli.batch_cmd import batch
 from slopedist.cli.calibrate_cmd import calibrate
 from slopedist.cli.demo_cmd import demo
 from slopedist.cli.estimate_cmd import estimate
@@ -37,6 +38,7 @@ cli.add_command(run)
 cli.add_command(simulate)
 cli.add_command(demo)
 cli.add_command(calibrate)
+cli.add_command(batch)
 
 
 def main(argv: list[str] | None = None) -> int:

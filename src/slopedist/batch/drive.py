@@ -1,0 +1,190 @@
+"""One drive of a batch: run it into a temporary folder, stamp it, publish it atomically.
+
+:func:`run_single_drive` is the one adapter between the batch engine and the single-drive
+library (:func:`slopedist.runner.run_frames`, built the way ``slopedist run`` builds it).
+:func:`process_drive` is the task the engine runs per drive (in a Ray worker): it never raises
+for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
+
+A drive's outputs appear in ``OUT/<drive>/`` by one rename of a complete folder, so a batch
+killed at any moment leaves each drive either complete (with its input stamp in ``run.json``) or
+absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the next batch.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, cast
+
+from slopedist.batch.manifest import DriveSpec
+from slopedist.batch.stamp import STAMP_KEY
+from slopedist.batch.status import DriveOutcome, DriveStatus
+from slopedist.camera import Camera
+from slopedist.io.frames import Frame, FrameSource
+from slopedist.io.tables import write_json
+from slopedist.runner import SUMMARY_NAME, RunResult, run_frames
+
+TMP_PREFIX = ".tmp-"
+ATTEMPTS_PREFIX = ".attempts-"
+CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
+"""Test hook: ``DRIVE:N`` makes the first attempt of drive ``DRIVE`` end its process
+(``os._exit``) after ``N`` frames, as a worker killed mid-drive would."""
+
+
+def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
+    """Run ``spec`` into ``out_dir`` exactly as ``slopedist run`` would with the same options
+    (the adapter to the single-drive library; ``crash_after`` is the test hook of
+    :data:`CRASH_ENV`)."""
+    from slopedist.cli.run_cmd import (
+        DepthOptions,
+        build_depth_source,
+        build_odometry,
+        check_runnable,
+    )
+    from slopedist.detections.readers import read_box_file
+    from slopedist.estimators import make_estimator
+    from slopedist.io.frames import open_frames
+
+    camera = Camera.from_kitti_calib(
+        spec.calib, "P2", spec.height_m, math.radians(spec.mount_angle_deg)
+    )
+    source = open_frames(spec.frames, spec.fps, spec.timestamps)
+    boxes = read_box_file(spec.boxes, spec.score)
+    estimator = make_estimator(spec.method, camera)
+    check_runnable(estimator, spec.depth_dir is not None, boxes)
+    depth = build_depth_source(DepthOptions(folder=spec.depth_dir), source)
+    odometry = (
+        None
+        if spec.odometry == "none"
+        else build_odometry(spec.odometry, camera, None, spec.lookback_s)
+    )
+    frames: FrameSource = source
+    if crash_after is not None:
+        frames = cast(FrameSource, _CrashingFrames(source, crash_after))
+    return run_frames(
+        frames,
+        camera,
+        boxes,
+        odometry,
+        estimator,
+        out_dir,
+        lookback_s=spec.lookback_s,
+        progress=False,
+        sequence=spec.sequence or spec.name,
+        depth=depth,
+    )
+
+
+class _CrashingFrames:
+    """A frame source that ends the process after ``after`` frames (test hook)."""
+
+    def __init__(self, inner: FrameSource, after: int) -> None:
+        self._inner = inner
+        self._after = after
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for i, frame in enumerate(self._inner):
+            if i == self._after:
+                os._exit(17)
+            yield frame
+
+
+def count_attempt(out_root: Path, drive: str) -> int:
+    """Record one more attempt of ``drive`` (a line in ``OUT/.attempts-<drive>``); returns the
+    attempt number, 1 for the first."""
+    path = out_root / f"{ATTEMPTS_PREFIX}{drive}"
+    with path.open("a", encoding="utf-8") as fh:
+        fh.write(f"{os.getpid()}\n")
+    return len(path.read_text(encoding="utf-8").splitlines())
+
+
+def attempts_of(out_root: Path, drive: str) -> int:
+    """How many attempts of ``drive`` :func:`count_attempt` recorded (0 when none)."""
+    path = out_root / f"{ATTEMPTS_PREFIX}{drive}"
+    return len(path.read_text(encoding="utf-8").splitlines()) if path.is_file() else 0
+
+
+def _crash_after(drive: str, attempt: int, hook: str | None) -> int | None:
+    if not hook or attempt != 1:
+        return None
+    name, _, after = hook.rpartition(":")
+    return int(after) if name == drive else None
+
+
+def publish(tmp: Path, final: Path) -> None:
+    """Move the complete folder ``tmp`` to ``final``, replacing an older ``final``; between
+    the two renames a reader sees no ``final`` rather than a mixed one."""
+    if final.exists():
+        old = final.with_name(f"{TMP_PREFIX}old-{final.name}-{uuid.uuid4().hex[:8]}")
+        final.rename(old)
+        tmp.rename(final)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(final)
+
+
+def error_text(exc: BaseException) -> str:
+    """One line for ``status.csv``: the message of a slopedist error, else type and message."""
+    from slopedist.errors import SlopedistError
+
+    text = str(exc) if isinstance(exc, SlopedistError) else f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
+def process_drive(
+    spec: DriveSpec, out_root: Path, stamp: dict[str, Any], crash_hook: str | None = None
+) -> DriveOutcome:
+    """Run one drive into ``OUT/<drive>`` atomically and return its outcome (never raises for
+    the drive's own errors: a corrupt drive fails alone). ``stamp`` goes into ``run.json``."""
+    attempt = count_attempt(out_root, spec.name)
+    tmp = out_root / f"{TMP_PREFIX}{spec.name}-{uuid.uuid4().hex[:8]}"
+    final = out_root / spec.name
+    start = time.perf_counter()
+    try:
+        result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
+        summary_path = tmp / SUMMARY_NAME
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        summary[STAMP_KEY] = stamp
+        write_json(summary_path, summary)
+        publish(tmp, final)
+    except Exception as exc:  # failure isolation: any error of this drive is its own
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(final, ignore_errors=True)  # outputs of older inputs are stale now
+        return DriveOutcome(
+            spec.name,
+            DriveStatus.FAILED,
+            error=error_text(exc),
+            seconds=time.perf_counter() - start,
+            attempts=attempt,
+        )
+    return DriveOutcome(
+        spec.name,
+        DriveStatus.DONE,
+        frames=result.frames,
+        records=result.records,
+        seconds=time.perf_counter() - start,
+        attempts=attempt,
+    )
+
+
+def completed_stamp(folder: Path) -> dict[str, Any] | None:
+    """The input stamp of a complete drive folder, or None (no folder, no or unreadable
+    ``run.json``, a run that stopped on an error, or no stamp)."""
+    path = folder / SUMMARY_NAME
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    if not isinstance(summary, dict) or summary.get("error"):
+        return None
+    stamp = summary.get(STAMP_KEY)
+    return stamp if isinstance(stamp, dict) else None
