@@ -169,7 +169,7 @@ def plan(
 
 
 def clean_leftovers(out_dir: Path) -> None:
-    """Remove the temporary folders of tasks killed in an earlier batch."""
+    """Remove the temporary folders of killed tasks (no task of this output may be running)."""
     for path in out_dir.glob(f"{TMP_PREFIX}*"):
         shutil.rmtree(path, ignore_errors=True)
 
@@ -195,6 +195,7 @@ def run_batch(
     if todo:
         with ray_session(options.workers, options.address) as ray:
             done.update(_run_tasks(ray, todo, out, options))
+        clean_leftovers(out)  # of attempts whose worker died
     result = BatchResult(out, [done[d.name] for d in drives], time.perf_counter() - start)
     if options.parquet:
         for outcome in result.outcomes:

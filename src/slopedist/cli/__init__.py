@@ -44,7 +44,7 @@ cli.add_command(batch)
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``slopedist`` program; returns the exit code."""
     try:
-        cli.main(args=argv, prog_name="slopedist", standalone_mode=False)
+        code = cli.main(args=argv, prog_name="slopedist", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         return 130
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
         where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
         click.echo(f"slopedist: error: {exc.strerror or exc}{where}", err=True)
         return 2
-    return 0
+    return code if isinstance(code, int) else 0  # click.Context.exit(code) of a command
 
 
 if __name__ == "__main__":  # pragma: no cover

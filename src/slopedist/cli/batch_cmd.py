@@ -98,7 +98,7 @@ def batch(
     result = run_batch(drives, out_dir, options)
     click.echo(batch_summary_text(result), err=True)
     if result.all_failed or (fail_fast and result.count(DriveStatus.FAILED)):
-        raise SystemExit(1)
+        click.get_current_context().exit(1)
 
 
 def batch_summary_text(result: BatchResult) -> str:
