@@ -31,6 +31,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -103,7 +104,7 @@ def on_embedded_ray(cpus: int, drives: list[DriveSpec], out: Path) -> dict[str, 
     import ray
 
     start = time.perf_counter()
-    ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=cpus, include_dashboard=False, log_to_driver=False)
     startup = time.perf_counter() - start
     try:
         cold, _ = batch_time(drives, out)  # new worker processes import slopedist first
@@ -148,6 +149,9 @@ def two_node(drives: list[DriveSpec], out: Path) -> dict[str, float]:
             if proc is not None:
                 os.killpg(proc.pid, signal.SIGTERM)
                 proc.wait(timeout=60)
+        current = Path(tempfile.gettempdir()) / "ray" / "ray_current_cluster"
+        if current.is_file() and current.read_text().strip().endswith(f":{HEAD_PORT}"):
+            current.unlink()  # the address `ray stop` would have removed
     return {"seconds": seconds, "frames": frames}
 
 

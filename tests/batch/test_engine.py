@@ -31,7 +31,7 @@ CRASHED = "ego_crest_paper"
 def ray_instance() -> Iterator[Any]:
     ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'slopedist[batch]'")
     pytest.importorskip("pyarrow", reason="pyarrow is not installed")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
 

@@ -136,7 +136,8 @@ def ray_session(workers: int | None, address: str | None) -> Iterator[Any]:
     if address:
         ray.init(address=address, **settings)
     else:
-        ray.init(num_cpus=workers or os.cpu_count() or 1, **settings)
+        # "local": a new instance even when an earlier `ray start` left its address behind
+        ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **settings)
     try:
         yield ray
     finally:
