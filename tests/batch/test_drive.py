@@ -43,6 +43,7 @@ def test_a_drive_gives_the_records_of_run_alone(sim: Path, tmp_path: Path) -> No
     outcome = process_drive(spec, out, input_stamp(spec))
     assert outcome.status is DriveStatus.DONE and outcome.attempts == 1
     assert outcome.frames == 5 and outcome.records > 0
+    assert 10 < outcome.worker_peak_rss_mb < 10_000  # MB (ru_maxrss is kB on Linux)
     alone = run_alone(
         sim / "image_02",
         sim / "calib.txt",

@@ -173,7 +173,17 @@ def process_drive(
         records=result.records,
         seconds=time.perf_counter() - start,
         attempts=attempt,
+        worker_peak_rss_mb=peak_rss_mb(),
     )
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far, MB (NaN where ``resource`` is missing)."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover (not on Windows)
+        return math.nan
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
 
 
 def completed_stamp(folder: Path) -> dict[str, Any] | None:

@@ -11,10 +11,20 @@ from pathlib import Path
 from slopedist.io.tables import write_csv
 
 STATUS_NAME = "status.csv"
-STATUS_FIELDS = ("drive", "status", "error", "frames", "records", "seconds", "attempts")
+STATUS_FIELDS = (
+    "drive",
+    "status",
+    "error",
+    "frames",
+    "records",
+    "seconds",
+    "attempts",
+    "worker_peak_rss_mb",
+)
 """Columns of ``status.csv``: ``frames`` / ``records`` written by the run, ``seconds`` of wall
 time of the drive's task (empty for a drive that did not run), ``attempts`` the task runs (Ray
-retries of a worker that died add to it)."""
+retries of a worker that died add to it), ``worker_peak_rss_mb`` the peak resident memory (MB)
+of the worker process that ran the drive, over its life so far (workers run many drives)."""
 
 
 class DriveStatus(str, Enum):
@@ -41,6 +51,7 @@ class DriveOutcome:
     records: int = 0
     seconds: float = float("nan")
     attempts: int = 0
+    worker_peak_rss_mb: float = float("nan")
 
 
 def write_status(out_dir: Path, outcomes: Sequence[DriveOutcome]) -> Path:
