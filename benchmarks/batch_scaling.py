@@ -12,11 +12,13 @@ the same drives with the outputs written as a batch writes them:
 3. with ``--two-node``: a two-node Ray cluster on this machine over loopback (``ray start
    --head --num-cpus 1`` and a second ``ray start --address 127.0.0.1:PORT --num-cpus 1``,
    both started here with ``--block`` and stopped by killing their process groups), the same
-   batch through ``address``.
+   batch through ``address`` (one run, cold workers).
 
-Prints frames per second (wall clock of the whole batch), the speed-up over sequential, Ray's
-per-drive overhead (batch wall time with 1 CPU minus the sequential time, per drive) and the
-round trip of an empty task. Usage::
+Prints frames per second (wall clock of the whole batch), the speed-up over sequential, the CPU
+time per frame (user + system, this process for sequential, the workers' for Ray: the cost that
+does not depend on how busy a shared machine is), Ray's per-drive overhead (the warm 1-CPU batch
+minus the sequential time, per drive), the extra time of cold workers and the round trip of an
+empty task. Usage::
 
     python benchmarks/batch_scaling.py [--drives 6] [--frames 40] [--two-node]
         [--out bench_out/batch_scaling]
@@ -66,25 +68,29 @@ def make_drives(root: Path, n: int, frames: int) -> list[DriveSpec]:
     return load_drives(manifest)
 
 
-def sequential(drives: list[DriveSpec], out: Path) -> tuple[float, int]:
-    """Wall time (s) and frames of the drives run one after another in this process."""
+def sequential(drives: list[DriveSpec], out: Path) -> dict[str, float]:
+    """Wall time (s), CPU time (s) and frames of the drives run one after another here."""
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
-    start, frames = time.perf_counter(), 0
+    start, cpu, frames = time.perf_counter(), time.process_time(), 0
     for spec in drives:
         outcome = process_drive(spec, out, input_stamp(spec))
         assert outcome.error == "", outcome.error
         frames += outcome.frames
-    return time.perf_counter() - start, frames
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "cpu_s": time.process_time() - cpu, "frames": frames}
 
 
-def batch_time(drives: list[DriveSpec], out: Path, address: str | None = None) -> tuple[float, int]:
-    """Wall time (s) and frames of one forced batch on the running (or given) Ray."""
+def batch_time(drives: list[DriveSpec], out: Path, address: str | None = None) -> dict[str, float]:
+    """Wall time (s), the drives' CPU time in the workers (s) and frames of one forced batch
+    on the running (or given) Ray."""
     start = time.perf_counter()
     options = BatchOptions(address=address, force=True, progress=False, parquet=False)
     result = run_batch(drives, out, options)
     assert all(o.error == "" for o in result.outcomes), result.outcomes
-    return time.perf_counter() - start, result.frames_run
+    seconds = time.perf_counter() - start
+    cpu = sum(o.cpu_seconds for o in result.outcomes)
+    return {"seconds": seconds, "cpu_s": cpu, "frames": result.frames_run}
 
 
 def empty_task_s(ray: Any, n: int = 200) -> float:
@@ -107,18 +113,12 @@ def on_embedded_ray(cpus: int, drives: list[DriveSpec], out: Path) -> dict[str, 
     ray.init(address="local", num_cpus=cpus, include_dashboard=False, log_to_driver=False)
     startup = time.perf_counter() - start
     try:
-        cold, _ = batch_time(drives, out)  # new worker processes import slopedist first
-        seconds, frames = batch_time(drives, out)
+        cold = batch_time(drives, out)["seconds"]  # new worker processes import slopedist first
+        timed = batch_time(drives, out)
         task = empty_task_s(ray)
     finally:
         ray.shutdown()
-    return {
-        "startup_s": startup,
-        "cold_s": cold,
-        "seconds": seconds,
-        "frames": frames,
-        "task_s": task,
-    }
+    return {"startup_s": startup, "cold_s": cold, "task_s": task, **timed}
 
 
 def two_node(drives: list[DriveSpec], out: Path) -> dict[str, float]:
@@ -143,7 +143,7 @@ def two_node(drives: list[DriveSpec], out: Path) -> dict[str, float]:
             stderr=subprocess.DEVNULL,
         )
         time.sleep(8)
-        seconds, frames = batch_time(drives, out, address)
+        timed = batch_time(drives, out, address)
     finally:
         for proc in (worker, head):
             if proc is not None:
@@ -152,7 +152,7 @@ def two_node(drives: list[DriveSpec], out: Path) -> dict[str, float]:
         current = Path(tempfile.gettempdir()) / "ray" / "ray_current_cluster"
         if current.is_file() and current.read_text().strip().endswith(f":{HEAD_PORT}"):
             current.unlink()  # the address `ray stop` would have removed
-    return {"seconds": seconds, "frames": frames}
+    return timed
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,24 +165,27 @@ def main(argv: list[str] | None = None) -> int:
     drives = make_drives(args.out, args.drives, args.frames)
     print(f"{len(drives)} drives x {args.frames} frames (method paper, built-in odometry)")
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    seq_s, frames = sequential(drives, args.out / "out_seq")
-    rows = [("sequential, 1 process", seq_s, frames, "")]
+    seq = sequential(drives, args.out / "out_seq")
+    rows = [("sequential, 1 process", seq, "")]
     ray_runs = {cpus: on_embedded_ray(cpus, drives, args.out / f"out_ray{cpus}") for cpus in (1, 2)}
     for cpus, r in ray_runs.items():
-        note = (
-            f"Ray start {r['startup_s']:.1f} s (not counted); empty task {r['task_s'] * 1e3:.1f} ms"
-        )
-        rows.append((f"Ray, {cpus} CPU{'s' if cpus > 1 else ''}", r["seconds"], r["frames"], note))
+        note = f"start {r['startup_s']:.1f} s, cold batch {r['cold_s']:.1f} s"
+        rows.append((f"Ray, {cpus} CPU{'s' if cpus > 1 else ''}", r, note))
     if args.two_node:
-        r = two_node(drives, args.out / "out_two_node")
-        rows.append(("Ray, 2 nodes x 1 CPU (loopback)", r["seconds"], r["frames"], ""))
-    print(f"{'run':34s} {'seconds':>8s} {'frames':>7s} {'frames/s':>9s} {'speed-up':>9s}")
-    for name, seconds, n, note in rows:
+        rows.append(("Ray, 2 nodes x 1 CPU (loopback)", two_node(drives, args.out / "two"), ""))
+    print(f"{'run':32s} {'wall s':>7s} {'frames/s':>9s} {'speed-up':>9s} {'CPU ms/frame':>13s}")
+    for name, r, note in rows:
         print(
-            f"{name:34s} {seconds:8.1f} {n:7d} {n / seconds:9.2f} {seq_s / seconds:8.2f}x  {note}"
+            f"{name:32s} {r['seconds']:7.1f} {r['frames'] / r['seconds']:9.2f} "
+            f"{seq['seconds'] / r['seconds']:8.2f}x {1e3 * r['cpu_s'] / r['frames']:13.1f}  {note}"
         )
-    overhead = (ray_runs[1]["seconds"] - seq_s) / len(drives)
-    print(f"Ray per-drive overhead (1 CPU batch minus sequential, per drive): {overhead:.2f} s")
+    warm = (ray_runs[1]["seconds"] - seq["seconds"]) / len(drives)
+    cold = (ray_runs[1]["cold_s"] - ray_runs[1]["seconds"]) / len(drives)
+    print(
+        f"Ray per-drive overhead: {warm:.2f} s (warm 1-CPU batch minus sequential, per drive); "
+        f"cold workers add {cold:.2f} s per drive to a first batch; an empty task's round trip "
+        f"is {ray_runs[1]['task_s'] * 1e3:.2f} ms"
+    )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     return 0
 

@@ -148,7 +148,7 @@ def process_drive(
     attempt = count_attempt(out_root, spec.name)
     tmp = out_root / f"{TMP_PREFIX}{spec.name}-{uuid.uuid4().hex[:8]}"
     final = out_root / spec.name
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     try:
         result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
         summary_path = tmp / SUMMARY_NAME
@@ -172,6 +172,7 @@ def process_drive(
         frames=result.frames,
         records=result.records,
         seconds=time.perf_counter() - start,
+        cpu_seconds=time.process_time() - cpu_start,
         attempts=attempt,
         worker_peak_rss_mb=peak_rss_mb(),
     )

@@ -18,6 +18,7 @@ STATUS_FIELDS = (
     "frames",
     "records",
     "seconds",
+    "cpu_seconds",
     "attempts",
     "worker_peak_rss_mb",
 )
@@ -50,6 +51,7 @@ class DriveOutcome:
     frames: int = 0
     records: int = 0
     seconds: float = float("nan")
+    cpu_seconds: float = float("nan")
     attempts: int = 0
     worker_peak_rss_mb: float = float("nan")
 
