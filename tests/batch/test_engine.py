@@ -160,3 +160,21 @@ def test_without_ray_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(OptionalDependencyError, match=r"pip install 'slopedist\[batch\]'"):
         import_ray()
+
+
+def test_fail_fast_stops_the_batch(fleet: Fleet, tmp_path: Path) -> None:
+    manifest = tmp_path / "m.csv"
+    sim = fleet.root / "ego_crest"
+    good = f"{sim / 'image_02'},{sim / 'calib.txt'},{sim / 'boxes.csv'}"
+    manifest.write_text(
+        "drive,frames,calib,boxes,timestamps\n"
+        f"broken,{sim / 'image_02'},{sim / 'calib.txt'},{fleet.root / 'broken.csv'},\n"
+        + "".join(f"good{i},{good},{sim / 'times.txt'}\n" for i in range(3))
+    )
+    out = tmp_path / "o"
+    assert main(["batch", str(manifest), "--out", str(out), "--fail-fast", "--quiet"]) == 1
+    with (out / "status.csv").open(newline="") as fh:
+        status = {r["drive"]: r["status"] for r in csv.DictReader(fh)}
+    assert status["broken"] == "failed"
+    assert "cancelled" in status.values()  # 2 CPUs: at least one good drive was still waiting
+    assert all(status[f"good{i}"] in ("cancelled", "done") for i in range(3))
