@@ -18,8 +18,7 @@ Prints frames per second (wall clock of the whole batch), the speed-up over sequ
 time per frame (user + system, this process for sequential, the workers' for Ray: the cost that
 does not depend on how busy a shared machine is), Ray's per-drive overhead (the warm 1-CPU batch
 wall time minus the time spent inside the drives' tasks, per drive), the extra time of cold
-workers and the round trip of an
-empty task. Usage::
+workers and the round trip of an empty task. Usage::
 
     python benchmarks/batch_scaling.py [--drives 6] [--frames 40] [--two-node]
         [--out bench_out/batch_scaling]
