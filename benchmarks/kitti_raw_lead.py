@@ -40,7 +40,7 @@ from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
-from slopedist.runner import RECORDS_NAME, RunningMean, run_frames
+from slopedist.runner import RECORDS_NAME, RunConfig, RunningMean, run_frames
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
@@ -166,14 +166,12 @@ def main(argv: list[str] | None = None) -> int:
         with c_stdout_to_stderr():
             results[method] = run_frames(
                 open_frames(drive.image_dir),
-                camera,
                 truth,
                 odometry,
                 make_estimator(
                     method, camera, **(args.ours_options if method.startswith("ours") else {})
                 ),
-                out,
-                progress=False,
+                RunConfig(out, progress=False),
             )
         estimates[method] = read_estimates(out / RECORDS_NAME)
         print(

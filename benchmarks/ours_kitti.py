@@ -61,8 +61,9 @@ from slopedist.estimators.ours.fitting import (
     fit_parameters,
     kitti_tracking_fit_inputs,
 )
-from slopedist.evaluation import cap_estimates, format_table
+from slopedist.evaluation import cap_estimates
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.tables import format_table
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 
@@ -414,8 +415,9 @@ def section_calibration(data: Path) -> None:
 def section_synthetic(scenarios: Sequence[str]) -> None:
     from slopedist.datasets.synthetic.scenarios import load_scenario
     from slopedist.datasets.synthetic.sequence import SyntheticSequence
+    from slopedist.detections.boxes import concat_boxes
     from slopedist.odometry.base import RotationTrack
-    from slopedist.pipeline import concat_boxes, estimate_sequence
+    from slopedist.pipeline import estimate_sequence
 
     print("5. Synthetic hills (noisy detector boxes, true rotations, 80 m cap): RMSE (m)")
     rows = []

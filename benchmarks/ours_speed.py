@@ -38,8 +38,8 @@ from slopedist.datasets.kitti_tracking import (  # noqa: E402
 from slopedist.estimators import make_estimator  # noqa: E402
 from slopedist.estimators.base import FrameInput  # noqa: E402
 from slopedist.estimators.ours.scene import simulate_traffic  # noqa: E402
-from slopedist.evaluation import format_table  # noqa: E402
 from slopedist.pipeline import ego_gradients  # noqa: E402
+from slopedist.tables import format_table  # noqa: E402
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 METHODS = ("paper", "ours", "ours-selfcal")

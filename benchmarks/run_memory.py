@@ -33,12 +33,11 @@ import numpy as np
 from memory import peak_rss_mb, rss_mb  # benchmarks/memory.py, beside this script
 
 from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import Frame, FrameStatus
 from slopedist.odometry import make_odometry
-from slopedist.pipeline import concat_boxes
-from slopedist.runner import RECORDS_NAME, run_frames
+from slopedist.runner import RECORDS_NAME, RunConfig, run_frames
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
@@ -195,12 +194,10 @@ def main(argv: list[str] | None = None) -> int:
         frames = LoopedFrames(files, order, report)
         result = run_frames(
             frames,
-            camera,
             boxes,
             make_odometry("builtin", camera),
             make_estimator(args.method, camera),
-            args.out,
-            progress=False,
+            RunConfig(args.out, progress=False),
         )
         rows = sum(1 for _ in records_path.open()) - 1
         print(

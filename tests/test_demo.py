@@ -10,11 +10,17 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from slopedist import demo_scenario
 from slopedist.cli import main
+from slopedist.datasets.synthetic.scenarios import load_scenario
+from slopedist.datasets.synthetic.sequence import SyntheticSequence
 from slopedist.demo import DemoConfig, format_demo_tables, plan_methods, run_demo
 from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.ground_contact import EgoGradientEstimator
+from slopedist.odometry.base import OdometryResult, OdometryState, RotationTrack
+from slopedist.pipeline import ego_gradients
 
 FRAMES = 8
 SCENARIOS = ("same_flat", "target_steep_uphill")
@@ -122,3 +128,104 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert str(tmp_path / "d" / "summary.txt") in out
     assert main(["demo", "--out", str(tmp_path / "e"), "--methods", "nope"]) == 2
     assert main(["demo", "--out", str(tmp_path / "e"), "--scenarios", "nope.toml"]) == 2
+
+
+def test_cli_estimator_options_reach_the_methods(tmp_path: Path) -> None:
+    """``--alphas`` configures ``paper`` and ``imu`` in the demo as in every other command."""
+    args = ["demo", "--scenarios", "target_steep_uphill", "--frames", "3", "--methods"]
+    args += ["paper,imu,ego", "--odometry", "truth", "--no-video", "--no-plots", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "default")]) == 0
+    # every target below the last threshold: θ + α3
+    steep = ["--alphas", "20,30,40", "--thresholds", "1000,999,998"]
+    assert main([*args, "--out", str(tmp_path / "steep"), *steep]) == 0
+
+    def adjusted(folder: str) -> dict[str, list[str]]:
+        path = tmp_path / folder / "target_steep_uphill" / "records.csv"
+        rows = list(csv.DictReader(path.open()))
+        return {
+            m: [r["theta_adj_deg"] for r in rows if r["method"] == m]
+            for m in ("paper", "imu", "ego")
+        }
+
+    default, steeper = adjusted("default"), adjusted("steep")
+    assert default["ego"] == steeper["ego"]
+    for m in ("paper", "imu"):
+        assert default[m] != steeper[m], m
+        assert all(
+            float(a) - float(d) == pytest.approx(40.0, abs=1e-3)
+            for a, d in zip(steeper[m], default[m])
+        )
+
+
+RESTART = 5
+"""Frame at which the stub odometry below restarts (segment 1)."""
+
+
+class _RestartingOdometry:
+    """The true rotations until :data:`RESTART`, then a new segment whose rotations carry an
+    arbitrary pitch offset (rotations of different segments are not related)."""
+
+    def __init__(self, R_true: np.ndarray) -> None:
+        self._R = R_true
+        self._k = 0
+
+    def process(self, image_gray, timestamp_s, mask_boxes=None):  # type: ignore[no-untyped-def]
+        k, self._k = self._k, self._k + 1
+        if k < RESTART:
+            return OdometryResult(self._R[k], OdometryState.OK, 100, 0)
+        return OdometryResult(self._R[k] @ _PITCH_OFFSET, OdometryState.OK, 100, 1)
+
+    def reset(self) -> None:
+        self._k = 0
+
+
+_PITCH_OFFSET = Rotation.from_euler("x", 0.2).as_matrix()
+
+
+def test_theta_does_not_look_back_across_an_odometry_restart(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    scenario, n = "ego_crest", 16
+    seq = SyntheticSequence(load_scenario(scenario))
+    R_true = seq.truth.poses_cam0()[:n, :3, :3]
+    t = seq.truth.timestamps_s[:n]
+    monkeypatch.setattr(
+        demo_scenario, "visual_odometry", lambda camera: _RestartingOdometry(R_true)
+    )
+    cfg = DemoConfig(tmp_path, (scenario,), ("ego",), "visual", False, False, n, False)
+    run = run_demo(cfg, echo=lambda s: None).runs[0]
+    # θ of each segment on its own (the batch path), never from the other segment's rotations
+    mount = seq.camera.mount_angle_rad
+    R_odo = np.concatenate([R_true[:RESTART], R_true[RESTART:] @ _PITCH_OFFSET])
+    expected = np.concatenate(
+        [
+            ego_gradients(RotationTrack.from_arrays(t[:RESTART], R_odo[:RESTART]), mount),
+            ego_gradients(RotationTrack.from_arrays(t[RESTART:], R_odo[RESTART:]), mount),
+        ]
+    )
+    np.testing.assert_allclose(run.theta_est, expected, atol=1e-9)
+    across = ego_gradients(RotationTrack.from_arrays(t, R_odo), mount)
+    assert np.max(np.abs(across - expected)) > 0.1  # the restart would show if crossed
+    # the estimates use that θ, and frames.csv logs it
+    rows = list(csv.DictReader((tmp_path / scenario / "records.csv").open()))
+    for r in rows:
+        theta = math.degrees(expected[int(r["frame"])])
+        assert float(r["theta_deg"]) == pytest.approx(theta, rel=1e-5, abs=1e-9)
+    logged = [
+        float(r["theta_deg"]) for r in csv.DictReader((tmp_path / scenario / "frames.csv").open())
+    ]
+    np.testing.assert_allclose(logged, np.degrees(expected), atol=1e-4)
+
+
+def test_tables_and_frame_logs_have_lf_line_ends_and_results_json_is_strict(demo_run) -> None:
+    out = demo_run.config.out_dir
+    csvs = [out / "rmse.csv", out / "timing.csv", *sorted(out.glob("*/frames.csv"))]
+    assert len(csvs) == 2 + len(SCENARIOS)
+    for path in csvs:
+        assert b"\r" not in path.read_bytes(), path
+    json.loads(
+        (out / "results.json").read_text(),
+        parse_constant=lambda c: pytest.fail(f"non-strict JSON token {c}"),
+    )
+    rmse = list(csv.DictReader((out / "rmse.csv").open()))
+    assert [r["scenario"] for r in rmse] == [*SCENARIOS, "overall"]

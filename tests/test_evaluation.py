@@ -11,12 +11,14 @@ from hypothesis import strategies as st
 
 from slopedist.detections import BoxTable
 from slopedist.evaluation import (
+    PooledScores,
+    ScoredSet,
     binned_metrics,
     cap_estimates,
     distance_metrics,
-    format_table,
     match_boxes,
     match_by_frame,
+    pool_methods,
 )
 
 
@@ -88,7 +90,30 @@ def test_matching_is_one_to_one_and_above_threshold(a: list, b: list) -> None:
         assert np.all(iou_matrix(det, gt)[d, g] >= 0.5)
 
 
-def test_format_table() -> None:
-    text = format_table(["a", "b"], [["x", 1.234], ["yy", float("nan")]])
-    assert text.splitlines()[2].split() == ["x", "1.23"]
-    assert text.splitlines()[3].split() == ["yy", "-"]
+def _set(pred: list[float], gt: list[float], missing: str = "") -> ScoredSet:
+    info = {"missing": missing} if missing else {}
+    return ScoredSet(np.array(pred), np.array(gt), n_gt=len(gt), frames=1, info=info)
+
+
+def test_pool_methods_own_sequences_and_common_pool() -> None:
+    per_seq = {
+        "a": {"x": _set([10.0], [11.0]), "y": _set([12.0], [11.0])},
+        "b": {"x": _set([20.0, 22.0], [20.0, 20.0]), "y": _set([], [], "no poses")},
+    }
+    scores = pool_methods(per_seq, ["x", "y"])
+    assert scores.pooled == {"x": ["a", "b"], "y": ["a"]}
+    # x pooled over its own sequences: errors 1, 0, 2
+    assert scores.overall["x"]["rmse"] == pytest.approx(math.sqrt(5.0 / 3.0))
+    assert scores.overall["y"]["rmse"] == pytest.approx(1.0)
+    assert scores.summaries["b"]["y"]["missing"] == "no poses"
+    assert scores.common is not None and scores.common["sequences"] == ["a"]
+    assert scores.common["methods"]["x"]["rmse"] == pytest.approx(1.0)
+    back = PooledScores.from_report(
+        {"methods": scores.method_reports(), "overall_common": scores.common}
+    )
+    assert back == scores
+
+
+def test_pool_methods_no_common_when_every_method_ran_everywhere() -> None:
+    scores = pool_methods({"a": {"x": _set([1.0], [1.0]), "y": _set([2.0], [1.0])}}, ["x", "y"])
+    assert scores.common is None and scores.pooled == {"x": ["a"], "y": ["a"]}

@@ -16,12 +16,14 @@ from slopedist.estimators import available_methods, make_estimator
 from slopedist.odometry import RotationTrack
 from slopedist.pipeline import (
     EgoGradientTracker,
-    RecordWriter,
-    StreamingEstimator,
+    FrameStep,
+    close_records,
     concat_estimates,
     ego_gradients,
     estimate_sequence,
     iter_records,
+    open_records,
+    stream_track,
 )
 
 CAMERA = Camera(721.5, 609.6, 172.9, 1.65)
@@ -49,21 +51,9 @@ def synthetic_sequence(n: int = 60, seed: int = 0) -> tuple[RotationTrack, BoxTa
 
 
 def run_streaming(method: str, track: RotationTrack, boxes: BoxTable):
-    stream = StreamingEstimator(make_estimator(method, CAMERA))
-    by_frame = boxes.frame_index()
-    parts = []
-    for k in range(len(track)):
-        if k in by_frame:
-            R = track.R_world_cam[k] if track.valid[k] else None
-            parts.append(stream.update(k, float(track.timestamps_s[k]), R, by_frame[k]))
-        else:
-            stream.update(
-                k,
-                float(track.timestamps_s[k]),
-                track.R_world_cam[k] if track.valid[k] else None,
-                boxes.select(np.zeros(len(boxes), bool)),
-            )
-    return concat_estimates(parts), stream
+    step = FrameStep(make_estimator(method, CAMERA))
+    parts = [result.estimates for _, _, result in stream_track(step, track, boxes)]
+    return concat_estimates(parts), step
 
 
 @pytest.mark.parametrize("method", ["flat", "ego", "paper"])
@@ -121,17 +111,17 @@ def test_gradient_tracker_matches_vectorised_gradients_with_gaps() -> None:
 
 
 def test_timestamps_going_backwards_are_an_error() -> None:
-    stream = StreamingEstimator(make_estimator("ego", CAMERA))
+    step = FrameStep(make_estimator("ego", CAMERA))
     empty = BoxTable.empty()
-    stream.update(0, 0.0, np.eye(3), empty)
+    step.step(0, 0.0, np.eye(3), empty)
     with pytest.raises(DataMismatchError, match="does not follow"):
-        stream.update(1, 0.0, np.eye(3), empty)
+        step.step(1, 0.0, np.eye(3), empty)
 
 
 def test_flat_runs_without_rotation_ego_does_not() -> None:
     boxes = BoxTable.build([0], [[500, 150, 600, 250]])
-    flat = StreamingEstimator(make_estimator("flat", CAMERA)).update(0, 0.0, None, boxes)
-    ego = StreamingEstimator(make_estimator("ego", CAMERA)).update(0, 0.0, None, boxes)
+    flat = FrameStep(make_estimator("flat", CAMERA)).step(0, 0.0, None, boxes).estimates
+    ego = FrameStep(make_estimator("ego", CAMERA)).step(0, 0.0, None, boxes).estimates
     assert flat.distance_m[0] == pytest.approx(721.5 * 1.65 / (250 - 172.9))
     assert ego.reason[0] == "no_rotation" and math.isnan(ego.distance_m[0])
 
@@ -140,9 +130,64 @@ def test_records_csv_written_frame_by_frame(tmp_path: Path) -> None:
     track, boxes = synthetic_sequence(20, seed=1)
     res = estimate_sequence(make_estimator("paper", CAMERA), boxes, track.timestamps_s, track)
     out = tmp_path / "records.csv"
-    with RecordWriter.open(out) as writer:
-        writer.write(iter_records(res.boxes, res.timestamps_s, res.estimates, "paper"))
-        assert out.read_text().count("\n") == len(boxes) + 1  # flushed before close
+    writer = open_records(out)
+    writer.write_rows(iter_records(res.boxes, res.timestamps_s, res.estimates, "paper"))
+    assert out.read_bytes().count(b"\n") == len(boxes) + 1  # flushed before close
+    close_records(writer)
+    assert b"\r" not in out.read_bytes()
     text = out.read_text().splitlines()
     assert text[0].startswith("frame,timestamp_s,track_id")
     assert any(",missing,non_finite_box" in line for line in text)
+
+
+def test_empty_records_file_keeps_its_header(tmp_path: Path) -> None:
+    out = tmp_path / "records.csv"
+    close_records(open_records(out))
+    assert out.read_text().splitlines()[0].startswith("frame,timestamp_s,track_id")
+
+
+def test_frame_step_returns_the_theta_its_estimates_use() -> None:
+    track, boxes = synthetic_sequence(40, seed=2)
+    step = FrameStep(make_estimator("paper", CAMERA))
+    thetas = []
+    for frame_boxes, _, result in stream_track(step, track, boxes):
+        thetas.append(result.theta_rad)
+        np.testing.assert_array_equal(
+            result.estimates.theta_rad, np.full(len(frame_boxes), result.theta_rad)
+        )
+    np.testing.assert_allclose(thetas, ego_gradients(track), equal_nan=True, atol=1e-12)
+
+
+def test_frames_without_boxes_do_not_reach_the_estimator() -> None:
+    class Counting(type(make_estimator("flat", CAMERA))):  # type: ignore[misc]
+        calls = 0
+
+        def estimate(self, frame):  # type: ignore[no-untyped-def]
+            Counting.calls += 1
+            return super().estimate(frame)
+
+    step = FrameStep(Counting(CAMERA))
+    none = step.step(0, 0.0, np.eye(3), None)
+    empty = step.step(1, 0.1, np.eye(3), BoxTable.empty())
+    assert len(none.estimates) == 0 and len(empty.estimates) == 0 and Counting.calls == 0
+    step.step(2, 0.2, np.eye(3), BoxTable.build([2], [[500, 150, 600, 250]]))
+    assert Counting.calls == 1
+
+
+def test_no_look_back_across_an_odometry_segment() -> None:
+    """A new segment forgets the history: its first frame looks back to itself (θ = 0 at θ0 = 0)
+    and later ones only to frames of the same segment."""
+    pitch = Rotation.from_euler("x", np.arange(30)[:, None] * 0.5, degrees=True).as_matrix()
+    tracker = EgoGradientTracker(lookback_s=1.0)
+    jump = Rotation.from_euler("x", 20, degrees=True).as_matrix()
+    thetas = []
+    for k in range(30):
+        seg = int(k >= 15)
+        R = pitch[k] @ jump if seg else pitch[k]
+        thetas.append(tracker.update(k * 0.1, R, seg))
+    assert thetas[15] == pytest.approx(0.0, abs=1e-12)
+    # frame 20 looks back 0.5 s (to frame 15, its segment's first frame), not 1 s to frame 10
+    same_segment = EgoGradientTracker(lookback_s=1.0)
+    expected = [same_segment.update(k * 0.1, pitch[k] @ jump) for k in range(15, 30)]
+    np.testing.assert_allclose(thetas[15:], expected, atol=1e-12)
+    assert abs(thetas[14]) > 0.01 and abs(thetas[20] - thetas[14]) > 0.001

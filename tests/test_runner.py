@@ -20,7 +20,7 @@ from slopedist.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, OdometryState
-from slopedist.runner import RunAbortedError, run_frames
+from slopedist.runner import RunAbortedError, RunConfig, run_frames
 
 W, H = 320, 200
 CAM = Camera(500.0, 160.0, 100.0, height_m=1.5)
@@ -80,12 +80,10 @@ def test_records_and_frame_log_match_hand_computed_distances(tmp_path: Path) -> 
     odo = ScriptedOdometry()
     result = run_frames(
         open_frames(make_frames(tmp_path / "f", n)),
-        CAM,
         boxes_every_frame(n),
         odo,
         make_estimator("ego", CAM),
-        tmp_path / "out",
-        progress=False,
+        RunConfig(tmp_path / "out", progress=False),
     )
     assert result.frames == n and result.records == 2 * n and result.estimated == 2 * (n - 1)
     assert result.odometry_states == {"not_initialised": 1, "ok": n - 1}
@@ -110,12 +108,10 @@ def test_missing_frame_is_logged_and_the_run_goes_on(tmp_path: Path) -> None:
     n = 8
     result = run_frames(
         open_frames(make_frames(tmp_path / "f", n, skip=(4,))),
-        CAM,
         boxes_every_frame(n),
         ScriptedOdometry(),
         make_estimator("paper", CAM),
-        tmp_path / "out",
-        progress=False,
+        RunConfig(tmp_path / "out", progress=False),
     )
     assert result.frames == n and result.frame_status == {"ok": n - 1, "missing": 1}
     frames = read_csv(tmp_path / "out" / "frames.csv")
@@ -131,12 +127,10 @@ def test_crash_halfway_keeps_the_records_written_before(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError, match="boom"):
         run_frames(
             open_frames(make_frames(tmp_path / "f", n)),
-            CAM,
             boxes_every_frame(n),
             ScriptedOdometry(fail_at=0.55),
             make_estimator("ego", CAM),
-            tmp_path / "out",
-            progress=False,
+            RunConfig(tmp_path / "out", progress=False),
         )
     rows = read_csv(tmp_path / "out" / "records.csv")
     assert sorted({int(r["frame"]) for r in rows}) == [0, 1, 2, 3, 4, 5]
@@ -151,12 +145,10 @@ def test_user_error_halfway_names_the_frame_and_the_kept_records(tmp_path: Path)
     with pytest.raises(RunAbortedError, match=r"frame 3 \(000003\.png\).*records of the 3 frames"):
         run_frames(
             open_frames(make_frames(tmp_path / "f", n)),
-            CAM,
             boxes_every_frame(n),
             ScriptedOdometry(fail_at=0.25, error=err),
             make_estimator("ego", CAM),
-            tmp_path / "out",
-            progress=False,
+            RunConfig(tmp_path / "out", progress=False),
         )
     assert len(read_csv(tmp_path / "out" / "records.csv")) == 6
 
@@ -166,12 +158,10 @@ def test_calibration_mismatch_fails_before_writing(tmp_path: Path) -> None:
     with pytest.raises(DataMismatchError, match=r"c_x = 700\.0 px lies outside"):
         run_frames(
             open_frames(make_frames(tmp_path / "f", 3)),
-            far,
             boxes_every_frame(3),
             ScriptedOdometry(),
             make_estimator("ego", far),
-            tmp_path / "out",
-            progress=False,
+            RunConfig(tmp_path / "out", progress=False),
         )
     assert not (tmp_path / "out").exists()
 
@@ -181,13 +171,10 @@ def test_overlay_png_folder_and_mp4(tmp_path: Path, target: str) -> None:
     n = 6
     run_frames(
         open_frames(make_frames(tmp_path / "f", n, skip=(2,))),
-        CAM,
         boxes_every_frame(n),
         ScriptedOdometry(),
         make_estimator("ego", CAM),
-        tmp_path / "out",
-        overlay=tmp_path / "out" / target,
-        progress=False,
+        RunConfig(tmp_path / "out", overlay=tmp_path / "out" / target, progress=False),
     )
     if target == "overlay":
         pngs = sorted((tmp_path / "out" / "overlay").glob("*.png"))
@@ -358,12 +345,10 @@ def test_no_look_back_across_an_odometry_restart(tmp_path: Path) -> None:
     n = 16
     run_frames(
         open_frames(make_frames(tmp_path / "f", n)),
-        CAM,
         boxes_every_frame(n),
         RestartingOdometry(),
         make_estimator("ego", CAM),
-        tmp_path / "out",
-        progress=False,
+        RunConfig(tmp_path / "out", progress=False),
     )
     frames = read_csv(tmp_path / "out" / "frames.csv")
     assert [r["segment"] for r in frames[10:14]] == ["0", "0", "1", "1"]
@@ -395,12 +380,10 @@ def test_ground_truth_and_sequence_reach_the_records_and_the_report(tmp_path: Pa
     for method in ("ego", "flat"):
         run_frames(
             open_frames(make_frames(tmp_path / "clip7", n)),
-            CAM,
             boxes_with_truth(n),
             ScriptedOdometry(),
             make_estimator(method, CAM),
-            tmp_path / "runs" / method,
-            progress=False,
+            RunConfig(tmp_path / "runs" / method, progress=False),
         )
     rows = read_csv(tmp_path / "runs" / "ego" / "records.csv")
     assert [r["gt_distance_m"] for r in rows[:2]] == ["10", "40"]
@@ -427,13 +410,10 @@ def test_sequence_name_option_and_defaults(tmp_path: Path) -> None:
 
     run_frames(
         open_frames(make_frames(tmp_path / "f", 3)),
-        CAM,
         boxes_every_frame(3),
         ScriptedOdometry(),
         make_estimator("ego", CAM),
-        tmp_path / "out",
-        progress=False,
-        sequence="0007",
+        RunConfig(tmp_path / "out", progress=False, sequence="0007"),
     )
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["sequence"] == "0007" and summary["ground_truth"] is False
@@ -469,12 +449,10 @@ def test_depth_maps_feed_the_depthmap_method_and_are_timed(tmp_path: Path) -> No
     source = FileDepthSource(DepthFolder.write(tmp_path / "depth", n), missing_ok=True)
     result = run_frames(
         open_frames(make_frames(tmp_path / "f", n)),
-        CAM,
         boxes_every_frame(n),
         None,
         make_estimator("depthmap", CAM),
-        tmp_path / "out",
-        progress=False,
+        RunConfig(tmp_path / "out", progress=False),
         depth=source,
     )
     assert result.frames_without_depth == 1 and result.depth_source is not None
@@ -496,23 +474,19 @@ def test_depth_and_method_must_match(tmp_path: Path) -> None:
     with pytest.raises(ConfigurationError, match="needs depth maps"):
         run_frames(
             frames,
-            CAM,
             boxes_every_frame(3),
             None,
             make_estimator("depthmap", CAM),
-            tmp_path / "out",
-            progress=False,
+            RunConfig(tmp_path / "out", progress=False),
         )
     source = FileDepthSource(DepthFolder.write(tmp_path / "depth", 3), missing_ok=True)
     with pytest.raises(ConfigurationError, match="does not use them"):
         run_frames(
             frames,
-            CAM,
             boxes_every_frame(3),
             None,
             make_estimator("paper", CAM),
-            tmp_path / "out",
-            progress=False,
+            RunConfig(tmp_path / "out", progress=False),
             depth=source,
         )
     assert not (tmp_path / "out").exists()

@@ -69,3 +69,13 @@ def test_line_outside_the_image_is_not_drawn() -> None:
     boxes, est = _frame([], 0.5)  # v = 100 − 500·tan(0.5) < 0
     out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, 0.5)
     assert not _is(GREEN, out).any()
+
+
+def test_one_colour_per_method_whatever_its_position() -> None:
+    from slopedist.estimators import available_methods
+
+    colours = [viz.method_colour(m) for m in available_methods()]
+    assert len(set(colours)) == len(colours)  # the built-in methods are told apart
+    assert viz.method_colour("ours") == "tab:pink"
+    assert viz.method_colour("custom-x") == viz.method_colour("custom-x")
+    assert viz.method_colour("custom-x") in viz.OTHER_METHOD_COLOURS

@@ -1,4 +1,4 @@
-"""Distance metrics, detection-to-truth matching and the KITTI tracking evaluation protocol.
+"""Distance metrics, detection-to-truth matching, and pooling scores over sequences.
 
 Distances in metres. Metrics follow the depth-estimation literature (Eigen et al.): RMSE, MAE,
 AbsRel, SqRel, RMSE-log and the δ < 1.25^k accuracies.
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -195,21 +195,6 @@ class Stopwatch:
         self.seconds += time.perf_counter() - self._t0
 
 
-def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    """Plain-text table with right-aligned columns (floats to 2 decimals, NaN as ``-``)."""
-
-    def cell(v: Any) -> str:
-        if isinstance(v, float):
-            return "-" if not math.isfinite(v) else f"{v:.2f}"
-        return str(v)
-
-    cells = [[cell(v) for v in r] for r in rows]
-    widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(headers)]
-    line = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
-    body = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in cells]
-    return "\n".join([line, "-" * len(line), *body])
-
-
 def compact_names(names: Sequence[str]) -> str:
     """``["0000", "0001", "0002", "0005"]`` → ``"0000-0002, 0005"`` (runs of consecutive
     numbered names collapsed; other names kept as they are)."""
@@ -231,56 +216,91 @@ def compact_names(names: Sequence[str]) -> str:
     return ", ".join(parts)
 
 
-def format_report_tables(report: dict[str, Any]) -> str:
-    """The RMSE table (sequence × method) and the overall extended-metrics table of a report."""
-    methods = list(report["methods"])
-    seqs = list(next(iter(report["methods"].values()))["sequences"]) if methods else []
-    rmse_rows: list[list[Any]] = []
-    for s in seqs:
-        first = report["methods"][methods[0]]["sequences"][s]
-        rmse_rows.append(
-            [s, first["n"], *(report["methods"][m]["sequences"][s]["rmse"] for m in methods)]
-        )
-    n_all = report["methods"][methods[0]]["overall"]["n"] if methods else 0
-    rmse_rows.append(
-        ["overall", n_all, *(report["methods"][m]["overall"]["rmse"] for m in methods)]
-    )
-    common = report.get("overall_common")
-    if common is not None:
-        first = common["methods"][methods[0]]
-        rmse_rows.append(["common", first["n"], *(common["methods"][m]["rmse"] for m in methods)])
-    out = ["RMSE (m) per sequence", format_table(["sequence", "n", *methods], rmse_rows)]
-    for m in methods:
-        missing = {
-            s: v["missing"]
-            for s, v in report["methods"][m]["sequences"].items()
-            if v.get("missing")
+def summarise(sets: Sequence[ScoredSet], with_recall: bool) -> dict[str, Any]:
+    """:meth:`ScoredSet.summary` of the pooled ``sets``, with the depth-map time per frame
+    (``depth_ms_per_frame``) and, for a single missing set, its ``missing`` reason."""
+    present = [s for s in sets if not s.info.get("missing")]
+    pooled = pool(present)
+    out = pooled.summary(with_recall)
+    depth_s = sum(s.info.get("depth_seconds", 0.0) for s in present)
+    out["depth_ms_per_frame"] = 1000.0 * depth_s / pooled.frames if pooled.frames else math.nan
+    if len(sets) == 1 and not present:
+        out["missing"] = sets[0].info["missing"]
+    return out
+
+
+@dataclass
+class PooledScores:
+    """Every method's summaries per sequence, pooled over the sequences it ran on, and over the
+    sequences all of them ran on (summary = :func:`summarise` keys; distances in metres).
+
+    Attributes:
+        methods, sequences: in table order.
+        summaries: ``{sequence: {method: summary}}`` (``missing`` says why a method has none).
+        overall: ``{method: summary}`` pooled over ``pooled[method]``.
+        pooled: ``{method: [sequences it ran on]}``.
+        common: ``{"sequences": [...], "methods": {method: summary}}``, every method pooled
+            over the sequences all of them ran on, when the ``pooled`` lists differ; else None.
+    """
+
+    methods: list[str]
+    sequences: list[str]
+    summaries: dict[str, dict[str, dict[str, Any]]]
+    overall: dict[str, dict[str, Any]]
+    pooled: dict[str, list[str]]
+    common: dict[str, Any] | None = None
+
+    def method_reports(self) -> dict[str, dict[str, Any]]:
+        """The ``"methods"`` block of a JSON report: per method its ``overall``,
+        ``pooled_sequences`` and per-sequence summaries."""
+        return {
+            m: {
+                "overall": self.overall[m],
+                "pooled_sequences": self.pooled[m],
+                "sequences": {s: self.summaries[s][m] for s in self.sequences},
+            }
+            for m in self.methods
         }
-        if missing:
-            out.append(
-                f"{m}: no result on {', '.join(missing)} "
-                f"({next(iter(missing.values()))}); its overall pools "
-                f"{compact_names(report['methods'][m].get('pooled_sequences', []))}"
-            )
-    if common is not None:
-        out.append(
-            f"common: every method pooled over the sequences all of them ran on "
-            f"({compact_names(common['sequences'])})"
+
+    @classmethod
+    def from_report(cls, report: Mapping[str, Any]) -> PooledScores:
+        """Read back the ``"methods"`` and ``"overall_common"`` blocks of a JSON report."""
+        blocks = report["methods"]
+        methods = list(blocks)
+        sequences = list(blocks[methods[0]]["sequences"]) if methods else []
+        return cls(
+            methods,
+            sequences,
+            {s: {m: blocks[m]["sequences"][s] for m in methods} for s in sequences},
+            {m: blocks[m]["overall"] for m in methods},
+            {m: list(blocks[m].get("pooled_sequences", sequences)) for m in methods},
+            report.get("overall_common"),
         )
-    keys = ["n", "rmse", "mae", "abs_rel", "sq_rel", "rmse_log", "delta_1.25"]
-    has_recall = "recall" in report["methods"][methods[0]]["overall"] if methods else False
-    if has_recall:
-        keys.append("recall")
-    keys.append("ms_per_frame")
-    rows = [[m, *(report["methods"][m]["overall"][k] for k in keys)] for m in methods]
-    out += ["", "Overall (pooled)", format_table(["method", *keys], rows)]
-    bins = list(report["methods"][methods[0]]["overall"]["bins"]) if methods else []
-    bin_rows = [
-        [m, *(report["methods"][m]["overall"]["bins"][b]["rmse"] for b in bins)] for m in methods
-    ]
-    out += [
-        "",
-        "RMSE (m) per ground-truth distance bin (m)",
-        format_table(["method", *bins], bin_rows),
-    ]
-    return "\n".join(out)
+
+
+def pool_methods(
+    per_sequence: Mapping[str, Mapping[str, ScoredSet]],
+    methods: Sequence[str],
+    with_recall: bool = False,
+) -> PooledScores:
+    """Summarise ``per_sequence[sequence][method]`` (a set with ``info["missing"]`` = the
+    method has no result there) per sequence, each method pooled over its own sequences, and,
+    when those differ, every method pooled over the sequences all of them ran on."""
+    names = list(per_sequence)
+    ran = {m: [s for s in names if not per_sequence[s][m].info.get("missing")] for m in methods}
+    scores = PooledScores(
+        list(methods),
+        names,
+        {s: {m: summarise([per_sequence[s][m]], with_recall) for m in methods} for s in names},
+        {m: summarise([per_sequence[s][m] for s in ran[m]], with_recall) for m in methods},
+        ran,
+    )
+    if len({tuple(r) for r in ran.values()}) > 1:
+        common = [s for s in names if all(s in ran[m] for m in methods)]
+        scores.common = {
+            "sequences": common,
+            "methods": {
+                m: summarise([per_sequence[s][m] for s in common], with_recall) for m in methods
+            },
+        }
+    return scores

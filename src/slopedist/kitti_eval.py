@@ -1,4 +1,5 @@
-"""The KITTI tracking evaluation (``slopedist eval kitti-tracking``): protocol, runner, JSON.
+"""The KITTI tracking evaluation (``slopedist eval kitti-tracking``, ``slopedist report``):
+protocol, the per-sequence runs, the JSON report.
 
 Protocol (the default): ground truth = label rows of type Car or Van with truncated = 0,
 occluded ≤ 1 and 0 < z ≤ 80 m, distance = the label's z. f = P2[0,0], c_y = P2[1,2];
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,14 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
 from slopedist.estimators.depthmap import TRUTH_COLUMN
-from slopedist.evaluation import ScoredSet, Stopwatch, cap_estimates, match_by_frame, pool
+from slopedist.evaluation import (
+    PooledScores,
+    ScoredSet,
+    Stopwatch,
+    cap_estimates,
+    match_by_frame,
+    pool_methods,
+)
 from slopedist.odometry.base import LOOKBACK_S, RotationTrack
 from slopedist.pipeline import ego_gradients, estimate_sequence
 
@@ -315,53 +323,56 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, theta)
 
 
-def evaluate_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> dict[str, ScoredSet]:
-    """Score every method of ``cfg`` on one sequence."""
-    run = run_sequence(seq, cfg)
-    return {name: run.scored(name) for name in cfg.methods}
+@dataclass
+class KittiEvaluation:
+    """Every method run on every sequence of an evaluation (:func:`run_kitti_tracking`).
 
-
-def summarise(sets: Sequence[ScoredSet], with_recall: bool) -> dict[str, Any]:
-    """:meth:`ScoredSet.summary` of the pooled ``sets``, with the depth-map time per frame
-    (``depth_ms_per_frame``) and, for a single missing set, its ``missing`` reason."""
-    present = [s for s in sets if not s.info.get("missing")]
-    pooled = pool(present)
-    out = pooled.summary(with_recall)
-    depth_s = sum(s.info.get("depth_seconds", 0.0) for s in present)
-    out["depth_ms_per_frame"] = 1000.0 * depth_s / pooled.frames if pooled.frames else math.nan
-    if len(sets) == 1 and not present:
-        out["missing"] = sets[0].info["missing"]
-    return out
-
-
-def build_report(
-    cfg: KittiEvalConfig, names: Sequence[str], per_seq: dict[str, dict[str, ScoredSet]]
-) -> dict[str, Any]:
-    """The JSON-ready report of scored sets ``per_seq[sequence][method]``.
-
-    Each method's ``overall`` pools the sequences it ran on (listed as ``pooled_sequences``);
-    when those differ between methods, ``overall_common`` pools every method over the
-    sequences all of them ran on, so that the methods are compared on the same targets.
+    Attributes:
+        config: the configuration, ``sequences`` = the sequences run.
+        runs: per sequence, in order.
     """
-    with_recall = BoxSource(cfg.boxes) is BoxSource.POINTRCNN
-    cfg_for_json = KittiEvalConfig(**{**asdict(cfg), "sequences": list(names)})
-    report: dict[str, Any] = {"protocol": cfg_for_json.protocol(), "methods": {}}
-    ran = {m: [s for s in names if not per_seq[s][m].info.get("missing")] for m in cfg.methods}
-    for method in cfg.methods:
-        report["methods"][method] = {
-            "overall": summarise([per_seq[s][method] for s in ran[method]], with_recall),
-            "pooled_sequences": ran[method],
-            "sequences": {s: summarise([per_seq[s][method]], with_recall) for s in names},
+
+    config: KittiEvalConfig
+    runs: dict[str, SequenceRun]
+
+    def scores(self) -> PooledScores:
+        """Every method scored per sequence and pooled (:func:`~slopedist.evaluation.
+        pool_methods`), with the recall when the boxes are detections."""
+        per_seq = {
+            s: {m: run.scored(m) for m in self.config.methods} for s, run in self.runs.items()
         }
-    if len({tuple(r) for r in ran.values()}) > 1:
-        common = [s for s in names if all(s in ran[m] for m in cfg.methods)]
-        report["overall_common"] = {
-            "sequences": common,
-            "methods": {
-                m: summarise([per_seq[s][m] for s in common], with_recall) for m in cfg.methods
-            },
+        with_recall = BoxSource(self.config.boxes) is BoxSource.POINTRCNN
+        return pool_methods(per_seq, self.config.methods, with_recall)
+
+    def report(self) -> dict[str, Any]:
+        """The JSON-ready report ``{"protocol", "methods": {name: {"overall",
+        "pooled_sequences", "sequences"}}}``, plus ``"overall_common"`` when the methods ran on
+        different sequences (every method pooled over the sequences all of them ran on)."""
+        scores = self.scores()
+        report: dict[str, Any] = {
+            "protocol": self.config.protocol(),
+            "methods": scores.method_reports(),
         }
-    return report
+        if scores.common is not None:
+            report["overall_common"] = scores.common
+        return report
+
+
+def run_kitti_tracking(
+    root: str | Path,
+    cfg: KittiEvalConfig,
+    on_sequence: Callable[[str], None] | None = None,
+) -> KittiEvaluation:
+    """Run every method of ``cfg`` on the sequences it names under ``root`` (all when none),
+    calling ``on_sequence(name)`` before each."""
+    names = check_run(root, cfg)
+    runs: dict[str, SequenceRun] = {}
+    for name in names:
+        if on_sequence is not None:
+            on_sequence(name)
+        seq = load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad)
+        runs[name] = run_sequence(seq, cfg)
+    return KittiEvaluation(replace(cfg, sequences=list(names)), runs)
 
 
 def evaluate_kitti_tracking(
@@ -369,14 +380,5 @@ def evaluate_kitti_tracking(
     cfg: KittiEvalConfig,
     on_sequence: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
-    """Run the evaluation; returns the JSON-ready report
-    ``{"protocol": {...}, "methods": {name: {"overall": {...}, "sequences": {...}}}}``."""
-    names = check_run(root, cfg)
-    per_seq: dict[str, dict[str, ScoredSet]] = {}
-    for name in names:
-        if on_sequence is not None:
-            on_sequence(name)
-        per_seq[name] = evaluate_sequence(
-            load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad), cfg
-        )
-    return build_report(cfg, names, per_seq)
+    """Run the evaluation; returns its JSON-ready :meth:`KittiEvaluation.report`."""
+    return run_kitti_tracking(root, cfg, on_sequence).report()

@@ -1,4 +1,8 @@
-"""The streaming loop (frame → rotation → per-target distance records) and its batch twin.
+"""The per-frame step every loop calls (rotation → θ → per-target estimates) and the records.
+
+:class:`FrameStep` is the one step: ``slopedist run`` (:mod:`slopedist.runner`), ``estimate``,
+``calibrate`` (:func:`stream_track`), the demo and the batch :func:`estimate_sequence` behind
+the KITTI evaluation differ only in where the frames come from and where the results go.
 
 Convention: rotations camera-to-world ``(3, 3)`` relative to the first frame; timestamps in
 seconds; θ in radians inside, degrees only in the CSV written for users.
@@ -6,21 +10,22 @@ seconds; θ in radians inside, degrees only in the CSV written for users.
 
 from __future__ import annotations
 
-import csv
 import math
+import sys
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from slopedist import geometry as geo
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.errors import DataMismatchError
 from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput
+from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
 
 
@@ -29,19 +34,28 @@ class EgoGradientTracker:
 
     The look-back frame of the current frame is the latest kept frame at least ``lookback_s``
     older; frames with less history use the earliest frame seen. Frames without a rotation are
-    not kept. Memory is bounded by the number of frames within one look-back interval.
+    not kept. A change of odometry segment (:attr:`~slopedist.odometry.base.OdometryResult.
+    segment`) forgets the history: θ never looks back across a restart of the odometry. Memory
+    is bounded by the number of frames within one look-back interval.
     """
 
     def __init__(self, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S) -> None:
         self.mount_angle_rad = mount_angle_rad
         self.lookback_s = lookback_s
+        self.segment = 0
         self._history: deque[tuple[float, NDArray[np.float64]]] = deque()
 
     def __len__(self) -> int:
         return len(self._history)
 
-    def update(self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None) -> float:
-        """Add a frame and return its θ in radians (NaN when ``R_world_cam`` is None)."""
+    def update(
+        self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None, segment: int = 0
+    ) -> float:
+        """Add a frame of odometry ``segment`` and return its θ in radians (NaN when
+        ``R_world_cam`` is None)."""
+        if segment != self.segment:
+            self._history.clear()
+            self.segment = segment
         if R_world_cam is None:
             return math.nan
         R = np.asarray(R_world_cam, dtype=float)
@@ -53,14 +67,28 @@ class EgoGradientTracker:
         return float(geo.ego_road_gradient(R_prev, R, self.mount_angle_rad))
 
 
-class StreamingEstimator:
-    """Feed frames one at a time; get one estimate per target back.
+@dataclass(frozen=True)
+class FrameResult:
+    """What one frame step gives: the ego gradient θ (radians, NaN without a rotation) and the
+    per-box estimates."""
+
+    theta_rad: float
+    estimates: FrameEstimates
+
+
+class FrameStep:
+    """The per-frame step every loop calls: look-back → θ → estimator, one frame at a time.
+
+    It owns the segment-aware look-back (:class:`EgoGradientTracker`), checks that timestamps
+    increase, and handles frames without boxes in one place (the estimator is not called for
+    them, exactly as in batch use, so that streaming equals batch). Loops differ only in where
+    frames come from and where the results go.
 
     Example::
 
-        stream = StreamingEstimator(make_estimator("paper", camera))
+        step = FrameStep(make_estimator("paper", camera))
         for k, (t, R, boxes) in enumerate(frames):
-            estimates = stream.update(k, t, R, boxes)
+            result = step.step(k, t, R, boxes)  # result.theta_rad, result.estimates
     """
 
     def __init__(self, estimator: Estimator, lookback_s: float = LOOKBACK_S) -> None:
@@ -74,31 +102,75 @@ class StreamingEstimator:
         self.estimator.reset()
         self._last_timestamp = None
 
-    def update(
+    def step(
         self,
         frame_index: int,
         timestamp_s: float,
         R_world_cam: NDArray[np.float64] | None,
-        boxes: BoxTable,
+        boxes: BoxTable | None,
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
-    ) -> FrameEstimates:
-        """Estimate the distances of one frame's boxes.
+        segment: int = 0,
+    ) -> FrameResult:
+        """θ of the frame (look-back within odometry ``segment``) and its boxes' estimates.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` does not increase.
         """
+        self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
+        theta = self.gradient.update(timestamp_s, R_world_cam, segment)
+        est = self.estimate(frame_index, timestamp_s, theta, R_world_cam, boxes, image, depth_m)
+        return FrameResult(theta, est)
+
+    def estimate(
+        self,
+        frame_index: int,
+        timestamp_s: float,
+        theta_rad: float,
+        R_world_cam: NDArray[np.float64] | None,
+        boxes: BoxTable | None,
+        image: NDArray[np.uint8] | None = None,
+        depth_m: NDArray[np.float32] | None = None,
+    ) -> FrameEstimates:
+        """The estimates of a frame whose θ (radians) was computed elsewhere: vectorised over a
+        whole track (:func:`estimate_sequence`) or shared by several methods fed the same
+        rotations (the demo).
+
+        Raises:
+            DataMismatchError: if ``timestamp_s`` does not increase.
+        """
+        self._check_time(frame_index, timestamp_s)
+        self._last_timestamp = timestamp_s
+        if boxes is None or not len(boxes):
+            return FrameEstimates.empty()
+        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
+        return self.estimator.estimate(
+            FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
+        )
+
+    def _check_time(self, frame_index: int, timestamp_s: float) -> None:
         if self._last_timestamp is not None and timestamp_s <= self._last_timestamp:
             raise DataMismatchError(
                 f"frame {frame_index}: timestamp {timestamp_s} s does not follow "
                 f"{self._last_timestamp} s"
             )
-        self._last_timestamp = timestamp_s
-        theta = self.gradient.update(timestamp_s, R_world_cam)
-        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
-        return self.estimator.estimate(
-            FrameInput(frame_index, timestamp_s, theta, boxes, image, depth_m, R)
-        )
+
+
+def stream_track(
+    step: FrameStep, track: RotationTrack, boxes: BoxTable
+) -> Iterator[tuple[BoxTable, float, FrameResult]]:
+    """Feed every frame of ``track`` with its boxes to ``step``, in order; yields each frame's
+    ``(boxes, timestamp_s, result)`` (box frame indices index the track)."""
+    by_frame = boxes.frame_index()
+    step.reset()
+    for k in range(len(track)):
+        t = float(track.timestamps_s[k])
+        R = track.R_world_cam[k] if track.valid[k] else None
+        frame_boxes = by_frame.get(k, _NO_BOXES)
+        yield frame_boxes, t, step.step(k, t, R, frame_boxes)
+
+
+_NO_BOXES = BoxTable.empty()
 
 
 def ego_gradients(
@@ -128,9 +200,7 @@ class SequenceEstimates:
 def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
     """Concatenate per-frame estimates into one."""
     if not parts:
-        e = np.zeros(0)
-        o = np.zeros(0, dtype=object)
-        return FrameEstimates(e, e, e, e, e, o, o)
+        return FrameEstimates.empty()
     keys: set[str] = set().union(*(p.extra for p in parts))
 
     def cat(name: str) -> NDArray:
@@ -148,21 +218,6 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
             k: np.concatenate([p.extra.get(k, np.full(len(p), np.nan)) for p in parts])
             for k in sorted(keys)
         },
-    )
-
-
-def concat_boxes(parts: list[BoxTable]) -> BoxTable:
-    """Concatenate box tables (columns present in every part are kept)."""
-    if not parts:
-        return BoxTable.empty()
-    keys = set.intersection(*(set(p.extra) for p in parts))
-    return BoxTable(
-        np.concatenate([p.frame for p in parts]),
-        np.concatenate([p.boxes for p in parts]),
-        np.concatenate([p.track_id for p in parts]),
-        np.concatenate([p.score for p in parts]),
-        np.concatenate([p.cls for p in parts]),
-        {k: np.concatenate([p.extra[k] for p in parts]) for k in keys},
     )
 
 
@@ -193,7 +248,8 @@ def estimate_sequence(
         if track is not None
         else np.full(len(timestamps_s), np.nan)
     )
-    estimator.reset()
+    step = FrameStep(estimator, lookback_s)
+    step.reset()
     box_parts, est_parts = [], []
     for k, frame_boxes in boxes.by_frame():
         if not 0 <= k < len(timestamps_s):
@@ -203,16 +259,7 @@ def estimate_sequence(
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         R = track.R_world_cam[k] if track is not None and track.valid[k] else None
         est_parts.append(
-            estimator.estimate(
-                FrameInput(
-                    k,
-                    float(timestamps_s[k]),
-                    float(theta[k]),
-                    frame_boxes,
-                    depth_m=depth_m,
-                    R_world_cam=R,
-                )
-            )
+            step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
         )
         box_parts.append(frame_boxes)
     return SequenceEstimates(
@@ -248,22 +295,21 @@ RECORD_FIELDS = (
 
 def iter_records(
     boxes: BoxTable,
-    timestamps_s: Iterable[float] | NDArray[np.float64],
+    timestamps_s: float | Iterable[float] | NDArray[np.float64],
     est: FrameEstimates,
     method: str,
 ) -> Iterator[dict[str, Any]]:
     """One dict per target (``RECORD_FIELDS`` plus extras), angles in degrees.
 
-    ``timestamps_s`` is indexed by each box's frame number.
+    ``timestamps_s`` is the timestamp of the boxes' frame (seconds), or an array indexed by
+    each box's frame number.
     """
-    ts = np.asarray(
-        list(timestamps_s) if not isinstance(timestamps_s, np.ndarray) else timestamps_s
-    )
+    row_t = _row_timestamps(boxes, timestamps_s)
     for i in range(len(boxes)):
         ok = est.reason[i] == ""
         row: dict[str, Any] = {
             "frame": int(boxes.frame[i]),
-            "timestamp_s": float(ts[boxes.frame[i]]) if ts.size > boxes.frame[i] else math.nan,
+            "timestamp_s": float(row_t[i]),
             "track_id": int(boxes.track_id[i]),
             "class": boxes.cls[i],
             "score": float(boxes.score[i]),
@@ -286,50 +332,38 @@ def iter_records(
         yield row
 
 
-class RecordWriter:
-    """Writes per-target records to CSV as they come (flushes after every frame).
+def _row_timestamps(
+    boxes: BoxTable, timestamps_s: float | Iterable[float] | NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Timestamp of every box's frame (NaN for a frame beyond ``timestamps_s``)."""
+    if isinstance(timestamps_s, (float, int)):
+        return np.full(len(boxes), float(timestamps_s))
+    ts = np.asarray(
+        list(timestamps_s) if not isinstance(timestamps_s, np.ndarray) else timestamps_s,
+        dtype=float,
+    )
+    inside = boxes.frame < ts.size
+    out = np.full(len(boxes), np.nan)
+    out[inside] = ts[boxes.frame[inside]]
+    return out
 
-    Missing values are written as empty fields; the header is written with the first frame so
-    that method-specific extra columns are included.
+
+def open_records(path: str | Path | None, fields: Sequence[str] | None = None) -> CsvStreamWriter:
+    """The per-target records CSV (:data:`RECORD_FIELDS`, then the method's extra columns) at
+    ``path`` (parents created; None or ``-``: standard output), written frame by frame.
+
+    The header is ``fields`` when given, otherwise the keys of the first record; close with
+    :func:`close_records` so that a run without any target still writes its header.
     """
-
-    def __init__(self, stream: IO[str]) -> None:
-        self._stream = stream
-        self._writer: csv.DictWriter | None = None
-
-    @classmethod
-    def open(cls, path: str | Path) -> RecordWriter:
-        """Open ``path`` for writing (parents created)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return cls(path.open("w", newline=""))
-
-    def write(self, rows: Iterable[dict[str, Any]]) -> None:
-        """Write rows and flush."""
-        for row in rows:
-            if self._writer is None:
-                fields = list(RECORD_FIELDS) + [k for k in row if k not in RECORD_FIELDS]
-                self._writer = csv.DictWriter(
-                    self._stream, fieldnames=fields, extrasaction="ignore"
-                )
-                self._writer.writeheader()
-            self._writer.writerow({k: _fmt(v) for k, v in row.items()})
-        self._stream.flush()
-
-    def close(self) -> None:
-        """Close the file (writes a header-only file if nothing was written)."""
-        if self._writer is None:
-            csv.writer(self._stream).writerow(RECORD_FIELDS)
-        self._stream.close()
-
-    def __enter__(self) -> RecordWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    if path is None or str(path) == STDOUT_PATH:
+        return CsvStreamWriter(sys.stdout, fields)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return CsvStreamWriter.open(path, fields)
 
 
-def _fmt(value: Any) -> Any:
-    if isinstance(value, float):
-        return "" if not math.isfinite(value) else f"{value:.6g}"
-    return value
+def close_records(writer: CsvStreamWriter) -> None:
+    """Close a records CSV, writing the header alone if no record was written."""
+    if writer.fields is None:
+        writer.write_header(RECORD_FIELDS)
+    writer.close()

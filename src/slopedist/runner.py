@@ -1,9 +1,10 @@
 """From frames to distances: the streaming run behind ``slopedist run``.
 
 For every frame, in order: the visual odometry gets the grey image (with the frame's boxes
-masked out of its features) and returns a camera rotation; :class:`~slopedist.pipeline.
-StreamingEstimator` turns rotation and boxes into per-target estimates; the records are written
-and flushed at once. Memory holds one frame, the odometry's own state and the one-second
+masked out of its features) and returns a camera rotation; the frame step
+(:class:`~slopedist.pipeline.FrameStep`) turns rotation and boxes into θ and per-target
+estimates, never looking back across a restart of the odometry; the records are written and
+flushed at once. Memory holds one frame, the odometry's own state and the one-second
 look-back, whatever the length of the input.
 
 Outputs under the output folder:
@@ -27,29 +28,27 @@ Convention: θ in radians inside, degrees in the CSV files; timestamps in second
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 import time
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 
-from slopedist.camera import Camera
 from slopedist.depth.base import DepthSource
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
-from slopedist.estimators.base import Estimator
+from slopedist.estimators.base import Estimator, FrameEstimates
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.pipeline import EgoGradientTracker, RecordWriter, StreamingEstimator, iter_records
+from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
 from slopedist.viz import draw_fig3_overlay
 
 RECORDS_NAME = "records.csv"
@@ -165,29 +164,6 @@ class RunResult:
     error: str | None = None
     failed_frame: int | None = None
 
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-            for k, v in asdict(self).items()
-        }
-
-
-class _FrameLog:
-    """``frames.csv`` writer (flushes every row)."""
-
-    def __init__(self, path: Path) -> None:
-        self._fh: IO[str] = path.open("w", newline="")
-        self._writer = csv.DictWriter(self._fh, fieldnames=FRAME_FIELDS)
-        self._writer.writeheader()
-        self._fh.flush()
-
-    def write(self, row: dict[str, Any]) -> None:
-        self._writer.writerow({k: _fmt(v) for k, v in row.items()})
-        self._fh.flush()
-
-    def close(self) -> None:
-        self._fh.close()
-
 
 class RunningMean:
     """Running mean in constant memory."""
@@ -204,12 +180,6 @@ class RunningMean:
         return self.total / self.count if self.count else math.nan
 
 
-def _fmt(value: Any) -> Any:
-    if isinstance(value, float):
-        return "" if not math.isfinite(value) else f"{value:.6g}"
-    return value
-
-
 def describe_depth(depth: DepthSource) -> str:
     """``"<kind>: <folder or model file>"`` of a depth source, for ``run.json``."""
     where = getattr(depth, "folder", None)
@@ -219,31 +189,11 @@ def describe_depth(depth: DepthSource) -> str:
     return f"{depth.kind}: {where}" if where is not None else depth.kind
 
 
-def run_frames(
-    frames: FrameSource,
-    camera: Camera,
-    boxes: BoxTable,
-    odometry: RotationOdometry | None,
-    estimator: Estimator,
-    out_dir: str | Path,
-    *,
-    lookback_s: float = LOOKBACK_S,
-    overlay: str | Path | None = None,
-    overlay_fps: float = 10.0,
-    progress: bool = True,
-    sequence: str | None = None,
-    depth: DepthSource | None = None,
-) -> RunResult:
-    """Run the whole pipeline on ``frames``, writing as it goes (see the module docstring).
+@dataclass(frozen=True)
+class RunConfig:
+    """Where and how a run writes (the inputs are the arguments of :func:`run_frames`).
 
-    Args:
-        frames: image folder or video (:func:`slopedist.io.frames.open_frames`).
-        camera: calibration of the frames (checked against the frame size first).
-        boxes: boxes of every frame, by frame index; a ``gt_distance_m`` column (metres) is
-            copied into ``records.csv``.
-        odometry: rotation source fed every readable frame, or None (no rotations: for methods
-            that do not use them, e.g. ``flat`` and ``depthmap``).
-        estimator: distance method.
+    Attributes:
         out_dir: output folder (created).
         lookback_s: look-back of the ego gradient, seconds.
         overlay: None, a folder for annotated PNG frames, or a ``.mp4`` path.
@@ -251,6 +201,35 @@ def run_frames(
         progress: show a progress bar on stderr.
         sequence: sequence name written to ``run.json`` (None:
             :func:`default_sequence_name` of the frames).
+    """
+
+    out_dir: Path
+    lookback_s: float = LOOKBACK_S
+    overlay: Path | None = None
+    overlay_fps: float = 10.0
+    progress: bool = True
+    sequence: str | None = None
+
+
+def run_frames(
+    frames: FrameSource,
+    boxes: BoxTable,
+    odometry: RotationOdometry | None,
+    estimator: Estimator,
+    config: RunConfig,
+    depth: DepthSource | None = None,
+) -> RunResult:
+    """Run the whole pipeline on ``frames``, writing as it goes (see the module docstring).
+
+    Args:
+        frames: image folder or video (:func:`slopedist.io.frames.open_frames`).
+        boxes: boxes of every frame, by frame index; a ``gt_distance_m`` column (metres) is
+            copied into ``records.csv``.
+        odometry: rotation source fed every readable frame, or None (no rotations: for methods
+            that do not use them, e.g. ``flat`` and ``depthmap``).
+        estimator: distance method; its camera is the frames' calibration (checked against the
+            frame size first).
+        config: output folder and options.
         depth: depth maps for a method that ``needs_depth`` (asked for every readable frame
             with boxes; a frame without a map gives its targets the reason ``no_depth``).
 
@@ -261,6 +240,25 @@ def run_frames(
         RunAbortedError: an error part-way; ``records.csv`` / ``frames.csv`` keep every frame before
             the failing one and ``run.json`` says where it stopped.
     """
+    check_depth_matches(estimator, depth)
+    width, height = frames.frame_size()
+    check_calibration(estimator.camera, width, height, str(frames.path))
+    out = Path(config.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    result = RunResult(
+        str(out),
+        estimator.name,
+        sequence=config.sequence if config.sequence else default_sequence_name(frames.path),
+        overlay=str(config.overlay) if config.overlay else None,
+        ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
+        depth_source=describe_depth(depth) if depth is not None else None,
+    )
+    loop = _RunLoop(boxes, odometry, estimator, depth, config, result)
+    return loop.run(frames)
+
+
+def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None:
+    """Fail unless depth maps come exactly with a method that needs them."""
     if estimator.needs_depth and depth is None:
         raise ConfigurationError(
             f"method '{estimator.name}' needs depth maps (a depth folder or an ONNX depth model)"
@@ -270,171 +268,199 @@ def run_frames(
             f"depth maps were given, but method '{estimator.name}' does "
             "not use them (use the depthmap method)"
         )
-    out = Path(out_dir)
-    width, height = frames.frame_size()
-    check_calibration(camera, width, height, str(frames.path))
-    out.mkdir(parents=True, exist_ok=True)
-    records_path = out / RECORDS_NAME
-    has_truth = CSV_TRUTH_COLUMN in boxes.extra
-    result = RunResult(
-        str(out),
-        estimator.name,
-        sequence=sequence if sequence else default_sequence_name(frames.path),
-        overlay=str(overlay) if overlay else None,
-        ground_truth=has_truth,
-        depth_source=describe_depth(depth) if depth is not None else None,
-    )
-    by_frame = boxes.frame_index()
-    seen_box_frames: set[int] = set()
-    empty = boxes.select(np.zeros(len(boxes), dtype=bool))
-    stream = StreamingEstimator(estimator, lookback_s)
-    gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
-    status_count: Counter[str] = Counter()
-    odo_count: Counter[str] = Counter()
-    times = {"odometry": RunningMean(), "estimation": RunningMean(), "depth": RunningMean()}
-    writer = RecordWriter.open(records_path)
-    log = _FrameLog(out / FRAMES_NAME)
-    painter = OverlayWriter(overlay, overlay_fps) if overlay else None
-    bar = tqdm(
-        total=frames.expected_frames(),
-        unit="frame",
-        disable=not progress,
-        dynamic_ncols=True,
-        desc="slopedist run",
-    )
-    start = time.perf_counter()
-    frame: Frame | None = None
-    last_segment = 0
-    try:
-        for frame in frames:
-            k = frame.index
-            frame_boxes = by_frame.get(k, empty)
-            if k in by_frame:
-                seen_box_frames.add(k)
-            status_count[frame.status.value] += 1
-            R = None
-            odo_state, inliers, t_odo = "", 0, math.nan
-            if frame.image is not None and odometry is not None:
-                gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
-                t0 = time.perf_counter()
-                res = odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
-                # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its
-                # own working time
-                t_odo = getattr(odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
-                times["odometry"].add(t_odo)
-                R = res.R_world_cam
-                odo_state, inliers = res.state.value, int(res.inliers)
-                odo_count[odo_state] += 1
-                segment = getattr(res, "segment", 0)
-                if segment != last_segment:  # the backend restarted: no look-back across
-                    gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
-                    stream.gradient = EgoGradientTracker(camera.mount_angle_rad, lookback_s)
-                    last_segment = segment
-            theta = gradient.update(frame.timestamp_s, R)
-            depth_m, t_depth = None, math.nan
-            if depth is not None and frame.image is not None and len(frame_boxes):
-                t0 = time.perf_counter()
-                depth_m = depth.depth(k, frame.image)
-                t_depth = (time.perf_counter() - t0) * 1e3
-                times["depth"].add(t_depth)
-                result.frames_without_depth += int(depth_m is None)
-            t0 = time.perf_counter()
-            est = stream.update(k, frame.timestamp_s, R, frame_boxes, frame.image, depth_m)
-            t_est = (time.perf_counter() - t0) * 1e3
-            times["estimation"].add(t_est)
-            rows = list(
-                iter_records(
-                    frame_boxes, np.broadcast_to(frame.timestamp_s, (k + 1,)), est, estimator.name
-                )
-            )
-            if has_truth:
-                for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
-                    row[CSV_TRUTH_COLUMN] = float(g)
-            writer.write(rows)
-            n_est = int(np.sum(est.reason == ""))
-            result.records += len(rows)
-            result.estimated += n_est
-            log.write(
-                {
-                    "frame": k,
-                    "timestamp_s": frame.timestamp_s,
-                    "source": frame.source,
-                    "frame_status": frame.status.value,
-                    "detail": frame.detail,
-                    "odometry_state": odo_state,
-                    "inliers": inliers,
-                    "segment": last_segment,
-                    "theta_deg": math.degrees(theta),
-                    "boxes": len(frame_boxes),
-                    "estimated": n_est,
-                    "odometry_ms": t_odo,
-                    "estimation_ms": t_est,
-                    "depth_ms": t_depth,
-                }
-            )
-            if painter is not None:
-                if frame.image is not None:
-                    head = (
-                        f"frame {k}  theta {math.degrees(theta):+.2f} deg"
-                        if math.isfinite(theta)
-                        else f"frame {k}  no rotation ({odo_state or 'no odometry'})"
-                    )
-                    painter.write(
-                        k, draw_fig3_overlay(frame.image, camera, frame_boxes, est, theta, head)
-                    )
-                else:
-                    painter.write_placeholder(k, f"frame {k}: {frame.status.value}")
-            result.frames += 1
-            bar.update(1)
-    except (Exception, KeyboardInterrupt) as exc:
+
+
+@dataclass(frozen=True)
+class _OdometryOutput:
+    """What the odometry said about one frame (defaults: no pixels or no odometry)."""
+
+    R_world_cam: NDArray[np.float64] | None
+    segment: int
+    state: str = ""
+    inliers: int = 0
+    ms: float = math.nan
+
+
+class _RunLoop:
+    """The state of one run: the frame step, the open outputs and the running counts."""
+
+    def __init__(
+        self,
+        boxes: BoxTable,
+        odometry: RotationOdometry | None,
+        estimator: Estimator,
+        depth: DepthSource | None,
+        config: RunConfig,
+        result: RunResult,
+    ) -> None:
+        self.odometry, self.depth, self.config, self.result = odometry, depth, config, result
+        self.camera = estimator.camera
+        self.method = estimator.name
+        self.step = FrameStep(estimator, config.lookback_s)
+        self.by_frame = boxes.frame_index()
+        self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
+        self.seen_box_frames: set[int] = set()
+        self.segment = 0
+        self.status_count: Counter[str] = Counter()
+        self.odometry_count: Counter[str] = Counter()
+        self.times = {
+            "odometry": RunningMean(),
+            "estimation": RunningMean(),
+            "depth": RunningMean(),
+        }
+        out = Path(config.out_dir)
+        self.records_path = out / RECORDS_NAME
+        self.records = open_records(self.records_path)
+        self.frame_log = CsvStreamWriter.open(out / FRAMES_NAME, FRAME_FIELDS)
+        self.painter = OverlayWriter(config.overlay, config.overlay_fps) if config.overlay else None
+        self.bar: tqdm | None = None
+        self.start = time.perf_counter()
+
+    def run(self, frames: FrameSource) -> RunResult:
+        """Every frame of ``frames``, then the summary (also after an error)."""
+        self.bar = tqdm(
+            total=frames.expected_frames(),
+            unit="frame",
+            disable=not self.config.progress,
+            dynamic_ncols=True,
+            desc="slopedist run",
+        )
+        frame: Frame | None = None
+        try:
+            for frame in frames:
+                self.process(frame)
+                self.bar.update(1)
+        except (Exception, KeyboardInterrupt) as exc:
+            self.result.error = f"{type(exc).__name__}: {exc}"
+            self.result.failed_frame = frame.index if frame is not None else None
+            self.finish()
+            if isinstance(exc, (SlopedistError, OSError)):
+                raise self._aborted(exc, frame) from exc
+            raise
+        self.finish()
+        return self.result
+
+    def process(self, frame: Frame) -> None:
+        """One frame: odometry, depth, the frame step, then every output."""
+        k = frame.index
+        frame_boxes = self.by_frame.get(k, self.no_boxes)
+        if k in self.by_frame:
+            self.seen_box_frames.add(k)
+        self.status_count[frame.status.value] += 1
+        odo = self._odometry(frame, frame_boxes)
+        depth_m, depth_ms = self._depth(frame, frame_boxes)
+        t0 = time.perf_counter()
+        res = self.step.step(
+            k, frame.timestamp_s, odo.R_world_cam, frame_boxes, frame.image, depth_m, odo.segment
+        )
+        estimation_ms = (time.perf_counter() - t0) * 1e3
+        self.times["estimation"].add(estimation_ms)
+        n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        self.frame_log.write_row(
+            {
+                "frame": k,
+                "timestamp_s": frame.timestamp_s,
+                "source": frame.source,
+                "frame_status": frame.status.value,
+                "detail": frame.detail,
+                "odometry_state": odo.state,
+                "inliers": odo.inliers,
+                "segment": self.segment,
+                "theta_deg": math.degrees(res.theta_rad),
+                "boxes": len(frame_boxes),
+                "estimated": n_est,
+                "odometry_ms": odo.ms,
+                "estimation_ms": estimation_ms,
+                "depth_ms": depth_ms,
+            }
+        )
+        self._paint(frame, frame_boxes, res, odo.state)
+        self.result.frames += 1
+
+    def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
+        """The odometry's rotation of a frame with pixels (its boxes masked out)."""
+        if frame.image is None or self.odometry is None:
+            return _OdometryOutput(None, self.segment)
+        gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+        t0 = time.perf_counter()
+        res = self.odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
+        # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its own
+        # working time
+        ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
+        self.times["odometry"].add(ms)
+        self.odometry_count[res.state.value] += 1
+        self.segment = int(getattr(res, "segment", 0))
+        return _OdometryOutput(res.R_world_cam, self.segment, res.state.value, int(res.inliers), ms)
+
+    def _depth(
+        self, frame: Frame, frame_boxes: BoxTable
+    ) -> tuple[NDArray[np.float32] | None, float]:
+        """The depth map (metres) of a readable frame with boxes, and the time it took (ms)."""
+        if self.depth is None or frame.image is None or not len(frame_boxes):
+            return None, math.nan
+        t0 = time.perf_counter()
+        depth_m = self.depth.depth(frame.index, frame.image)
+        ms = (time.perf_counter() - t0) * 1e3
+        self.times["depth"].add(ms)
+        self.result.frames_without_depth += int(depth_m is None)
+        return depth_m, ms
+
+    def _write_records(self, frame_boxes: BoxTable, timestamp_s: float, est: FrameEstimates) -> int:
+        """Write a frame's records (with the ground truth when the boxes carry it); returns
+        how many have a distance."""
+        rows = list(iter_records(frame_boxes, timestamp_s, est, self.method))
+        if self.result.ground_truth:
+            for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
+                row[CSV_TRUTH_COLUMN] = float(g)
+        self.records.write_rows(rows)
+        n_est = int(np.sum(est.reason == ""))
+        self.result.records += len(rows)
+        self.result.estimated += n_est
+        return n_est
+
+    def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
+        if self.painter is None:
+            return
+        k = frame.index
+        if frame.image is None:
+            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}")
+            return
+        theta = res.theta_rad
+        head = (
+            f"frame {k}  theta {math.degrees(theta):+.2f} deg"
+            if math.isfinite(theta)
+            else f"frame {k}  no rotation ({state or 'no odometry'})"
+        )
+        image = draw_fig3_overlay(frame.image, self.camera, frame_boxes, res.estimates, theta, head)
+        self.painter.write(k, image)
+
+    def finish(self) -> None:
+        """Fill in the summary, close every output and write ``run.json``."""
+        result = self.result
+        result.elapsed_s = time.perf_counter() - self.start
+        result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
+        result.frame_status = dict(self.status_count)
+        result.odometry_states = dict(self.odometry_count)
+        result.odometry_ms_mean = self.times["odometry"].mean()
+        result.estimation_ms_mean = self.times["estimation"].mean()
+        result.depth_ms_mean = self.times["depth"].mean()
+        result.boxes_without_frame = sum(
+            len(b) for k, b in self.by_frame.items() if k not in self.seen_box_frames
+        )
+        if self.bar is not None:
+            self.bar.close()
+        close_records(self.records)
+        self.frame_log.close()
+        if self.painter is not None:
+            self.painter.close()
+        write_json(Path(self.config.out_dir) / SUMMARY_NAME, result)
+
+    def _aborted(self, exc: BaseException, frame: Frame | None) -> RunAbortedError:
         where = f"frame {frame.index} ({frame.source})" if frame is not None else "the first frame"
-        result.error = f"{type(exc).__name__}: {exc}"
-        result.failed_frame = frame.index if frame is not None else None
-        _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
-        _close(writer, log, painter, bar, out, result)
-        if isinstance(exc, (SlopedistError, OSError)):
-            raise RunAbortedError(
-                f"run stopped at {where}: {exc}. The records of the {result.frames} frames "
-                f"before it are in {records_path} (per-frame log {out / FRAMES_NAME})",
-                result.failed_frame,
-                records_path,
-            ) from exc
-        raise
-    _finish(result, start, status_count, odo_count, times, by_frame, seen_box_frames)
-    _close(writer, log, painter, bar, out, result)
-    return result
-
-
-def _finish(
-    result: RunResult,
-    start: float,
-    status_count: Counter[str],
-    odo_count: Counter[str],
-    times: dict[str, RunningMean],
-    by_frame: dict[int, BoxTable],
-    seen: set[int],
-) -> None:
-    result.elapsed_s = time.perf_counter() - start
-    result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
-    result.frame_status = dict(status_count)
-    result.odometry_states = dict(odo_count)
-    result.odometry_ms_mean = times["odometry"].mean()
-    result.estimation_ms_mean = times["estimation"].mean()
-    result.depth_ms_mean = times["depth"].mean()
-    result.boxes_without_frame = sum(len(b) for k, b in by_frame.items() if k not in seen)
-
-
-def _close(
-    writer: RecordWriter,
-    log: _FrameLog,
-    painter: OverlayWriter | None,
-    bar: tqdm,
-    out: Path,
-    result: RunResult,
-) -> None:
-    bar.close()
-    writer.close()
-    log.close()
-    if painter is not None:
-        painter.close()
-    (out / SUMMARY_NAME).write_text(json.dumps(result.as_dict(), indent=2) + "\n")
+        return RunAbortedError(
+            f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
+            f"before it are in {self.records_path} (per-frame log "
+            f"{Path(self.config.out_dir) / FRAMES_NAME})",
+            self.result.failed_frame,
+            self.records_path,
+        )

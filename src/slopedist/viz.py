@@ -6,7 +6,9 @@ boxes ``(left, top, right, bottom)`` pixels; θ in radians.
 
 from __future__ import annotations
 
+import io
 import math
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -157,9 +159,9 @@ def draw_fig3_overlay(
     return out
 
 
-# --- plots over time (synthetic demo) ---------------------------------------------------------
+# --- plots over time (demo and report) ---------------------------------------------------------
 
-METHOD_COLOURS = (
+PALETTE = (
     "tab:blue",
     "tab:orange",
     "tab:green",
@@ -170,7 +172,30 @@ METHOD_COLOURS = (
     "tab:olive",
     "tab:cyan",
 )
-"""Matplotlib colours of the methods, in the order they are given."""
+"""Matplotlib colours of series that are not methods (targets), in turn."""
+
+METHOD_COLOURS: dict[str, str] = {
+    "flat": "tab:blue",
+    "ego": "tab:orange",
+    "paper": "tab:green",
+    "imu": "tab:red",
+    "imu-ego": "tab:purple",
+    "depthmap": "tab:brown",
+    "ours": "tab:pink",
+    "ours-selfcal": "tab:olive",
+}
+"""The colour of each built-in method in every plot (demo and report alike)."""
+
+OTHER_METHOD_COLOURS = ("tab:cyan", "tab:gray", "gold", "navy", "teal", "maroon")
+"""Colours of methods not in :data:`METHOD_COLOURS`, chosen by a hash of the name."""
+
+
+def method_colour(name: str) -> str:
+    """The one colour of method ``name`` in every plot: :data:`METHOD_COLOURS`, else a colour
+    of :data:`OTHER_METHOD_COLOURS` fixed by the name (not by the method's position)."""
+    if name in METHOD_COLOURS:
+        return METHOD_COLOURS[name]
+    return OTHER_METHOD_COLOURS[zlib.crc32(name.encode()) % len(OTHER_METHOD_COLOURS)]
 
 
 @dataclass(frozen=True)
@@ -208,47 +233,65 @@ class TargetTheta:
     delta_y: NDArray[np.float64]
 
 
-def _figure(rows: int, height_per_row: float) -> Any:
+def new_figure(width: float, height: float) -> Any:
+    """A matplotlib figure on the Agg canvas (no display, no pyplot state), ``width`` ×
+    ``height`` inches, constrained layout."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(10, height_per_row * rows), layout="constrained")
+    fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+def png_bytes(fig: Any, dpi: int = 90) -> bytes:
+    """A figure as PNG bytes."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSeries) -> None:
+    """One target's distances over time on the matplotlib axes ``ax``: the truth in black, each
+    method in its :func:`method_colour`, and a triangle at the top where a method's box bottom
+    was at or above its vanishing line. The y axis runs from 0 to twice the largest true
+    distance or a little over the largest estimate, whichever is more (20 to 100 m)."""
+    finite = series.truth[np.isfinite(series.truth)]
+    if finite.size:
+        ax.plot(t_s, series.truth, color="black", lw=2.0, label="truth")
+    values = [2.0 * finite.max()] if finite.size else [100.0]
+    values += [
+        1.05 * float(np.nanmax(d)) for d in series.estimates.values() if np.isfinite(d).any()
+    ]
+    top = float(np.clip(max(values), 20.0, 100.0))
+    for i, (name, d) in enumerate(series.estimates.items()):
+        colour = method_colour(name)
+        ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
+        miss = series.below_horizon.get(name)
+        if miss is not None and miss.any():
+            marks = np.full(int(miss.sum()), top * (0.97 - 0.03 * i))
+            ax.plot(t_s[miss], marks, "v", color=colour, ms=4)
+    ax.set_ylim(0.0, top)
+    ax.grid(alpha=0.3)
+
+
+BELOW_HORIZON_NOTE = "▼ = box bottom at or above the vanishing line"
+"""What the triangles of :func:`draw_distance_panel` mean (for an axis label or caption)."""
 
 
 def plot_distance_series(
     path: str | Path, t_s: NDArray[np.float64], series: list[DistanceSeries], title: str = ""
 ) -> Path:
-    """Distance vs. truth over time, one panel per target; saved as PNG (Agg, no display).
-
-    Frames where a method's box bottom is at or above its vanishing line are marked by a
-    triangle at the top of the panel.
-    """
+    """Distance vs. truth over time, one panel per target (:func:`draw_distance_panel`);
+    saved as PNG (Agg, no display)."""
     path = Path(path)
-    fig = _figure(max(len(series), 1), 2.6)
+    fig = new_figure(10, 2.6 * max(len(series), 1))
     axes = fig.subplots(max(len(series), 1), 1, squeeze=False)[:, 0]
     for ax, s in zip(axes, series):
-        ax.plot(t_s, s.truth, color="black", lw=2.0, label="truth")
-        finite = s.truth[np.isfinite(s.truth)]
-        top = float(min(max(2.0 * finite.max(), 20.0), 100.0)) if finite.size else 100.0
-        for i, (name, d) in enumerate(s.estimates.items()):
-            colour = METHOD_COLOURS[i % len(METHOD_COLOURS)]
-            ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
-            miss = s.below_horizon.get(name)
-            if miss is not None and miss.any():
-                ax.plot(
-                    t_s[miss],
-                    np.full(int(miss.sum()), top * (0.97 - 0.03 * i)),
-                    "v",
-                    color=colour,
-                    ms=4,
-                )
-        ax.set_ylim(0.0, top)
+        draw_distance_panel(ax, t_s, s)
         ax.set_ylabel(f"target {s.track_id}: z (m)")
-        ax.grid(alpha=0.3)
     axes[0].legend(loc="upper left", ncol=4, fontsize=8)
-    axes[-1].set_xlabel("time (s)   (▼ = box bottom at or above the vanishing line)")
+    axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
     if title:
         fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -271,12 +314,12 @@ def plot_theta_series(
     target the θ that would make eq. 1 exact and the paper's adjusted θ (eq. 7).
     """
     path = Path(path)
-    fig = _figure(2, 3.0)
+    fig = new_figure(10, 6.0)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(t_s, np.degrees(theta_true), color="black", lw=2.0, label="θ, true rotations")
     ax1.plot(t_s, np.degrees(theta_est), color="tab:blue", lw=1.2, label="θ, odometry")
     for i, tt in enumerate(targets):
-        colour = METHOD_COLOURS[(i + 2) % len(METHOD_COLOURS)]
+        colour = PALETTE[(i + 2) % len(PALETTE)]
         ax1.plot(
             t_s,
             np.degrees(tt.needed),

@@ -175,3 +175,30 @@ def test_eval_json_shape(
     printed = capsys.readouterr().out
     assert "overall" in printed and "0004" in printed
     assert np.isfinite(seq["rmse"])
+
+
+def _estimate_rows(paths: dict[str, Path], out: Path, *options: str) -> list[dict[str, str]]:
+    args = ["estimate", "--calib", str(paths["calib"]), "--poses", str(paths["poses"])]
+    assert main([*args, "--boxes", str(paths["boxes"]), "--out", str(out), *options]) == 0
+    return list(csv.DictReader(out.open()))
+
+
+def test_estimate_applies_the_eq7_options_to_every_method_built_on_paper(
+    small_sequence: dict[str, Path], tmp_path: Path
+) -> None:
+    """``--alphas``/``--thresholds`` reach ``imu`` (the paper's method on IMU rotations) as they
+    do in ``eval``, not only ``paper``."""
+    small_sequence["boxes"].write_text(
+        "frame,left,top,right,bottom,track_id\n0,500,120,600,200,1\n1,300,150,420,260,2\n"
+    )
+    default = _estimate_rows(small_sequence, tmp_path / "d.csv", "--method", "imu")
+    steep = ("--alphas", "20,30,40")
+    imu = _estimate_rows(small_sequence, tmp_path / "i.csv", "--method", "imu", *steep)
+    paper = _estimate_rows(small_sequence, tmp_path / "p.csv", "--method", "paper", *steep)
+    # box 0: centre 12.9 px above the vanishing line (θ = 0): α2 applies
+    assert float(default[0]["theta_adj_deg"]) == pytest.approx(5.0)
+    assert float(imu[0]["theta_adj_deg"]) == pytest.approx(30.0)
+    assert imu[0]["distance_m"] != default[0]["distance_m"]
+    assert [(r["theta_adj_deg"], r["distance_m"]) for r in imu] == [
+        (r["theta_adj_deg"], r["distance_m"]) for r in paper
+    ]

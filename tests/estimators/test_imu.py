@@ -19,8 +19,9 @@ from slopedist.estimators import (
     PaperEstimator,
     make_estimator,
 )
-from slopedist.evaluation import compact_names, format_report_tables
+from slopedist.evaluation import compact_names
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.score_tables import format_report_tables
 
 CAMERA = Camera(720.0, 620.0, 180.0)
 

@@ -17,7 +17,7 @@ from slopedist.estimators.ours import EXTRA_COLUMNS, OursEstimator
 from slopedist.estimators.ours.cues import project_box
 from slopedist.estimators.ours.scene import simulate_traffic
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import StreamingEstimator, estimate_sequence
+from slopedist.pipeline import ego_gradients, estimate_sequence
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 CAR = np.array([1.53, 1.63, 3.88])
@@ -122,13 +122,18 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
         },
     ):
         batch = estimate_sequence(OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track)
-        stream = StreamingEstimator(OursEstimator(CAM, **opts))
+        # the estimator itself, fed every frame (also those without boxes, which FrameStep
+        # skips): tracks age by time, not by calls
+        stream = OursEstimator(CAM, **opts)
+        theta = ego_gradients(track)
         by_frame = boxes.frame_index()
         empty = boxes.select(np.zeros(len(boxes), dtype=bool))
         parts = []
         for k in range(n):
-            out = stream.update(
-                k, float(track.timestamps_s[k]), track.R_world_cam[k], by_frame.get(k, empty)
+            t = float(track.timestamps_s[k])
+            fb = by_frame.get(k, empty)
+            out = stream.estimate(
+                FrameInput(k, t, float(theta[k]), fb, R_world_cam=track.R_world_cam[k])
             )
             parts.append(out.distance_m)
             if k in by_frame:

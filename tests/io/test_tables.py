@@ -46,6 +46,28 @@ def test_csv_stream_writer_fixed_fields_missing_key_empty() -> None:
         w.write_row({"c": 1})
 
 
+def test_write_header_only_before_the_first_row() -> None:
+    empty = io.StringIO()
+    CsvStreamWriter(empty).write_header(("a", "b"))
+    assert empty.getvalue() == "a,b\n"
+    started = io.StringIO()
+    w = CsvStreamWriter(started)
+    w.write_row({"x": 1})
+    w.write_header(("a", "b"))
+    assert started.getvalue() == "x\n1\n"
+
+
+def test_csv_stream_writer_positional_rows() -> None:
+    buf = io.StringIO()
+    w = CsvStreamWriter(buf, fields=("a", "b"))
+    assert w.write_values([[1, 0.5], [np.int64(2), math.inf]]) == 2
+    assert buf.getvalue() == "a,b\n1,0.5\n2,\n"
+    with pytest.raises(ValueError, match="2 columns"):
+        w.write_values([[1]])
+    with pytest.raises(ValueError, match="header"):
+        CsvStreamWriter(io.StringIO()).write_values([[1]])
+
+
 def test_write_csv_whole_table(tmp_path: Path) -> None:
     path = write_csv(tmp_path / "w.csv", [], fields=("x",))
     assert path.read_text() == "x\n"

@@ -8,20 +8,20 @@ and the options to pass to ``estimate``/``eval`` with it. The configured ``--hei
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
 
-from slopedist.cli.estimate_cmd import read_sequence_inputs, sequence_input_options
-from slopedist.cli.options import height_option, lookback_option, mount_option
+from slopedist.cli.options import lookback_option, sequence_file_options
+from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.errors import MissingInputError
+from slopedist.estimators import EstimatorConfig, Method, build_estimator
 from slopedist.estimators.ours import Calibration, OursEstimator
-from slopedist.evaluation import format_table
-from slopedist.pipeline import StreamingEstimator
+from slopedist.io.tables import write_json
+from slopedist.pipeline import FrameStep, stream_track
+from slopedist.tables import format_table
 
 
 def _row(t: float, c: Calibration) -> list[Any]:
@@ -48,7 +48,7 @@ def _as_json(c: Calibration) -> dict[str, Any]:
 
 
 @click.command("calibrate")
-@sequence_input_options
+@sequence_file_options
 @click.option(
     "--every",
     "every_s",
@@ -63,40 +63,25 @@ def _as_json(c: Calibration) -> dict[str, Any]:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Also write the final estimate and its history as JSON here.",
 )
-@height_option
-@mount_option
 @lookback_option
 def calibrate(
-    calib: Path,
-    poses: Path,
-    boxes_path: Path,
-    pose_format: str,
-    frame_period: float,
-    score: float | None,
+    files: SequenceFiles,
     every_s: float,
     json_out: Path | None,
-    height_m: float,
-    mount_angle_deg: float,
     lookback_s: float,
 ) -> None:
     """Estimate the mount angle θ0 and the camera height from the targets of one sequence."""
-    camera, track, boxes = read_sequence_inputs(
-        calib, poses, boxes_path, pose_format, frame_period, score, height_m, mount_angle_deg
-    )
-    if len(boxes) == 0:
-        raise MissingInputError(f"{boxes_path}: no boxes to calibrate from")
-    est = OursEstimator(camera, self_calibrate=True)
-    stream = StreamingEstimator(est, lookback_s)
-    by_frame = boxes.frame_index()
-    empty = boxes.select(np.zeros(len(boxes), dtype=bool))
+    seq = read_sequence_files(files)
+    if len(seq.boxes) == 0:
+        raise MissingInputError(f"{files.boxes}: no boxes to calibrate from")
+    est = build_estimator(EstimatorConfig(Method.OURS_SELFCAL.value), seq.camera)
+    assert isinstance(est, OursEstimator)
     history = [_row(0.0, est.calibration())]
     next_report = every_s
+    t0 = float(seq.track.timestamps_s[0]) if len(seq.track) else 0.0
     t = 0.0
-    for k in range(len(track)):
-        t = float(track.timestamps_s[k])
-        R = track.R_world_cam[k] if track.valid[k] else None
-        stream.update(k, t, R, by_frame.get(k, empty))
-        if t - float(track.timestamps_s[0]) >= next_report:
+    for _, t, _ in stream_track(FrameStep(est, lookback_s), seq.track, seq.boxes):
+        if t - t0 >= next_report:
             history.append(_row(t, est.calibration()))
             next_report += every_s
     final = est.calibration()
@@ -113,22 +98,20 @@ def calibrate(
         f"± {math.degrees(final.mount_angle_sigma_rad):.2f}°, camera height h = "
         f"{final.height_m:.3f} m ± {final.height_sigma_m:.3f} m "
         f"(from {final.n_observations} targets of {final.n_tracks} vehicles; prior "
-        f"{mount_angle_deg:g}°, {height_m:g} m)\n"
+        f"{math.degrees(files.mount_angle_rad):g}°, {files.height_m:g} m)\n"
         f"use: --mount-angle {math.degrees(final.mount_angle_rad):.2f} "
         f"--height {final.height_m:.3f}"
     )
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)
         keys = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
-        json_out.write_text(
-            json.dumps(
-                {
-                    "final": _as_json(final),
-                    "prior": {"mount_angle_deg": mount_angle_deg, "height_m": height_m},
-                    "history": [dict(zip(keys, r)) for r in history],
-                },
-                indent=2,
-            )
-            + "\n"
+        prior = {"mount_angle_deg": math.degrees(files.mount_angle_rad), "height_m": files.height_m}
+        write_json(
+            json_out,
+            {
+                "final": _as_json(final),
+                "prior": prior,
+                "history": [dict(zip(keys, r)) for r in history],
+            },
         )
         click.echo(f"wrote {json_out}", err=True)

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.options import check_methods, split_list
+from slopedist.cli.options import check_methods, estimator_options, split_list
 from slopedist.datasets.synthetic.scenarios import SUITE
 from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_outputs, run_demo
+from slopedist.estimators import EstimatorConfig
 
 
 @click.command("demo")
@@ -47,6 +48,7 @@ from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_out
 @click.option("--no-video", is_flag=True, help="Do not write the overlay videos.")
 @click.option("--no-plots", is_flag=True, help="Do not write the plots.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@estimator_options(depth=True)
 def demo(
     out_dir: Path,
     scenarios: str,
@@ -56,6 +58,7 @@ def demo(
     no_video: bool,
     no_plots: bool,
     quiet: bool,
+    estimator_config: EstimatorConfig,
 ) -> None:
     """Run every method on the synthetic hills, from rendered pixels, and print the tables."""
     names = split_list(methods)
@@ -70,6 +73,7 @@ def demo(
         not no_plots,
         max_frames,
         not quiet,
+        estimator_config,
     )
     t0 = time.perf_counter()
     result = run_demo(cfg, echo=lambda s: click.echo(s, err=True))

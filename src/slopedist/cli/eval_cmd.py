@@ -2,26 +2,25 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import click
 
 from slopedist.cli.options import (
-    alphas_option,
     check_methods,
+    estimator_options,
     height_option,
     kitti_source_options,
     lookback_option,
     mount_option,
-    paper_options,
     split_list,
-    thresholds_option,
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.evaluation import format_report_tables
+from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.score_tables import format_report_tables
 
 
 @click.group("eval")
@@ -47,14 +46,14 @@ def eval_group() -> None:
 @click.option(
     "--json",
     "json_out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write the full report as JSON here.",
+    type=click.Path(dir_okay=False, allow_dash=True, path_type=Path),
+    help="Write the full report as strict JSON here ('-': standard output, the tables then "
+    "go to standard error).",
 )
 @height_option
 @mount_option
 @lookback_option
-@alphas_option
-@thresholds_option
+@estimator_options()
 def kitti_tracking(
     data_dir: Path,
     sequences: str | None,
@@ -67,8 +66,7 @@ def kitti_tracking(
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
-    alphas: str,
-    thresholds: str,
+    estimator_config: EstimatorConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
@@ -81,20 +79,18 @@ def kitti_tracking(
         height_m=height_m,
         mount_angle_rad=math.radians(mount_angle_deg),
         lookback_s=lookback_s,
-        method_options={m: paper_options(alphas, thresholds) for m in ("paper", "imu")},
+        method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
     )
-    click.echo(format_report_tables(report))
-    if json_out is not None:
+    to_stdout = json_out is not None and str(json_out) == STDOUT_PATH
+    click.echo(format_report_tables(report), err=to_stdout)
+    if json_out is None:
+        return
+    if not to_stdout:
         json_out.parent.mkdir(parents=True, exist_ok=True)
-        json_out.write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
+    write_json(json_out, report)
+    if not to_stdout:
         click.echo(f"wrote {json_out}", err=True)
-
-
-def _json_default(value: object) -> object:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

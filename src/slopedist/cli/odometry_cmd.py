@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from tqdm import tqdm
 from slopedist.cli.options import lookback_option
 from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
 from slopedist.errors import MissingInputError
+from slopedist.io.tables import STDOUT_PATH, dumps_json, write_json
 from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 from slopedist.odometry.factory import available_odometry, make_odometry
 
@@ -36,8 +36,8 @@ def odometry_group() -> None:
 @click.option(
     "--json",
     "json_out",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Also write the figures as JSON here.",
+    type=click.Path(dir_okay=False, allow_dash=True, path_type=Path),
+    help="Also write the figures as JSON here ('-': standard output only).",
 )
 @lookback_option
 def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s: float) -> None:
@@ -66,11 +66,10 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
     finally:
         cv2.setNumThreads(threads)
     figures = OdometryEvaluation.from_run(run, seq.ground_truth, lookback_s).as_dict()
-    text = json.dumps(figures, indent=2)
-    click.echo(text)
-    if json_out is not None:
+    click.echo(dumps_json(figures), nl=False)
+    if json_out is not None and str(json_out) != STDOUT_PATH:  # "-": already on stdout
         json_out.parent.mkdir(parents=True, exist_ok=True)
-        json_out.write_text(text + "\n")
+        write_json(json_out, figures)
         click.echo(f"wrote {json_out}", err=True)
 
 

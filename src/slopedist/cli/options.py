@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import click
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.estimators import available_methods
+from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.depthmap import DepthSample, DepthScaling
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -59,13 +65,13 @@ alphas_option = click.option(
     "--alphas",
     default="3,5,6",
     show_default=True,
-    help="Paper method: angle steps α1,α2,α3 in degrees (eq. 7).",
+    help="paper, imu: angle steps α1,α2,α3 in degrees (eq. 7).",
 )
 thresholds_option = click.option(
     "--thresholds",
     default="0,-10,-20",
     show_default=True,
-    help="Paper method: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
+    help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
 )
 
 
@@ -83,57 +89,163 @@ def parse_triple(value: str, name: str) -> tuple[float, float, float]:
     return nums[0], nums[1], nums[2]
 
 
-def paper_options(alphas: str, thresholds: str) -> dict[str, object]:
-    """Constructor options of the ``paper`` estimator from the command-line strings."""
-    from slopedist.geometry import GradientAdjustment
-
+def estimator_config(
+    alphas: str = "3,5,6",
+    thresholds: str = "0,-10,-20",
+    depth_sample: str = DepthSample.CENTRE.value,
+    depth_window: int = 5,
+    depth_scaling: str = DepthScaling.NONE.value,
+    method: str | None = None,
+) -> EstimatorConfig:
+    """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
+    errors name the option)."""
     a = parse_triple(alphas, "--alphas")
     t = parse_triple(thresholds, "--thresholds")
     if not (t[0] > t[1] > t[2]):
         raise click.BadParameter(
             "thresholds must decrease (t1 > t2 > t3)", param_hint="--thresholds"
         )
-    return {"adjustment": GradientAdjustment.from_degrees(a, t)}
-
-
-def depthmap_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """``--depth-sample``, ``--depth-window``, ``--depth-scaling``: how the ``depthmap`` method
-    reads a depth map at a box (see :mod:`slopedist.estimators.depthmap`)."""
-    from slopedist.estimators.depthmap import DepthSample, DepthScaling
-
-    for option in reversed(
-        (
-            click.option(
-                "--depth-sample",
-                type=click.Choice([s.value for s in DepthSample]),
-                default=DepthSample.CENTRE.value,
-                show_default=True,
-                help="depthmap: box centre pixel, a window around it, or the box's lower part.",
-            ),
-            click.option(
-                "--depth-window",
-                type=int,
-                default=5,
-                show_default=True,
-                help="depthmap: window side in pixels (odd) for --depth-sample window.",
-            ),
-            click.option(
-                "--depth-scaling",
-                type=click.Choice([s.value for s in DepthScaling]),
-                default=DepthScaling.NONE.value,
-                show_default=True,
-                help="depthmap: per-frame median scaling for scale-less depth (contact = "
-                "flat-ground distances, truth = ground truth; see the README).",
-            ),
+    try:
+        config = EstimatorConfig(
+            alphas_deg=a,
+            thresholds_px=t,
+            depth_sample=DepthSample(depth_sample),
+            depth_window_px=depth_window,
+            depth_scaling=DepthScaling(depth_scaling),
         )
-    ):
+        return config if method is None else config.with_method(method)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--method") from None
+
+
+_DEPTHMAP_OPTIONS = (
+    click.option(
+        "--depth-sample",
+        type=click.Choice([s.value for s in DepthSample]),
+        default=DepthSample.CENTRE.value,
+        show_default=True,
+        help="depthmap: box centre pixel, a window around it, or the box's lower part.",
+    ),
+    click.option(
+        "--depth-window",
+        type=int,
+        default=5,
+        show_default=True,
+        help="depthmap: window side in pixels (odd) for --depth-sample window.",
+    ),
+    click.option(
+        "--depth-scaling",
+        type=click.Choice([s.value for s in DepthScaling]),
+        default=DepthScaling.NONE.value,
+        show_default=True,
+        help="depthmap: per-frame median scaling for scale-less depth (contact = "
+        "flat-ground distances, truth = ground truth; see the README).",
+    ),
+)
+
+
+def _apply(options: tuple[Any, ...], func: Callable[..., Any]) -> Callable[..., Any]:
+    for option in reversed(options):
         func = option(func)
     return func
 
 
-def depthmap_estimator_options(sample: str, window_px: int, scaling: str) -> dict[str, object]:
-    """Constructor options of the ``depthmap`` estimator from the command-line values."""
-    return {"sample": sample, "window_px": window_px, "scaling": scaling}
+def estimator_options(
+    depth: bool = False,
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options of every estimator (``--alphas``, ``--thresholds``; with ``depth`` also
+    the ``--depth-sample/-window/-scaling`` of ``depthmap``), handed to the command as one
+    ``estimator_config`` (:class:`~slopedist.estimators.EstimatorConfig`; the command sets its
+    method with :meth:`~slopedist.estimators.EstimatorConfig.with_method`)."""
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(*args: Any, alphas: str, thresholds: str, **kwargs: Any) -> Any:
+            depth_values = {
+                k: kwargs.pop(k)
+                for k in ("depth_sample", "depth_window", "depth_scaling")
+                if k in kwargs
+            }
+            kwargs["estimator_config"] = estimator_config(alphas, thresholds, **depth_values)
+            return command(*args, **kwargs)
+
+        options = (alphas_option, thresholds_option) + (_DEPTHMAP_OPTIONS if depth else ())
+        return _apply(options, wrapper)
+
+    return decorate
+
+
+_SEQUENCE_FILE_OPTIONS = (
+    click.option(
+        "--calib",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="KITTI calib file (P2 is used; P0 for odometry calib.txt).",
+    ),
+    click.option(
+        "--poses",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).",
+    ),
+    click.option(
+        "--boxes",
+        "boxes_path",
+        required=True,
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="Boxes: slopedist CSV, KITTI labels or PointRCNN file.",
+    ),
+    click.option(
+        "--pose-format",
+        type=click.Choice([p.value for p in PoseFileLayout]),
+        default=PoseFileLayout.AUTO.value,
+        show_default=True,
+        help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
+    ),
+    click.option(
+        "--frame-period",
+        type=click.FloatRange(min=0, min_open=True),
+        default=0.1,
+        show_default=True,
+        help="Seconds between frames (KITTI and OXTS poses).",
+    ),
+    click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE."),
+    height_option,
+    mount_option,
+)
+
+
+def sequence_file_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """``--calib``, ``--poses``, ``--boxes``, ``--pose-format``, ``--frame-period``,
+    ``--score``, ``--height``, ``--mount-angle``: one sequence given as files, handed to the
+    command as one ``files`` (:class:`~slopedist.datasets.sequence_files.SequenceFiles`)."""
+
+    @functools.wraps(command)
+    def wrapper(
+        *args: Any,
+        calib: Path,
+        poses: Path,
+        boxes_path: Path,
+        pose_format: str,
+        frame_period: float,
+        score: float | None,
+        height_m: float,
+        mount_angle_deg: float,
+        **kwargs: Any,
+    ) -> Any:
+        kwargs["files"] = SequenceFiles(
+            calib,
+            poses,
+            boxes_path,
+            PoseFileLayout(pose_format),
+            frame_period,
+            score,
+            height_m,
+            math.radians(mount_angle_deg),
+        )
+        return command(*args, **kwargs)
+
+    return _apply(_SEQUENCE_FILE_OPTIONS, wrapper)
 
 
 def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:

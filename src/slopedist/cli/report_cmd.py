@@ -9,28 +9,25 @@ from pathlib import Path
 import click
 
 from slopedist.cli.options import (
-    alphas_option,
     check_methods,
-    depthmap_estimator_options,
-    depthmap_options,
+    estimator_options,
     height_option,
     kitti_source_options,
     lookback_option,
     mount_option,
-    paper_options,
     split_list,
-    thresholds_option,
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
     ReportOptions,
     SourceKind,
     detect_source,
-    format_text,
     report_data,
     write_report,
 )
+from slopedist.tables import format_text
 
 
 def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
@@ -66,7 +63,6 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
     help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
     "depth PNG, uint16/256 m) or .npy (float metres).",
 )
-@depthmap_options
 @kitti_source_options("KITTI: ")
 @click.option(
     "--tracks",
@@ -76,17 +72,13 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 @height_option
 @mount_option
 @lookback_option
-@alphas_option
-@thresholds_option
+@estimator_options(depth=True)
 def report(
     source: Path,
     out_dir: Path,
     methods: str | None,
     sequences: str | None,
     depth_dir: Path | None,
-    depth_sample: str,
-    depth_window: int,
-    depth_scaling: str,
     rotation: str,
     boxes: str,
     score: float | None,
@@ -95,14 +87,12 @@ def report(
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
-    alphas: str,
-    thresholds: str,
+    estimator_config: EstimatorConfig,
 ) -> None:
     """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
     output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
     names = check_methods(split_list(methods) or [])
     kind = detect_source(source)
-    paper = paper_options(alphas, thresholds)
     cfg = KittiEvalConfig(
         sequences=split_list(sequences),
         methods=tuple(names),
@@ -112,11 +102,7 @@ def report(
         height_m=height_m,
         mount_angle_rad=math.radians(mount_angle_deg),
         lookback_s=lookback_s,
-        method_options={
-            "paper": paper,
-            "imu": paper,
-            "depthmap": depthmap_estimator_options(depth_sample, depth_window, depth_scaling),
-        },
+        method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
     )
     opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))

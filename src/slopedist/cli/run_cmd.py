@@ -15,16 +15,12 @@ import click
 
 from slopedist.camera import Camera
 from slopedist.cli.options import (
-    alphas_option,
     check_methods,
-    depthmap_estimator_options,
-    depthmap_options,
+    estimator_options,
     height_option,
     lookback_option,
     mount_option,
-    paper_options,
     parse_triple,
-    thresholds_option,
 )
 from slopedist.depth import (
     DepthOutputKind,
@@ -36,12 +32,12 @@ from slopedist.depth import (
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator
+from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.frames import FrameSource, open_frames
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunResult, run_frames
+from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
@@ -293,13 +289,11 @@ def check_runnable(
     default=None,
     help="onnxruntime threads [default: its own].",
 )
-@depthmap_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @height_option
 @mount_option
 @lookback_option
-@alphas_option
-@thresholds_option
+@estimator_options(depth=True)
 def run(
     frames: Path,
     calib: Path,
@@ -323,15 +317,11 @@ def run(
     depth_scale: float,
     depth_bgr: bool,
     depth_threads: int | None,
-    depth_sample: str,
-    depth_window: int,
-    depth_scaling: str,
     quiet: bool,
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
-    alphas: str,
-    thresholds: str,
+    estimator_config: EstimatorConfig,
 ) -> None:
     """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
 
@@ -344,12 +334,7 @@ def run(
     camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
     source = open_frames(frames, fps, timestamps)
     boxes = read_box_file(boxes_path, score)
-    options: dict[str, object] = {}
-    if method == "paper":
-        options = paper_options(alphas, thresholds)
-    elif method == "depthmap":
-        options = depthmap_estimator_options(depth_sample, depth_window, depth_scaling)
-    estimator = make_estimator(method, camera, **options)
+    estimator = build_estimator(estimator_config.with_method(method), camera)
     depth_opts = DepthOptions(
         depth_dir,
         depth_model,
@@ -370,20 +355,8 @@ def run(
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    result = run_frames(
-        source,
-        camera,
-        boxes,
-        backend,
-        estimator,
-        out_dir,
-        lookback_s=lookback_s,
-        overlay=overlay_path,
-        overlay_fps=overlay_fps,
-        progress=not quiet,
-        sequence=sequence,
-        depth=depth,
-    )
+    config = RunConfig(out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence)
+    result = run_frames(source, boxes, backend, estimator, config, depth)
     click.echo(summary_text(result, out_dir), err=True)
 
 

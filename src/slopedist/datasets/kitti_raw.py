@@ -29,9 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.errors import InputFileError, MissingInputError
-from slopedist.pipeline import concat_boxes
 
 FloatArray = NDArray[np.float64]
 
@@ -251,6 +250,54 @@ def lidar_vehicle_boxes(
         0 otherwise), sorted by ``z``.
     """
     prm = params or VehicleClusterParams()
+    scan = _scan_points(points_velo, calib, image_size, prm)
+    found: list[_Cluster] = []
+    for lab in np.unique(scan.labels[scan.inside]):
+        cluster = _vehicle_cluster(scan, lab, image_size, prm)
+        if cluster is not None:
+            found.append(cluster)
+    found.sort(key=lambda c: c.z_near)
+    return BoxTable.build(
+        np.full(len(found), frame, dtype=np.int64),
+        np.asarray([c.box for c in found], dtype=float).reshape(-1, 4),
+        z=np.asarray([c.z_near for c in found], dtype=float),
+        z_median=np.asarray([c.z_median for c in found], dtype=float),
+        x=np.asarray([c.x_centre for c in found], dtype=float),
+        n_points=np.asarray([c.n_points for c in found], dtype=np.int64),
+        truncated=np.asarray([int(c.truncated) for c in found], dtype=np.int64),
+        centre_xy=np.asarray([c.centre_xy for c in found], dtype=float).reshape(-1, 2),
+    )
+
+
+@dataclass(frozen=True)
+class _Scan:
+    """The points of one scan above the ground, ``(N, ...)`` each.
+
+    Attributes:
+        pts: LiDAR points (x forward, y left, z up), metres; height: above the ground plane, m.
+        uv, z: their cam-2 pixels and camera z (m); inside: in front and inside the image.
+        uv_feet: the pixels of their feet on the ground plane.
+        X_rect: the points in the rectified camera frame, metres.
+        labels: bird's-eye cluster of each point.
+    """
+
+    pts: FloatArray
+    height: FloatArray
+    uv: FloatArray
+    z: FloatArray
+    inside: NDArray[np.bool_]
+    uv_feet: FloatArray
+    X_rect: FloatArray
+    labels: NDArray[np.int64]
+
+
+def _scan_points(
+    points_velo: ArrayLike,
+    calib: KittiRawCalib,
+    image_size: tuple[int, int],
+    prm: VehicleClusterParams,
+) -> _Scan:
+    """Drop the ground (and what is above the vehicles), project and cluster the rest."""
     pts = np.asarray(points_velo, dtype=float)[:, :3]
     n, d = fit_ground_plane(pts)
     height = pts @ n + d
@@ -264,55 +311,50 @@ def lidar_vehicle_boxes(
     feet = pts - height[:, None] * n
     uv_feet, _ = project_velo_to_image(feet, calib)
     X_rect = velo_to_rect(pts, calib)
-    found: list[_Cluster] = []
-    for lab in np.unique(labels[inside]):
-        sel = (labels == lab) & inside
-        if sel.sum() < prm.min_points:
-            continue
-        whole = labels == lab
-        extent = np.ptp(pts[whole, :2], axis=0)
-        top = float(height[whole].max())
-        if not (
-            prm.min_extent_m <= extent.max() <= prm.max_extent_m
-            and prm.min_top_m <= top <= prm.max_top_m
-        ):
-            continue
-        z_near = float(np.quantile(z[sel], prm.near_quantile))
-        if z_near > prm.max_range_m:
-            continue
-        u, v = uv[sel, 0], uv[sel, 1]
-        foot_rows = uv_feet[sel, 1]
-        bottom = float(max(v.max(), np.nanmax(foot_rows)))
-        box = np.array([u.min(), v.min(), u.max(), bottom])
-        truncated = bool(
-            (sel.sum() < whole.sum() * 0.95)
-            or box[0] <= 1
-            or box[2] >= w - 2
-            or box[1] <= 1
-            or box[3] >= h - 1
-        )
-        box = np.clip(box, [0, 0, 0, 0], [w - 1, h - 1, w - 1, h - 1])
-        found.append(
-            _Cluster(
-                box,
-                z_near,
-                float(np.median(z[sel])),
-                float(np.median(X_rect[sel, 0])),
-                int(sel.sum()),
-                truncated,
-                np.median(pts[whole, :2], axis=0),
-            )
-        )
-    found.sort(key=lambda c: c.z_near)
-    return BoxTable.build(
-        np.full(len(found), frame, dtype=np.int64),
-        np.asarray([c.box for c in found], dtype=float).reshape(-1, 4),
-        z=np.asarray([c.z_near for c in found], dtype=float),
-        z_median=np.asarray([c.z_median for c in found], dtype=float),
-        x=np.asarray([c.x_centre for c in found], dtype=float),
-        n_points=np.asarray([c.n_points for c in found], dtype=np.int64),
-        truncated=np.asarray([int(c.truncated) for c in found], dtype=np.int64),
-        centre_xy=np.asarray([c.centre_xy for c in found], dtype=float).reshape(-1, 2),
+    return _Scan(pts, height, uv, z, inside, uv_feet, X_rect, labels)
+
+
+def _vehicle_cluster(
+    scan: _Scan, lab: int, image_size: tuple[int, int], prm: VehicleClusterParams
+) -> _Cluster | None:
+    """Cluster ``lab`` of the scan as a vehicle's box, or None when it is no vehicle (too few
+    points in the image, the wrong size or height, too far)."""
+    pts, height, uv, z = scan.pts, scan.height, scan.uv, scan.z
+    w, h = image_size
+    sel = (scan.labels == lab) & scan.inside
+    if sel.sum() < prm.min_points:
+        return None
+    whole = scan.labels == lab
+    extent = np.ptp(pts[whole, :2], axis=0)
+    top = float(height[whole].max())
+    if not (
+        prm.min_extent_m <= extent.max() <= prm.max_extent_m
+        and prm.min_top_m <= top <= prm.max_top_m
+    ):
+        return None
+    z_near = float(np.quantile(z[sel], prm.near_quantile))
+    if z_near > prm.max_range_m:
+        return None
+    u, v = uv[sel, 0], uv[sel, 1]
+    foot_rows = scan.uv_feet[sel, 1]
+    bottom = float(max(v.max(), np.nanmax(foot_rows)))
+    box = np.array([u.min(), v.min(), u.max(), bottom])
+    truncated = bool(
+        (sel.sum() < whole.sum() * 0.95)
+        or box[0] <= 1
+        or box[2] >= w - 2
+        or box[1] <= 1
+        or box[3] >= h - 1
+    )
+    box = np.clip(box, [0, 0, 0, 0], [w - 1, h - 1, w - 1, h - 1])
+    return _Cluster(
+        box,
+        z_near,
+        float(np.median(z[sel])),
+        float(np.median(scan.X_rect[sel, 0])),
+        int(sel.sum()),
+        truncated,
+        np.median(pts[whole, :2], axis=0),
     )
 
 

@@ -126,3 +126,18 @@ class BoxTable:
     def frame_index(self) -> dict[int, BoxTable]:
         """``{frame index: boxes of that frame}``."""
         return dict(self.by_frame())
+
+
+def concat_boxes(parts: list[BoxTable]) -> BoxTable:
+    """Concatenate box tables (columns present in every part are kept)."""
+    if not parts:
+        return BoxTable.empty()
+    keys = set.intersection(*(set(p.extra) for p in parts))
+    return BoxTable(
+        np.concatenate([p.frame for p in parts]),
+        np.concatenate([p.boxes for p in parts]),
+        np.concatenate([p.track_id for p in parts]),
+        np.concatenate([p.score for p in parts]),
+        np.concatenate([p.cls for p in parts]),
+        {k: np.concatenate([p.extra[k] for p in parts]) for k in keys},
+    )

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
+from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
@@ -15,7 +18,7 @@ from slopedist.estimators.base import (
     MissingReason,
     ReferencePoint,
 )
-from slopedist.estimators.depthmap import DepthMapEstimator
+from slopedist.estimators.depthmap import DepthMapEstimator, DepthSample, DepthScaling
 from slopedist.estimators.ground_contact import (
     EgoGradientEstimator,
     FlatGroundEstimator,
@@ -60,13 +63,86 @@ def available_methods() -> list[str]:
 
 def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
     """Build the estimator registered as ``name`` for ``camera``."""
-    try:
-        factory = ESTIMATORS[str(getattr(name, "value", name))]
-    except KeyError:
+    return ESTIMATORS[_method_name(name)](camera, **options)
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Everything that configures an estimator, whichever command or evaluation asks for it.
+
+    Each option applies to the methods that have it and is ignored by the others: the eq. 7
+    steps go to the paper's method and everything built on it (``paper``, ``imu``), the depth
+    options to ``depthmap``.
+
+    Attributes:
+        method: a :class:`Method` name.
+        alphas_deg: eq. 7 angle steps α1, α2, α3, degrees.
+        thresholds_px: eq. 7 Δy thresholds t1 > t2 > t3 of α1, α2, α3, pixels.
+        depth_sample: which pixels of a box give its depth (``depthmap``).
+        depth_window_px: window side for ``depth_sample = window``, pixels (odd).
+        depth_scaling: per-frame median scaling of scale-less depth (``depthmap``).
+
+    Raises:
+        ConfigurationError: an unknown method, thresholds that do not decrease, an unknown
+            depth sample or scaling.
+    """
+
+    method: str = DEFAULT_METHOD
+    alphas_deg: tuple[float, float, float] = (3.0, 5.0, 6.0)
+    thresholds_px: tuple[float, float, float] = (0.0, -10.0, -20.0)
+    depth_sample: DepthSample = DepthSample.CENTRE
+    depth_window_px: int = 5
+    depth_scaling: DepthScaling = DepthScaling.NONE
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "method", _method_name(self.method))
+        t = self.thresholds_px
+        if not (t[0] > t[1] > t[2]):
+            raise ConfigurationError(f"eq. 7 thresholds must decrease (t1 > t2 > t3), got {t}")
+        try:
+            object.__setattr__(self, "depth_sample", DepthSample(self.depth_sample))
+            object.__setattr__(self, "depth_scaling", DepthScaling(self.depth_scaling))
+        except ValueError as exc:
+            raise ConfigurationError(str(exc)) from None
+
+    def with_method(self, method: str) -> EstimatorConfig:
+        """The same options for another method."""
+        return dataclasses.replace(self, method=method)
+
+    def options(self, method: str | None = None) -> dict[str, Any]:
+        """Constructor options of ``method`` (default: :attr:`method`) from this config."""
+        factory = ESTIMATORS[_method_name(method or self.method)]
+        if isinstance(factory, type) and issubclass(factory, PaperEstimator):
+            return {
+                "adjustment": geo.GradientAdjustment.from_degrees(
+                    self.alphas_deg, self.thresholds_px
+                )
+            }
+        if isinstance(factory, type) and issubclass(factory, DepthMapEstimator):
+            return {
+                "sample": self.depth_sample,
+                "window_px": self.depth_window_px,
+                "scaling": self.depth_scaling,
+            }
+        return {}
+
+    def method_options(self, methods: Iterable[str]) -> dict[str, dict[str, Any]]:
+        """:meth:`options` of every method (the ``method_options`` of an evaluation config)."""
+        return {_method_name(m): self.options(m) for m in methods}
+
+
+def _method_name(name: str | Method) -> str:
+    value = str(getattr(name, "value", name))
+    if value not in ESTIMATORS:
         raise ConfigurationError(
             f"unknown method '{name}'; choose from {', '.join(available_methods())}"
-        ) from None
-    return factory(camera, **options)
+        )
+    return value
+
+
+def build_estimator(config: EstimatorConfig, camera: Camera) -> Estimator:
+    """The estimator ``config`` describes, for ``camera``."""
+    return make_estimator(config.method, camera, **config.options())
 
 
 __all__ = [
@@ -75,6 +151,7 @@ __all__ = [
     "DepthMapEstimator",
     "EgoGradientEstimator",
     "Estimator",
+    "EstimatorConfig",
     "FlatGroundEstimator",
     "FrameEstimates",
     "FrameInput",
@@ -87,5 +164,6 @@ __all__ = [
     "PaperEstimator",
     "ReferencePoint",
     "available_methods",
+    "build_estimator",
     "make_estimator",
 ]

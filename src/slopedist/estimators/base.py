@@ -96,6 +96,13 @@ class FrameEstimates:
     def __len__(self) -> int:
         return int(self.distance_m.shape[0])
 
+    @classmethod
+    def empty(cls) -> FrameEstimates:
+        """The estimates of a frame without boxes."""
+        e = np.zeros(0)
+        o = np.zeros(0, dtype=object)
+        return cls(e, e.copy(), e.copy(), e.copy(), e.copy(), o, o.copy())
+
 
 class Estimator:
     """Base class of distance estimators.

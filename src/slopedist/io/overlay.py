@@ -1,4 +1,5 @@
-"""Writing annotated frames: a folder of PNG files or an MP4 video (``cv2.VideoWriter``, mp4v).
+"""Writing annotated frames: a folder of PNG files or an MP4 video (``cv2.VideoWriter``, mp4v),
+or an animated GIF where OpenCV cannot write MP4 (needs Pillow).
 
 Convention: images are BGR ``H×W×3`` uint8.
 """
@@ -6,6 +7,7 @@ Convention: images are BGR ``H×W×3`` uint8.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -73,3 +75,45 @@ class OverlayWriter:
         if self._video is not None:
             self._video.release()
             self._video = None
+
+
+class GifWriter:
+    """Animated GIF fallback for the overlay (half resolution)."""
+
+    def __init__(self, path: Path, fps: float) -> None:
+        self.path = path
+        self.fps = fps
+        self.frames: list[Any] = []
+
+    def write(self, index: int, image: NDArray[np.uint8]) -> None:
+        from PIL import Image
+
+        small = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2))
+        self.frames.append(Image.fromarray(cv2.cvtColor(small, cv2.COLOR_BGR2RGB)))
+
+    def close(self) -> None:
+        if self.frames:
+            self.frames[0].save(
+                self.path,
+                save_all=True,
+                append_images=self.frames[1:],
+                duration=int(1000 / self.fps),
+                loop=0,
+            )
+
+
+def open_overlay_video(folder: Path, fps: float) -> OverlayWriter | GifWriter:
+    """``folder/overlay.mp4``, or an animated ``folder/overlay.gif`` where OpenCV cannot write
+    MP4."""
+    try:
+        writer = OverlayWriter(folder / "overlay.mp4", fps)
+        probe = cv2.VideoWriter(
+            str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
+        )
+        ok = probe.isOpened()
+        probe.release()
+        if ok:
+            return writer
+    except InputFileError:
+        pass
+    return GifWriter(folder / "overlay.gif", fps)

@@ -95,9 +95,32 @@ class CsvStreamWriter:
         self._stream.flush()
         return n
 
+    def write_header(self, fields: Sequence[str]) -> None:
+        """Write ``fields`` as the header now if none is written yet (an empty table keeps its
+        columns); no effect otherwise."""
+        if self._writer is None:
+            self._start(fields)
+
     def write_row(self, row: Mapping[str, Any]) -> None:
         """Write one row and flush."""
         self.write_rows((row,))
+
+    def write_values(self, rows: Iterable[Sequence[Any]]) -> int:
+        """Write positional rows (values in header order; the header must be known), then
+        flush; returns the count.
+
+        Raises:
+            ValueError: the header is not known yet, or a row has another length.
+        """
+        fields = self.fields
+        if fields is None:
+            raise ValueError("positional rows need the header: give fields when opening")
+        records = []
+        for row in rows:
+            if len(row) != len(fields):
+                raise ValueError(f"row of {len(row)} values for {len(fields)} columns")
+            records.append(dict(zip(fields, row)))
+        return self.write_rows(records)
 
     def close(self) -> None:
         """Flush, and close the file if this writer opened it."""

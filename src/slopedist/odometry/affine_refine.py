@@ -19,6 +19,7 @@ Convention: pixels ``(x, y)`` with integer coordinates at pixel centres (OpenCV'
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple, cast
 
 import cv2
 import numpy as np
@@ -75,11 +76,43 @@ def refine_affine(
     """
     p0 = np.asarray(p0, dtype=np.float32).reshape(-1, 2)
     p1 = np.asarray(p1, dtype=np.float32).reshape(-1, 2)
-    n = len(p0)
-    if n == 0:
+    if len(p0) == 0:
         return p1.copy(), np.zeros(0, dtype=bool)
     prev = np.asarray(previous, dtype=np.float32)
     cur = np.asarray(current, dtype=np.float32)
+    template = _template(prev, p0, half_window)
+    A, t, sq0 = _gauss_newton(cur, template, p1, iterations)
+    e = _residuals(cur, A, t, template.offsets, template.T)
+    sq = np.einsum("nm,nm->n", e, e)  # the patch's squared residuals (sq0: at the start)
+    ok = (
+        np.all(np.isfinite(t), axis=1)
+        & np.isfinite(sq)
+        & (sq <= sq0)
+        & (np.linalg.norm(t - p1, axis=1) < MAX_SHIFT_PX)
+        & _warp_in_range(A)
+    )
+    return np.where(ok[:, None], t, p1).astype(np.float32), ok
+
+
+class _Template(NamedTuple):
+    """The patches of the previous frame, fixed during the fit (``N`` tracks, ``M`` pixels).
+
+    Attributes:
+        T: ``(N, M)`` grey levels of each window.
+        sd: ``(N, 6, M)`` steepest-descent images of the warp parameters, centred.
+        H_inv: ``(N, 6, 6)`` inverse Gauss–Newton Hessians (slightly damped).
+        offsets: ``(2, M)`` the window's column and row offsets.
+    """
+
+    T: F32
+    sd: F32
+    H_inv: F32
+    offsets: F32
+
+
+def _template(prev: F32, p0: F32, half_window: int) -> _Template:
+    """The windows of ``prev`` around ``p0`` with their steepest-descent images and Hessians."""
+    n = len(p0)
     dx, dy = _offsets(half_window)
     # template and its central-difference gradients from one sampling of a window 1 px wider
     ex, ey = _offsets(half_window + 1)
@@ -102,14 +135,23 @@ def refine_affine(
     H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(
         6, dtype=np.float32
     )
-    H_inv = np.linalg.inv(H)
-    offsets = _offset_rows(half_window)  # (2, M)
+    H_inv = cast(F32, np.linalg.inv(H))  # float32, as H
+    return _Template(T, sd, H_inv, _offset_rows(half_window))
+
+
+def _gauss_newton(
+    cur: F32, template: _Template, p1: F32, iterations: int
+) -> tuple[F32, F32, NDArray[np.float32]]:
+    """Inverse-compositional Gauss–Newton from the translational positions ``p1``: the 2×2
+    warps ``(N, 2, 2)``, the positions ``(N, 2)`` and the squared residuals at the start."""
+    n = len(p1)
+    sd, H_inv = template.sd, template.H_inv
     A = np.tile(np.eye(2, dtype=np.float32), (n, 1, 1))
     D_inv = np.empty((n, 2, 2), dtype=np.float32)
     t = p1.copy()
     sq0 = None
     for _ in range(iterations):
-        e = _residuals(cur, A, t, offsets, T)
+        e = _residuals(cur, A, t, template.offsets, template.T)
         if sq0 is None:
             sq0 = np.einsum("nm,nm->n", e, e)
         step = np.matmul(H_inv, np.matmul(sd, e[:, :, None]))[:, :, 0]
@@ -123,23 +165,19 @@ def refine_affine(
         np.divide(D[:, 0, 0], det, out=D_inv[:, 1, 1])
         A = A @ D_inv
         t = t - np.matmul(A, step[:, 4:, None])[:, :, 0]
-    e = _residuals(cur, A, t, offsets, T)
-    sq = np.einsum("nm,nm->n", e, e)  # the patch's squared residuals (sq0: at the start)
     assert sq0 is not None
-    # singular values of the 2×2 warps: s₁² + s₂² = ‖A‖², s₁ s₂ = |det A|
+    return A, t, sq0
+
+
+def _warp_in_range(A: F32) -> NDArray[np.bool_]:
+    """Whether both singular values of each 2×2 warp ``(N, 2, 2)`` lie within
+    ``SCALE_RANGE`` (no degenerate fit)."""
+    # s₁² + s₂² = ‖A‖², s₁ s₂ = |det A|
     frob = np.einsum("nij,nij->n", A, A)
     det = np.abs(A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0])
     root = np.sqrt(np.maximum(frob * frob - 4.0 * det * det, 0.0))
     s_max, s_min = np.sqrt(0.5 * (frob + root)), np.sqrt(np.maximum(0.5 * (frob - root), 0.0))
-    ok = (
-        np.all(np.isfinite(t), axis=1)
-        & np.isfinite(sq)
-        & (sq <= sq0)
-        & (np.linalg.norm(t - p1, axis=1) < MAX_SHIFT_PX)
-        & (s_min > SCALE_RANGE[0])
-        & (s_max < SCALE_RANGE[1])
-    )
-    return np.where(ok[:, None], t, p1).astype(np.float32), ok
+    return np.asarray((s_min > SCALE_RANGE[0]) & (s_max < SCALE_RANGE[1]))
 
 
 def _sample(image: F32, x: F32, y: F32) -> F32:

@@ -5,6 +5,9 @@ Boxes are ``(M, 4)`` arrays ``(left, top, right, bottom)`` in full-resolution pi
 
 from __future__ import annotations
 
+import math
+
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -39,3 +42,35 @@ def inside_boxes(pts: NDArray[np.float32], boxes: FloatArray) -> NDArray[np.bool
     y = pts[:, 1:2]
     inside = (x >= boxes[:, 0]) & (x <= boxes[:, 2]) & (y >= boxes[:, 1]) & (y <= boxes[:, 3])
     return np.asarray(inside.any(axis=1))
+
+
+def half_size_corner_mask(
+    shape: tuple[int, ...],
+    tracks_px: NDArray[np.float32],
+    boxes: FloatArray,
+    radius: int,
+    border: int,
+) -> NDArray[np.uint8]:
+    """Where new corners may be detected on the half-resolution copy of a frame (``shape``
+    its shape): 255, except 0 within ``radius`` (half-resolution pixels) of a track
+    (``tracks_px``: ``(N, 2)`` full-resolution pixels), within ``border`` of the edge and inside
+    the ``(M, 4)`` boxes (full-resolution pixels)."""
+    mask: NDArray[np.uint8]
+    if len(tracks_px):
+        occupied = np.zeros(shape, dtype=np.uint8)
+        xy = np.clip((tracks_px * 0.5).astype(np.intp), 0, [shape[1] - 1, shape[0] - 1])
+        occupied[xy[:, 1], xy[:, 0]] = 255
+        kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+        mask = np.asarray(cv2.bitwise_not(cv2.dilate(occupied, kernel)))
+    else:
+        mask = np.full(shape, 255, dtype=np.uint8)
+    mask[:border] = 0
+    mask[-border:] = 0
+    mask[:, :border] = 0
+    mask[:, -border:] = 0
+    for left, top, right, bottom in boxes * 0.5:
+        mask[
+            max(int(top), 0) : max(math.ceil(bottom) + 1, 0),
+            max(int(left), 0) : max(math.ceil(right) + 1, 0),
+        ] = 0
+    return mask

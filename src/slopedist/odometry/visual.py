@@ -56,7 +56,12 @@ from slopedist.odometry import image_stats
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.affine_refine import refine_affine
 from slopedist.odometry.base import TIME_EPS_S, OdometryResult, OdometryState
-from slopedist.odometry.masks import check_boxes, grown_boxes, inside_boxes
+from slopedist.odometry.masks import (
+    check_boxes,
+    grown_boxes,
+    half_size_corner_mask,
+    inside_boxes,
+)
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
 
 FloatArray = NDArray[np.float64]
@@ -76,6 +81,10 @@ class _FrameRecord:
     R_world_cam: FloatArray
     ids: NDArray[np.int64]
     pts: NDArray[np.float32]
+
+
+_Estimate = tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord]
+"""A rotation estimate: ``R_world_cam``, the fit, the track ids fitted, the reference frame."""
 
 
 class BuiltinVisualOdometry:
@@ -249,7 +258,6 @@ class BuiltinVisualOdometry:
     def _track(self, image: NDArray[np.uint8], t: float, boxes: FloatArray) -> OdometryResult:
         prev = self._history[-1]
         dt = t - prev.timestamp_s
-        c = self.config
         assert self._prev_image is not None
         if len(self._pts) == 0:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
@@ -262,9 +270,7 @@ class BuiltinVisualOdometry:
         # Lucas–Kanade assumes constant brightness: after an exposure jump (a tunnel,
         # auto-exposure, a flash) track into this frame with its grey levels mapped to the
         # previous frame's mean and spread; the raw frame is kept for the next step
-        stats = image_stats.grey_stats(
-            image
-        )  # this frame's statistics serve again as the next previous
+        stats = image_stats.grey_stats(image)  # serve again as the next previous frame's
         jumped = image_stats.match_exposure(
             image,
             self._prev_image,
@@ -296,9 +302,32 @@ class BuiltinVisualOdometry:
             return OdometryResult(None, OdometryState.LOST, 0, self._segment)
         ids = self._ids[keep]
         vel = (pts - self._pts[keep]) / dt
+        R_world_cam, cov, good, fit = self._verify(prev, keep, pts, estimate)
+        ids, pts, vel = ids[good], pts[good], vel[good]
+        self._cov = cov
+        self._omega = tv.so3_log(prev.R_world_cam.T @ R_world_cam) / dt
+        self._moving = True
+        self._ids, self._pts, self._vel = ids, pts.astype(np.float32), vel.astype(np.float32)
+        self._add_features(image, boxes, small)
+        self._commit(image, t, R_world_cam, energy, stats)
+        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers, self._segment)
+
+    def _verify(
+        self,
+        prev: _FrameRecord,
+        keep: NDArray[np.bool_],
+        pts: NDArray[np.float32],
+        estimate: _Estimate,
+    ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], tv.TwoViewFit]:
+        """Check the fitted rotation frame to frame (tracks ``self._pts[keep]`` → ``pts``):
+        the rotation (fused with the chained one when the fit reached further back), its
+        covariance, the tracks kept (no outlier to either fit) and the fit."""
+        c = self.config
         R_world_cam, fit, fit_ids, ref = estimate
         cov = tv.rotation_covariance(fit.information, R_world_cam.T @ ref.R_world_cam)
-        good = ~np.isin(ids, fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True)
+        good = ~np.isin(
+            self._ids[keep], fit_ids[fit.residuals_px > c.outlier_px], assume_unique=True
+        )
         # frame to frame: drop outliers among the young tracks too, and (when the direct fit
         # reached further back and the fusion is on) fuse the chained rotation
         direct_info = self.last_fit
@@ -323,14 +352,7 @@ class BuiltinVisualOdometry:
                 c.inlier_threshold_px,
             )
             good &= r_f2f <= c.outlier_px
-        ids, pts, vel = ids[good], pts[good], vel[good]
-        self._cov = cov
-        self._omega = tv.so3_log(prev.R_world_cam.T @ R_world_cam) / dt
-        self._moving = True
-        self._ids, self._pts, self._vel = ids, pts.astype(np.float32), vel.astype(np.float32)
-        self._add_features(image, boxes, small)
-        self._commit(image, t, R_world_cam, energy, stats)
-        return OdometryResult(R_world_cam.copy(), OdometryState.OK, fit.n_inliers, self._segment)
+        return R_world_cam, cov, good, fit
 
     def _attempt(
         self,
@@ -339,11 +361,7 @@ class BuiltinVisualOdometry:
         boxes: FloatArray,
         t: float,
         dt: float,
-    ) -> tuple[
-        NDArray[np.bool_],
-        NDArray[np.float32],
-        tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord] | None,
-    ]:
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float32], _Estimate | None]:
         """Track from ``previous`` (the last good frame) into ``image`` from the velocity
         prediction (or, with no velocity yet, the global shift) and estimate the rotation; after
         a failed prediction (a jolt, a long gap) retry once from the global shift. Returns the
@@ -422,7 +440,7 @@ class BuiltinVisualOdometry:
 
     def _estimate(
         self, ids: NDArray[np.int64], pts: NDArray[np.float32], t: float
-    ) -> tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord] | None:
+    ) -> _Estimate | None:
         """Rotation of the current frame against its look-back frame (or the oldest usable)."""
         c = self.config
         self.last_fit = None
@@ -565,26 +583,8 @@ class BuiltinVisualOdometry:
         if wanted < max(8, c.max_features // 10):
             return
         radius = max(1, round(0.5 * c.min_feature_distance_px))
-        if len(self._pts):  # 0 within ``radius`` of a track, 255 elsewhere
-            occupied = np.zeros(small.shape, dtype=np.uint8)
-            xy = np.clip(
-                (self._pts * 0.5).astype(np.intp), 0, [small.shape[1] - 1, small.shape[0] - 1]
-            )
-            occupied[xy[:, 1], xy[:, 0]] = 255
-            kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
-            mask = np.asarray(cv2.bitwise_not(cv2.dilate(occupied, kernel)))
-        else:
-            mask = np.full(small.shape, 255, dtype=np.uint8)
         border = max(2, math.ceil(0.25 * c.klt_window_px) + 1)
-        mask[:border] = 0
-        mask[-border:] = 0
-        mask[:, :border] = 0
-        mask[:, -border:] = 0
-        for left, top, right, bottom in boxes * 0.5:
-            mask[
-                max(int(top), 0) : max(math.ceil(bottom) + 1, 0),
-                max(int(left), 0) : max(math.ceil(right) + 1, 0),
-            ] = 0
+        mask = half_size_corner_mask(small.shape, self._pts, boxes, radius, border)
         corners = cv2.goodFeaturesToTrack(
             small, wanted, c.corner_quality, radius, mask=mask, blockSize=3
         )

@@ -52,6 +52,14 @@ def test_layout_and_readers(sim: Path) -> None:
     assert len(list((sim / "image_02").glob("*.png"))) == FRAMES
 
 
+def test_every_csv_has_lf_line_ends(sim: Path) -> None:
+    csvs = sorted(sim.glob("*.csv"))
+    assert [p.name for p in csvs] == ["boxes.csv", "boxes_exact.csv", "frames.csv", "truth.csv"]
+    for path in csvs:
+        data = path.read_bytes()
+        assert b"\r" not in data and data.endswith(b"\n"), path.name
+
+
 def test_truth_matches_boxes_and_depth(sim: Path) -> None:
     rows = list(csv.DictReader((sim / "truth.csv").open()))
     assert len(rows) == 2 * FRAMES

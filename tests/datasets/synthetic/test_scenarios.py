@@ -2,32 +2,18 @@
 
 from __future__ import annotations
 
-import copy
-import math
-import sys
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from slopedist.datasets.synthetic.scenarios import (
     SUITE,
     builtin_names,
     builtin_text,
-    field_lines,
     load_scenario,
-    parse_scenario,
 )
-from slopedist.datasets.synthetic.scene import Scenario, simulate_truth
+from slopedist.datasets.synthetic.scene import simulate_truth
 from slopedist.errors import InputFileError, MissingInputError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 MINIMAL = """
 name = "mine"
@@ -142,59 +128,3 @@ def test_unknown_name_and_missing_file() -> None:
         load_scenario("no_such_scenario")
     with pytest.raises(MissingInputError, match="not found"):
         load_scenario("missing/dir/s.toml")
-
-
-def test_field_lines_counts_arrays_of_tables() -> None:
-    lines = field_lines("a = 1\n[[t]]\nx = 1\n[[t]]\nx = 2\n[r.c]\ny = 3\n")
-    assert lines == {"a": 1, "t[0]": 2, "t[0].x": 3, "t[1]": 4, "t[1].x": 5, "r.c": 6, "r.c.y": 7}
-
-
-# --- property: any edit of a valid file gives a scenario or an InputFileError -------------------
-
-BASE = tomllib.loads(builtin_text("bumps_and_curves"))
-
-
-def _leaves(d: Any, prefix: tuple = ()) -> list[tuple]:
-    if isinstance(d, dict):
-        out = [(*prefix, k) for k in d]
-        for k, v in d.items():
-            out += _leaves(v, (*prefix, k))
-        return out
-    if isinstance(d, list):
-        out = []
-        for i, v in enumerate(d):
-            out += _leaves(v, (*prefix, i))
-        return out
-    return []
-
-
-PATHS = sorted(set(_leaves(BASE)), key=str)
-VALUES = st.one_of(
-    st.integers(-(10**6), 10**6),
-    st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=5),
-    st.booleans(),
-    st.lists(st.floats(-100, 100), max_size=4),
-    st.dictionaries(st.sampled_from(["x", "at_m", "speed_kmh"]), st.integers(-5, 5), max_size=2),
-)
-
-
-@settings(max_examples=150, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(PATHS), VALUES), min_size=1, max_size=3))
-def test_edited_files_never_crash(edits: list[tuple[tuple, Any]]) -> None:
-    data = copy.deepcopy(BASE)
-    for path, value in edits:
-        node = data
-        try:
-            for key in path[:-1]:
-                node = node[key]
-            node[path[-1]] = value
-        except (KeyError, IndexError, TypeError):
-            continue
-    try:
-        sc = parse_scenario(data, "edited.toml")
-    except InputFileError as exc:
-        assert "edited.toml" in str(exc)
-        return
-    assert isinstance(sc, Scenario)
-    assert math.isfinite(sc.duration_s) and np.isfinite(sc.road.start_grade_pct)

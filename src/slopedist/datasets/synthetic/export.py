@@ -26,13 +26,11 @@ percent, timestamps in seconds, boxes ``(left, top, right, bottom)`` pixels.
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Callable
 from enum import Enum
 from pathlib import Path
-from typing import IO, Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -44,6 +42,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.geometry import ego_road_gradient
+from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import lookback_indices
 
 TRUTH_FIELDS = (
@@ -94,33 +93,6 @@ class DepthFormat(str, Enum):
     PNG = "png"
     NPY = "npy"
     NONE = "none"
-
-
-def _fmt(value: Any) -> Any:
-    if isinstance(value, (bool, np.bool_)):
-        return int(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return "" if not math.isfinite(value) else f"{float(value):.6g}"
-    return value
-
-
-class CsvStream:
-    """A CSV file written row by row (flushed after every frame)."""
-
-    def __init__(self, path: Path, fields: tuple[str, ...] | list[str]) -> None:
-        self.path = path
-        self._fh: IO[str] = path.open("w", newline="")
-        self._writer = csv.writer(self._fh)
-        self._writer.writerow(fields)
-
-    def rows(self, rows: list[list[Any]]) -> None:
-        self._writer.writerows([[_fmt(v) for v in r] for r in rows])
-        self._fh.flush()
-
-    def close(self) -> None:
-        self._fh.close()
 
 
 def box_rows(boxes: BoxTable, extra: tuple[str, ...] = ()) -> list[list[Any]]:
@@ -210,6 +182,101 @@ def truth_rows(seq: SyntheticSequence, frame: SyntheticFrame) -> list[list[Any]]
     return rows
 
 
+class _FrameFiles(NamedTuple):
+    """Where a frame's image and depth map go (``images``: write the image; ``depth``: its
+    format)."""
+
+    image_dir: Path
+    depth_dir: Path
+    images: bool
+    depth: DepthFormat
+
+
+def _write_sequence_files(seq: SyntheticSequence, out: Path, scenario_text: str, n: int) -> None:
+    """``scenario.toml``, ``calib.txt``, ``poses.txt`` and ``times.txt`` of the first ``n``
+    frames."""
+    (out / "scenario.toml").write_text(scenario_text, encoding="utf-8")
+    (out / "calib.txt").write_text(kitti_calib_line(seq.scenario) + "\n")
+    poses = seq.truth.poses_cam0()[:n]
+    np.savetxt(out / "poses.txt", poses.reshape(n, 12), fmt="%.9e")
+    np.savetxt(out / "times.txt", seq.truth.timestamps_s[:n], fmt="%.6f")
+
+
+def _open_streams(out: Path) -> dict[str, CsvStreamWriter]:
+    """The per-frame CSV files: detector boxes, exact boxes, truth and frames."""
+    return {
+        "boxes": CsvStreamWriter.open(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
+        "exact": CsvStreamWriter.open(
+            out / "boxes_exact.csv",
+            (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
+        ),
+        "truth": CsvStreamWriter.open(out / "truth.csv", TRUTH_FIELDS),
+        "frames": CsvStreamWriter.open(out / "frames.csv", FRAME_FIELDS),
+    }
+
+
+def _write_frame_files(f: SyntheticFrame, files: _FrameFiles) -> None:
+    """The frame's image (PNG) and true depth map (KITTI depth PNG or float32 ``.npy``)."""
+    k = f.index
+    if files.images:
+        path = files.image_dir / f"{k:06d}.png"
+        if not cv2.imwrite(str(path), f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+            raise InputFileError(path, "could not be written as PNG")
+    if files.depth is DepthFormat.PNG:
+        write_kitti_depth_png(files.depth_dir / f"{k:06d}.png", f.depth_m)
+    elif files.depth is DepthFormat.NPY:
+        np.save(files.depth_dir / f"{k:06d}.npy", f.depth_m)
+
+
+def _write_frame_rows(
+    seq: SyntheticSequence, f: SyntheticFrame, streams: dict[str, CsvStreamWriter], theta_rad: float
+) -> None:
+    """The frame's rows of the four CSV files (``theta_rad``: the true θ of eq. 4)."""
+    tr, k = seq.truth, f.index
+    streams["boxes"].write_values(
+        box_rows(with_truth_distance(seq, f.detections), (CSV_TRUTH_COLUMN,))
+    )
+    streams["exact"].write_values(
+        box_rows(
+            with_truth_distance(seq, f.exact),
+            ("z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
+        )
+    )
+    streams["truth"].write_values(truth_rows(seq, f))
+    streams["frames"].write_values(
+        [
+            [
+                k,
+                f.timestamp_s,
+                tr.ego_s[k],
+                100.0 * tr.ego_grade[k],
+                math.degrees(tr.ego_pitch_rad[k]),
+                math.degrees(tr.camera_pitch_rad[k]),
+                math.degrees(theta_rad),
+            ]
+        ]
+    )
+
+
+def _info(sc: Scenario, n: int, n_det: int, files: _FrameFiles) -> dict[str, Any]:
+    """The content of ``info.json``."""
+    return {
+        "scenario": sc.name,
+        "source": sc.source,
+        "frames": n,
+        "frame_rate_hz": sc.frame_rate_hz,
+        "image_width": sc.camera.image_width,
+        "image_height": sc.camera.image_height,
+        "camera_height_m": sc.camera.rig.height_m,
+        "mount_angle_deg": math.degrees(sc.camera.rig.mount_angle_rad),
+        "targets": [t.track_id for t in sc.targets],
+        "detections": n_det,
+        "distance_scored": "z_m of truth.csv: camera z of the 3D box's bottom centre (KITTI z)",
+        "depth": files.depth.value,
+        "images": files.images,
+    }
+
+
 def write_simulation(
     seq: SyntheticSequence,
     out_dir: str | Path,
@@ -227,82 +294,26 @@ def write_simulation(
     n = len(seq) if max_frames is None else min(len(seq), max_frames)
     if n < 1:
         raise ConfigurationError("nothing to simulate: the frame limit must be ≥ 1")
-    (out / "scenario.toml").write_text(scenario_text, encoding="utf-8")
-    (out / "calib.txt").write_text(kitti_calib_line(sc) + "\n")
-    poses = seq.truth.poses_cam0()[:n]
-    np.savetxt(out / "poses.txt", poses.reshape(n, 12), fmt="%.9e")
-    np.savetxt(out / "times.txt", seq.truth.timestamps_s[:n], fmt="%.6f")
-    img_dir, depth_dir = out / "image_02", out / "depth"
+    _write_sequence_files(seq, out, scenario_text, n)
+    files = _FrameFiles(out / "image_02", out / "depth", images, depth)
     if images:
-        img_dir.mkdir(exist_ok=True)
+        files.image_dir.mkdir(exist_ok=True)
     if depth is not DepthFormat.NONE:
-        depth_dir.mkdir(exist_ok=True)
+        files.depth_dir.mkdir(exist_ok=True)
     theta = true_theta(seq.truth, sc.camera.rig.mount_angle_rad)
-    tr = seq.truth
-    streams = {
-        "boxes": CsvStream(out / "boxes.csv", (*CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN)),
-        "exact": CsvStream(
-            out / "boxes_exact.csv",
-            (*CSV_BOX_COLUMNS, "z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
-        ),
-        "truth": CsvStream(out / "truth.csv", TRUTH_FIELDS),
-        "frames": CsvStream(out / "frames.csv", FRAME_FIELDS),
-    }
+    streams = _open_streams(out)
     n_det = 0
     try:
         for k in range(n):
             f = seq.frame(k)
-            if images:
-                path = img_dir / f"{k:06d}.png"
-                if not cv2.imwrite(str(path), f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-                    raise InputFileError(path, "could not be written as PNG")
-            if depth is DepthFormat.PNG:
-                write_kitti_depth_png(depth_dir / f"{k:06d}.png", f.depth_m)
-            elif depth is DepthFormat.NPY:
-                np.save(depth_dir / f"{k:06d}.npy", f.depth_m)
-            streams["boxes"].rows(
-                box_rows(with_truth_distance(seq, f.detections), (CSV_TRUTH_COLUMN,))
-            )
-            streams["exact"].rows(
-                box_rows(
-                    with_truth_distance(seq, f.exact),
-                    ("z", "truncation", "visible_share", CSV_TRUTH_COLUMN),
-                )
-            )
-            streams["truth"].rows(truth_rows(seq, f))
-            streams["frames"].rows(
-                [
-                    [
-                        k,
-                        f.timestamp_s,
-                        tr.ego_s[k],
-                        100.0 * tr.ego_grade[k],
-                        math.degrees(tr.ego_pitch_rad[k]),
-                        math.degrees(tr.camera_pitch_rad[k]),
-                        math.degrees(theta[k]),
-                    ]
-                ]
-            )
+            _write_frame_files(f, files)
+            _write_frame_rows(seq, f, streams, theta[k])
             n_det += len(f.detections)
             if on_frame is not None:
                 on_frame(k)
     finally:
         for s in streams.values():
             s.close()
-    info = {
-        "scenario": sc.name,
-        "source": sc.source,
-        "frames": n,
-        "frame_rate_hz": sc.frame_rate_hz,
-        "image_width": sc.camera.image_width,
-        "image_height": sc.camera.image_height,
-        "camera_height_m": sc.camera.rig.height_m,
-        "mount_angle_deg": math.degrees(sc.camera.rig.mount_angle_rad),
-        "targets": [t.track_id for t in sc.targets],
-        "detections": n_det,
-        "distance_scored": "z_m of truth.csv: camera z of the 3D box's bottom centre (KITTI z)",
-        "depth": depth.value,
-        "images": images,
-    }
-    (out / "info.json").write_text(json.dumps(info, indent=2) + "\n")
+    info = _info(sc, n, n_det, files)
+    write_json(out / "info.json", info)
     return info

@@ -16,8 +16,10 @@ from numpy.typing import NDArray
 
 from slopedist.camera import Camera
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec, noisy_boxes
-from slopedist.datasets.synthetic.render import Rendered, Renderer, vehicle_polygons
+from slopedist.datasets.synthetic.polygons import vehicle_polygons
+from slopedist.datasets.synthetic.render import Rendered, Renderer
 from slopedist.datasets.synthetic.scene import Scenario, SceneTruth, simulate_truth
+from slopedist.datasets.synthetic.textures import LaneLayout
 from slopedist.datasets.synthetic.world import static_world
 from slopedist.detections.boxes import BoxTable
 
@@ -86,9 +88,7 @@ class SyntheticSequence:
             cam.K,
             cam.image_width,
             cam.image_height,
-            spec.half_width_m,
-            spec.lanes,
-            spec.lane_width_m,
+            LaneLayout(spec.half_width_m, spec.lanes, spec.lane_width_m),
             scenario.seed,
         )
         self._colours = np.array([t.colour_bgr for t in scenario.targets], dtype=float)

@@ -1,9 +1,8 @@
 """The static world around the road, as planar polygons the renderer draws.
 
 Convention: world frame of :mod:`~slopedist.datasets.synthetic.road` (X forward at ``s = 0``,
-Y left, Z up, metres). Every surface is a planar convex quadrilateral with a texture frame: a
-point ``X`` of the polygon has texture coordinates ``u = u0 + (X − o)·a`` and
-``v = (X − o)·b`` (metres), with ``a``, ``b`` unit axes in its plane.
+Y left, Z up, metres); polygons and their texture frames as in
+:mod:`~slopedist.datasets.synthetic.polygons`.
 
 Content:
 
@@ -21,12 +20,19 @@ Everything random comes from ``numpy.random.default_rng(seed)`` and depends only
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from enum import IntEnum
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.datasets.synthetic.polygons import (
+    GROUND_SURFACE,
+    Boxes,
+    Layer,
+    Material,
+    Polygons,
+    box_polygons,
+)
 from slopedist.datasets.synthetic.road import Road
 
 FloatArray = NDArray[np.float64]
@@ -41,161 +47,6 @@ COARSE_WALL_PIECE_M = 8.0
 """Longest piece of a roadside wall far from the camera (coarse level of detail), metres."""
 WALL_FOOT_M = 0.3
 """Depth to which the roadside walls reach below the ground (no gap under them), metres."""
-
-
-class Material(IntEnum):
-    """How a polygon is shaded (the renderer's per-pixel rules)."""
-
-    SKY = 0
-    GROUND = 1
-    BUILDING = 2
-    TREES = 3
-    POST = 4
-    OBJECT = 5
-    VEHICLE = 6
-
-
-GROUND_SURFACE = 0
-"""Surface id of the ground strips (wall segments are numbered from 1)."""
-
-
-class Layer(IntEnum):
-    """Drawing priority among polygons with the same painter key (lower first)."""
-
-    GROUND = 0
-    STRUCTURE = 1
-    OBJECT = 2
-    VEHICLE = 3
-
-
-@dataclass
-class Polygons:
-    """A set of planar quads with everything the renderer needs (``P`` polygons).
-
-    Attributes:
-        verts: ``(P, 4, 3)`` corners in order around the polygon, world frame.
-        normal: ``(P, 3)`` unit normal on the visible side (faces with ``(C − X)·n ≤ 0`` are
-            culled).
-        origin, axis_u, axis_v: ``(P, 3)`` texture frame; u0: ``(P,)`` offset of ``u``.
-        key: ``(P,)`` painter key, the plan distance ``s`` that orders drawing (larger first);
-            layer: ``(P,)`` :class:`Layer` among equal keys.
-        s_lo, s_hi: ``(P,)`` plan-distance extent, to select what is near the camera.
-        material: ``(P,)`` :class:`Material`; colour: ``(P, 3)`` BGR in [0, 1].
-        owner: ``(P,)`` index of the target vehicle the polygon belongs to, −1 for the world.
-        two_sided: ``(P,)`` bool: never culled.
-        lod: ``(P,)`` level of detail: −1 always drawn, 0 fine, 1 coarse; fine and coarse
-            polygons cover the same surface, grouped by ``lod_key`` (plan distance, metres):
-            a group is drawn fine when its key is nearer than the renderer's boundary.
-        surface: ``(P,)`` smooth surface the polygon is a piece of (−1: a surface of its own):
-            pieces of one surface (:data:`GROUND_SURFACE` for all ground strips, one id per
-            roadside wall segment) share one material and one continuous texture frame, so
-            the renderer may interpolate across their common edges.
-    """
-
-    verts: FloatArray
-    normal: FloatArray
-    origin: FloatArray
-    axis_u: FloatArray
-    axis_v: FloatArray
-    u0: FloatArray
-    key: FloatArray
-    layer: NDArray[np.int64]
-    s_lo: FloatArray
-    s_hi: FloatArray
-    material: NDArray[np.int64]
-    colour: FloatArray
-    owner: NDArray[np.int64]
-    two_sided: NDArray[np.bool_]
-    lod: NDArray[np.int8]
-    lod_key: FloatArray
-    surface: NDArray[np.int64]
-
-    def __len__(self) -> int:
-        return int(self.verts.shape[0])
-
-    @classmethod
-    def concat(cls, parts: list[Polygons]) -> Polygons:
-        """Concatenate polygon sets."""
-        names = list(cls.__dataclass_fields__)
-        return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names})
-
-    def select(self, idx: NDArray) -> Polygons:
-        """A subset (mask or indices)."""
-        return Polygons(**{n: getattr(self, n)[idx] for n in self.__dataclass_fields__})
-
-
-def box_polygons(
-    bottom_centre: FloatArray,
-    R_world_box: FloatArray,
-    size_lwh: FloatArray,
-    colour: FloatArray,
-    material: NDArray[np.int64] | int,
-    s_near: FloatArray,
-    s_far: FloatArray,
-    layer: Layer,
-    owner: NDArray[np.int64] | int = -1,
-    with_bottom: bool = False,
-) -> Polygons:
-    """The faces of ``N`` boxes (rear, front, right, left, top; bottom optional).
-
-    Args:
-        bottom_centre: ``(N, 3)`` centre of each box's bottom face, world frame.
-        R_world_box: ``(N, 3, 3)`` columns = the box's forward, left, up axes.
-        size_lwh: ``(N, 3)`` length, width, height, metres.
-        colour: ``(N, 3)`` BGR in [0, 1].
-        s_near, s_far: ``(N,)`` plan-distance extent (painter key = ``s_near``).
-    """
-    n = bottom_centre.shape[0]
-    f, lft, up = R_world_box[:, :, 0], R_world_box[:, :, 1], R_world_box[:, :, 2]
-    hl, hw, h = (
-        (0.5 * size_lwh[:, 0])[:, None],
-        (0.5 * size_lwh[:, 1])[:, None],
-        size_lwh[:, 2][:, None],
-    )
-    c = bottom_centre
-
-    def corner(sx: float, sy: float, sz: float) -> FloatArray:
-        return c + sx * hl * f + sy * hw * lft + sz * h * up
-
-    # face: (corners, outward normal, u axis)
-    faces = [
-        ([corner(-1, -1, 0), corner(-1, 1, 0), corner(-1, 1, 1), corner(-1, -1, 1)], -f, lft),
-        ([corner(1, 1, 0), corner(1, -1, 0), corner(1, -1, 1), corner(1, 1, 1)], f, -lft),
-        ([corner(1, -1, 0), corner(-1, -1, 0), corner(-1, -1, 1), corner(1, -1, 1)], -lft, -f),
-        ([corner(-1, 1, 0), corner(1, 1, 0), corner(1, 1, 1), corner(-1, 1, 1)], lft, f),
-        ([corner(-1, -1, 1), corner(-1, 1, 1), corner(1, 1, 1), corner(1, -1, 1)], up, lft),
-    ]
-    if with_bottom:
-        faces.append(
-            ([corner(-1, -1, 0), corner(1, -1, 0), corner(1, 1, 0), corner(-1, 1, 0)], -up, lft)
-        )
-    parts = []
-    mat = np.broadcast_to(np.asarray(material, dtype=np.int64), (n,))
-    own = np.broadcast_to(np.asarray(owner, dtype=np.int64), (n,))
-    for verts, normal, axis_u in faces:
-        v = np.stack(verts, axis=1)
-        parts.append(
-            Polygons(
-                verts=v,
-                normal=normal.copy(),
-                origin=v[:, 0].copy(),
-                axis_u=axis_u.copy(),
-                axis_v=up.copy(),
-                u0=np.zeros(n),
-                key=s_near.copy(),
-                layer=np.full(n, int(layer), np.int64),
-                s_lo=s_near.copy(),
-                s_hi=s_far.copy(),
-                material=mat.copy(),
-                colour=colour.copy(),
-                owner=own.copy(),
-                two_sided=np.zeros(n, bool),
-                lod=np.full(n, -1, np.int8),
-                lod_key=np.zeros(n),
-                surface=np.full(n, -1, np.int64),
-            )
-        )
-    return Polygons.concat(parts)
 
 
 def ground_polygons(
@@ -289,37 +140,37 @@ def structure_polygons(
         shade = rng.uniform(0.85, 1.15, a.shape[0])
         surface = next_surface + np.arange(a.shape[0])
         next_surface += a.shape[0]
+        segments = _WallSegments(a, b, height, trees, colour_index, shade, surface)
         for lod, piece_m in ((0, WALL_PIECE_M), (1, COARSE_WALL_PIECE_M)):
-            parts.append(
-                _wall_pieces(
-                    road,
-                    side,
-                    half_width_m,
-                    a,
-                    b,
-                    height,
-                    trees,
-                    colour_index,
-                    shade,
-                    surface,
-                    piece_m,
-                    lod,
-                )
-            )
+            parts.append(_wall_pieces(road, side, half_width_m, segments, piece_m, lod))
     return Polygons.concat(parts)
+
+
+class _WallSegments(NamedTuple):
+    """The wall segments of one side of the road (``(S,)`` each).
+
+    Attributes:
+        a, b: plan-distance extent of each segment, metres.
+        height: height above the ground at the segment's start, metres.
+        trees: a tree line (else a building front).
+        colour_index: random index into the colour tables; shade: brightness factor.
+        surface: surface id of each segment (:attr:`Polygons.surface`).
+    """
+
+    a: FloatArray
+    b: FloatArray
+    height: FloatArray
+    trees: NDArray[np.bool_]
+    colour_index: NDArray[np.int64]
+    shade: FloatArray
+    surface: NDArray[np.int64]
 
 
 def _wall_pieces(
     road: Road,
     side: float,
     half_width_m: float,
-    a: FloatArray,
-    b: FloatArray,
-    height: FloatArray,
-    trees: NDArray[np.bool_],
-    colour_index: NDArray[np.int64],
-    shade: FloatArray,
-    surface: NDArray[np.int64],
+    segments: _WallSegments,
     piece_m: float,
     lod: int,
 ) -> Polygons:
@@ -328,6 +179,7 @@ def _wall_pieces(
     Texture frame of every piece of a segment: ``u`` = distance driven along the centreline
     at the piece's start plus the distance along the piece, ``v`` = height above the ground at
     the segment's start (level rows of windows, continuous from piece to piece)."""
+    a, b, height, trees, colour_index, shade, surface = segments
     # pieces of at most piece_m, so the wall's foot follows the ground through
     # vertical and horizontal curves (a long chord would leave a gap under it)
     pieces = np.maximum(np.ceil((b - a) / piece_m), 1).astype(int)
@@ -414,14 +266,10 @@ def roadside_polygons(
     c, R = _level_boxes_on_road(road, s_post, w_post)
     n = s_post.shape[0]
     size = np.tile([0.12, 0.12, 1.0], (n, 1))
+    post_colour = np.tile([0.92, 0.92, 0.92], (n, 1))
     posts = box_polygons(
-        c,
-        R,
-        size,
-        np.tile([0.92, 0.92, 0.92], (n, 1)),
+        Boxes(c, R, size, post_colour, s_post - 0.06, s_post + 0.06),
         int(Material.POST),
-        s_post - 0.06,
-        s_post + 0.06,
         Layer.OBJECT,
     )
     # objects
@@ -439,13 +287,10 @@ def roadside_polygons(
         0.8, 1.2, (count, 1)
     )
     objects = box_polygons(
-        c,
-        R,
-        size,
-        np.clip(colour, 0, 1),
+        Boxes(
+            c, R, size, np.clip(colour, 0, 1), s_obj - 0.5 * size[:, 0], s_obj + 0.5 * size[:, 0]
+        ),
         int(Material.OBJECT),
-        s_obj - 0.5 * size[:, 0],
-        s_obj + 0.5 * size[:, 0],
         Layer.OBJECT,
     )
     return Polygons.concat([posts, objects])

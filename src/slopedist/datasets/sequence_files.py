@@ -1,0 +1,84 @@
+"""One sequence given as files: a KITTI calibration, a pose file and a box file.
+
+The inputs of ``slopedist estimate`` and ``slopedist calibrate``. Convention: rotations
+camera-to-world relative to the first frame, timestamps ``k × frame_period_s`` seconds (pose
+files without timestamps), angles in radians inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.readers import read_box_file
+from slopedist.errors import DataMismatchError
+from slopedist.odometry.base import RotationTrack
+from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
+
+
+class PoseFileLayout(str, Enum):
+    """Layout of a pose file: detected, KITTI 3×4 rows, TUM, or OXTS (vehicle-frame TUM)."""
+
+    AUTO = "auto"
+    KITTI = "kitti"
+    TUM = "tum"
+    OXTS = "oxts"
+
+
+@dataclass(frozen=True)
+class SequenceFiles:
+    """Where one sequence's inputs are and how to read them.
+
+    Attributes:
+        calib: KITTI calibration file (``P2`` is used).
+        poses: pose file; ``pose_layout`` says its layout.
+        boxes: box file (slopedist CSV, KITTI labels or PointRCNN).
+        frame_period_s: seconds between frames (pose files without timestamps).
+        min_score: keep boxes with score ≥ this (None: all).
+        height_m: camera height above the road, metres.
+        mount_angle_rad: camera mount angle θ0, radians.
+    """
+
+    calib: Path
+    poses: Path
+    boxes: Path
+    pose_layout: PoseFileLayout = PoseFileLayout.AUTO
+    frame_period_s: float = 0.1
+    min_score: float | None = None
+    height_m: float = KITTI_CAMERA_HEIGHT_M
+    mount_angle_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class SequenceInputs:
+    """Camera, rotations and boxes of one sequence (box frame indices index the track)."""
+
+    camera: Camera
+    track: RotationTrack
+    boxes: BoxTable
+
+
+def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
+    """Read the camera, the rotations and the boxes of ``files``.
+
+    Raises:
+        DataMismatchError: the poses do not cover the boxes' frames.
+    """
+    camera = Camera.from_kitti_calib(files.calib, "P2", files.height_m, files.mount_angle_rad)
+    layout = PoseFileLayout(files.pose_layout)
+    if layout is PoseFileLayout.OXTS:
+        track = read_oxts_rotations(files.poses, files.calib, files.frame_period_s)
+    elif layout is PoseFileLayout.AUTO:
+        track = read_pose_file(files.poses, None, files.frame_period_s)
+    else:
+        track = read_pose_file(files.poses, PoseFormat(layout.value), files.frame_period_s)
+    boxes = read_box_file(files.boxes, files.min_score)
+    if len(boxes) and int(boxes.frame.max()) >= len(track):
+        raise DataMismatchError(
+            f"{files.poses}: {len(track)} poses do not cover the boxes of {files.boxes}, which "
+            f"go up to frame {int(boxes.frame.max())}"
+        )
+    return SequenceInputs(camera, track, boxes)

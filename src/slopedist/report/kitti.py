@@ -1,0 +1,152 @@
+"""The report's data from a KITTI tracking folder: the runs of :mod:`slopedist.kitti_eval`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import ESTIMATORS, available_methods
+from slopedist.kitti_eval import KittiEvaluation, SequenceRun, run_kitti_tracking
+from slopedist.report.data import (
+    RECORD_COLUMNS,
+    THETA_COLUMNS,
+    Columns,
+    ReportData,
+    ReportOptions,
+    SourceKind,
+)
+
+FRAME_PERIOD_S = 0.1
+"""KITTI tracking frames are 0.1 s apart (frame k at k × 0.1 s)."""
+
+
+def default_kitti_methods(depth: bool) -> list[str]:
+    """Every registered method that can run on KITTI tracking (``depthmap`` with depth only)."""
+    return [
+        m for m in available_methods() if depth or not getattr(ESTIMATORS[m], "needs_depth", False)
+    ]
+
+
+def _add_records(records: Columns, name: str, run: SequenceRun, methods: list[str]) -> None:
+    """One row per scored pair (box matched to a truth) and method that ran on ``run``."""
+    gt_z = run.gt.extra["z"][run.gt_rows]
+    frames = run.boxes.frame[run.det_rows]
+    tids = run.gt.track_id[run.gt_rows]
+    for m in methods:
+        mr = run.runs[m]
+        if mr.missing:
+            continue
+        d = mr.distance_m[run.det_rows]
+        ok = mr.scorable[run.det_rows]
+        th = np.degrees(mr.theta_rad[run.det_rows])
+        reasons = mr.reason[run.det_rows]
+        for i in range(len(run.det_rows)):
+            records.add(
+                sequence=name,
+                frame=int(frames[i]),
+                timestamp_s=FRAME_PERIOD_S * int(frames[i]),
+                track_id=int(tids[i]),
+                method=m,
+                rotation=mr.rotation or "",
+                distance_m=float(d[i]) if ok[i] else math.nan,
+                gt_distance_m=float(gt_z[i]),
+                scored=bool(ok[i]),
+                reason=reasons[i],
+                theta_deg=float(th[i]),
+            )
+
+
+def _add_theta(theta: Columns, name: str, run: SequenceRun) -> None:
+    """The ego gradient per frame of every rotation source loaded for ``run`` (degrees)."""
+    for source, values in run.theta_rad.items():
+        for k, v in enumerate(values):
+            theta.add(
+                sequence=name,
+                frame=k,
+                timestamp_s=FRAME_PERIOD_S * k,
+                source=source,
+                theta_deg=math.degrees(v),
+            )
+
+
+def _timing(evaluation: KittiEvaluation, method: str) -> dict[str, float]:
+    """Table 2's times of ``method`` (ms per frame over the sequences it ran on); the
+    rotations are precomputed pose files, so the odometry is not timed."""
+    present = [r for r in evaluation.runs.values() if not r.runs[method].missing]
+    frames = sum(r.n_frames for r in present)
+    seconds = sum(r.runs[method].seconds for r in present)
+    depth_s = sum(r.runs[method].depth_seconds for r in present)
+    needs_depth = getattr(ESTIMATORS[method], "needs_depth", False)
+    return {
+        "odometry_ms": math.nan,
+        "estimation_ms": 1000 * seconds / frames if frames else math.nan,
+        "depth_ms": 1000 * depth_s / frames if frames and needs_depth else math.nan,
+        "frames": float(frames),
+    }
+
+
+def _notes(protocol: dict[str, Any], boxes: BoxSource) -> list[str]:
+    boxes_kind = (
+        "ground-truth boxes"
+        if boxes is BoxSource.GT
+        else "PointRCNN detections matched to the truth by IoU"
+    )
+    rotations: dict[str, str | None] = protocol["rotation_per_method"]
+    return [
+        f"Protocol: {boxes_kind}; "
+        f"ground truth = KITTI label z of Car/Van, truncated 0, occluded <= 1, 0 < z <= 80 m; "
+        f"{protocol['cap_rule']}.",
+        "Rotation per method: "
+        + ", ".join(f"{m} = {r or 'none'}" for m, r in rotations.items())
+        + ".",
+        "Odometry time is not measured on KITTI tracking: the rotations are precomputed pose "
+        "files (ORB-SLAM3, OXTS). Estimation = the estimator's own time; depth = reading the "
+        "depth maps (file read, not network inference). The 2D detector is excluded.",
+    ]
+
+
+def kitti_report_data(
+    root: str | Path, opts: ReportOptions, on_sequence: Callable[[str], None] | None = None
+) -> ReportData:
+    """Run the methods on the KITTI tracking sequences under ``root``
+    (:func:`~slopedist.kitti_eval.run_kitti_tracking`) and collect the data.
+
+    Raises:
+        ConfigurationError: an unknown method, or depth maps needed and not given.
+        MissingInputError: a named sequence is not under ``root``.
+    """
+    root = Path(root)
+    cfg = opts.eval
+    methods = list(cfg.methods) or default_kitti_methods(cfg.depth_dir is not None)
+    unknown = [m for m in methods if m not in ESTIMATORS]
+    if unknown:
+        raise ConfigurationError(
+            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
+        )
+    evaluation = run_kitti_tracking(root, replace(cfg, methods=tuple(methods)), on_sequence)
+    records = Columns(RECORD_COLUMNS)
+    theta = Columns(THETA_COLUMNS)
+    for name, run in evaluation.runs.items():
+        _add_records(records, name, run, methods)
+        _add_theta(theta, name, run)
+    protocol = evaluation.config.protocol()
+    oxts = RotationSource.OXTS.value
+    return ReportData(
+        title=opts.title,
+        source=root,
+        kind=SourceKind.KITTI_TRACKING,
+        scores=evaluation.scores(),
+        timing={m: _timing(evaluation, m) for m in methods},
+        records=records,
+        theta=theta,
+        protocol=protocol,
+        notes=_notes(protocol, BoxSource(cfg.boxes)),
+        truth_source=oxts if any(oxts in r.theta_rad for r in evaluation.runs.values()) else None,
+    )

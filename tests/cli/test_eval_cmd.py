@@ -1,0 +1,47 @@
+"""``slopedist eval kitti-tracking``: the JSON report is strict JSON, to a file or stdout."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from slopedist.cli import main
+
+
+def _strict(text: str) -> Any:
+    """``json.loads`` that fails on the non-standard NaN / Infinity tokens."""
+    return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict JSON token {c}"))
+
+
+def test_json_with_a_missing_method_is_strict(
+    kitti_tracking_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # imu has no OXTS poses on 0014: its metrics are NaN, which used to be written as bare NaN
+    out = tmp_path / "out.json"
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "flat,imu"]
+    assert main([*args, "--sequences", "0014", "--json", str(out)]) == 0
+    text = out.read_text()
+    report = _strict(text)
+    assert report["methods"]["imu"]["overall"]["rmse"] is None
+    assert report["methods"]["flat"]["overall"]["rmse"] == pytest.approx(16.15, abs=0.01)
+    assert "Table 1: RMSE (m) per sequence" in capsys.readouterr().out
+    assert b"\r" not in out.read_bytes()
+
+
+def test_json_dash_writes_only_json_to_stdout(
+    kitti_tracking_dir: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    kitti_tracking_dir = kitti_tracking_dir.resolve()
+    monkeypatch.chdir(tmp_path)
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "flat,imu"]
+    assert main([*args, "--sequences", "0014", "--json", "-"]) == 0
+    captured = capsys.readouterr()
+    assert _strict(captured.out)["protocol"]["sequences"] == ["0014"]
+    assert "Table 1: RMSE (m) per sequence" in captured.err
+    assert not (tmp_path / "-").exists()

@@ -1,0 +1,67 @@
+"""One place that turns options into a configured estimator: which option reaches which method."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from slopedist.camera import Camera
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import (
+    DepthMapEstimator,
+    EstimatorConfig,
+    ImuEgoEstimator,
+    ImuEstimator,
+    PaperEstimator,
+    available_methods,
+    build_estimator,
+)
+from slopedist.estimators.depthmap import DepthSample, DepthScaling
+
+CAMERA = Camera(721.5, 609.6, 172.9, 1.65)
+STEEP = EstimatorConfig(alphas_deg=(20.0, 30.0, 40.0), thresholds_px=(5.0, -5.0, -15.0))
+
+
+@pytest.mark.parametrize("method", ["paper", "imu"])
+def test_eq7_options_reach_every_method_built_on_paper(method: str) -> None:
+    est = build_estimator(STEEP.with_method(method), CAMERA)
+    assert isinstance(est, PaperEstimator)
+    assert est.adjustment.alphas_rad == pytest.approx(tuple(map(math.radians, (20, 30, 40))))
+    assert est.adjustment.thresholds_px == (5.0, -5.0, -15.0)
+
+
+def test_options_a_method_does_not_have_are_ignored() -> None:
+    assert STEEP.options("imu-ego") == {} and STEEP.options("flat") == {}
+    assert isinstance(build_estimator(STEEP.with_method("imu-ego"), CAMERA), ImuEgoEstimator)
+    assert not isinstance(build_estimator(STEEP.with_method("imu-ego"), CAMERA), ImuEstimator)
+
+
+def test_depth_options_reach_depthmap() -> None:
+    cfg = EstimatorConfig(
+        "depthmap", depth_sample="window", depth_window_px=7, depth_scaling="contact"
+    )
+    est = build_estimator(cfg, CAMERA)
+    assert isinstance(est, DepthMapEstimator)
+    assert est.sample is DepthSample.WINDOW and est.window_px == 7
+    assert est.scaling is DepthScaling.CONTACT
+
+
+def test_method_options_feed_an_evaluation_config() -> None:
+    options = STEEP.method_options(available_methods())
+    assert set(options) == set(available_methods())
+    assert set(options["paper"]) == set(options["imu"]) == {"adjustment"}
+    assert options["ours"] == {}
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"method": "nope"}, "unknown method 'nope'"),
+        ({"thresholds_px": (0.0, 0.0, -20.0)}, "must decrease"),
+        ({"depth_sample": "middle"}, "middle"),
+    ],
+)
+def test_bad_options_are_configuration_errors(kwargs: dict, message: str) -> None:
+    with pytest.raises(ConfigurationError, match=message):
+        EstimatorConfig(**kwargs)

@@ -1,0 +1,34 @@
+"""The report's figures: a track's records become one distance series on its own time axis,
+drawn by the same panel as the demo's plots."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from slopedist.errors import ConfigurationError
+from slopedist.report import ReportOptions, report_data
+from slopedist.report.figures import figure_tracks, track_series
+from tests.report.test_report import _record, write_run
+
+
+def test_track_series_aligns_methods_on_the_track_times(tmp_path: Path) -> None:
+    rows = [_record(0, 10.0, 11.0), _record(2, "", 30.0, "below_horizon"), _record(3, 95.0, 70.0)]
+    flat = _record(2, 29.0, 30.0)
+    flat["method"] = "flat"
+    write_run(tmp_path / "seq", [*rows, flat], [{"frame": 0, "estimation_ms": 1.0}])
+    data = report_data(tmp_path / "seq", ReportOptions())
+    t_s, series = track_series(data, "seq", 3)
+    np.testing.assert_allclose(t_s, [0.0, 0.2, 0.3])
+    np.testing.assert_allclose(series.truth, [11.0, 30.0, 70.0])
+    # the cap rule: below the horizon and above 80 m both count as 80 m
+    np.testing.assert_allclose(series.estimates["paper"], [10.0, 80.0, 80.0])
+    assert math.isnan(series.estimates["flat"][0]) and series.estimates["flat"][1] == 29.0
+    assert series.below_horizon["paper"].tolist() == [False, True, False]
+    figure = figure_tracks(data, [("seq", 3)])
+    assert figure is not None and figure.png.startswith(b"\x89PNG")
+    with pytest.raises(ConfigurationError, match="track 4 of sequence seq"):
+        track_series(data, "seq", 4)

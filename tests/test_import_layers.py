@@ -1,0 +1,118 @@
+"""The import graph runs down the layers only: a module never imports one of a higher layer.
+
+Layers, low to high (a module's layer is that of its longest matching prefix):
+
+0. ``errors``, ``geometry`` — pure equations and the exception hierarchy;
+1. ``camera``;
+2. ``io``, ``detections``, ``odometry``, ``depth`` — inputs, outputs and rotation sources;
+3. ``estimators``, ``datasets`` — the methods and the data they are tested on;
+4. ``pipeline`` — the one per-frame step;
+5. ``evaluation``, ``kitti_eval``, ``runner``, ``demo``, ``viz``, ``report``, ``offline`` and the
+   other applications of the step;
+6. ``cli`` — options in, library calls out; a command module imports no other command module.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "slopedist"
+
+LAYERS: dict[str, int] = {
+    "__main__": 6,
+    "errors": 0,
+    "geometry": 0,
+    "camera": 1,
+    "io": 2,
+    "detections": 2,
+    "odometry": 2,
+    "depth": 2,
+    "estimators": 3,
+    "datasets": 3,
+    "pipeline": 4,
+    "cli": 6,
+}
+"""Layer of each top-level module or package of ``slopedist``; anything else is layer 5."""
+
+APPLICATION_LAYER = 5
+
+
+def module_name(path: Path) -> str:
+    """Dotted name below ``slopedist`` of a source file (``io/frames.py`` → ``io.frames``)."""
+    parts = path.relative_to(SRC).with_suffix("").parts
+    return ".".join(p for p in parts if p != "__init__")
+
+
+def layer_of(name: str) -> int:
+    """Layer of a dotted module name below ``slopedist`` (the package root itself is layer 0)."""
+    top = name.split(".")[0] if name else ""
+    return LAYERS.get(top, APPLICATION_LAYER if top else 0)
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Dotted names below ``slopedist`` that ``path`` imports (absolute and relative imports)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = module_name(path).split(".")
+    if path.name != "__init__.py":
+        package = package[:-1]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.split(".")[0] == "slopedist"}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                target = ".".join(["slopedist", *base, *([node.module] if node.module else [])])
+            else:
+                target = node.module or ""
+            if target.split(".")[0] == "slopedist":
+                found.add(target)
+                found |= {
+                    f"{target}.{a.name}" for a in node.names if _is_module(f"{target}.{a.name}")
+                }
+    return {n.removeprefix("slopedist").lstrip(".") for n in found}
+
+
+def _is_module(dotted: str) -> bool:
+    rel = Path(*dotted.split(".")[1:])
+    return (SRC / rel).with_suffix(".py").exists() or (SRC / rel / "__init__.py").exists()
+
+
+def violations() -> list[str]:
+    """Every import of a higher layer, and every command module importing another command."""
+    found = []
+    for path in sorted(SRC.rglob("*.py")):
+        name = module_name(path)
+        for target in imported_modules(path):
+            if layer_of(target) > layer_of(name):
+                found.append(
+                    f"{name} (layer {layer_of(name)}) imports {target} ({layer_of(target)})"
+                )
+            if name.endswith("_cmd") and target.startswith("cli.") and target.endswith("_cmd"):
+                found.append(f"command {name} imports command {target}")
+    return found
+
+
+def test_layer_of_hand_cases() -> None:
+    assert layer_of("geometry") == 0
+    assert layer_of("io.frames") == 2
+    assert layer_of("estimators.ours.cues") == 3
+    assert layer_of("report.tables") == APPLICATION_LAYER
+    assert layer_of("cli.run_cmd") == 6
+
+
+def test_checker_sees_an_upward_import(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pkg = tmp_path / "slopedist"
+    (pkg / "io").mkdir(parents=True)
+    (pkg / "io" / "__init__.py").write_text("")
+    (pkg / "pipeline.py").write_text("")
+    (pkg / "io" / "bad.py").write_text("from slopedist.pipeline import x\nfrom ..errors import E\n")
+    monkeypatch.setattr(f"{__name__}.SRC", pkg)
+    assert violations() == ["io.bad (layer 2) imports pipeline (4)"]
+
+
+def test_no_import_runs_up_the_layers() -> None:
+    assert violations() == []

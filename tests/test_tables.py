@@ -1,0 +1,49 @@
+"""Tables as data: text, Markdown and HTML renderings of one table."""
+
+from __future__ import annotations
+
+import math
+
+from slopedist.tables import (
+    Table,
+    best_marks,
+    format_html,
+    format_markdown,
+    format_table,
+    format_text,
+)
+
+
+def test_format_table() -> None:
+    text = format_table(["a", "b"], [["x", 1.234], ["yy", float("nan")]])
+    assert text.splitlines()[2].split() == ["x", "1.23"]
+    assert text.splitlines()[3].split() == ["yy", "-"]
+
+
+def test_best_marks_within_tolerance_and_direction() -> None:
+    assert best_marks([2.0, 1.0, 1.004, math.nan]) == [False, True, True, False]
+    assert best_marks([0.5, 0.9], larger_is_better=True) == [False, True]
+    assert best_marks([math.nan, "x"]) == [False, False]
+
+
+TABLE = Table(
+    "t1",
+    "Title <1>",
+    ["sequence", "n", "flat"],
+    [["0000", 3, 1.23456], ["0001", 2, math.nan]],
+    [[False, False, True], [False, False, False]],
+    "a note\nsecond line",
+    {2: ".3f"},
+)
+
+
+def test_one_table_three_renderings() -> None:
+    text = format_text(TABLE).splitlines()
+    assert text[0] == "Title <1>" and text[3].split() == ["0000", "3", "1.235*"]
+    assert text[4].split() == ["0001", "2", "-"] and text[-1] == "second line"
+    md = format_markdown(TABLE)
+    assert "| 0000 | 3 | **1.235** |" in md and "|:---|---:|---:|" in md
+    page = format_html(TABLE)
+    assert "<h2>Title &lt;1&gt;</h2>" in page and "<td><b>1.235</b></td>" in page
+    assert "a note<br>second line" in page
+    assert TABLE.records()[1] == {"sequence": "0001", "n": 2, "flat": TABLE.rows[1][2]}
