@@ -26,9 +26,14 @@ from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
 from slopedist.camera import Camera
-from slopedist.io.frames import Frame, FrameSource
+from slopedist.depth import FileDepthSource
+from slopedist.detections.readers import read_box_file
+from slopedist.errors import ConfigurationError, SlopedistError
+from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.io.frames import Frame, FrameSource, open_frames
 from slopedist.io.tables import write_json
-from slopedist.runner import SUMMARY_NAME, RunResult, run_frames
+from slopedist.odometry import make_odometry
+from slopedist.runner import SUMMARY_NAME, RunConfig, RunResult, run_frames
 
 TMP_PREFIX = ".tmp-"
 ATTEMPTS_PREFIX = ".attempts-"
@@ -38,47 +43,41 @@ CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
 
 
 def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
-    """Run ``spec`` into ``out_dir`` exactly as ``slopedist run`` would with the same options
-    (the adapter to the single-drive library; ``crash_after`` is the test hook of
-    :data:`CRASH_ENV`)."""
-    from slopedist.cli.run_cmd import (
-        DepthOptions,
-        build_depth_source,
-        build_odometry,
-        check_runnable,
-    )
-    from slopedist.detections.readers import read_box_file
-    from slopedist.estimators import make_estimator
-    from slopedist.io.frames import open_frames
+    """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options: the one
+    adapter between the batch and the single-drive library (``crash_after`` is the test hook
+    of :data:`CRASH_ENV`).
 
+    Raises:
+        ConfigurationError: a method ``run`` cannot feed (defined on IMU rotations).
+        SlopedistError / OSError: bad inputs, as ``slopedist run`` raises them.
+    """
     camera = Camera.from_kitti_calib(
         spec.calib, "P2", spec.height_m, math.radians(spec.mount_angle_deg)
     )
     source = open_frames(spec.frames, spec.fps, spec.timestamps)
     boxes = read_box_file(spec.boxes, spec.score)
-    estimator = make_estimator(spec.method, camera)
-    check_runnable(estimator, spec.depth_dir is not None, boxes)
-    depth = build_depth_source(DepthOptions(folder=spec.depth_dir), source)
-    odometry = (
-        None
-        if spec.odometry == "none"
-        else build_odometry(spec.odometry, camera, None, spec.lookback_s)
-    )
+    estimator = build_estimator(EstimatorConfig(method=spec.method), camera)
+    if estimator.rotation_source is not None:
+        raise ConfigurationError(
+            f"method '{spec.method}' is defined on '{estimator.rotation_source}' rotations; "
+            "a batch feeds visual-odometry rotations from the frames"
+        )
+    depth = None
+    if spec.depth_dir is not None:
+        width, height = source.frame_size()
+        depth = FileDepthSource(spec.depth_dir, missing_ok=True, expected_shape=(height, width))
+    odometry = None
+    if spec.odometry == "builtin":
+        odometry = make_odometry(spec.odometry, camera, lookback_s=spec.lookback_s)
+    elif spec.odometry != "none":
+        odometry = make_odometry(spec.odometry, camera)
     frames: FrameSource = source
     if crash_after is not None:
         frames = cast(FrameSource, _CrashingFrames(source, crash_after))
-    return run_frames(
-        frames,
-        camera,
-        boxes,
-        odometry,
-        estimator,
-        out_dir,
-        lookback_s=spec.lookback_s,
-        progress=False,
-        sequence=spec.sequence or spec.name,
-        depth=depth,
+    config = RunConfig(
+        out_dir, spec.lookback_s, progress=False, sequence=spec.sequence or spec.name
     )
+    return run_frames(frames, boxes, odometry, estimator, config, depth)
 
 
 class _CrashingFrames:
@@ -134,8 +133,6 @@ def publish(tmp: Path, final: Path) -> None:
 
 def error_text(exc: BaseException) -> str:
     """One line for ``status.csv``: the message of a slopedist error, else type and message."""
-    from slopedist.errors import SlopedistError
-
     text = str(exc) if isinstance(exc, SlopedistError) else f"{type(exc).__name__}: {exc}"
     return " ".join(text.split())
 
