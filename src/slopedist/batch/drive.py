@@ -25,11 +25,11 @@ from typing import Any, cast
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
-from slopedist.camera import Camera
 from slopedist.depth import FileDepthSource
 from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import Frame, FrameSource, open_frames
 from slopedist.io.tables import write_json
 from slopedist.odometry import make_odometry
@@ -51,11 +51,10 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
         ConfigurationError: a method ``run`` cannot feed (defined on IMU rotations).
         SlopedistError / OSError: bad inputs, as ``slopedist run`` raises them.
     """
-    camera = Camera.from_kitti_calib(
-        spec.calib, "P2", spec.height_m, math.radians(spec.mount_angle_deg)
-    )
+    calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
+    camera = calibration.camera
     source = open_frames(spec.frames, spec.fps, spec.timestamps)
-    boxes = read_box_file(spec.boxes, spec.score)
+    boxes = calibration.intrinsics.rectify_table(read_box_file(spec.boxes, spec.score))
     estimator = build_estimator(EstimatorConfig(method=spec.method), camera)
     if estimator.rotation_source is not None:
         raise ConfigurationError(
