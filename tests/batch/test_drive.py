@@ -6,14 +6,18 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
 from slopedist.batch.drive import completed_stamp, process_drive, publish
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY, input_stamp
 from slopedist.batch.status import DriveStatus
+from slopedist.cli import main
 
 from .conftest import run_alone, simulate
 
@@ -109,3 +113,28 @@ def test_an_unfinished_run_is_not_complete(tmp_path: Path) -> None:
     assert completed_stamp(folder) == {"a": 1}
     (folder / "run.json").write_text("{trunc")
     assert completed_stamp(folder) is None
+
+
+def test_a_drive_with_a_detector_gives_the_records_of_run_alone(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
+    pytest.importorskip("onnxruntime", reason="onnxruntime (extra 'onnx') runs the detector")
+    out = np.zeros((12, 20))  # YOLOv8 [1, 4 + 8, 20] of a 320x320 input: one car
+    out[:4, 0], out[4 + 2, 0] = (130, 200, 60, 40), 0.9
+    model = constant_model(tmp_path / "yolo.onnx", {"output0": out[None]})
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(frames / f"{i:06d}.png"), np.full((360, 640, 3), 80 + 20 * i, np.uint8))
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 500 0 320 0 0 500 180 0 0 0 1 0\n")
+    spec = DriveSpec("det", frames, calib, None, method="flat", odometry="none", detector=model)
+    batch = tmp_path / "batch"
+    batch.mkdir()
+    outcome = process_drive(spec, batch, input_stamp(spec))
+    assert outcome.status is DriveStatus.DONE, outcome.error
+    alone = tmp_path / "alone"
+    args = ["run", str(frames), "--calib", str(calib), "--detector", str(model), "--quiet"]
+    assert main([*args, "--method", "flat", "--odometry", "none", "--out", str(alone)]) == 0
+    records = (batch / "det" / "records.csv").read_bytes()
+    assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") == 4

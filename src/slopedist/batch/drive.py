@@ -26,11 +26,14 @@ from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
 from slopedist.depth import FileDepthSource
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import Detector, OnnxDetector
 from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators import EstimatorConfig, build_estimator
 from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import Frame, FrameSource, open_frames
+from slopedist.io.intrinsics import RectifiedDetector
 from slopedist.io.tables import write_json
 from slopedist.odometry import make_odometry
 from slopedist.runner import SUMMARY_NAME, RunConfig, RunResult, run_frames
@@ -54,7 +57,14 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
     calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
     camera = calibration.camera
     source = open_frames(spec.frames, spec.fps, spec.timestamps)
-    boxes = calibration.intrinsics.rectify_table(read_box_file(spec.boxes, spec.score))
+    boxes = BoxTable.empty()
+    detector: Detector | None = None
+    if spec.boxes is not None:
+        boxes = calibration.intrinsics.rectify_table(read_box_file(spec.boxes, spec.score))
+    elif spec.detector is not None:
+        detector = OnnxDetector(spec.detector)
+        if not calibration.intrinsics.is_ideal:
+            detector = RectifiedDetector(detector, calibration.intrinsics)
     estimator = build_estimator(EstimatorConfig(method=spec.method), camera)
     if estimator.rotation_source is not None:
         raise ConfigurationError(
@@ -76,7 +86,7 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
     config = RunConfig(
         out_dir, spec.lookback_s, progress=False, sequence=spec.sequence or spec.name
     )
-    return run_frames(frames, boxes, odometry, estimator, config, depth)
+    return run_frames(frames, boxes, odometry, estimator, config, depth, detector)
 
 
 class _CrashingFrames:

@@ -34,8 +34,11 @@ else:  # pragma: no cover
 ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
 """Values of the ``odometry`` column (as ``slopedist run --odometry``)."""
 
-REQUIRED_COLUMNS = ("drive", "frames", "calib", "boxes")
+REQUIRED_COLUMNS = ("drive", "frames", "calib")
+BOX_COLUMNS = ("boxes", "detector")
+"""Where a drive's boxes come from: a box file or an ONNX detector (exactly one per drive)."""
 OPTIONAL_COLUMNS = (
+    *BOX_COLUMNS,
     "method",
     "timestamps",
     "fps",
@@ -48,7 +51,8 @@ OPTIONAL_COLUMNS = (
     "sequence",
 )
 """Manifest columns beyond the required ones; each is the ``slopedist run`` option of that name
-(``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s)."""
+(``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s); one of
+:data:`BOX_COLUMNS` must be there."""
 
 FRAME_NAMES = ("image_02", "frames", "images", "video.mp4", "video.avi", "video.mkv")
 """Where a drive folder's frames are, in order of preference (folder layout)."""
@@ -75,7 +79,9 @@ class DriveSpec:
 
     Attributes:
         name: drive name, the output sub-folder ``OUT/<name>``.
-        frames / calib / boxes: absolute input paths (image folder or video; KITTI calib; boxes).
+        frames / calib: absolute input paths (image folder or video; calibration file).
+        boxes / detector: the box file, or the ONNX detector run on every frame (default
+            settings); exactly one is set.
         method: estimator name.
         timestamps: timestamps file or None; ``fps``: frame rate (frames/s) or None.
         score: minimum box score or None.
@@ -90,7 +96,7 @@ class DriveSpec:
     name: str
     frames: Path
     calib: Path
-    boxes: Path
+    boxes: Path | None
     method: str = DEFAULT_METHOD
     timestamps: Path | None = None
     fps: float | None = None
@@ -101,6 +107,7 @@ class DriveSpec:
     lookback_s: float = LOOKBACK_S
     depth_dir: Path | None = None
     sequence: str | None = None
+    detector: Path | None = None
     origin: str = ""
 
 
@@ -166,13 +173,16 @@ def spec_from_row(
     }
     if "score" in nums:
         nums["score"] = _number(cells["score"], where, "score")
-    frames, calib, boxes = path("frames"), path("calib"), path("boxes")
-    assert frames is not None and calib is not None and boxes is not None
+    if bool(cells.get("boxes")) == bool(cells.get("detector")):
+        which = "both" if cells.get("boxes") else "neither"
+        raise where("boxes", f"give a box file or a detector (exactly one; {which} given)")
+    frames, calib = path("frames"), path("calib")
+    assert frames is not None and calib is not None
     return DriveSpec(
         name=cells["drive"],
         frames=frames,
         calib=calib,
-        boxes=boxes,
+        boxes=path("boxes"),
         method=method,
         timestamps=path("timestamps"),
         fps=nums.get("fps"),
@@ -183,6 +193,7 @@ def spec_from_row(
         lookback_s=nums.get("lookback", defaults.lookback_s),
         depth_dir=path("depth_dir"),
         sequence=cells.get("sequence") or None,
+        detector=path("detector"),
         origin=origin,
     )
 
@@ -201,10 +212,10 @@ def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> 
         reader = csv.DictReader(fh)
         header = [h.strip() for h in reader.fieldnames or []]
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        missing += [] if set(BOX_COLUMNS) & set(header) else ["boxes"]
         if missing:
-            raise InputFileError(
-                path, f"missing column(s) {', '.join(missing)}", line=1, field=missing[0]
-            )
+            names = ", ".join(missing).replace("boxes", "boxes (or detector)")
+            raise InputFileError(path, f"missing column(s) {names}", line=1, field=missing[0])
         unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
         if unknown:
             raise InputFileError(

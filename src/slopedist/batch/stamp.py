@@ -64,6 +64,7 @@ def input_stamp(spec: DriveSpec) -> dict[str, Any]:
         "boxes": spec.boxes,
         "timestamps": spec.timestamps,
         "depth_dir": spec.depth_dir,
+        "detector": spec.detector,
     }
     return {
         "options_sha256": hashlib.sha256(options.encode()).hexdigest(),
