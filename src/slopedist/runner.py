@@ -20,10 +20,14 @@ Outputs under the output folder:
   θ (degrees), number of boxes and of estimated distances, odometry, estimation and depth time
   (ms; ``depth_ms`` = reading or inferring the frame's depth map, for depth-map methods, on
   frames with boxes).
+- ``tracks.csv``: one row per track (:mod:`slopedist.tracks`): first and last time, closest
+  distance, smallest TTC, TTC events.
 - ``run.json``: a summary (:class:`RunResult`), also written when the run stops on an error;
   its ``"sequence"`` names the sequence, so that the report lines up runs of different methods
   on one sequence.
-- optionally an overlay (PNG folder or MP4, :func:`slopedist.viz.draw_fig3_overlay`).
+- optionally an overlay (PNG folder or H.264 MP4, :func:`slopedist.viz.draw_fig3_overlay`),
+  an MCAP export for Foxglove (:mod:`slopedist.export_mcap`) and the rotation source's
+  trajectory as a TUM file (camera-to-world, translation 0; for ``evo_traj`` / ``evo_ape``).
 
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
 """
@@ -33,7 +37,9 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 
 import cv2
@@ -47,16 +53,31 @@ from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import Estimator, FrameEstimates
+from slopedist.export_mcap import McapExportWriter
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
 from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
-from slopedist.viz import draw_fig3_overlay
+from slopedist.tracks import TRACKS_NAME, TrackSummaries
+from slopedist.viz import draw_fig3_overlay, lead_index
 
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
+MCAP_NAME = "run.mcap"
+TRAJECTORY_NAME = "trajectory.tum"
+
+
+class RunExport(str, Enum):
+    """Optional outputs for viewers (``slopedist run --export``)."""
+
+    MCAP = "mcap"
+    """``run.mcap``: images, boxes, distances and θ with Foxglove schemas."""
+    TUM = "tum"
+    """``trajectory.tum``: the rotation source's camera-to-world rotations (TUM layout)."""
+
 
 FRAME_FIELDS = (
     "frame",
@@ -146,7 +167,7 @@ class RunResult:
         detection_ms_mean: mean detection time per frame, milliseconds.
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
-        overlay: overlay path, or None.
+        overlay: overlay path, or None; ``exports``: the MCAP / TUM files written.
         error: why the run stopped early, or None; ``failed_frame``: its frame index.
     """
 
@@ -170,6 +191,7 @@ class RunResult:
     frames_without_depth: int = 0
     ground_truth: bool = False
     overlay: str | None = None
+    exports: list[str] = field(default_factory=list)
     error: str | None = None
     failed_frame: int | None = None
 
@@ -210,6 +232,12 @@ class RunConfig:
         progress: show a progress bar on stderr.
         sequence: sequence name written to ``run.json`` (None:
             :func:`default_sequence_name` of the frames).
+        mcap: path of an MCAP export (:class:`~slopedist.export_mcap.McapExportWriter`), or None.
+        trajectory: path of a TUM trajectory of the rotation source's rotations, or None.
+        time_origin_ns: log time of frame time 0 in the MCAP export, nanoseconds (a drive log's
+            first image stamp, so the export plays in sync with the log).
+        ego_speed: the ego speed (m/s) at a frame time (s), for the headway time of
+            ``tracks.csv``; None when unknown.
     """
 
     out_dir: Path
@@ -218,6 +246,10 @@ class RunConfig:
     overlay_fps: float = 10.0
     progress: bool = True
     sequence: str | None = None
+    mcap: Path | None = None
+    trajectory: Path | None = None
+    time_origin_ns: int = 0
+    ego_speed: Callable[[float], float] | None = None
 
 
 def run_frames(
@@ -266,6 +298,7 @@ def run_frames(
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
         depth_source=describe_depth(depth) if depth is not None else None,
+        exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
         detector=str(getattr(detector, "model_path", type(detector).__name__))
         if detector
         else None,
@@ -333,6 +366,13 @@ class _RunLoop:
         self.records = open_records(self.records_path)
         self.frame_log = CsvStreamWriter.open(out / FRAMES_NAME, FRAME_FIELDS)
         self.painter = OverlayWriter(config.overlay, config.overlay_fps) if config.overlay else None
+        self.export = (
+            McapExportWriter(config.mcap, self.method, config.time_origin_ns)
+            if config.mcap
+            else None
+        )
+        self.trajectory = TumPoseWriter(config.trajectory) if config.trajectory else None
+        self.tracks = TrackSummaries()
         self.bar: tqdm | None = None
         self.start = time.perf_counter()
 
@@ -374,6 +414,8 @@ class _RunLoop:
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
+        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         self.frame_log.write_row(
             {
                 "frame": k,
@@ -394,6 +436,7 @@ class _RunLoop:
             }
         )
         self._paint(frame, frame_boxes, res, odo.state)
+        self._export(frame, frame_boxes, res, odo)
         self.result.frames += 1
 
     def _boxes(self, frame: Frame) -> tuple[BoxTable, float]:
@@ -455,18 +498,38 @@ class _RunLoop:
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
         if self.painter is None:
             return
-        k = frame.index
+        k, t = frame.index, frame.timestamp_s
         if frame.image is None:
-            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}")
+            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
             return
         theta = res.theta_rad
-        head = (
-            f"frame {k}  theta {math.degrees(theta):+.2f} deg"
-            if math.isfinite(theta)
-            else f"frame {k}  no rotation ({state or 'no odometry'})"
+        head = f"frame {k}  t {t:.2f} s"
+        if not math.isfinite(theta):
+            head += f"  no rotation ({state or 'no odometry'})"
+        image = draw_fig3_overlay(
+            frame.image, self.camera, frame_boxes, res.estimates, theta, head, self.method
         )
-        image = draw_fig3_overlay(frame.image, self.camera, frame_boxes, res.estimates, theta, head)
-        self.painter.write(k, image)
+        self.painter.write(k, image, t)
+
+    def _export(
+        self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, odo: _OdometryOutput
+    ) -> None:
+        """The frame in the MCAP export and its rotation in the TUM trajectory."""
+        if self.trajectory is not None and odo.R_world_cam is not None:
+            self.trajectory.write(frame.timestamp_s, odo.R_world_cam)
+        if self.export is None:
+            return
+        self.export.write_frame(
+            frame.index,
+            frame.timestamp_s,
+            frame.source,
+            frame.status.value,
+            frame.image,
+            frame_boxes,
+            res.estimates,
+            res.theta_rad,
+            lead_index(self.camera, frame_boxes, res.estimates),
+        )
 
     def finish(self) -> None:
         """Fill in the summary, close every output and write ``run.json``."""
@@ -486,8 +549,10 @@ class _RunLoop:
             self.bar.close()
         close_records(self.records)
         self.frame_log.close()
-        if self.painter is not None:
-            self.painter.close()
+        self.tracks.write(Path(self.config.out_dir) / TRACKS_NAME)
+        for output in (self.painter, self.export, self.trajectory):
+            if output is not None:
+                output.close()
         write_json(Path(self.config.out_dir) / SUMMARY_NAME, result)
 
     def _aborted(self, exc: BaseException, frame: Frame | None) -> RunAbortedError:

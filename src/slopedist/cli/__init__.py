@@ -20,6 +20,7 @@ from slopedist.cli.demo_cmd import demo
 from slopedist.cli.detect_cmd import detect
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
+from slopedist.cli.log_cmd import log_group
 from slopedist.cli.odometry_cmd import odometry_group
 from slopedist.cli.report_cmd import report
 from slopedist.cli.run_cmd import run
@@ -41,6 +42,7 @@ cli.add_command(run)
 cli.add_command(simulate)
 cli.add_command(demo)
 cli.add_command(calibrate)
+cli.add_command(log_group)
 cli.add_command(convert)
 cli.add_command(camera_group)
 cli.add_command(detect)

@@ -1,4 +1,4 @@
-"""``slopedist run``: frames (image folder or video) + boxes → per-target distances, from pixels.
+"""``slopedist run``: frames (image folder, video or drive log) + boxes → per-target distances.
 
 Depth-map methods (``--method depthmap``) take their depth maps from a folder of per-frame files
 (``--depth-dir``: KITTI depth PNG or ``.npy``) or from an ONNX depth model run on each frame
@@ -39,11 +39,21 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
-from slopedist.io.frames import FrameSource, open_frames
+from slopedist.io.frames import FrameSource
 from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
+from slopedist.runner import (
+    FRAMES_NAME,
+    MCAP_NAME,
+    RECORDS_NAME,
+    TRAJECTORY_NAME,
+    RunConfig,
+    RunExport,
+    RunResult,
+    run_frames,
+)
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
@@ -146,16 +156,21 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
 
 
 def check_runnable(
-    estimator: Estimator, has_depth: bool = False, boxes: BoxTable | None = None
+    estimator: Estimator,
+    has_depth: bool = False,
+    boxes: BoxTable | None = None,
+    logged_rotations: bool = False,
 ) -> None:
-    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU),
-    depth-map methods without a depth source (or depth without a depth-map method), and the
-    ``truth`` depth scaling without a ground-truth column in the boxes."""
+    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU)
+    unless the rotations come from a log topic (``logged_rotations``), depth-map methods without
+    a depth source (or depth without a depth-map method), and the ``truth`` depth scaling
+    without a ground-truth column in the boxes."""
     source = getattr(estimator, "rotation_source", None)
-    if source is not None:
+    if source is not None and not logged_rotations:
         raise ConfigurationError(
             f"method '{estimator.name}' is defined on '{source}' rotations; slopedist run feeds "
-            "visual-odometry rotations from the frames (use slopedist estimate with pose files)"
+            "visual-odometry rotations from the frames, or a drive log's IMU / odometry topic "
+            "with --rotation-topic (or use slopedist estimate with pose files)"
         )
     if estimator.needs_depth and not has_depth:
         raise ConfigurationError(
@@ -183,10 +198,37 @@ def check_runnable(
 @click.argument("frames", type=click.Path(path_type=Path))
 @click.option(
     "--calib",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False, path_type=Path),
     help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
-    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md).",
+    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md) [default for a drive "
+    "log: its camera_info topic].",
+)
+@click.option(
+    "--image-topic",
+    default=None,
+    help="Drive log (.bag, .mcap, .db3, ROS 2 bag folder): the sensor_msgs/Image or "
+    "CompressedImage topic (see: slopedist log info LOG).",
+)
+@click.option(
+    "--rotation-topic",
+    default=None,
+    help="Drive log: a sensor_msgs/Imu, nav_msgs/Odometry or pose topic whose orientation "
+    "replaces the visual odometry (body x forward, y left, z up; see docs/viewers.md).",
+)
+@click.option(
+    "--speed-topic",
+    default=None,
+    help="Drive log: a nav_msgs/Odometry or TwistStamped topic giving the ego speed, for the "
+    "headway time in OUT/tracks.csv.",
+)
+@click.option(
+    "--export",
+    "exports",
+    type=click.Choice([e.value for e in RunExport]),
+    multiple=True,
+    help="Also write OUT/run.mcap (Foxglove schemas) and/or OUT/trajectory.tum (rotations, "
+    "for evo). Repeatable.",
 )
 @click.option(
     "--boxes",
@@ -311,7 +353,11 @@ def check_runnable(
 @detector_options("detector-")
 def run(
     frames: Path,
-    calib: Path,
+    calib: Path | None,
+    image_topic: str | None,
+    rotation_topic: str | None,
+    speed_topic: str | None,
+    exports: tuple[str, ...],
     boxes_path: Path | None,
     detector_model: Path | None,
     method: str | None,
@@ -340,17 +386,24 @@ def run(
     estimator_config: EstimatorConfig,
     **detector_opts: Any,
 ) -> None:
-    """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
+    """Estimate distances from FRAMES (an image folder, a video file or a drive log) and
+    per-frame boxes.
 
-    The camera rotation comes from visual odometry on the frames; records are written to
-    OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
-    gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
+    The camera rotation comes from visual odometry on the frames (or a log's IMU / odometry
+    topic); records are written to OUT/records.csv frame by frame, with a per-frame log in
+    OUT/frames.csv. A box file with a gt_distance_m column (metres) makes the run scorable by
+    `slopedist report OUT`.
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
-    calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
+    source = open_source(frames, fps, timestamps, image_topic)
+    mount_rad = math.radians(mount_angle_deg)
+    calibration = (
+        read_calibration(calib, height_m, mount_rad)
+        if calib is not None
+        else log_calibration(source, height_m, mount_rad)
+    )
     camera = calibration.camera
-    source = open_frames(frames, fps, timestamps)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes = calibration.intrinsics.rectify_table(boxes)
     if detector is not None and not calibration.intrinsics.is_ideal:
@@ -367,16 +420,32 @@ def run(
         depth_bgr,
         depth_threads,
     )
-    check_runnable(estimator, depth_dir is not None or depth_model is not None, boxes)
+    has_depth = depth_dir is not None or depth_model is not None
+    check_runnable(estimator, has_depth, boxes, rotation_topic is not None)
     depth = build_depth_source(depth_opts, source)
     if odometry == "none" and vocab is not None:
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    backend = None if odometry == "none" else build_odometry(odometry, camera, vocab, lookback_s)
+    backend: RotationOdometry | None = None
+    if rotation_topic is not None:
+        backend = log_rotation_source(source, rotation_topic)
+    elif odometry != "none":
+        backend = build_odometry(odometry, camera, vocab, lookback_s)
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    config = RunConfig(out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence)
+    config = RunConfig(
+        out_dir,
+        lookback_s,
+        overlay_path,
+        overlay_fps,
+        not quiet,
+        sequence,
+        mcap=out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None,
+        trajectory=out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None,
+        time_origin_ns=int(getattr(source, "t0_ns", 0)),
+        ego_speed=log_speed(source, speed_topic) if speed_topic else None,
+    )
     result = run_frames(source, boxes, backend, estimator, config, depth, detector)
     click.echo(summary_text(result, out_dir), err=True)
 
@@ -432,4 +501,5 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
         )
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")
+    lines.extend(f"export: {path}" for path in result.exports)
     return "\n".join(lines)
