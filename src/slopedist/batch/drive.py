@@ -32,8 +32,9 @@ from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators import EstimatorConfig, build_estimator
 from slopedist.io.calibration import read_calibration
-from slopedist.io.frames import Frame, FrameSource, open_frames
+from slopedist.io.frames import Frame, FrameSource
 from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.sources import open_source
 from slopedist.io.tables import write_json
 from slopedist.odometry import make_odometry
 from slopedist.runner import SUMMARY_NAME, RunConfig, RunResult, run_frames
@@ -56,7 +57,7 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
     """
     calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
     camera = calibration.camera
-    source = open_frames(spec.frames, spec.fps, spec.timestamps)
+    source = open_source(spec.frames, spec.fps, spec.timestamps)
     boxes = BoxTable.empty()
     detector: Detector | None = None
     if spec.boxes is not None:
