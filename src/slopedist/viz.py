@@ -157,8 +157,10 @@ def _label_lines(boxes: BoxTable, estimates: FrameEstimates, i: int, cut: bool) 
     name = f"#{tid} " if tid >= 0 else ""
     dy = float(estimates.delta_y_px[i])
     dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
-    if estimates.reason[i] == "":
+    if estimates.status[i] == "ok":
         first = f"{name}{float(estimates.distance_m[i]):.1f} m"
+    elif estimates.status[i] == "upper_bound":  # a bound, not a distance to trust
+        first = f"{name}<= {float(estimates.distance_m[i]):.1f} m ({estimates.reason[i]})"
     else:
         first = f"{name}missing: {estimates.reason[i]}"
     return [first + ("  cut" if cut else ""), dy_text]
@@ -277,13 +279,13 @@ def draw_fig3_overlay(
         if 0 <= b_y < h:
             reach = max((right - left) // 2, 20)
             dashed_hline(out, b_y, max(left - reach, 0), min(right + reach, w - 1), FIG3_YELLOW)
-        ok = estimates.reason[i] == ""
+        ok = estimates.status[i] == "ok"
         _draw_box(out, boxes.boxes[i], colours[i] if ok else FIG3_MISSING, cut[i])
     lead = lead_index(camera, boxes, estimates)
     reserved = _draw_header(out, _header_text(header, method, theta_rad), boxes, estimates, lead)
     texts = [_label_lines(boxes, estimates, i, cut.get(i, False)) for i in range(len(boxes))]
     label_colours = [
-        FIG3_MISSING if estimates.reason[i] != "" else FIG3_TEXT if t < 0 else colours[i]
+        FIG3_MISSING if estimates.status[i] != "ok" else FIG3_TEXT if t < 0 else colours[i]
         for i, t in enumerate(boxes.track_id)
     ]
     order = sorted(valid, key=lambda i: (i != lead, _distance_key(estimates, i)))

@@ -8,6 +8,7 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,9 @@ from slopedist.cli.options import (
     lookback_option,
     make_detector,
     mount_option,
+    parse_size,
     parse_triple,
+    vehicle_classes_option,
 )
 from slopedist.depth import (
     DepthOutputKind,
@@ -41,6 +44,12 @@ from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource
 from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.outputs import (
+    RunStoppedError,
+    check_outputs_spare_inputs,
+    partial_path,
+    stop_on_signals,
+)
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
@@ -48,12 +57,15 @@ from slopedist.runner import (
     FRAMES_NAME,
     MCAP_NAME,
     RECORDS_NAME,
+    SUMMARY_NAME,
     TRAJECTORY_NAME,
+    RunAbortedError,
     RunConfig,
     RunExport,
     RunResult,
     run_frames,
 )
+from slopedist.tracks import TRACKS_NAME
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
@@ -73,22 +85,6 @@ def build_odometry(
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
     return make_odometry(name, camera, lookback_s=lookback_s)
-
-
-def parse_size(value: str) -> tuple[int, int]:
-    """``"640x192"`` → ``(640, 192)`` (width, height in pixels)."""
-    w, sep, h = value.lower().replace("×", "x").partition("x")
-    if (
-        not sep
-        or not w.strip().isdigit()
-        or not h.strip().isdigit()
-        or not (int(w) > 0 and int(h) > 0)
-    ):
-        raise click.BadParameter(
-            f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
-            param_hint="--depth-input-size",
-        )
-    return int(w), int(h)
 
 
 @dataclass(frozen=True)
@@ -135,12 +131,13 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
         return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
     if opts.model is None:
         return None
-    if opts.input_size is None:
+    size = parse_size(opts.input_size, "--depth-input-size WIDTHxHEIGHT in pixels, e.g. 640x192")
+    if size is None:
         raise ConfigurationError(
             "--depth-model needs the network's input size: "
             "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)"
         )
-    in_w, in_h = parse_size(opts.input_size)
+    in_w, in_h = size
     config = OnnxDepthConfig(
         opts.model,
         in_w,
@@ -346,6 +343,7 @@ def check_runnable(
     help="onnxruntime threads [default: its own].",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@vehicle_classes_option
 @height_option
 @mount_option
 @lookback_option
@@ -380,6 +378,7 @@ def run(
     depth_bgr: bool,
     depth_threads: int | None,
     quiet: bool,
+    vehicle_classes: tuple[str, ...],
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
@@ -393,6 +392,9 @@ def run(
     topic); records are written to OUT/records.csv frame by frame, with a per-frame log in
     OUT/frames.csv. A box file with a gt_distance_m column (metres) makes the run scorable by
     `slopedist report OUT`.
+
+    Files are renamed from *.partial.* when the run ends; SIGTERM or Ctrl-C stops it after the
+    current frame (OUT/run.json says how far it got; exit code 128 + signal).
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
@@ -403,7 +405,7 @@ def run(
         if calib is not None
         else log_calibration(source, height_m, mount_rad)
     )
-    camera = calibration.camera
+    camera = with_frame_size(calibration.camera, source)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes = calibration.intrinsics.rectify_table(boxes)
     if detector is not None and not calibration.intrinsics.is_ideal:
@@ -434,6 +436,10 @@ def run(
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
+    inputs = [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model]
+    mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
+    tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
+    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path], inputs)
     config = RunConfig(
         out_dir,
         lookback_s,
@@ -441,13 +447,33 @@ def run(
         overlay_fps,
         not quiet,
         sequence,
-        mcap=out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None,
-        trajectory=out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None,
+        mcap=mcap_path,
+        trajectory=tum_path,
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
         ego_speed=log_speed(source, speed_topic) if speed_topic else None,
+        vehicle_classes=vehicle_classes,
     )
-    result = run_frames(source, boxes, backend, estimator, config, depth, detector)
+    result = run_until_stopped(
+        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config
+    )
     click.echo(summary_text(result, out_dir), err=True)
+
+
+def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
+    """``camera`` knowing the image size for the border test of every box: the frames' size,
+    unless the calibration states its own (then the run checks that the two agree)."""
+    if camera.image_width is not None and camera.image_height is not None:
+        return camera
+    return camera.with_image_size(*frames.frame_size())
+
+
+def check_run_outputs(out_dir: Path, extras: list[Path | None], inputs: list[Path | None]) -> None:
+    """Fail before anything is written if an output of the run (or its temporary name) is one
+    of its ``inputs``, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports)."""
+    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
+    outputs += [e for e in extras if e is not None]
+    outputs += [partial_path(o) for o in outputs]
+    check_outputs_spare_inputs(outputs, inputs, out_dir)
 
 
 def boxes_or_detector(
@@ -464,13 +490,27 @@ def boxes_or_detector(
     raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
+def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
+    """``start()`` (a :func:`~slopedist.runner.run_frames` call with ``config``) with
+    SIGTERM/SIGINT turned into a stop after the current frame (:attr:`RunConfig.stop`); a
+    stopped run exits with code 128 + the signal number."""
+    with stop_on_signals(config.stop):
+        try:
+            return start()
+        except RunAbortedError as exc:
+            if not isinstance(exc.__cause__, RunStoppedError):
+                raise
+            click.echo(f"slopedist: {exc}", err=True)
+            raise SystemExit(128 + exc.__cause__.signum) from None
+
+
 def summary_text(result: RunResult, out_dir: Path) -> str:
     """A few lines that tell what a run did and where its output is."""
     states = ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items())) or "none"
     status = ", ".join(f"{k} {v}" for k, v in sorted(result.frame_status.items()))
     lines = [
-        f"wrote {result.records} records ({result.estimated} with a distance, method "
-        f"{result.method}) to {out_dir / RECORDS_NAME}",
+        f"wrote {result.records} records ({result.estimated} ok, {result.upper_bounds} upper "
+        f"bounds, method {result.method}) to {out_dir / RECORDS_NAME}",
         f"frames: {result.frames} ({status}); odometry: {states}; per-frame log "
         f"{out_dir / FRAMES_NAME}",
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
@@ -494,6 +534,11 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
             else "no ground truth in the boxes (add a gt_distance_m column to score the run)"
         )
     )
+    if result.not_vehicles:
+        lines.append(
+            f"{result.not_vehicles} boxes are not of a vehicle class (missing, reason "
+            "not_a_vehicle; see --vehicle-classes)"
+        )
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
