@@ -55,9 +55,11 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
         ConfigurationError: a method ``run`` cannot feed (defined on IMU rotations).
         SlopedistError / OSError: bad inputs, as ``slopedist run`` raises them.
     """
+    source = open_source(spec.frames, spec.fps, spec.timestamps)
     calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
     camera = calibration.camera
-    source = open_source(spec.frames, spec.fps, spec.timestamps)
+    if camera.image_width is None or camera.image_height is None:  # as run: the frames' size
+        camera = camera.with_image_size(*source.frame_size())
     boxes = BoxTable.empty()
     detector: Detector | None = None
     if spec.boxes is not None:

@@ -2,7 +2,9 @@
 
 - ``OUT/records.parquet/drive=<drive>/part-0.parquet``: every drive's ``records.csv`` as one
   Hive-partitioned Parquet dataset (read it with ``pyarrow.dataset.dataset(path,
-  partitioning="hive")``; the partition column is ``drive``). Written per drive, atomically.
+  partitioning="hive")``; the partition column is ``drive``). Written per drive, atomically;
+  the record columns have fixed types, and a method-specific extra column that is empty in a
+  drive is written as float64.
 - :func:`fleet_summary`: per-drive and pooled distance metrics (metres) of every method where
   the records carry the true distance ``gt_distance_m``, and the error by true-distance range
   (:data:`~slopedist.evaluation.DISTANCE_BINS_M`), scored as ``slopedist report`` scores runs
@@ -52,7 +54,7 @@ _FLOAT_COLUMNS = (
     CSV_TRUTH_COLUMN,
 )
 _INT_COLUMNS = ("frame", "track_id")
-_STRING_COLUMNS = ("class", "method", "reference", "status", "reason")
+_STRING_COLUMNS = ("class", "method", "reference", "status", "reason", "cut")
 
 
 def import_pyarrow() -> Any:
@@ -84,6 +86,9 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     table = pa.csv.read_csv(
         out_dir / drive / RECORDS_NAME, convert_options=pa.csv.ConvertOptions(column_types=types)
     )
+    for i, column in enumerate(table.schema):  # an extra column empty in this drive: numbers
+        if pa.types.is_null(column.type):
+            table = table.set_column(i, column.name, table.column(i).cast(pa.float64()))
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(".part-0.parquet.tmp")
     pa.parquet.write_table(table, tmp)
