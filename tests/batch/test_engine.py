@@ -16,7 +16,7 @@ import pytest
 
 from slopedist.batch import BatchOptions, BatchResult, DriveStatus, load_drives, run_batch
 from slopedist.batch.drive import CRASH_ENV
-from slopedist.batch.engine import import_ray
+from slopedist.batch.engine import import_ray, kept_signal_handlers
 from slopedist.cli import main
 from slopedist.errors import OptionalDependencyError
 
@@ -31,9 +31,10 @@ CRASHED = "ego_crest_paper"
 def ray_instance() -> Iterator[Any]:
     ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'slopedist[batch]'")
     pytest.importorskip("pyarrow", reason="pyarrow is not installed")
-    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
+    with kept_signal_handlers():  # for the tests that follow in this process
+        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+        yield ray
+        ray.shutdown()
 
 
 @dataclass
@@ -178,3 +179,12 @@ def test_fail_fast_stops_the_batch(fleet: Fleet, tmp_path: Path) -> None:
     assert status["broken"] == "failed"
     assert "cancelled" in status.values()  # 2 CPUs: at least one good drive was still waiting
     assert all(status[f"good{i}"] in ("cancelled", "done") for i in range(3))
+
+
+def test_signal_handlers_are_restored() -> None:
+    import signal
+
+    before = signal.getsignal(signal.SIGTERM)
+    with kept_signal_handlers():
+        signal.signal(signal.SIGTERM, lambda *_: None)
+    assert signal.getsignal(signal.SIGTERM) is before

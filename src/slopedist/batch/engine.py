@@ -15,6 +15,8 @@ import json
 import logging
 import os
 import shutil
+import signal
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -133,15 +135,29 @@ def ray_session(workers: int | None, address: str | None) -> Iterator[Any]:
         "log_to_driver": False,
         "logging_level": logging.WARNING,
     }
-    if address:
-        ray.init(address=address, **settings)
-    else:
-        # "local": a new instance even when an earlier `ray start` left its address behind
-        ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **settings)
+    with kept_signal_handlers():
+        if address:
+            ray.init(address=address, **settings)
+        else:
+            # "local": a new instance even when an earlier `ray start` left its address behind
+            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **settings)
+        try:
+            yield ray
+        finally:
+            ray.shutdown()
+
+
+@contextmanager
+def kept_signal_handlers() -> Iterator[None]:
+    """Restore this process's SIGINT/SIGTERM handlers on exit (``ray.init`` installs its own
+    and ``ray.shutdown`` leaves them)."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield ray
+        yield
     finally:
-        ray.shutdown()
+        if threading.current_thread() is threading.main_thread():
+            for sig, handler in saved.items():
+                signal.signal(sig, handler)
 
 
 def plan(
