@@ -62,6 +62,7 @@ from slopedist.odometry.masks import (
     half_size_corner_mask,
     inside_boxes,
 )
+from slopedist.odometry.point_map import PointNormaliser
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
 
 FloatArray = NDArray[np.float64]
@@ -102,7 +103,7 @@ class BuiltinVisualOdometry:
     def __init__(self, camera: Camera, config: VisualOdometryConfig | None = None) -> None:
         self.camera = camera
         self.config = config or VisualOdometryConfig()
-        self._K = camera.K
+        self.normalise = PointNormaliser(camera.K)  # pixels → ideal camera (point_map.py)
         theta0 = camera.mount_angle_rad
         self._heading = np.array([0.0, -math.sin(theta0), math.cos(theta0)])
         c = self.config
@@ -342,8 +343,7 @@ class BuiltinVisualOdometry:
             cov_vote = f2f.R @ (step_cov + self._cov) @ f2f.R.T
             R_world_cam, cov = tv.fuse_rotations(R_world_cam, cov, vote, cov_vote)
         else:
-            x_prev = tv.normalise_pixels(self._pts[keep], self._K)
-            x_cur = tv.normalise_pixels(pts, self._K)
+            x_prev, x_cur = self.normalise(self._pts[keep]), self.normalise(pts)
             r_f2f = tv.epipolar_residuals_px(
                 R_world_cam.T @ prev.R_world_cam,
                 x_prev,
@@ -485,8 +485,7 @@ class BuiltinVisualOdometry:
         """
         c = self.config
         f = self.camera.f
-        x1 = tv.normalise_pixels(uv_ref, self._K)
-        x2 = tv.normalise_pixels(uv_cur, self._K)
+        x1, x2 = self.normalise(uv_ref), self.normalise(uv_cur)
         n = len(x1)
         rot = tv.fit_rotation_only(x1, x2, f, c.inlier_threshold_px, R_init=R_init)
         if rot.n_inliers >= max(c.min_inliers, c.min_inlier_ratio * n) and (
@@ -520,10 +519,11 @@ class BuiltinVisualOdometry:
     ) -> tv.TwoViewFit | None:
         """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
         c = self.config
+        uv_ref, uv_cur = self.normalise.pixels(uv_ref), self.normalise.pixels(uv_cur)
         E, mask = cv2.findEssentialMat(
             uv_ref,
             uv_cur,
-            self._K,
+            self.normalise.K,
             cv2.USAC_DEFAULT,
             0.999,
             c.inlier_threshold_px,
@@ -531,7 +531,7 @@ class BuiltinVisualOdometry:
         )
         if E is None or E.shape != (3, 3):
             return None
-        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self._K, mask=mask)
+        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self.normalise.K, mask=mask)
         return self._refine(x1, x2, np.asarray(R, dtype=np.float64))
 
     def _refine(
