@@ -23,6 +23,7 @@ import traceback
 import click
 
 from slopedist import __version__
+from slopedist.cli.batch_cmd import batch
 from slopedist.cli.calibrate_cmd import calibrate
 from slopedist.cli.camera_cmd import camera_group
 from slopedist.cli.convert_cmd import convert
@@ -75,6 +76,7 @@ cli.add_command(log_group)
 cli.add_command(convert)
 cli.add_command(camera_group)
 cli.add_command(detect)
+cli.add_command(batch)
 
 
 def _error(message: str) -> None:
