@@ -58,7 +58,7 @@ from slopedist.estimators import DEFAULT_METHOD
 @height_option
 @mount_option
 @lookback_option
-def batch(
+def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
     out_dir: Path,
     method: str | None,
