@@ -46,6 +46,7 @@ from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import Estimator, FrameEstimates
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.prefetch import DEFAULT_AHEAD, PrefetchedFrames
 from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
@@ -201,6 +202,9 @@ class RunConfig:
         progress: show a progress bar on stderr.
         sequence: sequence name written to ``run.json`` (None:
             :func:`default_sequence_name` of the frames).
+        decode_ahead: frames decoded ahead in a background thread
+            (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
+            odometry works); 0: decode in the loop's thread.
     """
 
     out_dir: Path
@@ -209,6 +213,7 @@ class RunConfig:
     overlay_fps: float = 10.0
     progress: bool = True
     sequence: str | None = None
+    decode_ahead: int = DEFAULT_AHEAD
 
 
 def run_frames(
@@ -254,7 +259,9 @@ def run_frames(
         depth_source=describe_depth(depth) if depth is not None else None,
     )
     loop = _RunLoop(boxes, odometry, estimator, depth, config, result)
-    return loop.run(frames)
+    return loop.run(
+        PrefetchedFrames(frames, config.decode_ahead) if config.decode_ahead else frames
+    )
 
 
 def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None:
