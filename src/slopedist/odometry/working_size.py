@@ -2,9 +2,9 @@
 
 Dashcam frames (1920×1080 and more) carry more pixels than the rotation needs: the corner
 search and the image statistics grow with the pixel count while the tracks stay as few. Frames
-wider than ``max_width_px`` are therefore scaled down (equally in both axes, area averaging)
-before tracking, the camera, the masked boxes and the track positions scaled to match; narrower
-frames (KITTI's 1242 px) are used as they are, bit for bit.
+wider than ``max_width_px`` are therefore scaled down (equally in both axes) before tracking,
+the camera, the masked boxes and the track positions scaled to match; narrower frames (KITTI's
+1242 px) are used as they are, bit for bit.
 
 Pixel convention: pixel centres at integer coordinates, so that a point ``u`` of the full frame
 is at ``s·(u + 0.5) − 0.5`` in a frame scaled by ``s`` (what ``cv2.resize`` does).
@@ -22,6 +22,10 @@ from slopedist.camera import Camera
 from slopedist.errors import DataMismatchError
 
 FloatArray = NDArray[np.float64]
+
+LINEAR_MIN_SCALE = 0.5
+"""Frames scaled by more than this are interpolated bilinearly, by less (or by exactly a half)
+area-averaged (:meth:`WorkingSize.image`)."""
 
 
 def check_gray_frame(image_gray: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -88,10 +92,18 @@ class WorkingSize:
         return np.array(self.size, dtype=np.float64) / np.array(self.full_size, dtype=np.float64)
 
     def image(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """A full grey frame at the working size (contiguous; the same pixels when unscaled)."""
+        """A full grey frame at the working size (contiguous; the same pixels when unscaled).
+
+        Scales above :data:`LINEAR_MIN_SCALE` interpolate bilinearly: OpenCV's area averaging
+        at a fractional scale costs 9 ms per 1920×1080 frame (against 1 ms), and on the shared
+        KITTI excerpts scaled to 1920 px wide the rotations are as accurate either way
+        (``benchmarks/realtime.py --part widths``). Smaller scales average areas.
+        """
         if not self.scaled:
             return np.ascontiguousarray(image)
-        return np.asarray(cv2.resize(image, self.size, interpolation=cv2.INTER_AREA))
+        linear = self._scale()[0] > LINEAR_MIN_SCALE
+        interpolation = cv2.INTER_LINEAR if linear else cv2.INTER_AREA
+        return np.asarray(cv2.resize(image, self.size, interpolation=interpolation))
 
     def boxes(self, boxes: FloatArray) -> FloatArray:
         """``(M, 4)`` boxes (left, top, right, bottom) from full to working pixels."""
