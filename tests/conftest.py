@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -47,3 +49,40 @@ def kitti_odometry_dir() -> Path:
 def kitti_raw_lead_dir() -> Path:
     """../shared/data/kitti_raw_lead, or skip."""
     return shared_data_path("kitti_raw_lead")
+
+
+def _constant_onnx_model(
+    path: Path, outputs: Mapping[str, Any], in_shape: tuple[Any, ...] = (1, 3, 320, 320)
+) -> Path:
+    """Save an ONNX model whose outputs are the given constant arrays (float32) and whose one
+    input, ``images`` of shape ``in_shape``, is ignored: a detector emitting known tensors."""
+    import numpy as np
+
+    onnx = pytest.importorskip("onnx", reason="the 'onnx' package (test extra) builds models")
+    from onnx import TensorProto, helper, numpy_helper
+
+    arrays = {name: np.asarray(v, np.float32) for name, v in outputs.items()}
+    nodes = [
+        helper.make_node("Constant", [], [name], value=numpy_helper.from_array(v))
+        for name, v in arrays.items()
+    ]
+    graph = helper.make_graph(
+        nodes,
+        "constant_detector",
+        [helper.make_tensor_value_info("images", TensorProto.FLOAT, list(in_shape))],
+        [
+            helper.make_tensor_value_info(n, TensorProto.FLOAT, list(v.shape))
+            for n, v in arrays.items()
+        ],
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    return path
+
+
+@pytest.fixture
+def constant_model() -> Callable[..., Path]:
+    """Builder of test ONNX models with constant outputs (see :func:`_constant_onnx_model`)."""
+    return _constant_onnx_model

@@ -1,7 +1,9 @@
 """From frames to distances: the streaming run behind ``slopedist run``.
 
-For every frame, in order: the visual odometry gets the grey image (with the frame's boxes
-masked out of its features) and returns a camera rotation; the frame step
+For every frame, in order: its boxes come from the box file or from a detector run on its
+pixels (:class:`~slopedist.detections.onnx_detector.Detector`); the visual odometry gets the grey
+image (with the frame's boxes masked out of its features) and returns a camera rotation; the
+frame step
 (:class:`~slopedist.pipeline.FrameStep`) turns rotation and boxes into θ and per-target
 estimates, never looking back across a restart of the odometry; the records are written and
 flushed at once. Memory holds one frame, the odometry's own state and the one-second
@@ -41,6 +43,7 @@ from tqdm import tqdm
 
 from slopedist.depth.base import DepthSource
 from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import Estimator, FrameEstimates
@@ -71,10 +74,12 @@ FRAME_FIELDS = (
     "odometry_ms",
     "estimation_ms",
     "depth_ms",
+    "detection_ms",
 )
 """Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels or without
 odometry; ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation;
-``depth_ms`` is empty where no depth map was made."""
+``depth_ms`` is empty where no depth map was made; ``detection_ms`` (the detector's pre-processing,
+inference and post-processing) is empty without a detector."""
 
 GENERIC_FOLDER_NAMES = frozenset(
     {
@@ -138,6 +143,8 @@ class RunResult:
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
         depth_ms_mean: mean time per depth map (read or inference), milliseconds.
         depth_source: what the depth maps came from (e.g. ``"file read: DIR"``), or None.
+        detector: the detector's model file when boxes came from a detector, or None.
+        detection_ms_mean: mean detection time per frame, milliseconds.
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
         overlay: overlay path, or None.
@@ -159,6 +166,8 @@ class RunResult:
     estimation_ms_mean: float = math.nan
     depth_ms_mean: float = math.nan
     depth_source: str | None = None
+    detector: str | None = None
+    detection_ms_mean: float = math.nan
     frames_without_depth: int = 0
     ground_truth: bool = False
     overlay: str | None = None
@@ -223,6 +232,7 @@ def run_frames(
     estimator: Estimator,
     config: RunConfig,
     depth: DepthSource | None = None,
+    detector: Detector | None = None,
 ) -> RunResult:
     """Run the whole pipeline on ``frames``, writing as it goes (see the module docstring).
 
@@ -237,6 +247,8 @@ def run_frames(
         config: output folder and options.
         depth: depth maps for a method that ``needs_depth`` (asked for every readable frame
             with boxes; a frame without a map gives its targets the reason ``no_depth``).
+        detector: finds the boxes of every readable frame instead of ``boxes`` (which must then
+            be empty); its boxes have no track ids (the estimator associates them).
 
     Raises:
         ConfigurationError: a depth-map method without ``depth``, or ``depth`` for a method
@@ -246,6 +258,8 @@ def run_frames(
             the failing one and ``run.json`` says where it stopped.
     """
     check_depth_matches(estimator, depth)
+    if detector is not None and len(boxes):
+        raise ConfigurationError("give boxes or a detector, not both")
     width, height = frames.frame_size()
     check_calibration(estimator.camera, width, height, str(frames.path))
     out = Path(config.out_dir)
@@ -257,11 +271,14 @@ def run_frames(
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
         depth_source=describe_depth(depth) if depth is not None else None,
+        detector=str(getattr(detector, "model_path", type(detector).__name__))
+        if detector
+        else None,
     )
-    loop = _RunLoop(boxes, odometry, estimator, depth, config, result)
-    return loop.run(
-        PrefetchedFrames(frames, config.decode_ahead) if config.decode_ahead else frames
-    )
+    loop = _RunLoop(boxes, odometry, estimator, depth, config, result, detector)
+    if config.decode_ahead:
+        frames = PrefetchedFrames(frames, config.decode_ahead)
+    return loop.run(frames)
 
 
 def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None:
@@ -299,8 +316,10 @@ class _RunLoop:
         depth: DepthSource | None,
         config: RunConfig,
         result: RunResult,
+        detector: Detector | None = None,
     ) -> None:
         self.odometry, self.depth, self.config, self.result = odometry, depth, config, result
+        self.detector = detector
         self.camera = estimator.camera
         self.method = estimator.name
         self.step = FrameStep(estimator, config.lookback_s)
@@ -314,6 +333,7 @@ class _RunLoop:
             "odometry": RunningMean(),
             "estimation": RunningMean(),
             "depth": RunningMean(),
+            "detection": RunningMean(),
         }
         out = Path(config.out_dir)
         self.records_path = out / RECORDS_NAME
@@ -350,9 +370,7 @@ class _RunLoop:
     def process(self, frame: Frame) -> None:
         """One frame: odometry, depth, the frame step, then every output."""
         k = frame.index
-        frame_boxes = self.by_frame.get(k, self.no_boxes)
-        if k in self.by_frame:
-            self.seen_box_frames.add(k)
+        frame_boxes, detection_ms = self._boxes(frame)
         self.status_count[frame.status.value] += 1
         odo = self._odometry(frame, frame_boxes)
         depth_m, depth_ms = self._depth(frame, frame_boxes)
@@ -379,10 +397,26 @@ class _RunLoop:
                 "odometry_ms": odo.ms,
                 "estimation_ms": estimation_ms,
                 "depth_ms": depth_ms,
+                "detection_ms": detection_ms,
             }
         )
         self._paint(frame, frame_boxes, res, odo.state)
         self.result.frames += 1
+
+    def _boxes(self, frame: Frame) -> tuple[BoxTable, float]:
+        """The frame's boxes (from the box file, or the detector on its pixels) and the
+        detection time (ms; NaN without a detector)."""
+        k = frame.index
+        if self.detector is None:
+            if k in self.by_frame:
+                self.seen_box_frames.add(k)
+            return self.by_frame.get(k, self.no_boxes), math.nan
+        if frame.image is None:
+            return self.no_boxes, math.nan
+        boxes = self.detector.detect(frame.image, k)
+        ms = self.detector.last_timing.total_s * 1e3
+        self.times["detection"].add(ms)
+        return boxes, ms
 
     def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
         """The odometry's rotation of a frame with pixels (its boxes masked out)."""
@@ -451,6 +485,7 @@ class _RunLoop:
         result.odometry_ms_mean = self.times["odometry"].mean()
         result.estimation_ms_mean = self.times["estimation"].mean()
         result.depth_ms_mean = self.times["depth"].mean()
+        result.detection_ms_mean = self.times["detection"].mean()
         result.boxes_without_frame = sum(
             len(b) for k, b in self.by_frame.items() if k not in self.seen_box_frames
         )

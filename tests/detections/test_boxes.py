@@ -22,3 +22,8 @@ def test_concat_boxes_keeps_order_and_common_columns() -> None:
 
 def test_concat_of_nothing_is_empty() -> None:
     assert len(concat_boxes([])) == 0
+
+
+def test_empty_table_has_no_frames() -> None:
+    empty = BoxTable.empty()
+    assert list(empty.by_frame()) == [] and empty.frame_index() == {}

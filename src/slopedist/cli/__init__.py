@@ -13,7 +13,10 @@ import click
 
 from slopedist import __version__
 from slopedist.cli.calibrate_cmd import calibrate
+from slopedist.cli.camera_cmd import camera_group
+from slopedist.cli.convert_cmd import convert
 from slopedist.cli.demo_cmd import demo
+from slopedist.cli.detect_cmd import detect
 from slopedist.cli.estimate_cmd import estimate
 from slopedist.cli.eval_cmd import eval_group
 from slopedist.cli.odometry_cmd import odometry_group
@@ -37,6 +40,9 @@ cli.add_command(run)
 cli.add_command(simulate)
 cli.add_command(demo)
 cli.add_command(calibrate)
+cli.add_command(convert)
+cli.add_command(camera_group)
+cli.add_command(detect)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,6 +13,8 @@ import click
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
+from slopedist.detections.layouts import LogitKind, OutputLayout
+from slopedist.detections.onnx_detector import COCO_VEHICLES, OnnxDetector
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
@@ -180,7 +182,8 @@ _SEQUENCE_FILE_OPTIONS = (
         "--calib",
         required=True,
         type=click.Path(dir_okay=False, path_type=Path),
-        help="KITTI calib file (P2 is used; P0 for odometry calib.txt).",
+        help="Calibration: KITTI (P2; P0 for odometry calib.txt), 3×3 K text, OpenCV or ROS "
+        "camera_info YAML/JSON; lens distortion and fx ≠ fy are removed from the boxes.",
     ),
     click.option(
         "--poses",
@@ -282,3 +285,145 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
         return command
 
     return decorate
+
+
+def parse_size(value: str | None, what: str = "WIDTHxHEIGHT in pixels") -> tuple[int, int] | None:
+    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None."""
+    if not value:
+        return None
+    try:
+        a, b = (int(v) for v in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected {what}, got '{value}'") from None
+    if a <= 0 or b <= 0:
+        raise click.BadParameter(f"expected {what} (positive), got '{value}'")
+    return a, b
+
+
+def parse_class_map(value: str | None) -> dict[int, str] | None:
+    """``"2=Car,7=Truck"`` → ``{2: "Car", 7: "Truck"}``; None or empty → None (the default)."""
+    if not value:
+        return None
+    out: dict[int, str] = {}
+    for item in value.split(","):
+        index, sep, name = item.partition("=")
+        if not sep or not index.strip().isdigit() or not name.strip():
+            raise click.BadParameter(
+                f"class map: expected INDEX=NAME pairs such as 2=Car,7=Truck, got '{item}'"
+            )
+        out[int(index)] = name.strip()
+    return out
+
+
+DEFAULT_CLASSES = ",".join(f"{k}={v}" for k, v in COCO_VEHICLES.items())
+
+
+DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    (
+        "score",
+        "detector_score",
+        {
+            "type": click.FloatRange(0, 1),
+            "default": 0.25,
+            "show_default": True,
+            "help": "Minimum detector score.",
+        },
+    ),
+    (
+        "iou",
+        "detector_iou",
+        {
+            "type": click.FloatRange(0, 1, min_open=True),
+            "default": 0.45,
+            "show_default": True,
+            "help": "NMS IoU threshold (per class).",
+        },
+    ),
+    (
+        "classes",
+        "detector_classes",
+        {
+            "default": DEFAULT_CLASSES,
+            "show_default": True,
+            "help": "Model class index = slopedist class name; other classes are dropped.",
+        },
+    ),
+    (
+        "layout",
+        "detector_layout",
+        {
+            "type": click.Choice([v.value for v in OutputLayout]),
+            "default": OutputLayout.AUTO.value,
+            "show_default": True,
+            "help": "Output layout of the model (auto: from its output shapes; docs/detectors.md).",
+        },
+    ),
+    (
+        "input-size",
+        "detector_input_size",
+        {"help": "WIDTHxHEIGHT network input, for models with a dynamic input size."},
+    ),
+    ("bgr", "detector_bgr", {"is_flag": True, "help": "Feed BGR instead of RGB (YOLOX)."}),
+    (
+        "pixel-scale",
+        "detector_pixel_scale",
+        {
+            "type": float,
+            "default": 1 / 255,
+            "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
+        },
+    ),
+    (
+        "pad-top-left",
+        "detector_pad_top_left",
+        {
+            "is_flag": True,
+            "help": "Letterbox padding at the bottom/right only (YOLOX) instead of centred.",
+        },
+    ),
+    (
+        "logits",
+        "detector_logits",
+        {
+            "type": click.Choice([v.value for v in LogitKind]),
+            "default": LogitKind.SIGMOID.value,
+            "show_default": True,
+            "help": "DETR logits: one sigmoid per class, or softmax with a no-object class.",
+        },
+    ),
+    (
+        "threads",
+        "detector_threads",
+        {"type": int, "help": "onnxruntime threads [default: its own]."},
+    ),
+)
+"""``(option name without prefix, parameter, click keywords)`` of each detector option."""
+
+
+def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options :func:`make_detector` reads (model file excluded), named ``--<prefix>score``
+    etc. (``run`` uses the prefix ``detector-``, its ``--score`` being the box files')."""
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        for name, param, kwargs in reversed(DETECTOR_OPTION_SPECS):
+            func = click.option(f"--{prefix}{name}", param, **kwargs)(func)
+        return func
+
+    return decorate
+
+
+def make_detector(model: Path, **opts: Any) -> OnnxDetector:
+    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`."""
+    return OnnxDetector(
+        model,
+        opts["detector_score"],
+        opts["detector_iou"],
+        parse_class_map(opts["detector_classes"]),
+        opts["detector_layout"],
+        parse_size(opts["detector_input_size"]),
+        bgr_input=opts["detector_bgr"],
+        pixel_scale=opts["detector_pixel_scale"],
+        pad_centre=not opts["detector_pad_top_left"],
+        logit_kind=opts["detector_logits"],
+        threads=opts["detector_threads"],
+    )

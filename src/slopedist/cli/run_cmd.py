@@ -10,15 +10,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import click
 
 from slopedist.camera import Camera
 from slopedist.cli.options import (
     check_methods,
+    detector_options,
     estimator_options,
     height_option,
     lookback_option,
+    make_detector,
     mount_option,
     parse_triple,
 )
@@ -30,11 +33,14 @@ from slopedist.depth import (
     OnnxDepthSource,
 )
 from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
+from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource, open_frames
+from slopedist.io.intrinsics import RectifiedDetector
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
@@ -179,14 +185,22 @@ def check_runnable(
     "--calib",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
-    help="KITTI calib file of the frames' camera (P2; P0 for odometry calib.txt).",
+    help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
+    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md).",
 )
 @click.option(
     "--boxes",
     "boxes_path",
-    required=True,
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Boxes per frame: slopedist CSV, KITTI labels or PointRCNN file.",
+    help="Boxes per frame: slopedist CSV, KITTI labels, PointRCNN, MOTChallenge or COCO JSON "
+    "file (or --detector).",
+)
+@click.option(
+    "--detector",
+    "detector_model",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="ONNX detector run on every frame instead of --boxes (needs onnxruntime: pip install "
+    "'slopedist[onnx]'; docs/detectors.md); options --detector-*.",
 )
 @click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
 @click.option(
@@ -294,10 +308,12 @@ def check_runnable(
 @mount_option
 @lookback_option
 @estimator_options(depth=True)
+@detector_options("detector-")
 def run(
     frames: Path,
     calib: Path,
-    boxes_path: Path,
+    boxes_path: Path | None,
+    detector_model: Path | None,
     method: str | None,
     odometry: str,
     vocab: Path | None,
@@ -322,6 +338,7 @@ def run(
     mount_angle_deg: float,
     lookback_s: float,
     estimator_config: EstimatorConfig,
+    **detector_opts: Any,
 ) -> None:
     """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
 
@@ -331,9 +348,13 @@ def run(
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
-    camera = Camera.from_kitti_calib(calib, "P2", height_m, math.radians(mount_angle_deg))
+    calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
+    camera = calibration.camera
     source = open_frames(frames, fps, timestamps)
-    boxes = read_box_file(boxes_path, score)
+    boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
+    boxes = calibration.intrinsics.rectify_table(boxes)
+    if detector is not None and not calibration.intrinsics.is_ideal:
+        detector = RectifiedDetector(detector, calibration.intrinsics)
     estimator = build_estimator(estimator_config.with_method(method), camera)
     depth_opts = DepthOptions(
         depth_dir,
@@ -356,8 +377,22 @@ def run(
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
     config = RunConfig(out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence)
-    result = run_frames(source, boxes, backend, estimator, config, depth)
+    result = run_frames(source, boxes, backend, estimator, config, depth, detector)
     click.echo(summary_text(result, out_dir), err=True)
+
+
+def boxes_or_detector(
+    boxes_path: Path | None,
+    score: float | None,
+    detector_model: Path | None,
+    detector_opts: dict[str, Any],
+) -> tuple[BoxTable, Detector | None]:
+    """The box file's boxes, or no boxes and the ONNX detector (exactly one must be given)."""
+    if boxes_path is not None and detector_model is None:
+        return read_box_file(boxes_path, score), None
+    if detector_model is not None and boxes_path is None:
+        return BoxTable.empty(), make_detector(detector_model, **detector_opts)
+    raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
 def summary_text(result: RunResult, out_dir: Path) -> str:
@@ -372,6 +407,8 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
         f"estimation {result.estimation_ms_mean:.2f} ms per frame",
     ]
+    if result.detector:
+        lines.append(f"detector ({result.detector}): {result.detection_ms_mean:.1f} ms per frame")
     if result.depth_source:
         lines.append(f"depth maps ({result.depth_source}): {result.depth_ms_mean:.1f} ms per map")
     if result.frames_without_depth:

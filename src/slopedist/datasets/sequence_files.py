@@ -15,6 +15,7 @@ from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import read_box_file
 from slopedist.errors import DataMismatchError
+from slopedist.io.calibration import read_calibration
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
 
@@ -33,7 +34,9 @@ class SequenceFiles:
     """Where one sequence's inputs are and how to read them.
 
     Attributes:
-        calib: KITTI calibration file (``P2`` is used).
+        calib: calibration file in any form :func:`~slopedist.io.calibration.read_calibration`
+            reads (KITTI ``P2``, K text, OpenCV/ROS YAML/JSON); boxes are mapped into its ideal
+            camera (lens distortion and fx ≠ fy removed).
         poses: pose file; ``pose_layout`` says its layout.
         boxes: box file (slopedist CSV, KITTI labels or PointRCNN).
         frame_period_s: seconds between frames (pose files without timestamps).
@@ -67,7 +70,7 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
     Raises:
         DataMismatchError: the poses do not cover the boxes' frames.
     """
-    camera = Camera.from_kitti_calib(files.calib, "P2", files.height_m, files.mount_angle_rad)
+    calibration = read_calibration(files.calib, files.height_m, files.mount_angle_rad)
     layout = PoseFileLayout(files.pose_layout)
     if layout is PoseFileLayout.OXTS:
         track = read_oxts_rotations(files.poses, files.calib, files.frame_period_s)
@@ -75,10 +78,10 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
         track = read_pose_file(files.poses, None, files.frame_period_s)
     else:
         track = read_pose_file(files.poses, PoseFormat(layout.value), files.frame_period_s)
-    boxes = read_box_file(files.boxes, files.min_score)
+    boxes = calibration.intrinsics.rectify_table(read_box_file(files.boxes, files.min_score))
     if len(boxes) and int(boxes.frame.max()) >= len(track):
         raise DataMismatchError(
             f"{files.poses}: {len(track)} poses do not cover the boxes of {files.boxes}, which "
             f"go up to frame {int(boxes.frame.max())}"
         )
-    return SequenceInputs(camera, track, boxes)
+    return SequenceInputs(calibration.camera, track, boxes)

@@ -1,6 +1,17 @@
-"""2D vehicle boxes: the box table type and readers for box files."""
+"""2D vehicle boxes: the box table type, readers and writers of box files, adapters for
+detections in memory, and an ONNX detector."""
 
+from slopedist.detections.adapters import from_supervision, from_ultralytics
 from slopedist.detections.boxes import BoxTable, box_problems, concat_boxes, iou_matrix
+from slopedist.detections.convert import BoxFileOptions, BoxFormat, read_boxes, write_boxes
+from slopedist.detections.layouts import OutputLayout
+from slopedist.detections.onnx_detector import (
+    COCO_VEHICLES,
+    DetectionTiming,
+    Detector,
+    OnnxDetector,
+    detect_frames,
+)
 from slopedist.detections.readers import (
     CSV_BOX_COLUMNS,
     read_box_csv,
@@ -10,13 +21,25 @@ from slopedist.detections.readers import (
 )
 
 __all__ = [
+    "COCO_VEHICLES",
     "CSV_BOX_COLUMNS",
+    "BoxFileOptions",
+    "BoxFormat",
     "BoxTable",
+    "DetectionTiming",
+    "Detector",
+    "OnnxDetector",
+    "OutputLayout",
     "box_problems",
     "concat_boxes",
+    "detect_frames",
+    "from_supervision",
+    "from_ultralytics",
     "iou_matrix",
     "read_box_csv",
     "read_box_file",
+    "read_boxes",
     "read_kitti_labels",
     "read_pointrcnn",
+    "write_boxes",
 ]

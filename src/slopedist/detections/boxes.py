@@ -116,6 +116,8 @@ class BoxTable:
 
     def by_frame(self) -> Iterator[tuple[int, BoxTable]]:
         """Yield ``(frame index, boxes of that frame)`` in frame order."""
+        if len(self) == 0:
+            return
         order = np.argsort(self.frame, kind="stable")
         sorted_frames = self.frame[order]
         starts = np.flatnonzero(np.r_[True, np.diff(sorted_frames) != 0])

@@ -254,9 +254,12 @@ def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
     """Read boxes from a file of any supported layout, chosen by its content.
 
     A first line with a ``frame`` header is the slopedist CSV; 15 comma-separated fields is
-    PointRCNN; 17–18 space-separated fields is a KITTI label file.
+    PointRCNN; 17–18 space-separated fields is a KITTI label file; other layouts (MOTChallenge,
+    COCO JSON) are read by :func:`slopedist.detections.convert.read_boxes`.
     """
     path = Path(path)
+    if path.suffix.lower() == ".json":
+        return _read_other_layout(path, min_score)
     first = next(iter(_open_lines(path, "box file")), (0, ""))[1]
     if first.replace(" ", "").lower().startswith("frame,"):
         table = read_box_csv(path)
@@ -267,9 +270,11 @@ def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
         return read_pointrcnn(path, min_score)
     if len(first.split()) in (17, 18):
         return read_kitti_labels(path)
-    raise InputFileError(
-        path,
-        "unrecognised box file layout (expected the slopedist CSV with a 'frame,left,top,"
-        "right,bottom' header, PointRCNN or KITTI labels)",
-        line=1,
-    )
+    return _read_other_layout(path, min_score)
+
+
+def _read_other_layout(path: Path, min_score: float | None) -> BoxTable:
+    """MOTChallenge or COCO JSON boxes (:mod:`slopedist.detections.formats`)."""
+    from slopedist.detections.convert import BoxFileOptions, read_boxes  # imports this module
+
+    return read_boxes(path, options=BoxFileOptions(min_score=min_score))

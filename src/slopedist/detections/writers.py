@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,15 +26,19 @@ def write_box_csv(boxes: BoxTable, path: str | Path, extra: tuple[str, ...] | No
     names = [k for k, v in boxes.extra.items() if np.ndim(v) == 1] if extra is None else list(extra)
     order = np.argsort(boxes.frame, kind="stable")
     with CsvStreamWriter.open(path, [*CSV_BOX_COLUMNS, *names]) as writer:
-        writer.write_values(
-            [
-                int(boxes.frame[i]),
-                *boxes.boxes[i],
-                int(boxes.track_id[i]),
-                boxes.score[i],
-                boxes.cls[i],
-                *(boxes.extra[k][i] for k in names),
-            ]
-            for i in order
-        )
+        writer.write_values(box_values(boxes.select(order), names))
     return path
+
+
+def box_values(boxes: BoxTable, extra: list[str] | tuple[str, ...] = ()) -> Iterator[list[object]]:
+    """The rows of ``boxes`` as box CSV values (:data:`CSV_BOX_COLUMNS`, then ``extra``), in
+    table order, for :meth:`CsvStreamWriter.write_values`."""
+    for i in range(len(boxes)):
+        yield [
+            int(boxes.frame[i]),
+            *boxes.boxes[i],
+            int(boxes.track_id[i]),
+            boxes.score[i],
+            boxes.cls[i],
+            *(boxes.extra[k][i] for k in extra),
+        ]

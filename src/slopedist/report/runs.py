@@ -38,8 +38,9 @@ TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 THETA_TRUTH_COLUMNS = ("theta_true_deg", "gt_theta_deg")
 """Columns of a run's ``frames.csv`` read as the true ego gradient (degrees), first found."""
 
-TIME_COLUMNS = ("odometry_ms", "estimation_ms", "depth_ms")
-"""Per-frame times of ``frames.csv`` (milliseconds) that make Table 2."""
+TIME_COLUMNS = ("odometry_ms", "estimation_ms", "depth_ms", "detection_ms")
+"""Per-frame times of ``frames.csv`` (milliseconds) that make Table 2 (``detection_ms``: runs
+with ``--detector``)."""
 
 NOT_IN_RECORDS = "not in records"
 

@@ -14,7 +14,8 @@ from slopedist.tables import Table, best_marks
 
 
 def table2(data: ReportData) -> Table:
-    """Time per frame per method (ms): odometry, estimation, depth; detector excluded."""
+    """Time per frame per method (ms): odometry, estimation, depth, and the 2D detector when the
+    runs ran one (its own column, outside the total: it is shared by every method)."""
     rows = []
     for m in data.methods:
         t = data.timing[m]
@@ -22,19 +23,28 @@ def table2(data: ReportData) -> Table:
         finite = [p for p in parts if math.isfinite(p)]
         rows.append([m, *parts, float(sum(finite)) if finite else math.nan])
     bold = [[False, False, False, False, b] for b in best_marks([r[4] for r in rows])]
+    headers = ["method", "odometry", "estimation", "depth", "total"]
+    detection = [data.timing[m].get("detection_ms", math.nan) for m in data.methods]
     note = (
         "Time per frame in milliseconds, averaged over every frame of the sequences each "
         "method ran on; '-' = not applicable or not measured. The 2D detector is excluded "
         "(shared by every method)."
     )
+    if any(math.isfinite(d) for d in detection):
+        headers.append("detection")
+        rows = [[*r, d] for r, d in zip(rows, detection)]
+        bold = [[*b, False] for b in bold]
+        note = note.replace(
+            "is excluded", "(runs with --detector) has its own column, not in the total"
+        )
     return Table(
         "table2_time",
         "Table 2: time per frame (ms)",
-        ["method", "odometry", "estimation", "depth", "total"],
+        headers,
         rows,
         bold,
         note,
-        {1: ".3f", 2: ".3f", 3: ".3f", 4: ".3f"},
+        {i: ".3f" for i in range(1, len(headers))},
     )
 
 

@@ -1,0 +1,59 @@
+"""``slopedist convert``: box files between the layouts detectors and trackers write."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from slopedist.cli.options import parse_size
+from slopedist.detections.convert import WRITABLE, BoxFileOptions, BoxFormat, convert_boxes
+
+
+@click.command("convert")
+@click.argument("source", type=click.Path(exists=True, path_type=Path))
+@click.argument("target", type=click.Path(path_type=Path))
+@click.option(
+    "--from",
+    "source_format",
+    type=click.Choice([f.value for f in BoxFormat]),
+    default=BoxFormat.AUTO.value,
+    show_default=True,
+    help="Layout of SOURCE (auto: from its content; a folder is YOLO, .json is COCO).",
+)
+@click.option(
+    "--to",
+    "target_format",
+    type=click.Choice([f.value for f in WRITABLE]),
+    default=BoxFormat.CSV.value,
+    show_default=True,
+    help="Layout of TARGET (YOLO: a folder).",
+)
+@click.option("--image-size", help="WIDTHxHEIGHT of the frames, pixels (YOLO in or out).")
+@click.option(
+    "--coco-images",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="COCO dataset JSON whose 'images' map image ids to frames (default: id = frame).",
+)
+@click.option(
+    "--frame-base",
+    type=int,
+    help="Number of the first frame in MOT (default 1) or YOLO (default 0) files.",
+)
+@click.option("--min-score", type=float, help="Drop boxes scored below this.")
+def convert(
+    source: Path,
+    target: Path,
+    source_format: str,
+    target_format: str,
+    image_size: str | None,
+    coco_images: Path | None,
+    frame_base: int | None,
+    min_score: float | None,
+) -> None:
+    """Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, YOLO
+    folder) into TARGET (slopedist CSV by default)."""
+    options = BoxFileOptions(parse_size(image_size), coco_images, frame_base, min_score)
+    n_read, n_left = convert_boxes(source, target, source_format, target_format, options)
+    note = f", {n_left} left out (class not in the '{target_format}' class list)" if n_left else ""
+    click.echo(f"{n_read} boxes from {source} written to {target}{note}", err=True)

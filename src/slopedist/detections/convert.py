@@ -1,0 +1,160 @@
+"""Any supported box layout in, any out: the library side of ``slopedist convert``.
+
+Layouts (:class:`BoxFormat`): the slopedist CSV, KITTI labels and PointRCNN
+(:mod:`slopedist.detections.readers`), MOTChallenge, COCO JSON and YOLO folders
+(:mod:`slopedist.detections.formats`). ``AUTO`` tells them apart by content: a folder is YOLO,
+``.json`` is COCO, otherwise the first line decides (see :func:`sniff_format`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.format_writers import write_coco, write_mot, write_yolo_folder
+from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
+from slopedist.detections.readers import (
+    POINTRCNN_FIELDS,
+    _open_lines,
+    read_box_csv,
+    read_kitti_labels,
+    read_pointrcnn,
+)
+from slopedist.detections.writers import write_box_csv
+from slopedist.errors import ConfigurationError, InputFileError
+
+
+class BoxFormat(str, Enum):
+    """A box file layout."""
+
+    AUTO = "auto"
+    CSV = "csv"
+    KITTI = "kitti"
+    POINTRCNN = "pointrcnn"
+    MOT = "mot"
+    COCO = "coco"
+    YOLO = "yolo"
+
+
+WRITABLE = (BoxFormat.CSV, BoxFormat.MOT, BoxFormat.COCO, BoxFormat.YOLO)
+"""Layouts :func:`write_boxes` writes."""
+
+
+@dataclass(frozen=True)
+class BoxFileOptions:
+    """What some layouts need besides the file.
+
+    Attributes:
+        image_size: ``(width, height)`` in pixels (YOLO's normalised boxes).
+        coco_images: a COCO dataset JSON whose ``images`` map image ids to frames.
+        frame_base: number of the first frame in MOT (default 1) or YOLO (default 0) files.
+        min_score: drop boxes scored below this (unknown scores are kept).
+    """
+
+    image_size: tuple[int, int] | None = None
+    coco_images: Path | None = None
+    frame_base: int | None = None
+    min_score: float | None = None
+
+
+def _yolo_size(options: BoxFileOptions) -> tuple[int, int]:
+    if options.image_size is None:
+        raise ConfigurationError("YOLO label files are normalised: give the image size")
+    return options.image_size
+
+
+def sniff_format(path: str | Path) -> BoxFormat:
+    """The layout of ``path`` from its content (see the module docstring)."""
+    path = Path(path)
+    if path.is_dir():
+        return BoxFormat.YOLO
+    if path.suffix.lower() == ".json":
+        return BoxFormat.COCO
+    first = next(iter(_open_lines(path, "box file")), (0, ""))[1]
+    commas = len(first.split(","))
+    if first.replace(" ", "").lower().startswith("frame,"):
+        return BoxFormat.CSV
+    if commas == len(POINTRCNN_FIELDS):
+        return BoxFormat.POINTRCNN
+    if commas in (7, 9, 10):
+        return BoxFormat.MOT
+    if len(first.split()) in (17, 18):
+        return BoxFormat.KITTI
+    raise InputFileError(
+        path,
+        "unrecognised box file layout (expected the slopedist CSV with a 'frame,left,top,right,"
+        "bottom' header, PointRCNN, KITTI labels, MOTChallenge, COCO JSON or a YOLO folder)",
+        line=1,
+    )
+
+
+def read_boxes(
+    path: str | Path,
+    fmt: BoxFormat | str = BoxFormat.AUTO,
+    options: BoxFileOptions | None = None,
+    class_map: Mapping[int, str] | None = None,
+) -> BoxTable:
+    """Boxes of a file or folder in layout ``fmt`` (AUTO: :func:`sniff_format`)."""
+    opt = options or BoxFileOptions()
+    kind = BoxFormat(fmt)
+    kind = sniff_format(path) if kind is BoxFormat.AUTO else kind
+    if kind is BoxFormat.YOLO:
+        table = read_yolo_folder(path, _yolo_size(opt), class_map, opt.frame_base or 0)
+    elif kind is BoxFormat.COCO:
+        frames = None if opt.coco_images is None else read_coco_image_map(opt.coco_images)
+        table = read_coco(path, frames, class_map)
+    elif kind is BoxFormat.MOT:
+        table = read_mot(path, 1 if opt.frame_base is None else opt.frame_base)
+    elif kind is BoxFormat.POINTRCNN:
+        table = read_pointrcnn(path)
+    elif kind is BoxFormat.KITTI:
+        table = read_kitti_labels(path)
+    else:
+        table = read_box_csv(path)
+    if opt.min_score is not None:
+        table = table.select(~(table.score < opt.min_score))
+    return table
+
+
+def write_boxes(
+    table: BoxTable,
+    path: str | Path,
+    fmt: BoxFormat | str,
+    options: BoxFileOptions | None = None,
+) -> int:
+    """Write ``table`` in layout ``fmt`` (one of :data:`WRITABLE`); returns the boxes left out
+    because the layout has no index for their class."""
+    opt = options or BoxFileOptions()
+    kind = BoxFormat(fmt)
+    if kind is BoxFormat.CSV:
+        write_box_csv(table, path)
+        return 0
+    if kind is BoxFormat.MOT:
+        return write_mot(table, path, 1 if opt.frame_base is None else opt.frame_base)
+    if kind is BoxFormat.COCO:
+        return write_coco(table, path)
+    if kind is BoxFormat.YOLO:
+        return write_yolo_folder(table, path, _yolo_size(opt))
+    raise ConfigurationError(
+        f"cannot write '{kind.value}' boxes; choose one of {', '.join(f.value for f in WRITABLE)}"
+    )
+
+
+def convert_boxes(
+    source: str | Path,
+    target: str | Path,
+    source_format: BoxFormat | str = BoxFormat.AUTO,
+    target_format: BoxFormat | str = BoxFormat.CSV,
+    options: BoxFileOptions | None = None,
+) -> tuple[int, int]:
+    """Read ``source`` and write it to ``target``; returns (boxes read, boxes left out)."""
+    if (
+        BoxFormat(target_format) is BoxFormat.YOLO
+        and (options or BoxFileOptions()).image_size is None
+    ):
+        raise ConfigurationError("YOLO label files are normalised: give the image size")
+    table = read_boxes(source, source_format, options)
+    return len(table), write_boxes(table, target, target_format, options)

@@ -1,0 +1,243 @@
+"""Box files other tools write: MOTChallenge, COCO JSON and YOLO per-frame ``.txt`` folders.
+
+Each reader returns a :class:`~slopedist.detections.boxes.BoxTable` (boxes ``left, top, right,
+bottom`` in pixels, 0-based frame indices) and fails with an
+:class:`~slopedist.errors.InputFileError` naming the file, line (JSON: the element) and field.
+
+- **MOTChallenge** ``det.txt`` / ``gt.txt``: comma-separated ``frame, id, left, top, width,
+  height, conf, …`` with 1-based frames (``frame_base``). Nine fields is a ``gt.txt``
+  (``…, flag, class, visibility``): rows with flag 0 (to be ignored) are dropped, and the MOT17
+  class index is named by :data:`MOT_CLASSES`. Otherwise (7 or 10 fields) it is a ``det.txt``:
+  ``id`` −1 = no track, ``conf`` the score, class ``Car``.
+- **COCO JSON**: a results list ``[{"image_id", "category_id", "bbox": [x, y, w, h], "score"},
+  …]`` or a dataset file with ``images``/``annotations``/``categories``. ``image_id`` becomes the
+  frame through an image-id → frame map (given, read from a dataset file's ``images`` by
+  :func:`read_coco_image_map`, or the identity). ``category_id`` is COCO's (car 3, truck 8) and
+  named by :data:`COCO_CATEGORIES`; an optional ``track_id`` key is kept.
+- **YOLO** folder: one ``<name><frame>.txt`` per frame (the trailing number of the name is the
+  frame, minus ``frame_base``), lines ``class cx cy w h [conf [track_id]]`` normalised to the image
+  size, which must be given. Class indices are YOLO's (COCO order, car 2, see
+  :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`).
+
+Classes not in a map are dropped. Writers for each (for ``slopedist convert``) are in
+:mod:`slopedist.detections.format_writers`.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.detections.onnx_detector import COCO_VEHICLES
+from slopedist.detections.readers import _int, _open_lines, _parse
+from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+
+MOT_CLASSES: dict[int, str] = {
+    1: "Pedestrian",
+    2: "Person_on_vehicle",
+    3: "Car",
+    4: "Cyclist",
+    5: "Motorcycle",
+    6: "Non_motorized_vehicle",
+    7: "Static_person",
+}
+"""MOT17/MOT20 ``gt.txt`` class index → slopedist class name (others are not objects)."""
+
+COCO_CATEGORIES: dict[int, str] = {3: "Car", 4: "Motorcycle", 6: "Bus", 8: "Truck"}
+"""COCO category id (1-based, with gaps, as in COCO JSON) → slopedist class name."""
+
+MOT_DET_FIELDS = ("frame", "id", "left", "top", "width", "height", "conf")
+MOT_GT_FIELDS = (*MOT_DET_FIELDS[:6], "flag", "class", "visibility")
+
+
+def _xywh_to_corners(xywh: list[list[float]]) -> np.ndarray:
+    a = np.asarray(xywh, dtype=float).reshape(-1, 4)
+    return np.concatenate([a[:, :2], a[:, :2] + a[:, 2:]], axis=1)
+
+
+def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
+    """A MOTChallenge ``det.txt`` or ``gt.txt`` (see the module docstring)."""
+    frames, tids, boxes, scores, classes = [], [], [], [], []
+    for lineno, line in _open_lines(path, "MOTChallenge file"):
+        tok = [t.strip() for t in line.split(",")]
+        if len(tok) not in (7, 9, 10):
+            raise InputFileError(
+                path, f"expected 7, 9 or 10 comma-separated fields, found {len(tok)}", line=lineno
+            )
+        names = MOT_GT_FIELDS if len(tok) == 9 else MOT_DET_FIELDS
+        v: dict[str, Any] = {
+            k: _parse(path, lineno, k, t, _int if k in ("frame", "id", "flag", "class") else float)
+            for k, t in zip(names, tok)
+        }
+        if v["frame"] - frame_base < 0:
+            raise InputFileError(
+                path, f"frame must be ≥ {frame_base}, got {v['frame']}", line=lineno, field="frame"
+            )
+        if len(tok) == 9:
+            if v["flag"] == 0 or v["class"] not in MOT_CLASSES:
+                continue
+            classes.append(MOT_CLASSES[v["class"]])
+            scores.append(np.nan)
+        else:
+            classes.append("Car")
+            scores.append(v["conf"])
+        frames.append(v["frame"] - frame_base)
+        tids.append(v["id"] if v["id"] >= 0 else NO_TRACK)
+        boxes.append([v["left"], v["top"], v["width"], v["height"]])
+    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)
+
+
+def _load_json(path: str | Path) -> Any:
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"COCO JSON file not found: {path}")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise InputFileError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from None
+
+
+def read_coco_image_map(path: str | Path) -> dict[int, int]:
+    """Image id → frame from a COCO dataset file's ``images``: their ``frame_id`` (or
+    ``frame_index``) when every image has one, else the order of their ``file_name``."""
+    data = _load_json(path)
+    images = data.get("images") if isinstance(data, dict) else None
+    if not isinstance(images, list):
+        raise InputFileError(path, "no 'images' list (a COCO dataset file is needed)")
+    for key in ("frame_id", "frame_index"):
+        if images and all(isinstance(im, dict) and key in im for im in images):
+            return {int(im["id"]): int(im[key]) for im in images}
+    try:
+        ordered = sorted(images, key=lambda im: str(im["file_name"]))
+        return {int(im["id"]): i for i, im in enumerate(ordered)}
+    except (KeyError, TypeError, ValueError):
+        raise InputFileError(
+            path, "every image needs an integer 'id' and a 'file_name'", field="images"
+        ) from None
+
+
+def _coco_class_map(data: Any, class_map: Mapping[int, str] | None) -> Mapping[int, str]:
+    """The given map, else one from the file's ``categories`` names, else COCO's."""
+    if class_map is not None:
+        return class_map
+    if isinstance(data, dict) and isinstance(data.get("categories"), list):
+        by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
+        return {
+            int(c["id"]): by_name[str(c["name"]).lower()]
+            for c in data["categories"]
+            if isinstance(c, dict) and str(c.get("name", "")).lower() in by_name
+        }
+    return COCO_CATEGORIES
+
+
+def _coco_number(path: str | Path, index: int, item: dict, key: str, kind: type) -> Any:
+    value = item.get(key)
+    try:
+        if isinstance(value, bool) or value is None:
+            raise TypeError
+        number = kind(value)
+        if kind is int and number != value:
+            raise ValueError
+    except (TypeError, ValueError):
+        raise InputFileError(
+            path,
+            f"'{value}' is not {'an integer' if kind is int else 'a number'}",
+            field=f"[{index}].{key}",
+        ) from None
+    return number
+
+
+def read_coco(
+    path: str | Path,
+    image_frames: Mapping[int, int] | None = None,
+    class_map: Mapping[int, str] | None = None,
+) -> BoxTable:
+    """A COCO results list or dataset file (see the module docstring)."""
+    data = _load_json(path)
+    items = data.get("annotations") if isinstance(data, dict) else data
+    if not isinstance(items, list):
+        raise InputFileError(path, "expected a list of detections or an 'annotations' list")
+    if image_frames is None and isinstance(data, dict) and "images" in data:
+        image_frames = read_coco_image_map(path)
+    cmap = _coco_class_map(data, class_map)
+    frames, tids, boxes, scores, classes = [], [], [], [], []
+    for i, item in enumerate(items):
+        if not isinstance(item, dict):
+            raise InputFileError(path, "expected an object", field=f"[{i}]")
+        category = _coco_number(path, i, item, "category_id", int)
+        image = _coco_number(path, i, item, "image_id", int)
+        bbox = item.get("bbox")
+        if not (isinstance(bbox, list) and len(bbox) == 4):
+            raise InputFileError(path, "expected [x, y, width, height]", field=f"[{i}].bbox")
+        xywh = [_coco_number(path, i, {"bbox": b}, "bbox", float) for b in bbox]
+        if category not in cmap:
+            continue
+        if image_frames is not None and image not in image_frames:
+            raise InputFileError(
+                path,
+                f"image id {image} is not in the image-id → frame map",
+                field=f"[{i}].image_id",
+            )
+        frames.append(image if image_frames is None else image_frames[image])
+        boxes.append(xywh)
+        scores.append(_coco_number(path, i, item, "score", float) if "score" in item else np.nan)
+        tid = item.get("track_id")
+        tids.append(NO_TRACK if tid is None else _coco_number(path, i, item, "track_id", int))
+        classes.append(cmap[category])
+    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)
+
+
+_TRAILING_NUMBER = re.compile(r"(\d+)$")
+
+
+def _yolo_frame(path: Path, frame_base: int) -> int:
+    match = _TRAILING_NUMBER.search(path.stem)
+    if match is None:
+        raise InputFileError(path, "YOLO label file name must end with the frame number")
+    frame = int(match.group(1)) - frame_base
+    if frame < 0:
+        raise InputFileError(path, f"frame number must be ≥ {frame_base}")
+    return frame
+
+
+def read_yolo_folder(
+    folder: str | Path,
+    image_size: tuple[int, int],
+    class_map: Mapping[int, str] | None = None,
+    frame_base: int = 0,
+) -> BoxTable:
+    """A folder of YOLO ``.txt`` label files of images ``image_size = (width, height)`` pixels."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MissingInputError(f"YOLO label folder not found: {folder}")
+    w, h = image_size
+    if w <= 0 or h <= 0:
+        raise ConfigurationError(f"image size must be positive, got {w}×{h}")
+    cmap = COCO_VEHICLES if class_map is None else class_map
+    frames, tids, boxes, scores, classes = [], [], [], [], []
+    for path in sorted(folder.glob("*.txt")):
+        frame = _yolo_frame(path, frame_base)
+        for lineno, line in _open_lines(path, "YOLO label file"):
+            tok = line.split()
+            if len(tok) not in (5, 6, 7):
+                raise InputFileError(path, f"expected 5 to 7 fields, found {len(tok)}", line=lineno)
+            cls = _parse(path, lineno, "class", tok[0], _int)
+            c = [
+                _parse(path, lineno, k, t, float) for k, t in zip(("cx", "cy", "w", "h"), tok[1:5])
+            ]
+            score = _parse(path, lineno, "conf", tok[5], float) if len(tok) > 5 else np.nan
+            tid = _parse(path, lineno, "track_id", tok[6], _int) if len(tok) > 6 else NO_TRACK
+            if cls not in cmap:
+                continue
+            frames.append(frame)
+            boxes.append([(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h])
+            scores.append(score)
+            tids.append(tid)
+            classes.append(cmap[cls])
+    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)

@@ -1,0 +1,203 @@
+"""Camera calibrations in the forms people have.
+
+:func:`read_calibration` reads, chosen by content:
+
+- a KITTI calib file (``P2:``/``P0:`` lines of 12 numbers, as :func:`slopedist.camera.
+  read_kitti_calib`): ``fx = P[0,0]``, ``fy = P[1,1]``, ``cx = P[0,2]``, ``cy = P[1,2]``;
+- a 3×3 K as text (three lines of three numbers, or nine on one line), optionally followed by a
+  line of distortion coefficients;
+- an OpenCV FileStorage YAML/JSON (what ``cv::FileStorage`` and OpenCV's calibration samples
+  write): ``camera_matrix`` and ``distortion_coefficients`` (or ``dist_coeffs``), optional
+  ``image_width``/``image_height``;
+- a ROS ``camera_info`` YAML (``camera_calibration``'s ``ost.yaml``: ``camera_matrix: {data:
+  […]}``, ``distortion_model``, ``distortion_coefficients``) or a ``camera_info`` message dump
+  (``K``/``D``, ``k``/``d``, ``width``/``height``).
+
+The result is :class:`CameraCalibration`: the :class:`~slopedist.io.intrinsics.Intrinsics` (with
+lens distortion) and the ideal square-pixel :class:`~slopedist.camera.Camera` the estimators use,
+into which boxes are mapped (see :mod:`slopedist.io.intrinsics`).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
+from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
+
+MATRIX_KEYS = ("camera_matrix", "K", "k", "cameraMatrix", "intrinsic_matrix")
+DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "D", "d", "distCoeffs", "distortion")
+WIDTH_KEYS = ("image_width", "width")
+HEIGHT_KEYS = ("image_height", "height")
+FISHEYE_MODELS = ("equidistant", "fisheye", "kannala_brandt")
+
+
+@dataclass(frozen=True)
+class CameraCalibration:
+    """What a calibration file gives: the :class:`Intrinsics` and the ideal :class:`Camera` the
+    estimators use (boxes must go through :meth:`Intrinsics.rectify_table` first unless
+    ``intrinsics.is_ideal``)."""
+
+    intrinsics: Intrinsics
+    camera: Camera
+
+
+def read_calibration(
+    path: str | Path,
+    height_m: float = KITTI_CAMERA_HEIGHT_M,
+    mount_angle_rad: float = 0.0,
+    kitti_key: str = "P2",
+) -> CameraCalibration:
+    """Read a calibration file of any supported form (see the module docstring); the mount is
+    given in metres and radians."""
+    intrinsics = read_intrinsics(path, kitti_key)
+    return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
+
+
+def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
+    """:class:`Intrinsics` from a KITTI, K-text, OpenCV or ROS calibration file."""
+    path = Path(path)
+    if not path.is_file():
+        raise MissingInputError(f"calibration file not found: {path}")
+    text = path.read_text(encoding="utf-8", errors="replace")
+    if path.suffix.lower() in (".yaml", ".yml", ".json", ".xml"):
+        return read_filestorage(path)
+    if re.search(r"^\s*P\d\s*:", text, re.MULTILINE) or _first_line_count(text) == 12:
+        return _from_kitti(path, kitti_key)
+    if text.lstrip()[:1] in ("%", "{", "<") or re.search(r"^\s*\w+\s*:", text, re.MULTILINE):
+        return read_filestorage(path)
+    return read_k_text(path, text)
+
+
+def _first_line_count(text: str) -> int:
+    for line in text.splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            return len(line.split())
+    return 0
+
+
+def _checked(path: Path, build: Callable[[], Intrinsics], field: str | None) -> Intrinsics:
+    """``build()``, with a configuration error turned into one naming the file and field."""
+    try:
+        return build()
+    except ConfigurationError as exc:
+        raise InputFileError(path, str(exc), field=field) from None
+
+
+def _from_kitti(path: Path, key: str) -> Intrinsics:
+    calib = read_kitti_calib(path)
+    if key not in calib:
+        if key == "P2" and "P0" in calib:
+            key = "P0"
+        else:
+            raise InputFileError(path, f"no '{key}:' line (found: {', '.join(calib)})")
+    P = calib[key].reshape(3, 4)
+    return _checked(path, lambda: Intrinsics(P[:, :3] / P[2, 2]), key)
+
+
+def read_k_text(path: Path, text: str) -> Intrinsics:
+    """Nine numbers of K (row by row), then optionally the distortion coefficients."""
+    values: list[float] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].replace(",", " ").replace("[", " ").replace("]", " ")
+        for i, tok in enumerate(line.split()):
+            try:
+                values.append(float(tok))
+            except ValueError:
+                name = "K" if len(values) < 9 else "distortion"
+                raise InputFileError(
+                    path, f"'{tok}' is not a number", line=lineno, field=f"{name}[{i}]"
+                ) from None
+    if len(values) < 9:
+        raise InputFileError(path, f"expected 9 numbers of a 3×3 K, found {len(values)}", field="K")
+    K = np.asarray(values[:9]).reshape(3, 3)
+    return _checked(path, lambda: Intrinsics(K, np.asarray(values[9:])), "distortion")
+
+
+def _node_values(node: cv2.FileNode) -> np.ndarray | None:
+    """Numbers of a FileStorage node: a matrix, a ``{data: […]}`` map or a plain list."""
+    if node.empty() or node.isNone():
+        return None
+    if node.isMap():
+        data = node.getNode("data")
+        if not data.empty():
+            return _node_values(data)
+        mat = node.mat()
+        return None if mat is None else np.asarray(mat, dtype=float).reshape(-1)
+    if node.isSeq():
+        return np.array([node.at(i).real() for i in range(node.size())], dtype=float)
+    if node.isReal() or node.isInt():
+        return np.array([node.real()])
+    return None
+
+
+def _first(fs: cv2.FileStorage, keys: tuple[str, ...]) -> tuple[str, np.ndarray | None]:
+    for key in keys:
+        values = _node_values(fs.getNode(key))
+        if values is not None:
+            return key, values
+    return keys[0], None
+
+
+def _open_filestorage(path: Path) -> cv2.FileStorage:
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:
+        cause = exc.__cause__ or exc
+        match = re.search(r"\((\d+)\): ([^'\n]+)", str(cause))
+        line, msg = (int(match.group(1)), match.group(2)) if match else (None, "cannot parse it")
+        raise InputFileError(path, f"not a readable YAML/JSON/XML file: {msg}", line=line) from None
+    if not fs.isOpened():
+        raise InputFileError(path, "OpenCV cannot open it as YAML/JSON/XML")
+    return fs
+
+
+def _image_size(fs: cv2.FileStorage) -> tuple[int, int] | None:
+    _, w = _first(fs, WIDTH_KEYS)
+    _, h = _first(fs, HEIGHT_KEYS)
+    if w is None or h is None or w.size != 1 or h.size != 1 or w[0] <= 0 or h[0] <= 0:
+        return None
+    return int(w[0]), int(h[0])
+
+
+def read_filestorage(path: str | Path) -> Intrinsics:
+    """An OpenCV FileStorage or ROS ``camera_info`` YAML/JSON/XML (see the module docstring)."""
+    path = Path(path)
+    fs = _open_filestorage(path)
+    try:
+        key, k = _first(fs, MATRIX_KEYS)
+        if k is None:
+            raise InputFileError(path, f"no camera matrix (one of {', '.join(MATRIX_KEYS)})")
+        if k.size != 9:
+            raise InputFileError(path, f"expected 9 numbers, found {k.size}", field=key)
+        dist_key, dist = _first(fs, DIST_KEYS)
+        model = fs.getNode("distortion_model")
+        fisheye = model.isString() and model.string().strip().lower() in FISHEYE_MODELS
+        size = _image_size(fs)
+    finally:
+        fs.release()
+    dist_values = np.zeros(0) if dist is None else dist
+    return _checked(
+        path,
+        lambda: Intrinsics(k.reshape(3, 3), _trim(dist_values, fisheye), fisheye, size),
+        dist_key,
+    )
+
+
+def _trim(dist: np.ndarray, fisheye: bool) -> np.ndarray:
+    """ROS writes fisheye ``D`` with 4 values and some tools pad with zeros: drop trailing zeros
+    beyond the nearest length OpenCV accepts."""
+    counts = (0, 4) if fisheye else DISTORTION_COUNTS
+    if dist.size in counts:
+        return dist
+    for n in counts:
+        if n > 0 and dist.size > n and not np.any(dist[n:] != 0):
+            return dist[:n]
+    return dist

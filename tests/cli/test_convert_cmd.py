@@ -1,0 +1,61 @@
+"""``slopedist convert``: round trips through every layout, and user mistakes as exit code 2."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from slopedist.cli import main
+
+CSV = (
+    "frame,left,top,right,bottom,track_id,score,class\n"
+    "0,100,200,300,260,3,0.9,Car\n"
+    "0,640.5,300.25,700,350,-1,0.75,Truck\n"
+    "4,10,20,30,40,8,0.25,Bus\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("fmt", "name", "extra"),
+    [
+        ("mot", "det.txt", []),
+        ("coco", "res.json", []),
+        ("yolo", "labels", ["--image-size", "1280x720"]),
+    ],
+)
+def test_csv_round_trip(tmp_path: Path, fmt: str, name: str, extra: list[str]) -> None:
+    src = tmp_path / "boxes.csv"
+    src.write_text(CSV)
+    mid, back = tmp_path / name, tmp_path / "back.csv"
+    assert main(["convert", str(src), str(mid), "--to", fmt, *extra]) == 0
+    assert main(["convert", str(mid), str(back), "--from", fmt, *extra]) == 0
+    lines = back.read_text().splitlines()
+    expected = CSV.splitlines()
+    if fmt == "mot":  # MOT det.txt has no class
+        expected = [e.rsplit(",", 1)[0] + ",Car" for e in expected[1:]]
+        lines = lines[1:]
+    assert lines == expected
+
+
+def test_coco_image_map_and_auto_detection(tmp_path: Path) -> None:
+    res = tmp_path / "res.json"
+    res.write_text(
+        json.dumps([{"image_id": 42, "category_id": 8, "bbox": [1, 2, 3, 4], "score": 0.5}])
+    )
+    images = tmp_path / "images.json"
+    images.write_text(json.dumps({"images": [{"id": 42, "file_name": "f7.png", "frame_id": 7}]}))
+    out = tmp_path / "out.csv"
+    assert main(["convert", str(res), str(out), "--coco-images", str(images)]) == 0
+    assert out.read_text().splitlines()[1] == "7,1,2,4,6,-1,0.5,Truck"
+
+
+def test_errors_exit_2_with_file_line_field(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    bad = tmp_path / "det.txt"
+    bad.write_text("1,-1,10,20,30,40,0.9,-1,-1,-1\n2,-1,10,x,30,40,0.9,-1,-1,-1\n")
+    assert main(["convert", str(bad), str(tmp_path / "o.csv")]) == 2
+    assert "det.txt, line 2, field 'top'" in capsys.readouterr().err
+    assert main(["convert", str(bad), str(tmp_path / "y"), "--to", "yolo"]) == 2
+    assert "image size" in capsys.readouterr().err
+    assert main(["convert", str(bad), str(tmp_path / "y"), "--image-size", "12"]) == 2

@@ -1,0 +1,106 @@
+"""Layout sniffing, read_box_file's new layouts, and round trips through every writable layout."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.detections import read_box_file
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.convert import (
+    BoxFileOptions,
+    BoxFormat,
+    read_boxes,
+    sniff_format,
+    write_boxes,
+)
+from slopedist.errors import ConfigurationError, InputFileError
+
+SIZE = (1280, 720)
+
+
+def _table() -> BoxTable:
+    return BoxTable.build(
+        [0, 0, 2, 5],
+        [[100, 200, 300, 260], [640.5, 300.25, 700, 350], [0, 0, 1280, 720], [10, 20, 30, 40]],
+        [3, -1, 3, 8],
+        [0.9, 0.75, 0.5, 0.25],
+        ["Car", "Truck", "Car", "Bus"],
+    )
+
+
+def _assert_same(a: BoxTable, b: BoxTable, classes: bool = True) -> None:
+    assert a.frame.tolist() == b.frame.tolist() and a.track_id.tolist() == b.track_id.tolist()
+    np.testing.assert_allclose(a.boxes, b.boxes, atol=2e-3)
+    np.testing.assert_allclose(a.score, b.score, atol=1e-6)
+    if classes:
+        assert list(a.cls) == list(b.cls)
+
+
+@pytest.mark.parametrize("fmt", [BoxFormat.CSV, BoxFormat.MOT, BoxFormat.COCO, BoxFormat.YOLO])
+def test_round_trip_through_each_layout(tmp_path: Path, fmt: BoxFormat) -> None:
+    target = tmp_path / ("out.json" if fmt is BoxFormat.COCO else "out")
+    options = BoxFileOptions(image_size=SIZE)
+    assert write_boxes(_table(), target, fmt, options) == 0
+    assert sniff_format(target) is fmt if fmt is not BoxFormat.CSV else True
+    back = read_boxes(target, fmt, options)
+    _assert_same(_table(), back, classes=fmt is not BoxFormat.MOT)
+
+
+def test_classes_without_an_index_are_left_out(tmp_path: Path) -> None:
+    table = BoxTable.build([0, 0, 1], [[0, 0, 5, 5]] * 3, classes=["Van", "DontCare", "Car"])
+    assert write_boxes(table, tmp_path / "r.json", BoxFormat.COCO) == 1
+    back = read_boxes(tmp_path / "r.json")
+    assert list(back.cls) == ["Car", "Car"] and back.frame.tolist() == [0, 1]
+    assert write_boxes(table, tmp_path / "y", BoxFormat.YOLO, BoxFileOptions((10, 10))) == 1
+
+
+def test_read_box_file_reads_mot_and_coco(tmp_path: Path) -> None:
+    mot = tmp_path / "det.txt"
+    mot.write_text("1,-1,10,20,30,40,0.9,-1,-1,-1\n2,-1,10,20,30,40,0.2,-1,-1,-1\n")
+    assert read_box_file(mot, min_score=0.5).frame.tolist() == [0]
+    coco = tmp_path / "res.json"
+    coco.write_text(json.dumps([{"image_id": 1, "category_id": 3, "bbox": [1, 2, 3, 4]}]))
+    assert read_box_file(coco).boxes.tolist() == [[1, 2, 4, 6]]
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1 2 3\n")
+    with pytest.raises(InputFileError, match="unrecognised box file layout"):
+        read_box_file(bad)
+
+
+def test_yolo_needs_an_image_size_and_kitti_is_not_writable(tmp_path: Path) -> None:
+    with pytest.raises(ConfigurationError, match="image size"):
+        write_boxes(_table(), tmp_path / "y", BoxFormat.YOLO)
+    with pytest.raises(ConfigurationError, match="image size"):
+        read_boxes(tmp_path, BoxFormat.YOLO)
+    with pytest.raises(ConfigurationError, match="cannot write 'kitti'"):
+        write_boxes(_table(), tmp_path / "k.txt", BoxFormat.KITTI)
+
+
+quarter_px = st.integers(0, 4 * 1000).map(lambda v: v / 4)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(0, 500), quarter_px, quarter_px, quarter_px, quarter_px, st.integers(-1, 99)
+        ),
+        min_size=1,
+        max_size=8,
+    )
+)
+def test_mot_round_trip_of_any_boxes(tmp_path_factory: pytest.TempPathFactory, rows: list) -> None:
+    path = tmp_path_factory.mktemp("mot") / "det.txt"
+    frames = [r[0] for r in rows]
+    boxes = [[r[1], r[2], r[1] + r[3] + 0.25, r[2] + r[4] + 0.25] for r in rows]
+    table = BoxTable.build(frames, boxes, [r[5] for r in rows], np.full(len(rows), 0.5))
+    write_boxes(table, path, BoxFormat.MOT)
+    back = read_boxes(path, BoxFormat.MOT)
+    order = np.argsort(table.frame, kind="stable")
+    _assert_same(table.select(order), back)

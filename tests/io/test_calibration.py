@@ -1,0 +1,129 @@
+"""Calibration files in the forms people have: KITTI, K text, OpenCV YAML/JSON, ROS camera_info."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from slopedist.errors import InputFileError, MissingInputError
+from slopedist.io.calibration import read_calibration, read_intrinsics
+
+K = np.array([[700.0, 0.0, 640.5], [0.0, 650.0, 360.25], [0.0, 0.0, 1.0]])
+DIST = np.array([-0.2, 0.05, 0.001, -0.002, 0.01])
+
+ROS_YAML = """image_width: 1280
+image_height: 720
+camera_name: dashcam
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [700.0, 0.0, 640.5, 0.0, 650.0, 360.25, 0.0, 0.0, 1.0]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.2, 0.05, 0.001, -0.002, 0.01]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+"""
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def _check(path: Path, dist: np.ndarray = DIST, size: tuple[int, int] | None = (1280, 720)) -> None:
+    intr = read_intrinsics(path)
+    np.testing.assert_allclose(intr.K, K)
+    np.testing.assert_allclose(intr.dist, dist)
+    assert intr.image_size == size
+
+
+def test_kitti_calib_keeps_fy(tmp_path: Path) -> None:
+    p2 = "721.5 0 609.6 44.9 0 700.0 172.9 0.2 0 0 1 0.003"
+    path = _write(tmp_path / "calib.txt", f"P0: {p2}\nP2: {p2}\n")
+    cal = read_calibration(path, height_m=1.5)
+    assert cal.intrinsics.K[0, 0] == 721.5 and cal.intrinsics.K[1, 1] == 700.0
+    assert cal.camera.f == 700.0 and cal.camera.c_x == 609.6 and cal.camera.height_m == 1.5
+    assert not cal.intrinsics.is_ideal  # fx ≠ fy: boxes must be mapped
+
+
+def test_k_text_three_lines_with_distortion_line(tmp_path: Path) -> None:
+    text = "# K\n700 0 640.5\n0 650 360.25\n0 0 1\n-0.2 0.05 0.001 -0.002 0.01\n"
+    _check(_write(tmp_path / "K.txt", text), size=None)
+    one_line = _write(tmp_path / "k1.txt", "[700, 0, 640.5, 0, 650, 360.25, 0, 0, 1]\n")
+    _check(one_line, dist=np.zeros(0), size=None)
+
+
+def test_opencv_filestorage_yaml_and_json(tmp_path: Path) -> None:
+    for name in ("cam.yaml", "cam.json"):
+        fs = cv2.FileStorage(str(tmp_path / name), cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", 1280)
+        fs.write("image_height", 720)
+        fs.write("camera_matrix", K)
+        fs.write("distortion_coefficients", DIST.reshape(1, 5))
+        fs.release()
+        _check(tmp_path / name)
+
+
+def test_ros_camera_info_yaml_and_message_dump(tmp_path: Path) -> None:
+    _check(_write(tmp_path / "ost.yaml", ROS_YAML))
+    msg = {"width": 1280, "height": 720, "K": K.reshape(-1).tolist(), "D": DIST.tolist()}
+    _check(_write(tmp_path / "info.json", json.dumps(msg)))
+    no_ext = _write(tmp_path / "camera_info", ROS_YAML)  # content, not the name, decides
+    _check(no_ext)
+
+
+def test_ros_equidistant_is_fisheye(tmp_path: Path) -> None:
+    text = ROS_YAML.replace("plumb_bob", "equidistant").replace(
+        "cols: 5\n  data: [-0.2, 0.05, 0.001, -0.002, 0.01]", "cols: 4\n  data: [0.1, 0.01, 0, 0]"
+    )
+    intr = read_intrinsics(_write(tmp_path / "fe.yaml", text))
+    assert intr.fisheye and intr.dist.tolist() == [0.1, 0.01, 0, 0]
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "line", "field"),
+    [
+        ("K.txt", "700 0 640\n0 x 360\n0 0 1\n", 2, "K[1]"),
+        ("K.txt", "700 0 640\n0 650 360\n", None, "K"),
+        ("K.txt", "700 0 640\n0 650 360\n0 0 1\n0.1 0.2 0.3\n", None, "distortion"),
+        ("c.yaml", "camera_matrix:\n  data: [1, 2, 3, 4, 5, 6]\n", None, "camera_matrix"),
+        (
+            "c.yaml",
+            ROS_YAML.replace("data: [-0.2, 0.05, 0.001,", "data: [0.001,"),
+            None,
+            "distortion_coefficients",
+        ),
+        ("c.yaml", "camera_matrix: [1, 2\nb: 3\n", 2, None),
+        ("c.yaml", "image_width: 5\n", None, None),
+        ("calib.txt", "P2: 1 2 3\n", 1, "P2"),
+    ],
+)
+def test_errors_name_file_line_field(
+    tmp_path: Path, name: str, text: str, line: int | None, field: str | None
+) -> None:
+    with pytest.raises(InputFileError) as err:
+        read_calibration(_write(tmp_path / name, text))
+    assert err.value.line == line and err.value.field == field
+    assert name in str(err.value)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(MissingInputError, match="calibration file not found"):
+        read_calibration(tmp_path / "none.yaml")
+
+
+def test_real_kitti_calibration(kitti_tracking_dir: Path) -> None:
+    from slopedist.camera import Camera
+
+    path = next(iter(sorted(kitti_tracking_dir.rglob("calib/*.txt"))))
+    cal = read_calibration(path)
+    assert cal.camera.f == pytest.approx(Camera.from_kitti_calib(path).f)
