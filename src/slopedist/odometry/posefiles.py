@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from slopedist.camera import read_kitti_calib
 from slopedist.errors import InputFileError, MissingInputError
@@ -106,6 +105,8 @@ def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.fl
             line=int(bad[0]) + 1,
             field="qx qy qz qw",
         )
+    from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
     R = Rotation.from_quat(q / norms[:, None]).as_matrix()
     return data[:, 0], R
 
