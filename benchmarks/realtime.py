@@ -28,13 +28,16 @@ to 1920 px wide, and on ``kitti``/``1080p``. Accuracy: θ RMS and median one-sec
 against the ground truth (the excerpts), and θ RMS against the built-in odometry at full
 resolution (``kitti_raw_lead``, which has no ground-truth rotations).
 
+Part ``startup``: wall and processor time of ``python -m slopedist --help`` with a warm bytecode
+cache, against a bare interpreter (and another source tree with ``--compare-src``).
+
 Part ``widths``: the built-in odometry's accuracy and processor time per working width
 (``VisualOdometryConfig.max_width_px``) on the inputs wider than 1280 px.
 
 Usage::
 
     python benchmarks/realtime.py [--data ../shared/data] [--out bench_out/realtime]
-        [--repeats 3] [--part run|odometry|widths|all]
+        [--repeats 3] [--part run|odometry|widths|startup|all] [--compare-src ../main/src]
 """
 
 from __future__ import annotations
@@ -427,6 +430,40 @@ def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
             )
 
 
+def startup_times(repeats: int, compare_src: Path | None) -> None:
+    """Wall and processor time of ``python -m slopedist --help`` (bytecode cached under
+    ``PYTHONPYCACHEPREFIX``, written once first) against a bare ``python -c pass``; with
+    ``compare_src``, the same for that source tree, alternating."""
+    import resource
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = "/tmp/pyc_realtime_bench"
+    trees = {"this tree": str(REPO / "src")}
+    if compare_src is not None:
+        trees["compare"] = str(compare_src)
+    commands = {"bare python": [sys.executable, "-c", "pass"]}
+    commands |= {name: [sys.executable, "-m", "slopedist", "--help"] for name in trees}
+    times: dict[str, list[tuple[float, float]]] = defaultdict(list)
+    for k in range(repeats + 1):  # the first round writes the bytecode cache
+        for name, command in commands.items():
+            run_env = env | {"PYTHONPATH": trees.get(name, str(REPO / "src"))}
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            w0 = time.perf_counter()
+            subprocess.run(command, env=run_env, check=True, capture_output=True)
+            wall = time.perf_counter() - w0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+            if k:
+                times[name].append((wall, cpu))
+    print("\nStart-up: `python -m slopedist --help`, seconds, min / median")
+    for name, values in times.items():
+        walls, cpus = [v[0] for v in values], [v[1] for v in values]
+        print(
+            f"  {name:12s} wall {min(walls):.3f} / {statistics.median(walls):.3f}   "
+            f"cpu {min(cpus):.3f} / {statistics.median(cpus):.3f}"
+        )
+
+
 SWEEP_WIDTHS = (960, 1280, 1600, None)
 
 
@@ -468,12 +505,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "realtime")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--part", choices=("run", "odometry", "widths", "all"), default="all")
+    parser.add_argument(
+        "--part", choices=("run", "odometry", "widths", "startup", "all"), default="all"
+    )
+    parser.add_argument(
+        "--compare-src", type=Path, help="another source tree for the start-up comparison"
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--cores", type=int, default=1, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
         return worker(args)
+    if args.part in ("startup", "all"):
+        startup_times(max(args.repeats, 5), args.compare_src)
+        if args.part == "startup":
+            return 0
     if not (args.data / "kitti_raw_lead").is_dir():
         print(f"shared data not found under {args.data}", file=sys.stderr)
         return 2
