@@ -11,7 +11,8 @@ Inputs (made from the shared data, written under ``--out``):
 
 Part 1, the run: ``run_frames`` with method ``ours`` and the built-in odometry, each run in a
 fresh subprocess pinned to one core (``os.sched_setaffinity``, ``cv2.setNumThreads(1)``, frames
-decoded in the loop) or to two cores (two OpenCV threads, frames decoded ahead in a thread),
+decoded in the loop, or ahead in a thread: ``ahead 4``) or to two cores (two OpenCV threads,
+frames decoded ahead in a thread),
 with and without an MP4 overlay. Per frame: wall and processor time of each stage (decode,
 odometry, estimation, writing the CSV rows, overlay draw, overlay encode; processor time of the
 thread running the stage: OpenCV's own worker threads are not in it) and of the whole run (wall,
@@ -124,7 +125,9 @@ def hd_scale_crop(width: int, height: int) -> tuple[float, int]:
 
 def hd_frame(image: NDArray[np.uint8], scale: float, x0: int) -> NDArray[np.uint8]:
     width, height = image.shape[1], image.shape[0]
-    big = cv2.resize(image, (round(width * scale), round(height * scale)), cv2.INTER_LINEAR)
+    big = cv2.resize(
+        image, (round(width * scale), round(height * scale)), interpolation=cv2.INTER_LINEAR
+    )
     return np.ascontiguousarray(big[: HD[1], x0 : x0 + HD[0]])
 
 
@@ -239,7 +242,7 @@ def worker(args: argparse.Namespace) -> int:
         out,
         overlay=out / "overlay.mp4" if spec["overlay"] else None,
         progress=False,
-        decode_ahead=0 if args.cores == 1 else 4,
+        decode_ahead=args.ahead,
     )
     boxes = read_box_file(spec["boxes"])
     source = TimedSource(open_frames(spec["frames"]), clock)
@@ -250,7 +253,7 @@ def worker(args: argparse.Namespace) -> int:
         result = runner.run_frames(source, boxes, odometry, estimator, config)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     n = result.frames
-    main_thread = sum(v for k, v in clock.wall.items() if k != "decode" or args.cores == 1)
+    main_thread = sum(v for k, v in clock.wall.items() if k != "decode" or not args.ahead)
     figures = {f"{k} wall": v / n * 1e3 for k, v in clock.wall.items()}
     figures |= {f"{k} cpu": v / n * 1e3 for k, v in clock.cpu.items()}
     figures |= {"other wall": (wall - main_thread) / n * 1e3}
@@ -261,12 +264,17 @@ def worker(args: argparse.Namespace) -> int:
 
 def run_configurations(
     inputs: list[RunInput], out: Path, repeats: int
-) -> dict[tuple[str, int, bool], list[dict[str, float]]]:
+) -> dict[tuple[str, int, int, bool], list[dict[str, float]]]:
     """Every configuration ``repeats`` times, alternating, each in a fresh process."""
-    runs: dict[tuple[str, int, bool], list[dict[str, float]]] = defaultdict(list)
-    configs = [(inp, cores, ov) for inp in inputs for cores in (1, 2) for ov in (False, True)]
+    runs: dict[tuple[str, int, int, bool], list[dict[str, float]]] = defaultdict(list)
+    configs = [
+        (inp, cores, ahead, ov)
+        for inp in inputs
+        for cores, ahead in ((1, 0), (1, 4), (2, 4))
+        for ov in (False, True)
+    ]
     for _ in range(repeats):
-        for inp, cores, overlay in configs:
+        for inp, cores, ahead, overlay in configs:
             spec = {
                 "camera": {
                     k: getattr(inp.camera, k)
@@ -275,24 +283,27 @@ def run_configurations(
                 "frames": str(inp.frames),
                 "boxes": str(inp.boxes),
                 "overlay": overlay,
-                "out": str(out / f"run_{inp.name}_{cores}_{int(overlay)}"),
+                "out": str(out / f"run_{inp.name}_{cores}_{ahead}_{int(overlay)}"),
             }
             command = [sys.executable, __file__, "--worker", json.dumps(spec)]
             done = subprocess.run(
-                [*command, "--cores", str(cores)], capture_output=True, text=True, check=True
+                [*command, "--cores", str(cores), "--ahead", str(ahead)],
+                capture_output=True,
+                text=True,
+                check=True,
             )
-            runs[(inp.name, cores, overlay)].append(json.loads(done.stdout.splitlines()[-1]))
+            runs[(inp.name, cores, ahead, overlay)].append(json.loads(done.stdout.splitlines()[-1]))
     return runs
 
 
-def print_run_table(runs: dict[tuple[str, int, bool], list[dict[str, float]]]) -> None:
+def print_run_table(runs: dict[tuple[str, int, int, bool], list[dict[str, float]]]) -> None:
     columns = [*STAGES, "other", "total"]
     print("\nPart 1: slopedist run, method ours, built-in odometry; ms per frame, min / median")
     print(
-        f"{'input':6s} {'cores':>5s} {'overlay':>7s} {'clock':>5s} "
+        f"{'input':6s} {'cores':>5s} {'ahead':>5s} {'overlay':>7s} {'clock':>5s} "
         + " ".join(f"{c:>14s}" for c in columns)
     )
-    for (name, cores, overlay), figures in runs.items():
+    for (name, cores, ahead, overlay), figures in runs.items():
         for clock in ("wall", "cpu"):
             cells = []
             for c in columns:
@@ -302,7 +313,7 @@ def print_run_table(runs: dict[tuple[str, int, bool], list[dict[str, float]]]) -
                     continue
                 cells.append(f"{min(values):6.2f} / {statistics.median(values):6.2f}")
             print(
-                f"{name:6s} {cores:5d} {'yes' if overlay else 'no':>7s} {clock:>5s} "
+                f"{name:6s} {cores:5d} {ahead:5d} {'yes' if overlay else 'no':>7s} {clock:>5s} "
                 + " ".join(f"{c:>14s}" for c in cells)
             )
     print(
@@ -333,7 +344,7 @@ class NaiveOdometry:
         p0 = cv2.goodFeaturesToTrack(prev, NAIVE_POINTS, 0.01, 10)
         if p0 is None or len(p0) < 8:
             return OdometryResult(None, OdometryState.LOST)
-        p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, image_gray, p0, None)
+        p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, image_gray, p0, np.empty_like(p0))
         good = status.ravel() == 1
         a, b = p0[good].reshape(-1, 2), p1[good].reshape(-1, 2)
         if len(a) < 8:
@@ -366,7 +377,10 @@ def odometry_inputs(data: Path, run_inputs: list[RunInput]) -> list[OdometryInpu
         width, height = frames[0][1].shape[1], frames[0][1].shape[0]
         s = HD[0] / width
         size = (HD[0], round(height * s))
-        big = [(t, np.asarray(cv2.resize(img, size, cv2.INTER_LINEAR))) for t, img in frames]
+        big = [
+            (t, np.asarray(cv2.resize(img, size, interpolation=cv2.INTER_LINEAR), np.uint8))
+            for t, img in frames
+        ]
         cam = crop_camera(seq.camera, s, 0, size)
         found.append(OdometryInput(f"{folder.name[:7]}×{s:.2f}", cam, big, seq.ground_truth))
     for inp in run_inputs:
@@ -513,6 +527,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--cores", type=int, default=1, help=argparse.SUPPRESS)
+    parser.add_argument("--ahead", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
         return worker(args)
