@@ -408,9 +408,25 @@ def one_run(odometry: RotationOdometry, frames: list[tuple[float, Gray]]) -> Odo
     return run_odometry(odometry, frames)
 
 
-def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
+def one_core() -> None:
+    """This process on its first allowed core, OpenCV with one thread."""
     cv2.setNumThreads(1)
     os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:1]))
+
+
+def accuracy(run: OdometryRun, truth: Any, full: OdometryRun) -> tuple[float, float, float]:
+    """θ RMS and median one-second rotation error against ``truth`` (NaN without it), and θ
+    RMS against the run ``full``, degrees."""
+    theta = rel = math.nan
+    if truth is not None:
+        ev = OdometryEvaluation.from_run(run, truth)
+        theta, rel = math.degrees(ev.theta_rms_rad), math.degrees(ev.rel_rot_median_rad)
+    err = rotation_errors(run, full.track).theta_err_rad
+    return theta, rel, math.degrees(float(np.sqrt(np.nanmean(err**2))))
+
+
+def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
+    one_core()
     print("\nPart 2: odometry alone, 1 core; ms per frame min / median; θ and rel in degrees")
     print(
         f"{'input':14s} {'size':>9s} {'backend':13s} {'ok':>6s} {'wall ms':>15s} "
@@ -421,17 +437,12 @@ def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
         for _ in range(repeats):
             for name, backend in backends(inp.camera).items():
                 runs[name].append(one_run(backend, inp.frames))
-        full = runs["built-in full"][0].track
+        full = runs["built-in full"][0]
         naive_ms = statistics.median(r.seconds for r in runs["naive"])
         for name, rs in runs.items():
             walls = [r.seconds / len(r) * 1e3 for r in rs]
             cpus = [r.cpu_seconds / len(r) * 1e3 for r in rs]
-            theta = rel = math.nan
-            if inp.truth is not None:
-                ev = OdometryEvaluation.from_run(rs[0], inp.truth)
-                theta, rel = math.degrees(ev.theta_rms_rad), math.degrees(ev.rel_rot_median_rad)
-            err = rotation_errors(rs[0], full).theta_err_rad
-            vs_full = math.degrees(float(np.sqrt(np.nanmean(err**2))))
+            theta, rel, vs_full = accuracy(rs[0], inp.truth, full)
             h, w = inp.frames[0][1].shape
             print(
                 f"{inp.name:14s} {f'{w}×{h}':>9s} {name:13s} "
@@ -484,8 +495,7 @@ SWEEP_WIDTHS = (960, 1280, 1600, None)
 def width_sweep(inputs: list[OdometryInput]) -> None:
     """Accuracy and processor time of the built-in odometry per working width (``max_width_px``)
     on the inputs wider than 1280 px."""
-    cv2.setNumThreads(1)
-    os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:1]))
+    one_core()
     print("\nWorking width of the built-in odometry (1 core; θ, rel in degrees; one run)")
     print(
         f"{'input':14s} {'size':>9s} {'max width':>9s} {'ok':>6s} {'cpu ms':>7s} "
@@ -500,16 +510,12 @@ def width_sweep(inputs: list[OdometryInput]) -> None:
             config = VisualOdometryConfig(max_width_px=width)
             run = one_run(BuiltinVisualOdometry(inp.camera, config), inp.frames)
             full = full or run
-            theta = rel = math.nan
-            if inp.truth is not None:
-                ev = OdometryEvaluation.from_run(run, inp.truth)
-                theta, rel = math.degrees(ev.theta_rms_rad), math.degrees(ev.rel_rot_median_rad)
-            err = rotation_errors(run, full.track).theta_err_rad
+            theta, rel, vs_full = accuracy(run, inp.truth, full)
             print(
                 f"{inp.name:14s} {f'{w}×{h}':>9s} {width!s:>9s} "
                 f"{int(run.valid.sum()):3d}/{len(run):<3d}"
                 f"{run.cpu_seconds / len(run) * 1e3:7.2f} {theta:7.4f} {rel:7.4f} "
-                f"{math.degrees(float(np.sqrt(np.nanmean(err**2)))):9.4f}",
+                f"{vs_full:9.4f}",
                 flush=True,
             )
 
