@@ -49,7 +49,12 @@ from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import Estimator, FrameEstimates
 from slopedist.io.frames import Frame, FrameSource, check_calibration
 from slopedist.io.overlay import OverlayWriter
-from slopedist.io.prefetch import DEFAULT_AHEAD, PrefetchedFrames
+from slopedist.io.prefetch import (
+    DEFAULT_AHEAD,
+    BackgroundOverlay,
+    OverlaySink,
+    PrefetchedFrames,
+)
 from slopedist.io.tables import CsvStreamWriter, write_json
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
@@ -213,7 +218,8 @@ class RunConfig:
             :func:`default_sequence_name` of the frames).
         decode_ahead: frames decoded ahead in a background thread
             (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
-            odometry works); 0: decode in the loop's thread.
+            odometry works), and overlay frames queued for encoding in another
+            (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: both in the loop's thread.
     """
 
     out_dir: Path
@@ -339,7 +345,11 @@ class _RunLoop:
         self.records_path = out / RECORDS_NAME
         self.records = open_records(self.records_path)
         self.frame_log = CsvStreamWriter.open(out / FRAMES_NAME, FRAME_FIELDS)
-        self.painter = OverlayWriter(config.overlay, config.overlay_fps) if config.overlay else None
+        self.painter: OverlaySink | None = None
+        if config.overlay:
+            self.painter = OverlayWriter(config.overlay, config.overlay_fps)
+            if config.decode_ahead:  # encoded behind the loop, in a thread
+                self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
         self.bar: tqdm | None = None
         self.start = time.perf_counter()
 

@@ -14,7 +14,8 @@ import pytest
 
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.io.frames import Frame, FrameStatus, open_frames
-from slopedist.io.prefetch import PrefetchedFrames
+from slopedist.io.overlay import OverlayWriter
+from slopedist.io.prefetch import BackgroundOverlay, PrefetchedFrames
 
 
 class ListSource:
@@ -97,3 +98,65 @@ def test_image_folder_through_the_thread_equals_the_folder(tmp_path: Path) -> No
     assert ahead[2].status is FrameStatus.MISSING
     for a, b in zip(ahead, direct):
         assert (a.image is None and b.image is None) or np.array_equal(a.image, b.image)
+
+
+class RecordingSink:
+    """Records the calls; fails at frame ``fail_at``; sleeps a little per frame."""
+
+    def __init__(self, fail_at: int | None = None) -> None:
+        self.calls: list[tuple[str, int]] = []
+        self.fail_at = fail_at
+        self.closed = False
+
+    def write(self, index: int, image: np.ndarray) -> None:
+        time.sleep(0.002)
+        if index == self.fail_at:
+            raise OSError(f"disk full at frame {index}")
+        self.calls.append(("write", index))
+
+    def write_placeholder(self, index: int, text: str) -> None:
+        self.calls.append(("placeholder", index))
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_background_overlay_keeps_the_order_and_closes() -> None:
+    sink = RecordingSink()
+    writer = BackgroundOverlay(sink, ahead=2)
+    for k in range(10):
+        if k == 4:
+            writer.write_placeholder(k, "missing")
+        else:
+            writer.write(k, np.zeros((2, 2, 3), np.uint8))
+    writer.close()
+    assert sink.calls == [("placeholder" if k == 4 else "write", k) for k in range(10)]
+    assert sink.closed
+    assert not [t for t in threading.enumerate() if t.name == "slopedist-overlay"]
+
+
+def test_background_overlay_error_reaches_the_caller() -> None:
+    sink = RecordingSink(fail_at=3)
+    writer = BackgroundOverlay(sink, ahead=2)
+    with pytest.raises(OSError, match="disk full at frame 3"):
+        for k in range(50):
+            writer.write(k, np.zeros((2, 2, 3), np.uint8))
+        writer.close()
+    writer.close()  # after the error: closes quietly, nothing more written
+    assert sink.calls == [("write", k) for k in range(3)] and sink.closed
+
+
+def test_background_overlay_video_equals_the_direct_one(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    images = [rng.integers(0, 255, (48, 64, 3), np.uint8) for _ in range(6)]
+    direct = OverlayWriter(tmp_path / "a.mp4", 10.0)
+    behind = BackgroundOverlay(OverlayWriter(tmp_path / "b.mp4", 10.0))
+    for k, image in enumerate(images):
+        direct.write(k, image)
+        behind.write(k, image)
+    direct.close()
+    behind.close()
+    decoded = [list(open_frames(tmp_path / name)) for name in ("a.mp4", "b.mp4")]
+    assert len(decoded[0]) == len(images) == len(decoded[1])
+    for a, b in zip(*decoded):
+        assert a.image is not None and b.image is not None and np.array_equal(a.image, b.image)

@@ -1,4 +1,4 @@
-"""Frames decoded ahead in a background thread: a wrapper around any frame source.
+"""Frames decoded ahead, and overlays encoded behind, in background threads.
 
 Decoding a frame (PNG inflate, H.264) runs in OpenCV without Python's global lock, so a thread
 that decodes the next frames while the odometry works on the current one lets a stream use a
@@ -17,6 +17,10 @@ import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.errors import ConfigurationError
 from slopedist.io.frames import Frame, FrameSource
@@ -104,3 +108,71 @@ def _put(items: queue.Queue[object], item: object, stop: threading.Event) -> boo
         except queue.Full:
             continue
     return False
+
+
+class OverlaySink(Protocol):
+    """What :class:`BackgroundOverlay` forwards to (e.g. :class:`~slopedist.io.overlay.
+    OverlayWriter`)."""
+
+    def write(self, index: int, image: NDArray[np.uint8]) -> None: ...
+
+    def write_placeholder(self, index: int, text: str) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class BackgroundOverlay:
+    """An overlay writer whose encoding runs in a background thread, up to ``ahead`` frames
+    behind the caller (the images handed over must not be changed afterwards).
+
+    Calls reach ``sink`` in order; an error of the sink is raised by the next call (or by
+    :meth:`close`), after which nothing more is written.
+    """
+
+    def __init__(self, sink: OverlaySink, ahead: int = DEFAULT_AHEAD) -> None:
+        if ahead < 1:
+            raise ConfigurationError(f"overlay frames queued must be ≥ 1, got {ahead}")
+        self.sink = sink
+        self._calls: queue.Queue[tuple[str, tuple[object, ...]] | None] = queue.Queue(ahead)
+        self._error: BaseException | None = None
+        self._worker = threading.Thread(target=self._drain, name="slopedist-overlay", daemon=True)
+        self._worker.start()
+
+    def write(self, index: int, image: NDArray[np.uint8]) -> None:
+        self._submit("write", (index, image))
+
+    def write_placeholder(self, index: int, text: str) -> None:
+        self._submit("write_placeholder", (index, text))
+
+    def close(self) -> None:
+        """Write everything queued, close the sink, and raise the sink's error if any."""
+        if self._worker.is_alive():
+            self._calls.put(None)
+            self._worker.join()
+        self._raise()
+
+    def _submit(self, name: str, args: tuple[object, ...]) -> None:
+        self._raise()
+        self._calls.put((name, args))
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
+
+    def _drain(self) -> None:
+        failed = False
+        while True:
+            call = self._calls.get()
+            if call is None:
+                break
+            if failed:
+                continue  # keep taking calls so that the caller never blocks
+            try:
+                getattr(self.sink, call[0])(*call[1])
+            except BaseException as exc:  # raised in the caller's thread
+                self._error, failed = exc, True
+        try:
+            self.sink.close()
+        except BaseException as exc:
+            self._error = self._error or exc
