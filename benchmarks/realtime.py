@@ -18,8 +18,8 @@ odometry, estimation, writing the CSV rows, overlay draw, overlay encode; proces
 thread running the stage: OpenCV's own worker threads are not in it) and of the whole run (wall,
 and processor time of all threads). ``other`` = the loop's wall time outside the named stages
 (grey conversion, bookkeeping, waiting for a decoded frame or for room in the overlay queue;
-with ``ahead 4`` decoding and overlay encoding run in threads of their own). Runs alternate between the
-configurations; min and median of ``--repeats`` runs.
+with ``ahead 4`` decoding and overlay encoding run in threads of their own). Runs alternate
+between the configurations; min and median of ``--repeats`` runs.
 
 Part 2, the odometry alone (frames decoded beforehand, one core, one process): the built-in
 odometry at its default working size (frames over 1280 px wide are scaled down), the built-in
