@@ -28,7 +28,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from slopedist.detections.onnx_detector import OnnxDetector  # noqa: E402
+from slopedist.detections.onnx_detector import DetectorSettings, OnnxDetector  # noqa: E402
 
 
 def yolov8_output(rng: np.random.Generator, n: int = 8400, classes: int = 80) -> np.ndarray:
@@ -73,7 +73,9 @@ def main() -> None:
     frame = cv2.GaussianBlur(rng.integers(0, 255, (h, w, 3), dtype=np.uint8), (5, 5), 0)
     cv2.setNumThreads(1)
     with tempfile.TemporaryDirectory() as tmp:
-        det = OnnxDetector(build(Path(tmp) / "m.onnx", yolov8_output(rng)), threads=1)
+        det = OnnxDetector(
+            build(Path(tmp) / "m.onnx", yolov8_output(rng)), DetectorSettings(threads=1)
+        )
         for _ in range(10):  # warm-up
             det.detect(frame)
         pre, inf, post, n_boxes = [], [], [], 0

@@ -11,6 +11,7 @@ import pytest
 from slopedist.detections.layouts import Candidates, LogitKind, OutputLayout, guess_layout
 from slopedist.detections.onnx_detector import (
     DetectionTiming,
+    DetectorSettings,
     OnnxDetector,
     class_aware_nms,
     detect_frames,
@@ -111,7 +112,7 @@ def test_each_layout_detected_from_shapes_and_decoded_to_frame_pixels(
     tmp_path: Path, constant_model: Callable[..., Path], layout: OutputLayout
 ) -> None:
     path = constant_model(tmp_path / f"{layout.value}.onnx", LAYOUT_OUTPUTS[layout]())
-    det = OnnxDetector(path, score_threshold=0.25, iou_threshold=0.5)
+    det = OnnxDetector(path, DetectorSettings(score_threshold=0.25, iou_threshold=0.5))
     assert det.layout is layout and det.input_size == (IN_W, IN_H)
     _check(det.detect(_frame(), frame=7), frame=7)
     t = det.last_timing
@@ -124,12 +125,12 @@ def test_forced_layout_and_custom_class_map(
     tmp_path: Path, constant_model: Callable[..., Path]
 ) -> None:
     path = constant_model(tmp_path / "v8.onnx", LAYOUT_OUTPUTS[OutputLayout.YOLOV8]())
-    det = OnnxDetector(path, class_map={0: "Pedestrian"}, layout="yolov8")
+    det = OnnxDetector(path, DetectorSettings(class_map={0: "Pedestrian"}, layout="yolov8"))
     table = det.detect(_frame())
     assert list(table.cls) == ["Pedestrian"]
     np.testing.assert_allclose(table.boxes, [[20.0, 60.0, 60.0, 140.0]])
     with pytest.raises(Exception, match="end-to-end output needs 6 columns"):
-        OnnxDetector(path, layout=OutputLayout.END_TO_END).detect(_frame())
+        OnnxDetector(path, DetectorSettings(layout=OutputLayout.END_TO_END)).detect(_frame())
 
 
 def test_fused_detr_layout_must_be_chosen(
@@ -137,7 +138,7 @@ def test_fused_detr_layout_must_be_chosen(
 ) -> None:
     path = constant_model(tmp_path / "rtdetr.onnx", {"output0": detr_fused_tensor()})
     assert OnnxDetector(path).layout is OutputLayout.YOLOV5  # same shape: not guessable
-    det = OnnxDetector(path, layout="detr-fused")
+    det = OnnxDetector(path, DetectorSettings(layout="detr-fused"))
     _check(det.detect(_frame()))
 
 
@@ -151,7 +152,7 @@ def test_detr_softmax_with_no_object_class(
         logits[i, -1] = 10.0 - np.log(score / (1 - score))
         logits[i, :-1][np.arange(N_CLASSES) != cls] = -50.0
     path = constant_model(tmp_path / "detr.onnx", {"boxes": boxes, "logits": logits[None]})
-    det = OnnxDetector(path, logit_kind=LogitKind.SOFTMAX)
+    det = OnnxDetector(path, DetectorSettings(logit_kind=LogitKind.SOFTMAX))
     _check(det.detect(_frame()))
 
 
@@ -161,7 +162,7 @@ def test_dynamic_input_size_needs_an_explicit_size(
     path = constant_model(tmp_path / "dyn.onnx", {"output0": yolov8_tensor()}, (1, 3, "h", "w"))
     with pytest.raises(InputFileError, match="dynamic"):
         OnnxDetector(path)
-    _check(OnnxDetector(path, input_size=(IN_W, IN_H)).detect(_frame()))
+    _check(OnnxDetector(path, DetectorSettings(input_size=(IN_W, IN_H))).detect(_frame()))
 
 
 def test_letterbox_and_its_inverse() -> None:
@@ -207,7 +208,7 @@ def test_errors_missing_model_and_bad_thresholds(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="cannot load"):
         OnnxDetector(bad)
     with pytest.raises(ConfigurationError, match="threshold"):
-        OnnxDetector(bad, score_threshold=1.5)
+        DetectorSettings(score_threshold=1.5)
 
 
 def test_missing_onnxruntime_is_a_clear_error(
@@ -238,7 +239,7 @@ def test_preprocess_equals_letterbox_then_blob(
     import cv2
 
     path = constant_model(tmp_path / "v8.onnx", {"output0": yolov8_tensor()})
-    det = OnnxDetector(path, bgr_input=bgr, pixel_scale=scale, pad_centre=centre)
+    det = OnnxDetector(path, DetectorSettings(bgr_input=bgr, pixel_scale=scale, pad_centre=centre))
     rng = np.random.default_rng(0)
     for shape in [(360, 640, 3), (300, 200, 3), (360, 640, 3)]:  # the buffer is refilled
         img = rng.integers(0, 256, shape, dtype=np.uint8)

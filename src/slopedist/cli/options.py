@@ -14,7 +14,7 @@ from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
 from slopedist.detections.layouts import LogitKind, OutputLayout
-from slopedist.detections.onnx_detector import COCO_VEHICLES, OnnxDetector
+from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
@@ -414,16 +414,16 @@ def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callabl
 
 def make_detector(model: Path, **opts: Any) -> OnnxDetector:
     """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`."""
-    return OnnxDetector(
-        model,
-        opts["detector_score"],
-        opts["detector_iou"],
-        parse_class_map(opts["detector_classes"]),
-        opts["detector_layout"],
-        parse_size(opts["detector_input_size"]),
+    settings = DetectorSettings(
+        score_threshold=opts["detector_score"],
+        iou_threshold=opts["detector_iou"],
+        class_map=parse_class_map(opts["detector_classes"]),
+        layout=opts["detector_layout"],
+        input_size=parse_size(opts["detector_input_size"]),
         bgr_input=opts["detector_bgr"],
         pixel_scale=opts["detector_pixel_scale"],
         pad_centre=not opts["detector_pad_top_left"],
         logit_kind=opts["detector_logits"],
         threads=opts["detector_threads"],
     )
+    return OnnxDetector(model, settings)

@@ -150,14 +150,15 @@ def _import_onnxruntime() -> Any:
     return onnxruntime
 
 
-class OnnxDetector:
-    """An exported 2D detector (YOLOv5/v8/v10/11, YOLOX, RT-DETR, ...) as a :class:`Detector`.
+@dataclass(frozen=True)
+class DetectorSettings:
+    """How an :class:`OnnxDetector` reads its model and filters its boxes.
 
-    Args:
-        model_path: the ``.onnx`` file.
+    Attributes:
         score_threshold: minimum score in ``[0, 1]`` of a kept box.
         iou_threshold: NMS suppresses a box overlapping a better one of its class above this IoU.
-        class_map: model class index → slopedist class name; others are dropped.
+        class_map: model class index → slopedist class name; others are dropped (None: COCO
+            vehicles).
         layout: :class:`OutputLayout` (AUTO: from the output shapes).
         input_size: network input ``(width, height)``, pixels (None: from the model's input).
         bgr_input, pixel_scale, pad_centre: pre-processing (see the module docstring).
@@ -165,42 +166,63 @@ class OnnxDetector:
         max_detections: keep at most this many boxes per frame (best first).
         threads: onnxruntime intra-op threads (None = its default).
 
+    Raises:
+        ConfigurationError: thresholds outside their ranges, or fewer than one detection.
+    """
+
+    score_threshold: float = 0.25
+    iou_threshold: float = 0.45
+    class_map: Mapping[int, str] | None = None
+    layout: OutputLayout | str = OutputLayout.AUTO
+    input_size: tuple[int, int] | None = None
+    bgr_input: bool = False
+    pixel_scale: float = 1.0 / 255.0
+    pad_centre: bool = True
+    logit_kind: LogitKind | str = LogitKind.SIGMOID
+    max_detections: int = 300
+    threads: int | None = None
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.score_threshold <= 1.0 or not 0.0 < self.iou_threshold <= 1.0:
+            raise ConfigurationError(
+                f"detector score threshold must be in [0, 1] and IoU threshold in (0, 1], got "
+                f"{self.score_threshold} and {self.iou_threshold}"
+            )
+        if self.max_detections < 1:
+            raise ConfigurationError(f"max_detections must be ≥ 1, got {self.max_detections}")
+
+
+class OnnxDetector:
+    """An exported 2D detector (YOLOv5/v8/v10/11, YOLOX, RT-DETR, ...) as a :class:`Detector`.
+
+    Args:
+        model_path: the ``.onnx`` file.
+        settings: thresholds, class map, layout and pre-processing (defaults: COCO vehicles,
+            score 0.25, IoU 0.45, layout from the output shapes).
+
     Raises (at construction):
         OptionalDependencyError: onnxruntime is not installed.
         MissingInputError: the model file does not exist.
         InputFileError: onnxruntime cannot load it, its input is not ``N×3×H×W``, or its input
             size is dynamic and ``input_size`` is not given.
-        ConfigurationError: invalid thresholds, or a layout that the outputs cannot have.
+        ConfigurationError: a layout that the outputs cannot have.
     """
 
-    def __init__(
-        self,
-        model_path: str | Path,
-        score_threshold: float = 0.25,
-        iou_threshold: float = 0.45,
-        class_map: Mapping[int, str] | None = None,
-        layout: OutputLayout | str = OutputLayout.AUTO,
-        input_size: tuple[int, int] | None = None,
-        *,
-        bgr_input: bool = False,
-        pixel_scale: float = 1.0 / 255.0,
-        pad_centre: bool = True,
-        logit_kind: LogitKind | str = LogitKind.SIGMOID,
-        max_detections: int = 300,
-        threads: int | None = None,
-    ) -> None:
-        if not 0.0 <= score_threshold <= 1.0 or not 0.0 < iou_threshold <= 1.0:
-            raise ConfigurationError(
-                f"detector score threshold must be in [0, 1] and IoU threshold in (0, 1], got "
-                f"{score_threshold} and {iou_threshold}"
-            )
+    def __init__(self, model_path: str | Path, settings: DetectorSettings | None = None) -> None:
+        cfg = settings or DetectorSettings()
         self.model_path = Path(model_path)
-        self.score_threshold = float(score_threshold)
-        self.iou_threshold = float(iou_threshold)
-        self.class_map = dict(COCO_VEHICLES if class_map is None else class_map)
-        self.bgr_input, self.pixel_scale, self.pad_centre = bgr_input, pixel_scale, pad_centre
-        self.logit_kind = LogitKind(logit_kind)
-        self.max_detections = int(max_detections)
+        self.settings = cfg
+        self.score_threshold = cfg.score_threshold
+        self.iou_threshold = cfg.iou_threshold
+        self.class_map = dict(COCO_VEHICLES if cfg.class_map is None else cfg.class_map)
+        self.bgr_input, self.pixel_scale, self.pad_centre = (
+            cfg.bgr_input,
+            cfg.pixel_scale,
+            cfg.pad_centre,
+        )
+        self.logit_kind = LogitKind(cfg.logit_kind)
+        self.max_detections = cfg.max_detections
+        threads, input_size, layout = cfg.threads, cfg.input_size, cfg.layout
         self.session = self._load(threads)
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
