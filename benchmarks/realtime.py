@@ -34,13 +34,16 @@ per frame over the naive reference's, wall / processor.
 Part ``startup``: wall and processor time of ``python -m slopedist --help`` with a warm bytecode
 cache, against a bare interpreter (and another source tree with ``--compare-src``).
 
+Part ``demo``: wall and processor time of ``slopedist demo`` with its scenarios in worker
+processes (the default) and one after the other (``--jobs 1``), and from ``--compare-src``.
+
 Part ``widths``: the built-in odometry's accuracy and processor time per working width
 (``VisualOdometryConfig.max_width_px``) on the inputs wider than 1280 px.
 
 Usage::
 
     python benchmarks/realtime.py [--data ../shared/data] [--out bench_out/realtime]
-        [--repeats 3] [--part run|odometry|widths|startup|all] [--compare-src ../main/src]
+        [--repeats 3] [--part run|odometry|widths|startup|demo|all] [--compare-src ../main/src]
 """
 
 from __future__ import annotations
@@ -460,38 +463,63 @@ def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
             )
 
 
-def startup_times(repeats: int, compare_src: Path | None) -> None:
-    """Wall and processor time of ``python -m slopedist --help`` (bytecode cached under
-    ``PYTHONPYCACHEPREFIX``, written once first) against a bare ``python -c pass``; with
-    ``compare_src``, the same for that source tree, alternating."""
+Command = tuple[list[str], str]
+"""A command line and the source tree it runs (``PYTHONPATH``)."""
+
+
+def time_commands(commands: dict[str, Command], repeats: int, warm_up: bool) -> None:
+    """Wall and processor time (the child's, all threads and processes) of each command, the
+    commands alternating; with ``warm_up`` a first round (writing the bytecode cache under
+    ``PYTHONPYCACHEPREFIX``) is not counted. Prints min / median in seconds."""
     import resource
 
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = "/tmp/pyc_realtime_bench"
-    trees = {"this tree": str(REPO / "src")}
-    if compare_src is not None:
-        trees["compare"] = str(compare_src)
-    commands = {"bare python": [sys.executable, "-c", "pass"]}
-    commands |= {name: [sys.executable, "-m", "slopedist", "--help"] for name in trees}
     times: dict[str, list[tuple[float, float]]] = defaultdict(list)
-    for k in range(repeats + 1):  # the first round writes the bytecode cache
-        for name, command in commands.items():
-            run_env = env | {"PYTHONPATH": trees.get(name, str(REPO / "src"))}
+    for k in range(repeats + int(warm_up)):
+        for name, (command, tree) in commands.items():
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             w0 = time.perf_counter()
-            subprocess.run(command, env=run_env, check=True, capture_output=True)
+            subprocess.run(command, env=env | {"PYTHONPATH": tree}, check=True, capture_output=True)
             wall = time.perf_counter() - w0
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-            if k:
+            if k or not warm_up:
                 times[name].append((wall, cpu))
-    print("\nStart-up: `python -m slopedist --help`, seconds, min / median")
     for name, values in times.items():
         walls, cpus = [v[0] for v in values], [v[1] for v in values]
         print(
-            f"  {name:12s} wall {min(walls):.3f} / {statistics.median(walls):.3f}   "
-            f"cpu {min(cpus):.3f} / {statistics.median(cpus):.3f}"
+            f"  {name:22s} wall {min(walls):7.3f} / {statistics.median(walls):7.3f}   "
+            f"cpu {min(cpus):7.3f} / {statistics.median(cpus):7.3f}",
+            flush=True,
         )
+
+
+def startup_times(repeats: int, compare_src: Path | None) -> None:
+    """``python -m slopedist --help`` with a warm bytecode cache, against a bare interpreter
+    (and the source tree ``compare_src``)."""
+    here = str(REPO / "src")
+    commands: dict[str, Command] = {"bare python": ([sys.executable, "-c", "pass"], here)}
+    trees = {"this tree": here} | ({"compare": str(compare_src)} if compare_src else {})
+    for name, tree in trees.items():
+        commands[name] = ([sys.executable, "-m", "slopedist", "--help"], tree)
+    print("\nStart-up: `python -m slopedist --help`, seconds, min / median")
+    time_commands(commands, repeats, warm_up=True)
+
+
+def demo_times(repeats: int, out: Path, compare_src: Path | None) -> None:
+    """``slopedist demo`` (the whole suite, quiet) with the default jobs and with ``--jobs 1``
+    (and from the source tree ``compare_src``)."""
+    here = str(REPO / "src")
+    demo = [sys.executable, "-m", "slopedist", "demo", "--quiet", "--out"]
+    commands: dict[str, Command] = {
+        "demo (jobs: cores)": ([*demo, str(out / "demo_jobs")], here),
+        "demo --jobs 1": ([*demo, str(out / "demo_1"), "--jobs", "1"], here),
+    }
+    if compare_src is not None:
+        commands["demo (compare)"] = ([*demo, str(out / "demo_compare")], str(compare_src))
+    print("\nslopedist demo, seconds, min / median")
+    time_commands(commands, repeats, warm_up=False)
 
 
 SWEEP_WIDTHS = (960, 1280, 1600, None)
@@ -531,7 +559,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=REPO / "bench_out" / "realtime")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument(
-        "--part", choices=("run", "odometry", "widths", "startup", "all"), default="all"
+        "--part",
+        choices=("run", "odometry", "widths", "startup", "demo", "all"),
+        default="all",
     )
     parser.add_argument(
         "--compare-src", type=Path, help="another source tree for the start-up comparison"
@@ -544,8 +574,10 @@ def main(argv: list[str] | None = None) -> int:
         return worker(args)
     if args.part in ("startup", "all"):
         startup_times(max(args.repeats, 5), args.compare_src)
-        if args.part == "startup":
-            return 0
+    if args.part in ("demo", "all"):
+        demo_times(args.repeats, args.out, args.compare_src)
+    if args.part in ("startup", "demo"):
+        return 0
     if not (args.data / "kitti_raw_lead").is_dir():
         print(f"shared data not found under {args.data}", file=sys.stderr)
         return 2
