@@ -256,3 +256,28 @@ def test_demo_jobs_are_checked_and_capped() -> None:
         DemoConfig(jobs=0)
     assert demo_jobs(DemoConfig(scenarios=("same_flat",), jobs=4)) == 1
     assert 1 <= demo_jobs(DemoConfig(scenarios=SCENARIOS)) <= 2
+
+
+@pytest.mark.parametrize("name", ["..", ".", ".hidden", "-x", "a..b/..", "/abs", "a/b", "a\\\\b"])
+def test_a_scenario_name_cannot_write_outside_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    from slopedist.datasets.synthetic.scenarios import builtin_text
+
+    text = builtin_text("same_flat").replace('name = "same_flat"', f'name = "{name}"')
+    evil = tmp_path / "evil.toml"
+    evil.write_text(text, encoding="utf-8")
+    out = tmp_path / "deep" / "out"
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(["demo", "--scenarios", str(evil), "--out", str(out), "--frames", "2", "--quiet"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "cannot name an output folder" in err or "must be letters" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written beside OUT
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_scenario_folder_accepts_plain_names(tmp_path: Path) -> None:
+    from slopedist.demo import scenario_folder
+
+    assert scenario_folder(tmp_path, "my_hill-2.v1") == tmp_path / "my_hill-2.v1"

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import re
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -78,6 +79,7 @@ __all__ = [
     "plan_methods",
     "run_demo",
     "run_scenario",
+    "scenario_folder",
     "theta_needed_rad",
 ]
 
@@ -87,7 +89,7 @@ def run_scenario(
 ) -> tuple[ScenarioRun, list[MethodPlan]]:
     """Run every method on one scenario (see the module docstring)."""
     scenario = load_scenario(name)
-    folder = cfg.out_dir / scenario.name
+    folder = scenario_folder(cfg.out_dir, scenario.name, name)
     folder.mkdir(parents=True, exist_ok=True)
     plans = plan_methods(method_names, SyntheticSequence(scenario).camera, cfg.estimator)
     loop = ScenarioLoop(scenario, cfg, plans, folder)
@@ -107,6 +109,27 @@ def run_scenario(
     if cfg.plots:
         run.files += _plots(run, loop.seq, folder, [p.name for p in loop.active])
     return run, plans
+
+
+SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
+"""A scenario name usable as a folder name: letters, digits, ``_``, ``-`` and ``.``, not
+starting with ``.`` or ``-`` (so never ``.``, ``..`` or a hidden folder), at most 100 long."""
+
+
+def scenario_folder(out_dir: Path, name: str, source: str | Path = "") -> Path:
+    """The output folder of scenario ``name`` under ``out_dir``.
+
+    Raises:
+        ConfigurationError: a name that is not a plain folder name (``..``, ``/abs``, ``a/b``,
+            a leading dot or dash, other characters): it would write outside ``out_dir``.
+    """
+    if not SAFE_NAME.fullmatch(name):
+        where = f" (from {source})" if source and str(source) != name else ""
+        raise ConfigurationError(
+            f"scenario name {name!r}{where} cannot name an output folder: use letters, digits, "
+            "'_', '-' and '.', not starting with '.' or '-', at most 100 characters"
+        )
+    return out_dir / name
 
 
 def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list[str]) -> list[str]:
@@ -195,7 +218,6 @@ class DemoResult:
 def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult:
     """Run the demo and write its outputs (see the module docstring)."""
     start = time.perf_counter()
-    cfg.out_dir.mkdir(parents=True, exist_ok=True)
     names = list(cfg.methods) if cfg.methods is not None else available_methods()
     unknown = [m for m in names if m not in available_methods()]
     if unknown:
@@ -203,6 +225,13 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
             f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
         )
     scenarios = [load_scenario(s) for s in cfg.scenarios]  # fail early on a bad name or file
+    folders = [scenario_folder(cfg.out_dir, sc.name, s) for s, sc in zip(cfg.scenarios, scenarios)]
+    if len(set(folders)) < len(folders):
+        raise ConfigurationError(
+            "two scenarios share a name, so one would overwrite the other's outputs: "
+            + ", ".join(sc.name for sc in scenarios)
+        )
+    cfg.out_dir.mkdir(parents=True, exist_ok=True)
     total = sum(
         s.n_frames if cfg.max_frames is None else min(s.n_frames, cfg.max_frames) for s in scenarios
     )

@@ -88,11 +88,13 @@ def cap_estimates(
     target below the horizon (``u ≤ v``, reason ``below_horizon``) counts as ``cap_m``.
 
     Returns:
-        The capped distances and a mask of the entries that can be scored (other missing
-        reasons, such as ``no_rotation``, stay unscored and are counted apart).
+        The capped distances and a mask of the entries that can be scored (other reasons,
+        such as ``no_rotation``, stay unscored and are counted apart; so does an
+        ``upper_bound``, whose reason ``cut_bottom`` marks a distance that is only a bound).
     """
     d = np.asarray(distance_m, dtype=float).copy()
     r = np.asarray(reason, dtype=object)
+    d[(r != "") & (r != MissingReason.BELOW_HORIZON.value)] = np.nan
     d[r == MissingReason.BELOW_HORIZON.value] = cap_m
     d = np.minimum(d, cap_m)
     return d, np.isfinite(d)

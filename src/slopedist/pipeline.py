@@ -22,9 +22,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist import geometry as geo
-from slopedist.detections.boxes import BoxTable, concat_boxes
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable, concat_boxes
 from slopedist.errors import DataMismatchError
-from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput
+from slopedist.estimators.base import (
+    EstimateStatus,
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    settle_states,
+)
 from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
 
@@ -80,9 +86,14 @@ class FrameStep:
     """The per-frame step every loop calls: look-back → θ → estimator, one frame at a time.
 
     It owns the segment-aware look-back (:class:`EgoGradientTracker`), checks that timestamps
-    increase, and handles frames without boxes in one place (the estimator is not called for
-    them, exactly as in batch use, so that streaming equals batch). Loops differ only in where
-    frames come from and where the results go.
+    increase, handles frames without boxes in one place (the estimator is not called for
+    them, exactly as in batch use, so that streaming equals batch) and settles the per-box
+    states no method may overrule (:func:`~slopedist.estimators.base.settle_states`: the
+    ``cut`` flag from the camera's image size, boxes outside the image or degenerate, classes
+    not in ``vehicle_classes``, and for a method that does not handle border cuts itself
+    (:attr:`~slopedist.estimators.base.Estimator.handles_border_cuts`) a bottom cut makes an
+    ``ok`` row an ``upper_bound``). Loops differ only in where frames come from and where the
+    results go.
 
     Example::
 
@@ -91,8 +102,14 @@ class FrameStep:
             result = step.step(k, t, R, boxes)  # result.theta_rad, result.estimates
     """
 
-    def __init__(self, estimator: Estimator, lookback_s: float = LOOKBACK_S) -> None:
+    def __init__(
+        self,
+        estimator: Estimator,
+        lookback_s: float = LOOKBACK_S,
+        vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
+    ) -> None:
         self.estimator = estimator
+        self.vehicle_classes = tuple(vehicle_classes)
         self.gradient = EgoGradientTracker(estimator.camera.mount_angle_rad, lookback_s)
         self._last_timestamp: float | None = None
 
@@ -144,8 +161,15 @@ class FrameStep:
         if boxes is None or not len(boxes):
             return FrameEstimates.empty()
         R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
-        return self.estimator.estimate(
+        est = self.estimator.estimate(
             FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
+        )
+        return settle_states(
+            est,
+            boxes,
+            self.estimator.camera,
+            self.vehicle_classes,
+            not self.estimator.handles_border_cuts,
         )
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
@@ -214,6 +238,8 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
         distance_m=cat("distance_m"),
         reason=cat("reason"),
         reference=cat("reference"),
+        status=cat("status"),
+        cut=cat("cut"),
         extra={
             k: np.concatenate([p.extra.get(k, np.full(len(p), np.nan)) for p in parts])
             for k in sorted(keys)
@@ -228,6 +254,7 @@ def estimate_sequence(
     track: RotationTrack | None,
     lookback_s: float = LOOKBACK_S,
     depth: Callable[[int], NDArray[np.float32] | None] | None = None,
+    vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
 ) -> SequenceEstimates:
     """Batch use: all frames' θ at once (vectorised), then the estimator frame by frame.
 
@@ -238,6 +265,7 @@ def estimate_sequence(
         track: rotations of every frame (``len(track) == len(timestamps_s)``), or None.
         depth: depth map (metres) of a frame index, called for the frames with boxes when the
             estimator ``needs_depth`` (e.g. :meth:`slopedist.depth.DepthSource.depth`).
+        vehicle_classes: class names scored as vehicles (others: ``not_a_vehicle``).
     """
     if track is not None and len(track) < len(timestamps_s):
         raise DataMismatchError(
@@ -248,7 +276,7 @@ def estimate_sequence(
         if track is not None
         else np.full(len(timestamps_s), np.nan)
     )
-    step = FrameStep(estimator, lookback_s)
+    step = FrameStep(estimator, lookback_s, vehicle_classes)
     step.reset()
     box_parts, est_parts = [], []
     for k, frame_boxes in boxes.by_frame():
@@ -289,8 +317,14 @@ RECORD_FIELDS = (
     "reference",
     "status",
     "reason",
+    "cut",
 )
-"""Columns of the per-target records CSV, in order; method-specific extras follow."""
+"""Columns of the per-target records CSV, in order; method-specific extras follow.
+
+``status`` is ``ok``, ``upper_bound`` (``distance_m`` is a bound the true distance does not
+exceed; ``reason`` says why) or ``missing`` (no distance; ``reason`` says why); ``cut`` names
+the image edges that cut the box (``bottom``, ``left+bottom``, ...; empty when none or when
+the image size is unknown)."""
 
 
 def iter_records(
@@ -306,7 +340,7 @@ def iter_records(
     """
     row_t = _row_timestamps(boxes, timestamps_s)
     for i in range(len(boxes)):
-        ok = est.reason[i] == ""
+        has_distance = est.status[i] != EstimateStatus.MISSING.value
         row: dict[str, Any] = {
             "frame": int(boxes.frame[i]),
             "timestamp_s": float(row_t[i]),
@@ -322,10 +356,11 @@ def iter_records(
             "theta_adj_deg": math.degrees(est.theta_adj_rad[i]),
             "delta_y_px": float(est.delta_y_px[i]),
             "v_px": float(est.v_px[i]),
-            "distance_m": float(est.distance_m[i]) if ok else math.nan,
+            "distance_m": float(est.distance_m[i]) if has_distance else math.nan,
             "reference": est.reference[i],
-            "status": "ok" if ok else "missing",
+            "status": est.status[i],
             "reason": est.reason[i],
+            "cut": est.cut[i],
         }
         for key, values in est.extra.items():
             row[key] = float(values[i])

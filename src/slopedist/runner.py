@@ -20,10 +20,24 @@ Outputs under the output folder:
   θ (degrees), number of boxes and of estimated distances, odometry, estimation and depth time
   (ms; ``depth_ms`` = reading or inferring the frame's depth map, for depth-map methods, on
   frames with boxes).
+- ``tracks.csv``: one row per track (:mod:`slopedist.tracks`): first and last time, closest
+  distance, smallest TTC, TTC events.
 - ``run.json``: a summary (:class:`RunResult`), also written when the run stops on an error;
   its ``"sequence"`` names the sequence, so that the report lines up runs of different methods
   on one sequence.
-- optionally an overlay (PNG folder or MP4, :func:`slopedist.viz.draw_fig3_overlay`).
+- optionally an overlay (PNG folder or H.264 MP4, :func:`slopedist.viz.draw_fig3_overlay`),
+  an MCAP export for Foxglove (:mod:`slopedist.export_mcap`) and the rotation source's
+  trajectory as a TUM file (camera-to-world, translation 0; for ``evo_traj`` / ``evo_ape``).
+
+Crash safety: the files are written under temporary names (``records.partial.csv``,
+``frames.partial.csv``, ``overlay.partial.mp4`` / ``overlay.partial/``) and renamed when the run
+ends, so a previous run in the folder stays whole until the new one is finished: after a kill
+that leaves no chance to finish (SIGKILL, power loss) the previous run is intact and the
+``.partial`` files mark the new one as partial. The run also ends, writing ``run.json``, on an
+error, on a full disk (rows written before are whole; the message names the file and frame)
+and on a stop request (:func:`stop_on_signals`: SIGTERM/SIGINT stop it after the current frame).
+``run.json`` is written last, through a temporary name; the previous one is removed before the
+new files take their names, so it never describes other records.
 
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
 """
@@ -33,7 +47,9 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 
 import cv2
@@ -42,12 +58,20 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from slopedist.depth.base import DepthSource
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable
 from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
-from slopedist.estimators.base import Estimator, FrameEstimates
+from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
+from slopedist.export_mcap import McapExportWriter
 from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.outputs import (
+    OutputFiles,
+    OutputWriteError,
+    RunStoppedError,
+    StopFlag,
+    partial_path,
+)
 from slopedist.io.overlay import OverlayWriter
 from slopedist.io.prefetch import (
     DEFAULT_AHEAD,
@@ -55,14 +79,28 @@ from slopedist.io.prefetch import (
     OverlaySink,
     PrefetchedFrames,
 )
-from slopedist.io.tables import CsvStreamWriter, write_json
+from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
-from slopedist.viz import draw_fig3_overlay
+from slopedist.tracks import TRACKS_NAME, TrackSummaries
+from slopedist.viz import draw_fig3_overlay, lead_index
 
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
+MCAP_NAME = "run.mcap"
+TRAJECTORY_NAME = "trajectory.tum"
+
+
+class RunExport(str, Enum):
+    """Optional outputs for viewers (``slopedist run --export``)."""
+
+    MCAP = "mcap"
+    """``run.mcap``: images, boxes, distances and θ with Foxglove schemas."""
+    TUM = "tum"
+    """``trajectory.tum``: the rotation source's camera-to-world rotations (TUM layout)."""
+
 
 FRAME_FIELDS = (
     "frame",
@@ -142,7 +180,9 @@ class RunResult:
         sequence: the sequence the frames belong to (Table 1 row of ``slopedist report``).
         frames: frames seen; ``frame_status``: count per :class:`~slopedist.io.frames.FrameStatus`.
         odometry_states: count per odometry state (frames with pixels only).
-        records: per-target rows written; ``estimated``: rows with a distance.
+        records: per-target rows written; ``estimated``: rows with status ``ok``;
+            ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
+            of the image); ``not_vehicles``: rows of classes that are not vehicles.
         boxes_without_frame: boxes whose frame index never came from the frame source.
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
@@ -152,8 +192,11 @@ class RunResult:
         detection_ms_mean: mean detection time per frame, milliseconds.
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
-        overlay: overlay path, or None.
-        error: why the run stopped early, or None; ``failed_frame``: its frame index.
+        overlay: overlay path, or None; ``exports``: the MCAP / TUM files written.
+        complete: whether every frame was processed.
+        last_complete_frame: index of the last frame whose rows are all written (None: none).
+        error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
+            (its rows are not written; None for a stop request, which ends between frames).
     """
 
     out_dir: str
@@ -164,6 +207,8 @@ class RunResult:
     odometry_states: dict[str, int] = field(default_factory=dict)
     records: int = 0
     estimated: int = 0
+    upper_bounds: int = 0
+    not_vehicles: int = 0
     boxes_without_frame: int = 0
     elapsed_s: float = 0.0
     frames_per_s: float = 0.0
@@ -176,6 +221,9 @@ class RunResult:
     frames_without_depth: int = 0
     ground_truth: bool = False
     overlay: str | None = None
+    exports: list[str] = field(default_factory=list)
+    complete: bool = False
+    last_complete_frame: int | None = None
     error: str | None = None
     failed_frame: int | None = None
 
@@ -216,6 +264,17 @@ class RunConfig:
         progress: show a progress bar on stderr.
         sequence: sequence name written to ``run.json`` (None:
             :func:`default_sequence_name` of the frames).
+        mcap: path of an MCAP export (:class:`~slopedist.export_mcap.McapExportWriter`), or None.
+        trajectory: path of a TUM trajectory of the rotation source's rotations, or None.
+        time_origin_ns: log time of frame time 0 in the MCAP export, nanoseconds (a drive log's
+            first image stamp, so the export plays in sync with the log).
+        ego_speed: the ego speed (m/s) at a frame time (s), for the headway time of
+            ``tracks.csv``; None when unknown.
+        vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
+            ``not_a_vehicle``).
+        stop: checked after every frame; once its ``signum`` is set the run ends there
+            (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
+            :class:`RunStoppedError`.
         decode_ahead: frames decoded ahead in a background thread
             (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
             odometry works), and overlay frames queued for encoding in another
@@ -228,6 +287,12 @@ class RunConfig:
     overlay_fps: float = 10.0
     progress: bool = True
     sequence: str | None = None
+    mcap: Path | None = None
+    trajectory: Path | None = None
+    time_origin_ns: int = 0
+    ego_speed: Callable[[float], float] | None = None
+    vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    stop: StopFlag = field(default_factory=StopFlag)
     decode_ahead: int = DEFAULT_AHEAD
 
 
@@ -249,7 +314,9 @@ def run_frames(
         odometry: rotation source fed every readable frame, or None (no rotations: for methods
             that do not use them, e.g. ``flat`` and ``depthmap``).
         estimator: distance method; its camera is the frames' calibration (checked against the
-            frame size first).
+            frame size first); a camera that knows the image size
+            (:meth:`~slopedist.camera.Camera.with_image_size`, as ``slopedist run`` sets it)
+            flags boxes cut by the image border and boxes outside it.
         config: output folder and options.
         depth: depth maps for a method that ``needs_depth`` (asked for every readable frame
             with boxes; a frame without a map gives its targets the reason ``no_depth``).
@@ -277,6 +344,7 @@ def run_frames(
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
         depth_source=describe_depth(depth) if depth is not None else None,
+        exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
         detector=str(getattr(detector, "model_path", type(detector).__name__))
         if detector
         else None,
@@ -328,7 +396,7 @@ class _RunLoop:
         self.detector = detector
         self.camera = estimator.camera
         self.method = estimator.name
-        self.step = FrameStep(estimator, config.lookback_s)
+        self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
         self.by_frame = boxes.frame_index()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
@@ -343,14 +411,27 @@ class _RunLoop:
         }
         out = Path(config.out_dir)
         self.records_path = out / RECORDS_NAME
-        self.records = open_records(self.records_path)
-        self.frame_log = CsvStreamWriter.open(out / FRAMES_NAME, FRAME_FIELDS)
+        extra_outputs = [p for p in (config.overlay, config.mcap, config.trajectory) if p]
+        self.files = OutputFiles(out, (RECORDS_NAME, FRAMES_NAME, TRACKS_NAME), extra_outputs)
+        self.files.reserve(SUMMARY_NAME)
+        self.records = open_records(partial_path(self.records_path))
+        self.frame_log = CsvStreamWriter.open(partial_path(out / FRAMES_NAME), FRAME_FIELDS)
         self.painter: OverlaySink | None = None
         if config.overlay:
-            self.painter = OverlayWriter(config.overlay, config.overlay_fps)
+            self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
             if config.decode_ahead:  # encoded behind the loop, in a thread
                 self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
+        self.export = (
+            McapExportWriter(partial_path(config.mcap), self.method, config.time_origin_ns)
+            if config.mcap
+            else None
+        )
+        self.trajectory = (
+            TumPoseWriter(partial_path(config.trajectory)) if config.trajectory else None
+        )
+        self.tracks = TrackSummaries()
         self.bar: tqdm | None = None
+        self.summary_failed = ""
         self.start = time.perf_counter()
 
     def run(self, frames: FrameSource) -> RunResult:
@@ -366,7 +447,12 @@ class _RunLoop:
         try:
             for frame in frames:
                 self.process(frame)
+                self.result.last_complete_frame = frame.index
                 self.bar.update(1)
+                signum = self.config.stop.signum
+                if signum is not None:
+                    frame = None  # it is complete: the run ends between frames
+                    raise RunStoppedError(signum)
         except (Exception, KeyboardInterrupt) as exc:
             self.result.error = f"{type(exc).__name__}: {exc}"
             self.result.failed_frame = frame.index if frame is not None else None
@@ -374,6 +460,7 @@ class _RunLoop:
             if isinstance(exc, (SlopedistError, OSError)):
                 raise self._aborted(exc, frame) from exc
             raise
+        self.result.complete = True
         self.finish()
         return self.result
 
@@ -391,26 +478,30 @@ class _RunLoop:
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
-        self.frame_log.write_row(
-            {
-                "frame": k,
-                "timestamp_s": frame.timestamp_s,
-                "source": frame.source,
-                "frame_status": frame.status.value,
-                "detail": frame.detail,
-                "odometry_state": odo.state,
-                "inliers": odo.inliers,
-                "segment": self.segment,
-                "theta_deg": math.degrees(res.theta_rad),
-                "boxes": len(frame_boxes),
-                "estimated": n_est,
-                "odometry_ms": odo.ms,
-                "estimation_ms": estimation_ms,
-                "depth_ms": depth_ms,
-                "detection_ms": detection_ms,
-            }
-        )
+        speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
+        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
+        with self.files.writing(FRAMES_NAME):
+            self.frame_log.write_row(
+                {
+                    "frame": k,
+                    "timestamp_s": frame.timestamp_s,
+                    "source": frame.source,
+                    "frame_status": frame.status.value,
+                    "detail": frame.detail,
+                    "odometry_state": odo.state,
+                    "inliers": odo.inliers,
+                    "segment": self.segment,
+                    "theta_deg": math.degrees(res.theta_rad),
+                    "boxes": len(frame_boxes),
+                    "estimated": n_est,
+                    "odometry_ms": odo.ms,
+                    "estimation_ms": estimation_ms,
+                    "depth_ms": depth_ms,
+                    "detection_ms": detection_ms,
+                }
+            )
         self._paint(frame, frame_boxes, res, odo.state)
+        self._export(frame, frame_boxes, res, odo)
         self.result.frames += 1
 
     def _boxes(self, frame: Frame) -> tuple[BoxTable, float]:
@@ -463,27 +554,50 @@ class _RunLoop:
         if self.result.ground_truth:
             for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
                 row[CSV_TRUTH_COLUMN] = float(g)
-        self.records.write_rows(rows)
-        n_est = int(np.sum(est.reason == ""))
+        with self.files.writing(RECORDS_NAME):
+            self.records.write_rows(rows)
+        n_est = int(np.sum(est.status == EstimateStatus.OK.value))
         self.result.records += len(rows)
         self.result.estimated += n_est
+        self.result.upper_bounds += int(np.sum(est.status == EstimateStatus.UPPER_BOUND.value))
+        self.result.not_vehicles += int(np.sum(est.reason == MissingReason.NOT_A_VEHICLE.value))
         return n_est
 
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
         if self.painter is None:
             return
-        k = frame.index
+        k, t = frame.index, frame.timestamp_s
         if frame.image is None:
-            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}")
+            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
             return
         theta = res.theta_rad
-        head = (
-            f"frame {k}  theta {math.degrees(theta):+.2f} deg"
-            if math.isfinite(theta)
-            else f"frame {k}  no rotation ({state or 'no odometry'})"
+        head = f"frame {k}  t {t:.2f} s"
+        if not math.isfinite(theta):
+            head += f"  no rotation ({state or 'no odometry'})"
+        image = draw_fig3_overlay(
+            frame.image, self.camera, frame_boxes, res.estimates, theta, head, self.method
         )
-        image = draw_fig3_overlay(frame.image, self.camera, frame_boxes, res.estimates, theta, head)
-        self.painter.write(k, image)
+        self.painter.write(k, image, t)
+
+    def _export(
+        self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, odo: _OdometryOutput
+    ) -> None:
+        """The frame in the MCAP export and its rotation in the TUM trajectory."""
+        if self.trajectory is not None and odo.R_world_cam is not None:
+            self.trajectory.write(frame.timestamp_s, odo.R_world_cam)
+        if self.export is None:
+            return
+        self.export.write_frame(
+            frame.index,
+            frame.timestamp_s,
+            frame.source,
+            frame.status.value,
+            frame.image,
+            frame_boxes,
+            res.estimates,
+            res.theta_rad,
+            lead_index(self.camera, frame_boxes, res.estimates),
+        )
 
     def finish(self) -> None:
         """Fill in the summary, close every output and write ``run.json``."""
@@ -501,18 +615,38 @@ class _RunLoop:
         )
         if self.bar is not None:
             self.bar.close()
-        close_records(self.records)
-        self.frame_log.close()
+        files = self.files
+        files.close(RECORDS_NAME, lambda: close_records(self.records))
+        files.close(FRAMES_NAME, self.frame_log.close)
+        files.close(TRACKS_NAME, self._write_tracks)
         if self.painter is not None:
-            self.painter.close()
-        write_json(Path(self.config.out_dir) / SUMMARY_NAME, result)
+            files.close(self.painter.target.name, self.painter.close)
+        for writer in (self.export, self.trajectory):
+            if writer is not None:
+                files.close(writer.path.name, writer.close)
+        if files.failed and result.error is None:
+            result.error = files.failed
+        files.promote(SUMMARY_NAME)
+        try:
+            files.write_summary(SUMMARY_NAME, result)
+        except OSError as exc:
+            if result.error is None:
+                raise OutputWriteError(Path(self.config.out_dir) / SUMMARY_NAME, exc) from exc
+            self.summary_failed = f"; {SUMMARY_NAME} could not be written: {exc.strerror or exc}"
+
+    def _write_tracks(self) -> None:
+        self.tracks.write(self.files.path(TRACKS_NAME))
 
     def _aborted(self, exc: BaseException, frame: Frame | None) -> RunAbortedError:
-        where = f"frame {frame.index} ({frame.source})" if frame is not None else "the first frame"
+        last = self.result.last_complete_frame
+        if frame is not None:
+            where = f"frame {frame.index} ({frame.source})"
+        else:
+            where = "the first frame" if last is None else f"the end of frame {last}"
         return RunAbortedError(
             f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
             f"before it are in {self.records_path} (per-frame log "
-            f"{Path(self.config.out_dir) / FRAMES_NAME})",
+            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.summary_failed}",
             self.result.failed_frame,
             self.records_path,
         )

@@ -21,6 +21,7 @@ from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.estimators.base import FrameEstimates
+from slopedist.labels import Rect, box_rect, place_labels
 
 # --- Fig. 3 overlay (paper style) -------------------------------------------------------------
 
@@ -78,23 +79,157 @@ def outlined_text(
     cv2.putText(image, text, org, _FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
-def _label(
-    image: NDArray[np.uint8],
-    lines: list[str],
-    box: NDArray[np.float64],
-    colour: tuple[int, int, int],
+LABEL_SCALE = 0.45
+"""Font scale of the box labels (Hershey simplex)."""
+
+TRACK_COLOURS = (
+    (255, 160, 0),
+    (0, 200, 255),
+    (255, 0, 255),
+    (0, 255, 128),
+    (255, 255, 0),
+    (128, 128, 255),
+    (0, 128, 255),
+    (255, 128, 128),
+    (180, 255, 0),
+    (200, 200, 200),
+)
+"""BGR colours of tracks, by ``track_id`` modulo their number (boxes without a track:
+:data:`FIG3_BOX`)."""
+
+LEAD_COLOUR = (0, 255, 255)
+"""BGR colour of the lead vehicle's banner and frame (yellow)."""
+
+LANE_HALF_WIDTH_M = 1.75
+"""Half the width of the ego lane, metres: a target whose bottom centre lies within this
+lateral offset of the optical axis, at its estimated distance, is in the ego lane."""
+
+CUT_MARGIN_PX = 1
+"""A box within this many pixels of the image border is cut by it (its extent is unknown)."""
+
+
+def track_colour(track_id: int) -> tuple[int, int, int]:
+    """BGR colour of a track (:data:`TRACK_COLOURS`); :data:`FIG3_BOX` without a track."""
+    if track_id < 0:
+        return FIG3_BOX
+    return TRACK_COLOURS[track_id % len(TRACK_COLOURS)]
+
+
+def is_cut(box: NDArray[np.float64], width: int, height: int) -> bool:
+    """True when ``box`` touches the border of a ``width × height`` image (within
+    :data:`CUT_MARGIN_PX`)."""
+    left, top, right, bottom = (float(c) for c in box)
+    m = CUT_MARGIN_PX
+    return left <= m or top <= m or right >= width - 1 - m or bottom >= height - 1 - m
+
+
+def lead_index(camera: Camera, boxes: BoxTable, estimates: FrameEstimates) -> int | None:
+    """Index of the lead vehicle: the nearest target with a distance whose bottom centre lies
+    in the ego lane (lateral offset ``(b_x − c_x)/f · z`` within :data:`LANE_HALF_WIDTH_M`)."""
+    best: int | None = None
+    for i in range(len(boxes)):
+        z = float(estimates.distance_m[i])
+        if estimates.reason[i] != "" or not math.isfinite(z):
+            continue
+        left, _, right, _ = (float(c) for c in boxes.boxes[i])
+        lateral_m = ((left + right) / 2 - camera.c_x) / camera.f * z
+        if abs(lateral_m) <= LANE_HALF_WIDTH_M and (
+            best is None or z < float(estimates.distance_m[best])
+        ):
+            best = i
+    return best
+
+
+def _motion_text(estimates: FrameEstimates, i: int) -> str:
+    """``"v -1.2 m/s  TTC 6.3 s"`` from the estimator's speed / TTC columns, where known."""
+    parts = []
+    speed = estimates.extra.get("speed_mps")
+    ttc = estimates.extra.get("ttc_s")
+    if speed is not None and math.isfinite(float(speed[i])):
+        parts.append(f"v {float(speed[i]):+.1f} m/s")
+    if ttc is not None and math.isfinite(float(ttc[i])) and float(ttc[i]) > 0:
+        parts.append(f"TTC {float(ttc[i]):.1f} s")
+    return "  ".join(parts)
+
+
+def _label_lines(boxes: BoxTable, estimates: FrameEstimates, i: int, cut: bool) -> list[str]:
+    tid = int(boxes.track_id[i])
+    name = f"#{tid} " if tid >= 0 else ""
+    dy = float(estimates.delta_y_px[i])
+    dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
+    if estimates.status[i] == "ok":
+        first = f"{name}{float(estimates.distance_m[i]):.1f} m"
+    elif estimates.status[i] == "upper_bound":  # a bound, not a distance to trust
+        first = f"{name}<= {float(estimates.distance_m[i]):.1f} m ({estimates.reason[i]})"
+    else:
+        first = f"{name}missing: {estimates.reason[i]}"
+    return [first + ("  cut" if cut else ""), dy_text]
+
+
+def _text_block_size(lines: list[str], scale: float) -> tuple[int, int, int]:
+    """``(width, height, line height)`` of ``lines`` in pixels."""
+    sizes = [cv2.getTextSize(t, _FONT, scale, 1)[0] for t in lines]
+    line_h = max(sz[1] for sz in sizes) + 6
+    return max(sz[0] for sz in sizes) + 4, line_h * len(lines) + 2, line_h
+
+
+def _draw_box(
+    out: NDArray[np.uint8], box: NDArray[np.float64], colour: tuple[int, int, int], cut: bool
 ) -> None:
-    """Write ``lines`` beside ``box``: right of it, or left of it when there is no room."""
-    scale, thick = 0.45, 1
-    sizes = [cv2.getTextSize(t, _FONT, scale, thick)[0] for t in lines]
-    width = max(s[0] for s in sizes) + 4
-    line_h = max(s[1] for s in sizes) + 6
-    left, top, right, _ = (round(float(c)) for c in box)
-    x = right + 4 if right + 4 + width <= image.shape[1] else max(left - 4 - width, 0)
-    y = max(top, 0) + line_h
-    for text in lines:
-        outlined_text(image, text, (x, y), scale, colour, thick)
-        y += line_h
+    """The box outline; a cut box is dashed."""
+    left, top, right, bottom = (round(float(c)) for c in box)
+    if not cut:
+        cv2.rectangle(out, (left, top), (right, bottom), colour, 2)
+        return
+    for row in (top, bottom):
+        dashed_hline(out, row, left, right, colour, 8, 5, 2)
+    for col in (left, right):
+        for y in range(top, bottom, 13):
+            cv2.line(out, (col, y), (col, min(y + 8, bottom)), colour, 2, cv2.LINE_8)
+
+
+def _draw_labels(
+    out: NDArray[np.uint8],
+    boxes: BoxTable,
+    texts: list[list[str]],
+    colours: list[tuple[int, int, int]],
+    order: list[int],
+    reserved: list[Rect],
+) -> list[Rect | None]:
+    """Lay out (:func:`slopedist.labels.place_labels`, in ``order``) and draw the labels;
+    returns each box's label rectangle (None where it found no room)."""
+    blocks = [_text_block_size(texts[i], LABEL_SCALE) for i in order]
+    rects = place_labels(
+        boxes.boxes[order], [(w, h) for w, h, _ in blocks], (out.shape[1], out.shape[0]), reserved
+    )
+    placed: list[Rect | None] = [None] * len(boxes)
+    for i, rect, (_, _, line_h) in zip(order, rects, blocks):
+        placed[i] = rect
+        if rect is None:
+            continue
+        own = box_rect(boxes.boxes[i])
+        if not rect.intersects(own):  # a leader line between the nearest points
+            a = _nearest_point(rect, ((own.left + own.right) // 2, (own.top + own.bottom) // 2))
+            b = _nearest_point(own, a)
+            if abs(a[0] - b[0]) + abs(a[1] - b[1]) > 8:
+                cv2.line(out, a, b, colours[i], 1, cv2.LINE_AA)
+        y = rect.top + line_h - 3
+        for text in texts[i]:
+            outlined_text(out, text, (rect.left + 2, y), LABEL_SCALE, colours[i])
+            y += line_h
+    return placed
+
+
+def _nearest_point(rect: Rect, p: tuple[int, int]) -> tuple[int, int]:
+    """The point of ``rect`` nearest to ``p`` (pixels)."""
+    return min(max(p[0], rect.left), rect.right - 1), min(max(p[1], rect.top), rect.bottom - 1)
+
+
+def _header_text(header: str | None, method: str | None, theta_rad: float) -> str:
+    parts = [p for p in (header, method and f"method {method}") if p]
+    if method and math.isfinite(theta_rad):
+        parts.append(f"theta {math.degrees(theta_rad):+.2f} deg")
+    return "   ".join(parts)
 
 
 def draw_fig3_overlay(
@@ -104,23 +239,29 @@ def draw_fig3_overlay(
     estimates: FrameEstimates,
     theta_rad: float | None = None,
     header: str | None = None,
+    method: str | None = None,
 ) -> NDArray[np.uint8]:
     """Annotate a frame in the style of the paper's Fig. 3; returns a new image.
 
-    Draws each box, a dashed yellow line at each box's vertical centre ``b_y`` (across the box
-    and half its width to either side),
-    beside each box its distance (m) and Δy (px, eq. 6) — or ``missing: reason`` — and, last and
-    on top, the vanishing line of the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green
-    line across the full width. Hershey fonts have no Greek letters, so Δy is written ``dy``.
+    Draws each box in its track's colour (:func:`track_colour`; dashed when the image border
+    cuts it, :func:`is_cut`), a dashed yellow line at each box's vertical centre ``b_y``, and a
+    label per box — ``#track distance m`` (or ``missing: reason``) and Δy (px, eq. 6) — laid
+    out by :func:`slopedist.labels.place_labels` so that no two labels overlap (nearest target
+    first; a leader line joins a label set away from its box). The lead vehicle
+    (:func:`lead_index`) gets a yellow frame and a banner under the header with its distance,
+    relative speed and TTC where the method gives them. Last and on top, the vanishing line of
+    the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green line. Hershey fonts have no
+    Greek letters, so Δy is written ``dy`` and θ ``theta``.
 
     Args:
         image: BGR ``H×W×3`` (or grey ``H×W``) uint8 frame; not modified.
-        camera: the frame's camera (``f``, ``c_y``).
+        camera: the frame's camera (``f``, ``c_x``, ``c_y``).
         boxes: the frame's boxes.
         estimates: the estimates of those boxes (same order).
         theta_rad: ego road gradient θ of the frame, radians. None takes it from
             ``estimates.theta_rad`` (first finite value). No green line when θ is unknown.
-        header: optional text written at the top left (e.g. frame number and θ).
+        header: optional text written at the top left (e.g. frame number and time).
+        method: the method's name, written in the header with θ (degrees).
     """
     out = np.asarray(
         cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image.copy(), dtype=np.uint8
@@ -129,34 +270,66 @@ def draw_fig3_overlay(
     if theta_rad is None:
         finite = estimates.theta_rad[np.isfinite(estimates.theta_rad)]
         theta_rad = float(finite[0]) if finite.size else math.nan
-    for i in range(len(boxes)):
-        box = boxes.boxes[i]
-        if not np.all(np.isfinite(box)):
-            continue
-        ok = estimates.reason[i] == ""
-        b_y = round(float(geo.box_centre_row(box)))
-        left, top, right, bottom = (round(float(c)) for c in box)
+    valid = [i for i in range(len(boxes)) if np.all(np.isfinite(boxes.boxes[i]))]
+    cut = {i: is_cut(boxes.boxes[i], w, h) for i in valid}
+    colours = [track_colour(int(t)) for t in boxes.track_id]
+    for i in valid:
+        b_y = round(float(geo.box_centre_row(boxes.boxes[i])))
+        left, _, right, _ = (round(float(c)) for c in boxes.boxes[i])
         if 0 <= b_y < h:
             reach = max((right - left) // 2, 20)
             dashed_hline(out, b_y, max(left - reach, 0), min(right + reach, w - 1), FIG3_YELLOW)
-        cv2.rectangle(out, (left, top), (right, bottom), FIG3_BOX if ok else FIG3_MISSING, 2)
-        dy = float(estimates.delta_y_px[i])
-        dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
-        if ok:
-            lines = [f"{float(estimates.distance_m[i]):.1f} m", dy_text]
-            colour = FIG3_TEXT
-        else:
-            lines = [f"missing: {estimates.reason[i]}", dy_text]
-            colour = FIG3_MISSING
-        _label(out, lines, box, colour)
-    if header:
-        outlined_text(out, header, (8, 20), 0.55, FIG3_TEXT)
+        ok = estimates.status[i] == "ok"
+        _draw_box(out, boxes.boxes[i], colours[i] if ok else FIG3_MISSING, cut[i])
+    lead = lead_index(camera, boxes, estimates)
+    reserved = _draw_header(out, _header_text(header, method, theta_rad), boxes, estimates, lead)
+    texts = [_label_lines(boxes, estimates, i, cut.get(i, False)) for i in range(len(boxes))]
+    label_colours = [
+        FIG3_MISSING if estimates.status[i] != "ok" else FIG3_TEXT if t < 0 else colours[i]
+        for i, t in enumerate(boxes.track_id)
+    ]
+    order = sorted(valid, key=lambda i: (i != lead, _distance_key(estimates, i)))
+    _draw_labels(out, boxes, texts, label_colours, order, reserved)
     if math.isfinite(theta_rad):
-        v = float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y))
-        row = round(v)
+        row = round(float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)))
         if 0 <= row < h:
             cv2.line(out, (0, row), (w - 1, row), FIG3_GREEN, 2, cv2.LINE_8)
     return out
+
+
+def _distance_key(estimates: FrameEstimates, i: int) -> float:
+    z = float(estimates.distance_m[i])
+    return z if estimates.reason[i] == "" and math.isfinite(z) else math.inf
+
+
+def _draw_header(
+    out: NDArray[np.uint8],
+    text: str,
+    boxes: BoxTable,
+    estimates: FrameEstimates,
+    lead: int | None,
+) -> list[Rect]:
+    """Header line, and the lead vehicle's frame and banner; returns the rectangles they take
+    (no label may cover them)."""
+    taken: list[Rect] = []
+    y = 20
+    if text:
+        (tw, th), _ = cv2.getTextSize(text, _FONT, 0.55, 1)
+        outlined_text(out, text, (8, y), 0.55, FIG3_TEXT)
+        taken.append(Rect(6, y - th - 3, 10 + tw, y + 5))
+        y += th + 12
+    if lead is not None:
+        left, top, right, bottom = (round(float(c)) for c in boxes.boxes[lead])
+        cv2.rectangle(out, (left - 3, top - 3), (right + 3, bottom + 3), LEAD_COLOUR, 2)
+        tid = int(boxes.track_id[lead])
+        banner = f"LEAD{f' #{tid}' if tid >= 0 else ''}  {float(estimates.distance_m[lead]):.1f} m"
+        motion = _motion_text(estimates, lead)
+        banner += f"  {motion}" if motion else ""
+        (tw, th), _ = cv2.getTextSize(banner, _FONT, 0.6, 2)
+        cv2.rectangle(out, (6, y - th - 4), (14 + tw, y + 6), (0, 0, 0), -1)
+        cv2.putText(out, banner, (10, y), _FONT, 0.6, LEAD_COLOUR, 2, cv2.LINE_AA)
+        taken.append(Rect(6, y - th - 4, 15 + tw, y + 7))
+    return taken
 
 
 # --- plots over time (demo and report) ---------------------------------------------------------

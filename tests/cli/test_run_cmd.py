@@ -185,7 +185,7 @@ def test_onnx_without_onnxruntime_is_a_clear_error(
         (["--method", "depthmap", "--depth-model", "m.onnx"], "--depth-input-size WIDTHxHEIGHT"),
         (
             ["--method", "depthmap", "--depth-model", "m.onnx", "--depth-input-size", "24by16"],
-            "is not WIDTHxHEIGHT",
+            "--depth-input-size WIDTHxHEIGHT in pixels",
         ),
         (
             [

@@ -99,7 +99,7 @@ def test_source_feeds_the_depthmap_estimator(tmp_path: Path) -> None:
     )
     out = DepthMapEstimator(camera).estimate(frame)
     assert out.distance_m[0] == pytest.approx(7.5, rel=1e-5)
-    assert out.reason[1] == "no_depth"  # box outside the image
+    assert out.reason[1] == "outside_image"
     assert source.calls == 1 and source.seconds > 0
     with pytest.raises(MissingInputError, match="needs the frame's image"):
         source.depth(1, None)

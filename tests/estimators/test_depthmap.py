@@ -99,7 +99,8 @@ def test_missing_depth_map_and_boxes_outside_the_image() -> None:
         BoxTable.build([0, 0], [[2000, 10, 2100, 50], [5, 50, 3, 60]]),
         depth_m=render([]),
     )
-    assert list(DepthMapEstimator(CAMERA).estimate(frame).reason) == ["no_depth", "inverted_box"]
+    reasons = DepthMapEstimator(CAMERA).estimate(frame).reason
+    assert list(reasons) == ["outside_image", "inverted_box"]
 
 
 def test_contact_median_scaling_recovers_scale_less_depth() -> None:
@@ -125,6 +126,36 @@ def test_truth_scaling_uses_the_supplied_column_and_carries_the_scale() -> None:
     assert list(out3.reason) == ["no_scale", "no_scale"]
     with pytest.raises(ConfigurationError, match="gt_distance_m"):
         est.estimate(frame_of(cars, render(cars)))
+
+
+@pytest.mark.parametrize("value", [1e-30, 0.05, -3.0, 0.0, 1500.0, 1e30, np.inf, np.nan])
+@pytest.mark.parametrize("sample", ["centre", "window", "lower"])
+def test_implausible_metric_depth_is_no_depth_not_a_clamped_number(
+    value: float, sample: str
+) -> None:
+    """A network output of 1e-30 (or 1e30, 5 cm, ...) over the whole car is no measurement."""
+    cars = [(0.0, 15.0)]
+    depth = render(cars)
+    depth[depth == 15.0] = value
+    out = DepthMapEstimator(CAMERA, sample=sample).estimate(frame_of(cars, depth))
+    assert list(out.reason) == ["no_depth"] and math.isnan(out.distance_m[0])
+
+
+def test_plausibility_applies_to_metres_after_scaling() -> None:
+    """Scale-less maps may hold any positive unit: the check is on the scaled metres."""
+    cars = [(-3.0, 9.0), (0.0, 21.5)]
+    tiny = DepthMapEstimator(CAMERA, scaling="contact").estimate(
+        frame_of(cars, 1e-4 * render(cars))
+    )
+    np.testing.assert_allclose(tiny.distance_m, [9.0, 21.5], rtol=1e-4)
+    truth = DepthMapEstimator(CAMERA, scaling="truth")
+    out = truth.estimate(frame_of(cars, render(cars), gt_distance_m=np.array([9.0, 21.5])))
+    assert list(out.reason) == ["", ""]
+    # the scale learnt on frame 0 turns frame 1's 1e-6 m into micrometres: no depth
+    far = render(cars)
+    far[far == 9.0] = 1e-6
+    out1 = truth.estimate(frame_of(cars, far, k=1, gt_distance_m=np.full(2, np.nan)))
+    assert list(out1.reason) == ["no_depth", ""]
 
 
 def test_cap_at_80_m_and_no_cap() -> None:

@@ -104,17 +104,18 @@ class RecordingSink:
     """Records the calls; fails at frame ``fail_at``; sleeps a little per frame."""
 
     def __init__(self, fail_at: int | None = None) -> None:
+        self.target = Path("recorded.mp4")
         self.calls: list[tuple[str, int]] = []
         self.fail_at = fail_at
         self.closed = False
 
-    def write(self, index: int, image: np.ndarray) -> None:
+    def write(self, index: int, image: np.ndarray, timestamp_s: float | None = None) -> None:
         time.sleep(0.002)
         if index == self.fail_at:
             raise OSError(f"disk full at frame {index}")
         self.calls.append(("write", index))
 
-    def write_placeholder(self, index: int, text: str) -> None:
+    def write_placeholder(self, index: int, text: str, timestamp_s: float | None = None) -> None:
         self.calls.append(("placeholder", index))
 
     def close(self) -> None:
@@ -130,6 +131,7 @@ def test_background_overlay_keeps_the_order_and_closes() -> None:
         else:
             writer.write(k, np.zeros((2, 2, 3), np.uint8))
     writer.close()
+    assert writer.target == sink.target
     assert sink.calls == [("placeholder" if k == 4 else "write", k) for k in range(10)]
     assert sink.closed
     assert not [t for t in threading.enumerate() if t.name == "slopedist-overlay"]
@@ -152,8 +154,8 @@ def test_background_overlay_video_equals_the_direct_one(tmp_path: Path) -> None:
     direct = OverlayWriter(tmp_path / "a.mp4", 10.0)
     behind = BackgroundOverlay(OverlayWriter(tmp_path / "b.mp4", 10.0))
     for k, image in enumerate(images):
-        direct.write(k, image)
-        behind.write(k, image)
+        direct.write(k, image, 0.1 * k)
+        behind.write(k, image, 0.1 * k)
     direct.close()
     behind.close()
     decoded = [list(open_frames(tmp_path / name)) for name in ("a.mp4", "b.mp4")]

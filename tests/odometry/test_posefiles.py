@@ -125,3 +125,24 @@ def test_real_oxts_and_orbslam_agree(kitti_tracking_dir: Path) -> None:
     diff = np.degrees(ego_gradients(oxts) - ego_gradients(orb))
     # the data README: ORB-SLAM3's pitch agrees with OXTS to about 0.02–0.07° RMS on 0000–0010
     assert math.sqrt(np.mean(diff**2)) < 0.1
+
+
+def test_tum_writer_reads_back_exactly_and_as_evo_parses_it(tmp_path: Path) -> None:
+    from slopedist.odometry.base import RotationTrack
+    from slopedist.odometry.posefiles import TUM_HEADER, write_tum_poses
+
+    rng = np.random.default_rng(3)
+    R = Rotation.random(5, random_state=rng).as_matrix()
+    R = R[0].T @ R  # relative to the first, as the readers return them
+    t = 1317000000.0 + np.array([0.0, 0.1, 0.2, 0.35, 0.5])
+    valid = np.array([True, True, False, True, True])
+    path = write_tum_poses(tmp_path / "traj.tum", RotationTrack.from_arrays(t, R, valid))
+    lines = path.read_text().splitlines()
+    assert lines[0] == TUM_HEADER
+    # evo's reader: '#' lines skipped, space-delimited, 8 floats per row
+    rows = [[float(v) for v in ln.split(" ")] for ln in lines if not ln.startswith("#")]
+    assert all(len(r) == 8 for r in rows) and len(rows) == 4
+    track = read_tum_poses(path)
+    np.testing.assert_array_equal(track.timestamps_s, t[valid])
+    np.testing.assert_allclose(track.R_world_cam, R[valid], atol=1e-12)
+    assert all(r[1:4] == [0.0, 0.0, 0.0] for r in rows)

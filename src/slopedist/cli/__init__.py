@@ -63,6 +63,11 @@ COMMANDS: dict[str, _Lazy] = {
         "calibrate",
         "Estimate the mount angle θ0 and the camera height from the targets of one sequence.",
     ),
+    "log": _Lazy(
+        "log_cmd",
+        "log_group",
+        "Drive logs: ROS 1 bags, ROS 2 bags (sqlite3 or MCAP) and MCAP files.",
+    ),
     "convert": _Lazy(
         "convert_cmd",
         "convert",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import click
@@ -10,10 +12,13 @@ from slopedist.cli.options import (
     check_methods,
     estimator_options,
     lookback_option,
+    parse_size,
     sequence_file_options,
+    vehicle_classes_option,
 )
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
 
 
@@ -25,25 +30,51 @@ from slopedist.pipeline import FrameStep, close_records, iter_records, open_reco
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the records CSV here (default: standard output).",
 )
+@click.option(
+    "--image-size",
+    default=None,
+    help="The frames' size WIDTHxHEIGHT in pixels (e.g. 1242x375): boxes cut by the image "
+    "border get a cut flag (a bottom cut makes ground-contact distances an upper_bound) and "
+    "boxes outside the image are missing. Without it no box is tested against the border.",
+)
+@vehicle_classes_option
 @lookback_option
 @estimator_options()
 def estimate(
     files: SequenceFiles,
     method: str,
     out: Path | None,
+    image_size: str | None,
+    vehicle_classes: tuple[str, ...],
     lookback_s: float,
     estimator_config: EstimatorConfig,
 ) -> None:
     """Estimate per-target distances for one sequence, streaming frame by frame."""
     check_methods([method])
+    check_outputs_spare_inputs([out], [files.calib, files.poses, files.boxes])
+    size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
     seq = read_sequence_files(files)
-    step = FrameStep(build_estimator(estimator_config.with_method(method), seq.camera), lookback_s)
+    camera = seq.camera.with_image_size(*size) if size is not None else seq.camera
+    estimator = build_estimator(estimator_config.with_method(method), camera)
+    step = FrameStep(estimator, lookback_s, vehicle_classes)
     writer = open_records(out)
     n = 0
     try:
         for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
             n += writer.write_rows(iter_records(frame_boxes, t, result.estimates, method))
-    finally:
         close_records(writer)
+    except BrokenPipeError:
+        if out is not None:
+            raise
+        quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
+        return
     if out:
         click.echo(f"wrote {n} records to {out}", err=True)
+
+
+def quiet_closed_stdout() -> None:
+    """Point standard output at the null device, so that nothing more (not even Python's own
+    flush at exit) fails on a pipe whose reader is gone."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)

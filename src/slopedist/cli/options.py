@@ -13,6 +13,7 @@ import click
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES
 from slopedist.detections.layouts import LogitKind, OutputLayout
 from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.errors import ConfigurationError
@@ -427,3 +428,22 @@ def make_detector(model: Path, **opts: Any) -> OnnxDetector:
         threads=opts["detector_threads"],
     )
     return OnnxDetector(model, settings)
+
+
+def _vehicle_classes(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
+    names = split_list(value)
+    if not names:
+        raise click.BadParameter("give at least one class name", param_hint="--vehicle-classes")
+    return tuple(names)
+
+
+vehicle_classes_option = click.option(
+    "--vehicle-classes",
+    "vehicle_classes",
+    default=",".join(DEFAULT_VEHICLE_CLASSES),
+    show_default=True,
+    callback=_vehicle_classes,
+    help="Comma-separated class names scored as vehicles (case-insensitive); boxes of other "
+    "classes (Pedestrian, Cyclist, Tram, Misc, DontCare, ...) keep a row with status missing, "
+    "reason not_a_vehicle.",
+)

@@ -1,4 +1,4 @@
-"""``slopedist run``: frames (image folder or video) + boxes → per-target distances, from pixels.
+"""``slopedist run``: frames (image folder, video or drive log) + boxes → per-target distances.
 
 Depth-map methods (``--method depthmap``) take their depth maps from a folder of per-frame files
 (``--depth-dir``: KITTI depth PNG or ``.npy``) or from an ONNX depth model run on each frame
@@ -8,6 +8,7 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,9 @@ from slopedist.cli.options import (
     lookback_option,
     make_detector,
     mount_option,
+    parse_size,
     parse_triple,
+    vehicle_classes_option,
 )
 from slopedist.depth import (
     DepthOutputKind,
@@ -39,11 +42,30 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
-from slopedist.io.frames import FrameSource, open_frames
+from slopedist.io.frames import FrameSource
 from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.outputs import (
+    RunStoppedError,
+    check_outputs_spare_inputs,
+    partial_path,
+    stop_on_signals,
+)
+from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import FRAMES_NAME, RECORDS_NAME, RunConfig, RunResult, run_frames
+from slopedist.runner import (
+    FRAMES_NAME,
+    MCAP_NAME,
+    RECORDS_NAME,
+    SUMMARY_NAME,
+    TRAJECTORY_NAME,
+    RunAbortedError,
+    RunConfig,
+    RunExport,
+    RunResult,
+    run_frames,
+)
+from slopedist.tracks import TRACKS_NAME
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
@@ -63,22 +85,6 @@ def build_odometry(
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
     return make_odometry(name, camera, lookback_s=lookback_s)
-
-
-def parse_size(value: str) -> tuple[int, int]:
-    """``"640x192"`` → ``(640, 192)`` (width, height in pixels)."""
-    w, sep, h = value.lower().replace("×", "x").partition("x")
-    if (
-        not sep
-        or not w.strip().isdigit()
-        or not h.strip().isdigit()
-        or not (int(w) > 0 and int(h) > 0)
-    ):
-        raise click.BadParameter(
-            f"'{value}' is not WIDTHxHEIGHT in pixels, e.g. 640x192",
-            param_hint="--depth-input-size",
-        )
-    return int(w), int(h)
 
 
 @dataclass(frozen=True)
@@ -125,12 +131,13 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
         return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
     if opts.model is None:
         return None
-    if opts.input_size is None:
+    size = parse_size(opts.input_size, "--depth-input-size WIDTHxHEIGHT in pixels, e.g. 640x192")
+    if size is None:
         raise ConfigurationError(
             "--depth-model needs the network's input size: "
             "--depth-input-size WIDTHxHEIGHT (e.g. 640x192)"
         )
-    in_w, in_h = parse_size(opts.input_size)
+    in_w, in_h = size
     config = OnnxDepthConfig(
         opts.model,
         in_w,
@@ -146,16 +153,21 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
 
 
 def check_runnable(
-    estimator: Estimator, has_depth: bool = False, boxes: BoxTable | None = None
+    estimator: Estimator,
+    has_depth: bool = False,
+    boxes: BoxTable | None = None,
+    logged_rotations: bool = False,
 ) -> None:
-    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU),
-    depth-map methods without a depth source (or depth without a depth-map method), and the
-    ``truth`` depth scaling without a ground-truth column in the boxes."""
+    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU)
+    unless the rotations come from a log topic (``logged_rotations``), depth-map methods without
+    a depth source (or depth without a depth-map method), and the ``truth`` depth scaling
+    without a ground-truth column in the boxes."""
     source = getattr(estimator, "rotation_source", None)
-    if source is not None:
+    if source is not None and not logged_rotations:
         raise ConfigurationError(
             f"method '{estimator.name}' is defined on '{source}' rotations; slopedist run feeds "
-            "visual-odometry rotations from the frames (use slopedist estimate with pose files)"
+            "visual-odometry rotations from the frames, or a drive log's IMU / odometry topic "
+            "with --rotation-topic (or use slopedist estimate with pose files)"
         )
     if estimator.needs_depth and not has_depth:
         raise ConfigurationError(
@@ -183,10 +195,37 @@ def check_runnable(
 @click.argument("frames", type=click.Path(path_type=Path))
 @click.option(
     "--calib",
-    required=True,
+    default=None,
     type=click.Path(dir_okay=False, path_type=Path),
     help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
-    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md).",
+    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md) [default for a drive "
+    "log: its camera_info topic].",
+)
+@click.option(
+    "--image-topic",
+    default=None,
+    help="Drive log (.bag, .mcap, .db3, ROS 2 bag folder): the sensor_msgs/Image or "
+    "CompressedImage topic (see: slopedist log info LOG).",
+)
+@click.option(
+    "--rotation-topic",
+    default=None,
+    help="Drive log: a sensor_msgs/Imu, nav_msgs/Odometry or pose topic whose orientation "
+    "replaces the visual odometry (body x forward, y left, z up; see docs/viewers.md).",
+)
+@click.option(
+    "--speed-topic",
+    default=None,
+    help="Drive log: a nav_msgs/Odometry or TwistStamped topic giving the ego speed, for the "
+    "headway time in OUT/tracks.csv.",
+)
+@click.option(
+    "--export",
+    "exports",
+    type=click.Choice([e.value for e in RunExport]),
+    multiple=True,
+    help="Also write OUT/run.mcap (Foxglove schemas) and/or OUT/trajectory.tum (rotations, "
+    "for evo). Repeatable.",
 )
 @click.option(
     "--boxes",
@@ -304,6 +343,7 @@ def check_runnable(
     help="onnxruntime threads [default: its own].",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@vehicle_classes_option
 @height_option
 @mount_option
 @lookback_option
@@ -311,7 +351,11 @@ def check_runnable(
 @detector_options("detector-")
 def run(
     frames: Path,
-    calib: Path,
+    calib: Path | None,
+    image_topic: str | None,
+    rotation_topic: str | None,
+    speed_topic: str | None,
+    exports: tuple[str, ...],
     boxes_path: Path | None,
     detector_model: Path | None,
     method: str | None,
@@ -334,23 +378,34 @@ def run(
     depth_bgr: bool,
     depth_threads: int | None,
     quiet: bool,
+    vehicle_classes: tuple[str, ...],
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
     estimator_config: EstimatorConfig,
     **detector_opts: Any,
 ) -> None:
-    """Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.
+    """Estimate distances from FRAMES (an image folder, a video file or a drive log) and
+    per-frame boxes.
 
-    The camera rotation comes from visual odometry on the frames; records are written to
-    OUT/records.csv frame by frame, with a per-frame log in OUT/frames.csv. A box file with a
-    gt_distance_m column (metres) makes the run scorable by `slopedist report OUT`.
+    The camera rotation comes from visual odometry on the frames (or a log's IMU / odometry
+    topic); records are written to OUT/records.csv frame by frame, with a per-frame log in
+    OUT/frames.csv. A box file with a gt_distance_m column (metres) makes the run scorable by
+    `slopedist report OUT`.
+
+    Files are renamed from *.partial.* when the run ends; SIGTERM or Ctrl-C stops it after the
+    current frame (OUT/run.json says how far it got; exit code 128 + signal).
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
-    calibration = read_calibration(calib, height_m, math.radians(mount_angle_deg))
-    camera = calibration.camera
-    source = open_frames(frames, fps, timestamps)
+    source = open_source(frames, fps, timestamps, image_topic)
+    mount_rad = math.radians(mount_angle_deg)
+    calibration = (
+        read_calibration(calib, height_m, mount_rad)
+        if calib is not None
+        else log_calibration(source, height_m, mount_rad)
+    )
+    camera = with_frame_size(calibration.camera, source)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes = calibration.intrinsics.rectify_table(boxes)
     if detector is not None and not calibration.intrinsics.is_ideal:
@@ -367,18 +422,58 @@ def run(
         depth_bgr,
         depth_threads,
     )
-    check_runnable(estimator, depth_dir is not None or depth_model is not None, boxes)
+    has_depth = depth_dir is not None or depth_model is not None
+    check_runnable(estimator, has_depth, boxes, rotation_topic is not None)
     depth = build_depth_source(depth_opts, source)
     if odometry == "none" and vocab is not None:
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    backend = None if odometry == "none" else build_odometry(odometry, camera, vocab, lookback_s)
+    backend: RotationOdometry | None = None
+    if rotation_topic is not None:
+        backend = log_rotation_source(source, rotation_topic)
+    elif odometry != "none":
+        backend = build_odometry(odometry, camera, vocab, lookback_s)
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    config = RunConfig(out_dir, lookback_s, overlay_path, overlay_fps, not quiet, sequence)
-    result = run_frames(source, boxes, backend, estimator, config, depth, detector)
+    inputs = [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model]
+    mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
+    tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
+    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path], inputs)
+    config = RunConfig(
+        out_dir,
+        lookback_s,
+        overlay_path,
+        overlay_fps,
+        not quiet,
+        sequence,
+        mcap=mcap_path,
+        trajectory=tum_path,
+        time_origin_ns=int(getattr(source, "t0_ns", 0)),
+        ego_speed=log_speed(source, speed_topic) if speed_topic else None,
+        vehicle_classes=vehicle_classes,
+    )
+    result = run_until_stopped(
+        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config
+    )
     click.echo(summary_text(result, out_dir), err=True)
+
+
+def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
+    """``camera`` knowing the image size for the border test of every box: the frames' size,
+    unless the calibration states its own (then the run checks that the two agree)."""
+    if camera.image_width is not None and camera.image_height is not None:
+        return camera
+    return camera.with_image_size(*frames.frame_size())
+
+
+def check_run_outputs(out_dir: Path, extras: list[Path | None], inputs: list[Path | None]) -> None:
+    """Fail before anything is written if an output of the run (or its temporary name) is one
+    of its ``inputs``, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports)."""
+    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
+    outputs += [e for e in extras if e is not None]
+    outputs += [partial_path(o) for o in outputs]
+    check_outputs_spare_inputs(outputs, inputs, out_dir)
 
 
 def boxes_or_detector(
@@ -395,13 +490,27 @@ def boxes_or_detector(
     raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
+def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
+    """``start()`` (a :func:`~slopedist.runner.run_frames` call with ``config``) with
+    SIGTERM/SIGINT turned into a stop after the current frame (:attr:`RunConfig.stop`); a
+    stopped run exits with code 128 + the signal number."""
+    with stop_on_signals(config.stop):
+        try:
+            return start()
+        except RunAbortedError as exc:
+            if not isinstance(exc.__cause__, RunStoppedError):
+                raise
+            click.echo(f"slopedist: {exc}", err=True)
+            raise SystemExit(128 + exc.__cause__.signum) from None
+
+
 def summary_text(result: RunResult, out_dir: Path) -> str:
     """A few lines that tell what a run did and where its output is."""
     states = ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items())) or "none"
     status = ", ".join(f"{k} {v}" for k, v in sorted(result.frame_status.items()))
     lines = [
-        f"wrote {result.records} records ({result.estimated} with a distance, method "
-        f"{result.method}) to {out_dir / RECORDS_NAME}",
+        f"wrote {result.records} records ({result.estimated} ok, {result.upper_bounds} upper "
+        f"bounds, method {result.method}) to {out_dir / RECORDS_NAME}",
         f"frames: {result.frames} ({status}); odometry: {states}; per-frame log "
         f"{out_dir / FRAMES_NAME}",
         f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
@@ -425,6 +534,11 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
             else "no ground truth in the boxes (add a gt_distance_m column to score the run)"
         )
     )
+    if result.not_vehicles:
+        lines.append(
+            f"{result.not_vehicles} boxes are not of a vehicle class (missing, reason "
+            "not_a_vehicle; see --vehicle-classes)"
+        )
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
@@ -432,4 +546,5 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
         )
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")
+    lines.extend(f"export: {path}" for path in result.exports)
     return "\n".join(lines)

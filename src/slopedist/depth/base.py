@@ -7,6 +7,19 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+MIN_PLAUSIBLE_DEPTH_M = 0.1
+"""Smaller depths (metres) are not a measurement of anything in front of a car: no value."""
+MAX_PLAUSIBLE_DEPTH_M = 1000.0
+"""Larger depths (metres) are not a measurement of a road scene: no value."""
+
+
+def plausible_depth(depth_m: NDArray[np.floating]) -> NDArray[np.bool_]:
+    """Mask of depths (metres) that can be a measurement: finite and within
+    [:data:`MIN_PLAUSIBLE_DEPTH_M`, :data:`MAX_PLAUSIBLE_DEPTH_M`]."""
+    d = np.asarray(depth_m)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(d) & (d >= MIN_PLAUSIBLE_DEPTH_M) & (d <= MAX_PLAUSIBLE_DEPTH_M)
+
 
 class DepthSource:
     """Gives the depth map of a frame; accumulates the wall time spent doing so.

@@ -5,7 +5,7 @@ Convention: boxes are ``(left, top, right, bottom)`` in pixels, origin top-left,
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,16 +15,96 @@ NO_TRACK = -1
 """Track id used when a box has no track id."""
 
 
-def box_problems(boxes: ArrayLike) -> NDArray[np.object_]:
-    """Reason a box cannot be used, per box: ``""`` if fine, else ``non_finite_box`` or
-    ``inverted_box`` (right ≤ left or bottom ≤ top)."""
+BORDER_TOLERANCE_PX = 1.0
+"""A box edge within this many pixels of the image border (or beyond it) is cut by it."""
+ABSURD_COORDINATE_PX = 1e5
+"""Without an image size, a box coordinate beyond ±this is absurd (``degenerate_box``)."""
+ABSURD_IMAGE_SIZES = 10.0
+"""With an image size, a coordinate more than this many image sizes outside it is absurd."""
+MIN_BOX_SIZE_PX = 1.0
+"""A box narrower or lower than this is ``degenerate_box`` (zero or sub-pixel size)."""
+
+EDGES = ("left", "top", "right", "bottom")
+"""Box edges in coordinate order; a ``cut`` label joins the cut ones with ``+``."""
+_CUT_LABELS = np.array(
+    ["+".join(e for i, e in enumerate(EDGES) if m & (1 << i)) for m in range(16)], dtype=object
+)
+
+_EDGE_BITS = np.array([1, 2, 4, 8])
+
+DEFAULT_VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus", "Motorcycle", "Motorbike")
+"""Class names scored as vehicles (case-insensitive). KITTI's ``Pedestrian``,
+``Person_sitting``, ``Cyclist``, ``Tram``, ``Misc`` and ``DontCare`` are not: the ground
+contact of a person, a rail vehicle or an unknown object is not a car's."""
+
+
+def box_problems(
+    boxes: ArrayLike, image_size: tuple[int, int] | None = None
+) -> NDArray[np.object_]:
+    """Reason a box cannot be used, per box: ``""`` if fine, else (first that applies)
+    ``non_finite_box``, ``inverted_box`` (right < left or bottom < top), ``degenerate_box``
+    (width or height under :data:`MIN_BOX_SIZE_PX`, or absurd coordinates) or, when the image
+    ``(width, height)`` in pixels is known, ``outside_image`` (no overlap with the image,
+    whose pixels span ``[−0.5, width − 0.5] × [−0.5, height − 0.5]``)."""
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     reasons = np.full(b.shape[0], "", dtype=object)
-    finite = np.all(np.isfinite(b), axis=1)
-    inverted = finite & ((b[:, 2] <= b[:, 0]) | (b[:, 3] <= b[:, 1]))
-    reasons[~finite] = "non_finite_box"
+    if image_size is None:
+        size = np.full(4, ABSURD_COORDINATE_PX)
+        low, high = -size, size
+    else:
+        size = np.array(image_size * 2, dtype=float)
+        low, high = -ABSURD_IMAGE_SIZES * size, (1 + ABSURD_IMAGE_SIZES) * size
+    finite = np.isfinite(b).all(axis=1)
+    sane = finite & ~((b < low) | (b > high)).any(axis=1)  # comparisons with NaN are False
+    s = b if sane.all() else np.where(sane[:, None], b, 0.0)  # no overflow in differences
+    w, h = s[:, 2] - s[:, 0], s[:, 3] - s[:, 1]
+    inverted = sane & ((w < 0) | (h < 0))
+    degenerate = finite & ~inverted & ((w < MIN_BOX_SIZE_PX) | (h < MIN_BOX_SIZE_PX))
+    if image_size is not None:
+        edge = np.array(image_size, dtype=float) - 0.5
+        outside = (s[:, 2] <= -0.5) | (s[:, 3] <= -0.5)
+        outside |= (s[:, 0] >= edge[0]) | (s[:, 1] >= edge[1])
+        reasons[outside & sane & ~inverted & ~degenerate] = "outside_image"
+    reasons[degenerate] = "degenerate_box"
     reasons[inverted] = "inverted_box"
+    reasons[~finite] = "non_finite_box"
     return reasons
+
+
+def border_cuts(
+    boxes: ArrayLike, image_size: tuple[int, int] | None, tol_px: float = BORDER_TOLERANCE_PX
+) -> NDArray[np.bool_]:
+    """``(N, 4)`` flags: is the box's left, top, right, bottom edge cut by the image border
+    (within ``tol_px`` of it or beyond)? All false without an image ``(width, height)``.
+
+    Pixel centres are integer coordinates, so a box clipped to the image has ``left = 0`` and
+    ``right = width − 1`` (KITTI's convention); ``right = width`` counts as cut too.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    if image_size is None:
+        return np.zeros(b.shape, dtype=bool)
+    width, height = image_size
+    cut = np.empty(b.shape, dtype=bool)
+    cut[:, :2] = b[:, :2] <= tol_px
+    cut[:, 2:] = b[:, 2:] >= np.array([width - 1 - tol_px, height - 1 - tol_px])
+    return cut
+
+
+def cut_labels(cuts: NDArray[np.bool_]) -> NDArray[np.object_]:
+    """The ``cut`` column of :func:`border_cuts` flags: ``""`` or the cut edges in
+    :data:`EDGES` order joined by ``+`` (``"bottom"``, ``"left+bottom"``)."""
+    c = np.asarray(cuts, dtype=bool).reshape(-1, 4)
+    return _CUT_LABELS[c.dot(_EDGE_BITS)]
+
+
+def vehicle_mask(
+    classes: ArrayLike, vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES
+) -> NDArray[np.bool_]:
+    """Per box, whether its class name is one of ``vehicle_classes`` (case-insensitive,
+    surrounding spaces ignored)."""
+    wanted = {str(c).strip().lower() for c in vehicle_classes}
+    names = np.asarray(classes, dtype=object).reshape(-1)
+    return np.array([str(c).strip().lower() in wanted for c in names], dtype=bool)
 
 
 def iou_matrix(boxes_a: ArrayLike, boxes_b: ArrayLike) -> NDArray[np.float64]:

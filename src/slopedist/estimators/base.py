@@ -2,10 +2,18 @@
 
 Convention: boxes ``(left, top, right, bottom)`` pixels; θ (ego road gradient) in radians;
 distances in metres along the camera's z axis (longitudinal, as KITTI's label z).
+
+Per-item states: every box gets an :class:`EstimateStatus`. ``ok`` is a promise (a trustworthy
+distance); ``upper_bound`` keeps a distance the true one does not exceed (a box cut by the
+bottom of the image, for the ground-contact methods: the true contact row is lower); ``missing``
+has no distance. Both non-``ok`` states carry a reason (:class:`MissingReason`). The states that
+depend on the box alone (outside the image, degenerate, not a vehicle, the ``cut`` flag) are
+settled for every method by :func:`settle_states`, after the method ran.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import ClassVar
@@ -14,11 +22,29 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable, box_problems
+from slopedist.detections.boxes import (
+    DEFAULT_VEHICLE_CLASSES,
+    BoxTable,
+    border_cuts,
+    box_problems,
+    cut_labels,
+    vehicle_mask,
+)
+
+
+class EstimateStatus(str, Enum):
+    """What a method can say about one box (the ``status`` column of the records)."""
+
+    OK = "ok"
+    """A distance to trust."""
+    UPPER_BOUND = "upper_bound"
+    """The true distance is at most the one given (reason says why); not scored as ``ok``."""
+    MISSING = "missing"
+    """No distance (reason says why)."""
 
 
 class MissingReason(str, Enum):
-    """Why a distance could not be estimated."""
+    """Why a distance is missing, or (``cut_bottom``) only a bound."""
 
     BELOW_HORIZON = "below_horizon"
     """The box bottom is at or above the vanishing line (u ≤ v): eq. 1 is undefined."""
@@ -30,6 +56,17 @@ class MissingReason(str, Enum):
     """A depth map had no valid value at the sampled pixels."""
     NO_SCALE = "no_scale"
     """Median scaling of a scale-less depth map had no reference yet (first frames)."""
+    DEGENERATE_BOX = "degenerate_box"
+    """Zero or sub-pixel width or height, or absurd coordinates."""
+    OUTSIDE_IMAGE = "outside_image"
+    """The box does not overlap the image."""
+    NOT_A_VEHICLE = "not_a_vehicle"
+    """The class is not one of the vehicle classes (e.g. ``Pedestrian``, ``DontCare``)."""
+    INVALID_DISTANCE = "invalid_distance"
+    """The method gave no finite positive distance for a box it did not rule out."""
+    CUT_BOTTOM = "cut_bottom"
+    """The box is cut by the bottom of the image: a ground-contact distance is an upper bound
+    (status ``upper_bound``)."""
 
 
 class ReferencePoint(str, Enum):
@@ -82,6 +119,10 @@ class FrameEstimates:
         reason: ``""`` or a :class:`MissingReason` value per box.
         reference: the :class:`ReferencePoint` value the distance refers to, per box.
         extra: method-specific columns (e.g. ``sigma_m``, ``speed_mps``, ``ttc_s``).
+        status: the :class:`EstimateStatus` value per box; when a method leaves it out it is
+            ``ok`` where ``reason`` is empty and ``missing`` elsewhere.
+        cut: the image edges that cut each box (``""``, ``"bottom"``, ``"left+bottom"``, ...;
+            :func:`slopedist.detections.boxes.cut_labels`), set by :func:`settle_states`.
     """
 
     theta_rad: NDArray[np.float64]
@@ -92,6 +133,26 @@ class FrameEstimates:
     reason: NDArray[np.object_]
     reference: NDArray[np.object_]
     extra: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    status: NDArray[np.object_] = field(default_factory=lambda: np.zeros(0, dtype=object))
+    cut: NDArray[np.object_] = field(default_factory=lambda: np.zeros(0, dtype=object))
+
+    def __post_init__(self) -> None:
+        n = len(self)
+        if len(self.status) != n:
+            self.status = np.where(
+                self.reason == "", EstimateStatus.OK.value, EstimateStatus.MISSING.value
+            ).astype(object)
+        if len(self.cut) != n:
+            self.cut = np.full(n, "", dtype=object)
+
+    def set_state(
+        self, rows: NDArray[np.bool_], status: EstimateStatus, reason: MissingReason
+    ) -> None:
+        """Give ``rows`` a status and reason; a ``missing`` row loses its distance."""
+        self.status[rows] = status.value
+        self.reason[rows] = reason.value
+        if status is EstimateStatus.MISSING:
+            self.distance_m[rows] = np.nan
 
     def __len__(self) -> int:
         return int(self.distance_m.shape[0])
@@ -119,6 +180,10 @@ class Estimator:
     rotation_source: ClassVar[str | None] = None
     """Rotation source this method must be fed (e.g. ``"oxts"`` for the IMU baseline), or None
     for whichever source the caller uses; evaluations honour it per method."""
+    handles_border_cuts: ClassVar[bool] = False
+    """Whether the method states itself what it can say about a box cut by the image border.
+    When False, :func:`settle_states` applies the cautious rule: an ``ok`` box cut by the
+    bottom becomes an ``upper_bound`` (:func:`bottom_cut_is_upper_bound`)."""
 
     def __init__(self, camera: Camera) -> None:
         self.camera = camera
@@ -131,9 +196,78 @@ class Estimator:
         raise NotImplementedError
 
 
-def unusable_box_reasons(frame: FrameInput, needs_rotation: bool) -> NDArray[np.object_]:
-    """Per-box reason that rules out an estimate before any method runs (bad box, no rotation)."""
-    reasons = box_problems(frame.boxes.boxes)
+def image_size(camera: Camera) -> tuple[int, int] | None:
+    """The camera's image ``(width, height)`` in pixels, or None when unknown (then no box is
+    tested against the image: no ``cut`` flag, no ``outside_image``)."""
+    if camera.image_width is None or camera.image_height is None:
+        return None
+    return camera.image_width, camera.image_height
+
+
+def unusable_box_reasons(
+    frame: FrameInput, needs_rotation: bool, camera: Camera | None = None
+) -> NDArray[np.object_]:
+    """Per-box reason that rules out an estimate before any method runs (bad box, a box
+    outside ``camera``'s image when its size is known, no rotation)."""
+    size = image_size(camera) if camera is not None else None
+    reasons = box_problems(frame.boxes.boxes, size)
     if needs_rotation and not np.isfinite(frame.theta_rad):
         reasons[reasons == ""] = MissingReason.NO_ROTATION.value
     return reasons
+
+
+def bottom_cut_is_upper_bound(
+    est: FrameEstimates, boxes: NDArray[np.float64], camera: Camera
+) -> None:
+    """The ground-contact rule: an ``ok`` box cut by the bottom of the image becomes
+    ``upper_bound`` with reason ``cut_bottom``, its distance kept (eq. 1 reads the lowest
+    visible row, above the true contact row, so ``f·h/(u − v)`` is at least the true
+    distance). Side and top cuts leave the contact row in view: they stay ``ok``."""
+    bottom = border_cuts(boxes, image_size(camera))[:, 3]
+    rows = bottom & (est.status == EstimateStatus.OK.value)
+    est.set_state(rows, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
+
+
+def settle_states(
+    est: FrameEstimates,
+    boxes: BoxTable,
+    camera: Camera,
+    vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
+    bottom_cut_bound: bool = False,
+) -> FrameEstimates:
+    """The states no method may overrule, applied after any method (returned; the method's
+    arrays are copied, not changed).
+
+    - ``cut``: the image edges that cut each usable box (``camera``'s image size; none known,
+      no flag);
+    - a box that is non-finite, inverted, degenerate or outside the image is ``missing`` with
+      that reason, whatever the method said;
+    - a box whose class is not in ``vehicle_classes`` is ``missing`` with reason
+      ``not_a_vehicle`` (the row is kept, so every input box has one record; methods that
+      track may still use it, e.g. as an occluder);
+    - with ``bottom_cut_bound`` (a method that does not handle border cuts itself), an
+      ``ok`` box cut by the bottom of the image becomes ``upper_bound``, reason ``cut_bottom``;
+    - an ``ok`` or ``upper_bound`` row without a finite positive distance is ``missing``
+      (``ok`` is a promise).
+    """
+    size = image_size(camera)
+    problems = box_problems(boxes.boxes, size)
+    bad = problems != ""
+    est.distance_m = np.array(est.distance_m, dtype=float)  # the method's arrays stay its own
+    est.reason, est.status = est.reason.copy(), est.status.copy()
+    est.cut = cut_labels(border_cuts(boxes.boxes, size))
+    est.cut[bad] = ""
+    est.status[bad] = EstimateStatus.MISSING.value
+    est.reason[bad] = problems[bad]
+    est.distance_m[bad] = np.nan
+    other = ~bad & ~vehicle_mask(boxes.cls, vehicle_classes)
+    est.set_state(other, EstimateStatus.MISSING, MissingReason.NOT_A_VEHICLE)
+    if bottom_cut_bound:
+        bottom_cut_is_upper_bound(est, boxes.boxes, camera)
+    d = est.distance_m
+    with np.errstate(invalid="ignore"):
+        unfounded = (est.status != EstimateStatus.MISSING.value) & ~(np.isfinite(d) & (d > 0))
+    est.status[unfounded] = EstimateStatus.MISSING.value
+    est.reason[unfounded & (est.reason == "")] = MissingReason.INVALID_DISTANCE.value
+    d[unfounded | (est.status == EstimateStatus.MISSING.value)] = np.nan
+    return est

@@ -10,7 +10,9 @@ Sampling (:class:`DepthSample`):
     ``lower``: median of the valid pixels of the box's lower part: the bottom
     ``lower_fraction`` of its rows and the central half of its columns (the vehicle's rear
     and wheels, away from the background seen beside and above it).
-    Pixels of value NaN, ±inf or ≤ 0 are "no value"; no valid pixel → reason ``no_depth``.
+    Pixels of value NaN, ±inf or ≤ 0 are "no value", and so are metric depths (scaling
+    ``none``) outside the plausible range [0.1, 1000] m (:func:`slopedist.depth.base.
+    plausible_depth`); no valid pixel → reason ``no_depth``, never a clamped number.
 
 Median scaling (:class:`DepthScaling`) for scale-less monocular models, per frame, as in the
 depth-evaluation literature (Monodepth2 scales each image by ``median(truth)/median(pred)``):
@@ -24,8 +26,13 @@ depth-evaluation literature (Monodepth2 scales each image by ``median(truth)/med
     A frame without any reference pair reuses the last frame's scale; before the first scale of
     a sequence, targets are missing with reason ``no_scale``.
 
-Cap: after scaling, depths are clipped to ``[min_depth_m, max_depth_m]`` (default
-``[1e-3, 80]`` m, the KITTI protocol; ``max_depth_m=None`` disables the upper cap).
+Plausibility and cap: a depth below ``min_depth_m`` (default 0.1 m) or above 1000 m after
+scaling is reason ``no_depth`` (a 1e-30 network output is not a distance of 0.001 m); above
+``max_depth_m`` (default 80 m, the KITTI protocol; None = no cap) it is capped.
+
+Border: the depth at the box centre is still a pixel of the vehicle when the box is cut by the
+image border (the visible part is what the box covers), so a cut box keeps status ``ok`` with
+its ``cut`` flag; boxes wholly outside the image or degenerate are ``missing`` before sampling.
 
 Extra output columns: ``depth_raw_m`` (sampled depth before scaling and cap) and ``depth_scale``.
 """
@@ -41,6 +48,7 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
+from slopedist.depth.base import MAX_PLAUSIBLE_DEPTH_M, MIN_PLAUSIBLE_DEPTH_M, plausible_depth
 from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators.base import (
     Estimator,
@@ -52,7 +60,7 @@ from slopedist.estimators.base import (
 )
 
 DEFAULT_MAX_DEPTH_M = 80.0
-DEFAULT_MIN_DEPTH_M = 1e-3
+DEFAULT_MIN_DEPTH_M = MIN_PLAUSIBLE_DEPTH_M
 TRUTH_COLUMN = "gt_distance_m"
 """Box column read by the ``truth`` scaling: ground-truth distance per target, metres."""
 
@@ -73,8 +81,11 @@ class DepthScaling(str, Enum):
     TRUTH = "truth"
 
 
-def _median_valid(patch: NDArray[np.floating]) -> float:
-    values = patch[np.isfinite(patch) & (patch > 0)]
+def _median_valid(patch: NDArray[np.floating], metric: bool) -> float:
+    """Median of the valid pixels: finite and > 0, and plausible metres when ``metric``."""
+    with np.errstate(invalid="ignore"):
+        valid = plausible_depth(patch) if metric else np.isfinite(patch) & (patch > 0)
+    values = patch[valid]
     return float(np.median(values)) if values.size else math.nan
 
 
@@ -84,11 +95,14 @@ def sample_box_depth(
     sample: DepthSample = DepthSample.CENTRE,
     window_px: int = 5,
     lower_fraction: float = 1.0 / 3.0,
+    metric: bool = True,
 ) -> NDArray[np.float64]:
-    """Depth (metres) of every box ``(left, top, right, bottom)`` sampled from ``depth_m``.
+    """Depth of every box ``(left, top, right, bottom)`` sampled from ``depth_m``.
 
     Pixel ``(row i, column j)`` is centred on image coordinates ``(y = i, x = j)``. Boxes that
-    reach past the image are clipped to it; NaN where no valid pixel is sampled.
+    reach past the image are clipped to it; NaN where no valid pixel is sampled. ``metric``:
+    the map is in metres, and values outside the plausible range are no value; otherwise
+    (scale-less maps) only non-finite and non-positive values are.
     """
     d = np.asarray(depth_m)
     h, w = d.shape
@@ -107,7 +121,7 @@ def sample_box_depth(
             r0, r1, c0, c1 = row - half, row + half + 1, col - half, col + half + 1
         r0, r1, c0, c1 = max(r0, 0), min(r1, h), max(c0, 0), min(c1, w)
         if r0 < r1 and c0 < c1:
-            out[k] = _median_valid(d[r0:r1, c0:c1])
+            out[k] = _median_valid(d[r0:r1, c0:c1], metric)
     return out
 
 
@@ -121,11 +135,12 @@ class DepthMapEstimator(Estimator):
         lower_fraction: share of the box height used by ``lower`` (0 < x ≤ 1).
         scaling: :class:`DepthScaling` (or its name).
         max_depth_m: upper cap, metres (None = no cap).
-        min_depth_m: lower clip, metres.
+        min_depth_m: smallest plausible depth after scaling, metres (smaller: ``no_depth``).
         truth_column: box column holding ground-truth distances for ``truth`` scaling.
     """
 
     name: ClassVar[str] = "depthmap"
+    handles_border_cuts: ClassVar[bool] = True
     needs_rotation: ClassVar[bool] = False
     needs_depth: ClassVar[bool] = True
 
@@ -186,7 +201,7 @@ class DepthMapEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = len(boxes)
-        reasons = unusable_box_reasons(frame, False)
+        reasons = unusable_box_reasons(frame, False, self.camera)
         raw = np.full(n, np.nan)
         if frame.depth_m is not None:
             cam = self.camera
@@ -202,7 +217,12 @@ class DepthMapEstimator(Estimator):
                 )
             ok = reasons == ""
             raw[ok] = sample_box_depth(
-                frame.depth_m, boxes[ok], self.sample, self.window_px, self.lower_fraction
+                frame.depth_m,
+                boxes[ok],
+                self.sample,
+                self.window_px,
+                self.lower_fraction,
+                metric=self.scaling is DepthScaling.NONE,
             )
         reasons[(reasons == "") & ~np.isfinite(raw)] = MissingReason.NO_DEPTH.value
         scale = 1.0
@@ -215,7 +235,10 @@ class DepthMapEstimator(Estimator):
             if not math.isfinite(scale):
                 reasons[reasons == ""] = MissingReason.NO_SCALE.value
         d = raw * scale
-        d = np.clip(d, self.min_depth_m, self.max_depth_m if self.max_depth_m else np.inf)
+        with np.errstate(invalid="ignore"):
+            implausible = ~((d >= self.min_depth_m) & (d <= MAX_PLAUSIBLE_DEPTH_M))
+        reasons[(reasons == "") & implausible] = MissingReason.NO_DEPTH.value
+        d = np.minimum(d, self.max_depth_m if self.max_depth_m else np.inf)
         d = np.where(reasons == "", d, np.nan)
         theta = np.full(n, frame.theta_rad, dtype=float)
         nan = np.full(n, np.nan)

@@ -3,6 +3,13 @@
 All three read eq. 1 ``d = f·h/(u − v)``; they differ in the vanishing-line row ``v``:
 ``flat`` puts it at ``c_y`` (a level road, θ = θ0 = 0); ``ego`` moves it with the ego road
 gradient θ (eq. 5); ``paper`` additionally raises θ per target by the steps of eq. 7.
+
+Border: a box cut by the bottom of the image hides its contact row, which is lower than the
+box bottom, so eq. 1 gives a distance the true one does not exceed: status ``upper_bound``,
+reason ``cut_bottom``, distance kept (for ``paper``/``imu`` this holds while the cut does not
+change the eq. 7 step, i.e. while the visible box centre stays below the horizon, as it does
+for any car near enough to be cut). A box cut only at a side or the top still shows its
+contact row: ``ok``, with the ``cut`` flag.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from slopedist.estimators.base import (
     FrameInput,
     MissingReason,
     ReferencePoint,
+    bottom_cut_is_upper_bound,
     unusable_box_reasons,
 )
 
@@ -33,7 +41,9 @@ def ground_contact_estimates(
 ) -> FrameEstimates:
     """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians).
 
-    ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ.
+    ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ. A box cut by
+    the bottom of the image (``camera``'s size) is an ``upper_bound``
+    (:func:`~slopedist.estimators.base.bottom_cut_is_upper_bound`).
     """
     v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
     delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)
@@ -43,7 +53,7 @@ def ground_contact_estimates(
     reasons[(reasons == "") & ~np.isfinite(d)] = MissingReason.BELOW_HORIZON.value
     d = np.where(reasons == "", d, np.nan)
     n = boxes.shape[0]
-    return FrameEstimates(
+    est = FrameEstimates(
         theta_rad=np.broadcast_to(theta_rad, (n,)).astype(float),
         theta_adj_rad=np.broadcast_to(theta_adj_rad, (n,)).astype(float),
         delta_y_px=np.broadcast_to(delta_y, (n,)).astype(float),
@@ -52,6 +62,8 @@ def ground_contact_estimates(
         reason=reasons,
         reference=np.full(n, ReferencePoint.CONTACT.value, dtype=object),
     )
+    bottom_cut_is_upper_bound(est, boxes, camera)
+    return est
 
 
 class FlatGroundEstimator(Estimator):
@@ -62,6 +74,7 @@ class FlatGroundEstimator(Estimator):
     """
 
     name: ClassVar[str] = "flat"
+    handles_border_cuts: ClassVar[bool] = True
     needs_rotation: ClassVar[bool] = False
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
@@ -69,7 +82,7 @@ class FlatGroundEstimator(Estimator):
         theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
         theta = np.full(len(boxes), theta_rest)
         return ground_contact_estimates(
-            self.camera, theta, theta, boxes, unusable_box_reasons(frame, False)
+            self.camera, theta, theta, boxes, unusable_box_reasons(frame, False, self.camera)
         )
 
 
@@ -77,12 +90,13 @@ class EgoGradientEstimator(Estimator):
     """The paper's ablation "before updating": eq. 1 with v from the ego gradient θ (eq. 4–5)."""
 
     name: ClassVar[str] = "ego"
+    handles_border_cuts: ClassVar[bool] = True
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         theta = np.full(len(boxes), frame.theta_rad)
         return ground_contact_estimates(
-            self.camera, theta, theta, boxes, unusable_box_reasons(frame, True)
+            self.camera, theta, theta, boxes, unusable_box_reasons(frame, True, self.camera)
         )
 
 
@@ -90,6 +104,7 @@ class PaperEstimator(Estimator):
     """The paper's method: ego gradient plus the per-target adjustment of eq. 6–7."""
 
     name: ClassVar[str] = "paper"
+    handles_border_cuts: ClassVar[bool] = True
 
     def __init__(self, camera: Camera, adjustment: geo.GradientAdjustment | None = None) -> None:
         super().__init__(camera)
@@ -102,5 +117,5 @@ class PaperEstimator(Estimator):
         delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v)
         theta_adj = geo.adjusted_gradient(theta, delta_y, self.adjustment)
         return ground_contact_estimates(
-            self.camera, theta, theta_adj, boxes, unusable_box_reasons(frame, True)
+            self.camera, theta, theta_adj, boxes, unusable_box_reasons(frame, True, self.camera)
         )

@@ -1,11 +1,23 @@
-"""Writing annotated frames: a folder of PNG files or an MP4 video (``cv2.VideoWriter``, mp4v),
-or an animated GIF where OpenCV cannot write MP4 (needs Pillow).
+"""Writing annotated frames: a folder of PNG files or an MP4 video.
 
-Convention: images are BGR ``H×W×3`` uint8.
+MP4 videos are H.264 (``yuv420p``, the profile every browser plays) written with PyAV's bundled
+``libx264`` as a *fragmented* MP4 (``frag_keyframe+empty_moov+default_base_moof``) with a key
+frame every second and no encoder look-ahead (``tune=zerolatency``): every finished fragment is
+on disk, so a run killed part-way leaves a file that plays up to its last second. Frame times are
+the frames' own timestamps (variable frame rate kept), in milliseconds. Without PyAV the video
+falls back to OpenCV's MPEG-4 Part 2 (``mp4v``; plays in desktop players, not in browsers).
+
+Where neither can write MP4, :func:`open_overlay_video` falls back to an animated GIF (needs
+Pillow).
+
+Convention: images are BGR ``H×W×3`` uint8; odd widths or heights are padded with one black
+column / row (``yuv420p`` needs even sizes).
 """
 
 from __future__ import annotations
 
+import importlib.util
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -15,21 +27,131 @@ from numpy.typing import NDArray
 
 from slopedist.errors import ConfigurationError, InputFileError
 
+MP4_TIME_BASE = Fraction(1, 1000)
+"""Time unit of the presentation timestamps of written videos (milliseconds)."""
+
+H264_OPTIONS = {"preset": "veryfast", "tune": "zerolatency", "crf": "23"}
+"""libx264 settings: fast, no look-ahead (frames leave the encoder at once), visually clean."""
+
+FRAGMENTED_MP4 = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"}
+"""MP4 muxer flags: a fragment per key frame, the header first (playable while written), each
+packet flushed to the file at once."""
+
+
+def even_size(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``image`` padded with a black row / column where its height / width is odd."""
+    h, w = image.shape[:2]
+    if h % 2 == 0 and w % 2 == 0:
+        return image
+    return np.asarray(cv2.copyMakeBorder(image, 0, h % 2, 0, w % 2, cv2.BORDER_CONSTANT, value=0))
+
+
+class H264Writer:
+    """H.264 fragmented MP4 via PyAV (see the module docstring).
+
+    Args:
+        path: the ``.mp4`` file (overwritten).
+        size: ``(width, height)`` of the frames, pixels (padded to even).
+        fps: nominal frame rate (key-frame interval, and the times of frames written without
+            one).
+
+    Raises:
+        OptionalDependencyError-free: raises ImportError when PyAV is missing (callers choose
+            the fallback).
+    """
+
+    def __init__(self, path: str | Path, size: tuple[int, int], fps: float) -> None:
+        import av
+
+        self.path = Path(path)
+        self.fps = fps
+        width, height = size[0] + size[0] % 2, size[1] + size[1] % 2
+        self.size = (width, height)
+        self._container: Any = av.open(
+            str(self.path), "w", format="mp4", container_options=FRAGMENTED_MP4
+        )
+        rate = Fraction(fps).limit_denominator(1001)
+        stream = self._container.add_stream("libx264", rate=rate, options=dict(H264_OPTIONS))
+        stream.width, stream.height = width, height
+        stream.pix_fmt = "yuv420p"
+        stream.time_base = MP4_TIME_BASE
+        stream.codec_context.time_base = MP4_TIME_BASE
+        stream.codec_context.gop_size = max(round(fps), 1)
+        self._stream = stream
+        self._last_pts = -1
+
+    def write(self, image: NDArray[np.uint8], timestamp_s: float) -> None:
+        """Encode one BGR frame shown at ``timestamp_s`` seconds (times must increase; a time
+        that does not is moved to one millisecond after the previous frame)."""
+        import av
+
+        # OpenCV's BT.601 conversion: decoders give back the colours within 2 levels (swscale's
+        # default conversion is 3-4 levels off)
+        i420 = cv2.cvtColor(np.ascontiguousarray(even_size(image)), cv2.COLOR_BGR2YUV_I420)
+        frame = av.VideoFrame.from_ndarray(np.asarray(i420, dtype=np.uint8), format="yuv420p")
+        pts = max(round(timestamp_s / float(MP4_TIME_BASE)), self._last_pts + 1)
+        frame.pts, frame.time_base = pts, MP4_TIME_BASE
+        self._last_pts = pts
+        for packet in self._stream.encode(frame):
+            self._container.mux(packet)
+
+    def close(self) -> None:
+        """Flush the encoder and finish the file."""
+        if self._container is None:
+            return
+        for packet in self._stream.encode(None):
+            self._container.mux(packet)
+        self._container.close()
+        self._container = None
+
+
+class _OpenCVWriter:
+    """MPEG-4 Part 2 via ``cv2.VideoWriter`` (fallback without PyAV; frame times are lost)."""
+
+    def __init__(self, path: Path, size: tuple[int, int], fps: float) -> None:
+        self.path = path
+        self.size = size
+        self._video = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
+        if not self._video.isOpened():
+            raise InputFileError(path, "OpenCV cannot write an MP4 (mp4v) video here")
+
+    def write(self, image: NDArray[np.uint8], timestamp_s: float) -> None:
+        self._video.write(image)
+
+    def close(self) -> None:
+        self._video.release()
+
+
+def open_video_writer(
+    path: str | Path, size: tuple[int, int], fps: float
+) -> H264Writer | _OpenCVWriter:
+    """H.264 with PyAV when installed, else OpenCV's mp4v (see the module docstring)."""
+    path = Path(path)
+    try:
+        return H264Writer(path, size, fps)
+    except ImportError:
+        return _OpenCVWriter(path, size, fps)
+
 
 class OverlayWriter:
     """Writes one annotated image per frame, to PNG files or to an MP4 file.
 
-    ``target`` ending in ``.mp4`` writes a video at ``fps`` frames per second (size of the first
-    frame; frames of another size are resized to it); anything else is a folder that receives
+    ``target`` ending in ``.mp4`` writes a video (:func:`open_video_writer`; size of the first
+    frame, frames of another size are resized to it); anything else is a folder that receives
     ``<frame index, 6 digits>.png``. Frames without pixels are written to the video as a grey
     placeholder (so its timeline stays right) and skipped in a PNG folder.
+
+    Args:
+        target: folder or ``.mp4`` path.
+        fps: nominal frame rate; frames written without a timestamp are shown at
+            ``index / fps`` seconds.
     """
 
     def __init__(self, target: str | Path, fps: float = 10.0) -> None:
         self.target = Path(target)
         self.fps = fps
         self.is_video = self.target.suffix.lower() == ".mp4"
-        self._video: cv2.VideoWriter | None = None
+        self._video: H264Writer | _OpenCVWriter | None = None
         self._size: tuple[int, int] | None = None
         self.written = 0
         if self.is_video:
@@ -39,8 +161,9 @@ class OverlayWriter:
         else:
             self.target.mkdir(parents=True, exist_ok=True)
 
-    def write(self, index: int, image: NDArray[np.uint8]) -> None:
-        """Write the annotated image of frame ``index``."""
+    def write(self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None) -> None:
+        """Write the annotated image of frame ``index`` (shown at ``timestamp_s`` seconds, or
+        ``index / fps`` when None)."""
         if not self.is_video:
             path = self.target / f"{index:06d}.png"
             if not cv2.imwrite(str(path), image):
@@ -49,18 +172,14 @@ class OverlayWriter:
             return
         if self._video is None:
             self._size = (int(image.shape[1]), int(image.shape[0]))
-            self._video = cv2.VideoWriter(
-                str(self.target), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, self._size
-            )
-            if not self._video.isOpened():
-                raise InputFileError(self.target, "OpenCV cannot write an MP4 (mp4v) video here")
+            self._video = open_video_writer(self.target, self._size, self.fps)
         assert self._size is not None
         if (image.shape[1], image.shape[0]) != self._size:
             image = np.asarray(cv2.resize(image, self._size))
-        self._video.write(image)
+        self._video.write(image, index / self.fps if timestamp_s is None else timestamp_s)
         self.written += 1
 
-    def write_placeholder(self, index: int, text: str) -> None:
+    def write_placeholder(self, index: int, text: str, timestamp_s: float | None = None) -> None:
         """Mark a frame without pixels (video only: a grey frame with ``text``)."""
         if not self.is_video or self._size is None:
             return
@@ -68,24 +187,24 @@ class OverlayWriter:
         cv2.putText(
             image, text, (10, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 1, cv2.LINE_AA
         )
-        self.write(index, image)
+        self.write(index, image, timestamp_s)
 
     def close(self) -> None:
         """Finish the video file (no-op for PNG folders)."""
         if self._video is not None:
-            self._video.release()
+            self._video.close()
             self._video = None
 
 
 class GifWriter:
-    """Animated GIF fallback for the overlay (half resolution)."""
+    """Animated GIF fallback for the overlay (half resolution, nominal frame rate)."""
 
     def __init__(self, path: Path, fps: float) -> None:
         self.path = path
         self.fps = fps
         self.frames: list[Any] = []
 
-    def write(self, index: int, image: NDArray[np.uint8]) -> None:
+    def write(self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None) -> None:
         from PIL import Image
 
         small = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2))
@@ -103,10 +222,12 @@ class GifWriter:
 
 
 def open_overlay_video(folder: Path, fps: float) -> OverlayWriter | GifWriter:
-    """``folder/overlay.mp4``, or an animated ``folder/overlay.gif`` where OpenCV cannot write
-    MP4."""
+    """``folder/overlay.mp4`` (H.264 with PyAV, else OpenCV's mp4v), or an animated
+    ``folder/overlay.gif`` where neither can write MP4."""
     try:
         writer = OverlayWriter(folder / "overlay.mp4", fps)
+        if importlib.util.find_spec("av") is not None:
+            return writer
         probe = cv2.VideoWriter(
             str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
         )

@@ -112,11 +112,18 @@ def _put(items: queue.Queue[object], item: object, stop: threading.Event) -> boo
 
 class OverlaySink(Protocol):
     """What :class:`BackgroundOverlay` forwards to (e.g. :class:`~slopedist.io.overlay.
-    OverlayWriter`)."""
+    OverlayWriter`; ``timestamp_s``: the frame's time, seconds)."""
 
-    def write(self, index: int, image: NDArray[np.uint8]) -> None: ...
+    @property
+    def target(self) -> Path: ...
 
-    def write_placeholder(self, index: int, text: str) -> None: ...
+    def write(
+        self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None
+    ) -> None: ...
+
+    def write_placeholder(
+        self, index: int, text: str, timestamp_s: float | None = None
+    ) -> None: ...
 
     def close(self) -> None: ...
 
@@ -138,11 +145,16 @@ class BackgroundOverlay:
         self._worker = threading.Thread(target=self._drain, name="slopedist-overlay", daemon=True)
         self._worker.start()
 
-    def write(self, index: int, image: NDArray[np.uint8]) -> None:
-        self._submit("write", (index, image))
+    @property
+    def target(self) -> Path:
+        """The sink's output path."""
+        return self.sink.target
 
-    def write_placeholder(self, index: int, text: str) -> None:
-        self._submit("write_placeholder", (index, text))
+    def write(self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None) -> None:
+        self._submit("write", (index, image, timestamp_s))
+
+    def write_placeholder(self, index: int, text: str, timestamp_s: float | None = None) -> None:
+        self._submit("write_placeholder", (index, text, timestamp_s))
 
     def close(self) -> None:
         """Write everything queued, close the sink, and raise the sink's error if any."""

@@ -176,3 +176,56 @@ def read_oxts_rotations(
     R_cam_imu = camera_from_imu_rotation(calib_path)
     R_cam = R_cam_imu @ (R_imu[0].T @ R_imu) @ R_cam_imu.T
     return RotationTrack.from_arrays(np.arange(len(R_cam)) * frame_period_s, R_cam)
+
+
+TUM_HEADER = "# timestamp tx ty tz qx qy qz qw"
+
+
+class TumPoseWriter:
+    """Writes poses in TUM layout (``timestamp tx ty tz qx qy qz qw``, one pose per line,
+    flushed per line), as ``evo_traj tum FILE`` and ``evo_ape tum REF FILE`` read it.
+
+    Convention: camera-to-world poses, timestamp in seconds, translation in metres (zero for
+    rotation-only sources such as slopedist's odometry: compare them with ``evo_ape
+    --pose_relation angle_deg``), quaternion x y z w. Numbers are written with Python's
+    shortest round-trip form (``repr``), so they read back exactly.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = self.path.open("w", newline="\n")
+        self._fh.write(TUM_HEADER + "\n")
+        self._fh.flush()
+        self.poses = 0
+
+    def write(
+        self,
+        timestamp_s: float,
+        R_world_cam: NDArray[np.float64],
+        t_world_cam: NDArray[np.float64] | None = None,
+    ) -> None:
+        """Append one pose (rotation ``(3, 3)``, translation ``(3,)`` metres or None = 0)."""
+        from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
+        t = np.zeros(3) if t_world_cam is None else np.asarray(t_world_cam, dtype=float)
+        q = Rotation.from_matrix(np.asarray(R_world_cam, dtype=float)).as_quat()
+        values = [float(timestamp_s), *(float(v) for v in t), *(float(v) for v in q)]
+        self._fh.write(" ".join(repr(v) for v in values) + "\n")
+        self._fh.flush()
+        self.poses += 1
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+def write_tum_poses(path: str | Path, track: RotationTrack) -> Path:
+    """Write the valid rotations of ``track`` as a TUM file (:class:`TumPoseWriter`)."""
+    writer = TumPoseWriter(path)
+    try:
+        for t, R, ok in zip(track.timestamps_s, track.R_world_cam, track.valid):
+            if ok:
+                writer.write(float(t), R)
+    finally:
+        writer.close()
+    return writer.path

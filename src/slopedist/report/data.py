@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from slopedist.evaluation import PooledScores
 from slopedist.kitti_eval import KittiEvalConfig
+from slopedist.tracks import TRACK_FIELDS
 
 
 class SourceKind(str, Enum):
@@ -89,6 +90,9 @@ RECORD_COLUMNS = (
 )
 """Columns of the report's ``records.csv`` (one row per target, frame and method; metres,
 seconds, degrees)."""
+TRACK_COLUMNS = ("sequence", "method", *TRACK_FIELDS)
+"""Columns of the per-track summaries of run outputs (``tracks.csv`` of each run, see
+:mod:`slopedist.tracks`, with its sequence and method)."""
 THETA_COLUMNS = ("sequence", "frame", "timestamp_s", "source", "theta_deg")
 """Columns of the report's ``theta.csv`` (ego gradient per frame and rotation source, degrees)."""
 
@@ -107,6 +111,7 @@ class ReportData:
         notes: lines shown under the title.
         truth_source: name of the rotation source taken as θ truth (``"oxts"``), if any.
         has_truth: whether the records carry a ground-truth distance.
+        tracks: per-track summaries of run outputs (:data:`TRACK_COLUMNS`), or None.
     """
 
     title: str
@@ -120,6 +125,7 @@ class ReportData:
     notes: list[str] = field(default_factory=list)
     truth_source: str | None = None
     has_truth: bool = True
+    tracks: Columns | None = None
 
     @property
     def methods(self) -> list[str]:

@@ -26,11 +26,13 @@ from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_m
 from slopedist.report.data import (
     RECORD_COLUMNS,
     THETA_COLUMNS,
+    TRACK_COLUMNS,
     Columns,
     ReportData,
     ReportOptions,
     SourceKind,
 )
+from slopedist.tracks import TRACK_FIELDS, TRACKS_NAME
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
@@ -110,6 +112,7 @@ class _RunReader:
     methods: Sequence[str] | None
     records: Columns = field(default_factory=lambda: Columns(RECORD_COLUMNS))
     theta: Columns = field(default_factory=lambda: Columns(THETA_COLUMNS))
+    tracks: Columns = field(default_factory=lambda: Columns(TRACK_COLUMNS))
     sets: dict[str, dict[str, ScoredSet]] = field(default_factory=dict)
     times: dict[tuple[str, str], list[float]] = field(default_factory=dict)
     truth_found: bool = False
@@ -157,6 +160,16 @@ class _RunReader:
                 )
             seq_sets[method] = _scored_set(vals)
         return list(by_method)
+
+    def read_tracks(self, folder: Path, seq: str, methods: list[str]) -> None:
+        """Add a run folder's per-track summaries (``tracks.csv``, if there is one)."""
+        path = folder / TRACKS_NAME
+        if not path.is_file():
+            return
+        _, rows = read_csv(path, TRACK_FIELDS)
+        for lineno, row in enumerate(rows, start=2):
+            values = {k: _float(row[k], path, lineno, k) for k in TRACK_FIELDS}
+            self.tracks.add(sequence=seq, method=", ".join(methods), **values)
 
     def read_frame_log(self, folder: Path, seq: str, methods: list[str], shared: bool) -> None:
         """Add a run folder's per-frame θ (source ``run``, or the folder's name when several
@@ -293,6 +306,7 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         seq = run_sequence_name(folder)
         methods = reader.read_records(folder, seq)
         reader.read_frame_log(folder, seq, methods, len(by_seq[seq]) > 1)
+        reader.read_tracks(folder, seq, methods)
     methods = sorted({m for s in reader.sets.values() for m in s})
     if not methods:
         wanted = f" of method(s) {', '.join(opts.methods)}" if opts.methods else ""
@@ -312,6 +326,7 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         notes=_notes(list(by_seq), reader.truth_found),
         truth_source="truth" if reader.theta_truth else None,
         has_truth=reader.truth_found,
+        tracks=reader.tracks if len(reader.tracks) else None,
     )
 
 

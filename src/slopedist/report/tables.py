@@ -96,13 +96,63 @@ def theta_table(data: ReportData) -> Table | None:
     )
 
 
+TRACK_TABLE_ROWS = 20
+"""Tracks shown in the report's track table (the rest are in the runs' ``tracks.csv``)."""
+
+
+def tracks_table(data: ReportData) -> Table | None:
+    """The tracks that came closest (smallest TTC, then smallest distance) of run outputs."""
+    if data.tracks is None or not len(data.tracks):
+        return None
+    rows = [
+        [
+            r["sequence"],
+            r["method"],
+            int(r["track_id"]),
+            r["first_s"],
+            r["last_s"],
+            r["min_distance_m"],
+            r["min_ttc_s"],
+            int(r["ttc_events"]),
+            r["mean_headway_s"],
+        ]
+        for r in data.tracks.records()
+    ]
+    rows.sort(key=lambda r: (_nan_last(r[6]), _nan_last(r[5])))
+    shown = rows[:TRACK_TABLE_ROWS]
+    return Table(
+        "tracks",
+        f"Tracks: the {len(shown)} closest of {len(rows)}",
+        [
+            "sequence",
+            "method",
+            "track",
+            "first (s)",
+            "last (s)",
+            "min dist (m)",
+            "min TTC (s)",
+            "TTC < 2 s events",
+            "headway (s)",
+        ],
+        shown,
+        [[False] * 9 for _ in shown],
+        "From each run's tracks.csv: seconds, metres; TTC from methods that estimate it (ours); "
+        "headway = distance / ego speed where the run had one (--speed-topic).",
+        {2: "d", 3: ".1f", 4: ".1f", 7: "d"},
+    )
+
+
+def _nan_last(x: float) -> float:
+    return x if math.isfinite(x) else math.inf
+
+
 def report_tables(data: ReportData) -> list[Table]:
     """Every table of the report, in page order."""
     tables = score_tables(data.scores) if data.has_truth else []
     tables.append(table2(data))
-    th = theta_table(data)
-    if th is not None:
-        tables.append(th)
+    for extra in (theta_table(data), tracks_table(data)):
+        if extra is not None:
+            tables.append(extra)
     return tables
 
 

@@ -1,0 +1,570 @@
+"""Drive logs as frame sources: ROS 1 bags, ROS 2 bags (sqlite3 or MCAP storage), bare ``.mcap``.
+
+Read with the pure-Python ``rosbags`` package (optional extra ``rosbag``; no ROS installation).
+
+Convention: images are BGR ``H×W×3`` uint8; frame times are the image messages' header stamps,
+in seconds after the first image's stamp (:attr:`LogFrameSource.t0_ns` keeps that origin in
+nanoseconds, for other topics of the same log).
+
+Frame numbering: frame ``k`` is the ``k``-th slot of the nominal frame period ``T`` (the
+``fps`` given, or the median of the first stamp differences). A stamp step of more than
+:data:`GAP_FACTOR` × ``T`` is a gap: the skipped slots are yielded as frames of status
+``missing`` (as a gap in a numbered image folder), so the indices of the frames after it stay
+those of a recording without drops. A stamp that does not increase (out of order or repeated)
+gives a frame of status ``unreadable`` whose detail names both stamps; it keeps the next index.
+
+Image encodings: ``sensor_msgs/Image`` in ``bgr8``, ``rgb8``, ``bgra8``, ``rgba8``, ``mono8``,
+``mono16`` (high byte kept) and ``bayer_{rggb,bggr,gbrg,grbg}8`` (OpenCV demosaicing);
+``sensor_msgs/CompressedImage`` in any format ``cv2.imdecode`` reads (JPEG, PNG). Other
+encodings give ``unreadable`` frames naming the encoding.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import statistics
+import struct
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.errors import (
+    ConfigurationError,
+    InputFileError,
+    MissingInputError,
+    OptionalDependencyError,
+)
+from slopedist.io.calibration import FISHEYE_MODELS, _trim
+from slopedist.io.frames import Frame, FrameStatus
+from slopedist.io.intrinsics import Intrinsics
+
+IMAGE_TYPE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE_TYPE = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+IMAGE_TYPES = (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE)
+
+GAP_FACTOR = 1.5
+"""A stamp step longer than this many nominal frame periods is a gap (missing frames)."""
+
+PERIOD_SAMPLES = 9
+"""Stamp differences whose median is the nominal frame period when no ``fps`` is given."""
+
+LOG_SUFFIXES = (".bag", ".mcap", ".db3")
+"""File endings read as logs (a folder with a ``metadata.yaml`` is a ROS 2 bag)."""
+
+_BAYER = {
+    "bayer_rggb8": cv2.COLOR_BayerBG2BGR,
+    "bayer_bggr8": cv2.COLOR_BayerRG2BGR,
+    "bayer_gbrg8": cv2.COLOR_BayerGR2BGR,
+    "bayer_grbg8": cv2.COLOR_BayerGB2BGR,
+}
+# ROS names a Bayer pattern by the first row's first two pixels, OpenCV by the second row's
+# second and third (cv_bridge's table), hence RGGB → OpenCV's "BG".
+_CHANNELS = {"bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4, "mono8": 1, "8uc1": 1, "8uc3": 3}
+_TO_BGR = {
+    "rgb8": cv2.COLOR_RGB2BGR,
+    "bgra8": cv2.COLOR_BGRA2BGR,
+    "rgba8": cv2.COLOR_RGBA2BGR,
+    "mono8": cv2.COLOR_GRAY2BGR,
+    "8uc1": cv2.COLOR_GRAY2BGR,
+}
+
+
+def is_log_path(path: str | Path) -> bool:
+    """True for a ``.bag`` / ``.mcap`` / ``.db3`` file or a ROS 2 bag folder (``metadata.yaml``)."""
+    path = Path(path)
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file()
+    return path.suffix.lower() in LOG_SUFFIXES
+
+
+def _anyreader() -> Any:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as exc:
+        raise OptionalDependencyError(
+            "rosbags", "rosbag", "reading ROS bags and MCAP logs"
+        ) from exc
+    return AnyReader, get_typestore(Stores.ROS2_HUMBLE)
+
+
+@contextmanager
+def open_log(path: str | Path) -> Iterator[Any]:
+    """An open ``rosbags.highlevel.AnyReader`` on ``path`` (message types from the log, ROS 2
+    Humble's when the log carries none).
+
+    Raises:
+        MissingInputError: no such file or folder.
+        InputFileError: not a readable ROS 1 / ROS 2 log.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingInputError(f"log not found: {path}")
+    any_reader, typestore = _anyreader()
+    try:
+        reader = any_reader([path], default_typestore=typestore)
+        reader.open()
+    except log_errors() as exc:
+        raise InputFileError(path, f"not a readable ROS 1 / ROS 2 log: {exc}") from None
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def log_errors() -> tuple[type[BaseException], ...]:
+    """What ``rosbags`` and its storage back ends raise on a damaged log (corrupt or truncated
+    file, a message that does not deserialise); rosbags checks some of its formats with
+    ``assert``, hence ``AssertionError``."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+
+    errors: list[type[BaseException]] = [
+        AnyReaderError,
+        Reader1Error,
+        Reader2Error,
+        KeyError,
+        ValueError,
+        IndexError,
+        EOFError,
+        AssertionError,
+        OverflowError,
+        struct.error,
+        sqlite3.Error,
+    ]
+    try:
+        import apsw  # rosbags' sqlite3 back end
+
+        errors.append(apsw.Error)
+    except ImportError:
+        pass
+    return tuple(errors)
+
+
+def iter_messages(
+    reader: Any, connections: list[Any], path: Path
+) -> Iterator[tuple[Any, int, Any]]:
+    """``(connection, log time ns, raw bytes)`` of ``connections`` in log-time order.
+
+    Raises:
+        InputFileError: the log is damaged (naming the file and how many messages were read).
+    """
+    messages = reader.messages(connections=connections)
+    errors = log_errors()
+    count = 0
+    while True:
+        try:
+            item = next(messages)
+        except StopIteration:
+            return
+        except errors as exc:
+            raise InputFileError(path, f"log damaged after {count} messages: {exc}") from None
+        count += 1
+        yield item
+
+
+def connections_of(reader: Any, topic: str, types: tuple[str, ...], path: Path) -> list[Any]:
+    """The connections of ``topic``, which must carry one of ``types``.
+
+    Raises:
+        ConfigurationError: no such topic (the message lists the topics there are), or another
+            message type.
+    """
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        have = ", ".join(sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections}))
+        raise ConfigurationError(f"{path} has no topic {topic}; its topics: {have or 'none'}")
+    bad = sorted({c.msgtype for c in conns if c.msgtype not in types})
+    if bad:
+        raise ConfigurationError(
+            f"topic {topic} in {path} carries {', '.join(bad)}; expected {' or '.join(types)}"
+        )
+    return conns
+
+
+def deserialize(reader: Any, raw: Any, msgtype: str, path: Path, topic: str) -> Any:
+    """One message; a message that does not deserialise → :class:`InputFileError`."""
+    try:
+        return reader.deserialize(raw, msgtype)
+    except log_errors() as exc:
+        raise InputFileError(path, f"message does not deserialise: {exc}", field=topic) from None
+
+
+def stamp_ns(msg: Any) -> int:
+    """Header stamp of a message, integer nanoseconds."""
+    stamp = msg.header.stamp
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def decode_image(msg: Any) -> tuple[NDArray[np.uint8] | None, str]:
+    """``(BGR image, "")`` from a ``sensor_msgs`` Image or CompressedImage, or ``(None, why)``."""
+    if hasattr(msg, "format"):  # CompressedImage
+        buf = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+        image = cv2.imdecode(buf, cv2.IMREAD_COLOR) if buf.size else None
+        if image is None:
+            return None, f"compressed image ({msg.format or 'no format'}) does not decode"
+        return np.asarray(image, dtype=np.uint8), ""
+    return _raw_image(msg)
+
+
+def _raw_image(msg: Any) -> tuple[NDArray[np.uint8] | None, str]:
+    enc = str(msg.encoding).lower()
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+    if enc == "mono16" or enc == "16uc1":
+        if data.size < h * step or step < 2 * w:
+            return None, f"{enc} image of {w}×{h} px has {data.size} bytes (step {step})"
+        rows = data[: h * step].reshape(h, step)[:, : 2 * w]
+        words = rows.view(">u2" if msg.is_bigendian else "<u2")
+        return np.asarray(cv2.cvtColor((words >> 8).astype(np.uint8), cv2.COLOR_GRAY2BGR)), ""
+    channels = 1 if enc in _BAYER else _CHANNELS.get(enc)
+    if channels is None:
+        return None, f"image encoding '{msg.encoding}' is not supported"
+    if data.size < h * step or step < channels * w:
+        return None, f"{enc} image of {w}×{h} px has {data.size} bytes (step {step})"
+    rows = data[: h * step].reshape(h, step)[:, : channels * w]
+    image = rows.reshape(h, w, channels) if channels > 1 else rows
+    if enc in _BAYER:
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), _BAYER[enc])), ""
+    if enc in _TO_BGR:
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(image), _TO_BGR[enc])), ""
+    return np.ascontiguousarray(image), ""
+
+
+class _Slots:
+    """Frame index of each stamp: slots of the nominal period, gaps and non-increasing stamps."""
+
+    def __init__(self, period_ns: float | None) -> None:
+        self.period_ns = period_ns
+        self.diffs: list[int] = []
+        self.last_ns: int | None = None
+        self.index = -1
+
+    def period(self) -> float | None:
+        if self.period_ns is not None:
+            return self.period_ns
+        return statistics.median(self.diffs) if self.diffs else None
+
+    def place(self, t_ns: int) -> tuple[int, int, str]:
+        """``(first skipped index, index of this frame, problem)`` for the stamp ``t_ns``."""
+        first_skipped = self.index + 1
+        if self.last_ns is None:
+            self.last_ns, self.index = t_ns, 0
+            return 0, 0, ""
+        step = t_ns - self.last_ns
+        if step <= 0:
+            self.index += 1
+            return (
+                self.index,
+                self.index,
+                (
+                    f"header stamp {t_ns * 1e-9:.9f} s does not increase (the frame before has "
+                    f"{self.last_ns * 1e-9:.9f} s)"
+                ),
+            )
+        period = self.period()
+        slots = 1
+        if period is not None and step > GAP_FACTOR * period:
+            slots = max(round(step / period), 1)
+        elif len(self.diffs) < PERIOD_SAMPLES:
+            self.diffs.append(step)
+        self.index += slots
+        self.last_ns = t_ns
+        return first_skipped, self.index, ""
+
+
+class LogFrameSource:
+    """Frames of one image topic of a drive log (see the module docstring).
+
+    Args:
+        path: ``.bag`` file (ROS 1), ROS 2 bag folder, ``.db3`` or ``.mcap`` file.
+        image_topic: topic of ``sensor_msgs/Image`` or ``sensor_msgs/CompressedImage``.
+        fps: nominal frames per second (None: from the median of the first stamp steps).
+
+    Raises:
+        MissingInputError / InputFileError: see :func:`open_log`; also a topic without messages.
+        ConfigurationError: no such topic, or not an image topic.
+    """
+
+    def __init__(self, path: str | Path, image_topic: str, fps: float | None = None) -> None:
+        self.path = Path(path)
+        self.image_topic = image_topic
+        if fps is not None and not fps > 0:
+            raise ConfigurationError(f"frame rate must be > 0 frames per second, got {fps}")
+        self.period_ns = None if fps is None else 1e9 / fps
+        with open_log(self.path) as reader:
+            conns = connections_of(reader, image_topic, IMAGE_TYPES, self.path)
+            self.message_count = sum(int(c.msgcount) for c in conns)
+            first = next(self._messages(reader), None)
+        if first is None:
+            raise InputFileError(self.path, f"topic {image_topic} has no messages")
+        self.t0_ns = first[0]
+
+    def _messages(self, reader: Any) -> Iterator[tuple[int, Any, str]]:
+        """``(stamp ns, message or None, why not)`` of the image messages: the header stamp, or
+        the log time for unstamped messages and those that do not deserialise."""
+        conns = [c for c in reader.connections if c.topic == self.image_topic]
+        errors = log_errors()
+        for conn, log_ns, raw in iter_messages(reader, conns, self.path):
+            try:
+                msg = reader.deserialize(raw, conn.msgtype)
+            except errors as exc:
+                yield int(log_ns), None, f"message does not deserialise: {exc}"
+                continue
+            try:
+                stamp = stamp_ns(msg)
+            except AttributeError:
+                yield int(log_ns), None, "message has no header (damaged type definition?)"
+                continue
+            yield stamp or int(log_ns), msg, ""
+
+    def expected_frames(self) -> int:
+        """Image messages on the topic (missing slots of gaps not counted)."""
+        return self.message_count
+
+    def frame_size(self) -> tuple[int, int]:
+        with open_log(self.path) as reader:
+            for _, msg, _ in self._messages(reader):
+                image = decode_image(msg)[0] if msg is not None else None
+                if image is not None:
+                    return int(image.shape[1]), int(image.shape[0])
+        raise InputFileError(self.path, f"no image on {self.image_topic} decodes")
+
+    def seconds(self, t_ns: int) -> float:
+        """Log time ``t_ns`` (nanoseconds) → frame time, seconds after the first image."""
+        return (t_ns - self.t0_ns) / 1e9
+
+    def __iter__(self) -> Iterator[Frame]:
+        slots = _Slots(self.period_ns)
+        size: tuple[int, int] | None = None
+        with open_log(self.path) as reader:
+            messages = self._messages(reader)
+            while True:
+                try:
+                    t_ns, msg, problem = next(messages)
+                except StopIteration:
+                    return
+                except InputFileError as exc:  # damaged from here on: say so and stop
+                    k = slots.index + 1
+                    t = self.seconds(slots.last_ns or self.t0_ns) + (slots.period() or 0) / 1e9
+                    yield Frame(
+                        k, t, None, FrameStatus.UNREADABLE, f"{self.image_topic}#{k}", str(exc)
+                    )
+                    return
+                skipped, k, order_problem = slots.place(t_ns)
+                yield from self._gap(skipped, k, slots, t_ns)
+                frame = self._frame(k, t_ns, msg, problem or order_problem, size)
+                if size is None and frame.image is not None:
+                    size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
+                yield frame
+
+    def _frame(
+        self, k: int, t_ns: int, msg: Any, problem: str, size: tuple[int, int] | None
+    ) -> Frame:
+        """Frame ``k`` from its message (``problem``: why it is unusable, "" if it is not)."""
+        name, t = f"{self.image_topic}#{k}", self.seconds(t_ns)
+        if problem or msg is None:
+            return Frame(k, t, None, FrameStatus.UNREADABLE, name, problem)
+        try:
+            image, why = decode_image(msg)
+        except AttributeError as exc:
+            image, why = None, f"message lacks an image field ({exc}); damaged type definition?"
+        if image is None:
+            return Frame(k, t, None, FrameStatus.UNREADABLE, name, why)
+        this = (int(image.shape[1]), int(image.shape[0]))
+        if size is not None and this != size:
+            why = f"image is {this[0]}×{this[1]} px, the first was {size[0]}×{size[1]} px"
+            return Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, why)
+        return Frame(k, t, image, FrameStatus.OK, name)
+
+    def _gap(self, first: int, k: int, slots: _Slots, t_ns: int) -> Iterator[Frame]:
+        period = slots.period() or 0.0
+        for j in range(first, k):
+            t = self.seconds(round(t_ns - (k - j) * period))
+            yield Frame(
+                j,
+                t,
+                None,
+                FrameStatus.MISSING,
+                f"{self.image_topic}#{j}",
+                f"no message on {self.image_topic} for this frame (stamp gap)",
+            )
+
+
+@dataclass(frozen=True)
+class LogTopic:
+    """One topic of a log: name, message type, message count, first and last log time (ns)."""
+
+    topic: str
+    msgtype: str
+    count: int
+    first_ns: int
+    last_ns: int
+
+    @property
+    def span_s(self) -> float:
+        """Seconds from the first to the last message."""
+        return (self.last_ns - self.first_ns) / 1e9
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean message rate, messages per second (NaN with fewer than two messages)."""
+        span = self.span_s
+        return (self.count - 1) / span if self.count > 1 and span > 0 else float("nan")
+
+
+def log_topics(path: str | Path) -> list[LogTopic]:
+    """Every topic of a log with its type, message count and log-time span (sorted by name)."""
+    path = Path(path)
+    with open_log(path) as reader:
+        first: dict[str, int] = {}
+        last: dict[str, int] = {}
+        count: dict[str, int] = {}
+        types = {c.topic: c.msgtype for c in reader.connections}
+        for conn, t_ns, _ in iter_messages(reader, list(reader.connections), path):
+            first.setdefault(conn.topic, t_ns)
+            last[conn.topic] = t_ns
+            count[conn.topic] = count.get(conn.topic, 0) + 1
+    return [
+        LogTopic(topic, types[topic], count.get(topic, 0), first.get(topic, 0), last.get(topic, 0))
+        for topic in sorted(types)
+    ]
+
+
+def camera_info_topic(image_topic: str) -> str:
+    """The ``camera_info`` topic next to an image topic (``/cam/image_raw`` →
+    ``/cam/camera_info``; ``/cam/image_raw/compressed`` → ``/cam/camera_info``)."""
+    parts = image_topic.rstrip("/").split("/")
+    if parts[-1] == "compressed":
+        parts = parts[:-1]
+    return "/".join([*parts[:-1], "camera_info"])
+
+
+def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
+    """The intrinsics of the first ``sensor_msgs/CameraInfo`` message on ``topic``
+    (:func:`intrinsics_from_info`).
+
+    Raises:
+        ConfigurationError: no such topic.
+        InputFileError: no message, or no usable calibration in it.
+    """
+    path = Path(path)
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, (CAMERA_INFO_TYPE,), path)
+        msg = next(
+            (
+                deserialize(reader, raw, c.msgtype, path, topic)
+                for c, _, raw in iter_messages(reader, conns, path)
+            ),
+            None,
+        )
+    if msg is None:
+        raise InputFileError(path, f"topic {topic} has no messages")
+    try:
+        return intrinsics_from_info(msg, rectified)
+    except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
+        raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
+
+
+def intrinsics_from_info(msg: Any, rectified: bool) -> Intrinsics:
+    """:class:`~slopedist.io.intrinsics.Intrinsics` of a CameraInfo message (ROS 1 ``K``/``D``/
+    ``P`` or ROS 2 ``k``/``d``/``p``), with the message's image size.
+
+    Images of the rectified stream (``rectified``, e.g. ``image_rect``) and cameras without
+    distortion use ``P``'s left 3×3 (``K`` when ``P`` is zero) and no distortion; the raw stream
+    of a distorted camera uses ``K`` and ``D`` (``equidistant`` → the fisheye model), through
+    which slopedist maps the boxes (:mod:`slopedist.io.intrinsics`).
+    """
+    K = np.asarray(getattr(msg, "k", getattr(msg, "K", None)), dtype=float).reshape(3, 3)
+    P = np.asarray(getattr(msg, "p", getattr(msg, "P", None)), dtype=float).reshape(3, 4)
+    D = np.asarray(getattr(msg, "d", getattr(msg, "D", ())), dtype=float).reshape(-1)
+    width, height = int(msg.width), int(msg.height)
+    size = (width, height) if width > 0 and height > 0 else None
+    if rectified or not np.any(D != 0):
+        return Intrinsics(P[:, :3] if P[0, 0] > 0 else K, image_size=size)
+    fisheye = str(msg.distortion_model).strip().lower() in FISHEYE_MODELS
+    return Intrinsics(K, _trim(D, fisheye), fisheye, size)
+
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
+ORIENTATION_TYPES = (IMU_TYPE, ODOMETRY_TYPE, *POSE_TYPES)
+
+
+def _orientation(msg: Any) -> list[float]:
+    """x y z w of an Imu, Odometry or pose message (an IMU without orientation is refused)."""
+    cov = getattr(msg, "orientation_covariance", None)
+    if cov is not None and float(cov[0]) == -1.0:
+        raise ValueError("the IMU reports no orientation (covariance[0] = -1)")
+    if hasattr(msg, "orientation"):  # Imu
+        q = msg.orientation
+    else:  # Odometry, PoseWithCovarianceStamped, PoseStamped
+        q = (msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose).orientation
+    return [float(q.x), float(q.y), float(q.z), float(q.w)]
+
+
+def _speed(msg: Any) -> list[float]:
+    """The norm of the linear velocity of an Odometry or TwistStamped message, m/s."""
+    twist = msg.twist.twist if hasattr(msg.twist, "twist") else msg.twist
+    v = twist.linear
+    return [float(np.linalg.norm([v.x, v.y, v.z]))]
+
+
+def _read_series(
+    path: str | Path, topic: str, types: tuple[str, ...], values: Callable[[Any], list[float]]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and ``values(message)`` (``(N, M)``) of every message of
+    ``topic``, which must carry one of ``types``."""
+    path = Path(path)
+    stamps: list[int] = []
+    rows: list[list[float]] = []
+    with open_log(path) as reader:
+        conns = connections_of(reader, topic, types, path)
+        for conn, _, raw in iter_messages(reader, conns, path):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
+            try:
+                rows.append(values(msg))
+                stamps.append(stamp_ns(msg))
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise InputFileError(path, f"message {len(stamps)}: {exc}", field=topic) from None
+    if not stamps:
+        raise InputFileError(path, "no messages", field=topic)
+    return np.asarray(stamps, dtype=np.int64), np.asarray(rows, dtype=float)
+
+
+def read_orientations(
+    path: str | Path, topic: str
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and orientation quaternions (``(N, 4)``, x y z w, body-to-
+    world) of ``topic``: ``sensor_msgs/Imu``, ``nav_msgs/Odometry`` or a ``geometry_msgs`` pose.
+
+    Raises:
+        ConfigurationError: no such topic or another type.
+        InputFileError: no messages, or a message without an orientation (an IMU that reports
+            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention).
+    """
+    return _read_series(path, topic, ORIENTATION_TYPES, _orientation)
+
+
+SPEED_TYPES = (ODOMETRY_TYPE, "geometry_msgs/msg/TwistStamped")
+
+
+def read_speeds(path: str | Path, topic: str) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns, ``(N,)``) and ego speeds (m/s, ``(N,)``: the norm of the linear
+    velocity) of a ``nav_msgs/Odometry`` or ``geometry_msgs/TwistStamped`` topic.
+
+    Raises:
+        ConfigurationError: no such topic or another type.
+        InputFileError: no messages, or a message without a usable velocity.
+    """
+    stamps, speeds = _read_series(path, topic, SPEED_TYPES, _speed)
+    return stamps, speeds[:, 0]

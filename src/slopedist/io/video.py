@@ -1,0 +1,154 @@
+"""Video files decoded with PyAV, frame times from the presentation timestamps.
+
+Dashcams record at a variable frame rate: the container's nominal rate then puts frame ``k`` at
+the wrong time, and the one-second look-back of the ego gradient looks back to the wrong frame.
+:class:`PyAVVideoSource` gives every frame its presentation time (``pts × time_base``, seconds
+after the first frame's). :func:`open_video` uses it when PyAV (optional extra ``video``) is
+installed and falls back to OpenCV's :class:`~slopedist.io.frames.VideoSource` (nominal rate)
+otherwise.
+
+Convention: images BGR ``H×W×3`` uint8; frames numbered 0, 1, ... in presentation order;
+timestamps float64 seconds. A frame without a pts takes the previous one's plus one nominal
+period; a pts that does not increase gives a frame of status ``unreadable`` (as in a log, see
+:mod:`slopedist.io.rosbag`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.errors import InputFileError, MissingInputError
+from slopedist.io.frames import DEFAULT_FPS, Frame, FrameStatus, VideoSource
+
+
+def pyav_available() -> bool:
+    """True when PyAV can be imported."""
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class PyAVVideoSource:
+    """Frames of the first video stream of a file, timed by their presentation timestamps.
+
+    Args:
+        path: the video file.
+        timestamps_s: one timestamp per frame, seconds; overrides the presentation times.
+
+    Raises:
+        MissingInputError: no such file.
+        InputFileError: not a video PyAV can open, or no video stream.
+    """
+
+    def __init__(self, path: str | Path, timestamps_s: NDArray[np.float64] | None = None) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise MissingInputError(f"video file not found: {self.path}")
+        self.timestamps_s = timestamps_s
+        with self._open() as container:
+            stream = container.streams.video[0]
+            rate = stream.average_rate or stream.guessed_rate
+            self.container_fps = float(rate) if rate else DEFAULT_FPS
+            self.frame_count = int(stream.frames) or None
+
+    def _open(self) -> Any:
+        import av
+
+        try:
+            container = av.open(str(self.path))
+        except (av.FFmpegError, OSError) as exc:
+            raise InputFileError(self.path, f"cannot be opened as a video: {exc}") from None
+        if not container.streams.video:
+            container.close()
+            raise InputFileError(self.path, "has no video stream")
+        return container
+
+    def expected_frames(self) -> int | None:
+        return self.frame_count
+
+    def frame_size(self) -> tuple[int, int]:
+        with self._open() as container:
+            stream = container.streams.video[0]
+            return int(stream.codec_context.width), int(stream.codec_context.height)
+
+    def __iter__(self) -> Iterator[Frame]:
+        import av
+
+        period = 1.0 / self.container_fps
+        t0: Fraction | None = None
+        last: float | None = None
+        size: tuple[int, int] | None = None
+        k = 0
+        with self._open() as container:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            frames = container.decode(stream)
+            while True:
+                name = f"{self.path.name}#{k}"
+                try:
+                    vf = next(frames)
+                except StopIteration:
+                    return
+                except av.FFmpegError as exc:
+                    t = (last or 0.0) + period
+                    yield Frame(
+                        k, t, None, FrameStatus.UNREADABLE, name, f"decoding stopped: {exc}"
+                    )
+                    return
+                if vf.pts is not None and vf.time_base is not None:
+                    pts = vf.pts * vf.time_base
+                    t0 = pts if t0 is None else t0
+                    t = float(pts - t0)
+                else:
+                    t = 0.0 if last is None else last + period
+                if self.timestamps_s is not None:
+                    t = self._given(k)
+                status, detail, image = self._check(vf, t, last, size)
+                size = size or (int(vf.width), int(vf.height))
+                if status is FrameStatus.OK:
+                    last = t
+                yield Frame(k, t, image, status, name, detail)
+                k += 1
+
+    def _given(self, k: int) -> float:
+        assert self.timestamps_s is not None
+        if k >= len(self.timestamps_s):
+            raise InputFileError(
+                self.path, f"{len(self.timestamps_s)} timestamps given, but there is a frame {k}"
+            )
+        return float(self.timestamps_s[k])
+
+    @staticmethod
+    def _check(
+        vf: Any, t: float, last: float | None, size: tuple[int, int] | None
+    ) -> tuple[FrameStatus, str, NDArray[np.uint8] | None]:
+        this = (int(vf.width), int(vf.height))
+        if last is not None and not t > last:
+            why = f"presentation time {t:.6f} s does not increase (the frame before: {last:.6f} s)"
+            return FrameStatus.UNREADABLE, why, None
+        if size is not None and this != size:
+            why = f"image is {this[0]}×{this[1]} px, the first frame was {size[0]}×{size[1]} px"
+            return FrameStatus.SIZE_CHANGED, why, None
+        return FrameStatus.OK, "", np.asarray(vf.to_ndarray(format="bgr24"), dtype=np.uint8)
+
+
+def open_video(
+    path: str | Path,
+    fps: float | None = None,
+    timestamps_s: NDArray[np.float64] | None = None,
+    timestamps_name: str = "timestamps",
+) -> PyAVVideoSource | VideoSource:
+    """A video file as frames: presentation times with PyAV; without PyAV, or when a frame
+    rate is forced with ``fps``, OpenCV with ``index / fps`` (see
+    :class:`~slopedist.io.frames.VideoSource`)."""
+    if fps is None and pyav_available():
+        return PyAVVideoSource(path, timestamps_s)
+    return VideoSource(path, fps, timestamps_s, timestamps_name)

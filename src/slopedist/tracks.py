@@ -1,0 +1,140 @@
+"""Per-track summary of a run (``tracks.csv``): when a target was seen, how close it came, how
+soon it could have been hit.
+
+Accumulated frame by frame in constant memory per track (:class:`TrackSummaries`), written at
+the end of a run. Only estimates with a distance count (status ``ok``); boxes without a track id
+are not summarised.
+
+Columns (:data:`TRACK_FIELDS`): ``track_id``; ``first_s`` / ``last_s``: first and last frame
+time with a distance, seconds; ``frames``: frames with a distance; ``min_distance_m`` and the
+time it happened ``min_distance_s``; ``min_ttc_s``: smallest positive time-to-collision
+(seconds; empty when the method gives none, e.g. every method but ``ours``); ``mean_headway_s``:
+mean of distance over ego speed (seconds) over the frames where the ego speed is known and above
+:data:`MIN_EGO_SPEED_MPS` (empty without an ego speed); ``ttc_events``: how many times the TTC
+fell below the threshold (an event starts when it goes from at or above to below); and
+``first_event_s``, the time of the first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slopedist.detections.boxes import BoxTable
+from slopedist.estimators.base import FrameEstimates
+from slopedist.io.tables import write_csv
+
+TRACKS_NAME = "tracks.csv"
+"""File name of the summary in a run's output folder."""
+
+TTC_THRESHOLD_S = 2.0
+"""Default time-to-collision below which a track has an event, seconds."""
+
+MIN_EGO_SPEED_MPS = 0.5
+"""Ego speed below which the headway time (distance / speed) is not averaged, m/s."""
+
+TRACK_FIELDS = (
+    "track_id",
+    "first_s",
+    "last_s",
+    "frames",
+    "min_distance_m",
+    "min_distance_s",
+    "min_ttc_s",
+    "mean_headway_s",
+    "ttc_events",
+    "first_event_s",
+)
+"""Columns of ``tracks.csv``."""
+
+
+@dataclass
+class _Track:
+    first_s: float
+    last_s: float
+    frames: int = 0
+    min_distance_m: float = math.inf
+    min_distance_s: float = math.nan
+    min_ttc_s: float = math.inf
+    headway_sum_s: float = 0.0
+    headway_count: int = 0
+    events: int = 0
+    first_event_s: float = math.nan
+    below: bool = False
+
+    def add(self, t_s: float, distance_m: float, ttc_s: float, ego_speed_mps: float) -> None:
+        self.last_s = t_s
+        self.frames += 1
+        if distance_m < self.min_distance_m:
+            self.min_distance_m, self.min_distance_s = distance_m, t_s
+        if math.isfinite(ego_speed_mps) and ego_speed_mps > MIN_EGO_SPEED_MPS:
+            self.headway_sum_s += distance_m / ego_speed_mps
+            self.headway_count += 1
+        if math.isfinite(ttc_s) and ttc_s > 0:
+            self.min_ttc_s = min(self.min_ttc_s, ttc_s)
+
+    def ttc_state(self, t_s: float, below: bool) -> None:
+        if below and not self.below:
+            self.events += 1
+            if self.events == 1:
+                self.first_event_s = t_s
+        self.below = below
+
+    def row(self, track_id: int) -> dict[str, Any]:
+        return {
+            "track_id": track_id,
+            "first_s": self.first_s,
+            "last_s": self.last_s,
+            "frames": self.frames,
+            "min_distance_m": self.min_distance_m,
+            "min_distance_s": self.min_distance_s,
+            "min_ttc_s": self.min_ttc_s if math.isfinite(self.min_ttc_s) else math.nan,
+            "mean_headway_s": (
+                self.headway_sum_s / self.headway_count if self.headway_count else math.nan
+            ),
+            "ttc_events": self.events,
+            "first_event_s": self.first_event_s,
+        }
+
+
+class TrackSummaries:
+    """Running per-track summaries (see the module docstring).
+
+    Args:
+        ttc_threshold_s: TTC below which a track has an event, seconds.
+    """
+
+    def __init__(self, ttc_threshold_s: float = TTC_THRESHOLD_S) -> None:
+        self.ttc_threshold_s = ttc_threshold_s
+        self.tracks: dict[int, _Track] = {}
+
+    def add(
+        self,
+        timestamp_s: float,
+        boxes: BoxTable,
+        estimates: FrameEstimates,
+        ego_speed_mps: float = math.nan,
+    ) -> None:
+        """One frame's estimates (``ego_speed_mps``: the ego vehicle's speed, m/s, if known)."""
+        ttc = estimates.extra.get("ttc_s", np.full(len(boxes), np.nan))
+        for i in range(len(boxes)):
+            tid = int(boxes.track_id[i])
+            z = float(estimates.distance_m[i])
+            if tid < 0 or estimates.reason[i] != "" or not math.isfinite(z):
+                continue
+            track = self.tracks.setdefault(tid, _Track(timestamp_s, timestamp_s))
+            t_i = float(ttc[i])
+            track.add(timestamp_s, z, t_i, ego_speed_mps)
+            track.ttc_state(timestamp_s, math.isfinite(t_i) and 0 < t_i < self.ttc_threshold_s)
+
+    def rows(self) -> list[dict[str, Any]]:
+        """One row per track (:data:`TRACK_FIELDS`), by track id."""
+        return [self.tracks[t].row(t) for t in sorted(self.tracks)]
+
+    def write(self, path: str | Path) -> Path:
+        """Write ``tracks.csv`` (via :func:`slopedist.io.tables.write_csv`)."""
+        return write_csv(path, self.rows(), TRACK_FIELDS)

@@ -1,0 +1,254 @@
+"""``slopedist run`` and ``estimate`` under kills, full disks, outputs that would overwrite
+their inputs and closed pipes: what stays on disk is valid and says how far it got."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import slopedist
+from slopedist.cli import main
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.writers import write_box_csv
+
+W, H = 320, 200
+CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
+SRC = str(Path(slopedist.__file__).resolve().parents[1])
+
+
+def make_inputs(tmp_path: Path, n: int) -> list[str]:
+    """``n`` noisy frames (so the odometry has work to do), one box per frame."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    rng = np.random.default_rng(0)
+    base = rng.integers(0, 255, (H + 40, W + 40, 3), dtype=np.uint8)
+    for k in range(n):
+        cv2.imwrite(str(frames / f"{k:06d}.png"), base[k % 40 : k % 40 + H, :W])
+    (tmp_path / "calib.txt").write_text(CALIB)
+    boxes = BoxTable.build(np.arange(n), np.tile((100.0, 110.0, 150.0, 150.0), (n, 1)))
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    return [str(frames), "--calib", str(tmp_path / "calib.txt"), "--boxes",
+            str(tmp_path / "boxes.csv"), "--quiet", "--method", "ego"]  # fmt: skip
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    text = path.read_text(encoding="utf-8")
+    assert text.endswith("\n"), f"{path} ends mid-row"
+    rows = list(csv.DictReader(text.splitlines()))
+    header = text.splitlines()[0].split(",")
+    assert all(len(r) == len(header) and None not in r.values() for r in rows)
+    return rows
+
+
+def start_run(args: list[str]) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "PYTHONPATH": SRC}
+    return subprocess.Popen(
+        [sys.executable, "-m", "slopedist", "run", *args],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+
+
+def wait_for_rows(path: Path, n: int, proc: subprocess.Popen[bytes], limit_s: float = 60) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < limit_s:
+        if path.exists() and path.read_text(encoding="utf-8").count("\n") > n:
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"run ended before {n} rows: {proc.stderr.read().decode()}")  # type: ignore[union-attr]
+        time.sleep(0.01)
+    proc.kill()
+    pytest.fail("run too slow")
+
+
+def test_sigterm_part_way_writes_run_json_and_exits_143(tmp_path: Path) -> None:
+    args = make_inputs(tmp_path, 400)
+    out = tmp_path / "out"
+    proc = start_run([*args, "--out", str(out)])
+    wait_for_rows(out / "records.partial.csv", 10, proc)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, err.decode()
+    assert "stopped by SIGTERM" in err.decode()
+    summary = json.loads((out / "run.json").read_text())
+    rows = read_rows(out / "records.csv")
+    frames = read_rows(out / "frames.csv")
+    assert summary["complete"] is False and "SIGTERM" in summary["error"]
+    last = summary["last_complete_frame"]
+    assert 10 <= last < 399
+    assert summary["frames"] == len(frames) == last + 1
+    assert [int(r["frame"]) for r in rows] == list(range(last + 1))  # whole frames only
+    assert not list(out.glob("*.partial*"))
+
+
+def test_sigkill_leaves_the_previous_run_whole_and_marks_the_new_one_partial(
+    tmp_path: Path,
+) -> None:
+    args = make_inputs(tmp_path, 400)
+    out = tmp_path / "out"
+    first = tmp_path / "first"
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]) == 0
+    shutil.copytree(out, first)
+    proc = start_run([*args, "--out", str(out)])
+    wait_for_rows(out / "records.partial.csv", 10, proc)
+    proc.kill()
+    proc.wait(timeout=30)
+    for name in ("records.csv", "frames.csv", "run.json"):  # the previous run, untouched
+        assert (out / name).read_bytes() == (first / name).read_bytes()
+    assert json.loads((out / "run.json").read_text())["complete"] is True
+    partial = read_rows(out / "records.partial.csv")  # the new one: marked, whole rows
+    assert len(partial) >= 10 and {r["method"] for r in partial} == {"ego"}
+
+
+def test_a_rerun_replaces_every_file_of_the_previous_run(tmp_path: Path) -> None:
+    args = make_inputs(tmp_path, 6)
+    out = tmp_path / "out"
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]) == 0
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat",
+                 "--sequence", "second"]) == 0  # fmt: skip
+    assert json.loads((out / "run.json").read_text())["sequence"] == "second"
+    assert len(read_rows(out / "records.csv")) == 6
+    assert sorted(p.name for p in out.iterdir()) == [
+        "frames.csv",
+        "records.csv",
+        "run.json",
+        "tracks.csv",
+    ]
+
+
+def test_outputs_that_would_overwrite_an_input_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = make_inputs(tmp_path, 3)
+    before = (tmp_path / "boxes.csv").read_bytes()
+    assert main(["run", *args, "--out", args[0], "--odometry", "none"]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    (tmp_path / "o").mkdir()
+    shutil.copy(tmp_path / "boxes.csv", tmp_path / "o" / "records.csv")
+    args[4] = str(tmp_path / "o" / "records.csv")
+    assert main(["run", *args, "--out", str(tmp_path / "o"), "--odometry", "none"]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert (tmp_path / "o" / "records.csv").read_bytes() == before
+    assert not (tmp_path / "o" / "run.json").exists()
+
+
+def _estimate_args(tmp_path: Path) -> list[str]:
+    (tmp_path / "calib.txt").write_text("P2: 721 0 609 0 0 721 172 0 0 0 1 0\n")
+    (tmp_path / "poses.txt").write_text(
+        "".join(f"1 0 0 0 0 1 0 0 0 0 1 {k:.1f}\n" for k in range(50))
+    )
+    rows = "".join(f"{k},500,180,600,250,7\n{k},700,180,760,240,8\n" for k in range(50))
+    (tmp_path / "b.csv").write_text("frame,left,top,right,bottom,track_id\n" + rows)
+    return [
+        "estimate",
+        "--calib",
+        str(tmp_path / "calib.txt"),
+        "--poses",
+        str(tmp_path / "poses.txt"),
+        "--boxes",
+        str(tmp_path / "b.csv"),
+        "--method",
+        "flat",
+    ]
+
+
+def test_estimate_refuses_to_overwrite_its_boxes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = _estimate_args(tmp_path)
+    before = (tmp_path / "b.csv").read_bytes()
+    assert main([*args, "--out", str(tmp_path / "b.csv")]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert (tmp_path / "b.csv").read_bytes() == before
+
+
+def test_estimate_into_a_closed_pipe_exits_quietly(tmp_path: Path) -> None:
+    args = _estimate_args(tmp_path)
+    env = {**os.environ, "PYTHONPATH": SRC}
+    cmd = " ".join([sys.executable, "-m", "slopedist", *args, "| head -1"])
+    res = subprocess.run(
+        ["bash", "-o", "pipefail", "-c", cmd], env=env, capture_output=True, timeout=120
+    )
+    assert res.stdout.decode().startswith("frame,timestamp_s")
+    assert res.stderr.decode() == "" and res.returncode == 0
+
+
+def _mount_tmpfs(path: Path, size: str) -> bool:
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        return False
+    path.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)],
+                         capture_output=True)  # fmt: skip
+    return res.returncode == 0
+
+
+def test_disk_full_names_the_file_and_frame_and_keeps_whole_rows(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    disk = tmp_path / "disk"
+    if not _mount_tmpfs(disk, "200k"):
+        pytest.skip("needs root and a working `mount -t tmpfs` for a small full disk")
+    try:
+        args = make_inputs(tmp_path, 3000)
+        code = main(["run", *args, "--out", str(disk / "out"), "--odometry", "none",
+                     "--method", "flat"])  # fmt: skip
+        err = capsys.readouterr().err
+        assert code == 2
+        assert "records.csv" in err and "No space left" in err and "run stopped at frame" in err
+        rows = read_rows(disk / "out" / "records.csv")
+        assert len(rows) > 100
+        summary = json.loads((disk / "out" / "run.json").read_text())
+        assert summary["complete"] is False and "No space left" in summary["error"]
+        assert int(rows[-1]["frame"]) <= summary["failed_frame"]
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)
+
+
+def test_run_knows_the_image_size_and_estimate_takes_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A box reaching the bottom row of the frames is an upper bound in ``run``; ``estimate``
+    does the same with ``--image-size`` and tests nothing without it."""
+    args = make_inputs(tmp_path, 3)
+    boxes = BoxTable.build(
+        [0, 0, 1, 2],
+        [[100, 120, 150, H - 1.0], [100, 110, 150, 150], [400, 10, 450, 50], [0, 120, 50, 180]],
+        classes=["Car", "Car", "Car", "Pedestrian"],
+    )
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    out = tmp_path / "out"
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]) == 0
+    rows = read_rows(out / "records.csv")
+    assert [(r["status"], r["reason"], r["cut"]) for r in rows] == [
+        ("upper_bound", "cut_bottom", "bottom"),
+        ("ok", "", ""),
+        ("missing", "outside_image", ""),
+        ("missing", "not_a_vehicle", "left"),
+    ]
+    assert float(rows[0]["distance_m"]) == pytest.approx(500 * 1.65 / (H - 1 - 100))
+    summary = json.loads((out / "run.json").read_text())
+    assert (summary["estimated"], summary["upper_bounds"], summary["not_vehicles"]) == (1, 1, 1)
+    capsys.readouterr()
+
+    est = _estimate_args(tmp_path)
+    (tmp_path / "b.csv").write_text("frame,left,top,right,bottom\n0,500,180,600,374\n")
+    assert main([*est, "--image-size", "1242x375"]) == 0
+    row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert (row["status"], row["cut"]) == ("upper_bound", "bottom")
+    assert main(est) == 0
+    row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert (row["status"], row["cut"]) == ("ok", "")
+    assert main([*est, "--image-size", "1242"]) == 2
+    assert "WIDTHxHEIGHT" in capsys.readouterr().err

@@ -1,0 +1,97 @@
+"""PyAV video frames timed by their presentation timestamps (variable frame rate)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("av")
+
+from slopedist.errors import InputFileError, MissingInputError
+from slopedist.io.frames import FrameStatus, VideoSource
+from slopedist.io.overlay import H264Writer
+from slopedist.io.video import PyAVVideoSource, open_video
+
+W, H = 64, 48
+VFR_TIMES = [0.0, 0.033, 0.07, 0.1, 0.25, 0.283, 0.4, 1.0, 1.05]
+"""A dashcam that stalls: steps of 33 to 600 ms."""
+
+
+def write_vfr(path: Path, times: list[float]) -> Path:
+    writer = H264Writer(path, (W, H), 30.0)
+    for k, t in enumerate(times):
+        writer.write(np.full((H, W, 3), 20 * k, np.uint8), t)
+    writer.close()
+    return path
+
+
+def test_vfr_mp4_gives_the_true_timestamps(tmp_path: Path) -> None:
+    path = write_vfr(tmp_path / "vfr.mp4", VFR_TIMES)
+    frames = list(PyAVVideoSource(path))
+    assert [f.index for f in frames] == list(range(len(VFR_TIMES)))
+    assert all(f.ok for f in frames)
+    assert [f.timestamp_s for f in frames] == pytest.approx(VFR_TIMES, abs=1e-9)
+    # pixels decode (grey levels survive H.264 within a few levels)
+    assert [int(f.image[H // 2, W // 2, 0]) for f in frames] == pytest.approx(
+        [20 * k for k in range(len(VFR_TIMES))], abs=3
+    )
+    # OpenCV's nominal rate would put frame 7 at about 7 / 30 s, not 1.0 s
+    assert frames[7].timestamp_s == pytest.approx(1.0)
+
+
+def test_open_video_prefers_pyav_and_forced_fps_uses_opencv(tmp_path: Path) -> None:
+    path = write_vfr(tmp_path / "vfr.mp4", VFR_TIMES)
+    assert isinstance(open_video(path), PyAVVideoSource)
+    forced = open_video(path, fps=10.0)
+    assert isinstance(forced, VideoSource)
+    assert [f.timestamp_s for f in forced][:3] == [0.0, 0.1, 0.2]
+
+
+def test_frame_size_and_given_timestamps(tmp_path: Path) -> None:
+    path = write_vfr(tmp_path / "vfr.mp4", VFR_TIMES[:3])
+    source = PyAVVideoSource(path, timestamps_s=np.array([5.0, 6.0, 7.0]))
+    assert source.frame_size() == (W, H)
+    assert [f.timestamp_s for f in source] == [5.0, 6.0, 7.0]
+    short = PyAVVideoSource(path, timestamps_s=np.array([5.0]))
+    with pytest.raises(InputFileError, match="1 timestamps given"):
+        list(short)
+
+
+def test_non_increasing_given_time_is_unreadable(tmp_path: Path) -> None:
+    path = write_vfr(tmp_path / "vfr.mp4", VFR_TIMES[:3])
+    frames = list(PyAVVideoSource(path, timestamps_s=np.array([0.0, 0.0, 1.0])))
+    assert [f.status for f in frames] == [FrameStatus.OK, FrameStatus.UNREADABLE, FrameStatus.OK]
+    assert "does not increase" in frames[1].detail
+
+
+def test_bad_files(tmp_path: Path) -> None:
+    with pytest.raises(MissingInputError):
+        PyAVVideoSource(tmp_path / "none.mp4")
+    bad = tmp_path / "bad.mp4"
+    bad.write_bytes(b"no video here")
+    with pytest.raises(InputFileError, match="cannot be opened"):
+        PyAVVideoSource(bad)
+
+
+def test_run_on_a_vfr_video_writes_the_true_times_to_frames_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import csv
+
+    from slopedist.cli import main
+    from slopedist.detections.boxes import BoxTable
+    from slopedist.detections.writers import write_box_csv
+
+    video = write_vfr(tmp_path / "dashcam.mp4", VFR_TIMES)
+    (tmp_path / "calib.txt").write_text("P2: 60 0 32 0 0 60 24 0 0 0 1 0\n")
+    n = len(VFR_TIMES)
+    boxes = BoxTable.build(np.arange(n), np.tile([20.0, 30.0, 40.0, 40.0], (n, 1)))
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    args = ["run", str(video), "--calib", str(tmp_path / "calib.txt")]
+    args += ["--boxes", str(tmp_path / "boxes.csv"), "--method", "flat", "--odometry", "none"]
+    assert main([*args, "--out", str(tmp_path / "out"), "--quiet"]) == 0, capsys.readouterr().err
+    with (tmp_path / "out" / "frames.csv").open(newline="") as fh:
+        times = [float(r["timestamp_s"]) for r in csv.DictReader(fh)]
+    assert times == pytest.approx(VFR_TIMES, abs=1e-6)
