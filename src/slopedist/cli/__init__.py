@@ -46,7 +46,8 @@ COMMANDS: dict[str, _Lazy] = {
     "run": _Lazy(
         "run_cmd",
         "run",
-        "Estimate distances from FRAMES (an image folder or a video file) and per-frame boxes.",
+        "Estimate distances from FRAMES (an image folder, a video file or a drive log) and "
+        "per-frame boxes.",
     ),
     "simulate": _Lazy(
         "simulate_cmd",
