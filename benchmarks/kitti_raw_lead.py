@@ -40,7 +40,8 @@ from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
-from slopedist.runner import RECORDS_NAME, RunConfig, RunningMean, run_frames
+from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
+from slopedist.runner import run_frames
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"

@@ -56,13 +56,13 @@ from slopedist.datasets.kitti_tracking import (
 from slopedist.estimators import make_estimator
 from slopedist.estimators.ours import CLASS_PRIORS, DimensionPrior, OursConfig
 from slopedist.estimators.ours.filter import ProcessNoise
-from slopedist.estimators.ours.fitting import (
+from slopedist.evaluation import cap_estimates
+from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.offline.ours_fitting import (
     LabelFitInputs,
     fit_parameters,
     kitti_tracking_fit_inputs,
 )
-from slopedist.evaluation import cap_estimates
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.tables import format_table
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"

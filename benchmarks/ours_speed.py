@@ -7,12 +7,17 @@ not counted (as in the paper's comparison). Two workloads:
 1. KITTI tracking label boxes of every road-user class (Car, Van, Truck, Pedestrian, Cyclist,
    Tram, Misc, Person_sitting — not only the protocol's evaluated ones), ORB-SLAM3 rotations,
    all 13 sequences: the traffic density of real urban scenes.
-2. Simulated traffic (:func:`slopedist.estimators.ours.scene.simulate_traffic`) with a fixed
+2. Simulated traffic (:func:`slopedist.datasets.synthetic.traffic.simulate_traffic`) with a fixed
    number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
+3. Scaling: the same traffic at 10, 100 and 1000 vehicles per frame, with track ids and without
+   (id-less boxes are associated by IoU), and the per-target cost at 1000 over that at 10. The
+   scene keeps its size, so at 1000 vehicles the boxes crowd the image: the overlapping box pairs
+   per frame (which the occlusion check and the IoU association visit) are printed too.
 
 Usage::
 
     python benchmarks/ours_speed.py [--data ../shared/data/kitti_tracking] [--repeats 3]
+                                    [--scaling-frames 40]
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -35,9 +41,10 @@ from slopedist.datasets.kitti_tracking import (  # noqa: E402
     list_sequences,
     load_sequence,
 )
+from slopedist.datasets.synthetic.traffic import simulate_traffic  # noqa: E402
+from slopedist.detections.boxes import overlapping_pairs  # noqa: E402
 from slopedist.estimators import make_estimator  # noqa: E402
 from slopedist.estimators.base import FrameInput  # noqa: E402
-from slopedist.estimators.ours.scene import simulate_traffic  # noqa: E402
 from slopedist.pipeline import ego_gradients  # noqa: E402
 from slopedist.tables import format_table  # noqa: E402
 
@@ -82,30 +89,38 @@ def kitti(data: Path, repeats: int) -> None:
     print(format_table(["method", "ms/frame", "ms/target"], rows) + "\n")
 
 
+def traffic_frames(
+    cam: Camera, n: int, n_frames: int, with_ids: bool = True
+) -> tuple[list[FrameInput], int]:
+    """Frames of simulated traffic with ``n`` vehicles, and their number of boxes."""
+    sim = simulate_traffic(
+        cam,
+        n,
+        n_frames,
+        seed=n,
+        z_range_m=(10.0, 60.0),
+        speed_range_mps=(-2.0, 2.0),
+        box_noise_px=0.5,
+        with_ids=with_ids,
+    )
+    eye = np.eye(3)
+    frames = [
+        FrameInput(k, float(sim.timestamps_s[k]), 0.0, b, R_world_cam=eye)
+        for k, b in sim.boxes.by_frame()
+    ]
+    return frames, len(sim.boxes)
+
+
 def simulated(repeats: int) -> None:
     print("2. Simulated traffic, N vehicles per frame (200 frames)")
     cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
     rows = []
     for n in (1, 5, 10, 20, 30, 60):
-        sim = simulate_traffic(
-            cam,
-            n,
-            200,
-            seed=n,
-            z_range_m=(10.0, 60.0),
-            speed_range_mps=(-2.0, 2.0),
-            box_noise_px=0.5,
-        )
-        eye = np.eye(3)
-        frames = [
-            FrameInput(k, float(sim.timestamps_s[k]), 0.0, b, R_world_cam=eye)
-            for k, b in sim.boxes.by_frame()
-        ]
-        per_frame = len(sim.boxes) / len(frames)
-        row: list[object] = [n, per_frame]
+        frames, n_boxes = traffic_frames(cam, n, 200)
+        row: list[object] = [n, n_boxes / len(frames)]
         for m in ("ours", "ours-selfcal"):
             sec = cpu_time(m, cam, frames, repeats)
-            row += [1e3 * sec / len(frames), 1e3 * sec / len(sim.boxes)]
+            row += [1e3 * sec / len(frames), 1e3 * sec / n_boxes]
         rows.append(row)
     print(
         format_table(
@@ -122,16 +137,64 @@ def simulated(repeats: int) -> None:
     )
 
 
+def overlapping_pairs_per_frame(frames: list[FrameInput]) -> float:
+    """Mean number of box pairs per frame whose interiors overlap."""
+    return (
+        float(
+            np.mean([overlapping_pairs(fr.boxes.boxes, fr.boxes.boxes)[0].size for fr in frames])
+            - np.mean([len(fr.boxes) for fr in frames])  # each box overlaps itself
+        )
+        / 2.0
+    )
+
+
+def scaling(repeats: int, n_frames: int) -> None:
+    print(f"3. Scaling: ours per target at 10, 100, 1000 vehicles per frame ({n_frames} frames)")
+    cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
+    rows = []
+    for with_ids in (True, False):
+        base = math.nan
+        for n in (10, 100, 1000):
+            frames, n_boxes = traffic_frames(cam, n, n_frames, with_ids)
+            sec = cpu_time("ours", cam, frames, repeats)
+            per_target_us = 1e6 * sec / n_boxes
+            base = per_target_us if n == 10 else base
+            rows.append(
+                [
+                    "track ids" if with_ids else "IoU (no ids)",
+                    n,
+                    n_boxes / len(frames),
+                    overlapping_pairs_per_frame(frames),
+                    1e3 * sec / len(frames),
+                    per_target_us,
+                    per_target_us / base,
+                ]
+            )
+    header = [
+        "association",
+        "N",
+        "targets/frame",
+        "overlapping pairs/frame",
+        "ms/frame",
+        "us/target",
+        "us/target ÷ at N=10",
+    ]
+    print(format_table(header, rows))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--scaling-frames", type=int, default=40, help="frames per scaling run")
     args = ap.parse_args(argv)
     if (args.data / "label_02").is_dir():
         kitti(args.data, args.repeats)
     else:
         print(f"(KITTI tracking data not found at {args.data}: section 1 skipped)\n")
     simulated(args.repeats)
+    print()
+    scaling(args.repeats, args.scaling_frames)
     return 0
 
 

@@ -37,7 +37,8 @@ from slopedist.detections.boxes import BoxTable, concat_boxes
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import Frame, FrameStatus
 from slopedist.odometry import make_odometry
-from slopedist.runner import RECORDS_NAME, RunConfig, run_frames
+from slopedist.run_config import RECORDS_NAME, RunConfig
+from slopedist.runner import run_frames
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"

@@ -65,3 +65,57 @@ def test_real_kitti_calib(kitti_tracking_dir: Path) -> None:
     cam = Camera.from_kitti_calib(kitti_tracking_dir / "calib" / "0000.txt")
     assert cam.f == pytest.approx(721.5377)
     assert cam.c_y == pytest.approx(172.854)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"f": 1e-9}, "focal length"),
+        ({"f": 1e308}, "focal length"),
+        ({"f": 49.0}, "focal length"),
+        ({"f": float("inf")}, "must be finite"),
+        ({"c_x": 1e300}, "principal point c_x"),
+        ({"c_y": -2e5}, "principal point c_y"),
+        ({"height_m": 1e308}, "height"),
+        ({"height_m": -1.65}, "height"),
+        ({"mount_angle_rad": 1.2}, "mount angle"),
+        (
+            {"c_y": 400.0, "image_width": 1242, "image_height": 375},
+            "c_y = 400 px is outside 0..375",
+        ),
+        ({"image_width": 0, "image_height": 375}, "image size"),
+    ],
+)
+def test_implausible_values_rejected(kwargs: dict[str, float], match: str) -> None:
+    values = {"f": 721.5, "c_x": 609.6, "c_y": 172.9, **kwargs}
+    with pytest.raises(ConfigurationError, match=match):
+        Camera(**values)  # type: ignore[arg-type]
+
+
+def test_plausible_extremes_accepted() -> None:
+    assert Camera(50.0, 0.0, 375.0, 0.1, image_width=1242, image_height=375).f == 50.0
+    assert Camera(20_000.0, -5e4, 5e4, 50.0, -1.0).height_m == 50.0
+
+
+@pytest.mark.parametrize(
+    ("p2", "match"),
+    [
+        ("1e-9 0 609.5 0 0 1e-9 172.8 0 0 0 1 0", r"line 2, field 'P2'.*focal length"),
+        ("1e308 0 609.5 0 0 1e308 172.8 0 0 0 1 0", r"line 2, field 'P2'.*focal length"),
+        ("721.5 0 609.5 0 0 721.5 1e9 0 0 0 1 0", r"line 2, field 'P2'.*c_y"),
+    ],
+)
+def test_implausible_calib_names_file_line_and_key(tmp_path: Path, p2: str, match: str) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text(f"P0: {P2}\nP2: {p2}\n")
+    with pytest.raises(InputFileError, match=match):
+        Camera.from_kitti_calib(path)
+
+
+def test_second_key_is_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "calib.txt"
+    path.write_text(f"P2: {P2}\n\nR0_rect: 1 0 0 0 1 0 0 0 1\nP2: {P2}\n")
+    with pytest.raises(
+        InputFileError, match=r"line 4, field 'P2': second 'P2:' line \(the first is line 1\)"
+    ):
+        read_kitti_calib(path)

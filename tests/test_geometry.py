@@ -127,3 +127,24 @@ def test_eq1_is_positive_or_missing(u: float, v: float) -> None:
 def test_rotation_angle_matches_scipy(angles: list[float]) -> None:
     R = Rotation.from_euler("xyz", angles)
     assert geo.rotation_angle_rad(R.as_matrix()) == pytest.approx(R.magnitude(), abs=1e-6)
+
+
+@pytest.mark.parametrize("angle", [1e-9, 1e-6])
+def test_rotation_angle_of_a_tiny_turn_is_exact(angle: float) -> None:
+    """A turn by a about z: R − Rᵀ has axial part (0, 0, 2 sin a) and tr R − 1 = 2 cos a, so
+    atan2 gives a to rounding. The cosine form loses it: at 1e-9 rad, cos a = 1 − 5e-19 rounds
+    to 1 and arccos reads 0; at 1e-6 it is off by ~4e-5 relative."""
+    c, s = math.cos(angle), math.sin(angle)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    assert float(geo.rotation_angle_rad(R)) == pytest.approx(angle, rel=1e-12)
+    arccos_form = math.acos(min(1.0, (np.trace(R) - 1.0) / 2.0))
+    assert abs(arccos_form - angle) > 1e-6 * angle  # what the atan2 form is guarding against
+
+
+def test_rotation_angle_of_exact_turns() -> None:
+    quarter = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # about y
+    assert float(geo.rotation_angle_rad(quarter)) == pytest.approx(math.pi / 2, rel=1e-15)
+    assert float(geo.rotation_angle_rad(np.diag([1.0, -1.0, -1.0]))) == pytest.approx(math.pi)
+    assert geo.rotation_angle_rad(np.eye(3)) == 0.0
+    stacked = geo.rotation_angle_rad(np.stack([np.eye(3), quarter]))
+    assert stacked.shape == (2,) and stacked[1] == pytest.approx(math.pi / 2)

@@ -2,7 +2,8 @@
 
 Layers, low to high (a module's layer is that of its longest matching prefix):
 
-0. ``errors``, ``geometry`` — pure equations and the exception hierarchy;
+0. ``errors``, ``geometry``, ``limits``, ``textfiles`` — pure equations, the exception hierarchy,
+   the bounds on input and strict text reading;
 1. ``camera``;
 2. ``io``, ``detections``, ``odometry``, ``depth`` — inputs, outputs and rotation sources;
 3. ``estimators``, ``datasets`` — the methods and the data they are tested on;
@@ -25,6 +26,8 @@ LAYERS: dict[str, int] = {
     "__main__": 6,
     "errors": 0,
     "geometry": 0,
+    "limits": 0,
+    "textfiles": 0,
     "camera": 1,
     "io": 2,
     "detections": 2,

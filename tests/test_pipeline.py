@@ -191,3 +191,10 @@ def test_no_look_back_across_an_odometry_segment() -> None:
     expected = [same_segment.update(k * 0.1, pitch[k] @ jump) for k in range(15, 30)]
     np.testing.assert_allclose(thetas[15:], expected, atol=1e-12)
     assert abs(thetas[14]) > 0.01 and abs(thetas[20] - thetas[14]) > 0.001
+
+
+def test_a_sequence_without_boxes_keeps_the_box_columns() -> None:
+    boxes = BoxTable.build([], np.zeros((0, 4)), row=np.zeros(0, np.int64))
+    res = estimate_sequence(make_estimator("paper", CAMERA), boxes, np.arange(5) * 0.1, None)
+    assert len(res.boxes) == 0 and res.boxes.extra["row"].shape == (0,)
+    assert len(res.estimates.distance_m) == 0

@@ -20,7 +20,8 @@ from slopedist.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, OdometryState
-from slopedist.runner import RunAbortedError, RunConfig, run_frames
+from slopedist.run_config import RunAbortedError, RunConfig
+from slopedist.runner import run_frames
 
 W, H = 320, 200
 CAM = Camera(500.0, 160.0, 100.0, height_m=1.5)
@@ -406,7 +407,7 @@ def test_ground_truth_and_sequence_reach_the_records_and_the_report(tmp_path: Pa
 
 
 def test_sequence_name_option_and_defaults(tmp_path: Path) -> None:
-    from slopedist.runner import default_sequence_name
+    from slopedist.run_config import default_sequence_name
 
     run_frames(
         open_frames(make_frames(tmp_path / "f", 3)),

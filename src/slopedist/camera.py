@@ -15,10 +15,24 @@ from pathlib import Path
 
 import numpy as np
 
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.textfiles import numbered_lines
 
 KITTI_CAMERA_HEIGHT_M = 1.65
 """Height of KITTI's cam 2 above the road, metres."""
+
+FOCAL_RANGE_PX = (50.0, 20_000.0)
+"""Accepted focal lengths, pixels: from a fisheye on a tiny image to a telephoto on a large one;
+values outside (1e-9, 1e308, a focal length in millimetres) are a broken calibration."""
+
+MAX_PRINCIPAL_POINT_PX = 100_000.0
+"""Largest accepted |c_x|, |c_y|, pixels, when the image size is not known."""
+
+MAX_CAMERA_HEIGHT_M = 50.0
+"""Largest accepted camera height above the road, metres."""
+
+MAX_MOUNT_ANGLE_RAD = math.radians(60.0)
+"""Largest accepted |mount angle θ0|, radians (a road camera looks roughly forward)."""
 
 
 @dataclass(frozen=True)
@@ -48,10 +62,38 @@ class Camera:
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise ConfigurationError(f"camera {name} must be finite, got {value}")
-        if self.f <= 0:
-            raise ConfigurationError(f"camera focal length f must be > 0 pixels, got {self.f}")
-        if self.height_m <= 0:
-            raise ConfigurationError(f"camera height must be > 0 m, got {self.height_m}")
+        lo, hi = FOCAL_RANGE_PX
+        if not lo <= self.f <= hi:
+            raise ConfigurationError(
+                f"camera focal length f = {self.f:g} px is outside the plausible {lo:g}..{hi:g} px"
+            )
+        if not 0 < self.height_m <= MAX_CAMERA_HEIGHT_M:
+            raise ConfigurationError(
+                f"camera height must be > 0 and ≤ {MAX_CAMERA_HEIGHT_M:g} m, got {self.height_m:g}"
+            )
+        if abs(self.mount_angle_rad) > MAX_MOUNT_ANGLE_RAD:
+            raise ConfigurationError(
+                f"camera mount angle {math.degrees(self.mount_angle_rad):g}° is beyond "
+                f"±{math.degrees(MAX_MOUNT_ANGLE_RAD):g}°"
+            )
+        self._check_principal_point()
+
+    def _check_principal_point(self) -> None:
+        """c_x, c_y inside the image when its size is known, else within ±100000 px."""
+        for name, c, size in (
+            ("c_x", self.c_x, self.image_width),
+            ("c_y", self.c_y, self.image_height),
+        ):
+            if size is not None and not (
+                isinstance(size, (int, np.integer)) and 0 < size <= 1_000_000
+            ):
+                raise ConfigurationError(f"camera image size must be 1..1000000 px, got {size}")
+            high = MAX_PRINCIPAL_POINT_PX if size is None else float(size)
+            low = -MAX_PRINCIPAL_POINT_PX if size is None else 0.0
+            if not low <= c <= high:
+                raise ConfigurationError(
+                    f"camera principal point {name} = {c:g} px is outside {low:g}..{high:g} px"
+                )
 
     @property
     def K(self) -> np.ndarray:
@@ -104,13 +146,16 @@ class Camera:
         A file without ``key`` but whose first line is 12 bare numbers (KITTI odometry ``calib.txt``
         written without names) is also accepted.
         """
-        calib = read_kitti_calib(path)
+        calib, lines = _read_calib_lines(Path(path))
         if key not in calib:
             if key == "P2" and "P0" in calib:  # KITTI odometry layout: only cam 0/1 given
                 key = "P0"
             else:
                 raise InputFileError(path, f"no '{key}:' line (found: {', '.join(calib)})")
-        return cls.from_projection(calib[key].reshape(3, 4), height_m, mount_angle_rad)
+        try:
+            return cls.from_projection(calib[key].reshape(3, 4), height_m, mount_angle_rad)
+        except ConfigurationError as exc:
+            raise InputFileError(path, str(exc), line=lines[key], field=key) from None
 
 
 def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
@@ -120,42 +165,51 @@ def read_kitti_calib(path: str | Path) -> dict[str, np.ndarray]:
     ``R0_rect:``/``Tr_velo_to_cam:`` names). A line of bare numbers is named ``P<i>`` by its index.
     Matrices ``P*``/``Tr*`` must have 12 numbers, ``R0_rect``/``R_rect`` 9.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"calibration file not found: {path}")
+    return _read_calib_lines(Path(path))[0]
+
+
+def _read_calib_lines(path: Path) -> tuple[dict[str, np.ndarray], dict[str, int]]:
+    """``({name: values}, {name: line})`` of a KITTI calib file (see :func:`read_kitti_calib`)."""
     out: dict[str, np.ndarray] = {}
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line:
-                continue
-            if ":" in line:
-                name, _, rest = line.partition(":")
-                name = name.strip()
-                tokens = rest.split()
-            else:
-                name = f"P{len(out)}"
-                tokens = line.split()
-            values = []
-            for i, tok in enumerate(tokens):
-                try:
-                    values.append(float(tok))
-                except ValueError:
-                    raise InputFileError(
-                        path, f"'{tok}' is not a number", line=lineno, field=f"{name}[{i}]"
-                    ) from None
-            expected = 9 if name.startswith("R") else 12
-            if len(values) != expected:
-                raise InputFileError(
-                    path,
-                    f"expected {expected} numbers, found {len(values)}",
-                    line=lineno,
-                    field=name,
-                )
-            arr = np.asarray(values)
-            if not np.all(np.isfinite(arr)):
-                raise InputFileError(path, "non-finite value", line=lineno, field=name)
-            out[name] = arr
+    first_line: dict[str, int] = {}
+    for lineno, line in numbered_lines(path, "calibration file", comment=None):
+        if ":" in line:
+            name, _, rest = line.partition(":")
+            name = name.strip()
+            tokens = rest.split()
+        else:
+            name = f"P{len(out)}"
+            tokens = line.split()
+        if name in out:
+            raise InputFileError(
+                path,
+                f"second '{name}:' line (the first is line {first_line[name]})",
+                line=lineno,
+                field=name,
+            )
+        out[name] = _calib_values(path, lineno, name, tokens)
+        first_line[name] = lineno
     if not out:
         raise InputFileError(path, "file is empty")
-    return out
+    return out, first_line
+
+
+def _calib_values(path: Path, lineno: int, name: str, tokens: list[str]) -> np.ndarray:
+    """The numbers of one calib line: 9 for ``R*`` names, else 12, all finite."""
+    values = []
+    for i, tok in enumerate(tokens):
+        try:
+            values.append(float(tok))
+        except ValueError:
+            raise InputFileError(
+                path, f"'{tok}' is not a number", line=lineno, field=f"{name}[{i}]"
+            ) from None
+    expected = 9 if name.startswith("R") else 12
+    if len(values) != expected:
+        raise InputFileError(
+            path, f"expected {expected} numbers, found {len(values)}", line=lineno, field=name
+        )
+    arr = np.asarray(values)
+    if not np.all(np.isfinite(arr)):
+        raise InputFileError(path, "non-finite value", line=lineno, field=name)
+    return arr

@@ -291,7 +291,7 @@ def estimate_sequence(
         )
         box_parts.append(frame_boxes)
     return SequenceEstimates(
-        concat_boxes(box_parts),
+        concat_boxes(box_parts, like=boxes),
         np.asarray(timestamps_s),
         concat_estimates(est_parts),
         estimator.name,

@@ -47,9 +47,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -58,7 +56,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from slopedist.depth.base import DepthSource
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable
+from slopedist.detections.boxes import BoxTable
 from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
@@ -69,231 +67,28 @@ from slopedist.io.outputs import (
     OutputFiles,
     OutputWriteError,
     RunStoppedError,
-    StopFlag,
     partial_path,
 )
 from slopedist.io.overlay import OverlayWriter
-from slopedist.io.prefetch import (
-    DEFAULT_AHEAD,
-    BackgroundOverlay,
-    OverlaySink,
-    PrefetchedFrames,
-)
+from slopedist.io.prefetch import BackgroundOverlay, OverlaySink, PrefetchedFrames
 from slopedist.io.tables import CsvStreamWriter
-from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.base import RotationOdometry
 from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
+from slopedist.run_config import (
+    FRAME_FIELDS,
+    FRAMES_NAME,
+    RECORDS_NAME,
+    SUMMARY_NAME,
+    RunAbortedError,
+    RunConfig,
+    RunningMean,
+    RunResult,
+    default_sequence_name,
+    describe_depth,
+)
 from slopedist.tracks import TRACKS_NAME, TrackSummaries
 from slopedist.viz import draw_fig3_overlay, lead_index
-
-RECORDS_NAME = "records.csv"
-FRAMES_NAME = "frames.csv"
-SUMMARY_NAME = "run.json"
-MCAP_NAME = "run.mcap"
-TRAJECTORY_NAME = "trajectory.tum"
-
-
-class RunExport(str, Enum):
-    """Optional outputs for viewers (``slopedist run --export``)."""
-
-    MCAP = "mcap"
-    """``run.mcap``: images, boxes, distances and θ with Foxglove schemas."""
-    TUM = "tum"
-    """``trajectory.tum``: the rotation source's camera-to-world rotations (TUM layout)."""
-
-
-FRAME_FIELDS = (
-    "frame",
-    "timestamp_s",
-    "source",
-    "frame_status",
-    "detail",
-    "odometry_state",
-    "inliers",
-    "segment",
-    "theta_deg",
-    "boxes",
-    "estimated",
-    "odometry_ms",
-    "estimation_ms",
-    "depth_ms",
-    "detection_ms",
-)
-"""Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels or without
-odometry; ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation;
-``depth_ms`` is empty where no depth map was made; ``detection_ms`` (the detector's pre-processing,
-inference and post-processing) is empty without a detector."""
-
-GENERIC_FOLDER_NAMES = frozenset(
-    {
-        "image_0",
-        "image_1",
-        "image_2",
-        "image_3",
-        "image_00",
-        "image_01",
-        "image_02",
-        "image_03",
-        "image_l",
-        "image_r",
-        "images",
-        "image",
-        "frames",
-        "data",
-        "rgb",
-        "img",
-    }
-)
-"""Frame folder names that say nothing about the sequence (KITTI layouts, ``simulate``
-output); :func:`default_sequence_name` takes the parent folder's name instead."""
-
-
-def default_sequence_name(frames_path: str | Path) -> str:
-    """Sequence name of a frame source: a video's file name without its ending, or the image
-    folder's name; for generic folder names (:data:`GENERIC_FOLDER_NAMES`, e.g.
-    ``drive_0001_sync/image_02/data``) the nearest parent with a specific name."""
-    path = Path(frames_path).absolute()
-    if path.is_file():
-        return path.stem
-    for part in (path, *path.parents):
-        if part.name and part.name.lower() not in GENERIC_FOLDER_NAMES:
-            return part.name
-    return path.name or "sequence"
-
-
-class RunAbortedError(SlopedistError):
-    """A run stopped part-way; what was written before the failing frame is kept."""
-
-    def __init__(self, message: str, frame: int | None, records_path: Path) -> None:
-        self.frame = frame
-        self.records_path = records_path
-        super().__init__(message)
-
-
-@dataclass
-class RunResult:
-    """Summary of a run (also written to ``run.json``).
-
-    Attributes:
-        out_dir: output folder.
-        method: estimator name.
-        sequence: the sequence the frames belong to (Table 1 row of ``slopedist report``).
-        frames: frames seen; ``frame_status``: count per :class:`~slopedist.io.frames.FrameStatus`.
-        odometry_states: count per odometry state (frames with pixels only).
-        records: per-target rows written; ``estimated``: rows with status ``ok``;
-            ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
-            of the image); ``not_vehicles``: rows of classes that are not vehicles.
-        boxes_without_frame: boxes whose frame index never came from the frame source.
-        elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
-        odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
-        depth_ms_mean: mean time per depth map (read or inference), milliseconds.
-        depth_source: what the depth maps came from (e.g. ``"file read: DIR"``), or None.
-        detector: the detector's model file when boxes came from a detector, or None.
-        detection_ms_mean: mean detection time per frame, milliseconds.
-        frames_without_depth: frames with boxes for which the depth source had no map.
-        ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
-        overlay: overlay path, or None; ``exports``: the MCAP / TUM files written.
-        complete: whether every frame was processed.
-        last_complete_frame: index of the last frame whose rows are all written (None: none).
-        error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
-            (its rows are not written; None for a stop request, which ends between frames).
-    """
-
-    out_dir: str
-    method: str
-    sequence: str = ""
-    frames: int = 0
-    frame_status: dict[str, int] = field(default_factory=dict)
-    odometry_states: dict[str, int] = field(default_factory=dict)
-    records: int = 0
-    estimated: int = 0
-    upper_bounds: int = 0
-    not_vehicles: int = 0
-    boxes_without_frame: int = 0
-    elapsed_s: float = 0.0
-    frames_per_s: float = 0.0
-    odometry_ms_mean: float = math.nan
-    estimation_ms_mean: float = math.nan
-    depth_ms_mean: float = math.nan
-    depth_source: str | None = None
-    detector: str | None = None
-    detection_ms_mean: float = math.nan
-    frames_without_depth: int = 0
-    ground_truth: bool = False
-    overlay: str | None = None
-    exports: list[str] = field(default_factory=list)
-    complete: bool = False
-    last_complete_frame: int | None = None
-    error: str | None = None
-    failed_frame: int | None = None
-
-
-class RunningMean:
-    """Running mean in constant memory."""
-
-    def __init__(self) -> None:
-        self.total = 0.0
-        self.count = 0
-
-    def add(self, value: float) -> None:
-        self.total += value
-        self.count += 1
-
-    def mean(self) -> float:
-        return self.total / self.count if self.count else math.nan
-
-
-def describe_depth(depth: DepthSource) -> str:
-    """``"<kind>: <folder or model file>"`` of a depth source, for ``run.json``."""
-    where = getattr(depth, "folder", None)
-    model = getattr(depth, "model", None)
-    if where is None and model is not None:
-        where = getattr(getattr(model, "config", None), "model_path", None)
-    return f"{depth.kind}: {where}" if where is not None else depth.kind
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """Where and how a run writes (the inputs are the arguments of :func:`run_frames`).
-
-    Attributes:
-        out_dir: output folder (created).
-        lookback_s: look-back of the ego gradient, seconds.
-        overlay: None, a folder for annotated PNG frames, or a ``.mp4`` path.
-        overlay_fps: frame rate of an MP4 overlay.
-        progress: show a progress bar on stderr.
-        sequence: sequence name written to ``run.json`` (None:
-            :func:`default_sequence_name` of the frames).
-        mcap: path of an MCAP export (:class:`~slopedist.export_mcap.McapExportWriter`), or None.
-        trajectory: path of a TUM trajectory of the rotation source's rotations, or None.
-        time_origin_ns: log time of frame time 0 in the MCAP export, nanoseconds (a drive log's
-            first image stamp, so the export plays in sync with the log).
-        ego_speed: the ego speed (m/s) at a frame time (s), for the headway time of
-            ``tracks.csv``; None when unknown.
-        vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
-            ``not_a_vehicle``).
-        stop: checked after every frame; once its ``signum`` is set the run ends there
-            (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
-            :class:`RunStoppedError`.
-        decode_ahead: frames decoded ahead in a background thread
-            (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
-            odometry works), and overlay frames queued for encoding in another
-            (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: both in the loop's thread.
-    """
-
-    out_dir: Path
-    lookback_s: float = LOOKBACK_S
-    overlay: Path | None = None
-    overlay_fps: float = 10.0
-    progress: bool = True
-    sequence: str | None = None
-    mcap: Path | None = None
-    trajectory: Path | None = None
-    time_origin_ns: int = 0
-    ego_speed: Callable[[float], float] | None = None
-    vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
-    stop: StopFlag = field(default_factory=StopFlag)
-    decode_ahead: int = DEFAULT_AHEAD
 
 
 def run_frames(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
@@ -174,3 +175,38 @@ def test_lidar_depth_png_gives_the_lead_car_distance(tmp_path: Path) -> None:
     # README of the data: the lead car closes from about 8 m to about 4.4 m.
     assert 7.0 < got[0] < 9.0 and 3.8 < got[-1] < 5.0
     np.testing.assert_allclose(got, truth, atol=0.3)
+
+
+def _npy_with_header(path: Path, header: str) -> Path:
+    text = header.encode("latin1")
+    pad = 64 - (10 + len(text) + 1) % 64
+    path.write_bytes(
+        b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text) + pad + 1) + text + b" " * pad + b"\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("header", "match"),
+    [
+        ("{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }", "over the limit"),
+        ("{'descr': '<f8', 'fortran_order': False, 'shape': (10, 10, 10), }", "2-D"),
+        (
+            "{'descr': '|O', 'fortran_order': False, 'shape': (2, 2), }",
+            "not a readable|float metres",
+        ),
+        ("{'descr': '<f8', 'fortran_order': False, 'shape': (2, 2), }", "not a readable"),
+        ("{'descr': '<f8', 'shape': (1e308, 2), }", "not a readable"),
+    ],
+)
+def test_npy_header_is_checked_before_loading(tmp_path: Path, header: str, match: str) -> None:
+    path = _npy_with_header(tmp_path / "000000.npy", header)  # header only, no data
+    with pytest.raises(InputFileError, match=match):
+        read_npy_depth(path)
+
+
+def test_npy_limit_is_configurable(tmp_path: Path) -> None:
+    np.save(tmp_path / "0.npy", np.ones((30, 40)))
+    assert read_npy_depth(tmp_path / "0.npy").shape == (30, 40)
+    with pytest.raises(InputFileError, match=r"40×30 depth map, over the limit"):
+        read_npy_depth(tmp_path / "0.npy", max_pixels=1000)

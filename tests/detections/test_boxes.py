@@ -1,10 +1,71 @@
-"""The box table: concatenation keeps the rows in order and the columns every part has."""
+"""The box table: an empty table (no vehicle seen, every score filtered) is a normal case;
+concatenation keeps the rows in order and the columns every part has; box overlap: the sweep
+that finds overlapping pairs against testing every pair; box checks against the image."""
 
 from __future__ import annotations
 
-import numpy as np
+from pathlib import Path
 
-from slopedist.detections.boxes import BoxTable, concat_boxes
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from slopedist.detections import BoxTable, read_box_csv, read_box_file, read_kitti_labels
+from slopedist.detections.boxes import (
+    concat_boxes,
+    iou_matrix,
+    overlapping_pairs,
+    pair_iou,
+)
+
+LABEL = "0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12"
+DONTCARE = "1 -1 DontCare -1 -1 -10 100 150 200 190 -1 -1 -1 -1000 -1000 -1000 -10"
+
+
+def _assert_empty(table: BoxTable) -> None:
+    assert len(table) == 0
+    assert list(table.by_frame()) == []
+    assert table.frame_index() == {}
+    assert table.frames().shape == (0,)
+    assert table.boxes.shape == (0, 4)
+    assert len(table.select(np.zeros(0, bool))) == 0
+
+
+def test_empty_table_iterates_to_nothing() -> None:
+    _assert_empty(BoxTable.empty())
+    _assert_empty(BoxTable.build([], []))
+
+
+def test_header_only_csv_is_an_empty_table(tmp_path: Path) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text("frame,left,top,right,bottom,track_id,score,class\n")
+    _assert_empty(read_box_csv(path))
+    _assert_empty(read_box_file(path))
+
+
+def test_score_above_every_detection_is_an_empty_table(tmp_path: Path) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text("frame,left,top,right,bottom,score\n0,1,2,30,40,0.5\n2,1,2,30,40,0.9\n")
+    _assert_empty(read_box_file(path, min_score=2.0))
+    prcnn = tmp_path / "prcnn.txt"
+    prcnn.write_text(
+        "0,2,298.3,165.1,458.2,293.4,8.29,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.78\n"
+    )
+    _assert_empty(read_box_file(prcnn, min_score=100.0))
+
+
+def test_dontcare_only_labels_filter_to_an_empty_table(tmp_path: Path) -> None:
+    path = tmp_path / "labels.txt"
+    path.write_text(f"{DONTCARE}\n{DONTCARE}\n")
+    labels = read_kitti_labels(path)
+    assert len(labels) == 2
+    _assert_empty(labels.select(labels.cls != "DontCare"))
+
+
+def test_by_frame_groups_in_frame_order() -> None:
+    t = BoxTable.build([3, 1, 3, 0], np.arange(16.0).reshape(4, 4))
+    groups = [(k, list(b.boxes[:, 0])) for k, b in t.by_frame()]
+    assert groups == [(0, [12.0]), (1, [4.0]), (3, [0.0, 8.0])]
 
 
 def test_concat_boxes_keeps_order_and_common_columns() -> None:
@@ -22,6 +83,13 @@ def test_concat_boxes_keeps_order_and_common_columns() -> None:
 
 def test_concat_of_nothing_is_empty() -> None:
     assert len(concat_boxes([])) == 0
+
+
+def test_concat_of_nothing_keeps_the_columns_of_like() -> None:
+    like = BoxTable.build([4], [[1, 2, 3, 4]], row=np.array([7]))
+    out = concat_boxes([], like=like)
+    assert len(out) == 0 and set(out.extra) == {"row"} and out.extra["row"].shape == (0,)
+    _assert_empty(out)
 
 
 def test_empty_table_has_no_frames() -> None:
@@ -106,9 +174,6 @@ def test_vehicle_mask_is_case_insensitive_and_configurable() -> None:
     assert list(vehicle_mask(names, ["tram"])) == [False] * 8 + [True]
 
 
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
 COORD = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
     st.floats(-2000, 2000),
@@ -131,3 +196,48 @@ def test_a_usable_box_has_a_size_and_overlaps_the_image(boxes: list[list[float]]
         if r == "":
             assert right - left >= 1 and bottom - top >= 1
             assert right > -0.5 and bottom > -0.5 and left < SIZE[0] - 0.5 and top < SIZE[1] - 0.5
+
+
+def dense_pairs(a: np.ndarray, b: np.ndarray) -> list[tuple[int, int]]:
+    """Every pair tested: interiors overlap in columns and rows."""
+    a3, b3 = a[:, None, :], b[None, :, :]
+    cols = np.minimum(a3[..., 2], b3[..., 2]) > np.maximum(a3[..., 0], b3[..., 0])
+    rows = np.minimum(a3[..., 3], b3[..., 3]) > np.maximum(a3[..., 1], b3[..., 1])
+    i, j = np.nonzero(cols & rows)
+    return list(zip(i.tolist(), j.tolist(), strict=True))
+
+
+def random_boxes(rng: np.random.Generator, n: int, span: float) -> np.ndarray:
+    left = rng.uniform(0, span, n).round(0)  # rounded: shared edges and ties are common
+    top = rng.uniform(0, span / 3, n).round(0)
+    w = rng.choice([0.0, 1.0, 5.0, 40.0], n) + rng.uniform(0, 30, n).round(0)
+    h = rng.choice([0.0, 1.0, 20.0], n) + rng.uniform(0, 20, n).round(0)
+    return np.stack([left, top, left + w, top + h], axis=1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31), st.integers(0, 60), st.integers(0, 60), st.sampled_from([50, 400]))
+def test_overlapping_pairs_equal_testing_every_pair(seed: int, n: int, m: int, span: int) -> None:
+    rng = np.random.default_rng(seed)
+    a, b = random_boxes(rng, n, span), random_boxes(rng, m, span)
+    if n:
+        a[rng.integers(0, n)] = [np.nan, 0, 1, 1]  # a non-finite box overlaps nothing
+    i, j = overlapping_pairs(a, b)
+    assert sorted(zip(i.tolist(), j.tolist(), strict=True)) == dense_pairs(a, b)
+    np.testing.assert_array_equal(pair_iou(a, b, i, j), iou_matrix(a, b)[i, j])
+
+
+def test_overlapping_pairs_by_hand() -> None:
+    a = np.array([[0.0, 0.0, 10.0, 10.0], [20.0, 0.0, 30.0, 10.0]])
+    b = np.array(
+        [
+            [10.0, 0.0, 20.0, 10.0],  # touches both along an edge: no interior overlap
+            [5.0, 5.0, 25.0, 8.0],  # overlaps both
+            [0.0, 10.0, 10.0, 20.0],  # below a[0], sharing its bottom edge
+            [9.0, -5.0, 21.0, 0.5],  # overlaps both by a sliver
+        ]
+    )
+    i, j = overlapping_pairs(a, b)
+    assert sorted(zip(i.tolist(), j.tolist(), strict=True)) == [(0, 1), (0, 3), (1, 1), (1, 3)]
+    empty = overlapping_pairs(np.zeros((0, 4)), b)
+    assert empty[0].shape == (0,) and empty[1].shape == (0,)

@@ -187,3 +187,30 @@ def test_box_table_by_frame_groups_in_order() -> None:
 def test_real_labels_parse(kitti_tracking_dir: Path) -> None:
     t = read_kitti_labels(kitti_tracking_dir / "label_02" / "0000.txt")
     assert t.frame.max() == 153 and "Van" in set(t.cls)
+
+
+PRCNN_ROW = "0,2,298.3,165.1,458.2,293.4,8.29,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.78"
+
+
+def test_negative_frames_are_errors_naming_the_line(tmp_path: Path) -> None:
+    path = tmp_path / "labels.txt"
+    path.write_text(f"# comment\n{LABEL}\n\n{LABEL.replace('0 3 Car', '-1 3 Car')}\n")
+    with pytest.raises(InputFileError, match=r"line 4, field 'frame': -1 is outside 0\.\."):
+        read_kitti_labels(path)
+    path.write_text(f"{PRCNN_ROW}\n-2{PRCNN_ROW[1:]}\n")
+    with pytest.raises(InputFileError, match=r"line 2, field 'frame': -2 is outside"):
+        read_pointrcnn(path)
+    path.write_text(f"{LABEL.replace('0 3 Car', '0 -2 Car')}\n")
+    with pytest.raises(InputFileError, match=r"line 1, field 'track_id': -2 is outside -1\.\."):
+        read_kitti_labels(path)
+
+
+@pytest.mark.parametrize("value", ["1e23", "-2e6", "1e308"])
+def test_absurd_box_coordinates_are_errors(tmp_path: Path, value: str) -> None:
+    path = tmp_path / "boxes.csv"
+    path.write_text(f"frame,left,top,right,bottom\n0,1,2,3,4\n1,1,2,{value},4\n")
+    with pytest.raises(InputFileError, match=r"line 3, field 'right'.*not a pixel coordinate"):
+        read_box_csv(path)
+    path.write_text(PRCNN_ROW.replace("458.2", value) + "\n")
+    with pytest.raises(InputFileError, match=r"line 1, field 'x2'"):
+        read_pointrcnn(path)

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from slopedist.estimators.ours import cues
+from slopedist.estimators.ours import cues, fusion, occlusion
 from slopedist.estimators.ours.priors import (
     CLASS_PRIORS,
     UNKNOWN_CLASS_PRIOR,
@@ -166,19 +166,6 @@ def test_ground_contact_log_cue_variance_matches_the_metric_sigma() -> None:
     assert cue.var_white == pytest.approx(cue.var)
 
 
-def test_fuse_log_cues_weights_by_variance_and_scores_consistency() -> None:
-    a = cues.LogCue(np.array(math.log(20.0)), np.array(0.01), np.array(0.001), np.array(0.0))
-    b = cues.LogCue(np.array(math.log(25.0)), np.array(0.04), np.array(0.04), np.array(0.0))
-    out = cues.fuse_log_cues(a, b)
-    assert out.mean == pytest.approx(0.8 * math.log(20.0) + 0.2 * math.log(25.0))
-    assert out.var == pytest.approx(0.008)
-    assert out.var_white == pytest.approx(0.64 * 0.001 + 0.04 * 0.04)
-    far = cues.fuse_log_cues(a, cues.LogCue(np.array(math.log(60.0)), b.var, b.var_white, b.loglik))
-    assert far.loglik < out.loglik  # an inconsistent cue is less likely
-    none = cues.fuse_log_cues(a, cues.LogCue(np.array(np.nan), b.var, b.var_white, b.loglik))
-    assert none.mean == a.mean and none.var == a.var
-
-
 def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
     x, z, yaw = -2.0, 35.0, 0.0
     b = _box(x, z, yaw, CAR)
@@ -186,12 +173,12 @@ def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     c_h = dH * CAR[0] / zh
-    out = cues.fuse_size_cues(
+    out = fusion.fuse_size_cues(
         math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
     )
     assert math.exp(out.mean) == pytest.approx(z, rel=1e-6)
     # no width: the height cue alone, with the prior's spread
-    alone = cues.fuse_size_cues(
+    alone = fusion.fuse_size_cues(
         math.log(zh), 1e-4, 0.0, c_h, np.nan, np.nan, np.nan, np.nan, 0.085, 0.06, 0.3
     )
     assert alone.mean == pytest.approx(math.log(zh))
@@ -207,7 +194,7 @@ def test_size_fusion_splits_a_size_surprise_between_the_cues() -> None:
     e = CAR[2] / 2
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
-    out = cues.fuse_size_cues(
+    out = fusion.fuse_size_cues(
         math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
     )
     assert zw < math.exp(out.mean) < zh
@@ -225,17 +212,6 @@ def test_target_gradient_recovers_a_climbing_target() -> None:
         assert est == pytest.approx(alpha, abs=1e-3)
 
 
-def test_collapse_hypotheses_moments() -> None:
-    cue = cues.LogCue(
-        np.array([[1.0, 2.0]]), np.array([[0.1, 0.2]]), np.array([[0.01, 0.02]]), np.zeros((1, 2))
-    )
-    out, w = cues.collapse_hypotheses(cue, np.log([[0.25, 0.75]]))
-    assert w == pytest.approx(np.array([[0.25, 0.75]]))
-    assert out.mean[0] == pytest.approx(1.75)
-    assert out.var[0] == pytest.approx(0.25 * 0.1 + 0.75 * 0.2 + 0.25 * 0.75**2 + 0.75 * 0.25**2)
-    assert out.var_white[0] == pytest.approx(0.25 * 0.01 + 0.75 * 0.02)
-
-
 def test_priors_lookup_and_yaw_prior() -> None:
     assert prior_for("Car") is CLASS_PRIORS["Car"]
     assert prior_for("van") is CLASS_PRIORS["Van"]
@@ -249,36 +225,6 @@ def test_priors_lookup_and_yaw_prior() -> None:
     uniform = yaw_prior_weights(g, YawPrior(0.0, math.radians(3.0)))
     # uniform prior: each hypothesis gets the share of the circle its cell covers
     assert uniform.sum() == pytest.approx(1.0) and np.all(uniform > 0)
-
-
-@pytest.mark.parametrize("bound", [-3.0, -0.4, 0.0, 0.7, 4.0])
-def test_censor_upper_matches_numerical_integration(bound: float) -> None:
-    # N(μ=0.2, v=0.09) times the bound's likelihood Φ((bound − ℓ)/s), s² = 0.04
-    from scipy import stats
-
-    mu, var, s2 = 0.2, 0.09, 0.04
-    cue = cues.LogCue(np.array([mu]), np.array([var]), np.array([0.03]), np.array([0.0]))
-    out = cues.censor_upper(cue, np.array([bound]), np.array([s2]), np.array([True]))
-    x = np.linspace(mu - 12 * math.sqrt(var), mu + 12 * math.sqrt(var), 200001)
-    post = stats.norm.pdf(x, mu, math.sqrt(var)) * stats.norm.cdf((bound - x) / math.sqrt(s2))
-    z = np.trapezoid(post, x)
-    m = np.trapezoid(x * post, x) / z
-    v = np.trapezoid((x - m) ** 2 * post, x) / z
-    assert out.mean[0] == pytest.approx(m, abs=1e-6)
-    assert out.var[0] == pytest.approx(v, rel=1e-5)
-    assert out.loglik[0] == pytest.approx(math.log(z), abs=1e-6)
-    assert out.var_white[0] == pytest.approx(0.03 * v / var, rel=1e-5)
-
-
-def test_censor_upper_leaves_unmasked_and_missing_bounds_alone() -> None:
-    cue = cues.LogCue(
-        np.array([1.0, 1.0]), np.array([0.1, 0.1]), np.array([0.05, 0.05]), np.array([-1.0, -1.0])
-    )
-    out = cues.censor_upper(
-        cue, np.array([0.0, np.nan]), np.array([0.01, 0.01]), np.array([False, True])
-    )
-    for k in ("mean", "var", "var_white", "loglik"):
-        assert getattr(out, k) == pytest.approx(getattr(cue, k))
 
 
 @settings(max_examples=40, deadline=None)
@@ -364,14 +310,14 @@ def test_hidden_sides_flags_the_sides_on_a_nearer_box() -> None:
     far = [600.0, 170.0, 660.0, 200.0]  # behind: its right side and bottom on the near box
     near = [650.0, 165.0, 760.0, 240.0]  # bottom lower: nearer
     alone = [100.0, 170.0, 150.0, 200.0]
-    width_cut, height_cut = cues.hidden_sides(np.array([far, near, alone]), tol_px=1.0)
+    width_cut, height_cut = occlusion.hidden_sides(np.array([far, near, alone]), tol_px=1.0)
     assert width_cut.tolist() == [True, False, False]
     assert height_cut.tolist() == [True, False, False]
     beside = [500.0, 170.0, 649.5, 200.0]  # its right edge 0.5 px from the near box: touching
-    width_cut, _ = cues.hidden_sides(np.array([beside, near]), tol_px=1.0)
+    width_cut, _ = occlusion.hidden_sides(np.array([beside, near]), tol_px=1.0)
     assert width_cut.tolist() == [True, False]
-    width_cut, _ = cues.hidden_sides(np.array([beside, near]), tol_px=0.1)
+    width_cut, _ = occlusion.hidden_sides(np.array([beside, near]), tol_px=0.1)
     assert width_cut.tolist() == [False, False]
     top_on = [700.0, 200.0, 740.0, 230.0]  # its top edge inside the near box, bottom below
-    _, height_cut = cues.hidden_sides(np.array([top_on, [690.0, 150.0, 760.0, 235.0]]))
+    _, height_cut = occlusion.hidden_sides(np.array([top_on, [690.0, 150.0, 760.0, 235.0]]))
     assert height_cut.tolist() == [True, False]

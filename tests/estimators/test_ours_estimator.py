@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from slopedist.camera import Camera
+from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import ReferencePoint, available_methods, make_estimator
 from slopedist.estimators.base import FrameInput
 from slopedist.estimators.ours import EXTRA_COLUMNS, OursEstimator
 from slopedist.estimators.ours.cues import project_box
-from slopedist.estimators.ours.scene import simulate_traffic
 from slopedist.odometry.base import RotationTrack
 from slopedist.pipeline import ego_gradients, estimate_sequence
 

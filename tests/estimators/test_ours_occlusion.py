@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.estimators.base import FrameInput
-from slopedist.estimators.ours import OursEstimator, cues
+from slopedist.estimators.ours import OursEstimator, cues, occlusion
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 CAR = np.array([1.53, 1.63, 3.88])
@@ -30,14 +30,14 @@ def test_hidden_sides_by_hand() -> None:
             [301, 150, 340, 180],
         ]
     )  # left edge touches box 1 (within 1.5 px)
-    cut_w, cut_h = cues.hidden_sides(boxes)
+    cut_w, cut_h = occlusion.hidden_sides(boxes)
     assert cut_w.tolist() == [True, False, False, False, True]
     # box 0: top (row 100) on box 2's rows [0, 300]; bottom (150) on boxes 1 and 2
     assert cut_h.tolist() == [True, False, False, False, True]
-    cut_w, cut_h = cues.hidden_sides(boxes, tol_px=0.5)  # 1 px apart: no longer touching
+    cut_w, cut_h = occlusion.hidden_sides(boxes, tol_px=0.5)  # 1 px apart: no longer touching
     assert cut_w.tolist() == [True, False, False, False, False]
     # a farther box covering a nearer one does not cut it
-    assert cues.hidden_sides(boxes[[2, 0]])[0].tolist() == [False, True]
+    assert occlusion.hidden_sides(boxes[[2, 0]])[0].tolist() == [False, True]
 
 
 def _brute_force(b: np.ndarray, tol: float) -> tuple[list[bool], list[bool]]:
@@ -70,20 +70,42 @@ def test_hidden_sides_match_a_brute_force_loop(
     raw: list[tuple[float, float, float, float]], tol: float
 ) -> None:
     b = np.array([[x, y, x + w, y + h] for x, y, w, h in raw])
-    cut_w, cut_h = cues.hidden_sides(b, tol)
+    cut_w, cut_h = occlusion.hidden_sides(b, tol)
+    assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.integers(0, 2**31), st.floats(0.0, 3.0))
+def test_hidden_sides_of_many_boxes_match_a_brute_force_loop(seed: int, tol: float) -> None:
+    """Above a few dozen boxes only the overlapping pairs are visited (a sweep): same flags."""
+    rng = np.random.default_rng(seed)
+    n = occlusion._DENSE_MAX_BOXES + 70
+    x, y = rng.uniform(0, 1200, n).round(1), rng.uniform(100, 250, n).round(1)
+    w, h = rng.uniform(1, 120, n).round(1), rng.uniform(1, 80, n).round(1)
+    b = np.stack([x, y, x + w, y + h], axis=1)
+    b[:5, 2:] = b[5:10, :2] - tol  # edges exactly touching a widened neighbour
+    b[:5, :2] = b[:5, 2:] - 10.0
+    cut_w, cut_h = occlusion.hidden_sides(b, tol)
     assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
 
 
 def test_censored_cue_variance() -> None:
     # a cue 0.5 (log) farther than the reference, noise 0.01 + 0.01: 3σ test → 0.25 − 0.18
-    ux = cues.unexplained_excess(math.log(30.0) + 0.5, 0.01, math.log(30.0), 0.01, 3.0)
+    ux = occlusion.unexplained_excess(math.log(30.0) + 0.5, 0.01, math.log(30.0), 0.01, 3.0)
     assert ux == pytest.approx(0.25 - 9 * 0.02)
-    assert cues.occlusion_log_var(ux, True) == pytest.approx(0.25 - 0.18)
-    assert cues.occlusion_log_var(ux, False) == 0.0  # no edge on a nearer box: not cut
+    assert occlusion.occlusion_log_var(ux, True) == pytest.approx(0.25 - 0.18)
+    assert occlusion.occlusion_log_var(ux, False) == 0.0  # no edge on a nearer box: not cut
     # nearer than the reference, or within the noise: no extra variance
-    assert cues.occlusion_log_var(cues.unexplained_excess(2.0, 0.01, 2.5, 0.01), True) == 0.0
-    assert cues.occlusion_log_var(cues.unexplained_excess(2.1, 0.01, 2.0, 0.01), True) == 0.0
-    assert cues.occlusion_log_var(cues.unexplained_excess(np.nan, 0.01, 2.0, 0.01), True) == 0.0
+    assert (
+        occlusion.occlusion_log_var(occlusion.unexplained_excess(2.0, 0.01, 2.5, 0.01), True) == 0.0
+    )
+    assert (
+        occlusion.occlusion_log_var(occlusion.unexplained_excess(2.1, 0.01, 2.0, 0.01), True) == 0.0
+    )
+    assert (
+        occlusion.occlusion_log_var(occlusion.unexplained_excess(np.nan, 0.01, 2.0, 0.01), True)
+        == 0.0
+    )
 
 
 def _frame(

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from slopedist.camera import Camera
+from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.ours import OursEstimator, SelfCalConfig, SelfCalibrator
-from slopedist.estimators.ours.scene import simulate_traffic
 from slopedist.odometry.base import RotationTrack
 from slopedist.pipeline import estimate_sequence
 

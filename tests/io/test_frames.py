@@ -204,3 +204,11 @@ def test_calibration_of_other_frames_is_refused(size: tuple[int, int], message: 
 def test_calibration_with_known_size_must_match() -> None:
     with pytest.raises(DataMismatchError, match="calibration is for 1242×375"):
         check_calibration(KITTI.with_image_size(1242, 375), 1241, 376)
+
+
+@pytest.mark.parametrize(("f", "width", "fov"), [(52.0, 1242, "170.4°"), (20_000.0, 1000, "2.9°")])
+def test_focal_length_must_fit_the_image_width(f: float, width: int, fov: str) -> None:
+    check_calibration(Camera(60.0, 609.6, 172.9), 1242, 375)  # 169°: a fisheye
+    check_calibration(Camera(12_000.0, 609.6, 172.9), 1242, 375)  # 5.9°: a telephoto
+    with pytest.raises(DataMismatchError, match=rf"field of view of {fov}"):
+        check_calibration(Camera(f, width / 2, 172.9), width, 375)

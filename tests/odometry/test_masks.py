@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from slopedist.odometry.masks import grown_boxes, half_size_corner_mask, inside_boxes
+from slopedist.odometry.masks import (
+    check_boxes,
+    grown_boxes,
+    half_size_corner_mask,
+    inside_boxes,
+)
 
 
 def test_corner_mask_keeps_away_from_tracks_border_and_boxes() -> None:
@@ -33,3 +38,13 @@ def test_inside_grown_boxes() -> None:
     pts = np.array([[9.0, 15.0], [15.0, 15.0], [21.5, 15.0]], np.float32)
     assert inside_boxes(pts, boxes).tolist() == [False, True, False]
     assert inside_boxes(pts, grown_boxes(boxes, 1.0)).tolist() == [True, True, False]
+
+
+def test_non_finite_mask_boxes_mask_nothing() -> None:
+    boxes = check_boxes(
+        [[10, 10, 20, 20], [np.nan, 0, 5, 5], [0, -np.inf, 5, 5], [0, 0, np.inf, 5]]
+    )
+    np.testing.assert_array_equal(boxes, [[10, 10, 20, 20]])
+    mask = half_size_corner_mask((40, 60), np.zeros((0, 2), np.float32), boxes, 2, 1)
+    assert mask[5:11, 5:11].max() == 0 and mask[20, 30] == 255
+    assert check_boxes(None).shape == (0, 4) and check_boxes([]).shape == (0, 4)

@@ -21,7 +21,11 @@ from slopedist.odometry import (
     read_pose_file,
     read_tum_poses,
 )
-from slopedist.odometry.posefiles import R_CAM_VEHICLE_NOMINAL
+from slopedist.odometry.posefiles import (
+    R_CAM_VEHICLE_NOMINAL,
+    PoseFormat,
+    vehicle_frame_evidence,
+)
 
 
 def write_kitti(path: Path, rotations: np.ndarray) -> None:
@@ -146,3 +150,50 @@ def test_tum_writer_reads_back_exactly_and_as_evo_parses_it(tmp_path: Path) -> N
     np.testing.assert_array_equal(track.timestamps_s, t[valid])
     np.testing.assert_allclose(track.R_world_cam, R[valid], atol=1e-12)
     assert all(r[1:4] == [0.0, 0.0, 0.0] for r in rows)
+
+
+def test_pose_errors_name_the_real_line(tmp_path: Path) -> None:
+    path = tmp_path / "tum.txt"
+    path.write_text("# t x y z qx qy qz qw\n\n0 0 0 0 0 0 0 1\n# gap\n0.1 0 0 0 0 0 0 3\n")
+    with pytest.raises(InputFileError, match=r"line 5, field 'qx qy qz qw'"):
+        read_tum_poses(path)
+    path.write_text("# header\n1 0 0 0 0 1 0 0 0 0 1 0\n\n2 0 0 0 0 1 0 0 0 0 1 0\n")
+    with pytest.raises(InputFileError, match=r"line 4.*not a rotation"):
+        read_kitti_poses(path)
+
+
+def _tum_lines(xyz: np.ndarray, R: np.ndarray) -> str:
+    q = Rotation.from_matrix(R).as_quat()
+    return "".join(
+        f"{0.1 * k} {p[0]} {p[1]} {p[2]} {a} {b} {c} {d}\n"
+        for k, (p, (a, b, c, d)) in enumerate(zip(xyz, q))
+    )
+
+
+def _drive(axis_up: str, axis_forward: int, turn_deg: float, n: int = 80) -> str:
+    yaw = np.linspace(0.0, math.radians(turn_deg), n)
+    R = Rotation.from_euler(axis_up, yaw[:, None]).as_matrix()
+    xyz = np.zeros((n, 3))
+    xyz[:, axis_forward] = np.arange(n) * 1.0
+    return _tum_lines(xyz, R)
+
+
+@pytest.mark.parametrize("turn", [0.0, 60.0])
+def test_auto_format_refuses_vehicle_frame_poses(tmp_path: Path, turn: float) -> None:
+    path = tmp_path / "poses.txt"
+    path.write_text(_drive("z", 0, turn))  # vehicle frame: forward x, turning about z (up)
+    with pytest.raises(InputFileError, match=r"vehicle-frame poses.*give the pose format"):
+        read_pose_file(path)
+    assert len(read_pose_file(path, PoseFormat.TUM)) == 80  # explicit format: read as told
+    assert len(read_oxts_rotations(path)) == 80
+    path.write_text(_drive("y", 2, turn))  # camera frame: forward z, turning about y
+    assert len(read_pose_file(path)) == 80
+
+
+def test_auto_format_on_real_oxts_and_orbslam(kitti_tracking_dir: Path) -> None:
+    for seq in ("0000", "0008", "0010"):
+        with pytest.raises(InputFileError, match="vehicle-frame"):
+            read_pose_file(kitti_tracking_dir / "oxts_poses" / f"{seq}.txt")
+    for seq in ("0000", "0004", "0006", "0014"):
+        data = np.loadtxt(kitti_tracking_dir / "orbslam3_poses" / f"{seq}.txt").reshape(-1, 3, 4)
+        assert vehicle_frame_evidence(data[:, :, 3], data[:, :, :3]) is None

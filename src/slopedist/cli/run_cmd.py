@@ -8,7 +8,7 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +24,7 @@ from slopedist.cli.options import (
     lookback_option,
     make_detector,
     mount_option,
+    optional_calibration_options,
     parse_size,
     parse_triple,
     vehicle_classes_option,
@@ -43,7 +44,7 @@ from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, bui
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import read_calibration
 from slopedist.io.frames import FrameSource
-from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
 from slopedist.io.outputs import (
     RunStoppedError,
     check_outputs_spare_inputs,
@@ -53,7 +54,8 @@ from slopedist.io.outputs import (
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.runner import (
+from slopedist.odometry.point_map import PointMap
+from slopedist.run_config import (
     FRAMES_NAME,
     MCAP_NAME,
     RECORDS_NAME,
@@ -63,8 +65,8 @@ from slopedist.runner import (
     RunConfig,
     RunExport,
     RunResult,
-    run_frames,
 )
+from slopedist.runner import run_frames
 from slopedist.tracks import TRACKS_NAME
 
 ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
@@ -73,17 +75,24 @@ DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVE
 
 
 def build_odometry(
-    name: str, camera: Camera, vocab: Path | None = None, lookback_s: float = LOOKBACK_S
+    name: str,
+    camera: Camera,
+    vocab: Path | None = None,
+    lookback_s: float = LOOKBACK_S,
+    point_map: PointMap | None = None,
 ) -> RotationOdometry:
     """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
 
     The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
-    look-back of the gradient); ORB-SLAM3 tracks a map and has no such setting.
+    look-back of the gradient) and maps its tracked points into the ideal ``camera`` with
+    ``point_map`` (lens distortion, fx ≠ fy); ORB-SLAM3 tracks a map and has neither setting.
     """
     if vocab is not None and name != "orbslam3":
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
+    if point_map is not None:
+        return make_odometry(name, camera, lookback_s=lookback_s, point_map=point_map)
     return make_odometry(name, camera, lookback_s=lookback_s)
 
 
@@ -193,14 +202,7 @@ def check_runnable(
 
 @click.command("run")
 @click.argument("frames", type=click.Path(path_type=Path))
-@click.option(
-    "--calib",
-    default=None,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
-    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md) [default for a drive "
-    "log: its camera_info topic].",
-)
+@optional_calibration_options
 @click.option(
     "--image-topic",
     default=None,
@@ -351,7 +353,7 @@ def check_runnable(
 @detector_options("detector-")
 def run(
     frames: Path,
-    calib: Path | None,
+    calib: Path | Intrinsics | None,
     image_topic: str | None,
     rotation_topic: str | None,
     speed_topic: str | None,
@@ -431,7 +433,7 @@ def run(
     if rotation_topic is not None:
         backend = log_rotation_source(source, rotation_topic)
     elif odometry != "none":
-        backend = build_odometry(odometry, camera, vocab, lookback_s)
+        backend = build_odometry(odometry, camera, vocab, lookback_s, calibration.point_map)
     overlay_path = None
     if overlay:
         overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
@@ -467,13 +469,16 @@ def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
     return camera.with_image_size(*frames.frame_size())
 
 
-def check_run_outputs(out_dir: Path, extras: list[Path | None], inputs: list[Path | None]) -> None:
+def check_run_outputs(
+    out_dir: Path, extras: list[Path | None], inputs: Sequence[Path | Intrinsics | None]
+) -> None:
     """Fail before anything is written if an output of the run (or its temporary name) is one
-    of its ``inputs``, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports)."""
+    of its input files, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports);
+    ``inputs`` may hold a calibration given as values (not a file)."""
     outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
     outputs += [e for e in extras if e is not None]
     outputs += [partial_path(o) for o in outputs]
-    check_outputs_spare_inputs(outputs, inputs, out_dir)
+    check_outputs_spare_inputs(outputs, [p for p in inputs if isinstance(p, Path)], out_dir)
 
 
 def boxes_or_detector(

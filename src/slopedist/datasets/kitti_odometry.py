@@ -25,6 +25,7 @@ from slopedist.errors import DataMismatchError, InputFileError, MissingInputErro
 from slopedist.io.images import read_image_file
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses
+from slopedist.textfiles import numbered_lines
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
 
@@ -70,27 +71,20 @@ def read_gray_image(path: str | Path) -> NDArray[np.uint8]:
 
 def _read_times(path: Path, n: int) -> NDArray[np.float64]:
     values: list[float] = []
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line:
-                continue
-            try:
-                value = float(line)
-            except ValueError:
-                raise InputFileError(
-                    path, f"'{line}' is not a number", line=lineno, field="time"
-                ) from None
-            if not np.isfinite(value):
-                raise InputFileError(path, "non-finite time", line=lineno, field="time")
-            if values and value <= values[-1]:
-                raise InputFileError(
-                    path,
-                    f"time {value} s does not follow {values[-1]} s",
-                    line=lineno,
-                    field="time",
-                )
-            values.append(value)
+    for lineno, line in numbered_lines(path, "times file", comment=None):
+        try:
+            value = float(line)
+        except ValueError:
+            raise InputFileError(
+                path, f"'{line}' is not a number", line=lineno, field="time"
+            ) from None
+        if not np.isfinite(value):
+            raise InputFileError(path, "non-finite time", line=lineno, field="time")
+        if values and value <= values[-1]:
+            raise InputFileError(
+                path, f"time {value} s does not follow {values[-1]} s", line=lineno, field="time"
+            )
+        values.append(value)
     if len(values) < n:
         raise DataMismatchError(f"{path} has {len(values)} timestamps for {n} frames")
     return np.asarray(values[:n])

@@ -26,6 +26,7 @@ from slopedist.errors import (
     MissingInputError,
 )
 from slopedist.io.images import read_image_file
+from slopedist.limits import DEFAULT_MAX_PIXELS
 
 DEPTH_FILE_SUFFIXES = (".png", ".npy")
 """File name endings of depth maps."""
@@ -78,16 +79,46 @@ def write_kitti_depth_png(path: str | Path, depth_m: NDArray[np.floating]) -> No
         raise InputFileError(path, "could not be written as PNG")
 
 
-def read_npy_depth(path: str | Path) -> NDArray[np.float32]:
+def _check_npy_header(path: Path, max_pixels: int) -> None:
+    """Refuse a ``.npy`` file from its header alone: not 2-D, not real numbers, or more than
+    ``max_pixels`` values (a header can claim any shape; np.load would try to allocate it)."""
+    try:
+        with path.open("rb") as fh:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+            else:
+                raise ValueError(f".npy format version {version} is not read")
+    except (ValueError, OSError, EOFError, SyntaxError) as exc:
+        raise InputFileError(path, f"not a readable .npy array ({exc})") from None
+    if len(shape) != 2:
+        raise InputFileError(path, f"expected a 2-D depth array (H×W metres), got shape {shape}")
+    if dtype.kind not in "fiu":
+        raise InputFileError(path, f"expected float metres, got dtype {dtype}")
+    if shape[0] * shape[1] > max_pixels:
+        raise InputFileError(
+            path,
+            f"its header claims a {shape[1]}×{shape[0]} depth map, over the limit of "
+            f"{max_pixels / 1e6:.3g} Mpx (a corrupt or hostile file?)",
+        )
+
+
+def read_npy_depth(path: str | Path, max_pixels: int = DEFAULT_MAX_PIXELS) -> NDArray[np.float32]:
     """Read a ``.npy`` depth map (2-D float metres) → float32, NaN where ≤ 0 or non-finite.
+
+    The header is checked before loading (2-D, real numbers, at most ``max_pixels`` values).
 
     Raises:
         MissingInputError: the file does not exist.
-        InputFileError: it is not a readable ``.npy`` file of a 2-D real-valued array.
+        InputFileError: it is not a readable ``.npy`` file of a 2-D real-valued array, or it is
+            too large.
     """
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"depth file not found: {path}")
+    _check_npy_header(path, max_pixels)
     try:
         raw = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as exc:

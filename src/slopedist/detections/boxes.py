@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -111,6 +112,21 @@ def iou_matrix(boxes_a: ArrayLike, boxes_b: ArrayLike) -> NDArray[np.float64]:
     """2D intersection over union of every pair, shape ``(len(a), len(b))``."""
     a = np.asarray(boxes_a, dtype=float).reshape(-1, 4)[:, None, :]
     b = np.asarray(boxes_b, dtype=float).reshape(-1, 4)[None, :, :]
+    return _iou(a, b)
+
+
+def pair_iou(
+    boxes_a: ArrayLike, boxes_b: ArrayLike, i: NDArray[np.intp], j: NDArray[np.intp]
+) -> NDArray[np.float64]:
+    """IoU of the pairs ``(a[i[k]], b[j[k]])`` only (the entries of :func:`iou_matrix`, bit for
+    bit), shape ``(len(i),)``."""
+    a = np.asarray(boxes_a, dtype=float).reshape(-1, 4)
+    b = np.asarray(boxes_b, dtype=float).reshape(-1, 4)
+    return _iou(a[i], b[j])
+
+
+def _iou(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Elementwise IoU of broadcast boxes ``(..., 4)``."""
     iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0, None)
     ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0, None)
     inter = iw * ih
@@ -120,6 +136,53 @@ def iou_matrix(boxes_a: ArrayLike, boxes_b: ArrayLike) -> NDArray[np.float64]:
     with np.errstate(divide="ignore", invalid="ignore"):
         iou = np.where(union > 0, inter / union, 0.0)
     return np.asarray(iou)
+
+
+def overlapping_pairs(
+    boxes_a: ArrayLike, boxes_b: ArrayLike
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Index pairs ``(i, j)`` of boxes ``a[i]`` and ``b[j]`` whose interiors overlap
+    (``min(right) > max(left)`` and ``min(bottom) > max(top)``), in no particular order.
+
+    Boxes that are not finite with right > left and bottom > top overlap nothing. A sort and
+    sweep over the columns: ``O((n + m) log(n + m))`` plus the number of pairs that overlap in
+    columns, instead of the ``n·m`` of testing every pair.
+    """
+    a = np.asarray(boxes_a, dtype=float).reshape(-1, 4)
+    b = np.asarray(boxes_b, dtype=float).reshape(-1, 4)
+    ia, ib = _proper(a), _proper(b)
+    a, b = a[ia], b[ib]
+    # a pair overlaps in columns iff the later-starting box starts before the other ends:
+    # b starts within [left_a, right_a), or a starts within (left_b, right_b)
+    i1, j1 = _starts_within(a[:, 0], a[:, 2], b[:, 0], "left")
+    j2, i2 = _starts_within(b[:, 0], b[:, 2], a[:, 0], "right")
+    i, j = np.concatenate([i1, i2]), np.concatenate([j1, j2])
+    rows = np.minimum(a[i, 3], b[j, 3]) > np.maximum(a[i, 1], b[j, 1])
+    return ia[i[rows]], ib[j[rows]]
+
+
+def _proper(boxes: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Indices of the finite boxes with right > left and bottom > top."""
+    ok = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0]) & (boxes[:, 3] > boxes[:, 1])
+    return np.flatnonzero(ok)
+
+
+def _starts_within(
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    side: Literal["left", "right"],
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Pairs ``(k, m)`` with ``starts[m]`` in ``[lo[k], hi[k])`` (``side="left"``) or in
+    ``(lo[k], hi[k])`` (``side="right"``)."""
+    order = np.argsort(starts, kind="stable")
+    sorted_starts = starts[order]
+    first = np.searchsorted(sorted_starts, lo, side=side)
+    last = np.searchsorted(sorted_starts, hi, side="left")
+    counts = np.maximum(last - first, 0)
+    k = np.repeat(np.arange(lo.shape[0]), counts)
+    offset = np.arange(k.shape[0]) - np.repeat(np.cumsum(counts) - counts, counts)
+    return k, order[np.repeat(first, counts) + offset]
 
 
 @dataclass(frozen=True)
@@ -195,7 +258,8 @@ class BoxTable:
         return np.unique(self.frame)
 
     def by_frame(self) -> Iterator[tuple[int, BoxTable]]:
-        """Yield ``(frame index, boxes of that frame)`` in frame order."""
+        """Yield ``(frame index, boxes of that frame)`` in frame order (nothing for an empty
+        table)."""
         if len(self) == 0:
             return
         order = np.argsort(self.frame, kind="stable")
@@ -210,10 +274,14 @@ class BoxTable:
         return dict(self.by_frame())
 
 
-def concat_boxes(parts: list[BoxTable]) -> BoxTable:
-    """Concatenate box tables (columns present in every part are kept)."""
+def concat_boxes(parts: list[BoxTable], like: BoxTable | None = None) -> BoxTable:
+    """Concatenate box tables (columns present in every part are kept).
+
+    With no part, the result is empty with the columns of ``like`` (e.g. the table the parts
+    were cut from), so that a sequence without any box keeps its extra columns.
+    """
     if not parts:
-        return BoxTable.empty()
+        return BoxTable.empty() if like is None else like.select(np.zeros(len(like), bool))
     keys = set.intersection(*(set(p.extra) for p in parts))
     return BoxTable(
         np.concatenate([p.frame for p in parts]),

@@ -18,13 +18,13 @@ from slopedist.detections.format_writers import write_coco, write_mot, write_yol
 from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
 from slopedist.detections.readers import (
     POINTRCNN_FIELDS,
-    _open_lines,
     read_box_csv,
     read_kitti_labels,
     read_pointrcnn,
 )
 from slopedist.detections.writers import write_box_csv
 from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.textfiles import numbered_lines
 
 
 class BoxFormat(str, Enum):
@@ -73,7 +73,7 @@ def sniff_format(path: str | Path) -> BoxFormat:
         return BoxFormat.YOLO
     if path.suffix.lower() == ".json":
         return BoxFormat.COCO
-    first = next(iter(_open_lines(path, "box file")), (0, ""))[1]
+    first = next(iter(numbered_lines(path, "box file")), (0, ""))[1]
     commas = len(first.split(","))
     if first.replace(" ", "").lower().startswith("frame,"):
         return BoxFormat.CSV

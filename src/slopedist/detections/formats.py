@@ -25,7 +25,6 @@ Classes not in a map are dropped. Writers for each (for ``slopedist convert``) a
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -35,8 +34,9 @@ import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.onnx_detector import COCO_VEHICLES
-from slopedist.detections.readers import _int, _open_lines, _parse
+from slopedist.detections.readers import _index, _int, _parse
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.textfiles import numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
     1: "Pedestrian",
@@ -64,7 +64,7 @@ def _xywh_to_corners(xywh: list[list[float]]) -> np.ndarray:
 def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
     """A MOTChallenge ``det.txt`` or ``gt.txt`` (see the module docstring)."""
     frames, tids, boxes, scores, classes = [], [], [], [], []
-    for lineno, line in _open_lines(path, "MOTChallenge file"):
+    for lineno, line in numbered_lines(path, "MOTChallenge file"):
         tok = [t.strip() for t in line.split(",")]
         if len(tok) not in (7, 9, 10):
             raise InputFileError(
@@ -72,9 +72,12 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
             )
         names = MOT_GT_FIELDS if len(tok) == 9 else MOT_DET_FIELDS
         v: dict[str, Any] = {
-            k: _parse(path, lineno, k, t, _int if k in ("frame", "id", "flag", "class") else float)
+            k: _parse(path, lineno, k, t, _int if k in ("flag", "class") else float)
             for k, t in zip(names, tok)
+            if k not in ("frame", "id")
         }
+        v["frame"] = _index(path, lineno, "frame", tok[0], min(frame_base, 0))
+        v["id"] = _index(path, lineno, "id", tok[1], -1)
         if v["frame"] - frame_base < 0:
             raise InputFileError(
                 path, f"frame must be ≥ {frame_base}, got {v['frame']}", line=lineno, field="frame"
@@ -94,13 +97,7 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
 
 
 def _load_json(path: str | Path) -> Any:
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"COCO JSON file not found: {path}")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputFileError(path, f"not valid JSON: {exc.msg}", line=exc.lineno) from None
+    return read_json(path, "COCO JSON file")
 
 
 def read_coco_image_map(path: str | Path) -> dict[int, int]:
@@ -223,7 +220,7 @@ def read_yolo_folder(
     frames, tids, boxes, scores, classes = [], [], [], [], []
     for path in sorted(folder.glob("*.txt")):
         frame = _yolo_frame(path, frame_base)
-        for lineno, line in _open_lines(path, "YOLO label file"):
+        for lineno, line in numbered_lines(path, "YOLO label file"):
             tok = line.split()
             if len(tok) not in (5, 6, 7):
                 raise InputFileError(path, f"expected 5 to 7 fields, found {len(tok)}", line=lineno)

@@ -19,17 +19,20 @@ Other columns are ignored.
 
 from __future__ import annotations
 
-import csv
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.errors import InputFileError
+from slopedist.limits import MAX_ABS_PIXEL, MAX_INDEX
+from slopedist.textfiles import CsvRows, numbered_lines
 
 CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
 CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")
+BOX_SIDES = ("left", "top", "right", "bottom")
 CSV_TRUTH_COLUMN = "gt_distance_m"
 """Optional column of the slopedist box CSV: ground-truth distance (camera z), metres."""
 
@@ -71,22 +74,11 @@ POINTRCNN_FIELDS = (
 )
 
 
-def _open_lines(path: str | Path, what: str) -> Iterator[tuple[int, str]]:
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"{what} not found: {path}")
-    with path.open(newline="") as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if line and not line.startswith("#"):
-                yield lineno, line
-
-
-def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[str], object]):
+def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[str], Any]) -> Any:
     try:
         value = kind(tok)
     except ValueError:
-        kind_name = "an integer" if kind is int else "a number"
+        kind_name = "an integer" if kind in (int, _int) else "a number"
         raise InputFileError(path, f"'{tok}' is not {kind_name}", line=lineno, field=name) from None
     return value
 
@@ -97,9 +89,36 @@ def _int(tok: str) -> int:
         return int(tok)
     except ValueError:
         value = float(tok)
-        if not value.is_integer():
+        if not (value.is_integer() and abs(value) <= MAX_INDEX):
             raise
         return int(value)
+
+
+def _index(path: str | Path, lineno: int, name: str, tok: str, lowest: int = 0) -> int:
+    """A frame index (``lowest`` = 0) or track id (``lowest`` = -1, unknown) in
+    ``lowest..MAX_INDEX``."""
+    value = int(_parse(path, lineno, name, tok, _int))
+    if not lowest <= value <= MAX_INDEX:
+        raise InputFileError(
+            path, f"{value} is outside {lowest}..{MAX_INDEX}", line=lineno, field=name
+        )
+    return value
+
+
+def _box(path: str | Path, lineno: int, names: Sequence[str], toks: Sequence[str]) -> list[float]:
+    """Four box coordinates in pixels; NaN/inf pass (flagged per box later, see
+    ``box_problems``), a finite value beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` is an
+    error."""
+    box = [float(_parse(path, lineno, k, t, float)) for k, t in zip(names, toks)]
+    for k, v in zip(names, box):
+        if abs(v) > MAX_ABS_PIXEL and np.isfinite(v):
+            raise InputFileError(
+                path,
+                f"{v:g} px is not a pixel coordinate (|value| > {MAX_ABS_PIXEL:g})",
+                line=lineno,
+                field=k,
+            )
+    return box
 
 
 def read_kitti_labels(path: str | Path) -> BoxTable:
@@ -110,20 +129,18 @@ def read_kitti_labels(path: str | Path) -> BoxTable:
     ``rotation_y`` (rad).
     """
     frames, tids, types, boxes, trunc, occl, dims, xyz, ry, scores = ([] for _ in range(10))
-    for lineno, line in _open_lines(path, "KITTI label file"):
+    for lineno, line in numbered_lines(path, "KITTI label file"):
         tok = line.split()
         if len(tok) not in (17, 18):
             raise InputFileError(path, f"expected 17 fields, found {len(tok)}", line=lineno)
         f = dict(zip(KITTI_LABEL_FIELDS, tok))
-        frames.append(_parse(path, lineno, "frame", f["frame"], _int))
-        tids.append(_parse(path, lineno, "track_id", f["track_id"], _int))
+        frames.append(_index(path, lineno, "frame", f["frame"]))
+        tids.append(_index(path, lineno, "track_id", f["track_id"], NO_TRACK))
         types.append(f["type"])
         trunc.append(_parse(path, lineno, "truncated", f["truncated"], float))
         occl.append(_parse(path, lineno, "occluded", f["occluded"], _int))
         _parse(path, lineno, "alpha", f["alpha"], float)
-        boxes.append(
-            [_parse(path, lineno, k, f[k], float) for k in ("left", "top", "right", "bottom")]
-        )
+        boxes.append(_box(path, lineno, BOX_SIDES, [f[k] for k in BOX_SIDES]))
         dims.append([_parse(path, lineno, k, f[k], float) for k in ("height", "width", "length")])
         xyz.append([_parse(path, lineno, k, f[k], float) for k in ("x", "y", "z")])
         ry.append(_parse(path, lineno, "rotation_y", f["rotation_y"], float))
@@ -152,7 +169,7 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
     (the detector's 3D distance, m; not ground truth) and ``dims_hwl``.
     """
     frames, boxes, scores, dims, zs = [], [], [], [], []
-    for lineno, line in _open_lines(path, "PointRCNN detection file"):
+    for lineno, line in numbered_lines(path, "PointRCNN detection file"):
         tok = [t.strip() for t in line.split(",")]
         if len(tok) != len(POINTRCNN_FIELDS):
             raise InputFileError(
@@ -161,9 +178,9 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
                 line=lineno,
             )
         f = dict(zip(POINTRCNN_FIELDS, tok))
-        frame = _parse(path, lineno, "frame", f["frame"], _int)
+        frame = _index(path, lineno, "frame", f["frame"])
         score = _parse(path, lineno, "score", f["score"], float)
-        box = [_parse(path, lineno, k, f[k], float) for k in ("x1", "y1", "x2", "y2")]
+        box = _box(path, lineno, ("x1", "y1", "x2", "y2"), [f[k] for k in ("x1", "y1", "x2", "y2")])
         dim = [_parse(path, lineno, k, f[k], float) for k in ("h", "w", "l")]
         z = _parse(path, lineno, "z", f["z"], float)
         if min_score is not None and score < min_score:
@@ -186,42 +203,27 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
 
 def read_box_csv(path: str | Path) -> BoxTable:
     """The slopedist box CSV (see the module docstring for its columns)."""
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"box CSV not found: {path}")
+    rows = CsvRows(path, "box CSV")
+    path = rows.path
+    missing = [c for c in CSV_REQUIRED if c not in rows.header]
+    if missing:
+        raise InputFileError(
+            path,
+            f"header lacks column(s) {', '.join(missing)}; expected {','.join(CSV_BOX_COLUMNS)}",
+            line=1,
+        )
+    has_truth = CSV_TRUTH_COLUMN in rows.header
     frames, boxes, tids, scores, classes, truth = [], [], [], [], [], []
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        header = [h.strip() for h in (reader.fieldnames or [])]
-        missing = [c for c in CSV_REQUIRED if c not in header]
-        if missing:
-            raise InputFileError(
-                path,
-                f"header lacks column(s) {', '.join(missing)}; expected "
-                f"{','.join(CSV_BOX_COLUMNS)}",
-                line=1,
-            )
-        reader.fieldnames = header
-        has_truth = CSV_TRUTH_COLUMN in header
-        for row in reader:
-            lineno = reader.line_num
-            frame = _parse(path, lineno, "frame", (row["frame"] or "").strip(), _int)
-            if frame < 0:
-                raise InputFileError(path, "frame index must be ≥ 0", line=lineno, field="frame")
-            frames.append(frame)
-            boxes.append(
-                [
-                    _parse(path, lineno, k, (row[k] or "").strip(), float)
-                    for k in ("left", "top", "right", "bottom")
-                ]
-            )
-            tid = (row.get("track_id") or "").strip()
-            tids.append(_parse(path, lineno, "track_id", tid, _int) if tid else NO_TRACK)
-            sc = (row.get("score") or "").strip()
-            scores.append(_parse(path, lineno, "score", sc, float) if sc else np.nan)
-            classes.append((row.get("class") or "").strip() or "Car")
-            if has_truth:
-                truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
+    for lineno, row in rows:
+        frames.append(_index(path, lineno, "frame", (row["frame"] or "").strip()))
+        boxes.append(_box(path, lineno, BOX_SIDES, [(row[k] or "").strip() for k in BOX_SIDES]))
+        tid = (row.get("track_id") or "").strip()
+        tids.append(_index(path, lineno, "track_id", tid, NO_TRACK) if tid else NO_TRACK)
+        sc = (row.get("score") or "").strip()
+        scores.append(_parse(path, lineno, "score", sc, float) if sc else np.nan)
+        classes.append((row.get("class") or "").strip() or "Car")
+        if has_truth:
+            truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
     extra = {CSV_TRUTH_COLUMN: np.asarray(truth, dtype=float)} if has_truth else {}
     return BoxTable.build(
         frames,
@@ -260,7 +262,7 @@ def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
     path = Path(path)
     if path.suffix.lower() == ".json":
         return _read_other_layout(path, min_score)
-    first = next(iter(_open_lines(path, "box file")), (0, ""))[1]
+    first = next(iter(numbered_lines(path, "box file")), (0, ""))[1]
     if first.replace(" ", "").lower().startswith("frame,"):
         table = read_box_csv(path)
         if min_score is not None:

@@ -27,10 +27,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
+from slopedist.textfiles import read_text
 
 MATRIX_KEYS = ("camera_matrix", "K", "k", "cameraMatrix", "intrinsic_matrix")
 DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "D", "d", "distCoeffs", "distortion")
@@ -48,25 +50,30 @@ class CameraCalibration:
     intrinsics: Intrinsics
     camera: Camera
 
+    @property
+    def point_map(self) -> Callable[[NDArray[np.float64]], NDArray[np.float64]] | None:
+        """Pixels of the real camera → pixels of :attr:`camera` (``(N, 2)``; what the built-in
+        odometry's ``point_map`` takes), or None when the camera is ideal already."""
+        return None if self.intrinsics.is_ideal else self.intrinsics.rectify_points
+
 
 def read_calibration(
-    path: str | Path,
+    path: str | Path | Intrinsics,
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
     kitti_key: str = "P2",
 ) -> CameraCalibration:
-    """Read a calibration file of any supported form (see the module docstring); the mount is
-    given in metres and radians."""
-    intrinsics = read_intrinsics(path, kitti_key)
+    """Read a calibration file of any supported form (see the module docstring), or take
+    ``Intrinsics`` given as values (``--fx --fy --cx --cy``); the mount is given in metres and
+    radians."""
+    intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 
 def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     """:class:`Intrinsics` from a KITTI, K-text, OpenCV or ROS calibration file."""
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"calibration file not found: {path}")
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = read_text(path, "calibration file")
     if path.suffix.lower() in (".yaml", ".yml", ".json", ".xml"):
         return read_filestorage(path)
     if re.search(r"^\s*P\d\s*:", text, re.MULTILINE) or _first_line_count(text) == 12:
@@ -162,7 +169,9 @@ def _open_filestorage(path: Path) -> cv2.FileStorage:
 def _image_size(fs: cv2.FileStorage) -> tuple[int, int] | None:
     _, w = _first(fs, WIDTH_KEYS)
     _, h = _first(fs, HEIGHT_KEYS)
-    if w is None or h is None or w.size != 1 or h.size != 1 or w[0] <= 0 or h[0] <= 0:
+    if w is None or h is None or w.size != 1 or h.size != 1:
+        return None
+    if not (0 < w[0] <= 1_000_000 and 0 < h[0] <= 1_000_000):  # NaN, inf and 1e308 too
         return None
     return int(w[0]), int(h[0])
 

@@ -5,10 +5,10 @@ top-left; timestamps are float64 seconds. Memory holds one frame at a time, what
 
 Frame numbering:
 
-- Image folder: files ``*.png``, ``*.jpg``, ``*.jpeg`` (any case). When every file name is an
-  integer (``0000000000.png``, ``000123.jpg``), that integer is the frame index, and a gap in the
-  numbering yields frames of status ``missing``; otherwise the frames are numbered 0, 1, ... in
-  sorted name order.
+- Image folder: the numbered image files are the frames, their number the frame index; stray
+  and hidden files are skipped and reported, never renumbering the folder; a folder without
+  numbered files is numbered 0, 1, ... in sorted name order (the full rule:
+  :mod:`slopedist.io.framefiles`). A gap in the numbering yields frames of status ``missing``.
 - Video file: frames are numbered 0, 1, ... in decoding order.
 
 Timestamps: ``index / fps`` (``fps`` 10 by default for folders, the container's frame rate for
@@ -40,9 +40,10 @@ from slopedist.errors import (
     InputFileError,
     MissingInputError,
 )
-
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-"""File name endings an image folder is read from (case-insensitive)."""
+from slopedist.io.framefiles import list_frame_files
+from slopedist.io.images import header_image_size, image_size_problem
+from slopedist.limits import DEFAULT_MAX_PIXELS
+from slopedist.textfiles import numbered_lines
 
 DEFAULT_FPS = 10.0
 """Frame rate assumed for image folders without a timestamps file (KITTI's 10 Hz)."""
@@ -51,6 +52,10 @@ MAX_PRINCIPAL_POINT_OFFSET = 0.25
 """Largest accepted distance of the principal point from the image centre, as a fraction of the
 image width (for c_x) or height (for c_y); beyond it the calibration is taken to belong to
 other (resized or cropped) frames."""
+
+FIELD_OF_VIEW_RANGE_DEG = (3.0, 170.0)
+"""Accepted horizontal field of view ``2·atan(width / 2f)``, degrees: outside it the focal
+length does not belong to images of that width (a calibration of other, resized frames)."""
 
 _KITTI_TIME = re.compile(r"^(\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2})(\.\d+)?$")
 
@@ -122,39 +127,32 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
             (naming the line).
     """
     path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"timestamps file not found: {path}")
     values: list[float] = []
     t0: datetime | None = None
     prev_line = 0
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            value = _parse_time(line, t0)
-            if value is None:
-                raise InputFileError(
-                    path,
-                    f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
-                    line=lineno,
-                    field="timestamp",
-                )
-            if isinstance(value, datetime):
-                t0 = t0 or value
-                seconds = (value - t0).total_seconds()
-            else:
-                seconds = value
-            if values and not seconds > values[-1]:
-                raise InputFileError(
-                    path,
-                    f"timestamp {seconds} s does not increase (line {prev_line} has "
-                    f"{values[-1]} s)",
-                    line=lineno,
-                    field="timestamp",
-                )
-            values.append(seconds)
-            prev_line = lineno
+    for lineno, line in numbered_lines(path, "timestamps file"):
+        value = _parse_time(line, t0)
+        if value is None:
+            raise InputFileError(
+                path,
+                f"'{line}' is neither seconds nor a date-time 'YYYY-MM-DD hh:mm:ss.f'",
+                line=lineno,
+                field="timestamp",
+            )
+        if isinstance(value, datetime):
+            t0 = t0 or value
+            seconds = (value - t0).total_seconds()
+        else:
+            seconds = value
+        if values and not seconds > values[-1]:
+            raise InputFileError(
+                path,
+                f"timestamp {seconds} s does not increase (line {prev_line} has {values[-1]} s)",
+                line=lineno,
+                field="timestamp",
+            )
+        values.append(seconds)
+        prev_line = lineno
     if not values:
         raise InputFileError(path, "no timestamps in file")
     return np.asarray(values, dtype=float)
@@ -183,7 +181,9 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
     """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
 
     Checks the image size the camera knows (if any), that the principal point lies inside the
-    image and that it is within :data:`MAX_PRINCIPAL_POINT_OFFSET` of the image centre.
+    image and that it is within :data:`MAX_PRINCIPAL_POINT_OFFSET` of the image centre, and
+    that the focal length gives a horizontal field of view within
+    :data:`FIELD_OF_VIEW_RANGE_DEG`.
 
     Raises:
         DataMismatchError: naming the sizes and the offending value.
@@ -209,6 +209,14 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
                 f"centre ({size / 2:.1f} px) of the {width}×{height} px images; were the frames "
                 "resized or cropped after calibration?"
             )
+    fov = math.degrees(2.0 * math.atan(width / (2.0 * camera.f)))
+    lo, hi = FIELD_OF_VIEW_RANGE_DEG
+    if not lo <= fov <= hi:
+        raise DataMismatchError(
+            f"{where}: the calibration's focal length f = {camera.f:g} px gives the "
+            f"{width} px wide images a field of view of {fov:.1f}°, outside {lo:g}..{hi:g}°; "
+            "does the calibration belong to these frames?"
+        )
 
 
 class _Timing:
@@ -270,10 +278,16 @@ class ImageFolderSource:
             (:data:`DEFAULT_FPS` when None).
         timestamps_s: one timestamp per frame index, seconds (e.g. from :func:`read_timestamps`).
         timestamps_name: where the timestamps came from, for messages.
+        max_pixels: frames whose header claims more pixels are not decoded (status
+            ``unreadable``; :meth:`frame_size` raises).
+
+    Attributes:
+        skipped: ``(file name, reason)`` of the image files that are not frames (see
+            :func:`~slopedist.io.framefiles.list_frame_files`).
 
     Raises:
         MissingInputError: the folder does not exist or holds no image files.
-        InputFileError: two files with the same frame number.
+        InputFileError: two files with the same frame number, or a huge gap.
         DataMismatchError: fewer timestamps than frames.
     """
 
@@ -283,28 +297,15 @@ class ImageFolderSource:
         fps: float | None = None,
         timestamps_s: NDArray[np.float64] | None = None,
         timestamps_name: str = "timestamps",
+        max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
         self.path = Path(path)
-        if not self.path.is_dir():
-            raise MissingInputError(f"frame folder not found: {self.path}")
-        files = sorted(
-            p for p in self.path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
-        )
-        if not files:
-            raise MissingInputError(
-                f"no image files ({', '.join(IMAGE_SUFFIXES)}) in frame folder {self.path}"
-            )
+        listing = list_frame_files(self.path)
+        self.files = listing.files
+        self.numbered = listing.numbered
+        self.skipped = listing.skipped
+        self.max_pixels = max_pixels
         self.timing = _Timing(DEFAULT_FPS if fps is None else fps, timestamps_s, timestamps_name)
-        self.numbered = all(p.stem.isdigit() for p in files)
-        self.files: dict[int, Path] = {}
-        if self.numbered:
-            for p in files:
-                k = int(p.stem)
-                if k in self.files:
-                    raise InputFileError(p, f"frame number {k} also used by {self.files[k].name}")
-                self.files[k] = p
-        else:
-            self.files = dict(enumerate(files))
         self.first = min(self.files)
         self.last = max(self.files)
         if timestamps_s is not None and len(timestamps_s) <= self.last:
@@ -317,8 +318,20 @@ class ImageFolderSource:
         return self.last - self.first + 1
 
     def frame_size(self) -> tuple[int, int]:
+        """Size of the first readable frame, from its header when it is a PNG or JPEG.
+
+        Raises:
+            InputFileError: that frame is over ``max_pixels`` or damaged, or no file decodes.
+        """
         for k in sorted(self.files):
-            image = cv2.imread(str(self.files[k]), cv2.IMREAD_UNCHANGED)
+            path = self.files[k]
+            problem = image_size_problem(path, self.max_pixels)
+            if problem:
+                raise InputFileError(path, f"not decoded: {problem}")
+            size = header_image_size(path)
+            if size is not None:
+                return size
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
             if image is not None:
                 return int(image.shape[1]), int(image.shape[0])
         raise InputFileError(self.path, "none of the image files could be read")
@@ -338,7 +351,8 @@ class ImageFolderSource:
                     f"no image file numbered {k} in {self.path}",
                 )
                 continue
-            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            problem = image_size_problem(path, self.max_pixels)
+            image = None if problem else cv2.imread(str(path), cv2.IMREAD_COLOR)
             if image is None:
                 yield Frame(
                     k,
@@ -346,7 +360,9 @@ class ImageFolderSource:
                     None,
                     FrameStatus.UNREADABLE,
                     path.name,
-                    f"{path} could not be decoded as an image",
+                    f"{path}: not decoded: {problem}"
+                    if problem
+                    else f"{path} could not be decoded as an image",
                 )
                 continue
             problem = size_check(image)
@@ -364,10 +380,13 @@ class VideoSource:
         fps: frames per second for timestamps; None uses the container's frame rate (or
             :data:`DEFAULT_FPS` when the container reports none).
         timestamps_s: one timestamp per frame, seconds; overrides ``fps``.
+        max_pixels: largest frame accepted, pixels (the container's announced size is checked
+            before any frame is decoded).
 
     Raises:
         MissingInputError: no such file.
-        InputFileError: the file cannot be opened as a video.
+        InputFileError: the file cannot be opened as a video, or its frames are over
+            ``max_pixels``.
     """
 
     def __init__(
@@ -376,6 +395,7 @@ class VideoSource:
         fps: float | None = None,
         timestamps_s: NDArray[np.float64] | None = None,
         timestamps_name: str = "timestamps",
+        max_pixels: int = DEFAULT_MAX_PIXELS,
     ) -> None:
         self.path = Path(path)
         if not self.path.is_file():
@@ -384,8 +404,15 @@ class VideoSource:
         try:
             self.container_fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
             count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+            width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH) or 0)
+            height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
         finally:
             cap.release()
+        if width * height > max_pixels:
+            raise InputFileError(
+                self.path,
+                f"its frames are {width}×{height} px, over the limit of {max_pixels / 1e6:g} Mpx",
+            )
         self.frame_count = count if count > 0 else None
         if fps is None:
             fps = (
@@ -451,7 +478,10 @@ class VideoSource:
 
 
 def open_frames(
-    path: str | Path, fps: float | None = None, timestamps: str | Path | None = None
+    path: str | Path,
+    fps: float | None = None,
+    timestamps: str | Path | None = None,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
 ) -> ImageFolderSource | VideoSource:
     """A folder of images or a video file, chosen by what ``path`` is.
 
@@ -459,12 +489,13 @@ def open_frames(
         path: image folder or video file.
         fps: frames per second (None: 10 for folders, the container's rate for videos).
         timestamps: optional timestamps file (:func:`read_timestamps`); overrides ``fps``.
+        max_pixels: largest frame decoded, pixels.
     """
     path = Path(path)
     ts = read_timestamps(timestamps) if timestamps is not None else None
     name = str(timestamps) if timestamps is not None else "timestamps"
     if path.is_dir():
-        return ImageFolderSource(path, fps, ts, name)
+        return ImageFolderSource(path, fps, ts, name, max_pixels)
     if path.is_file():
-        return VideoSource(path, fps, ts, name)
+        return VideoSource(path, fps, ts, name, max_pixels)
     raise MissingInputError(f"frames not found: {path} (expected an image folder or a video file)")

@@ -1,26 +1,127 @@
-"""Reading one image file with a clear error (shared by the dataset and depth readers)."""
+"""Reading one image file safely: its size from the header first, then the pixels.
+
+A 140 KB PNG can claim 30000×30000 pixels and take gigabytes to decode, so every image slopedist
+decodes (frames, depth PNGs, odometry frames) has its width and height read from the file
+header (PNG ``IHDR``, JPEG ``SOFn``) and is refused above ``max_pixels``
+(:data:`~slopedist.limits.DEFAULT_MAX_PIXELS` by default) before any pixel is decoded. Files in
+other formats OpenCV reads (BMP, PGM, TIFF) are bounded by their file length instead (4 bytes
+per pixel), which holds for uncompressed formats only.
+"""
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
+from typing import BinaryIO
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.errors import InputFileError, MissingInputError
+from slopedist.limits import DEFAULT_MAX_PIXELS
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+JPEG_SOI = b"\xff\xd8"
+_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+"""JPEG start-of-frame markers (DHT C4, JPG C8 and DAC CC share the range but are not frames)."""
+_JPEG_STANDALONE = frozenset({0x01, *range(0xD0, 0xD8)})
+_MAX_JPEG_SEGMENTS = 10_000
 
 
-def read_image_file(path: str | Path, flags: int, what: str, not_decoded: str) -> NDArray:
-    """Decode ``path`` with ``cv2.imread(path, flags)``.
+def _png_size(fh: BinaryIO) -> tuple[int, int] | None:
+    head = fh.read(16)  # IHDR chunk: length (4), type (4), width (4), height (4)
+    if len(head) < 16 or head[4:8] != b"IHDR":
+        return None
+    width, height = struct.unpack(">II", head[8:16])
+    return int(width), int(height)
+
+
+def _jpeg_size(fh: BinaryIO) -> tuple[int, int] | None:
+    for _ in range(_MAX_JPEG_SEGMENTS):
+        byte = fh.read(1)
+        if byte != b"\xff":
+            return None
+        marker = fh.read(1)
+        while marker == b"\xff":  # fill bytes
+            marker = fh.read(1)
+        if not marker:
+            return None
+        m = marker[0]
+        if m in _JPEG_STANDALONE:
+            continue
+        raw = fh.read(2)
+        if len(raw) < 2 or m == 0xDA:  # start of scan before any frame header
+            return None
+        length = struct.unpack(">H", raw)[0]
+        if m in _JPEG_SOF:
+            sof = fh.read(5)  # precision (1), height (2), width (2)
+            if len(sof) < 5:
+                return None
+            height, width = struct.unpack(">HH", sof[1:5])
+            return int(width), int(height)
+        fh.seek(length - 2, 1)
+    return None
+
+
+def header_image_size(path: str | Path) -> tuple[int, int] | None:
+    """``(width, height)`` in pixels from a PNG or JPEG header, without decoding; None when the
+    file is neither or its header is cut short."""
+    with Path(path).open("rb") as fh:
+        magic = fh.read(8)
+        if magic == PNG_SIGNATURE:
+            return _png_size(fh)
+        if magic[:2] == JPEG_SOI:
+            fh.seek(2)
+            return _jpeg_size(fh)
+    return None
+
+
+def image_size_problem(path: str | Path, max_pixels: int = DEFAULT_MAX_PIXELS) -> str:
+    """Why ``path`` must not be decoded (``""`` if it may): a PNG/JPEG header that is cut
+    short, a zero size, more than ``max_pixels`` pixels, or (other formats) a file larger than
+    ``max_pixels`` × 4 bytes."""
+    path = Path(path)
+    with path.open("rb") as fh:
+        magic = fh.read(8)
+    if magic == PNG_SIGNATURE or magic[:2] == JPEG_SOI:
+        size = header_image_size(path)
+        if size is None:
+            return "its PNG/JPEG header is damaged or cut short"
+        width, height = size
+        if width == 0 or height == 0:
+            return f"its header claims an empty {width}×{height} px image"
+        if width * height > max_pixels:
+            return (
+                f"its header claims {width}×{height} px = {width * height / 1e6:.3g} Mpx, over "
+                f"the limit of {max_pixels / 1e6:.3g} Mpx (a corrupt or hostile file?)"
+            )
+        return ""
+    if path.stat().st_size > 4 * max_pixels:
+        return f"a {path.stat().st_size} byte image file is over the limit of {max_pixels} px"
+    return ""
+
+
+def read_image_file(
+    path: str | Path,
+    flags: int,
+    what: str,
+    not_decoded: str,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+) -> NDArray:
+    """Decode ``path`` with ``cv2.imread(path, flags)`` after checking its header size.
 
     Raises:
         MissingInputError: the file does not exist (``"{what} not found: {path}"``).
-        InputFileError: it cannot be decoded (message ``not_decoded``).
+        InputFileError: it cannot be decoded (message ``not_decoded``), or must not be (then
+            followed by the reason from :func:`image_size_problem`).
     """
     path = Path(path)
     if not path.is_file():
         raise MissingInputError(f"{what} not found: {path}")
+    problem = image_size_problem(path, max_pixels)
+    if problem:
+        raise InputFileError(path, f"{not_decoded}; {problem}")
     image = cv2.imread(str(path), flags)
     if image is None:
         raise InputFileError(path, not_decoded)

@@ -143,24 +143,6 @@ class RotationErrors:
     rel_err_rad: FloatArray
 
 
-def rotation_angle_rad(R: FloatArray) -> FloatArray:
-    """Angle of rotation matrices ``(..., 3, 3)``, radians in [0, π], accurate near zero.
-
-    ``atan2(‖axial part‖, tr R − 1)`` rather than ``arccos((tr R − 1) / 2)``: ground-truth files
-    round their matrices (KITTI poses keep 7 significant digits, so ``RᵀR`` is off the identity by
-    up to ~4e-7), and near zero ``arccos`` turns a trace error δ into an angle error δ / sin(angle)
-    — about +0.003° on a 0.2° error — while the axial part is hardly affected.
-    """
-    R = np.asarray(R, dtype=float)
-    axial = np.stack(
-        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
-        axis=-1,
-    )
-    return np.asarray(
-        np.arctan2(np.linalg.norm(axial, axis=-1), np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    )
-
-
 def rotation_errors(
     run: OdometryRun,
     truth: RotationTrack,
@@ -181,7 +163,7 @@ def rotation_errors(
     rel_err = np.full(len(run), np.nan)
     rel_est = geo.relative_rotation(R[j], R[i])
     rel_true = geo.relative_rotation(G[j], G[i])
-    angles = rotation_angle_rad(np.swapaxes(rel_est, -1, -2) @ rel_true)
+    angles = geo.rotation_angle_rad(np.swapaxes(rel_est, -1, -2) @ rel_true)
     rel_err[i[full]] = angles[full]
     return RotationErrors(theta_err, rel_err)
 

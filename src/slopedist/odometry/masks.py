@@ -17,6 +17,13 @@ FloatArray = NDArray[np.float64]
 
 
 def check_boxes(mask_boxes: ArrayLike | None) -> FloatArray:
+    """The ``(M, 4)`` mask boxes (left, top, right, bottom) pixels, without the rows that are
+    not finite (a NaN or infinite box, flagged ``non_finite_box`` by the estimators, masks
+    nothing).
+
+    Raises:
+        DataMismatchError: not an ``(N, 4)`` array.
+    """
     if mask_boxes is None:
         return np.empty((0, 4))
     boxes = np.asarray(mask_boxes, dtype=float)
@@ -26,7 +33,7 @@ def check_boxes(mask_boxes: ArrayLike | None) -> FloatArray:
         raise DataMismatchError(
             f"mask_boxes must be (N, 4) (left, top, right, bottom) pixels, got {boxes.shape}"
         )
-    return boxes
+    return boxes[np.isfinite(boxes).all(axis=1)]
 
 
 def grown_boxes(boxes: FloatArray, margin_px: float) -> FloatArray:

@@ -6,6 +6,7 @@ rotations relative to the first frame (camera frame x right, y down, z forward).
 
 from __future__ import annotations
 
+import math
 from enum import Enum
 from pathlib import Path
 
@@ -13,8 +14,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import read_kitti_calib
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.errors import InputFileError
 from slopedist.odometry.base import RotationTrack
+from slopedist.textfiles import numbered_lines
 
 KITTI_FRAME_PERIOD_S = 0.1
 """KITTI records at 10 Hz."""
@@ -30,43 +32,40 @@ class PoseFormat(str, Enum):
     TUM = "tum"
 
 
-def _read_numeric_rows(path: str | Path, n_fields: int, names: list[str]) -> NDArray[np.float64]:
-    path = Path(path)
-    if not path.is_file():
-        raise MissingInputError(f"pose file not found: {path}")
+def _read_numeric_rows(
+    path: str | Path, n_fields: int, names: list[str]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """``(rows × n_fields numbers, the file line of each row)``."""
     rows: list[list[float]] = []
-    with path.open() as fh:
-        for lineno, raw in enumerate(fh, start=1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            tokens = line.replace(",", " ").split()
-            if len(tokens) != n_fields:
-                raise InputFileError(
-                    path, f"expected {n_fields} numbers, found {len(tokens)}", line=lineno
-                )
-            row = []
-            for name, tok in zip(names, tokens):
-                try:
-                    value = float(tok)
-                except ValueError:
-                    raise InputFileError(
-                        path, f"'{tok}' is not a number", line=lineno, field=name
-                    ) from None
-                if not np.isfinite(value):
-                    raise InputFileError(path, f"non-finite value {tok}", line=lineno, field=name)
-                row.append(value)
-            rows.append(row)
+    lines: list[int] = []
+    for lineno, line in numbered_lines(path, "pose file"):
+        tokens = line.replace(",", " ").split()
+        if len(tokens) != n_fields:
+            raise InputFileError(
+                path, f"expected {n_fields} numbers, found {len(tokens)}", line=lineno
+            )
+        rows.append([_pose_number(path, lineno, name, tok) for name, tok in zip(names, tokens)])
+        lines.append(lineno)
     if not rows:
         raise InputFileError(path, "file has no poses")
-    return np.asarray(rows)
+    return np.asarray(rows), np.asarray(lines, dtype=np.int64)
+
+
+def _pose_number(path: str | Path, lineno: int, name: str, tok: str) -> float:
+    try:
+        value = float(tok)
+    except ValueError:
+        raise InputFileError(path, f"'{tok}' is not a number", line=lineno, field=name) from None
+    if not np.isfinite(value):
+        raise InputFileError(path, f"non-finite value {tok}", line=lineno, field=name)
+    return value
 
 
 KITTI_POSE_FIELDS = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in range(4)]
 TUM_POSE_FIELDS = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
 
 
-def _check_rotations(path: str | Path, R: NDArray[np.float64], first_line: int = 1) -> None:
+def _check_rotations(path: str | Path, R: NDArray[np.float64], lines: NDArray[np.int64]) -> None:
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(1, 2))
     det = np.linalg.det(R)
     bad = np.flatnonzero((err > 1e-3) | (det < 0))
@@ -74,7 +73,7 @@ def _check_rotations(path: str | Path, R: NDArray[np.float64], first_line: int =
         raise InputFileError(
             path,
             "rotation part is not a rotation matrix",
-            line=int(bad[0]) + first_line,
+            line=int(lines[bad[0]]),
             field="r00..r22",
         )
 
@@ -86,15 +85,22 @@ def read_kitti_poses(
 
     Frame k gets timestamp ``k × frame_period_s``. Rotations are made relative to the first pose.
     """
-    data = _read_numeric_rows(path, 12, KITTI_POSE_FIELDS)
+    data, lines = _read_numeric_rows(path, 12, KITTI_POSE_FIELDS)
     R = data.reshape(-1, 3, 4)[:, :, :3]
-    _check_rotations(path, R)
+    _check_rotations(path, R, lines)
     R = R[0].T @ R
     return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
 
 
 def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    data = _read_numeric_rows(path, 8, TUM_POSE_FIELDS)
+    """``(t column, rotations (N, 3, 3))`` of a TUM-layout file."""
+    data, R = _read_tum(path)
+    return data[:, 0], R
+
+
+def _read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(rows of t x y z qx qy qz qw, rotations (N, 3, 3))`` of a TUM-layout file."""
+    data, lines = _read_numeric_rows(path, 8, TUM_POSE_FIELDS)
     q = data[:, 4:8]
     norms = np.linalg.norm(q, axis=1)
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-2)
@@ -102,13 +108,12 @@ def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.fl
         raise InputFileError(
             path,
             f"quaternion norm {norms[bad[0]]:.4f} is not 1",
-            line=int(bad[0]) + 1,
+            line=int(lines[bad[0]]),
             field="qx qy qz qw",
         )
     from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
 
-    R = Rotation.from_quat(q / norms[:, None]).as_matrix()
-    return data[:, 0], R
+    return data, Rotation.from_quat(q / norms[:, None]).as_matrix()
 
 
 def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> RotationTrack:
@@ -126,17 +131,72 @@ def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> Rot
 def read_pose_file(
     path: str | Path, fmt: PoseFormat | None = None, frame_period_s: float = KITTI_FRAME_PERIOD_S
 ) -> RotationTrack:
-    """Read a KITTI or TUM pose file; the layout is detected from the field count if not given."""
+    """Read a KITTI or TUM pose file; the layout is detected from the field count if not given.
+
+    When the layout is detected (``fmt`` None), a TUM-layout file whose motion shows a vehicle
+    frame (x forward, y left, z up: OXTS/IMU poses) rather than a camera frame is refused, since
+    read as camera poses it would give a wrong road gradient; see :func:`vehicle_frame_evidence`.
+
+    Raises:
+        InputFileError: a malformed line, or (detected layout) vehicle-frame poses.
+    """
     if fmt is None:
-        path = Path(path)
-        if not path.is_file():
-            raise MissingInputError(f"pose file not found: {path}")
-        with path.open() as fh:
-            first = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
+        first = next(iter(numbered_lines(path, "pose file")), (0, ""))[1]
         fmt = PoseFormat.TUM if len(first.replace(",", " ").split()) == 8 else PoseFormat.KITTI
+        if fmt is PoseFormat.TUM:
+            data, R = _read_tum(path)
+            why = vehicle_frame_evidence(data[:, 1:4], R)
+            if why:
+                raise InputFileError(
+                    path,
+                    f"these look like vehicle-frame poses (x forward, z up; e.g. OXTS), not "
+                    f"camera poses: {why}; give the pose format explicitly (oxts for vehicle "
+                    f"poses, tum if these really are camera poses)",
+                )
     if fmt is PoseFormat.TUM:
         return read_tum_poses(path)
     return read_kitti_poses(path, frame_period_s)
+
+
+MIN_TURN_EVIDENCE_RAD = math.radians(10.0)
+"""Total turning, radians, above which the turning axis decides the frame of a pose file."""
+
+MIN_PATH_EVIDENCE_M = 5.0
+"""Path length, metres, above which the main direction of travel decides the frame."""
+
+EVIDENCE_STRIDE = 10
+"""Poses compared EVIDENCE_STRIDE lines apart (1 s at 10 Hz), so jitter does not add up."""
+
+
+def vehicle_frame_evidence(xyz: NDArray[np.float64], R: NDArray[np.float64]) -> str | None:
+    """Why poses ``(positions (N, 3) m, camera-to-world rotations (N, 3, 3))`` look like a
+    vehicle frame (x forward, y left, z up) and not a camera frame (x right, y down, z forward),
+    or None.
+
+    A road vehicle turns about its vertical axis: with more than :data:`MIN_TURN_EVIDENCE_RAD`
+    of turning, the axis most of the rotation between poses :data:`EVIDENCE_STRIDE` apart is
+    about decides (z: vehicle; y, a camera's vertical: not). Without turning, the main direction
+    of travel over more than :data:`MIN_PATH_EVIDENCE_M` decides (x: vehicle, z: camera).
+    Otherwise (almost no motion) nothing is said.
+    """
+    keep = np.r_[np.arange(0, len(R) - 1, EVIDENCE_STRIDE), len(R) - 1]
+    if len(keep) < 2:
+        return None
+    from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
+    Rs, ps = R[keep], xyz[keep]
+    turn = np.abs(Rotation.from_matrix(np.swapaxes(Rs[:-1], -1, -2) @ Rs[1:]).as_rotvec())
+    turn = turn.sum(axis=0)
+    if turn.sum() > MIN_TURN_EVIDENCE_RAD:
+        if int(np.argmax(turn)) != 2:
+            return None
+        turned = f"{math.degrees(turn[2]):.0f}° of its {math.degrees(turn.sum()):.0f}°"
+        return f"{turned} of turning is about z (a camera turns about y)"
+    path = np.abs(np.diff(ps, axis=0)).sum(axis=0)
+    if path.sum() > MIN_PATH_EVIDENCE_M and int(np.argmax(path)) == 0:
+        travel = f"{path[0]:.0f} m of its {path.sum():.0f} m"
+        return f"{travel} of travel is along x (a camera moves along z)"
+    return None
 
 
 def camera_from_imu_rotation(calib_path: str | Path | None) -> NDArray[np.float64]:

@@ -63,6 +63,7 @@ from slopedist.odometry.masks import (
     half_size_corner_mask,
     inside_boxes,
 )
+from slopedist.odometry.point_map import PointNormaliser
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
 from slopedist.odometry.working_size import WorkingSize, check_gray_frame, check_principal_point
 
@@ -104,7 +105,8 @@ class BuiltinVisualOdometry:
     def __init__(self, camera: Camera, config: VisualOdometryConfig | None = None) -> None:
         self.camera = camera
         self.config = config or VisualOdometryConfig()
-        self._K, self._f = camera.K, camera.f  # of the working frames, set by _set_work
+        self.normalise = PointNormaliser(camera.K)  # full-frame pixels → ideal camera
+        self._f = camera.f  # focal length of the working frames (pixels), set by _set_work
         theta0 = camera.mount_angle_rad
         self._heading = np.array([0.0, -math.sin(theta0), math.cos(theta0)])
         c = self.config
@@ -200,17 +202,20 @@ class BuiltinVisualOdometry:
             self._set_work(width, height)
         assert self._work is not None
         if (width, height) != self._work.full_size:
-            full_w, full_h = self._work.full_size
             raise DataMismatchError(
-                f"frame size {width}×{height} px differs from the {full_w}×{full_h} px of "
-                f"{self._size_source}"
+                f"frame size {width}×{height} px differs from the "
+                f"{'×'.join(map(str, self._work.full_size))} px of {self._size_source}"
             )
         return self._work.image(image)
 
     def _set_work(self, width: int, height: int) -> None:
         """Fix the full and working frame sizes and the working camera's intrinsics."""
         self._work = WorkingSize.choose(self.camera, width, height, self.config.max_width_px)
-        self._K, self._f = self._work.camera.K, self._work.camera.f
+        self._f = self._work.camera.f
+
+    def _full(self, uv: NDArray[np.float32]) -> NDArray[np.float32]:
+        """Working-frame pixels ``(N, 2)`` as full-frame pixels (the normaliser's)."""
+        return uv if self._work is None else self._work.to_full(uv)
 
     def _check_timestamp(self, timestamp_s: float) -> float:
         t = float(timestamp_s)
@@ -341,8 +346,8 @@ class BuiltinVisualOdometry:
             cov_vote = f2f.R @ (step_cov + self._cov) @ f2f.R.T
             R_world_cam, cov = tv.fuse_rotations(R_world_cam, cov, vote, cov_vote)
         else:
-            x_prev = tv.normalise_pixels(self._pts[keep], self._K)
-            x_cur = tv.normalise_pixels(pts, self._K)
+            x_prev = self.normalise(self._full(self._pts[keep]))
+            x_cur = self.normalise(self._full(pts))
             r_f2f = tv.epipolar_residuals_px(
                 R_world_cam.T @ prev.R_world_cam,
                 x_prev,
@@ -484,8 +489,7 @@ class BuiltinVisualOdometry:
         """
         c = self.config
         f = self._f
-        x1 = tv.normalise_pixels(uv_ref, self._K)
-        x2 = tv.normalise_pixels(uv_cur, self._K)
+        x1, x2 = self.normalise(self._full(uv_ref)), self.normalise(self._full(uv_cur))
         n = len(x1)
         rot = tv.fit_rotation_only(x1, x2, f, c.inlier_threshold_px, R_init=R_init)
         if rot.n_inliers >= max(c.min_inliers, c.min_inlier_ratio * n) and (
@@ -519,18 +523,15 @@ class BuiltinVisualOdometry:
     ) -> tv.TwoViewFit | None:
         """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
         c = self.config
+        uv_ref, uv_cur = (self.normalise.pixels(self._full(uv)) for uv in (uv_ref, uv_cur))
+        threshold = c.inlier_threshold_px * (self.camera.f / self._f)  # full-frame pixels
+        K = self.normalise.K
         E, mask = cv2.findEssentialMat(
-            uv_ref,
-            uv_cur,
-            self._K,
-            cv2.USAC_DEFAULT,
-            0.999,
-            c.inlier_threshold_px,
-            USAC_MAX_ITERATIONS,
+            uv_ref, uv_cur, K, cv2.USAC_DEFAULT, 0.999, threshold, USAC_MAX_ITERATIONS
         )
         if E is None or E.shape != (3, 3):
             return None
-        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self._K, mask=mask)
+        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, K, mask=mask)
         return self._refine(x1, x2, np.asarray(R, dtype=np.float64))
 
     def _refine(

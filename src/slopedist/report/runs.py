@@ -10,8 +10,6 @@ that use rotations) and its θ, against the true θ when a column of :data:`THET
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -23,6 +21,7 @@ import numpy as np
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import ESTIMATORS
 from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_methods
+from slopedist.limits import MAX_INDEX
 from slopedist.report.data import (
     RECORD_COLUMNS,
     THETA_COLUMNS,
@@ -32,6 +31,7 @@ from slopedist.report.data import (
     ReportOptions,
     SourceKind,
 )
+from slopedist.textfiles import CsvRows, read_json
 from slopedist.tracks import TRACK_FIELDS, TRACKS_NAME
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
@@ -46,6 +46,10 @@ with ``--detector``)."""
 
 NOT_IN_RECORDS = "not in records"
 
+MAX_RECORD_MAGNITUDE = 1e12
+"""Largest magnitude of a number in a run's CSVs (metres, degrees, seconds since the epoch,
+milliseconds); beyond it, or infinite, a value is corrupt and would break the figures."""
+
 
 def run_folders(root: Path) -> list[Path]:
     """The run output folders (with ``records.csv``) at ``root``: ``root`` itself, its
@@ -59,36 +63,68 @@ def run_folders(root: Path) -> list[Path]:
 
 
 def _float(value: str | None, path: Path, line: int, name: str) -> float:
-    """A CSV cell as a number (empty = NaN).
+    """A CSV cell as a number (empty or ``nan`` = NaN).
 
     Raises:
-        InputFileError: the cell is not a number (names file, line and field).
+        InputFileError: the cell is not a number, infinite or beyond ±
+            :data:`MAX_RECORD_MAGNITUDE` (names file, line and field).
     """
     if value is None or value.strip() == "":
         return math.nan
     try:
-        return float(value)
+        x = float(value)
     except ValueError:
         raise InputFileError(path, f"'{value}' is not a number", line=line, field=name) from None
+    if abs(x) > MAX_RECORD_MAGNITUDE:
+        raise InputFileError(
+            path,
+            f"'{value}' is beyond ±{MAX_RECORD_MAGNITUDE:g} (a corrupt record?)",
+            line=line,
+            field=name,
+        )
+    return x
 
 
-def read_csv(path: Path, required: Sequence[str]) -> tuple[list[str], list[dict[str, str]]]:
-    """Header and rows of a CSV file.
+def _index(value: str | None, path: Path, line: int, name: str, lowest: int = 0) -> int:
+    """A CSV cell as a frame index (``lowest`` 0) or track id (``lowest`` -1) in
+    ``lowest..MAX_INDEX``.
 
     Raises:
-        InputFileError: a ``required`` column is absent.
+        InputFileError: empty, not a whole number, or out of range (names file, line, field).
     """
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        header = list(reader.fieldnames or [])
-        absent = [c for c in required if c not in header]
-        if absent:
-            raise InputFileError(
-                path,
-                f"missing column(s) {', '.join(absent)} (header: {', '.join(header) or 'none'})",
-                line=1,
-            )
-        return header, list(reader)
+    x = _float(value, path, line, name)
+    if not (x.is_integer() and lowest <= x <= MAX_INDEX):
+        raise InputFileError(
+            path, f"'{value}' is not a whole number in {lowest}..{MAX_INDEX}", line=line, field=name
+        )
+    return int(x)
+
+
+def read_csv(
+    path: Path, required: Sequence[str]
+) -> tuple[list[str], list[dict[str, str]], list[int]]:
+    """Header, rows and the file line of each row of a CSV file (every row as wide as the
+    header).
+
+    Raises:
+        InputFileError: a ``required`` column is absent, a row of the wrong width, bad UTF-8
+            or a broken CSV row (naming the line).
+    """
+    table = CsvRows(path, "CSV file", strict=True)
+    header = table.header
+    absent = [c for c in required if c not in header]
+    if absent:
+        raise InputFileError(
+            path,
+            f"missing column(s) {', '.join(absent)} (header: {', '.join(header) or 'none'})",
+            line=1,
+        )
+    lines: list[int] = []
+    rows: list[dict[str, str]] = []
+    for line, row in table:
+        lines.append(line)
+        rows.append({k: v or "" for k, v in row.items()})
+    return header, rows, lines
 
 
 def run_sequence_name(folder: Path) -> str:
@@ -96,10 +132,10 @@ def run_sequence_name(folder: Path) -> str:
     folder name (runs of different methods on one sequence share the name there)."""
     summary = folder / "run.json"
     if summary.is_file():
-        try:
-            value = json.loads(summary.read_text()).get("sequence")
-        except (json.JSONDecodeError, AttributeError):
-            raise InputFileError(summary, "not a JSON object") from None
+        data = read_json(summary, "run summary")
+        if not isinstance(data, dict):
+            raise InputFileError(summary, "not a JSON object")
+        value = data.get("sequence")
         if value:
             return str(value)
     return folder.name
@@ -125,24 +161,24 @@ class _RunReader:
             ConfigurationError: a method of this folder already has records for ``seq``.
         """
         path = folder / "records.csv"
-        header, rows = read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
+        header, rows, lines = read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
         truth_col = next((c for c in TRUTH_COLUMNS if c in header), None)
         self.truth_found |= truth_col is not None
         by_method: dict[str, list[tuple[float, float, str]]] = {}
-        for lineno, row in enumerate(rows, start=2):
+        for lineno, row in zip(lines, rows):
             method = row["method"]
             if self.methods and method not in self.methods:
                 continue
-            d = _float(row["distance_m"], path, lineno, "distance_m")
+            d = _distance(row, path, lineno)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             reason = row.get("reason", "") or ""
             by_method.setdefault(method, []).append((d, g, reason))
             tid = row.get("track_id", "")
             self.records.add(
                 sequence=seq,
-                frame=int(_float(row["frame"], path, lineno, "frame")),
+                frame=_index(row["frame"], path, lineno, "frame"),
                 timestamp_s=_float(row.get("timestamp_s", ""), path, lineno, "timestamp_s"),
-                track_id=int(_float(tid, path, lineno, "track_id")) if tid else -1,
+                track_id=_index(tid, path, lineno, "track_id", -1) if tid else -1,
                 method=method,
                 rotation="",
                 distance_m=d,
@@ -166,8 +202,8 @@ class _RunReader:
         path = folder / TRACKS_NAME
         if not path.is_file():
             return
-        _, rows = read_csv(path, TRACK_FIELDS)
-        for lineno, row in enumerate(rows, start=2):
+        _, rows, lines = read_csv(path, TRACK_FIELDS)
+        for lineno, row in zip(lines, rows):
             values = {k: _float(row[k], path, lineno, k) for k in TRACK_FIELDS}
             self.tracks.add(sequence=seq, method=", ".join(methods), **values)
 
@@ -179,20 +215,22 @@ class _RunReader:
         path = folder / "frames.csv"
         if not path.is_file():
             return
-        header, rows = read_csv(path, ("frame",))
+        header, rows, lines = read_csv(path, ("frame",))
         has_truth = any(c in header for c in THETA_TRUTH_COLUMNS)
         truth_path = path if has_truth else _truth_frame_log(folder)
         if truth_path is not None and seq not in self.theta_truth:
-            truth = (header, rows) if truth_path == path else read_csv(truth_path, ("frame",))
+            truth = (
+                (header, rows, lines) if truth_path == path else read_csv(truth_path, ("frame",))
+            )
             self._add_true_theta(truth_path, seq, *truth)
         values = {
-            key: [_float(row[key], path, n, key) for n, row in enumerate(rows, start=2)]
+            key: [_float(row[key], path, n, key) for n, row in zip(lines, rows)]
             for key in ("theta_deg", *TIME_COLUMNS)
             if key in header
         }
         if any(math.isfinite(v) for v in values.get("theta_deg", [])):
             source = folder.name if shared else "run"
-            for lineno, (row, th) in enumerate(zip(rows, values["theta_deg"]), start=2):
+            for lineno, row, th in zip(lines, rows, values["theta_deg"]):
                 self._add_theta(path, lineno, row, seq, source, th)
         for key in TIME_COLUMNS:
             finite = [v for v in values.get(key, []) if math.isfinite(v)]
@@ -202,13 +240,18 @@ class _RunReader:
                 self.times.setdefault((method, key), []).extend(finite)
 
     def _add_true_theta(
-        self, path: Path, seq: str, header: list[str], rows: list[dict[str, str]]
+        self,
+        path: Path,
+        seq: str,
+        header: list[str],
+        rows: list[dict[str, str]],
+        lines: list[int],
     ) -> None:
         column = next((c for c in THETA_TRUTH_COLUMNS if c in header), None)
         if column is None:
             return
         self.theta_truth.add(seq)
-        for lineno, row in enumerate(rows, start=2):
+        for lineno, row in zip(lines, rows):
             th = _float(row[column], path, lineno, column)
             self._add_theta(path, lineno, row, seq, "truth", th)
 
@@ -217,7 +260,7 @@ class _RunReader:
     ) -> None:
         self.theta.add(
             sequence=seq,
-            frame=int(_float(row["frame"], path, lineno, "frame")),
+            frame=_index(row["frame"], path, lineno, "frame"),
             timestamp_s=_float(row.get("timestamp_s", ""), path, lineno, "timestamp_s"),
             source=source,
             theta_deg=th,
@@ -240,6 +283,23 @@ class _RunReader:
         capped, ok = cap_estimates(rec.array("distance_m"), rec.array("reason", object))
         rec.data["distance_m"] = [float(v) if o else math.nan for v, o in zip(capped, ok)]
         rec.data["scored"] = list(ok & np.isfinite(rec.array("gt_distance_m")))
+
+
+def _distance(row: dict[str, str], path: Path, line: int) -> float:
+    """A record's ``distance_m``; a record of status ``ok`` must have a finite one > 0.
+
+    Raises:
+        InputFileError: not a number, or an ``ok`` record without a plausible distance.
+    """
+    d = _float(row["distance_m"], path, line, "distance_m")
+    if row["status"] == "ok" and not (math.isfinite(d) and d > 0):
+        raise InputFileError(
+            path,
+            f"a record of status ok has distance '{row['distance_m']}' (expected metres > 0)",
+            line=line,
+            field="distance_m",
+        )
+    return d
 
 
 def _scored_set(vals: list[tuple[float, float, str]]) -> ScoredSet:

@@ -5,7 +5,6 @@ against the synthetic truth, θ of the odometry against the true θ, times from
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -14,16 +13,14 @@ from slopedist.errors import InputFileError
 from slopedist.evaluation import compact_names
 from slopedist.report.data import ReportData, ReportOptions, SourceKind
 from slopedist.report.runs import demo_number, run_report_data
+from slopedist.textfiles import read_json
 
 DEMO_RESULTS = "results.json"
 """File that marks a ``slopedist demo`` output folder (with ``<scenario>/records.csv``)."""
 
 
 def _read_results(path: Path) -> dict[str, Any]:
-    try:
-        results = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputFileError(path, f"not valid JSON ({exc})") from None
+    results = read_json(path, "demo results")
     if not isinstance(results, dict) or not isinstance(results.get("scenarios"), dict):
         raise InputFileError(path, "lacks 'scenarios' (not a slopedist demo output?)")
     return results

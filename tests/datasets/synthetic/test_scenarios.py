@@ -128,3 +128,30 @@ def test_unknown_name_and_missing_file() -> None:
         load_scenario("no_such_scenario")
     with pytest.raises(MissingInputError, match="not found"):
         load_scenario("missing/dir/s.toml")
+
+
+@pytest.mark.parametrize("value", ["1e308", "-1e308", "2e6"])
+def test_huge_numbers_are_clear_errors(tmp_path: Path, value: str) -> None:
+    text = builtin_text("bumps_and_curves").replace("start_m = 20.0", f"start_m = {value}", 1)
+    path = tmp_path / "evil.toml"
+    path.write_text(text)
+    line = text.splitlines().index(f"start_m = {value}") + 1
+    with pytest.raises(
+        InputFileError,
+        match=rf"line {line}, field 'target\[0\]\.start_m': must be finite and within",
+    ):
+        load_scenario(path)
+
+
+def test_non_utf8_huge_integer_and_oversized_scenario_files(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'name = "x"\ndescription = "caf\xe9"\n')
+    with pytest.raises(InputFileError, match=r"line 2: not UTF-8 text"):
+        load_scenario(path)
+    path.write_bytes(b"seed = " + b"9" * 200_000 + b"\n")
+    with pytest.raises(InputFileError, match=r"not valid TOML"):
+        load_scenario(path)
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"# " + b"x" * 1_000_000 + b"\n")
+    with pytest.raises(InputFileError, match="larger than"):
+        load_scenario(big)

@@ -4,4 +4,6 @@
 (:mod:`~slopedist.datasets.synthetic.scenarios`); ``simulate_truth`` drives it
 (:mod:`~slopedist.datasets.synthetic.scene`); :class:`~slopedist.datasets.synthetic.sequence.
 SyntheticSequence` renders its frames with boxes and depth maps.
+:func:`~slopedist.datasets.synthetic.traffic.simulate_traffic` is the light-weight counterpart
+for ``ours``: exactly projected 3D boxes on a flat road, no images.
 """

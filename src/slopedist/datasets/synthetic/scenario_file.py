@@ -475,4 +475,6 @@ def load_scenario_text(text: str, path: str, default_name: str = "scenario") -> 
         raise InputFileError(
             path, f"not valid TOML: {exc}", line=int(m.group(1)) if m else None
         ) from None
+    except (ValueError, RecursionError) as exc:  # e.g. an integer of 200,000 digits
+        raise InputFileError(path, f"not valid TOML: {exc}") from None
     return parse_scenario(data, path, text, default_name)

@@ -44,6 +44,11 @@ def field_lines(text: str) -> dict[str, int]:
     return lines
 
 
+MAX_MAGNITUDE = 1e6
+"""Largest magnitude of any number in a scenario (metres, km/h, pixels, ...): a road of
+1000 km is more than any scenario needs, and larger values only overflow the renderer."""
+
+
 class TableReader:
     """Typed access to a parsed TOML table with errors naming file, line and field."""
 
@@ -111,8 +116,8 @@ class TableReader:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(field, f"must be a number, got {kind(value)}")
         value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(field, f"must be finite, got {value}")
+        if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+            raise self.fail(field, f"must be finite and within ±{MAX_MAGNITUDE:g}, got {value:g}")
         if check is not None and not check(value):
             raise self.fail(field, f"must be {expect}, got {value:g}")
         return value
@@ -153,7 +158,10 @@ class TableReader:
             not isinstance(value, list)
             or len(value) != n
             or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and math.isfinite(v)
+                and abs(v) <= MAX_MAGNITUDE
                 for v in value
             )
         ):

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from slopedist.datasets.synthetic.scenario_file import load_scenario_text
 from slopedist.datasets.synthetic.scene import Scenario
 from slopedist.errors import InputFileError, MissingInputError
+from slopedist.textfiles import read_text
 
 if TYPE_CHECKING:
     from importlib.abc import Traversable
@@ -34,6 +35,9 @@ SUITE = (
     "ego_sag",
 )
 """The built-in scenarios, in the order of the demo's tables."""
+
+MAX_SCENARIO_BYTES = 1_000_000
+"""Largest scenario file read, bytes."""
 
 
 def _builtin_dir() -> Traversable:
@@ -64,11 +68,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     """
     p = Path(name_or_path)
     if p.is_file():
-        try:
-            text = p.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputFileError(p, "not a UTF-8 text file") from None
-        return load_scenario_text(text, str(p), p.stem)
+        if p.stat().st_size > MAX_SCENARIO_BYTES:
+            raise InputFileError(p, f"larger than {MAX_SCENARIO_BYTES} bytes: not a scenario")
+        return load_scenario_text(read_text(p, "scenario file"), str(p), p.stem)
     name = str(name_or_path)
     if name in builtin_names():
         return load_scenario_text(builtin_text(name), f"builtin:{name}", name)

@@ -10,7 +10,7 @@ that ``slopedist eval kitti-tracking`` scores; ``benchmarks/ours_kitti.py`` chec
 estimator does not depend on that choice by re-running it with priors fitted leave-one-sequence-out.
 
 The heading prior (:class:`YawPrior`) is different: its defaults are fitted
-(:mod:`~slopedist.estimators.ours.fitting`) to the headings of the shared sequences' labels, and
+(:mod:`~slopedist.offline.ours_fitting`) to the headings of the shared sequences' labels, and
 ``benchmarks/ours_kitti.py`` reports the figures with each sequence scored under the fit to the
 other twelve (leave one sequence out).
 
@@ -163,7 +163,7 @@ class YawPrior:
     else uniform (crossing, turning, parked across).
 
     The defaults are the maximum-likelihood fit
-    (:func:`~slopedist.estimators.ours.fitting.fit_yaw_prior`) to the headings of all Car and
+    (:func:`~slopedist.offline.ours_fitting.fit_yaw_prior`) to the headings of all Car and
     Van labels kept by the evaluation protocol in the 13 shared KITTI tracking sequences;
     ``benchmarks/ours_kitti.py`` scores each sequence with the fit to the other twelve instead
     and prints both. The fit uses the labels' headings only, never a distance error.

@@ -11,11 +11,12 @@ update all tracks of a frame at once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import iou_matrix
+from slopedist.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -184,6 +185,119 @@ class TrackArrays:
         )
 
 
+class TrackUpdate(NamedTuple):
+    """What a frame writes into the tracks, one column per box of the frame.
+
+    Attributes:
+        rows: ``(n,)`` the track column each box continues, −1 where it starts a track.
+        track_ids: ``(n,)`` the boxes' track ids (−1: none).
+        filter_rows: ``(5, n)`` the distance filter's rows (:data:`ROW_FILTER`).
+        log_heading_belief: ``(n, K)`` the heading belief, or None when it is not kept (tracks
+            then carry the prior).
+        gradient_mean_rad, gradient_var_rad2: ``(n,)`` the target gradient's random walk.
+        gradient_var_other_rad2: ``(n,)`` per-vehicle variance of the latest observation.
+        boxes_px: ``(n, 4)`` this frame's boxes.
+        time_s: the frame's time.
+        R_world_cam: ``(3, 3)`` camera-to-world rotation (identity when unknown).
+        turned_boxes_px: ``(T, 4)`` the tracks' last boxes turned with the camera, or None when
+            the box motion is not kept (only id-less tracks and the box-noise estimate use it).
+    """
+
+    rows: IntArray
+    track_ids: IntArray
+    filter_rows: FloatArray
+    log_heading_belief: FloatArray | None
+    gradient_mean_rad: FloatArray
+    gradient_var_rad2: FloatArray
+    gradient_var_other_rad2: FloatArray
+    boxes_px: FloatArray
+    time_s: float
+    R_world_cam: FloatArray
+    turned_boxes_px: FloatArray | None
+
+
+def write_continued(
+    tracks: TrackArrays, update: TrackUpdate, continued: NDArray[np.bool_] | None
+) -> None:
+    """Write the update of the boxes that continue a track into ``tracks`` (in place);
+    ``continued`` is None when every box does."""
+    r = update.rows if continued is None else update.rows[continued]
+    if not r.size:
+        return
+    b, filt = update.boxes_px.T, update.filter_rows
+    g_mean, g_var = update.gradient_mean_rad, update.gradient_var_rad2
+    g_other = update.gradient_var_other_rad2
+    belief = update.log_heading_belief
+    log_w = None if belief is None else belief.T
+    if continued is not None:
+        b, filt, g_mean, g_var, g_other = (
+            a[..., continued] for a in (b, filt, g_mean, g_var, g_other)
+        )
+        log_w = None if log_w is None else log_w[..., continued]
+    S = tracks.state[:, r]
+    t = update.time_s
+    S[ROW_FILTER] = filt
+    S[ROW_GRAD_MEAN] = g_mean
+    S[ROW_GRAD_VAR] = g_var
+    S[ROW_GRAD_OTHER] = g_other
+    if update.turned_boxes_px is not None:
+        S[ROW_BOX_VEL] = (b - update.turned_boxes_px[r].T) / np.maximum(t - S[ROW_LAST_T], 1e-6)
+    S[ROW_PREV_T] = S[ROW_LAST_T]
+    S[ROW_LAST_T] = t
+    S[ROW_LAST_BOX] = b
+    S[ROW_ROT] = update.R_world_cam.reshape(9, 1)
+    S[ROW_N_OBS] += 1.0
+    if log_w is not None:
+        S[ROW_LOG_W:] = log_w
+    tracks.state[:, r] = S
+
+
+def start_tracks(
+    tracks: TrackArrays,
+    update: TrackUpdate,
+    new: NDArray[np.bool_],
+    new_uid: IntArray,
+    prior_log_w: FloatArray,
+) -> TrackArrays:
+    """``tracks`` with new tracks for the boxes ``new`` (uids ``new_uid``) appended.
+
+    A new track that carries a box track id replaces any live track with that id (its vehicle
+    failed the gate); a second box with an id already continued in this frame gets an id-less
+    track. Tracks whose belief is not kept start with ``prior_log_w`` ``(K,)``.
+    """
+    ext = update.track_ids[new].copy()
+    taken = set(tracks.ext_id[update.rows[~new]].tolist())  # ids continued in this frame
+    seen: set[int] = set()
+    for i, e in enumerate(ext.tolist()):
+        if e >= 0 and (e in taken or e in seen):
+            ext[i] = -1
+        seen.add(e)
+    belief = update.log_heading_belief
+    k = new_uid.shape[0]
+    add = TrackArrays.start(
+        new_uid,
+        ext,
+        update.filter_rows[:, new],
+        np.broadcast_to(prior_log_w, (k, prior_log_w.size)) if belief is None else belief[new],
+        update.gradient_mean_rad[new],
+        update.gradient_var_rad2[new],
+        update.gradient_var_other_rad2[new],
+        update.time_s,
+        update.boxes_px[new],
+        update.R_world_cam,
+    )
+    claimed = ext[ext >= 0]
+    if claimed.size and len(tracks):
+        replaced = (
+            (tracks.ext_id[:, None] == claimed[None, :]).any(axis=1)
+            if claimed.size * len(tracks) <= 4096  # cheaper than np.isin for a few
+            else np.isin(tracks.ext_id, claimed)
+        )
+        if np.count_nonzero(replaced):
+            tracks = tracks.keep(~replaced)
+    return tracks.concat(add)
+
+
 def turn_boxes(
     boxes: FloatArray,
     f: float,
@@ -280,16 +394,15 @@ def associate(
     has_id = track_ids >= 0
     if np.count_nonzero(has_id) == n:
         return rows
-    used: set[int] = set()  # id-less tracks are never taken by an id
     free_boxes = np.flatnonzero(~has_id)
     free_tracks = np.flatnonzero(tracks.ext_id < 0)
     if free_boxes.size and free_tracks.size:
         ref = tracks.last_box if predicted is None else predicted
-        iou = iou_matrix(boxes[free_boxes], ref[free_tracks])
-        bi, ti = np.nonzero(iou >= min_iou)
-        order = np.argsort(-iou[bi, ti], kind="stable")
+        bi, ti, iou = _iou_candidates(boxes[free_boxes], ref[free_tracks], min_iou)
+        order = np.argsort(-iou, kind="stable")
         taken_b: set[int] = set()
-        for o in order:
+        used: set[int] = set()  # id-less tracks are never taken by an id
+        for o in order.tolist():
             b, t = int(bi[o]), int(free_tracks[ti[o]])
             if b in taken_b or t in used:
                 continue
@@ -297,3 +410,27 @@ def associate(
             taken_b.add(b)
             used.add(t)
     return rows
+
+
+_DENSE_MAX_PAIRS = 2048
+"""Up to this many (box, track) pairs every IoU is computed at once (cheaper than sorting)."""
+
+
+def _iou_candidates(
+    boxes: FloatArray, tracks: FloatArray, min_iou: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """The (box, track) pairs with IoU ≥ ``min_iou``, row-major, and their IoU.
+
+    With ``min_iou > 0`` only overlapping boxes can qualify, so for many boxes the IoU is
+    computed for the overlapping pairs only (:func:`overlapping_pairs`: near linear in the
+    number of boxes); the pairs and values are the same as from the full matrix.
+    """
+    if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
+        iou = iou_matrix(boxes, tracks)
+        bi, ti = np.nonzero(iou >= min_iou)
+        return bi, ti, iou[bi, ti]
+    bi, ti = overlapping_pairs(boxes, tracks)
+    iou = pair_iou(boxes, tracks, bi, ti)
+    keep = np.flatnonzero(iou >= min_iou)
+    keep = keep[np.lexsort((ti[keep], bi[keep]))]  # row-major, as np.nonzero gives them
+    return bi[keep], ti[keep], iou[keep]

@@ -13,13 +13,13 @@ from hypothesis import strategies as st
 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours import cues
-from slopedist.estimators.ours.fitting import (
+from slopedist.estimators.ours.priors import YawPrior, yaw_grid, yaw_prior_weights
+from slopedist.offline.ours_fitting import (
     box_edge_noise_px,
     fit_yaw_prior,
     kitti_heading,
     project_kitti_boxes,
 )
-from slopedist.estimators.ours.priors import YawPrior, yaw_grid, yaw_prior_weights
 
 F, CX, CY, H_CAM = 721.5, 609.6, 172.9, 1.65
 P2 = np.array([[F, 0.0, CX, 0.0], [0.0, F, CY, 0.0], [0.0, 0.0, 1.0, 0.0]])
@@ -129,7 +129,7 @@ def test_box_edge_noise_is_robust_to_outliers_and_offsets() -> None:
 def test_shipped_defaults_are_the_fit_on_all_shared_sequences(kitti_tracking_dir: Path) -> None:
     from slopedist.datasets.kitti_tracking import list_sequences
     from slopedist.estimators.ours import OursConfig
-    from slopedist.estimators.ours.fitting import fit_parameters, kitti_tracking_fit_inputs
+    from slopedist.offline.ours_fitting import fit_parameters, kitti_tracking_fit_inputs
 
     inputs = [
         kitti_tracking_fit_inputs(kitti_tracking_dir, s) for s in list_sequences(kitti_tracking_dir)

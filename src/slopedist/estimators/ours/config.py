@@ -1,0 +1,146 @@
+"""Options of ``ours`` (:class:`OursConfig`): the physical priors, the fitted parameters and the
+switches of the ablation.
+
+Convention: camera x right, y down, z forward; metres, seconds, radians, pixels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from slopedist.errors import ConfigurationError
+from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.priors import DimensionPrior, YawPrior
+from slopedist.estimators.ours.selfcal import SelfCalConfig
+
+
+@dataclass(frozen=True)
+class OursConfig:
+    """Options of ``ours``.
+
+    Defaults are physical priors set without looking at evaluation results, except
+    ``yaw_prior`` and ``box_sigma_px``: those are fitted on the labels of the 13 shared KITTI
+    tracking sequences (:func:`~slopedist.offline.ours_fitting.fit_parameters`: the
+    distribution of the labels' headings; the spread of the labels' 2D box edges around their
+    3D boxes' projection — never a distance error), and ``benchmarks/ours_kitti.py`` reports the
+    figures with each sequence scored under the fit on the other twelve.
+
+    The switches turn parts off for the ablation in ``benchmarks/ours_kitti.py``.
+
+    Attributes:
+        use_width: use the box-width cue.
+        yaw_hypotheses: consider headings other than ψ = 0.
+        use_ground_contact: fuse the ground-contact cue.
+        gradient_feedback: use each target's continuous road gradient α (estimated over its
+            track from Δy and the size distance) in its ground-contact cue, instead of the prior
+            α ~ N(0, ``gradient_sigma_rad``). α is estimated and reported either way.
+        motion_model: filter the distance over time (constant velocity; speed and TTC).
+        yaw_memory: carry each track's heading belief over frames (tempered evidence).
+        self_calibrate: estimate θ0 and h online.
+        box_sigma_px: pixel noise of a box edge (the prior of the online estimate when
+            ``adapt_box_noise``); fitted, see above (0.31 px: the labels' boxes are their 3D
+            boxes' projections, rounded; a 3D detector's boxes, e.g. PointRCNN's, are
+            projections of its own 3D boxes, whose errors act through the size and heading
+            priors rather than as pixel noise).
+        adapt_box_noise: estimate the box-edge noise online from the second differences of the
+            tracks' box edges (10 Hz tracks are smooth, so what is left is detector noise).
+        theta_sigma_rad: per-frame jitter of the ego gradient's vanishing line.
+        no_rotation_theta_sigma_rad: the same when the frame has no rotation (θ of a camera at
+            rest is used then).
+        gradient_sigma_rad: prior spread of a target's road gradient relative to the ego's.
+        height_sigma_m: camera-height uncertainty when not self-calibrating.
+        mount_sigma_rad: mount-angle uncertainty when not self-calibrating.
+        rate_sigma_per_s: prior spread of the relative rate Ż/Z of a new track.
+        yaw_prior: heading prior (fitted, see above).
+        atypical_height_weight: prior probability that a vehicle's height is atypical for its
+            class (a sports car, a pick-up or a box van labelled ``Car``); 0 turns it off.
+        atypical_height_factor: how much wider the height spread of such a vehicle is.
+        yaw_evidence_weight: weight (0–1] of one frame's heading evidence in a track's belief
+            (consecutive frames are not independent evidence).
+        yaw_memory_s: time constant with which a track's heading belief relaxes to the prior.
+        process: process noise of the filters.
+        max_age_s: a track unseen for longer is dropped.
+        min_iou: IoU needed to continue an id-less track.
+        gate_sigma: a box further than this many σ from its track's prediction starts a new track.
+        truncation_factor: noise multiplier of a cue whose box edge touches the image border
+            (it keeps a weak weight, so that a box cut on every side still gets a distance).
+        censor_border_cuts: such a cue also bounds the distance from above (a box cut by the
+            border is smaller than its vehicle, so its size cue says at least as far as the
+            vehicle is, and a cut bottom hides the ground contact below the image):
+            :func:`~slopedist.estimators.ours.cues.censor_upper`.
+        occlusion_aware: a box with an edge on a nearer target's box (its bottom lower in the
+            image) may show only part of its vehicle (a box drawn around what is visible): its
+            width or height cue, if it says farther than the ground contact by more than their
+            noise explains, gets that excess as extra variance
+            (:func:`~slopedist.estimators.ours.cues.hidden_sides`,
+            :func:`~slopedist.estimators.ours.cues.occlusion_log_var`), so the fusion leans on
+            the ground contact (and the self-calibration, which uses the size cue).
+        occlusion_gate_sigma: the outlier test of the occlusion check, in standard deviations
+            (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
+            for an edge touching a nearer box.
+        priors: class → dimension prior (None = the built-in table).
+        selfcal: self-calibration priors and noise levels.
+    """
+
+    use_width: bool = True
+    yaw_hypotheses: bool = True
+    use_ground_contact: bool = True
+    gradient_feedback: bool = False
+    motion_model: bool = True
+    yaw_memory: bool = False
+    self_calibrate: bool = False
+    box_sigma_px: float = 0.31
+    adapt_box_noise: bool = False
+    theta_sigma_rad: float = math.radians(0.3)
+    no_rotation_theta_sigma_rad: float = math.radians(1.0)
+    gradient_sigma_rad: float = math.radians(1.0)
+    height_sigma_m: float = 0.03
+    mount_sigma_rad: float = math.radians(0.2)
+    rate_sigma_per_s: float = 0.5
+    yaw_prior: YawPrior = field(default_factory=YawPrior)
+    atypical_height_weight: float = 0.0
+    atypical_height_factor: float = 3.0
+    yaw_evidence_weight: float = 0.3
+    yaw_memory_s: float = 2.0
+    process: kf.ProcessNoise = field(default_factory=kf.ProcessNoise)
+    max_age_s: float = 1.0
+    min_iou: float = 0.3
+    gate_sigma: float = 5.0
+    truncation_factor: float = 10.0
+    censor_border_cuts: bool = True
+    occlusion_aware: bool = True
+    occlusion_gate_sigma: float = 3.0
+    priors: dict[str, DimensionPrior] | None = None
+    selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "box_sigma_px",
+            "theta_sigma_rad",
+            "no_rotation_theta_sigma_rad",
+            "gradient_sigma_rad",
+            "height_sigma_m",
+            "mount_sigma_rad",
+            "rate_sigma_per_s",
+            "yaw_memory_s",
+            "max_age_s",
+            "gate_sigma",
+            "truncation_factor",
+            "yaw_evidence_weight",
+            "occlusion_gate_sigma",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigurationError(
+                    f"ours option {name} must be a finite number > 0, got {value!r}"
+                )
+        if not 0.0 <= self.min_iou <= 1.0:
+            raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
+
+    @property
+    def tracking(self) -> bool:
+        """Whether any state is carried from frame to frame (so boxes must be associated)."""
+        return (
+            self.motion_model or self.yaw_memory or self.gradient_feedback or self.adapt_box_noise
+        )

@@ -1,0 +1,371 @@
+"""The cue steps of one frame of ``ours``: size cues, ground contact, occlusion, fusion over the
+heading hypotheses, the target gradient and the outputs.
+
+Functions of the frame's records (:mod:`~slopedist.estimators.ours.records`) and the options; the
+state (tracks, self-calibration) stays with :class:`~slopedist.estimators.ours.estimator.
+OursEstimator`. Camera frame x right, y down, z forward; distances in metres, log distances
+``ℓ = log(Z / 1 m)``, angles in radians, image coordinates in pixels.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.camera import Camera
+from slopedist.estimators.ours import cues, fusion
+from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.cues import SizeCue
+from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
+from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
+from slopedist.estimators.ours.records import (
+    BoxEstimates,
+    CalibrationInUse,
+    DistanceFilterResult,
+    FrameTargets,
+    FusedCues,
+    SizeCues,
+    TargetGradient,
+    TrackMatch,
+    UpperBound,
+    filled,
+)
+from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN
+
+FloatArray = NDArray[np.float64]
+
+
+def size_cues(
+    cfg: OursConfig, cam: Camera, targets: FrameTargets, calib: CalibrationInUse
+) -> SizeCues:
+    """Height and width cues per (target, heading hypothesis); a dimension cut by the image
+    border keeps a weak Gaussian weight and bounds the distance from above."""
+    hyp = targets.classes.hypotheses
+    tall = targets.classes.height_m > calib.height_m  # the roof above the camera
+    height = cues.height_cue_log(
+        targets.bottom_px - targets.top_px,
+        cam.f,
+        calib.height_m,
+        targets.box_sigma_px,
+        calib.height_sigma_m,
+        hyp.height_m,
+        hyp.half_extent_m,
+        hyp.half_extent_var_m2,
+        tall[:, None] if any_true(tall) else None,
+    )
+    if cfg.use_width:
+        width = cues.width_cue_log(
+            targets.left_px,
+            targets.right_px,
+            cam.f,
+            cam.c_x,
+            targets.box_sigma_px,
+            hyp.half_width_cos_m,
+            hyp.half_width_sin_m,
+            hyp.half_length_cos_m,
+            hyp.half_length_sin_m,
+            hyp.min_centre_depth_m,
+        )
+        length_share = (1.0 - width.lever) * hyp.log_sigma_length
+        length_share *= length_share
+        width = SizeCue(width.mean, width.lever, width.var_white, length_share)
+    else:
+        nan = np.full(hyp.half_extent_m.shape, np.nan)
+        width = SizeCue(nan, nan, nan, nan)
+    return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
+
+
+def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
+    """The size cues with the dimensions cut by the image border (height: top or bottom;
+    width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
+    cuts = targets.border_cuts
+    if cuts is None:
+        return size
+    hyp = targets.classes.hypotheses
+    height, width, bounds = size
+    cut_h = (cuts.top | cuts.bottom)[:, None]
+    if any_true(cut_h):
+        height = _cut_by_border(cfg, height, hyp.log_sigma_height, cut_h, bounds, True)
+    if cfg.use_width and any_true(cuts.sides):
+        width = _cut_by_border(cfg, width, hyp.log_sigma_width, cuts.sides[:, None], bounds, False)
+    return SizeCues(height, width, bounds)
+
+
+def _cut_by_border(
+    cfg: OursConfig,
+    cue: SizeCue,
+    log_sigma: FloatArray,
+    rows: NDArray[np.bool_],
+    bounds: list[UpperBound],
+    inflate_other: bool,
+) -> SizeCue:
+    """``cue`` with its white variance (and its other variance when ``inflate_other``)
+    multiplied by ``truncation_factor²`` where ``rows`` ``(n, 1)``; the cue as it was becomes
+    an upper bound there (appended to ``bounds``) when ``censor_border_cuts``."""
+    if cfg.censor_border_cuts:
+        bounds.append(UpperBound(cue.mean, _total_var(cue, log_sigma), rows))
+    inflation = cfg.truncation_factor**2
+    return SizeCue(
+        cue.mean,
+        cue.lever,
+        np.where(rows, cue.var_white * inflation, cue.var_white),
+        np.where(rows, cue.var_other * inflation, cue.var_other)
+        if inflate_other
+        else cue.var_other,
+    )
+
+
+def ground_contact_cue(
+    cfg: OursConfig,
+    cam: Camera,
+    targets: FrameTargets,
+    bounds: list[UpperBound],
+    alpha: FloatArray | float,
+    alpha_var: FloatArray | float,
+    theta_rad: float,
+    jitter_rad: float,
+    calib: CalibrationInUse,
+) -> LogCue:
+    """Eq. 1 with the horizon of θ + α per hypothesis; a box cut at the bottom keeps a weak
+    weight and bounds the distance from above (appended to ``bounds``).
+
+    ``alpha``, ``alpha_var``: the target gradient relative to θ the cue assumes (rad, rad²;
+    ``(n, 1)`` per target or one for all).
+    """
+    f = cam.f
+    cos2 = math.cos(theta_rad) ** 2
+    v_target = cam.c_y - f * (
+        np.tan(theta_rad + alpha) if cfg.gradient_feedback else math.tan(theta_rad)
+    )
+    row_white = targets.box_sigma_px**2 + (f * jitter_rad / cos2) ** 2
+    row_other = (f / cos2) ** 2 * (alpha_var + calib.horizon_offset_sigma_rad**2)
+    hyp = targets.classes.hypotheses
+    ground = cues.ground_contact_log_cue(
+        targets.bottom_px,
+        v_target,
+        f,
+        calib.height_m,
+        hyp.half_extent_m,
+        row_white,
+        row_other,
+        calib.height_sigma_m,
+        hyp.half_extent_sigma_m,
+    )
+    cuts = targets.border_cuts
+    if cuts is not None and any_true(cuts.bottom):
+        rows = cuts.bottom[:, None]
+        if cfg.censor_border_cuts:
+            bounds.append(UpperBound(ground.mean, ground.var, rows))
+        ground = fusion.inflate(ground, rows, cfg.truncation_factor**2)
+    return ground
+
+
+def occlusion_adjusted(
+    cfg: OursConfig, targets: FrameTargets, size: SizeCues, ground: LogCue
+) -> SizeCues:
+    """A size cue that says too far may show only part of a vehicle hidden behind a nearer
+    one (censored): which sides nearer boxes may cut, then the outlier test against the
+    ground contact; the unexplained excess becomes per-vehicle variance."""
+    gate = cfg.occlusion_gate_sigma
+    hyp = targets.classes.hypotheses
+    height, width, bounds = size
+    cut_w, cut_h = hidden_sides(targets.boxes_px, gate * targets.box_sigma_px)
+    if any_true(cut_h):
+        excess = unexplained_excess(
+            height.mean, _total_var(height, hyp.log_sigma_height), ground.mean, ground.var, gate
+        )
+        extra = occlusion_log_var(excess, cut_h[:, None])
+        height = SizeCue(height.mean, height.lever, height.var_white, height.var_other + extra)
+    if cfg.use_width and any_true(cut_w):
+        excess = unexplained_excess(
+            width.mean, _total_var(width, hyp.log_sigma_width), ground.mean, ground.var, gate
+        )
+        extra = occlusion_log_var(excess, cut_w[:, None])
+        width = SizeCue(width.mean, width.lever, width.var_white, width.var_other + extra)
+    return SizeCues(height, width, bounds)
+
+
+def fuse_hypotheses(
+    targets: FrameTargets,
+    size: SizeCues,
+    ground: LogCue | None,
+    log_prior: FloatArray,
+    height_modes: list[float],
+) -> FusedCues:
+    """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
+    vehicles and, less often, ones of atypical height), censor by the bounds, and collapse
+    the hypotheses by their posterior weights.
+
+    ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
+    factor of each body-style mode (1: the class prior's).
+    """
+    hyp = targets.classes.hypotheses
+    n = targets.boxes_px.shape[0]
+    n_modes = len(height_modes)
+    height, width = size.height, size.width
+    size_modes = [
+        fusion.fuse_size_cues(
+            height.mean,
+            height.var_white,
+            height.var_other,
+            height.lever,
+            width.mean,
+            width.var_white,
+            width.var_other,
+            width.lever,
+            hyp.log_sigma_height if k == 1.0 else k * hyp.log_sigma_height,
+            hyp.log_sigma_width,
+            hyp.corr_height_width,
+        )
+        for k in height_modes
+    ]
+    size_cue = size_modes[0] if n_modes == 1 else fusion.concat_cues(size_modes)
+    fused = size_cue
+    if ground is not None:
+        fused = fusion.fuse_log_cues(
+            size_cue, ground if n_modes == 1 else fusion.concat_cues([ground] * n_modes)
+        )
+    for bound, bound_var, rows_cut in size.bounds:
+        if n_modes > 1:
+            bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
+        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
+    measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
+    extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
+    heading_weights = weights.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else weights
+    return FusedCues(
+        measurement,
+        fusion.mix_hypotheses(size_cue, weights),
+        fused.loglik,
+        log_prior,
+        heading_weights,
+        np.add.reduce(weights * extent, axis=1),
+    )
+
+
+def target_gradient(
+    cfg: OursConfig,
+    cam: Camera,
+    targets: FrameTargets,
+    match: TrackMatch,
+    fused: FusedCues,
+    rows: NDArray[np.int64],
+    theta_rad: float,
+    jitter_rad: float,
+    cam_height_m: float,
+) -> TargetGradient:
+    """Each target's continuous road gradient α from its box centre's offset Δy below the
+    horizon and the size distance (:func:`~slopedist.estimators.ours.cues.target_gradient`),
+    updated as a random walk over its track (``rows``: after the distance gate)."""
+    f = cam.f
+    size = fused.size
+    boxes = targets.boxes_px
+    z_size = np.exp(size.mean)
+    delta_y = (boxes[:, 1] + boxes[:, 3]) * 0.5 - (cam.c_y - f * math.tan(theta_rad))
+    flat = cues.expected_centre_offset_px(
+        z_size, f, cam_height_m, targets.classes.height_m, fused.half_extent_m
+    )
+    a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
+    gain2 = flat * flat * (1.0 / (f * f))
+    a_white = gain2 * size.var_white + (targets.box_sigma_px**2 + (f * jitter_rad) ** 2) / f**2
+    z_h_sd = targets.classes.height_sigma_m * 0.5 / z_size
+    a_other = gain2 * (size.var - size.var_white) + z_h_sd * z_h_sd
+    prior_mean, prior_var = _gradient_prior(
+        rows,
+        match.continued,
+        match.all_continued,
+        match.continued_state[ROW_GRAD_MEAN],
+        match.gradient_var_rad2,
+    )
+    g_mean, g_var = kf.random_walk_update(prior_mean, prior_var, 0.0, 0.0, a_obs, a_white)
+    alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, cfg.gradient_sigma_rad)
+    return TargetGradient(g_mean, g_var, a_other, alpha, alpha_var, delta_y, z_size)
+
+
+def box_estimates(
+    cam: Camera,
+    yaw_grid_rad: FloatArray,
+    targets: FrameTargets,
+    fused: FusedCues,
+    distance: DistanceFilterResult,
+    gradient: TargetGradient,
+    uid: NDArray[np.int64],
+    theta_rad: float,
+    calib: CalibrationInUse,
+) -> BoxEstimates:
+    """The outputs: the filtered centre distance with its σ and motion, the target gradient,
+    the most likely heading (of the grid ``yaw_grid_rad``) and the two cues' own distances."""
+    f = cam.f
+    filt = distance.filter_rows
+    meas = fused.measurement
+    dist, sigma = kf.distance_moments_rows(filt, meas.var - meas.var_white)
+    speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
+    v_frame = cam.c_y - f * math.tan(theta_rad)
+    theta_adj = theta_rad + gradient.gradient_rad  # the target's road: θ + α
+    ground = cues.ground_contact_cue(
+        targets.boxes_px[:, 3], v_frame, f, calib.height_m, fused.half_extent_m
+    )
+    return BoxEstimates(
+        distance_m=dist,
+        theta_adj_rad=theta_adj,
+        v_px=cam.c_y - f * np.tan(theta_adj),
+        delta_y_px=gradient.delta_y_px,
+        sigma_m=sigma,
+        distance_nearest_face_m=dist - fused.half_extent_m,
+        speed_mps=speed,
+        speed_sigma_mps=speed_sd,
+        ttc_s=ttc,
+        ttc_sigma_s=ttc_sd,
+        target_gradient_rad=gradient.gradient_rad,
+        target_gradient_sigma_rad=np.sqrt(gradient.gradient_var_rad2),
+        yaw_rad=yaw_grid_rad[fused.heading_weights.argmax(axis=1)],
+        distance_size_m=gradient.size_distance_m,
+        distance_ground_contact_m=ground,
+        track_uid=uid.astype(float),
+    )
+
+
+def _motion_outputs(
+    filt: FloatArray, continued: NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Speed (m/s), its σ, time to collision (s) and its σ; NaN for a track's first frame."""
+    n = continued.shape[0]
+    if not any_true(continued):
+        nan = filled(n, np.nan)
+        return nan, nan, nan, nan
+    speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(filt)
+    if all_true(continued):
+        return speed, speed_sd, ttc, ttc_sd
+    speed, speed_sd, ttc, ttc_sd = (
+        np.where(continued, a, np.nan) for a in (speed, speed_sd, ttc, ttc_sd)
+    )
+    return speed, speed_sd, ttc, ttc_sd
+
+
+def _total_var(cue: SizeCue, log_sigma: FloatArray) -> FloatArray:
+    """Total variance of a size cue's log distance: its noise and the class's size spread
+    (relative spread ``log_sigma`` times the cue's lever)."""
+    return (cue.lever * log_sigma) ** 2 + cue.var_white + cue.var_other
+
+
+def _gradient_prior(
+    rows: NDArray[np.int64],
+    old: NDArray[np.bool_],
+    every_old: bool,
+    mean_old: FloatArray,
+    var_old: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Mean and variance (rad, rad²) of each target's road gradient before this frame: its
+    track's random walk predicted to now (``mean_old``, ``var_old``: of the targets ``old``
+    that were associated with a track), or (0, 10⁶) for a target that starts a track (``rows``
+    < 0, after the gate)."""
+    kept = rows[old] >= 0 if not every_old else rows >= 0
+    if every_old and all_true(kept):
+        return mean_old, np.minimum(var_old, 1e6)
+    mean, var = np.zeros(rows.shape), np.full(rows.shape, 1e6)
+    idx = np.flatnonzero(old)[kept]
+    mean[idx] = mean_old[kept]
+    var[idx] = np.minimum(var_old[kept], 1e6)
+    return mean, var

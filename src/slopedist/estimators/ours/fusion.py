@@ -1,0 +1,214 @@
+"""Fusion of the log-distance cues of ``ours``: the size cues under the class prior, independent
+cues by inverse variance, censoring by upper bounds, and mixtures over heading hypotheses.
+
+Pure, vectorised functions (no state). A cue is a :class:`LogCue`: ``ℓ = log(Z / 1 m)`` with Z
+a target's centre depth (camera z), its variance split into a white part (independent from frame
+to frame) and a per-vehicle part. The last axis of a cue is the hypotheses' (heading × body-style
+mode), leading axes the targets'.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import special
+
+FloatArray = NDArray[np.float64]
+
+
+def all_true(mask: NDArray[np.bool_]) -> bool:
+    """``mask.all()`` for the small arrays of one frame (counting is cheaper than reducing)."""
+    return bool(np.count_nonzero(mask) == mask.size)
+
+
+def any_true(mask: NDArray[np.bool_]) -> bool:
+    """``mask.any()`` for the small arrays of one frame."""
+    return bool(np.count_nonzero(mask))
+
+
+class LogCue(NamedTuple):
+    """A log-distance estimate ``ℓ = log Z`` with its error split in two (a named tuple: built
+    several times per frame, so cheap to make).
+
+    Attributes:
+        mean: ℓ (Z in metres).
+        var: total variance of ℓ.
+        var_white: the part independent from frame to frame (pixel noise, horizon jitter);
+            the rest (``var − var_white``) stays with a vehicle over its track.
+        loglik: log-likelihood of the cues' mutual consistency (compares heading hypotheses;
+            0 where a single cue was available).
+    """
+
+    mean: FloatArray
+    var: FloatArray
+    var_white: FloatArray
+    loglik: FloatArray
+
+
+def fuse_size_cues(
+    y_h: FloatArray,
+    r_h_white: FloatArray | float,
+    r_h_other: FloatArray | float,
+    c_h: FloatArray,
+    y_w: FloatArray,
+    r_w_white: FloatArray | float,
+    r_w_other: FloatArray | float,
+    c_w: FloatArray,
+    sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float,
+    corr_hw: FloatArray | float,
+) -> LogCue:
+    """Fuse the height and width cues (log distances) under the class size prior.
+
+    ``y_h = ℓ − c_h·ηH + n_h`` and ``y_w = ℓ − c_w·ηW + n_w``, with ``(ηH, ηW)`` the vehicle's
+    log size deviations from its class (spreads ``sigma_log_h``, ``sigma_log_w``, correlation
+    ``corr_hw``) and ``n`` measurement noise (white variances ``r_*_white`` plus other
+    per-vehicle variances ``r_*_other``, e.g. from the length): the generalised least-squares
+    estimate of ℓ. A non-finite width cue leaves the height cue alone.
+    """
+    yh, yw = np.asarray(y_h, dtype=float), np.asarray(y_w, dtype=float)
+    sh = c_h * np.asarray(sigma_log_h)
+    sw = c_w * np.asarray(sigma_log_w)
+    C11 = sh * sh + r_h_white + r_h_other
+    C22 = sw * sw + r_w_white + r_w_other
+    C12 = corr_hw * sh * sw
+    # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
+    den = C11 + C22 - C12 - C12
+    inv_den = 1.0 / den
+    a_h = (C22 - C12) * inv_den
+    a_w = (C11 - C12) * inv_den
+    diff = yh - yw
+    mean = yw + a_h * diff
+    var = (C11 * C22 - C12 * C12) * inv_den
+    white = a_h * a_h * r_h_white + a_w * a_w * r_w_white
+    loglik = (diff * diff * inv_den + np.log(den)) * -0.5 - _HALF_LOG_2PI
+    both = np.isfinite(den)
+    if all_true(both):
+        return LogCue(mean, var, white, loglik)
+    return LogCue(
+        np.where(both, mean, yh),
+        np.where(both, var, C11),
+        np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
+        np.where(both, loglik, 0.0),
+    )
+
+
+_HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
+
+
+def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
+    """Inverse-variance fusion of two independent log-distance cues.
+
+    The white variance is propagated with the same weights; ``loglik`` adds the consistency of
+    the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
+    """
+    ok = np.isfinite(b.mean + b.var) & (b.var > 0)
+    every = all_true(ok)
+    vb = b.var if every else np.where(ok, b.var, 1.0)
+    mb = b.mean if every else np.where(ok, b.mean, 0.0)
+    wb_white = b.var_white if every else np.where(ok, b.var_white, 0.0)
+    tot = a.var + vb  # > 0: vb > 0 and a.var ≥ 0
+    inv_tot = 1.0 / tot
+    wa = vb * inv_tot
+    wb = a.var * inv_tot
+    diff = a.mean - mb
+    mean = mb + wa * diff
+    var = a.var * wa
+    white = wa * wa * a.var_white + wb * wb * wb_white
+    ll = (diff * diff * inv_tot + np.log(tot)) * -0.5 - _HALF_LOG_2PI
+    if every:
+        return LogCue(mean, var, white, a.loglik + ll)
+    return LogCue(
+        np.where(ok, mean, a.mean),
+        np.where(ok, var, a.var),
+        np.where(ok, white, a.var_white),
+        a.loglik + np.where(ok, ll, 0.0),
+    )
+
+
+def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike, where: ArrayLike) -> LogCue:
+    """Condition a log-distance cue on an upper bound ``ℓ ≤ bound`` known up to noise of
+    variance ``bound_var`` (a censored measurement), where ``where`` is true and the bound finite.
+
+    A box cut by the image border shows less than its vehicle: the size cue of a cut dimension
+    says *at least this far*, so the vehicle is at most that far, and a box whose bottom is cut
+    has its ground contact below the image, so at most as far as the cut row says. With the
+    Gaussian ``cue`` ``N(μ, v)`` and the bound's likelihood ``Φ((bound − ℓ)/s)``, the posterior's
+    moments are those of a truncated normal: with ``a = (bound − μ)/√(v + s²)`` and
+    ``λ = φ(a)/Φ(a)``, ``μ' = μ − v·λ/√(v + s²)``, ``v' = v·(1 − v·λ(λ + a)/(v + s²))``; the
+    white part shrinks in the same ratio and ``log Φ(a)`` is added to ``loglik`` (it weighs the
+    heading hypotheses). A bound far above the estimate changes nothing.
+    """
+    mu, var = cue.mean, cue.var
+    tot = var + np.asarray(bound_var, dtype=float)
+    root = np.sqrt(tot)
+    a = (np.asarray(bound, dtype=float) - mu) / root
+    log_cdf = special.log_ndtr(a)
+    lam = np.exp(-0.5 * a * a - log_cdf) * _INV_SQRT_2PI
+    factor = 1.0 - var / tot * lam * (lam + a)
+    use = np.asarray(where, dtype=bool) & np.isfinite(a)
+    return LogCue(
+        np.where(use, mu - var / root * lam, mu),
+        np.where(use, var * factor, var),
+        np.where(use, cue.var_white * factor, cue.var_white),
+        np.where(use, cue.loglik + log_cdf, cue.loglik),
+    )
+
+
+_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
+
+
+def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, FloatArray]:
+    """Moment-match a mixture over the last axis (heading hypotheses) into one log cue.
+
+    The spread of the hypotheses' means counts as per-vehicle variance. Returns the cue and the
+    normalised weights.
+    """
+    lw = np.asarray(log_weight, dtype=float)
+    w = np.exp(lw - np.maximum.reduce(lw, axis=-1, keepdims=True))
+    w /= np.add.reduce(w, axis=-1, keepdims=True)
+    return mix_hypotheses(cue, w), w
+
+
+def mix_hypotheses(cue: LogCue, weight: FloatArray) -> LogCue:
+    """:func:`collapse_hypotheses` with normalised weights (summing to 1 over the last axis)."""
+    mean = np.add.reduce(weight * cue.mean, axis=-1)
+    dev = cue.mean - mean[..., None]
+    var = np.add.reduce(weight * (cue.var + dev * dev), axis=-1)
+    white = np.add.reduce(weight * cue.var_white, axis=-1)
+    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))
+
+
+def concat_cues(parts: list[LogCue]) -> LogCue:
+    """Log cues side by side along the hypothesis axis."""
+    return LogCue(
+        *(
+            np.concatenate([getattr(p, k) for p in parts], axis=-1)
+            for k in ("mean", "var", "var_white", "loglik")
+        )
+    )
+
+
+def inflate(cue: LogCue, mask: NDArray[np.bool_], factor: float) -> LogCue:
+    """The cue with its variances multiplied by ``factor`` where ``mask``."""
+    return LogCue(
+        cue.mean,
+        np.where(mask, cue.var * factor, cue.var),
+        np.where(mask, cue.var_white * factor, cue.var_white),
+        cue.loglik,
+    )
+
+
+def shrink_to_prior(
+    mean: FloatArray, var: FloatArray, prior_sigma: float
+) -> tuple[FloatArray, FloatArray]:
+    """Combine an estimate (mean, var; var may be inf) with a zero-mean prior of spread
+    ``prior_sigma``: the posterior mean and variance."""
+    s2 = prior_sigma * prior_sigma
+    finite = np.isfinite(var)
+    if all_true(finite):
+        return mean * s2 / (s2 + var), s2 * var / (s2 + var)
+    v = np.where(finite, var, 1.0)
+    return (np.where(finite, mean * s2 / (s2 + v), 0.0), np.where(finite, s2 * v / (s2 + v), s2))

@@ -1,0 +1,115 @@
+"""Occlusion by nearer targets for ``ours``: which box sides a nearer box may hide, and the
+extra variance of a size cue that says farther than the ground contact beyond its noise.
+
+Pure, vectorised functions (no state). Boxes are (left, top, right, bottom) in pixels, image rows
+growing downwards; cues are log distances ``ℓ = log(Z / 1 m)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from slopedist.detections.boxes import overlapping_pairs
+from slopedist.estimators.ours.fusion import any_true
+
+FloatArray = NDArray[np.float64]
+
+
+def hidden_sides(
+    boxes: ArrayLike, tol_px: float = 1.5
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Whether each box's width and height may be cut short by a nearer box.
+
+    Box ``j`` is nearer than box ``i`` when its bottom is lower in the image (``b_j > b_i``:
+    on a common road a nearer vehicle touches the ground lower). An edge of ``i`` that lies on
+    a nearer box that overlaps it (or touches it, within ``tol_px``) may be where ``i``'s
+    vehicle disappears behind the nearer one rather than where it ends: a box drawn around what
+    is visible (an image detector's, a LiDAR cluster's) is then narrower or shorter than the
+    vehicle. (A box drawn around the whole vehicle, as labels and LiDAR detectors' 3D boxes are,
+    is not cut, but cannot be told apart from the box alone.)
+
+    Args:
+        boxes: ``(N, 4)`` (left, top, right, bottom), pixels.
+        tol_px: how close an edge must come to a nearer box to count as on it, pixels.
+
+    Returns:
+        ``(width_cut, height_cut)``: ``(N,)`` flags, a left or right edge (resp. top or bottom
+        edge) on a nearer box.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    lo = b[:, :2] - tol_px  # each box's extent (columns, rows), widened by tol
+    hi = b[:, 2:] + tol_px
+    # pairs (i, j) whose boxes overlap or touch (both axes), with j nearer (its bottom lower)
+    if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all():
+        i, j = _nearer_pairs_dense(b, lo, hi)
+    else:  # many boxes: only the pairs that overlap, O(n log n + pairs)
+        i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))
+        nearer = b[j, 3] > b[i, 3]
+        i, j = i[nearer], j[nearer]
+    cut = np.zeros((b.shape[0], 2), dtype=bool)
+    if not i.size:
+        return cut[:, 0], cut[:, 1]
+    lo_j, hi_j = lo[j], hi[j]
+    bi = b[i]
+    on = (
+        ((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
+        | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j))
+    )  # right / bottom edge of i on j
+    cut[i[on[:, 0]], 0] = True
+    cut[i[on[:, 1]], 1] = True
+    return cut[:, 0], cut[:, 1]
+
+
+_DENSE_MAX_BOXES = 48
+"""Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
+
+
+def _nearer_pairs_dense(
+    b: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Pairs (i, j), row-major, of boxes ``b[i]`` overlapping the widened box ``(lo, hi)[j]``
+    with ``j`` nearer (its bottom lower), every pair tested."""
+    reach = np.minimum(b[:, None, 2:], hi[None]) > np.maximum(b[:, None, :2], lo[None])
+    near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
+    if not any_true(near):
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    i, j = np.nonzero(near)
+    return i, j
+
+
+def unexplained_excess(
+    y_cue: ArrayLike,
+    var_cue: ArrayLike,
+    y_ref: ArrayLike,
+    var_ref: ArrayLike,
+    gate_sigma: float = 3.0,
+) -> FloatArray:
+    """How far a log-distance cue says farther than a reference beyond their own noise:
+    ``max(y_cue − y_ref, 0)² − gate_sigma²·(var_cue + var_ref)`` (log², > 0 only for an
+    outlier on the far side; NaN where either is missing)."""
+    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), 0.0)
+    return np.asarray(
+        excess * excess - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref))
+    )
+
+
+def occlusion_log_var(unexplained: ArrayLike, cut: ArrayLike) -> FloatArray:
+    """Extra variance of a log-distance size cue whose dimension may be cut short by a nearer
+    vehicle (:func:`hidden_sides`).
+
+    Hiding part of a dimension only shrinks a box drawn around what is visible, which makes the
+    cue's distance too large; so for a dimension that may be cut the cue is a censored
+    measurement: what it says beyond an independent reference (the ground contact) may be
+    hiding, by any amount. An excess the two cues' own noise explains, or a cue that says nearer
+    than the reference (hiding cannot explain that), leaves the cue alone; beyond it the
+    unexplained excess (:func:`unexplained_excess`) is taken as the cue's extra error variance.
+    No parameter besides the outlier test's.
+
+    Args:
+        unexplained: :func:`unexplained_excess` of the cue against the reference (log²).
+        cut: whether the cue's dimension may be cut short, broadcastable to ``unexplained``.
+    """
+    u = np.asarray(unexplained)
+    return np.asarray(np.where(np.asarray(cut) & (u > 0.0), u, 0.0))

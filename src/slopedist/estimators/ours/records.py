@@ -1,0 +1,265 @@
+"""Typed records passed between the per-frame steps of ``ours`` and its output columns.
+
+Named tuples (cheap to build, a few per frame). Per-target arrays are ``(n,)``; per (target,
+heading hypothesis) arrays are ``(n, K)``. Distances in metres (camera frame: x right, y down,
+z forward; a target's distance is its centre's z), log distances ``ℓ = log(Z / 1 m)``, angles in
+radians, image coordinates in pixels (rows grow downwards), times in seconds.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.estimators.ours.class_table import TargetClasses
+from slopedist.estimators.ours.cues import SizeCue
+from slopedist.estimators.ours.fusion import LogCue
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+EXTRA_COLUMNS = (
+    "sigma_m",
+    "distance_nearest_face_m",
+    "speed_mps",
+    "speed_sigma_mps",
+    "ttc_s",
+    "ttc_sigma_s",
+    "target_gradient_rad",
+    "target_gradient_sigma_rad",
+    "yaw_rad",
+    "distance_size_m",
+    "distance_ground_contact_m",
+    "track_uid",
+    "calib_mount_angle_rad",
+    "calib_mount_angle_sigma_rad",
+    "calib_height_m",
+    "calib_height_sigma_m",
+)
+"""Method-specific columns of ``ours`` (all float; NaN where not defined)."""
+
+
+class CalibrationInUse(NamedTuple):
+    """The camera mount used for a frame.
+
+    Attributes:
+        horizon_offset_rad: offset δ added to the ego gradient θ (the self-calibrated mount
+            angle minus the configured one; 0 when not self-calibrating).
+        horizon_offset_sigma_rad: its uncertainty.
+        height_m: camera height above the road.
+        height_sigma_m: its uncertainty.
+    """
+
+    horizon_offset_rad: float
+    horizon_offset_sigma_rad: float
+    height_m: float
+    height_sigma_m: float
+
+
+class BorderCuts(NamedTuple):
+    """Which boxes touch the image border, ``(n,)`` flags each."""
+
+    sides: BoolArray
+    top: BoolArray
+    bottom: BoolArray
+
+
+class FrameTargets(NamedTuple):
+    """The usable boxes of a frame, with what every later step reads from them.
+
+    Attributes:
+        boxes_px: ``(n, 4)`` (left, top, right, bottom).
+        track_ids: ``(n,)`` the boxes' track ids (−1: none).
+        classes: their class constants.
+        left_px, top_px, right_px, bottom_px: the box edges repeated over the hypotheses,
+            contiguous ``(n, K)`` planes.
+        border_cuts: boxes touching the image border (None: no box does).
+        box_sigma_px: box-edge noise used for this frame (before this frame's boxes refine it).
+        time_s: the frame's timestamp.
+    """
+
+    boxes_px: FloatArray
+    track_ids: IntArray
+    classes: TargetClasses
+    left_px: FloatArray
+    top_px: FloatArray
+    right_px: FloatArray
+    bottom_px: FloatArray
+    border_cuts: BorderCuts | None
+    box_sigma_px: float
+    time_s: float
+
+
+class UpperBound(NamedTuple):
+    """A censoring bound ``ℓ ≤ log_bound`` (noise variance ``var``) where ``rows`` (n, 1)."""
+
+    log_bound: FloatArray
+    var: FloatArray
+    rows: BoolArray
+
+
+class SizeCues(NamedTuple):
+    """The two size cues per hypothesis and the upper bounds of cues cut by the border."""
+
+    height: SizeCue
+    width: SizeCue
+    bounds: list[UpperBound]
+
+
+class TrackMatch(NamedTuple):
+    """This frame's boxes matched to the live tracks.
+
+    Attributes:
+        rows: ``(n,)`` column of the track each box continues, −1 for a new track.
+        continued: ``(n,)`` ``rows >= 0``.
+        all_continued: whether every box continues a track.
+        continued_rows: ``rows[continued]``.
+        continued_state: ``(ROW_LOG_W + K, m)`` a copy of those tracks' states (rows as
+            :mod:`~slopedist.estimators.ours.tracking`'s ``ROW_*``).
+        elapsed_s: ``(m,)`` time since those tracks' last update.
+        gradient_var_rad2: ``(m,)`` their gradient variance predicted to now (random walk).
+        turned_boxes_px: ``(T, 4)`` every track's last box turned with the camera (pixels).
+        depth_ratio: ``(T,)`` the camera rotation's depth ratio per track, or None when only
+            the continued tracks' are needed (computed later).
+        box_motion: whether the tracks' box motion is updated (id-less boxes or the box-noise
+            estimate need it).
+    """
+
+    rows: IntArray
+    continued: BoolArray
+    all_continued: bool
+    continued_rows: IntArray
+    continued_state: FloatArray
+    elapsed_s: FloatArray
+    gradient_var_rad2: FloatArray
+    turned_boxes_px: FloatArray
+    depth_ratio: FloatArray | None
+    box_motion: bool
+
+
+class FusedCues(NamedTuple):
+    """The cues fused and collapsed over the hypotheses.
+
+    Attributes:
+        measurement: ``(n,)`` the log distance measured this frame (all cues).
+        size: ``(n,)`` the size cues alone.
+        loglik: ``(n, K·modes)`` the hypotheses' cue-consistency log-likelihood.
+        log_prior: ``(n, K·modes)`` their log prior.
+        heading_weights: ``(n, K)`` posterior weight of each heading hypothesis.
+        half_extent_m: ``(n,)`` posterior mean half depth extent (centre to nearest face).
+    """
+
+    measurement: LogCue
+    size: LogCue
+    loglik: FloatArray
+    log_prior: FloatArray
+    heading_weights: FloatArray
+    half_extent_m: FloatArray
+
+
+class DistanceFilterResult(NamedTuple):
+    """The distance filters after this frame.
+
+    Attributes:
+        filter_rows: ``(5, n)`` state rows (ℓ, Ż/Z, P_ℓℓ, P_ℓr, P_rr) of every target.
+        rows: ``(n,)`` track column each box continues, −1 where it starts a track (the
+            association's, minus the boxes that failed the gate).
+        continued: ``(n,)`` whether the box continued its track's filter.
+    """
+
+    filter_rows: FloatArray
+    rows: IntArray
+    continued: BoolArray
+
+
+class TargetGradient(NamedTuple):
+    """Each target's road gradient α relative to the ego's, from Δy and the size distance.
+
+    Attributes:
+        track_mean_rad, track_var_rad2: the track's random-walk estimate (before the prior).
+        obs_var_other_rad2: per-vehicle variance of this frame's observation.
+        gradient_rad, gradient_var_rad2: the estimate combined with the prior (reported).
+        delta_y_px: box centre row minus the ego's horizon row.
+        size_distance_m: the size cues' distance used.
+    """
+
+    track_mean_rad: FloatArray
+    track_var_rad2: FloatArray
+    obs_var_other_rad2: FloatArray
+    gradient_rad: FloatArray
+    gradient_var_rad2: FloatArray
+    delta_y_px: FloatArray
+    size_distance_m: FloatArray
+
+
+class BoxEstimates(NamedTuple):
+    """Outputs of the usable boxes of a frame (see :data:`EXTRA_COLUMNS` for the extras; the
+    self-calibration columns are added by the caller)."""
+
+    distance_m: FloatArray
+    theta_adj_rad: FloatArray
+    v_px: FloatArray
+    delta_y_px: FloatArray
+    sigma_m: FloatArray
+    distance_nearest_face_m: FloatArray
+    speed_mps: FloatArray
+    speed_sigma_mps: FloatArray
+    ttc_s: FloatArray
+    ttc_sigma_s: FloatArray
+    target_gradient_rad: FloatArray
+    target_gradient_sigma_rad: FloatArray
+    yaw_rad: FloatArray
+    distance_size_m: FloatArray
+    distance_ground_contact_m: FloatArray
+    track_uid: FloatArray
+
+
+OUTPUT_KEYS = ("distance_m", "theta_adj_rad", "v_px", "delta_y_px", *EXTRA_COLUMNS)
+"""Every per-box output column of :meth:`OursEstimator.estimate`."""
+
+_ABSENT: dict[tuple[str, ...], list[str]] = {}
+
+
+def scatter(
+    values: dict[str, FloatArray], rows: NDArray[np.intp] | None, n: int
+) -> dict[str, FloatArray]:
+    """Per-box outputs of length ``n`` for every :data:`OUTPUT_KEYS`: ``values`` (of the boxes
+    ``rows``; all boxes when None) placed in NaN-filled columns; keys without values stay NaN."""
+    keys = OUTPUT_KEYS
+    if rows is None:
+        have = tuple(values)
+        missing = _ABSENT.get(have)
+        if missing is None:
+            missing = _ABSENT[have] = [k for k in keys if k not in values]
+    else:
+        missing = list(keys)
+    nan = np.empty((len(missing), n))
+    nan.fill(np.nan)
+    out = dict(zip(missing, nan, strict=True))
+    if rows is None:
+        out.update(values)
+    else:
+        for k, v in values.items():
+            out[k][rows] = v
+    return out
+
+
+def filled(n: int, value: float) -> FloatArray:
+    """``np.full(n, value)``, cheaper for the few targets of a frame."""
+    out = np.empty(n)
+    out.fill(value)
+    return out
+
+
+_OBJECT_COLUMNS: dict[str, NDArray[np.object_]] = {}
+
+
+def object_column(value: str, n: int) -> NDArray[np.object_]:
+    """A new object array of ``n`` copies of ``value`` (copied from a cached template)."""
+    tmpl = _OBJECT_COLUMNS.get(value)
+    if tmpl is None or tmpl.shape[0] < n:
+        tmpl = _OBJECT_COLUMNS[value] = np.full(max(n, 64), value, dtype=object)
+    return tmpl[:n].copy()

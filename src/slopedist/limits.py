@@ -1,0 +1,22 @@
+"""Bounds on user input shared by several readers: beyond them a value is a corrupt or hostile
+file, not data, and the reader stops with a clear error instead of looping or allocating.
+
+(Ranges that belong to one thing live with it, e.g. the camera's in :mod:`slopedist.camera`.)
+"""
+
+from __future__ import annotations
+
+MAX_INDEX = 1_000_000_000
+"""Largest frame index or track id accepted in any file or file name (a day of 30 fps video is
+2.6 million frames)."""
+
+MAX_FRAME_GAP = 1_000
+"""Most consecutive frame numbers an image folder may lack between two of its files (100 s at
+10 Hz); a larger gap is a stray file, e.g. ``9999999999.png`` among ``0..100``."""
+
+MAX_ABS_PIXEL = 1e6
+"""Largest magnitude of a box coordinate, pixels; beyond it a value is not a pixel of any
+camera image."""
+
+DEFAULT_MAX_PIXELS = 50_000_000
+"""Largest image decoded by default, pixels (50 Mpx: above every dashcam and KITTI frame)."""

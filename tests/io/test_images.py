@@ -1,0 +1,124 @@
+"""Image sizes from headers, and decompression bombs refused before any pixel is decoded."""
+
+from __future__ import annotations
+
+import resource
+import struct
+import zlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from slopedist.depth.files import read_kitti_depth_png
+from slopedist.errors import InputFileError
+from slopedist.io.frames import FrameStatus, open_frames
+from slopedist.io.images import header_image_size, image_size_problem, read_image_file
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def png_bomb(path: Path, side: int = 30_000, rows_per_block: int = 1_000) -> Path:
+    """A valid greyscale PNG of side × side zero pixels (≈0.9 MB for 30000²), written without
+    ever holding the pixels: one deflate block of ``rows_per_block`` rows is compressed once
+    (ended by a full flush, so it repeats byte for byte) and written side / rows_per_block
+    times; the Adler-32 of n zero bytes is ``(n mod 65521) << 16 | 1``."""
+    block = bytes((side + 1) * rows_per_block)  # one filter byte + side pixels per row
+    comp = zlib.compressobj(9)
+    first = comp.compress(block) + comp.flush(zlib.Z_FULL_FLUSH)
+    again = comp.compress(block) + comp.flush(zlib.Z_FULL_FLUSH)
+    n = (side + 1) * side
+    stream = first + again * (side // rows_per_block - 1) + b"\x03\x00"
+    stream += struct.pack(">I", (n % 65521) << 16 | 1)
+    ihdr = struct.pack(">IIBBBBB", side, side, 8, 0, 0, 0, 0)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + _chunk(b"IHDR", ihdr)
+        + _chunk(b"IDAT", stream)
+        + _chunk(b"IEND", b"")
+    )
+    return path
+
+
+def test_decompression_bomb_is_refused_from_its_header(tmp_path: Path) -> None:
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cv2.imwrite(str(frames / "000000.png"), np.zeros((40, 60, 3), np.uint8))
+    bomb = png_bomb(frames / "000001.png")
+    assert bomb.stat().st_size < 2_000_000
+    assert header_image_size(bomb) == (30_000, 30_000)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises(
+        InputFileError, match=r"000001\.png: not an image; .*30000×30000 px = 900 Mpx"
+    ):
+        read_image_file(bomb, cv2.IMREAD_COLOR, "image", "not an image")
+    source = open_frames(frames)
+    assert source.frame_size() == (60, 40)
+    got = list(source)
+    assert got[0].ok and got[1].status is FrameStatus.UNREADABLE
+    assert "over the limit of 50 Mpx" in got[1].detail and "000001.png" in got[1].detail
+    grown_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    assert grown_kb < 200_000  # decoding it would take 900 MB (grey) to 2.7 GB (BGR)
+    with pytest.raises(InputFileError, match=r"000000\.png: not decoded.*0\.0024 Mpx, over the"):
+        open_frames(frames, max_pixels=2000).frame_size()  # a lower configured limit
+    first_is_bomb = tmp_path / "first"
+    first_is_bomb.mkdir()
+    bomb.rename(first_is_bomb / "000000.png")
+    with pytest.raises(InputFileError, match="900 Mpx"):
+        open_frames(first_is_bomb).frame_size()
+
+
+def test_depth_png_bomb_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(InputFileError, match="8000×8000 px = 64 Mpx, over the limit"):
+        read_kitti_depth_png(png_bomb(tmp_path / "0000000000.png", side=8_000))
+
+
+@pytest.mark.parametrize(("w", "h"), [(1, 1), (1242, 375), (17, 3001)])
+@pytest.mark.parametrize("ext", [".png", ".jpg"])
+def test_header_size_matches_opencv(tmp_path: Path, w: int, h: int, ext: str) -> None:
+    path = tmp_path / f"x{ext}"
+    assert cv2.imwrite(str(path), np.full((h, w, 3), 90, np.uint8))
+    assert header_image_size(path) == (w, h)
+    assert image_size_problem(path) == ""
+    assert image_size_problem(path, max_pixels=w * h - 1) != "" or w * h == 1
+
+
+def test_damaged_headers(tmp_path: Path) -> None:
+    path = tmp_path / "x.png"
+    cv2.imwrite(str(path), np.zeros((10, 10), np.uint8))
+    data = path.read_bytes()
+    path.write_bytes(data[:20])
+    assert header_image_size(path) is None
+    assert "cut short" in image_size_problem(path)
+    path.write_bytes(data[:16] + struct.pack(">II", 0, 10) + data[24:])
+    assert "empty 0×10" in image_size_problem(path)
+    jpg = tmp_path / "x.jpg"
+    jpg.write_bytes(b"\xff\xd8\xff\xe0\x00\x10JFIF")
+    assert header_image_size(jpg) is None
+
+
+@settings(max_examples=100, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.binary(max_size=64), png=st.booleans())
+def test_header_parser_never_fails_on_junk(tmp_path: Path, data: bytes, png: bool) -> None:
+    path = tmp_path / "junk.png"
+    path.write_bytes((b"\x89PNG\r\n\x1a\n" if png else b"\xff\xd8") + data)
+    size = header_image_size(path)
+    assert size is None or (size[0] >= 0 and size[1] >= 0)
+    assert isinstance(image_size_problem(path), str)
+
+
+def test_video_frames_over_the_limit_are_refused_before_decoding(tmp_path: Path) -> None:
+    path = tmp_path / "clip.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), 5.0, (64, 48))
+    assert writer.isOpened()
+    for k in range(3):
+        writer.write(np.full((48, 64, 3), 20 * k, np.uint8))
+    writer.release()
+    assert open_frames(path).frame_size() == (64, 48)
+    with pytest.raises(InputFileError, match=r"clip\.mp4: its frames are 64×48 px, over the limit"):
+        open_frames(path, max_pixels=64 * 48 - 1)

@@ -1,0 +1,86 @@
+"""Reading run outputs for the report: every bad records.csv / frames.csv / run.json is one
+clear error naming file, line and field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from slopedist.errors import InputFileError
+from slopedist.report import ReportOptions, report_data
+
+HEADER = "frame,timestamp_s,track_id,class,method,distance_m,status,reason,theta_deg,gt_distance_m"
+GOOD = ["0,0.0,3,Car,paper,10.0,ok,,0.1,11.0", "1,0.1,3,Car,paper,21.0,ok,,0.1,20.0"]
+
+
+def _run(folder: Path, rows: list[str], frames: str = "frame,estimation_ms\n0,1.0\n") -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "records.csv").write_text("\n".join([HEADER, *rows]) + "\n")
+    (folder / "frames.csv").write_text(frames)
+    return folder
+
+
+def test_good_run_reads(tmp_path: Path) -> None:
+    data = report_data(_run(tmp_path / "r", GOOD), ReportOptions())
+    assert data.methods == ["paper"] and data.overall["paper"]["n"] == 2
+
+
+@pytest.mark.parametrize(
+    ("row", "match"),
+    [
+        ("nan,0.2,3,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'frame': 'nan' is not a whole"),
+        ("inf,0.2,3,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'frame'"),
+        ("1e308,0.2,3,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'frame'"),
+        (",0.2,3,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'frame'"),
+        ("-1,0.2,3,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'frame'"),
+        ("2,0.2,1e308,Car,paper,12.0,ok,,0.1,12.0", r"line 4, field 'track_id'"),
+        ("2,0.2,3,Car,paper,-3,ok,,0.1,12.0", r"line 4, field 'distance_m': a record of status ok"),
+        ("2,0.2,3,Car,paper,inf,ok,,0.1,12.0", r"line 4, field 'distance_m'"),
+        ("2,0.2,3,Car,paper,,ok,,0.1,12.0", r"line 4, field 'distance_m'"),
+        ("2,0.2,3,Car,paper,12.0", r"line 4: row has 6 fields, the header has 10"),
+        ("2,0.2,3,Car,paper,12.0,ok,,0.1,12.0,extra", r"line 4: row has 11 fields"),
+        ('2,0.2,3,"Car,paper,12.0,ok,,0.1,12.0', r"line 4: row has 4 fields"),
+    ],
+)
+def test_bad_records_name_line_and_field(tmp_path: Path, row: str, match: str) -> None:
+    with pytest.raises(InputFileError, match=match):
+        report_data(_run(tmp_path / "r", [*GOOD, row]), ReportOptions())
+
+
+def test_missing_distance_is_fine_when_not_ok(tmp_path: Path) -> None:
+    rows = [*GOOD, "2,0.2,3,Car,paper,,missing,below_horizon,0.1,30.0"]
+    assert report_data(_run(tmp_path / "r", rows), ReportOptions()).overall["paper"]["n"] == 3
+
+
+def test_non_utf8_records_frames_and_run_json(tmp_path: Path) -> None:
+    folder = _run(tmp_path / "r", GOOD)
+    (folder / "records.csv").write_bytes(
+        (HEADER + "\n" + GOOD[0] + "\n").encode() + b"1,0.1,3,Caf\xe9,paper,2,ok,,0,2\n"
+    )
+    with pytest.raises(InputFileError, match=r"records\.csv, line 3: not UTF-8"):
+        report_data(folder, ReportOptions())
+    folder = _run(tmp_path / "f", GOOD, "frame,estimation_ms\n0,1.0\n")
+    (folder / "frames.csv").write_bytes(b"frame,estimation_ms\n0,1.0\n1,\xff\n")
+    with pytest.raises(InputFileError, match=r"frames\.csv, line 3: not UTF-8"):
+        report_data(folder, ReportOptions())
+    folder = _run(tmp_path / "j", GOOD)
+    (folder / "run.json").write_bytes(b'{"sequence":\n "caf\xe9"}')
+    with pytest.raises(InputFileError, match=r"run\.json, line 2: not UTF-8"):
+        report_data(folder, ReportOptions())
+    (folder / "run.json").write_text('["not", "an object"]')
+    with pytest.raises(InputFileError, match=r"run\.json: not a JSON object"):
+        report_data(folder, ReportOptions())
+    (folder / "run.json").write_text('{"sequence": ')
+    with pytest.raises(InputFileError, match=r"run\.json, line 1: not valid JSON"):
+        report_data(folder, ReportOptions())
+
+
+@pytest.mark.parametrize("column", [1, 8, 9])
+@pytest.mark.parametrize("value", ["inf", "-inf", "1e308", "-2e12"])
+def test_infinite_or_huge_numbers_are_errors(tmp_path: Path, column: int, value: str) -> None:
+    cells = GOOD[1].split(",")
+    cells[column] = value
+    name = HEADER.split(",")[column]
+    with pytest.raises(InputFileError, match=rf"line 3, field '{name}'"):
+        report_data(_run(tmp_path / "r", [GOOD[0], ",".join(cells)]), ReportOptions())
