@@ -85,7 +85,7 @@ COMMANDS: dict[str, _Lazy] = {
     "calibrate": _Lazy(
         "calibrate_cmd",
         "calibrate",
-        "Estimate the mount angle θ0 and the camera height from the targets of one sequence.",
+        "Estimate the mount angle θ0 and the camera height from the targets of one drive.",
     ),
     "log": _Lazy(
         "log_cmd",
