@@ -231,6 +231,33 @@ def test_tables_and_frame_logs_have_lf_line_ends_and_results_json_is_strict(demo
     assert [r["scenario"] for r in rmse] == [*SCENARIOS, "overall"]
 
 
+def test_scenarios_in_worker_processes_give_the_same_figures(tmp_path: Path) -> None:
+    """Two scenarios run at once in worker processes write what one after the other writes
+    (timings aside)."""
+    outputs = []
+    for jobs in (1, 2):
+        out = tmp_path / f"jobs{jobs}"
+        cfg = DemoConfig(
+            out, SCENARIOS, ("flat", "ours"), "visual", False, False, 6, False, jobs=jobs
+        )
+        result = run_demo(cfg, echo=lambda s: None)
+        assert [r.name for r in result.runs] == list(SCENARIOS)
+        records = [(out / s / "records.csv").read_text() for s in SCENARIOS]
+        rmse = (out / "rmse.csv").read_text()
+        outputs.append((records, rmse, [r.theta_est.tolist() for r in result.runs]))
+    assert outputs[0] == outputs[1]
+
+
+def test_demo_jobs_are_checked_and_capped() -> None:
+    from slopedist.demo import demo_jobs
+    from slopedist.errors import ConfigurationError
+
+    with pytest.raises(ConfigurationError, match="jobs"):
+        DemoConfig(jobs=0)
+    assert demo_jobs(DemoConfig(scenarios=("same_flat",), jobs=4)) == 1
+    assert 1 <= demo_jobs(DemoConfig(scenarios=SCENARIOS)) <= 2
+
+
 @pytest.mark.parametrize("name", ["..", ".", ".hidden", "-x", "a..b/..", "/abs", "a/b", "a\\\\b"])
 def test_a_scenario_name_cannot_write_outside_out(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str

@@ -491,3 +491,27 @@ def test_depth_and_method_must_match(tmp_path: Path) -> None:
             depth=source,
         )
     assert not (tmp_path / "out").exists()
+
+
+def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
+    """The default run decodes frames in a background thread; its records and frame log are
+    those of a run decoding in the loop (timings aside)."""
+    n = 12
+    folder = make_frames(tmp_path / "f", n, skip=(5,))
+    outputs = []
+    for ahead in (0, 3):
+        out = tmp_path / f"out{ahead}"
+        run_frames(
+            open_frames(folder),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("ego", CAM),
+            RunConfig(out, progress=False, decode_ahead=ahead),
+        )
+        frames = read_csv(out / "frames.csv")
+        for row in frames:
+            for key in ("odometry_ms", "estimation_ms", "depth_ms"):
+                row.pop(key)
+        outputs.append((read_csv(out / "records.csv"), frames))
+    assert outputs[0] == outputs[1]
+    assert len(outputs[0][1]) == n and outputs[0][1][5]["frame_status"] == "missing"

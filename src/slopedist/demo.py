@@ -28,9 +28,12 @@ Convention: radians inside, degrees in files and tables; distances in metres; ti
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import re
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -70,6 +73,7 @@ __all__ = [
     "DEFAULT_OUT",
     "DemoConfig",
     "DemoResult",
+    "demo_jobs",
     "format_demo_tables",
     "iter_outputs",
     "plan_methods",
@@ -168,6 +172,35 @@ def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list
     return [str(p1), str(p2)]
 
 
+def demo_jobs(cfg: DemoConfig) -> int:
+    """Scenarios run at once (:attr:`DemoConfig.jobs`; None: usable cores, ≤ scenarios)."""
+    if cfg.jobs is not None:
+        return min(cfg.jobs, len(cfg.scenarios))
+    return max(1, min(len(os.sched_getaffinity(0)), len(cfg.scenarios)))
+
+
+def _scenario_runs(
+    cfg: DemoConfig, method_names: list[str], bar: tqdm, titles: list[str]
+) -> Iterator[tuple[ScenarioRun, list[MethodPlan]]]:
+    """Every scenario's run, in the order of ``cfg.scenarios`` (``titles``: their names for the
+    progress bar); with more than one job, the scenarios run in worker processes (the bar then
+    moves by whole scenarios)."""
+    jobs = demo_jobs(cfg)
+    if jobs == 1:
+        for name, title in zip(cfg.scenarios, titles):
+            bar.set_postfix_str(title)
+            yield run_scenario(name, cfg, method_names, bar)
+        return
+    context = multiprocessing.get_context("spawn")  # no fork of a process with threads
+    with ProcessPoolExecutor(jobs, mp_context=context) as pool:
+        futures = [pool.submit(run_scenario, name, cfg, method_names) for name in cfg.scenarios]
+        for future in futures:
+            run, plans = future.result()
+            bar.set_postfix_str(run.name)
+            bar.update(run.frames)
+            yield run, plans
+
+
 @dataclass
 class DemoResult:
     """All scenarios of a demo run."""
@@ -211,9 +244,7 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
         dynamic_ncols=True,
         desc="slopedist demo",
     ) as bar:
-        for name, sc in zip(cfg.scenarios, scenarios):
-            bar.set_postfix_str(sc.name)
-            run, plans = run_scenario(name, cfg, names, bar)
+        for run, plans in _scenario_runs(cfg, names, bar, [sc.name for sc in scenarios]):
             runs.append(run)
             result = DemoResult(cfg, runs, plans, time.perf_counter() - start)
             _write_results(result)  # after every scenario, so a stopped run keeps its figures

@@ -91,6 +91,9 @@ class DemoConfig:
         max_frames: only the first frames of each scenario (None = all).
         progress: show a progress bar.
         estimator: the methods' options (its method is set per method).
+        jobs: scenarios run at once, each in a process of its own (None: one per usable
+            core, at most one per scenario; 1: one after the other in this process). Every
+            scenario's figures are the same either way.
     """
 
     out_dir: Path = DEFAULT_OUT
@@ -102,10 +105,13 @@ class DemoConfig:
     max_frames: int | None = None
     progress: bool = True
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    jobs: int | None = None
 
     def __post_init__(self) -> None:
         if self.odometry not in ("visual", "truth"):
             raise ConfigurationError(f"odometry must be 'visual' or 'truth', got '{self.odometry}'")
+        if self.jobs is not None and self.jobs < 1:
+            raise ConfigurationError(f"demo jobs must be ≥ 1, got {self.jobs}")
 
 
 @dataclass

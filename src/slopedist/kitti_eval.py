@@ -244,6 +244,116 @@ def check_run(root: str | Path, cfg: KittiEvalConfig) -> list[str]:
     return names
 
 
+class _SequenceRotations:
+    """A sequence's rotation tracks and ego gradients θ, read once per source."""
+
+    def __init__(self, seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> None:
+        self.seq, self.cfg = seq, cfg
+        self.tracks: dict[str, RotationTrack | str] = {}
+        self.theta: dict[str, NDArray[np.float64]] = {}
+
+    def track(self, source: RotationSource, declared: bool) -> RotationTrack | str:
+        """The track of ``source``, or why there is none: a source the method declares
+        (``declared``) but the sequence lacks is missing; ``cfg.rotation``'s file must exist."""
+        seq = self.seq
+        if source.value not in self.tracks:
+            if declared and not seq.has_rotations(source):
+                self.tracks[source.value] = (
+                    f"no {source.value} poses for sequence {seq.name} "
+                    f"(expected {seq.rotation_path(source)})"
+                )
+            else:
+                track = seq.rotations(source)
+                self.tracks[source.value] = track
+                self.theta[source.value] = ego_gradients(
+                    track, seq.camera.mount_angle_rad, self.cfg.lookback_s
+                )[: seq.n_frames]
+        return self.tracks[source.value]
+
+
+def _boxes_with_truth(
+    seq: KittiTrackingSequence, cfg: KittiEvalConfig
+) -> tuple[BoxTable, BoxTable, NDArray[np.int64], NDArray[np.int64]]:
+    """The protocol's ground truth, the boxes to estimate (with their row and the matched
+    truth z as columns) and the matched (box row, truth row) pairs."""
+    gt = seq.labels.select(protocol_mask(seq.labels))
+    boxes = _boxes_for(seq, cfg, gt)
+    det_rows, gt_rows = (
+        match_by_frame(boxes, gt, cfg.min_iou)
+        if BoxSource(cfg.boxes).is_detector
+        else (np.arange(len(gt)), np.arange(len(gt)))
+    )
+    truth = np.full(len(boxes), np.nan)
+    truth[det_rows] = gt.extra["z"][gt_rows]
+    extra = {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth}
+    boxes = BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls, extra)
+    return gt, boxes, det_rows, gt_rows
+
+
+def _depth_for(
+    seq: KittiTrackingSequence, cfg: KittiEvalConfig
+) -> tuple[FileDepthSource | None, str]:
+    """The sequence's depth maps, or why there are none."""
+    if cfg.depth_dir is None:
+        return None, ""
+    folder = Path(cfg.depth_dir) / seq.name
+    if not folder.is_dir():
+        return None, f"no depth maps for sequence {seq.name} (expected folder {folder})"
+    return FileDepthSource(folder, missing_ok=True), ""
+
+
+def _run_method(
+    name: str,
+    seq: KittiTrackingSequence,
+    cfg: KittiEvalConfig,
+    boxes: BoxTable,
+    rotations: _SequenceRotations,
+) -> MethodRun:
+    """One method over the sequence's boxes: capped distances, scorable flags, θ, reasons."""
+    estimator = make_estimator(name, seq.camera, **cfg.options_of(name))
+    source = RotationSource(estimator.rotation_source or cfg.rotation)
+    source_name = source.value if estimator.needs_rotation else None
+    declared = estimator.rotation_source is not None
+    track = rotations.track(source, declared) if estimator.needs_rotation else None
+    missing = track if isinstance(track, str) else ""
+    depth_source = None
+    if estimator.needs_depth and not missing:
+        depth_source, missing = _depth_for(seq, cfg)
+    n = len(boxes)
+    if missing:
+        nan = np.full(n, np.nan)
+        reason = np.full(n, "missing", dtype=object)
+        return MethodRun(name, source_name, nan, np.zeros(n, bool), nan, reason, missing=missing)
+    with Stopwatch() as watch:
+        result = estimate_sequence(
+            estimator,
+            boxes,
+            seq.timestamps_s,
+            track if isinstance(track, RotationTrack) else None,
+            cfg.lookback_s,
+            depth=depth_source.depth if depth_source is not None else None,
+        )
+    capped, scorable = cap_estimates(
+        result.estimates.distance_m, result.estimates.reason, cfg.cap_m
+    )
+    rows = result.boxes.extra["row"]
+    run = MethodRun(
+        name,
+        source_name,
+        np.empty(n),
+        np.empty(n, dtype=bool),
+        np.empty(n),
+        np.empty(n, dtype=object),
+    )
+    run.distance_m[rows] = capped
+    run.scorable[rows] = scorable
+    run.theta_rad[rows] = result.estimates.theta_rad
+    run.reason[rows] = result.estimates.reason
+    run.depth_seconds = depth_source.seconds if depth_source is not None else 0.0
+    run.seconds = watch.seconds - run.depth_seconds
+    return run
+
+
 def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRun:
     """Run every method of ``cfg`` on one sequence.
 
@@ -252,98 +362,10 @@ def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRu
     that the sequence lacks makes that method missing for the sequence (with the reason); a
     missing ``cfg.rotation`` file is an error, as before.
     """
-    gt = seq.labels.select(protocol_mask(seq.labels))
-    boxes = _boxes_for(seq, cfg, gt)
-    with_detections = BoxSource(cfg.boxes).is_detector
-    det_rows, gt_rows = (
-        match_by_frame(boxes, gt, cfg.min_iou)
-        if with_detections
-        else (np.arange(len(gt)), np.arange(len(gt)))
-    )
-    truth = np.full(len(boxes), np.nan)
-    truth[det_rows] = gt.extra["z"][gt_rows]
-    boxes = BoxTable(
-        boxes.frame,
-        boxes.boxes,
-        boxes.track_id,
-        boxes.score,
-        boxes.cls,
-        {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth},
-    )
-    tracks: dict[str, RotationTrack | str] = {}
-    theta: dict[str, NDArray[np.float64]] = {}
-
-    def track_for(source: RotationSource, declared: bool) -> RotationTrack | str:
-        if source.value not in tracks:
-            if declared and not seq.has_rotations(source):
-                tracks[source.value] = (
-                    f"no {source.value} poses for sequence {seq.name} "
-                    f"(expected {seq.rotation_path(source)})"
-                )
-            else:
-                track = seq.rotations(source)
-                tracks[source.value] = track
-                theta[source.value] = ego_gradients(
-                    track, seq.camera.mount_angle_rad, cfg.lookback_s
-                )[: seq.n_frames]
-        return tracks[source.value]
-
-    runs: dict[str, MethodRun] = {}
-    n = len(boxes)
-    for name in cfg.methods:
-        estimator = make_estimator(name, seq.camera, **cfg.options_of(name))
-        declared = estimator.rotation_source is not None
-        source = RotationSource(estimator.rotation_source or cfg.rotation)
-        track = track_for(source, declared) if estimator.needs_rotation else None
-        depth_source = None
-        missing = track if isinstance(track, str) else ""
-        if estimator.needs_depth and not missing and cfg.depth_dir is not None:
-            folder = Path(cfg.depth_dir) / seq.name
-            if folder.is_dir():
-                depth_source = FileDepthSource(folder, missing_ok=True)
-            else:
-                missing = f"no depth maps for sequence {seq.name} (expected folder {folder})"
-        if missing:
-            nan = np.full(n, np.nan)
-            runs[name] = MethodRun(
-                name,
-                source.value if estimator.needs_rotation else None,
-                nan,
-                np.zeros(n, bool),
-                nan,
-                np.full(n, "missing", dtype=object),
-                missing=missing,
-            )
-            continue
-        with Stopwatch() as watch:
-            result = estimate_sequence(
-                estimator,
-                boxes,
-                seq.timestamps_s,
-                track if isinstance(track, RotationTrack) else None,
-                cfg.lookback_s,
-                depth=depth_source.depth if depth_source is not None else None,
-            )
-        capped, scorable = cap_estimates(
-            result.estimates.distance_m, result.estimates.reason, cfg.cap_m
-        )
-        rows = result.boxes.extra["row"]
-        run = MethodRun(
-            name,
-            source.value if estimator.needs_rotation else None,
-            np.empty(n),
-            np.empty(n, dtype=bool),
-            np.empty(n),
-            np.empty(n, dtype=object),
-        )
-        run.distance_m[rows] = capped
-        run.scorable[rows] = scorable
-        run.theta_rad[rows] = result.estimates.theta_rad
-        run.reason[rows] = result.estimates.reason
-        run.depth_seconds = depth_source.seconds if depth_source is not None else 0.0
-        run.seconds = watch.seconds - run.depth_seconds
-        runs[name] = run
-    return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, theta)
+    gt, boxes, det_rows, gt_rows = _boxes_with_truth(seq, cfg)
+    rotations = _SequenceRotations(seq, cfg)
+    runs = {name: _run_method(name, seq, cfg, boxes, rotations) for name in cfg.methods}
+    return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, rotations.theta)
 
 
 @dataclass

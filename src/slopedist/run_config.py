@@ -18,6 +18,7 @@ from slopedist.errors import SlopedistError
 from slopedist.io.outputs import (
     StopFlag,
 )
+from slopedist.io.prefetch import DEFAULT_AHEAD
 from slopedist.odometry.base import LOOKBACK_S
 
 RECORDS_NAME = "records.csv"
@@ -209,6 +210,10 @@ class RunConfig:
         stop: checked after every frame; once its ``signum`` is set the run ends there
             (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
             :class:`RunStoppedError`.
+        decode_ahead: frames decoded ahead in a background thread
+            (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
+            odometry works), and overlay frames queued for encoding in another
+            (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: both in the loop's thread.
     """
 
     out_dir: Path
@@ -223,3 +228,4 @@ class RunConfig:
     ego_speed: Callable[[float], float] | None = None
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
     stop: StopFlag = field(default_factory=StopFlag)
+    decode_ahead: int = DEFAULT_AHEAD

@@ -70,6 +70,7 @@ from slopedist.io.outputs import (
     partial_path,
 )
 from slopedist.io.overlay import OverlayWriter
+from slopedist.io.prefetch import BackgroundOverlay, OverlaySink, PrefetchedFrames
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import RotationOdometry
 from slopedist.odometry.posefiles import TumPoseWriter
@@ -144,6 +145,8 @@ def run_frames(
         else None,
     )
     loop = _RunLoop(boxes, odometry, estimator, depth, config, result, detector)
+    if config.decode_ahead:
+        frames = PrefetchedFrames(frames, config.decode_ahead)
     return loop.run(frames)
 
 
@@ -208,11 +211,11 @@ class _RunLoop:
         self.files.reserve(SUMMARY_NAME)
         self.records = open_records(partial_path(self.records_path))
         self.frame_log = CsvStreamWriter.open(partial_path(out / FRAMES_NAME), FRAME_FIELDS)
-        self.painter = (
-            OverlayWriter(partial_path(config.overlay), config.overlay_fps)
-            if config.overlay
-            else None
-        )
+        self.painter: OverlaySink | None = None
+        if config.overlay:
+            self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            if config.decode_ahead:  # encoded behind the loop, in a thread
+                self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
         self.export = (
             McapExportWriter(partial_path(config.mcap), self.method, config.time_origin_ns)
             if config.mcap

@@ -239,3 +239,35 @@ def test_lookback_reaches_the_builtin_odometry(
     monkeypatch.setattr(run_cmd, "make_odometry", spy)
     assert main(["run", *setup(tmp_path), "--method", "ego", "--lookback", "0.3"]) == 0
     assert seen == {"name": "builtin", "lookback_s": 0.3}
+
+
+def test_intrinsics_flags_instead_of_a_calibration_file(tmp_path: Path) -> None:
+    args = setup(tmp_path)
+    assert main(["run", *args, "--method", "flat", "--odometry", "none"]) == 0
+    with_file = records(tmp_path)
+    i = args.index("--calib")
+    flags = ["--fx", "500", "--fy", "500", "--cx", "160", "--cy", "100"]
+    args[i : i + 2] = flags
+    assert main(["run", *args, "--method", "flat", "--odometry", "none"]) == 0
+    assert records(tmp_path) == with_file and with_file
+
+
+def test_a_distorted_calibration_maps_the_odometry_points(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pytest.importorskip("slopedist.odometry.visual")
+    args = setup(tmp_path)
+    calib = tmp_path / "k.txt"
+    calib.write_text("500 0 160\n0 500 100\n0 0 1\n-0.3 0.1 0 0\n")
+    args[args.index("--calib") + 1] = str(calib)
+    seen: dict[str, Any] = {}
+    real = run_cmd.make_odometry
+
+    def spy(name: str, camera: Camera, **options: Any) -> Any:
+        seen.update(options)
+        return real(name, camera, **options)
+
+    monkeypatch.setattr(run_cmd, "make_odometry", spy)
+    assert main(["run", *args, "--method", "ego"]) == 0
+    point = np.array([[300.0, 180.0]])
+    assert seen["point_map"](point)[0, 0] > 300.0  # barrel distortion undone: moved outwards

@@ -6,20 +6,28 @@ The fast profile runs ``SLOPEDIST_FUZZ_EXAMPLES`` cases (default 40) here; the l
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import (
+    ALLOWED,
     CASES,
+    MUTATIONS,
     Case,
     Corpus,
     bad_ok_rows,
     build_corpus,
+    log_outcome,
     run_case,
 )
+
+EXAMPLES = int(os.environ.get("SLOPEDIST_FUZZ_EXAMPLES", "40"))
 
 
 @pytest.fixture(scope="module")
@@ -44,3 +52,22 @@ def test_bad_ok_rows_sees_implausible_distances(tmp_path: Path) -> None:
         "frame,distance_m,status\n0,12.5,ok\n1,,missing\n2,-3,ok\n3,1e9,ok\n4,nan,ok\n"
     )
     assert len(bad_ok_rows(tmp_path)) == 3
+
+
+@settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=os.environ.get("SLOPEDIST_FUZZ_RANDOM") is None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(
+    case=st.sampled_from(CASES),
+    mutation=st.sampled_from(sorted(MUTATIONS)),
+    seed=st.integers(0, 2**16),
+)
+def test_mutated_inputs_give_a_clean_error_or_trustworthy_output(
+    corpus: Corpus, work: Path, case: Case, mutation: str, seed: int
+) -> None:
+    outcome = run_case(corpus, case, mutation, seed, work)
+    log_outcome(outcome)
+    assert outcome.kind in ALLOWED, outcome

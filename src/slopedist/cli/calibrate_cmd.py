@@ -1,9 +1,13 @@
-"""``slopedist calibrate``: estimate the camera's mount angle θ0 and height from a sequence.
+"""``slopedist calibrate``: estimate the camera's mount angle θ0 and height from a drive.
 
-Runs ``ours-selfcal`` over one sequence (the same inputs as ``slopedist estimate``) and reports
-its online self-calibration as it converges, then the final estimate with its 1σ uncertainty
-and the options to pass to ``estimate``/``eval`` with it. The configured ``--height`` and
-``--mount-angle`` are the prior (a rough calibration is enough).
+Runs ``ours-selfcal`` over one drive and reports its online self-calibration as it converges,
+then the final estimate with an honest 1σ (the fit, the spread of independent stretches of the
+drive and the model floor; :mod:`slopedist.mount_calibration`) and either the options to pass to
+``estimate``/``eval``/``run`` or, when the data cannot tell the estimate from the configured
+mount, the advice to keep that. The drive is files (``--poses`` and ``--boxes``, as
+``estimate``), or FRAMES (an image folder or video): the built-in odometry computes the
+rotations and the boxes come from ``--boxes`` or an ONNX ``--detector``. The configured
+``--height`` and ``--mount-angle`` are the prior (a rough calibration is enough).
 """
 
 from __future__ import annotations
@@ -13,15 +17,47 @@ from pathlib import Path
 from typing import Any
 
 import click
+from tqdm import tqdm
 
-from slopedist.cli.options import lookback_option, sequence_file_options
+from slopedist.cli.options import (
+    detector_options,
+    drive_file_options,
+    lookback_option,
+    make_detector,
+)
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.errors import MissingInputError
-from slopedist.estimators import EstimatorConfig, Method, build_estimator
-from slopedist.estimators.ours import Calibration, OursEstimator
+from slopedist.errors import ConfigurationError, MissingInputError
+from slopedist.estimators.ours import Calibration
+from slopedist.io.frames import open_frames
 from slopedist.io.tables import write_json
-from slopedist.pipeline import FrameStep, stream_track
+from slopedist.mount_calibration import MountAdvice, advise_from_frames, advise_mount
 from slopedist.tables import format_table
+
+HISTORY_KEYS = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
+
+
+class _History:
+    """The running estimate every ``every_s`` seconds of the drive."""
+
+    def __init__(self, every_s: float) -> None:
+        self.every_s = every_s
+        self.rows: list[list[Any]] = []
+        self.t0: float | None = None
+        self.next_report = 0.0
+        self.last: tuple[float, Calibration] | None = None
+
+    def __call__(self, t: float, c: Calibration) -> None:
+        if self.t0 is None:
+            self.t0 = t
+        if t - self.t0 >= self.next_report:
+            self.rows.append(_row(t - self.t0, c))
+            self.next_report += self.every_s
+        self.last = (t - self.t0, c)
+
+    def finish(self) -> list[list[Any]]:
+        if self.last is not None and (not self.rows or self.rows[-1][0] != self.last[0]):
+            self.rows.append(_row(*self.last))
+        return self.rows
 
 
 def _row(t: float, c: Calibration) -> list[Any]:
@@ -36,19 +72,51 @@ def _row(t: float, c: Calibration) -> list[Any]:
     ]
 
 
-def _as_json(c: Calibration) -> dict[str, Any]:
-    return {
-        "mount_angle_deg": math.degrees(c.mount_angle_rad),
-        "mount_angle_sigma_deg": math.degrees(c.mount_angle_sigma_rad),
-        "height_m": c.height_m,
-        "height_sigma_m": c.height_sigma_m,
-        "n_observations": c.n_observations,
-        "n_tracks": c.n_tracks,
-    }
+def advice_text(advice: MountAdvice) -> str:
+    """The final estimate, its uncertainty and what to do (several lines)."""
+    e, s = advice.estimate, advice.sigma
+    deg = math.degrees
+    lines = [
+        f"mount angle θ0 = {deg(e.mount_angle_rad):.2f}° ± {deg(s.mount_angle_rad):.2f}°, camera "
+        f"height h = {e.height_m:.3f} m ± {s.height_m:.3f} m (1σ; from {e.n_observations} "
+        f"targets of {e.n_tracks} vehicles; configured {deg(advice.prior.mount_angle_rad):g}°, "
+        f"{advice.prior.height_m:g} m)",
+        f"1σ parts: fit {deg(advice.fit.mount_angle_rad):.2f}°, {advice.fit.height_m:.3f} m; "
+        f"spread of {len(advice.segments)} stretches {deg(advice.spread.mount_angle_rad):.2f}°, "
+        f"{advice.spread.height_m:.3f} m; model floor {deg(advice.floor.mount_angle_rad):.2f}°, "
+        f"{advice.floor.height_m:.3f} m",
+        *advice.reasons,
+    ]
+    if advice.declined:
+        lines.append("no advice: keep the configured mount")
+    else:
+        lines.append(
+            f"use: --mount-angle {deg(advice.mount_angle_rad):.2f} --height {advice.height_m:.3f}"
+        )
+    return "\n".join(lines)
 
 
 @click.command("calibrate")
-@sequence_file_options
+@click.argument("frames", required=False, type=click.Path(path_type=Path))
+@drive_file_options
+@click.option(
+    "--detector",
+    "detector_model",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="With FRAMES: ONNX detector run on every frame instead of --boxes (docs/detectors.md).",
+)
+@click.option(
+    "--fps",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="With FRAMES: frames per second [default: 10 for an image folder, the video's rate].",
+)
+@click.option(
+    "--timestamps",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="With FRAMES: timestamps file, one per frame; overrides --fps.",
+)
 @click.option(
     "--every",
     "every_s",
@@ -61,57 +129,66 @@ def _as_json(c: Calibration) -> dict[str, Any]:
     "--json",
     "json_out",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Also write the final estimate and its history as JSON here.",
+    help="Also write the final estimate, the advice and the history as JSON here.",
 )
 @lookback_option
+@detector_options("detector-")
 def calibrate(
+    frames: Path | None,
     files: SequenceFiles,
+    detector_model: Path | None,
+    fps: float | None,
+    timestamps: Path | None,
     every_s: float,
     json_out: Path | None,
     lookback_s: float,
+    **detector_opts: Any,
 ) -> None:
-    """Estimate the mount angle θ0 and the camera height from the targets of one sequence."""
-    seq = read_sequence_files(files)
-    if len(seq.boxes) == 0:
-        raise MissingInputError(f"{files.boxes}: no boxes to calibrate from")
-    est = build_estimator(EstimatorConfig(Method.OURS_SELFCAL.value), seq.camera)
-    assert isinstance(est, OursEstimator)
-    history = [_row(0.0, est.calibration())]
-    next_report = every_s
-    t0 = float(seq.track.timestamps_s[0]) if len(seq.track) else 0.0
-    t = 0.0
-    for _, t, _ in stream_track(FrameStep(est, lookback_s), seq.track, seq.boxes):
-        if t - t0 >= next_report:
-            history.append(_row(t, est.calibration()))
-            next_report += every_s
-    final = est.calibration()
-    if history[-1][0] != t:
-        history.append(_row(t, final))
-    click.echo(
-        format_table(
-            ["t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles"],
-            history,
+    """Estimate the mount angle θ0 and the camera height from the targets of one drive.
+
+    Give the drive as --poses and --boxes files, or as FRAMES (image folder or video) with
+    --boxes or --detector: the built-in visual odometry then computes the rotations.
+    """
+    history = _History(every_s)
+    if frames is None:
+        if files.poses is None or files.boxes is None or detector_model is not None:
+            raise click.UsageError(
+                "give FRAMES (with --boxes or --detector), or --poses and --boxes"
+            )
+        seq = read_sequence_files(files)
+        if len(seq.boxes) == 0:
+            raise MissingInputError(f"{files.boxes}: no boxes to calibrate from")
+        advice = advise_mount(seq.camera, seq.track, seq.boxes, lookback_s, on_frame=history)
+    else:
+        if files.poses is not None:
+            raise ConfigurationError(
+                "FRAMES gives the rotations (built-in odometry): leave out --poses"
+            )
+        detector = (
+            None if detector_model is None else make_detector(detector_model, **detector_opts)
         )
-    )
-    click.echo(
-        f"\nmount angle θ0 = {math.degrees(final.mount_angle_rad):.2f}° "
-        f"± {math.degrees(final.mount_angle_sigma_rad):.2f}°, camera height h = "
-        f"{final.height_m:.3f} m ± {final.height_sigma_m:.3f} m "
-        f"(from {final.n_observations} targets of {final.n_tracks} vehicles; prior "
-        f"{math.degrees(files.mount_angle_rad):g}°, {files.height_m:g} m)\n"
-        f"use: --mount-angle {math.degrees(final.mount_angle_rad):.2f} "
-        f"--height {final.height_m:.3f}"
-    )
+        source = open_frames(frames, fps, timestamps)
+        bar = tqdm(total=source.expected_frames(), unit="frame", desc="odometry", disable=None)
+        with bar:
+            advice = advise_from_frames(
+                source,
+                files,
+                detector,
+                lookback_s,
+                on_frame=history,
+                on_read=lambda _: bar.update(),
+            )
+    rows = history.finish()
+    click.echo(format_table(list(HISTORY_KEYS), rows))
+    click.echo("\n" + advice_text(advice))
     if json_out is not None:
         json_out.parent.mkdir(parents=True, exist_ok=True)
-        keys = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
-        prior = {"mount_angle_deg": math.degrees(files.mount_angle_rad), "height_m": files.height_m}
         write_json(
             json_out,
             {
-                "final": _as_json(final),
-                "prior": prior,
-                "history": [dict(zip(keys, r)) for r in history],
+                "final": advice.as_dict()["estimate"],
+                "advice": advice.as_dict(),
+                "history": [dict(zip(HISTORY_KEYS, r)) for r in rows],
             },
         )
         click.echo(f"wrote {json_out}", err=True)

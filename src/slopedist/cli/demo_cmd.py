@@ -48,6 +48,12 @@ from slopedist.estimators import EstimatorConfig
 @click.option("--no-video", is_flag=True, help="Do not write the overlay videos.")
 @click.option("--no-plots", is_flag=True, help="Do not write the plots.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option(
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Scenarios run at once, each in a process [default: one per usable core].",
+)
 @estimator_options(depth=True)
 def demo(
     out_dir: Path,
@@ -58,6 +64,7 @@ def demo(
     no_video: bool,
     no_plots: bool,
     quiet: bool,
+    jobs: int | None,
     estimator_config: EstimatorConfig,
 ) -> None:
     """Run every method on the synthetic hills, from rendered pixels, and print the tables."""
@@ -74,6 +81,7 @@ def demo(
         max_frames,
         not quiet,
         estimator_config,
+        jobs,
     )
     t0 = time.perf_counter()
     result = run_demo(cfg, echo=lambda s: click.echo(s, err=True))

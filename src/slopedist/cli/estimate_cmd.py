@@ -51,7 +51,7 @@ def estimate(
 ) -> None:
     """Estimate per-target distances for one sequence, streaming frame by frame."""
     check_methods([method])
-    check_outputs_spare_inputs([out], [files.calib, files.poses, files.boxes])
+    check_outputs_spare_inputs([out], files.input_files)
     size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
     seq = read_sequence_files(files)
     camera = seq.camera.with_image_size(*size) if size is not None else seq.camera

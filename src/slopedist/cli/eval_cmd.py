@@ -61,7 +61,7 @@ def eval_group() -> None:
 @mount_option
 @lookback_option
 @estimator_options()
-def kitti_tracking(
+def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
     data_dir: Path,
     sequences: str | None,
     methods: str,

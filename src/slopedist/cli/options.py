@@ -19,6 +19,7 @@ from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.io.intrinsics import Intrinsics
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -178,78 +179,169 @@ def estimator_options(
     return decorate
 
 
-_SEQUENCE_FILE_OPTIONS = (
+CALIBRATION_FLAGS = ("fx", "fy", "cx", "cy")
+"""The explicit intrinsics options (pixels), the alternative to ``--calib``."""
+
+_CALIBRATION_OPTIONS = (
     click.option(
         "--calib",
-        required=True,
         type=click.Path(dir_okay=False, path_type=Path),
+        default=None,
         help="Calibration: KITTI (P2; P0 for odometry calib.txt), 3×3 K text, OpenCV or ROS "
-        "camera_info YAML/JSON; lens distortion and fx ≠ fy are removed from the boxes.",
+        "camera_info YAML/JSON (docs/calibration.md); lens distortion and fx ≠ fy are removed "
+        "from the boxes. Or give --fx --fy --cx --cy instead. [run, a drive log: default its "
+        "camera_info topic]",
     ),
-    click.option(
-        "--poses",
-        required=True,
-        type=click.Path(dir_okay=False, path_type=Path),
-        help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).",
+    *(
+        click.option(
+            f"--{name}",
+            type=float,
+            default=None,
+            help=f"Intrinsics instead of --calib: {text}, pixels (all four together).",
+        )
+        for name, text in zip(
+            CALIBRATION_FLAGS,
+            (
+                "focal length along x",
+                "focal length along y",
+                "principal point column",
+                "principal point row",
+            ),
+        )
     ),
-    click.option(
-        "--boxes",
-        "boxes_path",
-        required=True,
-        type=click.Path(dir_okay=False, path_type=Path),
-        help="Boxes: slopedist CSV, KITTI labels or PointRCNN file.",
-    ),
-    click.option(
-        "--pose-format",
-        type=click.Choice([p.value for p in PoseFileLayout]),
-        default=PoseFileLayout.AUTO.value,
-        show_default=True,
-        help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
-    ),
-    click.option(
-        "--frame-period",
-        type=click.FloatRange(min=0, min_open=True),
-        default=0.1,
-        show_default=True,
-        help="Seconds between frames (KITTI and OXTS poses).",
-    ),
-    click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE."),
-    height_option,
-    mount_option,
 )
 
 
-def sequence_file_options(command: Callable[..., Any]) -> Callable[..., Any]:
-    """``--calib``, ``--poses``, ``--boxes``, ``--pose-format``, ``--frame-period``,
-    ``--score``, ``--height``, ``--mount-angle``: one sequence given as files, handed to the
-    command as one ``files`` (:class:`~slopedist.datasets.sequence_files.SequenceFiles`)."""
-
-    @functools.wraps(command)
-    def wrapper(
-        *args: Any,
-        calib: Path,
-        poses: Path,
-        boxes_path: Path,
-        pose_format: str,
-        frame_period: float,
-        score: float | None,
-        height_m: float,
-        mount_angle_deg: float,
-        **kwargs: Any,
-    ) -> Any:
-        kwargs["files"] = SequenceFiles(
-            calib,
-            poses,
-            boxes_path,
-            PoseFileLayout(pose_format),
-            frame_period,
-            score,
-            height_m,
-            math.radians(mount_angle_deg),
+def calibration_source(
+    calib: Path | None, values: dict[str, float | None], required: bool = True
+) -> Path | Intrinsics | None:
+    """The calibration of ``--calib FILE`` or of ``--fx --fy --cx --cy`` (exactly one form, or
+    none when not ``required``; usage errors name the options). The image size comes from the
+    frames (``run``, ``calibrate FRAMES``) or ``estimate --image-size``."""
+    given = [f"--{k}" for k, v in values.items() if v is not None]
+    if calib is not None:
+        if given:
+            raise click.UsageError(
+                f"give the calibration as --calib or as {', '.join(given)}, not both"
+            )
+        return calib
+    if not given:
+        if not required:
+            return None
+        raise click.UsageError(
+            "give the camera calibration: --calib FILE, or --fx --fy --cx --cy (pixels)"
         )
-        return command(*args, **kwargs)
+    missing = [f"--{k}" for k, v in values.items() if v is None]
+    if missing:
+        raise click.UsageError(f"--fx --fy --cx --cy go together: missing {', '.join(missing)}")
+    fx, fy, cx, cy = (float(values[k] or 0.0) for k in CALIBRATION_FLAGS)
+    try:
+        return Intrinsics.from_values(fx, fy, cx, cy)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--fx/--fy/--cx/--cy") from None
 
-    return _apply(_SEQUENCE_FILE_OPTIONS, wrapper)
+
+def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(*args: Any, calib: Path | None, **kwargs: Any) -> Any:
+            values = {k: kwargs.pop(k) for k in CALIBRATION_FLAGS}
+            kwargs["calib"] = calibration_source(calib, values, required)
+            return command(*args, **kwargs)
+
+        return _apply(_CALIBRATION_OPTIONS, wrapper)
+
+    return decorate
+
+
+calibration_options = _calibration_decorator(required=True)
+"""``--calib`` or ``--fx --fy --cx --cy``, handed to the command as one ``calib``
+(a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
+:func:`~slopedist.io.calibration.read_calibration` reads)."""
+
+optional_calibration_options = _calibration_decorator(required=False)
+""":data:`calibration_options`, with ``calib`` None when neither form is given (``run`` takes a
+drive log's ``camera_info`` then)."""
+
+
+def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
+    """The options of one sequence given as files; ``--poses`` and ``--boxes`` are optional
+    unless ``required``."""
+    return (
+        click.option(
+            "--poses",
+            required=required,
+            type=click.Path(dir_okay=False, path_type=Path),
+            help="Pose file: KITTI 3x4 per line, TUM, or OXTS (see --pose-format).",
+        ),
+        click.option(
+            "--boxes",
+            "boxes_path",
+            required=required,
+            type=click.Path(dir_okay=False, path_type=Path),
+            help="Boxes: slopedist CSV, KITTI labels, PointRCNN, MOTChallenge or COCO JSON file.",
+        ),
+        click.option(
+            "--pose-format",
+            type=click.Choice([p.value for p in PoseFileLayout]),
+            default=PoseFileLayout.AUTO.value,
+            show_default=True,
+            help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
+        ),
+        click.option(
+            "--frame-period",
+            type=click.FloatRange(min=0, min_open=True),
+            default=0.1,
+            show_default=True,
+            help="Seconds between frames (KITTI and OXTS poses).",
+        ),
+        click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE."),
+        height_option,
+        mount_option,
+    )
+
+
+def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(
+            *args: Any,
+            calib: Path | Intrinsics,
+            poses: Path | None,
+            boxes_path: Path | None,
+            pose_format: str,
+            frame_period: float,
+            score: float | None,
+            height_m: float,
+            mount_angle_deg: float,
+            **kwargs: Any,
+        ) -> Any:
+            kwargs["files"] = SequenceFiles(
+                calib,
+                poses,
+                boxes_path,
+                PoseFileLayout(pose_format),
+                frame_period,
+                score,
+                height_m,
+                math.radians(mount_angle_deg),
+            )
+            return command(*args, **kwargs)
+
+        return calibration_options(_apply(_sequence_file_options(required), wrapper))
+
+    return decorate
+
+
+sequence_file_options = _files_decorator(required=True)
+"""``--calib`` (or ``--fx --fy --cx --cy``), ``--poses``, ``--boxes``, ``--pose-format``,
+``--frame-period``, ``--score``, ``--height``, ``--mount-angle``: one sequence given as files,
+handed to the command as one ``files`` (:class:`~slopedist.datasets.sequence_files.
+SequenceFiles`)."""
+
+drive_file_options = _files_decorator(required=False)
+""":data:`sequence_file_options` with ``--poses`` and ``--boxes`` optional (``calibrate FRAMES``
+computes the rotations from the frames and may detect the boxes)."""
 
 
 def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:

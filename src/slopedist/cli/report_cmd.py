@@ -73,7 +73,7 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 @mount_option
 @lookback_option
 @estimator_options(depth=True)
-def report(
+def report(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
     out_dir: Path,
     methods: str | None,

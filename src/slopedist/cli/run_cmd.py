@@ -7,8 +7,9 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ from slopedist.cli.options import (
     lookback_option,
     make_detector,
     mount_option,
+    optional_calibration_options,
     parse_size,
     parse_triple,
     vehicle_classes_option,
@@ -41,9 +43,9 @@ from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
-from slopedist.io.calibration import read_calibration
+from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.frames import FrameSource
-from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
 from slopedist.io.outputs import (
     RunStoppedError,
     check_outputs_spare_inputs,
@@ -53,6 +55,7 @@ from slopedist.io.outputs import (
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.point_map import PointMap
 from slopedist.run_config import (
     FRAMES_NAME,
     MCAP_NAME,
@@ -73,17 +76,24 @@ DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVE
 
 
 def build_odometry(
-    name: str, camera: Camera, vocab: Path | None = None, lookback_s: float = LOOKBACK_S
+    name: str,
+    camera: Camera,
+    vocab: Path | None = None,
+    lookback_s: float = LOOKBACK_S,
+    point_map: PointMap | None = None,
 ) -> RotationOdometry:
     """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
 
     The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
-    look-back of the gradient); ORB-SLAM3 tracks a map and has no such setting.
+    look-back of the gradient) and maps its tracked points into the ideal ``camera`` with
+    ``point_map`` (lens distortion, fx ≠ fy); ORB-SLAM3 tracks a map and has neither setting.
     """
     if vocab is not None and name != "orbslam3":
         raise ConfigurationError("--vocab is only used with --odometry orbslam3")
     if name == "orbslam3":
         return make_odometry(name, camera, vocabulary=vocab)
+    if point_map is not None:
+        return make_odometry(name, camera, lookback_s=lookback_s, point_map=point_map)
     return make_odometry(name, camera, lookback_s=lookback_s)
 
 
@@ -191,16 +201,87 @@ def check_runnable(
         )
 
 
+_DEPTH_SOURCE_OPTIONS = (
+    click.option(
+        "--depth-dir",
+        type=click.Path(file_okay=False, path_type=Path),
+        default=None,
+        help="depthmap: folder of per-frame depth maps named by frame number "
+        "(KITTI depth PNG, uint16/256 = m, or .npy float metres).",
+    ),
+    click.option(
+        "--depth-model",
+        type=click.Path(dir_okay=False, path_type=Path),
+        default=None,
+        help="depthmap: ONNX depth model run on every frame with boxes (needs "
+        "onnxruntime: pip install 'slopedist[onnx]').",
+    ),
+    click.option(
+        "--depth-input-size",
+        default=None,
+        help="ONNX model input size WIDTHxHEIGHT in pixels (e.g. 640x192).",
+    ),
+    click.option(
+        "--depth-mean",
+        default=None,
+        help="ONNX model input mean per channel (RGB, on values in [0, 1]) [default: 0,0,0].",
+    ),
+    click.option(
+        "--depth-std", default=None, help="ONNX model input std per channel (RGB) [default: 1,1,1]."
+    ),
+    click.option(
+        "--depth-output",
+        type=click.Choice(list(DEPTH_OUTPUTS)),
+        default="depth",
+        show_default=True,
+        help="ONNX model output: depth (metres = scale × output) or inverse depth / "
+        "disparity (metres = scale / output).",
+    ),
+    click.option(
+        "--depth-scale",
+        type=click.FloatRange(min=0, min_open=True),
+        default=1.0,
+        show_default=True,
+        help="ONNX model output scale (see --depth-output).",
+    ),
+    click.option("--depth-bgr", is_flag=True, help="Feed the ONNX model BGR instead of RGB."),
+    click.option(
+        "--depth-threads",
+        type=click.IntRange(min=1),
+        default=None,
+        help="onnxruntime threads [default: its own].",
+    ),
+)
+_DEPTH_PARAMS = {
+    "depth_dir": "folder",
+    "depth_model": "model",
+    "depth_input_size": "input_size",
+    "depth_mean": "mean",
+    "depth_std": "std",
+    "depth_output": "output",
+    "depth_scale": "scale",
+    "depth_bgr": "bgr",
+    "depth_threads": "threads",
+}
+
+
+def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
+    """The ``--depth-*`` options of the depth source, handed to ``command`` as one
+    ``depth_opts`` (:class:`DepthOptions`)."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        values = {field: kwargs.pop(name) for name, field in _DEPTH_PARAMS.items()}
+        return command(*args, depth_opts=DepthOptions(**values), **kwargs)
+
+    for option in reversed(_DEPTH_SOURCE_OPTIONS):
+        wrapper = option(wrapper)
+    return wrapper
+
+
 @click.command("run")
 @click.argument("frames", type=click.Path(path_type=Path))
-@click.option(
-    "--calib",
-    default=None,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Calibration of the frames' camera: KITTI (P2; P0 for odometry calib.txt), 3×3 K "
-    "text, OpenCV or ROS camera_info YAML/JSON (docs/calibration.md) [default for a drive "
-    "log: its camera_info topic].",
-)
+@optional_calibration_options
 @click.option(
     "--image-topic",
     default=None,
@@ -293,55 +374,7 @@ def check_runnable(
     "of different methods on one sequence in one row [default: the frames' "
     "folder or video name].",
 )
-@click.option(
-    "--depth-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help="depthmap: folder of per-frame depth maps named by frame number "
-    "(KITTI depth PNG, uint16/256 = m, or .npy float metres).",
-)
-@click.option(
-    "--depth-model",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="depthmap: ONNX depth model run on every frame with boxes (needs "
-    "onnxruntime: pip install 'slopedist[onnx]').",
-)
-@click.option(
-    "--depth-input-size",
-    default=None,
-    help="ONNX model input size WIDTHxHEIGHT in pixels (e.g. 640x192).",
-)
-@click.option(
-    "--depth-mean",
-    default=None,
-    help="ONNX model input mean per channel (RGB, on values in [0, 1]) [default: 0,0,0].",
-)
-@click.option(
-    "--depth-std", default=None, help="ONNX model input std per channel (RGB) [default: 1,1,1]."
-)
-@click.option(
-    "--depth-output",
-    type=click.Choice(list(DEPTH_OUTPUTS)),
-    default="depth",
-    show_default=True,
-    help="ONNX model output: depth (metres = scale × output) or inverse depth / "
-    "disparity (metres = scale / output).",
-)
-@click.option(
-    "--depth-scale",
-    type=click.FloatRange(min=0, min_open=True),
-    default=1.0,
-    show_default=True,
-    help="ONNX model output scale (see --depth-output).",
-)
-@click.option("--depth-bgr", is_flag=True, help="Feed the ONNX model BGR instead of RGB.")
-@click.option(
-    "--depth-threads",
-    type=click.IntRange(min=1),
-    default=None,
-    help="onnxruntime threads [default: its own].",
-)
+@depth_source_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @vehicle_classes_option
 @height_option
@@ -349,9 +382,9 @@ def check_runnable(
 @lookback_option
 @estimator_options(depth=True)
 @detector_options("detector-")
-def run(
+def run(  # noqa: PLR0913 (a click command: one parameter per option)
     frames: Path,
-    calib: Path | None,
+    calib: Path | Intrinsics | None,
     image_topic: str | None,
     rotation_topic: str | None,
     speed_topic: str | None,
@@ -368,21 +401,13 @@ def run(
     timestamps: Path | None,
     score: float | None,
     sequence: str | None,
-    depth_dir: Path | None,
-    depth_model: Path | None,
-    depth_input_size: str | None,
-    depth_mean: str | None,
-    depth_std: str | None,
-    depth_output: str,
-    depth_scale: float,
-    depth_bgr: bool,
-    depth_threads: int | None,
     quiet: bool,
     vehicle_classes: tuple[str, ...],
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
     estimator_config: EstimatorConfig,
+    depth_opts: DepthOptions,
     **detector_opts: Any,
 ) -> None:
     """Estimate distances from FRAMES (an image folder, a video file or a drive log) and
@@ -399,44 +424,23 @@ def run(
     method = method or DEFAULT_METHOD
     check_methods([method])
     source = open_source(frames, fps, timestamps, image_topic)
-    mount_rad = math.radians(mount_angle_deg)
-    calibration = (
-        read_calibration(calib, height_m, mount_rad)
-        if calib is not None
-        else log_calibration(source, height_m, mount_rad)
-    )
+    calibration = run_calibration(source, calib, height_m, math.radians(mount_angle_deg))
     camera = with_frame_size(calibration.camera, source)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
-    boxes = calibration.intrinsics.rectify_table(boxes)
-    if detector is not None and not calibration.intrinsics.is_ideal:
-        detector = RectifiedDetector(detector, calibration.intrinsics)
+    boxes, detector = rectified_inputs(calibration, boxes, detector)
     estimator = build_estimator(estimator_config.with_method(method), camera)
-    depth_opts = DepthOptions(
-        depth_dir,
-        depth_model,
-        depth_input_size,
-        depth_mean,
-        depth_std,
-        depth_output,
-        depth_scale,
-        depth_bgr,
-        depth_threads,
-    )
-    has_depth = depth_dir is not None or depth_model is not None
+    has_depth = depth_opts.folder is not None or depth_opts.model is not None
     check_runnable(estimator, has_depth, boxes, rotation_topic is not None)
     depth = build_depth_source(depth_opts, source)
-    if odometry == "none" and vocab is not None:
-        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    backend: RotationOdometry | None = None
-    if rotation_topic is not None:
-        backend = log_rotation_source(source, rotation_topic)
-    elif odometry != "none":
-        backend = build_odometry(odometry, camera, vocab, lookback_s)
-    overlay_path = None
-    if overlay:
-        overlay_path = out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay")
+    backend = rotation_source(
+        source, rotation_topic, odometry, vocab, (camera, lookback_s, calibration.point_map)
+    )
+    overlay_path = (
+        out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay") if overlay else None
+    )
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    inputs = [frames, calib, boxes_path, timestamps, depth_dir, depth_model, vocab, detector_model]
+    inputs = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
+    inputs += [vocab, detector_model]
     mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
     tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
     check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path], inputs)
@@ -459,6 +463,45 @@ def run(
     click.echo(summary_text(result, out_dir), err=True)
 
 
+def run_calibration(
+    source: FrameSource, calib: Any, height_m: float, mount_rad: float
+) -> CameraCalibration:
+    """The ``--calib`` calibration (any form :func:`read_calibration` takes), else the drive
+    log's ``camera_info``."""
+    if calib is not None:
+        return read_calibration(calib, height_m, mount_rad)
+    return log_calibration(source, height_m, mount_rad)
+
+
+def rectified_inputs(
+    calibration: CameraCalibration, boxes: BoxTable, detector: Detector | None
+) -> tuple[BoxTable, Detector | None]:
+    """Boxes (and the detector's future boxes) mapped into the calibration's ideal camera."""
+    boxes = calibration.intrinsics.rectify_table(boxes)
+    if detector is not None and not calibration.intrinsics.is_ideal:
+        detector = RectifiedDetector(detector, calibration.intrinsics)
+    return boxes, detector
+
+
+def rotation_source(
+    source: FrameSource,
+    rotation_topic: str | None,
+    odometry: str,
+    vocab: Path | None,
+    visual: tuple[Camera, float, PointMap | None],
+) -> RotationOdometry | None:
+    """The run's rotations: a drive log's IMU/odometry topic, else the ``odometry`` backend on
+    the frames (``visual``: its camera, look-back in seconds and point map), else None."""
+    if odometry == "none" and vocab is not None:
+        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
+    if rotation_topic is not None:
+        return log_rotation_source(source, rotation_topic)
+    if odometry == "none":
+        return None
+    camera, lookback_s, point_map = visual
+    return build_odometry(odometry, camera, vocab, lookback_s, point_map)
+
+
 def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
     """``camera`` knowing the image size for the border test of every box: the frames' size,
     unless the calibration states its own (then the run checks that the two agree)."""
@@ -467,13 +510,16 @@ def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
     return camera.with_image_size(*frames.frame_size())
 
 
-def check_run_outputs(out_dir: Path, extras: list[Path | None], inputs: list[Path | None]) -> None:
+def check_run_outputs(
+    out_dir: Path, extras: list[Path | None], inputs: Sequence[Path | Intrinsics | None]
+) -> None:
     """Fail before anything is written if an output of the run (or its temporary name) is one
-    of its ``inputs``, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports)."""
+    of its input files, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports);
+    ``inputs`` may hold a calibration given as values (not a file)."""
     outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
     outputs += [e for e in extras if e is not None]
     outputs += [partial_path(o) for o in outputs]
-    check_outputs_spare_inputs(outputs, inputs, out_dir)
+    check_outputs_spare_inputs(outputs, [p for p in inputs if isinstance(p, Path)], out_dir)
 
 
 def boxes_or_detector(

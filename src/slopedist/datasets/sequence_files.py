@@ -14,8 +14,9 @@ from pathlib import Path
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import read_box_file
-from slopedist.errors import DataMismatchError
+from slopedist.errors import ConfigurationError, DataMismatchError, MissingInputError
 from slopedist.io.calibration import read_calibration
+from slopedist.io.intrinsics import Intrinsics
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
 
@@ -35,24 +36,32 @@ class SequenceFiles:
 
     Attributes:
         calib: calibration file in any form :func:`~slopedist.io.calibration.read_calibration`
-            reads (KITTI ``P2``, K text, OpenCV/ROS YAML/JSON); boxes are mapped into its ideal
-            camera (lens distortion and fx ≠ fy removed).
-        poses: pose file; ``pose_layout`` says its layout.
-        boxes: box file (slopedist CSV, KITTI labels or PointRCNN).
+            reads (KITTI ``P2``, K text, OpenCV/ROS YAML/JSON), or the intrinsics as values;
+            boxes are mapped into its ideal camera (lens distortion and fx ≠ fy removed).
+        poses: pose file; ``pose_layout`` says its layout (None: not given, e.g. the rotations
+            come from the frames).
+        boxes: box file (any form :func:`~slopedist.detections.readers.read_box_file` reads;
+            None: not given, e.g. a detector finds them).
         frame_period_s: seconds between frames (pose files without timestamps).
         min_score: keep boxes with score ≥ this (None: all).
         height_m: camera height above the road, metres.
         mount_angle_rad: camera mount angle θ0, radians.
     """
 
-    calib: Path
-    poses: Path
-    boxes: Path
+    calib: Path | Intrinsics
+    poses: Path | None
+    boxes: Path | None
     pose_layout: PoseFileLayout = PoseFileLayout.AUTO
     frame_period_s: float = 0.1
     min_score: float | None = None
     height_m: float = KITTI_CAMERA_HEIGHT_M
     mount_angle_rad: float = 0.0
+
+    @property
+    def input_files(self) -> list[Path]:
+        """The files given (the calibration only when it is a file)."""
+        given = (self.calib, self.poses, self.boxes)
+        return [p for p in given if isinstance(p, Path)]
 
 
 @dataclass(frozen=True)
@@ -68,11 +77,20 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
     """Read the camera, the rotations and the boxes of ``files``.
 
     Raises:
+        MissingInputError: no pose or box file given.
         DataMismatchError: the poses do not cover the boxes' frames.
     """
+    if files.poses is None or files.boxes is None:
+        missing = "pose" if files.poses is None else "box"
+        raise MissingInputError(f"no {missing} file given")
     calibration = read_calibration(files.calib, files.height_m, files.mount_angle_rad)
     layout = PoseFileLayout(files.pose_layout)
     if layout is PoseFileLayout.OXTS:
+        if isinstance(files.calib, Intrinsics):
+            raise ConfigurationError(
+                "OXTS poses need the KITTI calibration file (Tr_imu_to_velo, Tr_velo_to_cam): "
+                "give --calib, not --fx/--fy/--cx/--cy"
+            )
         track = read_oxts_rotations(files.poses, files.calib, files.frame_period_s)
     elif layout is PoseFileLayout.AUTO:
         track = read_pose_file(files.poses, None, files.frame_period_s)

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
 from slopedist.errors import ConfigurationError, InputFileError
@@ -49,16 +50,23 @@ class CameraCalibration:
     intrinsics: Intrinsics
     camera: Camera
 
+    @property
+    def point_map(self) -> Callable[[NDArray[np.float64]], NDArray[np.float64]] | None:
+        """Pixels of the real camera → pixels of :attr:`camera` (``(N, 2)``; what the built-in
+        odometry's ``point_map`` takes), or None when the camera is ideal already."""
+        return None if self.intrinsics.is_ideal else self.intrinsics.rectify_points
+
 
 def read_calibration(
-    path: str | Path,
+    path: str | Path | Intrinsics,
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
     kitti_key: str = "P2",
 ) -> CameraCalibration:
-    """Read a calibration file of any supported form (see the module docstring); the mount is
-    given in metres and radians."""
-    intrinsics = read_intrinsics(path, kitti_key)
+    """Read a calibration file of any supported form (see the module docstring), or take
+    ``Intrinsics`` given as values (``--fx --fy --cx --cy``); the mount is given in metres and
+    radians."""
+    intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 

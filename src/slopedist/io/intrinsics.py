@@ -74,11 +74,18 @@ class Intrinsics:
 
     @classmethod
     def from_values(
-        cls, fx: float, fy: float, cx: float, cy: float, dist: ArrayLike = ()
+        cls,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        dist: ArrayLike = (),
+        image_size: tuple[int, int] | None = None,
     ) -> Intrinsics:
-        """Intrinsics from explicit values (pixels), e.g. ``--fx --fy --cx --cy``."""
+        """Intrinsics from explicit values (pixels; ``image_size`` = width, height), e.g.
+        ``--fx --fy --cx --cy --image-size``."""
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        return cls(K, np.asarray(dist, dtype=float))
+        return cls(K, np.asarray(dist, dtype=float), image_size=image_size)
 
     @property
     def ideal_K(self) -> NDArray[np.float64]:

@@ -13,12 +13,16 @@ from typing import Any
 from slopedist.camera import Camera
 from slopedist.errors import ConfigurationError
 from slopedist.odometry.base import RotationOdometry
+from slopedist.odometry.point_map import PointMap
 
 OdometryFactory = Callable[..., RotationOdometry]
 
 
-def _builtin(camera: Camera, **options: Any) -> RotationOdometry:
-    """The built-in OpenCV visual odometry; options are fields of ``VisualOdometryConfig``."""
+def _builtin(camera: Camera, point_map: PointMap | None = None, **options: Any) -> RotationOdometry:
+    """The built-in OpenCV visual odometry; options are fields of ``VisualOdometryConfig``, and
+    ``point_map`` maps its tracked pixels into the ideal ``camera`` (lens distortion, fx ≠ fy;
+    :mod:`~slopedist.odometry.point_map`)."""
+    from slopedist.odometry.point_map import PointNormaliser
     from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
 
     known = {f.name for f in fields(VisualOdometryConfig)}
@@ -28,7 +32,9 @@ def _builtin(camera: Camera, **options: Any) -> RotationOdometry:
             f"unknown option(s) {', '.join(unknown)} of the builtin visual odometry; "
             f"known: {', '.join(sorted(known))}"
         )
-    return BuiltinVisualOdometry(camera, VisualOdometryConfig(**options))
+    odometry = BuiltinVisualOdometry(camera, VisualOdometryConfig(**options))
+    odometry.normalise = PointNormaliser(camera.K, point_map)
+    return odometry
 
 
 def _orbslam3(camera: Camera, **options: Any) -> RotationOdometry:

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from slopedist.camera import read_kitti_calib
 from slopedist.errors import InputFileError
@@ -112,6 +111,8 @@ def _read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64
             line=int(lines[bad[0]]),
             field="qx qy qz qw",
         )
+    from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
     return data, Rotation.from_quat(q / norms[:, None]).as_matrix()
 
 
@@ -181,6 +182,8 @@ def vehicle_frame_evidence(xyz: NDArray[np.float64], R: NDArray[np.float64]) -> 
     keep = np.r_[np.arange(0, len(R) - 1, EVIDENCE_STRIDE), len(R) - 1]
     if len(keep) < 2:
         return None
+    from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
     Rs, ps = R[keep], xyz[keep]
     turn = np.abs(Rotation.from_matrix(np.swapaxes(Rs[:-1], -1, -2) @ Rs[1:]).as_rotvec())
     turn = turn.sum(axis=0)
@@ -263,6 +266,8 @@ class TumPoseWriter:
         t_world_cam: NDArray[np.float64] | None = None,
     ) -> None:
         """Append one pose (rotation ``(3, 3)``, translation ``(3,)`` metres or None = 0)."""
+        from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
+
         t = np.zeros(3) if t_world_cam is None else np.asarray(t_world_cam, dtype=float)
         q = Rotation.from_matrix(np.asarray(R_world_cam, dtype=float)).as_quat()
         values = [float(timestamp_s), *(float(v) for v in t), *(float(v) for v in q)]

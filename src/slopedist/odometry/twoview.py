@@ -59,12 +59,11 @@ def so3_log(R: FloatArray) -> FloatArray:
     v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     if angle < 1e-6:
         return 0.5 * v
-    if np.pi - angle < 1e-4:  # near π: axis from the symmetric part
-        B = 0.5 * (R + np.eye(3))
-        axis = np.sqrt(np.clip(np.diag(B), 0.0, None))
-        k = int(np.argmax(axis))
-        axis = B[k] / max(axis[k], 1e-12)
-        axis /= np.linalg.norm(axis)
+    if np.pi - angle < 1e-4:  # near π: v is tiny, the axis comes from the symmetric part
+        angle = math.atan2(0.5 * float(np.linalg.norm(v)), cos_angle)  # arccos is flat here
+        S = 0.5 * (R + R.T) - math.cos(angle) * np.eye(3)  # (1 − cos θ)·a·aᵀ, exactly
+        k = int(np.argmax(np.diag(S)))
+        axis = S[k] / np.linalg.norm(S[k])
         if axis @ v < 0:
             axis = -axis
         return angle * axis

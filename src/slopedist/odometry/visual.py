@@ -34,6 +34,7 @@ matching the frames' grey levels and sharpness (:mod:`~slopedist.odometry.image_
 Lucas–Kanade, which assumes both constant; a frame far blurrier than the last good one
 (:data:`~slopedist.odometry.image_stats.MAX_BLUR_RATIO`) is ``LOST`` and bridged.
 
+Frames wider than ``max_width_px`` are tracked scaled down (:mod:`.working_size`).
 Memory is bounded: the tracks (``max_features``) and one look-back of frame records.
 
 Convention: camera frame x right, y down, z forward; pixels, seconds, radians;
@@ -62,7 +63,9 @@ from slopedist.odometry.masks import (
     half_size_corner_mask,
     inside_boxes,
 )
+from slopedist.odometry.point_map import PointNormaliser
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
+from slopedist.odometry.working_size import WorkingSize, check_gray_frame, check_principal_point
 
 FloatArray = NDArray[np.float64]
 
@@ -102,7 +105,8 @@ class BuiltinVisualOdometry:
     def __init__(self, camera: Camera, config: VisualOdometryConfig | None = None) -> None:
         self.camera = camera
         self.config = config or VisualOdometryConfig()
-        self._K = camera.K
+        self.normalise = PointNormaliser(camera.K)  # full-frame pixels → ideal camera
+        self._f = camera.f  # focal length of the working frames (pixels), set by _set_work
         theta0 = camera.mount_angle_rad
         self._heading = np.array([0.0, -math.sin(theta0), math.cos(theta0)])
         c = self.config
@@ -121,8 +125,8 @@ class BuiltinVisualOdometry:
 
     @property
     def tracks(self) -> NDArray[np.float32]:
-        """Pixel positions ``(N, 2)`` of the tracks alive in the last good frame (a copy)."""
-        return self._pts.copy()
+        """Full-frame pixel positions ``(N, 2)`` of the tracks alive in the last good frame."""
+        return self._pts.copy() if self._work is None else self._work.to_full(self._pts)
 
     @property
     def history_frames(self) -> int:
@@ -151,12 +155,11 @@ class BuiltinVisualOdometry:
         self._last_R: FloatArray | None = None
         self._segment = 0
         self.last_fit: FitInfo | None = None
+        self._work: WorkingSize | None = None
+        self._size_source = "the first frame"
         if self.camera.image_width is not None and self.camera.image_height is not None:
-            self._size: tuple[int, int] | None = (self.camera.image_width, self.camera.image_height)
+            self._set_work(self.camera.image_width, self.camera.image_height)
             self._size_source = "the camera calibration"
-        else:
-            self._size = None
-            self._size_source = ""
 
     def process(
         self,
@@ -178,7 +181,8 @@ class BuiltinVisualOdometry:
         """
         image = self._check_image(image_gray)
         t = self._check_timestamp(timestamp_s)
-        boxes = check_boxes(mask_boxes)
+        assert self._work is not None
+        boxes = self._work.boxes(check_boxes(mask_boxes))
         if not self._history:
             return self._start(image, t, boxes)
         if t - self._history[-1].timestamp_s > self.config.max_bridge_s:
@@ -190,28 +194,28 @@ class BuiltinVisualOdometry:
 
     # ------------------------------------------------------------------ input checks
     def _check_image(self, image_gray: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        image = np.asarray(image_gray)
-        if image.ndim != 2 or image.dtype != np.uint8:
-            raise DataMismatchError(
-                f"visual odometry needs grey H×W uint8 frames, got shape {image.shape} "
-                f"and dtype {image.dtype}"
-            )
+        """The frame at the working size (:mod:`~slopedist.odometry.working_size`)."""
+        image = check_gray_frame(image_gray)
         height, width = image.shape
-        if self._size is None:
-            if not (0 < self.camera.c_x < width and 0 < self.camera.c_y < height):
-                raise DataMismatchError(
-                    f"the camera's principal point ({self.camera.c_x:.1f}, "
-                    f"{self.camera.c_y:.1f}) px lies outside the {width}×{height} frames: "
-                    "calibration and frames do not match"
-                )
-            self._size = (width, height)
-            self._size_source = "the first frame"
-        elif (width, height) != self._size:
+        if self._work is None:
+            check_principal_point(self.camera, width, height)
+            self._set_work(width, height)
+        assert self._work is not None
+        if (width, height) != self._work.full_size:
             raise DataMismatchError(
-                f"frame size {width}×{height} px differs from the {self._size[0]}×"
-                f"{self._size[1]} px of {self._size_source}"
+                f"frame size {width}×{height} px differs from the "
+                f"{'×'.join(map(str, self._work.full_size))} px of {self._size_source}"
             )
-        return np.ascontiguousarray(image)
+        return self._work.image(image)
+
+    def _set_work(self, width: int, height: int) -> None:
+        """Fix the full and working frame sizes and the working camera's intrinsics."""
+        self._work = WorkingSize.choose(self.camera, width, height, self.config.max_width_px)
+        self._f = self._work.camera.f
+
+    def _full(self, uv: NDArray[np.float32]) -> NDArray[np.float32]:
+        """Working-frame pixels ``(N, 2)`` as full-frame pixels (the normaliser's)."""
+        return uv if self._work is None else self._work.to_full(uv)
 
     def _check_timestamp(self, timestamp_s: float) -> float:
         t = float(timestamp_s)
@@ -342,13 +346,13 @@ class BuiltinVisualOdometry:
             cov_vote = f2f.R @ (step_cov + self._cov) @ f2f.R.T
             R_world_cam, cov = tv.fuse_rotations(R_world_cam, cov, vote, cov_vote)
         else:
-            x_prev = tv.normalise_pixels(self._pts[keep], self._K)
-            x_cur = tv.normalise_pixels(pts, self._K)
+            x_prev = self.normalise(self._full(self._pts[keep]))
+            x_cur = self.normalise(self._full(pts))
             r_f2f = tv.epipolar_residuals_px(
                 R_world_cam.T @ prev.R_world_cam,
                 x_prev,
                 x_cur,
-                self.camera.f,
+                self._f,
                 c.inlier_threshold_px,
             )
             good &= r_f2f <= c.outlier_px
@@ -392,7 +396,7 @@ class BuiltinVisualOdometry:
         the masked boxes) and their new positions.
         """
         c = self.config
-        assert self._size is not None
+        assert self._work is not None
         p1, status, err = cv2.calcOpticalFlowPyrLK(
             previous,
             image,
@@ -415,7 +419,7 @@ class BuiltinVisualOdometry:
             cur_f = image.astype(np.float32)
             self._float_source, self._float_image = image, cur_f  # the next step's previous
             p1[refine] = refine_affine(prev_f, cur_f, self._pts[refine], p1[refine])[0]
-        width, height = self._size
+        width, height = self._work.size
         margin = 0.5 * c.klt_window_px
         keep = (
             tracked
@@ -484,9 +488,8 @@ class BuiltinVisualOdometry:
         ``kind`` ("direct" or "f2f") selects which earlier translation warm-starts the fit.
         """
         c = self.config
-        f = self.camera.f
-        x1 = tv.normalise_pixels(uv_ref, self._K)
-        x2 = tv.normalise_pixels(uv_cur, self._K)
+        f = self._f
+        x1, x2 = self.normalise(self._full(uv_ref)), self.normalise(self._full(uv_cur))
         n = len(x1)
         rot = tv.fit_rotation_only(x1, x2, f, c.inlier_threshold_px, R_init=R_init)
         if rot.n_inliers >= max(c.min_inliers, c.min_inlier_ratio * n) and (
@@ -520,18 +523,15 @@ class BuiltinVisualOdometry:
     ) -> tv.TwoViewFit | None:
         """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
         c = self.config
+        uv_ref, uv_cur = (self.normalise.pixels(self._full(uv)) for uv in (uv_ref, uv_cur))
+        threshold = c.inlier_threshold_px * (self.camera.f / self._f)  # full-frame pixels
+        K = self.normalise.K
         E, mask = cv2.findEssentialMat(
-            uv_ref,
-            uv_cur,
-            self._K,
-            cv2.USAC_DEFAULT,
-            0.999,
-            c.inlier_threshold_px,
-            USAC_MAX_ITERATIONS,
+            uv_ref, uv_cur, K, cv2.USAC_DEFAULT, 0.999, threshold, USAC_MAX_ITERATIONS
         )
         if E is None or E.shape != (3, 3):
             return None
-        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, self._K, mask=mask)
+        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, K, mask=mask)
         return self._refine(x1, x2, np.asarray(R, dtype=np.float64))
 
     def _refine(
@@ -550,7 +550,7 @@ class BuiltinVisualOdometry:
         ):
             t_init = t_last if t_last @ t_init > 0 else -t_last
         return tv.fit_relative_pose(
-            x1, x2, self.camera.f, R_init, t_init, threshold_px=c.inlier_threshold_px
+            x1, x2, self._f, R_init, t_init, threshold_px=c.inlier_threshold_px
         )
 
     # ------------------------------------------------------------------ bookkeeping

@@ -2,18 +2,18 @@
 
 For the unit tests and the speed benchmark (the rendered hill scenarios of
 :mod:`slopedist.datasets.synthetic` are the realistic counterpart). Vehicles are Cars whose
-dimensions scatter around the class prior (or, with ``vehicle_types``, Cars, Vans and Trucks
-around theirs, all labelled ``Car`` as a class-blind detector would unless ``label_types``); the
-camera is at rest at height ``true_height_m`` with mount angle ``true_mount_rad``, so the horizon
-is the row ``c_y + f·tan θ0``.
+dimensions scatter around the class prior; the camera is at rest at height ``true_height_m``
+with mount angle ``true_mount_rad``, so the horizon is the row ``c_y + f·tan θ0``.
 
 Convention: camera x right, y down, z forward; metres, seconds, radians, pixels.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,54 +50,77 @@ class SimulatedTraffic:
     types: NDArray[np.object_]
 
 
+@dataclass(frozen=True)
+class TrafficSettings:
+    """How :func:`simulate_traffic` scatters its vehicles.
+
+    Attributes:
+        true_height_m, true_mount_rad: the true camera height (m) and mount angle (rad) the
+            boxes are projected with (None: the camera's own), to test a wrong calibration.
+        frame_period_s: time between frames, seconds.
+        z_range_m: initial longitudinal distances, metres.
+        speed_range_mps: relative speeds, m/s (negative: closing in).
+        lateral_m: lateral offsets lie in ``±lateral_m``, metres.
+        box_noise_px: white noise added to every box edge, pixels.
+        with_ids: give the boxes their vehicle's track id (else −1).
+        size_spread: vehicle sizes scatter by this many times the Car prior's spread.
+        vehicle_types: class name → probability (classes of :data:`CLASS_PRIORS`): each
+            vehicle's class is drawn and its dimensions scatter around that class's prior
+            (None: every vehicle a Car).
+        label_types: label the boxes with their true class; else every box is ``Car``, as a
+            class-blind detector calls vans and trucks.
+    """
+
+    true_height_m: float | None = None
+    true_mount_rad: float | None = None
+    frame_period_s: float = 0.1
+    z_range_m: tuple[float, float] = (8.0, 70.0)
+    speed_range_mps: tuple[float, float] = (-10.0, 6.0)
+    lateral_m: float = 10.0
+    box_noise_px: float = 0.0
+    with_ids: bool = True
+    size_spread: float = 1.0
+    vehicle_types: dict[str, float] | None = None
+    label_types: bool = False
+
+
 def simulate_traffic(
     camera: Camera,
     n_vehicles: int,
     n_frames: int,
     seed: int = 0,
-    *,
-    true_height_m: float | None = None,
-    true_mount_rad: float | None = None,
-    frame_period_s: float = 0.1,
-    z_range_m: tuple[float, float] = (8.0, 70.0),
-    speed_range_mps: tuple[float, float] = (-10.0, 6.0),
-    lateral_m: float = 10.0,
-    box_noise_px: float = 0.0,
-    with_ids: bool = True,
-    size_spread: float = 1.0,
-    vehicle_types: dict[str, float] | None = None,
-    label_types: bool = False,
+    settings: TrafficSettings | None = None,
+    **overrides: Any,
 ) -> SimulatedTraffic:
     """Vehicles driving along the camera's axis at constant relative speeds.
 
     Each vehicle keeps its lane (lateral offset) and heading (aligned, ±2°); it is visible
     while 4 m ≤ Z ≤ 90 m. Dimensions scatter around the Car prior by ``size_spread`` times the
-    prior's spread. ``box_noise_px`` adds white noise to every box edge. ``vehicle_types``
-    (class name → probability, classes of :data:`CLASS_PRIORS`) draws each vehicle's class and
-    scatters its dimensions around that class's prior instead; the boxes are labelled ``Car``
-    (a class-blind detector) unless ``label_types``.
+    prior's spread (:class:`TrafficSettings`; ``overrides`` replace single settings, e.g.
+    ``box_noise_px=0.5``).
     """
+    cfg = dataclasses.replace(settings or TrafficSettings(), **overrides)
     rng = np.random.default_rng(seed)
-    h = camera.height_m if true_height_m is None else true_height_m
-    theta0 = camera.mount_angle_rad if true_mount_rad is None else true_mount_rad
+    h = camera.height_m if cfg.true_height_m is None else cfg.true_height_m
+    theta0 = camera.mount_angle_rad if cfg.true_mount_rad is None else cfg.true_mount_rad
     v = camera.c_y + camera.f * math.tan(theta0)
     p = CLASS_PRIORS["Car"]
     dims = np.stack(
         [
-            p.height_m + size_spread * p.height_sigma_m * rng.standard_normal(n_vehicles),
-            p.width_m + size_spread * p.width_sigma_m * rng.standard_normal(n_vehicles),
-            p.length_m + size_spread * p.length_sigma_m * rng.standard_normal(n_vehicles),
+            p.height_m + cfg.size_spread * p.height_sigma_m * rng.standard_normal(n_vehicles),
+            p.width_m + cfg.size_spread * p.width_sigma_m * rng.standard_normal(n_vehicles),
+            p.length_m + cfg.size_spread * p.length_sigma_m * rng.standard_normal(n_vehicles),
         ],
         axis=1,
     )
-    z0 = rng.uniform(*z_range_m, n_vehicles)
-    speed = rng.uniform(*speed_range_mps, n_vehicles)
-    lane = rng.uniform(-lateral_m, lateral_m, n_vehicles)
+    z0 = rng.uniform(*cfg.z_range_m, n_vehicles)
+    speed = rng.uniform(*cfg.speed_range_mps, n_vehicles)
+    lane = rng.uniform(-cfg.lateral_m, cfg.lateral_m, n_vehicles)
     yaw = np.radians(rng.uniform(-2.0, 2.0, n_vehicles))
     types = np.full(n_vehicles, "Car", dtype=object)
-    if vehicle_types:
-        types, dims = _draw_types(rng, vehicle_types, n_vehicles, size_spread)
-    t = np.arange(n_frames) * frame_period_s
+    if cfg.vehicle_types:
+        types, dims = _draw_types(rng, cfg.vehicle_types, n_vehicles, cfg.size_spread)
+    t = np.arange(n_frames) * cfg.frame_period_s
     frames, boxes, zs, veh, spd = [], [], [], [], []
     for k, tk in enumerate(t):
         z = z0 + speed * tk
@@ -105,8 +128,8 @@ def simulate_traffic(
         if not np.any(vis):
             continue
         b = project_box(camera.f, camera.c_x, v, h, lane[vis], z[vis], yaw[vis], dims[vis])
-        if box_noise_px > 0:
-            b = b + rng.normal(0.0, box_noise_px, b.shape)
+        if cfg.box_noise_px > 0:
+            b = b + rng.normal(0.0, cfg.box_noise_px, b.shape)
         frames.append(np.full(int(vis.sum()), k))
         boxes.append(b)
         zs.append(z[vis])
@@ -117,8 +140,8 @@ def simulate_traffic(
     table = BoxTable.build(
         frame,
         np.concatenate(boxes) if boxes else np.zeros((0, 4)),
-        vehicle if with_ids else np.full(len(vehicle), -1),
-        classes=types[vehicle] if label_types else np.full(len(vehicle), "Car", dtype=object),
+        vehicle if cfg.with_ids else np.full(len(vehicle), -1),
+        classes=types[vehicle] if cfg.label_types else np.full(len(vehicle), "Car", dtype=object),
     )
     return SimulatedTraffic(
         table,

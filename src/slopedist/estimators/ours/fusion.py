@@ -47,7 +47,7 @@ class LogCue(NamedTuple):
     loglik: FloatArray
 
 
-def fuse_size_cues(
+def fuse_size_cues(  # noqa: PLR0913 (the terms of one GLS equation, as in the docstring)
     y_h: FloatArray,
     r_h_white: FloatArray | float,
     r_h_other: FloatArray | float,

@@ -1,0 +1,210 @@
+"""One drive of a batch: run it into a temporary folder, stamp it, publish it atomically.
+
+:func:`run_single_drive` is the one adapter between the batch engine and the single-drive
+library (:func:`slopedist.runner.run_frames`, built the way ``slopedist run`` builds it).
+:func:`process_drive` is the task the engine runs per drive (in a Ray worker): it never raises
+for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
+
+A drive's outputs appear in ``OUT/<drive>/`` by one rename of a complete folder, so a batch
+killed at any moment leaves each drive either complete (with its input stamp in ``run.json``) or
+absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the next batch.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, cast
+
+from slopedist.batch.manifest import DriveSpec
+from slopedist.batch.stamp import STAMP_KEY
+from slopedist.batch.status import DriveOutcome, DriveStatus
+from slopedist.depth import FileDepthSource
+from slopedist.detections.boxes import BoxTable
+from slopedist.detections.onnx_detector import Detector, OnnxDetector
+from slopedist.detections.readers import read_box_file
+from slopedist.errors import ConfigurationError, SlopedistError
+from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.io.calibration import read_calibration
+from slopedist.io.frames import Frame, FrameSource
+from slopedist.io.intrinsics import RectifiedDetector
+from slopedist.io.sources import open_source
+from slopedist.io.tables import write_json
+from slopedist.odometry import make_odometry
+from slopedist.runner import SUMMARY_NAME, RunConfig, RunResult, run_frames
+
+TMP_PREFIX = ".tmp-"
+ATTEMPTS_PREFIX = ".attempts-"
+CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
+"""Test hook: ``DRIVE:N`` makes the first attempt of drive ``DRIVE`` end its process
+(``os._exit``) after ``N`` frames, as a worker killed mid-drive would."""
+
+
+def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
+    """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options: the one
+    adapter between the batch and the single-drive library (``crash_after`` is the test hook
+    of :data:`CRASH_ENV`).
+
+    Raises:
+        ConfigurationError: a method ``run`` cannot feed (defined on IMU rotations).
+        SlopedistError / OSError: bad inputs, as ``slopedist run`` raises them.
+    """
+    source = open_source(spec.frames, spec.fps, spec.timestamps)
+    calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
+    camera = calibration.camera
+    if camera.image_width is None or camera.image_height is None:  # as run: the frames' size
+        camera = camera.with_image_size(*source.frame_size())
+    boxes = BoxTable.empty()
+    detector: Detector | None = None
+    if spec.boxes is not None:
+        boxes = calibration.intrinsics.rectify_table(read_box_file(spec.boxes, spec.score))
+    elif spec.detector is not None:
+        detector = OnnxDetector(spec.detector)
+        if not calibration.intrinsics.is_ideal:
+            detector = RectifiedDetector(detector, calibration.intrinsics)
+    estimator = build_estimator(EstimatorConfig(method=spec.method), camera)
+    if estimator.rotation_source is not None:
+        raise ConfigurationError(
+            f"method '{spec.method}' is defined on '{estimator.rotation_source}' rotations; "
+            "a batch feeds visual-odometry rotations from the frames"
+        )
+    depth = None
+    if spec.depth_dir is not None:
+        width, height = source.frame_size()
+        depth = FileDepthSource(spec.depth_dir, missing_ok=True, expected_shape=(height, width))
+    odometry = None
+    if spec.odometry == "builtin":
+        odometry = make_odometry(spec.odometry, camera, lookback_s=spec.lookback_s)
+    elif spec.odometry != "none":
+        odometry = make_odometry(spec.odometry, camera)
+    frames: FrameSource = source
+    if crash_after is not None:
+        frames = cast(FrameSource, _CrashingFrames(source, crash_after))
+    config = RunConfig(
+        out_dir, spec.lookback_s, progress=False, sequence=spec.sequence or spec.name
+    )
+    return run_frames(frames, boxes, odometry, estimator, config, depth, detector)
+
+
+class _CrashingFrames:
+    """A frame source that ends the process after ``after`` frames (test hook)."""
+
+    def __init__(self, inner: FrameSource, after: int) -> None:
+        self._inner = inner
+        self._after = after
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for i, frame in enumerate(self._inner):
+            if i == self._after:
+                os._exit(17)
+            yield frame
+
+
+def count_attempt(out_root: Path, drive: str) -> int:
+    """Record one more attempt of ``drive`` (a line in ``OUT/.attempts-<drive>``); returns the
+    attempt number, 1 for the first."""
+    path = out_root / f"{ATTEMPTS_PREFIX}{drive}"
+    with path.open("a", encoding="utf-8") as fh:
+        fh.write(f"{os.getpid()}\n")
+    return len(path.read_text(encoding="utf-8").splitlines())
+
+
+def attempts_of(out_root: Path, drive: str) -> int:
+    """How many attempts of ``drive`` :func:`count_attempt` recorded (0 when none)."""
+    path = out_root / f"{ATTEMPTS_PREFIX}{drive}"
+    return len(path.read_text(encoding="utf-8").splitlines()) if path.is_file() else 0
+
+
+def _crash_after(drive: str, attempt: int, hook: str | None) -> int | None:
+    if not hook or attempt != 1:
+        return None
+    name, _, after = hook.rpartition(":")
+    return int(after) if name == drive else None
+
+
+def publish(tmp: Path, final: Path) -> None:
+    """Move the complete folder ``tmp`` to ``final``, replacing an older ``final``; between
+    the two renames a reader sees no ``final`` rather than a mixed one."""
+    if final.exists():
+        old = final.with_name(f"{TMP_PREFIX}old-{final.name}-{uuid.uuid4().hex[:8]}")
+        final.rename(old)
+        tmp.rename(final)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(final)
+
+
+def error_text(exc: BaseException) -> str:
+    """One line for ``status.csv``: the message of a slopedist error, else type and message."""
+    text = str(exc) if isinstance(exc, SlopedistError) else f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
+def process_drive(
+    spec: DriveSpec, out_root: Path, stamp: dict[str, Any], crash_hook: str | None = None
+) -> DriveOutcome:
+    """Run one drive into ``OUT/<drive>`` atomically and return its outcome (never raises for
+    the drive's own errors: a corrupt drive fails alone). ``stamp`` goes into ``run.json``."""
+    attempt = count_attempt(out_root, spec.name)
+    tmp = out_root / f"{TMP_PREFIX}{spec.name}-{uuid.uuid4().hex[:8]}"
+    final = out_root / spec.name
+    start, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
+        summary_path = tmp / SUMMARY_NAME
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        summary[STAMP_KEY] = stamp
+        write_json(summary_path, summary)
+        publish(tmp, final)
+    except Exception as exc:  # failure isolation: any error of this drive is its own
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(final, ignore_errors=True)  # outputs of older inputs are stale now
+        return DriveOutcome(
+            spec.name,
+            DriveStatus.FAILED,
+            error=error_text(exc),
+            seconds=time.perf_counter() - start,
+            attempts=attempt,
+        )
+    return DriveOutcome(
+        spec.name,
+        DriveStatus.DONE,
+        frames=result.frames,
+        records=result.records,
+        seconds=time.perf_counter() - start,
+        cpu_seconds=time.process_time() - cpu_start,
+        attempts=attempt,
+        worker_peak_rss_mb=peak_rss_mb(),
+    )
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far, MB (NaN where ``resource`` is missing)."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover (not on Windows)
+        return math.nan
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+def completed_stamp(folder: Path) -> dict[str, Any] | None:
+    """The input stamp of a complete drive folder, or None (no folder, no or unreadable
+    ``run.json``, a run that stopped on an error, or no stamp)."""
+    path = folder / SUMMARY_NAME
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    if not isinstance(summary, dict) or summary.get("error"):
+        return None
+    stamp = summary.get(STAMP_KEY)
+    return stamp if isinstance(stamp, dict) else None

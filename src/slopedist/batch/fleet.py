@@ -1,0 +1,200 @@
+"""Fleet outputs of a batch: the Parquet dataset of all records and the fleet summary.
+
+- ``OUT/records.parquet/drive=<drive>/part-0.parquet``: every drive's ``records.csv`` as one
+  Hive-partitioned Parquet dataset (read it with ``pyarrow.dataset.dataset(path,
+  partitioning="hive")``; the partition column is ``drive``). Written per drive, atomically;
+  the record columns have fixed types, and a method-specific extra column that is empty in a
+  drive is written as float64.
+- :func:`fleet_summary`: per-drive and pooled distance metrics (metres) of every method where
+  the records carry the true distance ``gt_distance_m``, and the error by true-distance range
+  (:data:`~slopedist.evaluation.DISTANCE_BINS_M`), scored as ``slopedist report`` scores runs
+  (estimates capped at 80 m, below-horizon counted at the cap). :func:`write_fleet_summary`
+  writes them to ``OUT/fleet/{drives,pooled,range}.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slopedist.batch.drive import completed_stamp
+from slopedist.detections.readers import CSV_TRUTH_COLUMN
+from slopedist.errors import InputFileError, OptionalDependencyError
+from slopedist.evaluation import DISTANCE_BINS_M, bin_label, cap_estimates, distance_metrics
+from slopedist.io.tables import write_csv
+from slopedist.runner import RECORDS_NAME
+
+DATASET_NAME = "records.parquet"
+FLEET_DIR = "fleet"
+FLEET_NAMES = frozenset({DATASET_NAME, FLEET_DIR, "status.csv"})
+"""Names in ``OUT`` that belong to the batch, not to a drive."""
+
+METRICS = ("n", "rmse", "mae", "abs_rel", "delta_1.25")
+"""Metrics of the fleet tables (see :func:`slopedist.evaluation.distance_metrics`)."""
+
+_FLOAT_COLUMNS = (
+    "timestamp_s",
+    "score",
+    "left",
+    "top",
+    "right",
+    "bottom",
+    "theta_deg",
+    "theta_adj_deg",
+    "delta_y_px",
+    "v_px",
+    "distance_m",
+    CSV_TRUTH_COLUMN,
+)
+_INT_COLUMNS = ("frame", "track_id")
+_STRING_COLUMNS = ("class", "method", "reference", "status", "reason", "cut")
+
+
+def import_pyarrow() -> Any:
+    """``pyarrow`` (with its csv and parquet modules), or an OptionalDependencyError."""
+    try:
+        import pyarrow
+        import pyarrow.csv
+        import pyarrow.parquet
+    except ImportError:
+        raise OptionalDependencyError("pyarrow", "batch", "the fleet Parquet dataset") from None
+    return pyarrow
+
+
+def partition_path(out_dir: Path, drive: str) -> Path:
+    """Folder of ``drive``'s partition in the fleet dataset."""
+    return out_dir / DATASET_NAME / f"drive={drive}"
+
+
+def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
+    """Write ``OUT/<drive>/records.csv`` as the drive's partition of the dataset (atomically:
+    a temporary file renamed); with ``refresh`` False, an existing partition is kept."""
+    pa = import_pyarrow()
+    target = partition_path(out_dir, drive) / "part-0.parquet"
+    if target.is_file() and not refresh:
+        return target
+    types = {c: pa.float64() for c in _FLOAT_COLUMNS}
+    types.update({c: pa.int64() for c in _INT_COLUMNS})
+    types.update({c: pa.string() for c in _STRING_COLUMNS})
+    table = pa.csv.read_csv(
+        out_dir / drive / RECORDS_NAME, convert_options=pa.csv.ConvertOptions(column_types=types)
+    )
+    for i, column in enumerate(table.schema):  # an extra column empty in this drive: numbers
+        if pa.types.is_null(column.type):
+            table = table.set_column(i, column.name, table.column(i).cast(pa.float64()))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(".part-0.parquet.tmp")
+    pa.parquet.write_table(table, tmp)
+    os.replace(tmp, target)
+    return target
+
+
+def remove_partition(out_dir: Path, drive: str) -> None:
+    """Drop ``drive`` from the dataset (its run failed; old records would be stale)."""
+    shutil.rmtree(partition_path(out_dir, drive), ignore_errors=True)
+
+
+@dataclass
+class FleetSummary:
+    """The fleet tables as lists of rows (dicts), distances in metres.
+
+    Attributes:
+        drives: one row per drive and method: ``records``, ``estimated`` (with a distance),
+            ``truth`` (with ``gt_distance_m``) and :data:`METRICS` over its scored records.
+        pooled: one row per method, all drives pooled (``drives`` = drives with the method).
+        by_range: one row per method and true-distance range ``range_m`` (e.g. ``"10-20"``),
+            pooled over the drives.
+    """
+
+    drives: list[dict[str, Any]]
+    pooled: list[dict[str, Any]]
+    by_range: list[dict[str, Any]]
+
+
+def batch_drive_folders(out_dir: Path) -> list[Path]:
+    """The complete drive folders of a batch output (sorted by name)."""
+    return sorted(
+        p
+        for p in out_dir.iterdir()
+        if p.is_dir() and not p.name.startswith(".") and completed_stamp(p) is not None
+    )
+
+
+def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
+    """Per method: distances, truths, reasons of ``records.csv`` (NaN where empty)."""
+    out: dict[str, dict[str, Any]] = {}
+    with path.open(newline="", encoding="utf-8") as fh:
+        for line, row in enumerate(csv.DictReader(fh), start=2):
+            acc = out.setdefault(row["method"], {"d": [], "g": [], "r": []})
+            for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
+                text = row.get(column) or ""
+                try:
+                    acc[key].append(float(text) if text else math.nan)
+                except ValueError:
+                    raise InputFileError(
+                        path, f"'{text}' is not a number", line=line, field=column
+                    ) from None
+            acc["r"].append(row.get("reason") or "")
+    return out
+
+
+def _metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, Any]:
+    m = distance_metrics(pred, gt)
+    return {k: m[k] for k in METRICS}
+
+
+def fleet_summary(out_dir: str | Path) -> FleetSummary:
+    """The fleet tables over every complete drive of the batch output ``out_dir``."""
+    out = Path(out_dir)
+    drives: list[dict[str, Any]] = []
+    pooled: dict[str, dict[str, list[np.ndarray]]] = {}
+    for folder in batch_drive_folders(out):
+        for method, acc in _read_pairs(folder / RECORDS_NAME).items():
+            d, g = np.asarray(acc["d"], float), np.asarray(acc["g"], float)
+            capped, ok = cap_estimates(d, np.asarray(acc["r"], dtype=object))
+            ok &= np.isfinite(g) & (g > 0)
+            drives.append(
+                {
+                    "drive": folder.name,
+                    "method": method,
+                    "records": len(d),
+                    "estimated": int(np.isfinite(d).sum()),
+                    "truth": int(np.isfinite(g).sum()),
+                    **_metrics(capped[ok], g[ok]),
+                }
+            )
+            acc_m = pooled.setdefault(method, {"p": [], "g": []})
+            acc_m["p"].append(capped[ok])
+            acc_m["g"].append(g[ok])
+    pooled_rows, range_rows = [], []
+    for method, acc_m in sorted(pooled.items()):
+        p, g = np.concatenate(acc_m["p"]), np.concatenate(acc_m["g"])
+        n_drives = sum(r["method"] == method for r in drives)
+        pooled_rows.append({"method": method, "drives": n_drives, **_metrics(p, g)})
+        for lo, hi in DISTANCE_BINS_M:
+            sel = (g > lo) & (g <= hi)
+            range_rows.append(
+                {"method": method, "range_m": bin_label(lo, hi), **_metrics(p[sel], g[sel])}
+            )
+    return FleetSummary(drives, pooled_rows, range_rows)
+
+
+def write_fleet_summary(out_dir: str | Path, summary: FleetSummary | None = None) -> list[Path]:
+    """Write :func:`fleet_summary` to ``OUT/fleet/{drives,pooled,range}.csv``."""
+    out = Path(out_dir)
+    summary = summary if summary is not None else fleet_summary(out)
+    folder = out / FLEET_DIR
+    folder.mkdir(exist_ok=True)
+    drive_fields = ("drive", "method", "records", "estimated", "truth", *METRICS)
+    return [
+        write_csv(folder / "drives.csv", summary.drives, drive_fields),
+        write_csv(folder / "pooled.csv", summary.pooled, ("method", "drives", *METRICS)),
+        write_csv(folder / "range.csv", summary.by_range, ("method", "range_m", *METRICS)),
+    ]

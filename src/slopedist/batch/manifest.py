@@ -1,0 +1,334 @@
+"""The drives of a batch: a CSV or TOML manifest, or a folder of drives in the usual layout.
+
+A CSV manifest has one drive per row and at least the columns ``drive`` (a name, also the output
+sub-folder), ``frames`` (image folder or video), ``calib`` and ``boxes``; ``method`` and the
+columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch default). Paths
+are relative to the manifest's folder. A TOML manifest holds the same keys in ``[[drive]]``
+tables. A folder without a manifest is read as one drive per sub-folder (:data:`FRAME_NAMES`,
+``calib.txt``, ``boxes.csv`` and optionally ``times.txt``).
+
+Every mistake is an :class:`~slopedist.errors.InputFileError` naming the manifest, the line
+(CSV) or drive entry (TOML) and the field.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.errors import InputFileError, MissingInputError
+from slopedist.estimators import DEFAULT_METHOD, available_methods
+from slopedist.odometry.base import LOOKBACK_S
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
+"""Values of the ``odometry`` column (as ``slopedist run --odometry``)."""
+
+REQUIRED_COLUMNS = ("drive", "frames", "calib")
+BOX_COLUMNS = ("boxes", "detector")
+"""Where a drive's boxes come from: a box file or an ONNX detector (exactly one per drive)."""
+OPTIONAL_COLUMNS = (
+    *BOX_COLUMNS,
+    "method",
+    "timestamps",
+    "fps",
+    "score",
+    "odometry",
+    "height",
+    "mount_angle",
+    "lookback",
+    "depth_dir",
+    "sequence",
+)
+"""Manifest columns beyond the required ones; each is the ``slopedist run`` option of that name
+(``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s); one of
+:data:`BOX_COLUMNS` must be there."""
+
+FRAME_NAMES = ("image_02", "frames", "images", "video.mp4", "video.avi", "video.mkv")
+"""Where a drive folder's frames are, in order of preference (folder layout)."""
+
+CALIB_NAME = "calib.txt"
+BOXES_NAME = "boxes.csv"
+TIMESTAMPS_NAME = "times.txt"
+
+
+@dataclass(frozen=True)
+class DriveDefaults:
+    """Batch-wide values for the cells a manifest leaves empty (and for folder layouts)."""
+
+    method: str = DEFAULT_METHOD
+    odometry: str = "builtin"
+    height_m: float = KITTI_CAMERA_HEIGHT_M
+    mount_angle_deg: float = 0.0
+    lookback_s: float = LOOKBACK_S
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """One drive of a batch: its inputs and the ``slopedist run`` options for it.
+
+    Attributes:
+        name: drive name, the output sub-folder ``OUT/<name>``.
+        frames / calib: absolute input paths (image folder or video; calibration file).
+        boxes / detector: the box file, or the ONNX detector run on every frame (default
+            settings); exactly one is set.
+        method: estimator name.
+        timestamps: timestamps file or None; ``fps``: frame rate (frames/s) or None.
+        score: minimum box score or None.
+        odometry: visual odometry backend (:data:`ODOMETRY_CHOICES`).
+        height_m: camera height above the road (metres); ``mount_angle_deg``: camera pitch
+            relative to the vehicle (degrees); ``lookback_s``: ego-gradient look-back (seconds).
+        depth_dir: folder of per-frame depth maps for the ``depthmap`` method, or None.
+        sequence: sequence name in ``run.json`` (default: the drive name).
+        origin: where the drive was defined (manifest and line), for messages.
+    """
+
+    name: str
+    frames: Path
+    calib: Path
+    boxes: Path | None
+    method: str = DEFAULT_METHOD
+    timestamps: Path | None = None
+    fps: float | None = None
+    score: float | None = None
+    odometry: str = "builtin"
+    height_m: float = KITTI_CAMERA_HEIGHT_M
+    mount_angle_deg: float = 0.0
+    lookback_s: float = LOOKBACK_S
+    depth_dir: Path | None = None
+    sequence: str | None = None
+    detector: Path | None = None
+    origin: str = ""
+
+
+def _number(text: str, where: Callable[[str, str], InputFileError], name: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise where(name, f"'{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise where(name, f"'{text}' is not a finite number")
+    return value
+
+
+def _positive(text: str, where: Callable[[str, str], InputFileError], name: str) -> float:
+    value = _number(text, where, name)
+    if value <= 0:
+        raise where(name, f"must be positive, got {text}")
+    return value
+
+
+def check_drive_name(name: str) -> str | None:
+    """Why ``name`` cannot be a drive (an output folder name), or None when it can."""
+    if not name:
+        return "the drive name is empty"
+    if name.startswith(".") or any(c in name for c in "/\\") or name != name.strip():
+        return f"'{name}' cannot be a folder name (no '/', '\\', leading '.' or spaces)"
+    return None
+
+
+def spec_from_row(
+    row: Mapping[str, str],
+    base: Path,
+    defaults: DriveDefaults,
+    where: Callable[[str, str], InputFileError],
+    origin: str,
+) -> DriveSpec:
+    """A :class:`DriveSpec` from one manifest row of strings (relative paths against ``base``).
+
+    ``where(field, message)`` builds the error for a bad field.
+    """
+    cells = {k: str(v).strip() for k, v in row.items() if v is not None}
+    for column in REQUIRED_COLUMNS:
+        if not cells.get(column):
+            raise where(column, "is empty")
+    problem = check_drive_name(cells["drive"])
+    if problem:
+        raise where("drive", problem)
+
+    def path(column: str) -> Path | None:
+        text = cells.get(column, "")
+        return (base / text).absolute() if text else None
+
+    method = cells.get("method") or defaults.method
+    if method not in available_methods():
+        raise where("method", f"unknown method '{method}'; choose from {available_methods()}")
+    odometry = cells.get("odometry") or defaults.odometry
+    if odometry not in ODOMETRY_CHOICES:
+        raise where("odometry", f"'{odometry}' is not one of {', '.join(ODOMETRY_CHOICES)}")
+    nums = {
+        k: _positive(cells[k], where, k) if k != "mount_angle" else _number(cells[k], where, k)
+        for k in ("fps", "score", "height", "mount_angle", "lookback")
+        if cells.get(k)
+    }
+    if "score" in nums:
+        nums["score"] = _number(cells["score"], where, "score")
+    if bool(cells.get("boxes")) == bool(cells.get("detector")):
+        which = "both" if cells.get("boxes") else "neither"
+        raise where("boxes", f"give a box file or a detector (exactly one; {which} given)")
+    frames, calib = path("frames"), path("calib")
+    assert frames is not None and calib is not None
+    return DriveSpec(
+        name=cells["drive"],
+        frames=frames,
+        calib=calib,
+        boxes=path("boxes"),
+        method=method,
+        timestamps=path("timestamps"),
+        fps=nums.get("fps"),
+        score=nums.get("score"),
+        odometry=odometry,
+        height_m=nums.get("height", defaults.height_m),
+        mount_angle_deg=nums.get("mount_angle", defaults.mount_angle_deg),
+        lookback_s=nums.get("lookback", defaults.lookback_s),
+        depth_dir=path("depth_dir"),
+        sequence=cells.get("sequence") or None,
+        detector=path("detector"),
+        origin=origin,
+    )
+
+
+def _check_unique(specs: list[DriveSpec], where: Callable[[int, str], InputFileError]) -> None:
+    seen: dict[str, int] = {}
+    for i, spec in enumerate(specs):
+        if spec.name in seen:
+            raise where(i, f"drive '{spec.name}' is listed twice ({spec.origin} and earlier)")
+        seen[spec.name] = i
+
+
+def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
+    """The drives of a CSV manifest (see the module docstring)."""
+    with path.open(newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in reader.fieldnames or []]
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        missing += [] if set(BOX_COLUMNS) & set(header) else ["boxes"]
+        if missing:
+            names = ", ".join(missing).replace("boxes", "boxes (or detector)")
+            raise InputFileError(path, f"missing column(s) {names}", line=1, field=missing[0])
+        unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+        if unknown:
+            raise InputFileError(
+                path,
+                f"unknown column; known: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
+                line=1,
+                field=unknown[0],
+            )
+        reader.fieldnames = header
+        specs, lines = [], []
+        for row in reader:
+            line = reader.line_num
+            if not any((v or "").strip() for v in row.values()):
+                continue
+            if None in row:
+                raise InputFileError(path, "more cells than columns", line=line)
+
+            def where(field: str, message: str, line: int = line) -> InputFileError:
+                return InputFileError(path, message, line=line, field=field)
+
+            specs.append(spec_from_row(row, path.parent, defaults, where, f"{path}:{line}"))
+            lines.append(line)
+    _check_unique(specs, lambda i, msg: InputFileError(path, msg, line=lines[i], field="drive"))
+    return specs
+
+
+def read_toml_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
+    """The drives of a TOML manifest: ``[[drive]]`` tables with the CSV manifest's keys
+    (``drive`` is the name); errors name the n-th ``[[drive]]`` entry."""
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(path, f"not valid TOML: {exc}") from None
+    entries = data.get("drive")
+    if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+        raise InputFileError(path, "expected [[drive]] tables", field="drive")
+    known = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+    specs = []
+    for i, entry in enumerate(entries, start=1):
+
+        def where(field: str, message: str, i: int = i) -> InputFileError:
+            return InputFileError(path, f"[[drive]] entry {i}: {message}", field=field)
+
+        unknown = [k for k in entry if k not in known]
+        if unknown:
+            raise where(unknown[0], f"unknown key; known: {', '.join(known)}")
+        row = {k: str(v) for k, v in entry.items()}
+        specs.append(spec_from_row(row, path.parent, defaults, where, f"{path} entry {i}"))
+    _check_unique(
+        specs, lambda i, msg: InputFileError(path, f"[[drive]] entry {i + 1}: {msg}", field="drive")
+    )
+    return specs
+
+
+def _first_existing(folder: Path, names: tuple[str, ...]) -> Path | None:
+    return next((folder / n for n in names if (folder / n).exists()), None)
+
+
+def discover_drives(root: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
+    """One drive per sub-folder of ``root`` that holds frames (:data:`FRAME_NAMES`), a
+    ``calib.txt`` or a ``boxes.csv`` (sorted by name; hidden folders are ignored). A missing
+    input makes that drive fail alone when it runs."""
+    specs = []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        frames = _first_existing(folder, FRAME_NAMES)
+        calib, boxes = folder / CALIB_NAME, folder / BOXES_NAME
+        if check_drive_name(folder.name) or not (frames or calib.exists() or boxes.exists()):
+            continue
+        times = folder / TIMESTAMPS_NAME
+        specs.append(
+            DriveSpec(
+                name=folder.name,
+                frames=(frames or folder / FRAME_NAMES[0]).absolute(),
+                calib=calib.absolute(),
+                boxes=boxes.absolute(),
+                method=defaults.method,
+                timestamps=times.absolute() if times.is_file() else None,
+                odometry=defaults.odometry,
+                height_m=defaults.height_m,
+                mount_angle_deg=defaults.mount_angle_deg,
+                lookback_s=defaults.lookback_s,
+                origin=str(folder),
+            )
+        )
+    return specs
+
+
+def load_drives(source: str | Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
+    """The drives of a manifest (``.csv`` or ``.toml``) or of a folder of drives.
+
+    Raises:
+        MissingInputError: ``source`` does not exist, or a folder holds no drive.
+        InputFileError: a bad manifest (file, line or entry, field).
+    """
+    path = Path(source)
+    if path.is_dir():
+        specs = discover_drives(path, defaults)
+        if not specs:
+            raise MissingInputError(
+                f"no drives in {path}: expected sub-folders with frames "
+                f"({' or '.join(FRAME_NAMES[:3])}, or a video), {CALIB_NAME} and {BOXES_NAME}"
+            )
+        return specs
+    if not path.is_file():
+        raise MissingInputError(f"batch source not found: {path} (a manifest or a folder)")
+    if path.suffix.lower() == ".toml":
+        return read_toml_manifest(path, defaults)
+    return read_csv_manifest(path, defaults)
+
+
+def spec_summary(spec: DriveSpec) -> dict[str, Any]:
+    """The run-relevant fields of ``spec`` as plain JSON values (paths as strings), in a fixed
+    order; ``origin`` is left out (moving a manifest row does not change a drive)."""
+    return {
+        k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(spec).items() if k != "origin"
+    }

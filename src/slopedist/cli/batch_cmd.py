@@ -1,0 +1,117 @@
+"""``slopedist batch``: run many drives on Ray, resumably, into one output folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
+from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
+from slopedist.batch.manifest import ODOMETRY_CHOICES
+from slopedist.cli.options import check_methods, height_option, lookback_option, mount_option
+from slopedist.estimators import DEFAULT_METHOD
+
+
+@click.command("batch")
+@click.argument("source", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Output folder: OUT/<drive>/ per drive, status.csv, records.parquet/, fleet/.",
+)
+@click.option(
+    "--method", default=None, help=f"Method of drives that name none [default: {DEFAULT_METHOD}]."
+)
+@click.option(
+    "--odometry",
+    type=click.Choice(ODOMETRY_CHOICES),
+    default="builtin",
+    show_default=True,
+    help="Odometry of drives that name none.",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="CPUs of the embedded Ray instance [default: all cores]; not with --address.",
+)
+@click.option(
+    "--address",
+    default=None,
+    help="Ray cluster address, e.g. 10.0.0.5:6379 [default: $RAY_ADDRESS, else an "
+    "embedded Ray instance on this machine].",
+)
+@click.option("--fail-fast", is_flag=True, help="Stop at the first failed drive (exit code 1).")
+@click.option("--force", is_flag=True, help="Run every drive again, complete or not.")
+@click.option(
+    "--max-retries",
+    type=click.IntRange(min=0),
+    default=DEFAULT_MAX_RETRIES,
+    show_default=True,
+    help="Retries of a drive whose worker process died.",
+)
+@click.option("--no-parquet", is_flag=True, help="Do not write the records.parquet dataset.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@height_option
+@mount_option
+@lookback_option
+def batch(  # noqa: PLR0913 (a click command: one parameter per option)
+    source: Path,
+    out_dir: Path,
+    method: str | None,
+    odometry: str,
+    workers: int | None,
+    address: str | None,
+    fail_fast: bool,
+    force: bool,
+    max_retries: int,
+    no_parquet: bool,
+    quiet: bool,
+    height_m: float,
+    mount_angle_deg: float,
+    lookback_s: float,
+) -> None:
+    """Run every drive of SOURCE (a CSV or TOML manifest, or a folder of drives) into OUT.
+
+    A manifest row names drive, frames, calib, boxes and optionally method and other `run`
+    options (paths relative to the manifest). Complete drives with unchanged inputs are
+    skipped; a failed drive is recorded in OUT/status.csv and does not stop the others. Exit
+    code 1 when every drive failed, or at a failure with --fail-fast. Needs Ray:
+    pip install 'slopedist[batch]'.
+    """
+    method = method or DEFAULT_METHOD
+    check_methods([method])
+    defaults = DriveDefaults(method, odometry, height_m, mount_angle_deg, lookback_s)
+    drives = load_drives(source, defaults)
+    options = BatchOptions(
+        workers=workers,
+        address=address,
+        fail_fast=fail_fast,
+        force=force,
+        max_retries=max_retries,
+        progress=not quiet,
+        parquet=not no_parquet,
+    )
+    result = run_batch(drives, out_dir, options)
+    click.echo(batch_summary_text(result), err=True)
+    if result.all_failed or (fail_fast and result.count(DriveStatus.FAILED)):
+        click.get_current_context().exit(1)
+
+
+def batch_summary_text(result: BatchResult) -> str:
+    """A few lines: counts per status, throughput, the failures and where the outputs are."""
+    counts = ", ".join(f"{result.count(s)} {s.value}" for s in DriveStatus if result.count(s))
+    lines = [
+        f"{len(result.outcomes)} drives: {counts}; {result.frames_run} frames in "
+        f"{result.elapsed_s:.1f} s ({result.frames_per_s:.1f} frames/s)",
+    ]
+    lines += [
+        f"failed: {o.drive}: {o.error}" for o in result.outcomes if o.status is DriveStatus.FAILED
+    ]
+    lines.append(f"status: {result.out_dir / 'status.csv'}; fleet tables: {result.out_dir}/fleet/")
+    if result.dataset is not None:
+        lines.append(f"records dataset (partitioned by drive): {result.dataset}")
+    return "\n".join(lines)

@@ -1,0 +1,140 @@
+"""One drive of a batch, in process: same records as ``slopedist run``, atomic outputs,
+stamps that see changed inputs, a corrupt drive that fails alone."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from slopedist.batch.drive import completed_stamp, process_drive, publish
+from slopedist.batch.manifest import DriveSpec
+from slopedist.batch.stamp import STAMP_KEY, input_stamp
+from slopedist.batch.status import DriveStatus
+from slopedist.cli import main
+
+from .conftest import run_alone, simulate
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    pytest.importorskip("slopedist.odometry.visual")
+    return simulate("ego_crest", tmp_path_factory.mktemp("sim") / "ego_crest")
+
+
+def spec_of(sim: Path, name: str = "crest", method: str = "paper", **kw: object) -> DriveSpec:
+    return DriveSpec(
+        name,
+        sim / "image_02",
+        kw.pop("calib", sim / "calib.txt"),  # type: ignore[arg-type]
+        sim / "boxes.csv",
+        method=method,
+        timestamps=sim / "times.txt",
+        **kw,  # type: ignore[arg-type]
+    )
+
+
+def test_a_drive_gives_the_records_of_run_alone(sim: Path, tmp_path: Path) -> None:
+    spec = spec_of(sim)
+    out = tmp_path / "batch"
+    out.mkdir()
+    outcome = process_drive(spec, out, input_stamp(spec))
+    assert outcome.status is DriveStatus.DONE and outcome.attempts == 1
+    assert outcome.frames == 5 and outcome.records > 0
+    assert 10 < outcome.worker_peak_rss_mb < 10_000  # MB (ru_maxrss is kB on Linux)
+    alone = run_alone(
+        sim / "image_02",
+        sim / "calib.txt",
+        sim / "boxes.csv",
+        "paper",
+        tmp_path / "alone",
+        "--timestamps",
+        str(sim / "times.txt"),
+    )
+    assert (out / "crest" / "records.csv").read_bytes() == alone.read_bytes()
+    summary = json.loads((out / "crest" / "run.json").read_text())
+    assert summary["sequence"] == "crest" and summary[STAMP_KEY] == input_stamp(spec)
+    assert completed_stamp(out / "crest") == input_stamp(spec)
+    assert not [p for p in out.iterdir() if p.name.startswith(".tmp-")]
+
+
+def test_a_corrupt_drive_fails_alone_and_leaves_no_folder(sim: Path, tmp_path: Path) -> None:
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 1 2 3\n")
+    out = tmp_path / "batch"
+    out.mkdir()
+    (out / "crest").mkdir()  # outputs of older inputs: stale once the drive fails
+    spec = spec_of(sim, calib=calib)
+    outcome = process_drive(spec, out, input_stamp(spec))
+    assert outcome.status is DriveStatus.FAILED
+    assert str(calib) in outcome.error and "\n" not in outcome.error
+    assert sorted(p.name for p in out.iterdir()) == [".attempts-crest"]
+
+
+def test_stamps_see_content_and_options_not_touches(sim: Path, tmp_path: Path) -> None:
+    local = tmp_path / "sim"
+    shutil.copytree(sim, local)
+    spec = spec_of(local)
+    before = input_stamp(spec)
+    os.utime(local / "calib.txt", (1, 1))  # touched, same content
+    assert input_stamp(spec) == before
+    assert input_stamp(spec_of(local, method="flat")) != before
+    assert input_stamp(spec_of(local, height_m=1.5)) != before
+    (local / "boxes.csv").write_text((local / "boxes.csv").read_text().replace(",1,", ",2,", 1))
+    assert input_stamp(spec)["inputs"]["boxes"] != before["inputs"]["boxes"]
+    sorted((local / "image_02").iterdir())[-1].unlink()
+    assert input_stamp(spec)["inputs"]["frames"]["files"] == before["inputs"]["frames"]["files"] - 1
+
+
+def test_publish_replaces_an_older_folder(tmp_path: Path) -> None:
+    final, tmp = tmp_path / "d", tmp_path / ".tmp-d"
+    final.mkdir()
+    (final / "old.txt").write_text("old")
+    tmp.mkdir()
+    (tmp / "new.txt").write_text("new")
+    publish(tmp, final)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d"]
+    assert [p.name for p in final.iterdir()] == ["new.txt"]
+
+
+def test_an_unfinished_run_is_not_complete(tmp_path: Path) -> None:
+    folder = tmp_path / "d"
+    folder.mkdir()
+    assert completed_stamp(folder) is None
+    (folder / "run.json").write_text('{"error": "boom", "batch_inputs": {}}')
+    assert completed_stamp(folder) is None
+    (folder / "run.json").write_text('{"error": null, "batch_inputs": {"a": 1}}')
+    assert completed_stamp(folder) == {"a": 1}
+    (folder / "run.json").write_text("{trunc")
+    assert completed_stamp(folder) is None
+
+
+def test_a_drive_with_a_detector_gives_the_records_of_run_alone(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
+    pytest.importorskip("onnxruntime", reason="onnxruntime (extra 'onnx') runs the detector")
+    out = np.zeros((12, 20))  # YOLOv8 [1, 4 + 8, 20] of a 320x320 input: one car
+    out[:4, 0], out[4 + 2, 0] = (130, 200, 60, 40), 0.9
+    model = constant_model(tmp_path / "yolo.onnx", {"output0": out[None]})
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(frames / f"{i:06d}.png"), np.full((360, 640, 3), 80 + 20 * i, np.uint8))
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 500 0 320 0 0 500 180 0 0 0 1 0\n")
+    spec = DriveSpec("det", frames, calib, None, method="flat", odometry="none", detector=model)
+    batch = tmp_path / "batch"
+    batch.mkdir()
+    outcome = process_drive(spec, batch, input_stamp(spec))
+    assert outcome.status is DriveStatus.DONE, outcome.error
+    alone = tmp_path / "alone"
+    args = ["run", str(frames), "--calib", str(calib), "--detector", str(model), "--quiet"]
+    assert main([*args, "--method", "flat", "--odometry", "none", "--out", str(alone)]) == 0
+    records = (batch / "det" / "records.csv").read_bytes()
+    assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") == 4

@@ -1,0 +1,75 @@
+"""Fleet outputs: the Parquet partitions and the summary tables, on hand-made run folders."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from slopedist.batch.fleet import fleet_summary, write_fleet_summary, write_partition
+from slopedist.io.tables import write_csv, write_json
+
+FIELDS = ("frame", "track_id", "method", "distance_m", "status", "reason", "gt_distance_m")
+
+
+def drive(out: Path, name: str, rows: list[tuple[object, ...]], stamped: bool = True) -> None:
+    folder = out / name
+    folder.mkdir(parents=True)
+    write_csv(folder / "records.csv", (dict(zip(FIELDS, r)) for r in rows), FIELDS)
+    write_json(folder / "run.json", {"error": None, "batch_inputs": {} if stamped else None})
+
+
+@pytest.fixture
+def batch_out(tmp_path: Path) -> Path:
+    nan = math.nan
+    drive(
+        tmp_path,
+        "d1",
+        [
+            (0, 1, "m", 11.0, "ok", "", 10.0),
+            (1, 1, "m", 18.0, "ok", "", 20.0),
+            (2, 1, "m", nan, "missing", "below_horizon", 50.0),  # counted at the 80 m cap
+            (3, 2, "m", 30.0, "ok", "", nan),  # no truth: not scored
+        ],
+    )
+    drive(tmp_path, "d2", [(0, 1, "m", 5.0, "ok", "", 4.0), (0, 1, "x", 7.0, "ok", "", 4.0)])
+    drive(tmp_path, "old", [(0, 1, "m", 100.0, "ok", "", 4.0)], stamped=False)  # not a batch's
+    return tmp_path
+
+
+def test_fleet_summary_by_hand(batch_out: Path) -> None:
+    summary = fleet_summary(batch_out)
+    d1 = next(r for r in summary.drives if r["drive"] == "d1")
+    assert (d1["records"], d1["estimated"], d1["truth"], d1["n"]) == (4, 3, 3, 3)
+    assert d1["rmse"] == pytest.approx(math.sqrt((1 + 4 + 30**2) / 3))
+    assert {(r["drive"], r["method"]) for r in summary.drives} == {
+        ("d1", "m"),
+        ("d2", "m"),
+        ("d2", "x"),
+    }
+    pooled = {r["method"]: r for r in summary.pooled}
+    assert (pooled["m"]["drives"], pooled["m"]["n"]) == (2, 4)
+    assert pooled["m"]["rmse"] == pytest.approx(math.sqrt((1 + 4 + 900 + 1) / 4))
+    assert pooled["x"]["mae"] == pytest.approx(3.0)
+    ranges = {r["range_m"]: r for r in summary.by_range if r["method"] == "m"}
+    # bins are (lo, hi]: the 10 m truth is in 0-10
+    assert (ranges["0-10"]["n"], ranges["0-10"]["rmse"]) == (2, pytest.approx(1.0))
+    assert (ranges["10-20"]["n"], ranges["10-20"]["rmse"]) == (1, pytest.approx(2.0))
+    assert (ranges["40-80"]["n"], ranges["20-30"]["n"]) == (1, 0)
+    files = write_fleet_summary(batch_out, summary)
+    assert [p.name for p in files] == ["drives.csv", "pooled.csv", "range.csv"]
+    assert files[1].read_text().splitlines()[1].startswith("m,2,4,15.0")
+
+
+def test_parquet_partition_round_trip(batch_out: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is not installed")
+    path = write_partition(batch_out, "d1")
+    assert path == batch_out / "records.parquet" / "drive=d1" / "part-0.parquet"
+    table = pq.read_table(path)
+    assert table.column("frame").to_pylist() == [0, 1, 2, 3]
+    assert table.column("distance_m").to_pylist()[:2] == [11.0, 18.0]
+    assert table.column("distance_m").null_count == 1
+    assert table.column("reason").to_pylist()[2] == "below_horizon"
+    stamp = path.stat().st_mtime_ns
+    assert write_partition(batch_out, "d1", refresh=False).stat().st_mtime_ns == stamp
