@@ -79,6 +79,10 @@ class OursConfig:
         occlusion_gate_sigma: the outlier test of the occlusion check, in standard deviations
             (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
             for an edge touching a nearer box.
+        consistency_gate_sigma: the cue consistency check's threshold, in standard deviations
+            of the gap between the size cues and the ground contact (3, the usual outlier
+            test, as ``occlusion_gate_sigma``; not fitted): beyond it the measurement's
+            variance covers both cues (record column ``cue_gap_sigma``).
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
@@ -120,6 +124,7 @@ class OursConfig:
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     occlusion_gate_sigma: float = 3.0
+    consistency_gate_sigma: float = 3.0
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
@@ -140,6 +145,7 @@ class OursConfig:
             "truncation_factor",
             "yaw_evidence_weight",
             "occlusion_gate_sigma",
+            "consistency_gate_sigma",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):

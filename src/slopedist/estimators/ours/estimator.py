@@ -317,7 +317,12 @@ class OursEstimator(Estimator):
             if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
                 size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
         fused = frame_cues.fuse_hypotheses(
-            targets, size, ground, self._log_prior(match, targets), self._height_modes
+            targets,
+            size,
+            ground,
+            self._log_prior(match, targets),
+            self._height_modes,
+            cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         gradient = frame_cues.target_gradient(

@@ -194,6 +194,7 @@ def fuse_hypotheses(
     ground: LogCue | None,
     log_prior: FloatArray,
     height_modes: list[float],
+    gate_sigma: float = 3.0,
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
     vehicles and, less often, ones of atypical height; or, when a target's class is generic,
@@ -201,7 +202,8 @@ def fuse_hypotheses(
     collapse the hypotheses by their posterior weights.
 
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
-    factor of each body-style mode (1: the class prior's).
+    factor of each body-style mode (1: the class prior's); ``gate_sigma``: the cue consistency
+    check's threshold (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
     height, width = size.height, size.width
@@ -234,10 +236,20 @@ def fuse_hypotheses(
             bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
+    if ground is not None and n_modes > 1:
+        ground = fusion.concat_cues([ground] * n_modes)
     if type_weight is not None:
         n_modes = type_weight.shape[1]
     return _collapse(
-        size, size_cue, fused, n_modes, log_prior, extent, most_likely_mode=type_weight is not None
+        size,
+        size_cue,
+        fused,
+        ground,
+        n_modes,
+        log_prior,
+        extent,
+        most_likely_mode=type_weight is not None,
+        gate=gate_sigma,
     )
 
 
@@ -245,10 +257,12 @@ def _collapse(
     size: SizeCues,
     size_cue: LogCue,
     fused: LogCue,
+    ground: LogCue | None,
     n_modes: int,
     log_prior: FloatArray,
     extent: FloatArray,
     most_likely_mode: bool = False,
+    gate: float = 3.0,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
     posterior weights (``extent``: each hypothesis's half depth extent, m).
@@ -274,6 +288,10 @@ def _collapse(
         measurement = fusion.widen_to_mixture(fused, w_best, weights)
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
+    gap = np.full(n, np.nan)
+    if ground is not None:
+        ground_mix = fusion.mix_hypotheses(ground, weights)
+        measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
     return FusedCues(
         measurement,
         size_mix,
@@ -282,6 +300,7 @@ def _collapse(
         heading_weights,
         np.add.reduce(weights * extent, axis=1),
         np.add.reduce(heading_weights * width_mean, axis=1),
+        gap,
     )
 
 
@@ -364,6 +383,7 @@ def box_estimates(
         distance_size_m=gradient.size_distance_m,
         distance_ground_contact_m=ground,
         distance_width_m=np.exp(fused.width_log),
+        cue_gap_sigma=fused.cue_gap_sigma,
         track_uid=uid.astype(float),
     )
 

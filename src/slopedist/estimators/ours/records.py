@@ -34,6 +34,7 @@ EXTRA_COLUMNS = (
     "distance_size_m",
     "distance_ground_contact_m",
     "distance_width_m",
+    "cue_gap_sigma",
     "track_uid",
     "calib_mount_angle_rad",
     "calib_mount_angle_sigma_rad",
@@ -153,6 +154,10 @@ class FusedCues(NamedTuple):
         half_extent_m: ``(n,)`` posterior mean half depth extent (centre to nearest face).
         width_log: ``(n,)`` the width cue's log centre distance, mixed over the headings by
             their posterior weights (NaN without the width cue).
+        cue_gap_sigma: ``(n,)`` the size cues' log distance minus the ground contact's, in
+            standard deviations of their difference (NaN without the ground contact): beyond
+            ``consistency_gate_sigma`` the cues disagree and the measurement's variance is
+            widened to cover both.
     """
 
     measurement: LogCue
@@ -162,6 +167,7 @@ class FusedCues(NamedTuple):
     heading_weights: FloatArray
     half_extent_m: FloatArray
     width_log: FloatArray
+    cue_gap_sigma: FloatArray
 
 
 class DistanceFilterResult(NamedTuple):
@@ -219,6 +225,7 @@ class BoxEstimates(NamedTuple):
     distance_size_m: FloatArray
     distance_ground_contact_m: FloatArray
     distance_width_m: FloatArray
+    cue_gap_sigma: FloatArray
     track_uid: FloatArray
 
 
