@@ -96,3 +96,14 @@ def test_a_generic_detector_class_reaches_ours_only(kitti_tracking_dir: Path) ->
     )
     assert report["protocol"]["detector_classes"].startswith("generic")
     assert report["methods"]["ours"]["overall"]["rmse"] < 2.0
+
+
+def test_the_truth_declares_its_reference_and_ours_reports_the_same_point() -> None:
+    from slopedist.estimators.base import ReferencePoint
+
+    cfg = KittiEvalConfig(gt_reference=ReferencePoint.NEAREST_FACE)
+    assert cfg.options_of("ours")["reference"] == "nearest_face"
+    assert cfg.options_of("ours-selfcal")["reference"] == "nearest_face"
+    assert "reference" not in cfg.options_of("paper")
+    assert cfg.protocol()["ground_truth"]["reference"] == "nearest_face"
+    assert KittiEvalConfig().protocol()["ground_truth"]["reference"] == "centre"

@@ -36,6 +36,7 @@ from slopedist.depth.files import FileDepthSource
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
+from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.depthmap import TRUTH_COLUMN
 from slopedist.estimators.ours import OursEstimator
 from slopedist.evaluation import (
@@ -67,6 +68,10 @@ class KittiEvalConfig:
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     depth_dir: Path | None = None
     """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
+    gt_reference: ReferencePoint = ReferencePoint.CENTRE
+    """The point of the vehicle the truth's distance refers to (KITTI's label z: the centre);
+    ``ours`` reports the same point (option ``reference``), unless its options say otherwise,
+    so that the evaluation compares like with like."""
     generic_detector_class: bool = False
     """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
     of vehicle types (option ``generic_classes``), unless its options say otherwise."""
@@ -75,13 +80,11 @@ class KittiEvalConfig:
         """Constructor options of ``method`` on this evaluation's boxes."""
         options = dict(self.method_options.get(method, {}))
         factory = ESTIMATORS.get(method)
-        if (
-            self.generic_detector_class
-            and BoxSource(self.boxes).is_detector
-            and isinstance(factory, type)
-            and issubclass(factory, OursEstimator)
-        ):
+        if not (isinstance(factory, type) and issubclass(factory, OursEstimator)):
+            return options
+        if self.generic_detector_class and BoxSource(self.boxes).is_detector:
             options.setdefault("generic_classes", DETECTOR_CLASSES)
+        options.setdefault("reference", ReferencePoint(self.gt_reference).value)
         return options
 
     def rotation_of(self, method: str) -> str | None:
@@ -102,6 +105,7 @@ class KittiEvalConfig:
                 "max_occluded": PROTOCOL_MAX_OCCLUDED,
                 "max_distance_m": PROTOCOL_MAX_DISTANCE_M,
                 "distance": "label z (longitudinal, camera 2)",
+                "reference": ReferencePoint(self.gt_reference).value,
             },
             "camera": {
                 "f": "P2[0,0]",

@@ -12,6 +12,7 @@ import pytest
 
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
+from slopedist.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.ours.border import ImageBorder
 from slopedist.pipeline import FrameStep
@@ -106,3 +107,20 @@ def test_the_kitti_raw_lead_car_cut_by_the_bottom_is_ok_and_near_its_lidar_dista
         rel_err.extend((face - z[lead]) / z[lead])
     assert len(rel_err) >= 40 and bounds >= 10
     assert np.max(np.abs(rel_err)) < 0.15
+
+
+def test_the_reference_option_chooses_the_main_column() -> None:
+    boxes = [[560, 190, 680, 300], [-80, 200, 300, 374.0]]
+    centre = settled(boxes)
+    face = settled(boxes, reference="nearest_face")
+    contact = settled(boxes, reference="contact")
+    assert list(centre.reference) == ["centre"] * 2 and list(face.reference) == ["nearest_face"] * 2
+    assert list(contact.reference) == ["contact"] * 2
+    half = centre.distance_m[0] - centre.extra["distance_nearest_face_m"][0]
+    assert 1.0 < half < 3.0
+    assert face.distance_m[0] == pytest.approx(centre.extra["distance_nearest_face_m"][0])
+    assert contact.distance_m[0] == pytest.approx(face.distance_m[0])
+    np.testing.assert_allclose(face.extra["distance_centre_m"], centre.distance_m)
+    assert face.status[1] == "upper_bound" and face.distance_m[1] < centre.distance_m[1]
+    with pytest.raises(ConfigurationError, match="reference must be one of"):
+        make_estimator("ours", CAMERA, reference="box_centre_pixel")

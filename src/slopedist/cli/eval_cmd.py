@@ -18,6 +18,8 @@ from slopedist.cli.options import (
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.ours.estimator import REFERENCES
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -57,6 +59,14 @@ def eval_group() -> None:
     help="With detector boxes (every box 'Car'), let ours read the class as generic: a "
     "mixture of car/van/truck/bus (option generic_classes).",
 )
+@click.option(
+    "--gt-reference",
+    type=click.Choice([r.value for r in REFERENCES]),
+    default=ReferencePoint.CENTRE.value,
+    show_default=True,
+    help="The point of the vehicle the truth's distance refers to (KITTI labels: the centre); "
+    "ours reports the same point.",
+)
 @height_option
 @mount_option
 @lookback_option
@@ -71,6 +81,7 @@ def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
     depth_dir: Path | None,
     json_out: Path | None,
     generic_class: bool,
+    gt_reference: str,
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
@@ -90,6 +101,7 @@ def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
         method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
         generic_detector_class=generic_class,
+        gt_reference=ReferencePoint(gt_reference),
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)

@@ -83,6 +83,10 @@ class OursConfig:
             of the gap between the size cues and the ground contact (3, the usual outlier
             test, as ``occlusion_gate_sigma``; not fitted): beyond it the measurement's
             variance covers both cues (record column ``cue_gap_sigma``).
+        reference: the point of the vehicle ``distance_m`` refers to: ``centre`` (KITTI's z,
+            the default), ``nearest_face`` or ``contact`` (the ground under the nearest face,
+            the same longitudinal distance); the records carry ``distance_centre_m`` and
+            ``distance_nearest_face_m`` whatever it is.
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
@@ -125,6 +129,7 @@ class OursConfig:
     occlusion_aware: bool = True
     occlusion_gate_sigma: float = 3.0
     consistency_gate_sigma: float = 3.0
+    reference: str = "centre"
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE

@@ -97,8 +97,10 @@ FloatArray = NDArray[np.float64]
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
-_CENTRE = ReferencePoint.CENTRE.value
-"""The reference point of every distance (an enum's value, looked up once)."""
+REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
+vehicle's centre (KITTI's z), its nearest face, or its contact point (the ground under the
+nearest face: the same longitudinal distance as the nearest face)."""
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
@@ -154,6 +156,13 @@ class OursEstimator(Estimator):
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
+        reference = next((r for r in REFERENCES if r.value == config.reference), None)
+        if reference is None:
+            raise ConfigurationError(
+                f"ours option reference must be one of "
+                f"{', '.join(r.value for r in REFERENCES)}, got {config.reference!r}"
+            )
+        self._reference = reference
         self._border = ImageBorder(camera)
         self._box_low, self._box_high = _usable_box_range(self._border.known_size)
         self.reset()
@@ -227,11 +236,15 @@ class OursEstimator(Estimator):
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(_CENTRE, n),
+            reference=object_column(self._reference.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and good.size:
             self._settle_border_cuts(est, boxes, good)
+        est.extra["distance_centre_m"] = est.distance_m.copy()
+        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
+            est.distance_m -= half_extent
         return est
 
     def _all_usable(self, boxes: FloatArray) -> bool:

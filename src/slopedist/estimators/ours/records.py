@@ -23,6 +23,7 @@ BoolArray = NDArray[np.bool_]
 
 EXTRA_COLUMNS = (
     "sigma_m",
+    "distance_centre_m",
     "distance_nearest_face_m",
     "speed_mps",
     "speed_sigma_mps",
