@@ -81,6 +81,9 @@ PER_FRAME = {
 }
 NO_OCCLUSION = {"occlusion_aware": False}
 NO_CENSOR = {"censor_border_cuts": False}
+NO_CONSISTENCY: dict[str, Any] = {"consistency_gate_sigma": 1e9}
+"""The cue consistency check off (no gap is ever beyond the gate)."""
+
 ABLATION: list[tuple[str, dict[str, Any]]] = [
     (
         "size: box height, exact 3D-box model, class prior, heading 0",
@@ -88,6 +91,7 @@ ABLATION: list[tuple[str, dict[str, Any]]] = [
             **PER_FRAME,
             **NO_OCCLUSION,
             **NO_CENSOR,
+            **NO_CONSISTENCY,
             "use_width": False,
             "yaw_hypotheses": False,
             "use_ground_contact": False,
@@ -95,19 +99,27 @@ ABLATION: list[tuple[str, dict[str, Any]]] = [
     ),
     (
         "+ box width with heading hypotheses",
-        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, "use_ground_contact": False},
+        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, **NO_CONSISTENCY, "use_ground_contact": False},
     ),
     (
         "+ fusion with the ground-contact cue (ego gradient)",
-        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR},
+        {**PER_FRAME, **NO_OCCLUSION, **NO_CENSOR, **NO_CONSISTENCY},
     ),
-    ("+ tracking: CV Kalman filter on distance", {**NO_OCCLUSION, **NO_CENSOR}),
-    ("+ occlusion-aware size cue (cut widths/heights censored)", dict(NO_CENSOR)),
-    ("+ border cuts bound the distance (censored) = ours", {}),
+    (
+        "+ tracking: CV Kalman filter on distance",
+        {**NO_OCCLUSION, **NO_CENSOR, **NO_CONSISTENCY},
+    ),
+    (
+        "+ occlusion-aware size cue (cut widths/heights censored)",
+        {**NO_CENSOR, **NO_CONSISTENCY},
+    ),
+    ("+ border cuts bound the distance (censored)", dict(NO_CONSISTENCY)),
+    ("+ cue consistency check (3σ, variance widened) = ours", {}),
     ("+ continuous target gradient fed back to the ground contact", {"gradient_feedback": True}),
     ("+ self-calibration", {"gradient_feedback": True, "self_calibrate": True}),
     ("ours + self-calibration = ours-selfcal", {"self_calibrate": True}),
     ("ours + heading memory over the track", {"yaw_memory": True}),
+    ("ours + 'Car' read as a vehicle-type mixture", {"generic_classes": ("Car",)}),
 ]
 
 SENSITIVITY: list[tuple[str, Callable[[float], dict[str, Any]]]] = [
