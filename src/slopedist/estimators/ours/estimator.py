@@ -35,12 +35,19 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
-from slopedist.detections.boxes import box_problems
+from slopedist.detections.boxes import (
+    ABSURD_COORDINATE_PX,
+    ABSURD_IMAGE_SIZES,
+    MIN_BOX_SIZE_PX,
+    box_problems,
+)
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
+    EstimateStatus,
     Estimator,
     FrameEstimates,
     FrameInput,
+    MissingReason,
     ReferencePoint,
 )
 from slopedist.estimators.ours import filter as kf
@@ -90,8 +97,10 @@ FloatArray = NDArray[np.float64]
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
-_CENTRE = ReferencePoint.CENTRE.value
-"""The reference point of every distance (an enum's value, looked up once)."""
+REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
+vehicle's centre (KITTI's z), its nearest face, or its contact point (the ground under the
+nearest face: the same longitudinal distance as the nearest face)."""
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
@@ -108,6 +117,7 @@ class OursEstimator(Estimator):
 
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
+    handles_border_cuts: ClassVar[bool] = True
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -133,7 +143,9 @@ class OursEstimator(Estimator):
         self._theta_rest = float(
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
-        self._classes = ClassTable(config.priors, grid)
+        self._classes = ClassTable(
+            config.priors, grid, tuple(config.generic_classes), config.type_mixture
+        )
         modes = [(1.0, 1.0 - config.atypical_height_weight)]
         if config.atypical_height_weight > 0:
             modes.append((config.atypical_height_factor, config.atypical_height_weight))
@@ -144,7 +156,15 @@ class OursEstimator(Estimator):
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
+        reference = next((r for r in REFERENCES if r.value == config.reference), None)
+        if reference is None:
+            raise ConfigurationError(
+                f"ours option reference must be one of "
+                f"{', '.join(r.value for r in REFERENCES)}, got {config.reference!r}"
+            )
+        self._reference = reference
         self._border = ImageBorder(camera)
+        self._box_low, self._box_high = _usable_box_range(self._border.known_size)
         self.reset()
 
     def _log_prior_rows(self, n: int) -> FloatArray:
@@ -187,21 +207,13 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        # every box finite with right > left and bottom > top (the common case, checked cheaply)
-        all_usable = np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n and bool(
-            np.isfinite(np.add.reduce(boxes, axis=None))
-        )
+        all_usable = self._all_usable(boxes)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
-        else:
-            good = np.flatnonzero(
-                np.isfinite(boxes).all(axis=1)
-                & (boxes[:, 2] > boxes[:, 0])
-                & (boxes[:, 3] > boxes[:, 1])
-            )
-            # the reasons of unusable_box_reasons(frame, needs_rotation=False)
-            reasons = box_problems(boxes)
+        else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
+            reasons = box_problems(boxes, self._border.known_size)
+            good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
@@ -217,16 +229,66 @@ class OursEstimator(Estimator):
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
-        return FrameEstimates(
+        est = FrameEstimates(
             theta_rad=filled(n, theta_in),
             theta_adj_rad=out["theta_adj_rad"],
             delta_y_px=out["delta_y_px"],
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(_CENTRE, n),
+            reference=object_column(self._reference.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        if self._border.known_size is not None and good.size:
+            self._settle_border_cuts(est, boxes, good)
+        est.extra["distance_centre_m"] = est.distance_m.copy()
+        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
+            est.distance_m -= half_extent
+        return est
+
+    def _all_usable(self, boxes: FloatArray) -> bool:
+        """Whether every box ``(n, 4)`` is certainly usable (finite, at least
+        :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, overlapping the
+        image and within sane coordinates): the common case, checked cheaply; otherwise
+        :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
+        n = boxes.shape[0]
+        size = boxes[:, 2:] - boxes[:, :2]
+        inside = (boxes > self._box_low) & (boxes < self._box_high)  # False for NaN
+        return (
+            np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+        )
+
+    def _settle_border_cuts(
+        self, est: FrameEstimates, boxes: FloatArray, good: NDArray[np.intp]
+    ) -> None:
+        """The states of the usable boxes ``good`` cut by the image border (the ``cut``
+        column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box keeps ``ok``
+        while one of its cues is uncut (the height: neither top nor bottom cut; the width: no
+        side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
+        reason ``cut_bottom``, whose distance is the least of the cut contact and width cues
+        (each says at least the true distance: the lowest visible row lies above the contact
+        row, the visible width is less than the vehicle's)."""
+        cut = np.zeros((boxes.shape[0], 4), dtype=bool)
+        cut[good] = self._border.cut_edges(boxes[good])
+        if not any_true(cut):
+            return
+        cfg = self.config
+        side = cut[:, 0] | cut[:, 2]
+        top, bottom = cut[:, 1], cut[:, 3]
+        uncut = ~top & ~bottom  # the height cue
+        if cfg.use_width:
+            uncut |= ~side
+        if cfg.use_ground_contact:
+            uncut |= ~bottom
+        bounded = ~uncut & (est.status == EstimateStatus.OK.value)
+        if not any_true(bounded):
+            return
+        contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
+        width = np.where(side, est.extra["distance_width_m"], np.inf)
+        bound = np.fmin(contact, width)  # NaN where a cue is missing: the other
+        est.distance_m[bounded] = bound[bounded]
+        est.set_state(bounded, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
         """The self-calibration in use, as columns of ``n`` boxes."""
@@ -268,7 +330,12 @@ class OursEstimator(Estimator):
             if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
                 size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
         fused = frame_cues.fuse_hypotheses(
-            targets, size, ground, self._log_prior(match), self._height_modes
+            targets,
+            size,
+            ground,
+            self._log_prior(match, targets),
+            self._height_modes,
+            cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         gradient = frame_cues.target_gradient(
@@ -339,9 +406,20 @@ class OursEstimator(Estimator):
             rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
-    def _log_prior(self, match: TrackMatch) -> FloatArray:
-        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes)."""
+    def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
+        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
+        headings × vehicle types when a target's class is generic)."""
         log_heading_prior = self._carried_heading_prior(match)
+        type_weight = targets.classes.type_log_weight
+        if type_weight is not None:
+            if log_heading_prior is None:
+                log_heading_prior = np.broadcast_to(
+                    self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
+                )
+            n_types = type_weight.shape[1]
+            return np.tile(log_heading_prior, n_types) + np.repeat(
+                type_weight, self._yaw.size, axis=1
+            )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
@@ -462,7 +540,7 @@ class OursEstimator(Estimator):
         """``(n, K)`` normalised log heading belief after this frame: the prior times the
         cues' likelihood, tempered (consecutive frames are correlated evidence)."""
         belief = fused.log_prior + self.config.yaw_evidence_weight * fused.loglik
-        n_modes = len(self._height_modes)
+        n_modes = belief.shape[1] // self._yaw.size
         if n_modes > 1:
             n = belief.shape[0]
             belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
@@ -481,7 +559,9 @@ class OursEstimator(Estimator):
         by the top or bottom border: their bottom rows and nearest-face size distances."""
         cam = self.camera
         n = uid.shape[0]
-        usable = targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        usable = (
+            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        ) & ~targets.classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom
@@ -559,6 +639,18 @@ class OursEstimator(Estimator):
                 math.sqrt(cov[1, 1]),
             )
         return self._fixed_calib
+
+
+def _usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
+    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
+    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
+    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
+    if size is None:
+        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
+    w, h = float(size[0]), float(size[1])
+    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
+    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
+    return low, high
 
 
 class OursSelfCalibratingEstimator(OursEstimator):
