@@ -13,8 +13,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.detections.boxes import border_cuts
-from slopedist.estimators.base import image_size
+from slopedist.detections.boxes import (
+    ABSURD_COORDINATE_PX,
+    ABSURD_IMAGE_SIZES,
+    MIN_BOX_SIZE_PX,
+    border_cuts,
+)
+from slopedist.estimators.base import (
+    EstimateStatus,
+    FrameEstimates,
+    MissingReason,
+    image_size,
+)
 from slopedist.estimators.ours.fusion import any_true
 from slopedist.estimators.ours.records import BorderCuts
 
@@ -61,3 +71,55 @@ class ImageBorder:
         right = self._max_right if self._max_right >= 2 * cam.c_x else math.inf
         bottom = self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf
         return right + 1.0, bottom + 1.0
+
+
+def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
+    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
+    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
+    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
+    if size is None:
+        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
+    w, h = float(size[0]), float(size[1])
+    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
+    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
+    return low, high
+
+
+def boxes_all_usable(boxes: FloatArray, low: FloatArray, high: FloatArray) -> bool:
+    """Whether every box ``(n, 4)`` is certainly usable (finite, at least
+    :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
+    ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
+    :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
+    n = boxes.shape[0]
+    size = boxes[:, 2:] - boxes[:, :2]
+    inside = (boxes > low) & (boxes < high)  # False for NaN
+    return np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+
+
+def settle_border_cuts(
+    est: FrameEstimates, cut: NDArray[np.bool_], use_width: bool, use_ground_contact: bool
+) -> None:
+    """The states of the boxes cut by the image border (``cut``: ``(n, 4)`` left, top, right,
+    bottom, the ``cut`` column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box
+    keeps ``ok`` while one of its cues is uncut (the height: neither top nor bottom cut; the
+    width: no side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
+    reason ``cut_bottom``, whose distance is the least of the cut contact and width cues (each
+    says at least the true distance: the lowest visible row lies above the contact row, the
+    visible width is less than the vehicle's)."""
+    if not any_true(cut):
+        return
+    side = cut[:, 0] | cut[:, 2]
+    top, bottom = cut[:, 1], cut[:, 3]
+    uncut = ~top & ~bottom  # the height cue
+    if use_width:
+        uncut |= ~side
+    if use_ground_contact:
+        uncut |= ~bottom
+    bounded = ~uncut & (est.status == EstimateStatus.OK.value)
+    if not any_true(bounded):
+        return
+    contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
+    width = np.where(side, est.extra["distance_width_m"], np.inf)
+    bound = np.fmin(contact, width)  # NaN where a cue is missing: the other
+    est.distance_m[bounded] = bound[bounded]
+    est.set_state(bounded, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)

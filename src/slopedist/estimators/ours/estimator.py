@@ -16,9 +16,8 @@ For every box and every heading hypothesis ψ the estimator computes
 and fuses them by their propagated uncertainties in an extended Kalman filter per track whose
 state is log-distance, relative rate, the vehicle's size deviation from its class prior and α
 (:mod:`~slopedist.estimators.ours.filter`). The distance reported is to the vehicle's centre
-(KITTI's z); ``distance_nearest_face_m`` is the distance to its nearest face. The camera's mount
-angle and height are re-estimated online from the targets
-(:mod:`~slopedist.estimators.ours.selfcal`).
+(KITTI's z); ``distance_nearest_face_m`` is the distance to its nearest face. The mount angle
+and height are re-estimated online from the targets (:mod:`~slopedist.estimators.ours.selfcal`).
 
 Everything is causal: the streaming pipeline and the batch one give identical numbers, and
 :meth:`OursEstimator.reset` forgets all state.
@@ -35,24 +34,17 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
-from slopedist.detections.boxes import (
-    ABSURD_COORDINATE_PX,
-    ABSURD_IMAGE_SIZES,
-    MIN_BOX_SIZE_PX,
-    box_problems,
-)
+from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
-from slopedist.estimators.base import (
-    EstimateStatus,
-    Estimator,
-    FrameEstimates,
-    FrameInput,
-    MissingReason,
-    ReferencePoint,
-)
+from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion
-from slopedist.estimators.ours.border import ImageBorder
+from slopedist.estimators.ours.border import (
+    ImageBorder,
+    boxes_all_usable,
+    settle_border_cuts,
+    usable_box_range,
+)
 from slopedist.estimators.ours.class_table import ClassTable
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
@@ -164,7 +156,7 @@ class OursEstimator(Estimator):
             )
         self._reference = reference
         self._border = ImageBorder(camera)
-        self._box_low, self._box_high = _usable_box_range(self._border.known_size)
+        self._box_low, self._box_high = usable_box_range(self._border.known_size)
         self.reset()
 
     def _log_prior_rows(self, n: int) -> FloatArray:
@@ -207,7 +199,7 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        all_usable = self._all_usable(boxes)
+        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
@@ -241,64 +233,19 @@ class OursEstimator(Estimator):
         )
         half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and good.size:
-            self._settle_border_cuts(est, boxes, good)
+            cut = np.zeros((n, 4), dtype=bool)
+            cut[good] = self._border.cut_edges(boxes[good])
+            settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
         est.extra["distance_centre_m"] = est.distance_m.copy()
         if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
             est.distance_m -= half_extent
         return est
 
-    def _all_usable(self, boxes: FloatArray) -> bool:
-        """Whether every box ``(n, 4)`` is certainly usable (finite, at least
-        :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, overlapping the
-        image and within sane coordinates): the common case, checked cheaply; otherwise
-        :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
-        n = boxes.shape[0]
-        size = boxes[:, 2:] - boxes[:, :2]
-        inside = (boxes > self._box_low) & (boxes < self._box_high)  # False for NaN
-        return (
-            np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
-        )
-
-    def _settle_border_cuts(
-        self, est: FrameEstimates, boxes: FloatArray, good: NDArray[np.intp]
-    ) -> None:
-        """The states of the usable boxes ``good`` cut by the image border (the ``cut``
-        column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box keeps ``ok``
-        while one of its cues is uncut (the height: neither top nor bottom cut; the width: no
-        side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
-        reason ``cut_bottom``, whose distance is the least of the cut contact and width cues
-        (each says at least the true distance: the lowest visible row lies above the contact
-        row, the visible width is less than the vehicle's)."""
-        cut = np.zeros((boxes.shape[0], 4), dtype=bool)
-        cut[good] = self._border.cut_edges(boxes[good])
-        if not any_true(cut):
-            return
-        cfg = self.config
-        side = cut[:, 0] | cut[:, 2]
-        top, bottom = cut[:, 1], cut[:, 3]
-        uncut = ~top & ~bottom  # the height cue
-        if cfg.use_width:
-            uncut |= ~side
-        if cfg.use_ground_contact:
-            uncut |= ~bottom
-        bounded = ~uncut & (est.status == EstimateStatus.OK.value)
-        if not any_true(bounded):
-            return
-        contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
-        width = np.where(side, est.extra["distance_width_m"], np.inf)
-        bound = np.fmin(contact, width)  # NaN where a cue is missing: the other
-        est.distance_m[bounded] = bound[bounded]
-        est.set_state(bounded, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
-
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
         """The self-calibration in use, as columns of ``n`` boxes."""
         cal = self.selfcal.calibration()
-        return {
-            "calib_mount_angle_rad": filled(n, cal.mount_angle_rad),
-            "calib_mount_angle_sigma_rad": filled(n, cal.mount_angle_sigma_rad),
-            "calib_height_m": filled(n, cal.height_m),
-            "calib_height_sigma_m": filled(n, cal.height_sigma_m),
-        }
+        names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
+        return {f"calib_{k}": filled(n, getattr(cal, k)) for k in names}
 
     def _estimate_boxes(
         self,
@@ -639,18 +586,6 @@ class OursEstimator(Estimator):
                 math.sqrt(cov[1, 1]),
             )
         return self._fixed_calib
-
-
-def _usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
-    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
-    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
-    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
-    if size is None:
-        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
-    w, h = float(size[0]), float(size[1])
-    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
-    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
-    return low, high
 
 
 class OursSelfCalibratingEstimator(OursEstimator):
