@@ -11,7 +11,6 @@ from pathlib import Path
 import click
 import pytest
 from click.testing import CliRunner
-from click.utils import make_default_short_help
 
 from slopedist.cli import COMMANDS, cli
 
@@ -35,7 +34,7 @@ def test_every_command_module_of_the_package_is_listed() -> None:
 @pytest.mark.parametrize("limit", [30, 45, 70, 200])
 def test_summaries_are_the_commands_own_short_help(limit: int) -> None:
     for name, command in _commands().items():
-        summary = make_default_short_help(COMMANDS[name].summary, limit)
+        summary = click.Command(name, help=COMMANDS[name].summary).get_short_help_str(limit)
         assert summary == command.get_short_help_str(limit), name
 
 

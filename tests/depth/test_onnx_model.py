@@ -117,6 +117,13 @@ def test_bad_model_files_and_options(tmp_path: Path) -> None:
         _config(tmp_path / "m.onnx", std=(1.0, 0.0, 1.0))
 
 
+def test_input_size_disagreeing_with_the_model_is_a_clean_error(tmp_path: Path) -> None:
+    path = build_model(tmp_path / "m.onnx", in_h=16, in_w=24)
+    with pytest.raises(ConfigurationError, match=r"input is 24x16 .* --depth-input-size is 48x32"):
+        OnnxDepthModel(OnnxDepthConfig(path, input_width=48, input_height=32))
+    OnnxDepthModel(_config(path))  # the model's own size is fine
+
+
 def test_missing_onnxruntime_is_an_optional_dependency_error(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -23,7 +23,6 @@ import traceback
 from typing import NamedTuple
 
 import click
-from click.utils import make_default_short_help
 
 from slopedist import __version__
 from slopedist.errors import SlopedistError
@@ -145,7 +144,8 @@ class LazyGroup(click.Group):
         for name in names:
             lazy = COMMANDS.get(name)
             if lazy is not None:
-                rows.append((name, make_default_short_help(lazy.summary, limit)))
+                summary = click.Command(name, help=lazy.summary).get_short_help_str(limit)
+                rows.append((name, summary))
                 continue
             command = super().get_command(ctx, name)
             if command is not None and not command.hidden:

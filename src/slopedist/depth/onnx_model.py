@@ -103,6 +103,24 @@ def _import_onnxruntime() -> Any:
     return onnxruntime
 
 
+def _check_input_size(path: Path, shape: list[Any], height: int, width: int) -> None:
+    """A model with a fixed input size must be fed that size (``--depth-input-size``)."""
+    fixed_h, fixed_w = shape[2], shape[3]
+    if (
+        isinstance(fixed_h, int)
+        and isinstance(fixed_w, int)
+        and (fixed_h, fixed_w)
+        != (
+            height,
+            width,
+        )
+    ):
+        raise ConfigurationError(
+            f"{path}: the model's input is {fixed_w}x{fixed_h} pixels but --depth-input-size "
+            f"is {width}x{height}; give --depth-input-size {fixed_w}x{fixed_h}"
+        )
+
+
 class OnnxDepthModel:
     """An ONNX depth network: :meth:`predict` turns a BGR frame into metres.
 
@@ -110,6 +128,7 @@ class OnnxDepthModel:
         OptionalDependencyError: onnxruntime is not installed.
         MissingInputError: the model file does not exist.
         InputFileError: onnxruntime cannot load it, or its first input is not 4-D.
+        ConfigurationError: the model's fixed input size differs from the configured one.
     """
 
     def __init__(self, config: OnnxDepthConfig) -> None:
@@ -132,6 +151,7 @@ class OnnxDepthModel:
             raise InputFileError(
                 path, f"model input '{inp.name}' has shape {inp.shape}; expected N×3×H×W"
             )
+        _check_input_size(path, inp.shape, config.input_height, config.input_width)
         self.input_name = inp.name
         self.output_name = self.session.get_outputs()[0].name
         self._mean = np.asarray(config.mean, dtype=np.float32).reshape(3, 1, 1)
@@ -155,7 +175,14 @@ class OnnxDepthModel:
 
     def predict(self, image_bgr: NDArray[np.uint8]) -> NDArray[np.float32]:
         """Depth in metres on the frame's pixel grid (float32 ``H×W``, NaN = no value)."""
-        out = self.session.run([self.output_name], {self.input_name: self.preprocess(image_bgr)})
+        try:
+            out = self.session.run(
+                [self.output_name], {self.input_name: self.preprocess(image_bgr)}
+            )
+        except Exception as exc:  # onnxruntime raises its own exception types
+            raise InputFileError(
+                self.config.model_path, f"onnxruntime cannot run the model: {exc}"
+            ) from None
         raw = np.asarray(out[0], dtype=np.float32)
         while raw.ndim > 2 and raw.shape[0] == 1:
             raw = raw[0]

@@ -74,12 +74,6 @@ class RotationTrack:
     def __len__(self) -> int:
         return int(self.timestamps_s.shape[0])
 
-    def with_frame_period(self, frame_period_s: float) -> RotationTrack:
-        """Same rotations, timestamps replaced by ``index × frame_period_s``."""
-        return RotationTrack(
-            np.arange(len(self), dtype=np.float64) * frame_period_s, self.R_world_cam, self.valid
-        )
-
 
 class OdometryState(str, Enum):
     """Per-frame state of a visual-odometry backend."""

@@ -145,11 +145,6 @@ class TwoViewFit:
         """Number of inlier correspondences."""
         return int(np.count_nonzero(self.inliers))
 
-    @property
-    def median_residual_px(self) -> float:
-        """Median residual of the inliers, pixels (inf without inliers)."""
-        return float(np.median(self.residuals_px[self.inliers])) if self.n_inliers else np.inf
-
 
 def _bearings(x: FloatArray) -> FloatArray:
     return x / np.linalg.norm(x, axis=1, keepdims=True)

@@ -168,15 +168,6 @@ class RoadSpec:
         """Lateral offset of the roadside structures (carriageway half-width + verge), metres."""
         return self.half_width_m + self.verge_m
 
-    def lane_offset_m(self, lane: int) -> float:
-        """Lateral offset of the centre of lane ``lane`` (0 = rightmost), metres."""
-        if not 0 <= lane < self.lanes:
-            raise ConfigurationError(
-                f"lane {lane} does not exist (the road has lanes "
-                f"0..{self.lanes - 1}, 0 = rightmost)"
-            )
-        return -self.half_width_m + (lane + 0.5) * self.lane_width_m
-
 
 def _finite(obj: object, names: tuple[str, ...]) -> None:
     for name in names:

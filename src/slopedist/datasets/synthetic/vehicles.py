@@ -213,10 +213,3 @@ def camera_poses(
     R = np.stack([x_cam, y_cam, z_cam], axis=-1)
     centre = ego.origin_world + rig.height_m * up + rig.forward_m * fwd
     return R, centre
-
-
-def world_to_camera(
-    points_world: FloatArray, R_world_cam: FloatArray, centre_world: FloatArray
-) -> FloatArray:
-    """Points ``(..., 3)`` from the world frame into the camera frame: ``Rᵀ (X − C)``."""
-    return np.einsum("ji,...j->...i", R_world_cam, points_world - centre_world)
