@@ -65,6 +65,45 @@ def test_detections_report_recall(kitti_tracking_dir: Path) -> None:
     assert overall["n"] < 12335
 
 
+def test_rrc_camera_detections_are_matched_like_pointrcnn(kitti_tracking_dir: Path) -> None:
+    """The issue's figures: RRC boxes at score >= 0.5 reach a recall of about 0.90."""
+    cfg = KittiEvalConfig(boxes=BoxSource.RRC, min_score=0.5, methods=("flat",))
+    report = evaluate_kitti_tracking(kitti_tracking_dir, cfg)
+    overall = report["methods"]["flat"]["overall"]
+    assert overall["recall"] == pytest.approx(0.90, abs=0.01)
+    assert report["protocol"]["boxes"] == "rrc" and report["protocol"]["matching"]
+
+
 def test_unknown_sequence(kitti_tracking_dir: Path) -> None:
     with pytest.raises(MissingInputError, match="9999"):
         evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["9999"]))
+
+
+def test_a_generic_detector_class_reaches_ours_only(kitti_tracking_dir: Path) -> None:
+    cfg = KittiEvalConfig(boxes=BoxSource.RRC, generic_detector_class=True)
+    assert cfg.options_of("ours")["generic_classes"] == ("Car",)
+    assert "generic_classes" not in cfg.options_of("paper")
+    assert "generic_classes" not in KittiEvalConfig(generic_detector_class=True).options_of("ours")
+    report = evaluate_kitti_tracking(
+        kitti_tracking_dir,
+        KittiEvalConfig(
+            sequences=["0003"],
+            boxes=BoxSource.RRC,
+            min_score=0.5,
+            methods=("ours",),
+            generic_detector_class=True,
+        ),
+    )
+    assert report["protocol"]["detector_classes"].startswith("generic")
+    assert report["methods"]["ours"]["overall"]["rmse"] < 2.0
+
+
+def test_the_truth_declares_its_reference_and_ours_reports_the_same_point() -> None:
+    from slopedist.estimators.base import ReferencePoint
+
+    cfg = KittiEvalConfig(gt_reference=ReferencePoint.NEAREST_FACE)
+    assert cfg.options_of("ours")["reference"] == "nearest_face"
+    assert cfg.options_of("ours-selfcal")["reference"] == "nearest_face"
+    assert "reference" not in cfg.options_of("paper")
+    assert cfg.protocol()["ground_truth"]["reference"] == "nearest_face"
+    assert KittiEvalConfig().protocol()["ground_truth"]["reference"] == "centre"

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import (
+    DETECTOR_CLASSES,
     PROTOCOL_CLASSES,
     PROTOCOL_MAX_DISTANCE_M,
     PROTOCOL_MAX_OCCLUDED,
@@ -35,7 +36,9 @@ from slopedist.depth.files import FileDepthSource
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
+from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.depthmap import TRUTH_COLUMN
+from slopedist.estimators.ours import OursEstimator
 from slopedist.evaluation import (
     PooledScores,
     ScoredSet,
@@ -65,6 +68,24 @@ class KittiEvalConfig:
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     depth_dir: Path | None = None
     """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
+    gt_reference: ReferencePoint = ReferencePoint.CENTRE
+    """The point of the vehicle the truth's distance refers to (KITTI's label z: the centre);
+    ``ours`` reports the same point (option ``reference``), unless its options say otherwise,
+    so that the evaluation compares like with like."""
+    generic_detector_class: bool = False
+    """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
+    of vehicle types (option ``generic_classes``), unless its options say otherwise."""
+
+    def options_of(self, method: str) -> dict[str, Any]:
+        """Constructor options of ``method`` on this evaluation's boxes."""
+        options = dict(self.method_options.get(method, {}))
+        factory = ESTIMATORS.get(method)
+        if not (isinstance(factory, type) and issubclass(factory, OursEstimator)):
+            return options
+        if self.generic_detector_class and BoxSource(self.boxes).is_detector:
+            options.setdefault("generic_classes", DETECTOR_CLASSES)
+        options.setdefault("reference", ReferencePoint(self.gt_reference).value)
+        return options
 
     def rotation_of(self, method: str) -> str | None:
         """Rotation source ``method`` is fed: the one it declares, else :attr:`rotation`; None
@@ -84,6 +105,7 @@ class KittiEvalConfig:
                 "max_occluded": PROTOCOL_MAX_OCCLUDED,
                 "max_distance_m": PROTOCOL_MAX_DISTANCE_M,
                 "distance": "label z (longitudinal, camera 2)",
+                "reference": ReferencePoint(self.gt_reference).value,
             },
             "camera": {
                 "f": "P2[0,0]",
@@ -98,7 +120,12 @@ class KittiEvalConfig:
             "min_score": self.min_score,
             "matching": (
                 f"greedy one-to-one by 2D IoU >= {self.min_iou}, best pair first"
-                if BoxSource(self.boxes) is BoxSource.POINTRCNN
+                if BoxSource(self.boxes).is_detector
+                else None
+            ),
+            "detector_classes": (
+                "generic: ours reads Car as a mixture of vehicle types"
+                if self.generic_detector_class and BoxSource(self.boxes).is_detector
                 else None
             ),
             "cap_m": self.cap_m,
@@ -122,7 +149,7 @@ class KittiEvalConfig:
 def _boxes_for(seq: KittiTrackingSequence, cfg: KittiEvalConfig, gt: BoxTable) -> BoxTable:
     if BoxSource(cfg.boxes) is BoxSource.GT:
         return gt
-    return seq.detections(cfg.min_score)
+    return seq.detections(cfg.min_score, BoxSource(cfg.boxes))
 
 
 @dataclass
@@ -257,7 +284,7 @@ def _boxes_with_truth(
     boxes = _boxes_for(seq, cfg, gt)
     det_rows, gt_rows = (
         match_by_frame(boxes, gt, cfg.min_iou)
-        if BoxSource(cfg.boxes) is BoxSource.POINTRCNN
+        if BoxSource(cfg.boxes).is_detector
         else (np.arange(len(gt)), np.arange(len(gt)))
     )
     truth = np.full(len(boxes), np.nan)
@@ -287,7 +314,7 @@ def _run_method(
     rotations: _SequenceRotations,
 ) -> MethodRun:
     """One method over the sequence's boxes: capped distances, scorable flags, θ, reasons."""
-    estimator = make_estimator(name, seq.camera, **cfg.method_options.get(name, {}))
+    estimator = make_estimator(name, seq.camera, **cfg.options_of(name))
     source = RotationSource(estimator.rotation_source or cfg.rotation)
     source_name = source.value if estimator.needs_rotation else None
     declared = estimator.rotation_source is not None
@@ -363,7 +390,7 @@ class KittiEvaluation:
         per_seq = {
             s: {m: run.scored(m) for m in self.config.methods} for s, run in self.runs.items()
         }
-        with_recall = BoxSource(self.config.boxes) is BoxSource.POINTRCNN
+        with_recall = BoxSource(self.config.boxes).is_detector
         return pool_methods(per_seq, self.config.methods, with_recall)
 
     def report(self) -> dict[str, Any]:

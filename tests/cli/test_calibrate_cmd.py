@@ -93,6 +93,14 @@ def test_estimate_with_ours_writes_centre_distances_and_extras(
     late = [r for r in rows if int(r["frame"]) > 20]
     assert sum(1 for r in late if r["speed_mps"] != "") > 0.9 * len(late)
     assert all(math.isfinite(float(r["distance_nearest_face_m"])) for r in rows)
+    face = tmp_path / "face.csv"
+    args = ["estimate", *_args(simulated), "--method", "ours", "--reference", "nearest_face"]
+    assert main([*args, "--out", str(face)]) == 0
+    face_rows = list(csv.DictReader(face.open()))
+    assert {r["reference"] for r in face_rows} == {"nearest_face"}
+    for r, f in zip(rows, face_rows):
+        assert float(f["distance_m"]) == pytest.approx(float(r["distance_nearest_face_m"]))
+        assert float(f["distance_centre_m"]) == pytest.approx(float(r["distance_m"]))
 
 
 def test_calibrate_with_intrinsics_flags_equals_the_calibration_file(

@@ -18,6 +18,7 @@ from slopedist.detections import (
     read_box_file,
     read_kitti_labels,
     read_pointrcnn,
+    read_rrc,
 )
 from slopedist.errors import InputFileError, MissingInputError
 
@@ -160,6 +161,25 @@ def test_pointrcnn_score_filter_and_error(tmp_path: Path) -> None:
     path.write_text("0,2,298.3,165.2,458.2,bad,8.3,1.96,1.81,4.75,-4.57,1.84,13.53,-2.11,-1.79\n")
     with pytest.raises(InputFileError, match="line 1, field 'y2'"):
         read_pointrcnn(path)
+
+
+def test_rrc_reader_crlf_score_filter_and_error(tmp_path: Path) -> None:
+    path = tmp_path / "0000.txt"
+    path.write_bytes(
+        b"0,296.021000,160.173000,452.297000,288.372000,0.529230\r\n"
+        b"3,290.742000,144.753000,448.155000,269.477000,0.993477\r\n"
+    )
+    table = read_rrc(path)
+    assert table.frame.tolist() == [0, 3] and list(table.cls) == ["Car", "Car"]
+    assert table.boxes[1].tolist() == [290.742, 144.753, 448.155, 269.477]
+    kept = read_rrc(path, min_score=0.6)
+    assert len(kept) == 1 and kept.score[0] == pytest.approx(0.993477)
+    path.write_text("0,296.0,160.1,452.2\n1,1,2,3,4,0.5\n")
+    with pytest.raises(InputFileError, match=r"line 1.*6 comma-separated fields, found 4"):
+        read_rrc(path)
+    path.write_text("0,296.0,160.1,452.2,288.3,0.5\n-1,1,2,3,4,0.5\n")
+    with pytest.raises(InputFileError, match="line 2, field 'frame'"):
+        read_rrc(path)
 
 
 def test_missing_and_unrecognised_files(tmp_path: Path) -> None:

@@ -96,13 +96,13 @@ def test_other_classes_are_missing_not_a_vehicle_for_every_method() -> None:
 
 
 def test_the_box_states_hold_for_ours_too() -> None:
-    """Whatever a method says, outside/degenerate boxes are missing and cut boxes flagged; a
-    method that does not handle border cuts itself (``ours`` for now) gets the cautious rule:
-    a bottom cut is an upper bound."""
+    """Whatever a method says, outside/degenerate boxes are missing and cut boxes flagged;
+    ``ours`` states itself what a cut box still tells (tests/estimators/test_ours_border.py):
+    a bottom cut with both sides in view keeps its width cue, ``ok``."""
     boxes = [[1300, 200, 1400, 300], [500, 200, 500.2, 300], [0, 200, 300, 300]]
     est = settled("ours", [*boxes, [560, 190, 680, 374.0]])
-    assert list(est.reason) == ["outside_image", "degenerate_box", "", "cut_bottom"]
-    assert list(est.status) == ["missing", "missing", "ok", "upper_bound"]
+    assert list(est.reason) == ["outside_image", "degenerate_box", "", ""]
+    assert list(est.status) == ["missing", "missing", "ok", "ok"]
     assert list(est.cut) == ["", "", "left", "bottom"] and est.distance_m[3] > 0
 
 

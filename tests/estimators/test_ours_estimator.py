@@ -224,10 +224,11 @@ def test_an_id_switch_within_the_track_age_is_caught_by_the_gate() -> None:
 
 def test_box_touching_the_image_border_relies_on_the_other_cues() -> None:
     cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0, image_width=1242, image_height=375)
-    b = project_box(cam.f, cam.c_x, cam.c_y, 1.65, -3.0, 6.0, 0.0, CAR)
+    b = project_box(cam.f, cam.c_x, cam.c_y, 1.65, -1.0, 6.0, 0.0, CAR)
     cut = b.copy()
-    cut[3] = 374.0  # bottom cut by the image border: the box height is wrong
+    cut[3] = 374.0  # bottom cut by the image border: the box height is wrong, the width not
     out = make_estimator("ours", cam).estimate(_frame(0, cut[None]))
+    assert out.status[0] == "ok" and 0 < b[0] < b[2] < 1241
     naive = make_estimator("ours", cam, truncation_factor=1.0).estimate(_frame(0, cut[None]))
     assert abs(out.distance_m[0] - 6.0) < 0.5 * abs(naive.distance_m[0] - 6.0)
     # without the image size, the largest bottom edge seen beyond 2·c_y stands for the border
@@ -259,7 +260,15 @@ def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float, sid
         cut[3] = min(cut[3], 374.0)
     assert not np.allclose(cut, b), "the scene must cut the box"
     frame = _frame(0, cut[None])
+    # with the image size, a box whose every cue is cut is an upper bound (at least the truth)
+    stated = make_estimator("ours", cam).estimate(frame)
+    # without it, the border the boxes reveal censors the same cues and the fused distance stays
+    cam = CAM
     bounded = make_estimator("ours", cam).estimate(frame).distance_m[0]
+    if stated.status[0] == "upper_bound":
+        assert not side and cut[0] <= 1.0 and stated.distance_m[0] >= z_m
+    else:
+        assert stated.distance_m[0] == pytest.approx(bounded)
     soft = make_estimator("ours", cam, censor_border_cuts=False).estimate(frame).distance_m[0]
     naive = (
         make_estimator("ours", cam, censor_border_cuts=False, truncation_factor=1.0)

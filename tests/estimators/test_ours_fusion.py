@@ -66,3 +66,52 @@ def test_censor_upper_leaves_unmasked_and_missing_bounds_alone() -> None:
     )
     for k in ("mean", "var", "var_white", "loglik"):
         assert getattr(out, k) == pytest.approx(getattr(cue, k))
+
+
+def test_cue_consistency_check_widens_only_cues_that_disagree() -> None:
+    from slopedist.estimators.ours.fusion import LogCue, check_consistency
+
+    size = LogCue(np.log([20.0, 20.0, 20.0]), np.full(3, 0.01), np.full(3, 0.005), np.zeros(3))
+    ground = LogCue(
+        np.log([21.0, 40.0, np.nan]), np.array([0.03, 0.03, np.nan]), np.full(3, 0.0), np.zeros(3)
+    )
+    fused = LogCue(np.log([20.2, 25.0, 20.0]), np.full(3, 0.008), np.full(3, 0.004), np.zeros(3))
+    out, gap = check_consistency(fused, size, ground, 3.0)
+    d = math.log(20 / 40)
+    assert gap[0] == pytest.approx(math.log(20 / 21) / 0.2)
+    assert gap[1] == pytest.approx(d / 0.2) and gap[1] < -3
+    assert np.isnan(gap[2])
+    assert out.var[0] == 0.008 and out.var[2] == 0.008  # agree, or no ground contact
+    assert out.var[1] == pytest.approx(0.02 + d * d / 4)
+    assert np.array_equal(out.mean, fused.mean) and np.array_equal(out.var_white, fused.var_white)
+
+
+def test_fused_is_never_much_worse_than_the_better_single_cue(kitti_tracking_dir) -> None:
+    """On two shared sequences with ground-truth boxes, the fused distance against the size
+    cue alone and the ground contact alone (all capped at 80 m); the gap is recorded."""
+    from slopedist.datasets.kitti_tracking import RotationSource, load_sequence, protocol_mask
+    from slopedist.estimators import make_estimator
+    from slopedist.pipeline import estimate_sequence
+
+    for name in ("0004", "0018"):
+        seq = load_sequence(kitti_tracking_dir, name)
+        gt = seq.labels.select(protocol_mask(seq.labels))
+        track = seq.rotations(RotationSource.ORBSLAM3)
+        res = estimate_sequence(make_estimator("ours", seq.camera), gt, seq.timestamps_s, track)
+        z = res.boxes.extra["z"]
+        extra = res.estimates.extra
+        assert np.isfinite(extra["cue_gap_sigma"]).mean() > 0.9
+
+        size, ground, fused = (
+            _capped_rmse(d, z)
+            for d in (
+                extra["distance_size_m"],
+                extra["distance_ground_contact_m"],
+                res.estimates.distance_m,
+            )
+        )
+        assert fused <= 1.05 * min(size, ground), name
+
+
+def _capped_rmse(d: np.ndarray, z: np.ndarray) -> float:
+    return float(np.sqrt(np.nanmean((np.minimum(d, 80.0) - z) ** 2)))

@@ -18,6 +18,8 @@ from slopedist.cli.options import (
 )
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.ours.estimator import REFERENCES
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -50,6 +52,21 @@ def eval_group() -> None:
     help="Write the full report as strict JSON here ('-': standard output, the tables then "
     "go to standard error).",
 )
+@click.option(
+    "--generic-class/--class-as-given",
+    default=False,
+    show_default=True,
+    help="With detector boxes (every box 'Car'), let ours read the class as generic: a "
+    "mixture of car/van/truck/bus (option generic_classes).",
+)
+@click.option(
+    "--gt-reference",
+    type=click.Choice([r.value for r in REFERENCES]),
+    default=ReferencePoint.CENTRE.value,
+    show_default=True,
+    help="The point of the vehicle the truth's distance refers to (KITTI labels: the centre); "
+    "ours reports the same point.",
+)
 @height_option
 @mount_option
 @lookback_option
@@ -63,6 +80,8 @@ def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
     score: float | None,
     depth_dir: Path | None,
     json_out: Path | None,
+    generic_class: bool,
+    gt_reference: str,
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
@@ -81,6 +100,8 @@ def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
         lookback_s=lookback_s,
         method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
+        generic_detector_class=generic_class,
+        gt_reference=ReferencePoint(gt_reference),
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)

@@ -78,6 +78,14 @@ thresholds_option = click.option(
     help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
 )
 
+reference_option = click.option(
+    "--reference",
+    type=click.Choice(["centre", "nearest_face", "contact"]),
+    default=None,
+    help="ours: the point of the vehicle distance_m refers to (default centre; an evaluation "
+    "defaults to its truth's --gt-reference).",
+)
+
 
 def parse_triple(value: str, name: str) -> tuple[float, float, float]:
     """Parse ``"a,b,c"`` into three floats or fail with a usage error naming ``name``."""
@@ -100,6 +108,7 @@ def estimator_config(
     depth_window: int = 5,
     depth_scaling: str = DepthScaling.NONE.value,
     method: str | None = None,
+    reference: str | None = None,
 ) -> EstimatorConfig:
     """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
     errors name the option)."""
@@ -116,6 +125,7 @@ def estimator_config(
             depth_sample=DepthSample(depth_sample),
             depth_window_px=depth_window,
             depth_scaling=DepthScaling(depth_scaling),
+            reference=reference,
         )
         return config if method is None else config.with_method(method)
     except ConfigurationError as exc:
@@ -164,16 +174,22 @@ def estimator_options(
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
-        def wrapper(*args: Any, alphas: str, thresholds: str, **kwargs: Any) -> Any:
+        def wrapper(
+            *args: Any, alphas: str, thresholds: str, reference: str | None, **kwargs: Any
+        ) -> Any:
             depth_values = {
                 k: kwargs.pop(k)
                 for k in ("depth_sample", "depth_window", "depth_scaling")
                 if k in kwargs
             }
-            kwargs["estimator_config"] = estimator_config(alphas, thresholds, **depth_values)
+            kwargs["estimator_config"] = estimator_config(
+                alphas, thresholds, **depth_values, reference=reference
+            )
             return command(*args, **kwargs)
 
-        options = (alphas_option, thresholds_option) + (_DEPTHMAP_OPTIONS if depth else ())
+        options = (alphas_option, thresholds_option, reference_option) + (
+            _DEPTHMAP_OPTIONS if depth else ()
+        )
         return _apply(options, wrapper)
 
     return decorate
@@ -364,13 +380,13 @@ def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Cal
                     type=click.Choice([b.value for b in BoxSource]),
                     default=BoxSource.GT.value,
                     show_default=True,
-                    help=f"{prefix}Ground-truth boxes or PointRCNN detections.",
+                    help=f"{prefix}Ground-truth boxes, PointRCNN or RRC (camera) detections.",
                 ),
                 click.option(
                     "--score",
                     type=float,
                     default=None,
-                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN boxes).",
+                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN, RRC boxes).",
                 ),
             )
         ):

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.detections.boxes import BoxTable
-from slopedist.detections.readers import read_kitti_labels, read_pointrcnn
+from slopedist.detections.readers import read_kitti_labels, read_pointrcnn, read_rrc
 from slopedist.errors import DataMismatchError, MissingInputError
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses, read_oxts_rotations
@@ -42,6 +42,19 @@ class BoxSource(str, Enum):
 
     GT = "gt"
     POINTRCNN = "pointrcnn"
+    RRC = "rrc"
+
+    @property
+    def is_detector(self) -> bool:
+        """Whether the boxes are a detector's (matched to the truth by IoU, with a recall)."""
+        return self is not BoxSource.GT
+
+
+DETECTOR_CLASSES = ("Car",)
+"""The class every detector box of the shared data carries, whatever the vehicle's type."""
+
+DETECTION_FOLDERS = {BoxSource.POINTRCNN: "pointrcnn_car", BoxSource.RRC: "rrc_car"}
+"""Folder of each detector's boxes in a KITTI tracking root (``<folder>/NNNN.txt``)."""
 
 
 ROTATION_FOLDERS = {RotationSource.ORBSLAM3: "orbslam3_poses", RotationSource.OXTS: "oxts_poses"}
@@ -132,14 +145,17 @@ class KittiTrackingSequence:
             )
         return track
 
-    def detections(self, min_score: float | None = None) -> BoxTable:
-        """PointRCNN car boxes with score ≥ ``min_score``."""
-        path = self.root / "pointrcnn_car" / f"{self.name}.txt"
+    def detections(
+        self, min_score: float | None = None, source: BoxSource = BoxSource.POINTRCNN
+    ) -> BoxTable:
+        """A detector's car boxes (PointRCNN's or RRC's) with score ≥ ``min_score``."""
+        path = self.root / DETECTION_FOLDERS[source] / f"{self.name}.txt"
         if not path.is_file():
             raise MissingInputError(
-                f"sequence {self.name}: no PointRCNN detections, expected {path}"
+                f"sequence {self.name}: no {source.value} detections, expected {path}"
             )
-        return read_pointrcnn(path, min_score)
+        reader = read_pointrcnn if source is BoxSource.POINTRCNN else read_rrc
+        return reader(path, min_score)
 
 
 def load_sequence(

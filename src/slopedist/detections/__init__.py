@@ -18,6 +18,7 @@ from slopedist.detections.readers import (
     read_box_file,
     read_kitti_labels,
     read_pointrcnn,
+    read_rrc,
 )
 
 __all__ = [
@@ -41,5 +42,6 @@ __all__ = [
     "read_boxes",
     "read_kitti_labels",
     "read_pointrcnn",
+    "read_rrc",
     "write_boxes",
 ]

@@ -73,7 +73,7 @@ def box_problems(
 
 
 def border_cuts(
-    boxes: ArrayLike, image_size: tuple[int, int] | None, tol_px: float = BORDER_TOLERANCE_PX
+    boxes: ArrayLike, image_size: tuple[float, float] | None, tol_px: float = BORDER_TOLERANCE_PX
 ) -> NDArray[np.bool_]:
     """``(N, 4)`` flags: is the box's left, top, right, bottom edge cut by the image border
     (within ``tol_px`` of it or beyond)? All false without an image ``(width, height)``.

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.errors import InputFileError
@@ -170,14 +171,7 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
     """
     frames, boxes, scores, dims, zs = [], [], [], [], []
     for lineno, line in numbered_lines(path, "PointRCNN detection file"):
-        tok = [t.strip() for t in line.split(",")]
-        if len(tok) != len(POINTRCNN_FIELDS):
-            raise InputFileError(
-                path,
-                f"expected {len(POINTRCNN_FIELDS)} comma-separated fields, found {len(tok)}",
-                line=lineno,
-            )
-        f = dict(zip(POINTRCNN_FIELDS, tok))
+        f = _comma_fields(path, lineno, line, POINTRCNN_FIELDS)
         frame = _index(path, lineno, "frame", f["frame"])
         score = _parse(path, lineno, "score", f["score"], float)
         box = _box(path, lineno, ("x1", "y1", "x2", "y2"), [f[k] for k in ("x1", "y1", "x2", "y2")])
@@ -190,14 +184,64 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         scores.append(score)
         dims.append(dim)
         zs.append(z)
+    return _car_table(
+        frames,
+        boxes,
+        scores,
+        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3),
+        z=np.asarray(zs, dtype=float),
+    )
+
+
+RRC_FIELDS = ("frame", "x1", "y1", "x2", "y2", "score")
+"""Fields of an RRC detection file line (comma-separated, no header)."""
+
+
+def read_rrc(path: str | Path, min_score: float | None = None) -> BoxTable:
+    """RRC car detections (Ren et al., CVPR 2017, as the DeepFusionMOT repository shares them):
+    ``frame,x1,y1,x2,y2,score`` per line, box in pixels; class ``Car`` for every box.
+
+    Rows with ``score < min_score`` are dropped when ``min_score`` is given.
+    """
+    frames, boxes, scores = [], [], []
+    for lineno, line in numbered_lines(path, "RRC detection file"):
+        f = _comma_fields(path, lineno, line, RRC_FIELDS)
+        frame = _index(path, lineno, "frame", f["frame"])
+        box = _box(path, lineno, RRC_FIELDS[1:5], [f[k] for k in RRC_FIELDS[1:5]])
+        score = _parse(path, lineno, "score", f["score"], float)
+        if min_score is not None and score < min_score:
+            continue
+        frames.append(frame)
+        boxes.append(box)
+        scores.append(score)
+    return _car_table(frames, boxes, scores)
+
+
+def _comma_fields(
+    path: str | Path, lineno: int, line: str, fields: Sequence[str]
+) -> dict[str, str]:
+    """The comma-separated ``fields`` of a detection file's line, by name."""
+    tok = [t.strip() for t in line.split(",")]
+    if len(tok) != len(fields):
+        raise InputFileError(
+            path,
+            f"expected {len(fields)} comma-separated fields, found {len(tok)}",
+            line=lineno,
+        )
+    return dict(zip(fields, tok))
+
+
+def _car_table(
+    frames: list[int], boxes: list[list[float]], scores: list[float], **extra: NDArray
+) -> BoxTable:
+    """The boxes of a one-class car detector (class ``Car``, no track ids)."""
     return BoxTable.build(
         frames,
         np.asarray(boxes, dtype=float).reshape(-1, 4),
         None,
         scores,
         np.full(len(frames), "Car", dtype=object),
-        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3),
-        z=np.asarray(zs, dtype=float),
+        **extra,
     )
 
 

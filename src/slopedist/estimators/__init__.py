@@ -81,6 +81,8 @@ class EstimatorConfig:
         depth_sample: which pixels of a box give its depth (``depthmap``).
         depth_window_px: window side for ``depth_sample = window``, pixels (odd).
         depth_scaling: per-frame median scaling of scale-less depth (``depthmap``).
+        reference: the point of the vehicle ``ours`` reports (``centre``, ``nearest_face``,
+            ``contact``; None: its default, the centre).
 
     Raises:
         ConfigurationError: an unknown method, thresholds that do not decrease, an unknown
@@ -93,6 +95,7 @@ class EstimatorConfig:
     depth_sample: DepthSample = DepthSample.CENTRE
     depth_window_px: int = 5
     depth_scaling: DepthScaling = DepthScaling.NONE
+    reference: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "method", _method_name(self.method))
@@ -124,6 +127,8 @@ class EstimatorConfig:
                 "window_px": self.depth_window_px,
                 "scaling": self.depth_scaling,
             }
+        if isinstance(factory, type) and issubclass(factory, OursEstimator):
+            return {} if self.reference is None else {"reference": self.reference}
         return {}
 
     def method_options(self, methods: Iterable[str]) -> dict[str, dict[str, Any]]:

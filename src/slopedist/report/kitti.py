@@ -96,7 +96,8 @@ def _notes(protocol: dict[str, Any], boxes: BoxSource) -> list[str]:
     boxes_kind = (
         "ground-truth boxes"
         if boxes is BoxSource.GT
-        else "PointRCNN detections matched to the truth by IoU"
+        else f"{'PointRCNN' if boxes is BoxSource.POINTRCNN else 'RRC'} detections matched to "
+        "the truth by IoU"
     )
     rotations: dict[str, str | None] = protocol["rotation_per_method"]
     return [

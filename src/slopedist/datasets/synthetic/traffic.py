@@ -38,6 +38,7 @@ class SimulatedTraffic:
         vehicle: ``(N,)`` index of the vehicle of each box.
         speed_mps: ``(N,)`` true relative speed Ż of each box.
         dims_hwl: ``(n_vehicles, 3)`` true dimensions.
+        types: ``(n_vehicles,)`` true class of each vehicle (``Car``, ``Van``, ...).
     """
 
     boxes: BoxTable
@@ -46,6 +47,7 @@ class SimulatedTraffic:
     vehicle: NDArray[np.int64]
     speed_mps: FloatArray
     dims_hwl: FloatArray
+    types: NDArray[np.object_]
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,11 @@ class TrafficSettings:
         box_noise_px: white noise added to every box edge, pixels.
         with_ids: give the boxes their vehicle's track id (else −1).
         size_spread: vehicle sizes scatter by this many times the Car prior's spread.
+        vehicle_types: class name → probability (classes of :data:`CLASS_PRIORS`): each
+            vehicle's class is drawn and its dimensions scatter around that class's prior
+            (None: every vehicle a Car).
+        label_types: label the boxes with their true class; else every box is ``Car``, as a
+            class-blind detector calls vans and trucks.
     """
 
     true_height_m: float | None = None
@@ -73,6 +80,8 @@ class TrafficSettings:
     box_noise_px: float = 0.0
     with_ids: bool = True
     size_spread: float = 1.0
+    vehicle_types: dict[str, float] | None = None
+    label_types: bool = False
 
 
 def simulate_traffic(
@@ -108,6 +117,9 @@ def simulate_traffic(
     speed = rng.uniform(*cfg.speed_range_mps, n_vehicles)
     lane = rng.uniform(-cfg.lateral_m, cfg.lateral_m, n_vehicles)
     yaw = np.radians(rng.uniform(-2.0, 2.0, n_vehicles))
+    types = np.full(n_vehicles, "Car", dtype=object)
+    if cfg.vehicle_types:
+        types, dims = _draw_types(rng, cfg.vehicle_types, n_vehicles, cfg.size_spread)
     t = np.arange(n_frames) * cfg.frame_period_s
     frames, boxes, zs, veh, spd = [], [], [], [], []
     for k, tk in enumerate(t):
@@ -129,7 +141,7 @@ def simulate_traffic(
         frame,
         np.concatenate(boxes) if boxes else np.zeros((0, 4)),
         vehicle if cfg.with_ids else np.full(len(vehicle), -1),
-        classes=np.full(len(vehicle), "Car", dtype=object),
+        classes=types[vehicle] if cfg.label_types else np.full(len(vehicle), "Car", dtype=object),
     )
     return SimulatedTraffic(
         table,
@@ -138,4 +150,22 @@ def simulate_traffic(
         vehicle,
         np.concatenate(spd) if spd else np.zeros(0),
         dims,
+        types,
     )
+
+
+def _draw_types(
+    rng: np.random.Generator, probability: dict[str, float], n: int, size_spread: float
+) -> tuple[NDArray[np.object_], FloatArray]:
+    """Each vehicle's class (drawn by ``probability``) and dimensions ``(n, 3)`` (H, W, L, m)
+    scattered around its class prior by ``size_spread`` times the prior's spread."""
+    names = list(probability)
+    p = np.array([probability[k] for k in names], dtype=float)
+    types = np.array(names, dtype=object)[rng.choice(len(names), n, p=p / p.sum())]
+    priors = [CLASS_PRIORS[str(t)] for t in types]
+    mean = np.array([[q.height_m, q.width_m, q.length_m] for q in priors]).reshape(n, 3)
+    sigma = np.array(
+        [[q.height_sigma_m, q.width_sigma_m, q.length_sigma_m] for q in priors]
+    ).reshape(n, 3)
+    dims = mean + size_spread * sigma * rng.standard_normal((n, 3))
+    return types, np.maximum(dims, 0.3 * mean)

@@ -1,7 +1,8 @@
-"""Which boxes of ``ours`` touch the image border (their vehicle may extend beyond it).
+"""Which boxes of ``ours`` are cut by the image border (their vehicle may extend beyond it).
 
 Image coordinates in pixels: columns grow to the right, rows downwards; a box is (left, top,
-right, bottom).
+right, bottom). The test is :func:`slopedist.detections.boxes.border_cuts`, the one behind the
+``cut`` column of every method, so the cues ``ours`` censors are the edges that column names.
 """
 
 from __future__ import annotations
@@ -12,63 +13,113 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
+from slopedist.detections.boxes import (
+    ABSURD_COORDINATE_PX,
+    ABSURD_IMAGE_SIZES,
+    MIN_BOX_SIZE_PX,
+    border_cuts,
+)
+from slopedist.estimators.base import (
+    EstimateStatus,
+    FrameEstimates,
+    MissingReason,
+    image_size,
+)
 from slopedist.estimators.ours.fusion import any_true
 from slopedist.estimators.ours.records import BorderCuts
 
 FloatArray = NDArray[np.float64]
 
-_BORDER_LOW = np.array([0.5, 0.5, -math.inf, -math.inf])
-"""A box edge at or below these (left, top) touches the image's left or top border."""
-
 
 class ImageBorder:
-    """The image border as the boxes of a sequence reveal it.
+    """The image border as the camera or, without its image size, the boxes reveal it.
 
     The image size is the camera's when known; otherwise the largest right/bottom edge seen
-    so far (the current boxes included) stands for the border once it lies beyond twice the
-    principal point. :meth:`reset` forgets what was seen (new sequence).
+    so far (the current boxes included) stands for the last column/row once it lies beyond
+    twice the principal point (before that, no box is cut on that side). :meth:`reset`
+    forgets what was seen (new sequence).
     """
 
     def __init__(self, camera: Camera) -> None:
         self._camera = camera
-        self._known_extent = (
-            (float(camera.image_width) - 1.0, float(camera.image_height) - 1.0)
-            if camera.image_width and camera.image_height
-            else None
-        )
+        self.known_size = image_size(camera)
+        """The camera's image ``(width, height)`` in pixels, or None when unknown."""
         self.reset()
 
     def reset(self) -> None:
         self._max_right = -math.inf
         self._max_bottom = -math.inf
-        self._high = np.full(4, math.inf)  # box edges at or beyond touch the border
+
+    def cut_edges(self, boxes: FloatArray) -> NDArray[np.bool_]:
+        """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?"""
+        return border_cuts(boxes, self.known_size or self._seen_size(boxes))
 
     def cuts(self, boxes: FloatArray) -> BorderCuts | None:
-        """Boxes ``(n, 4)`` touching the border: (left or right, top, bottom) flags, or None
-        when no box touches it."""
-        right, bottom = self._known_extent or self._seen_extent(boxes)
-        if self._high[2] != right - 0.5 or self._high[3] != bottom - 0.5:
-            self._high = np.array([math.inf, math.inf, right - 0.5, bottom - 0.5])
-        cut = (boxes <= _BORDER_LOW) | (boxes >= self._high)
+        """Boxes ``(n, 4)`` cut by the border: (left or right, top, bottom) flags, or None
+        when no box is."""
+        cut = self.cut_edges(boxes)
         if not any_true(cut):
             return None
         return BorderCuts(cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3])
 
-    def _seen_extent(self, boxes: FloatArray) -> tuple[float, float]:
-        """The last column and row of the image as far as the boxes show it (inf while
-        unknown)."""
+    def _seen_size(self, boxes: FloatArray) -> tuple[float, float]:
+        """The image size as far as the boxes show it (inf while unknown)."""
         cam = self._camera
         seen_right, seen_bottom = np.maximum.reduce(boxes[:, 2:4], axis=0).tolist()
         self._max_right = max(self._max_right, seen_right)
         self._max_bottom = max(self._max_bottom, seen_bottom)
-        right = (
-            cam.image_width - 1.0
-            if cam.image_width
-            else (self._max_right if self._max_right >= 2 * cam.c_x else math.inf)
-        )
-        bottom = (
-            cam.image_height - 1.0
-            if cam.image_height
-            else (self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf)
-        )
-        return right, bottom
+        right = self._max_right if self._max_right >= 2 * cam.c_x else math.inf
+        bottom = self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf
+        return right + 1.0, bottom + 1.0
+
+
+def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
+    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
+    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
+    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
+    if size is None:
+        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
+    w, h = float(size[0]), float(size[1])
+    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
+    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
+    return low, high
+
+
+def boxes_all_usable(boxes: FloatArray, low: FloatArray, high: FloatArray) -> bool:
+    """Whether every box ``(n, 4)`` is certainly usable (finite, at least
+    :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
+    ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
+    :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
+    n = boxes.shape[0]
+    size = boxes[:, 2:] - boxes[:, :2]
+    inside = (boxes > low) & (boxes < high)  # False for NaN
+    return np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+
+
+def settle_border_cuts(
+    est: FrameEstimates, cut: NDArray[np.bool_], use_width: bool, use_ground_contact: bool
+) -> None:
+    """The states of the boxes cut by the image border (``cut``: ``(n, 4)`` left, top, right,
+    bottom, the ``cut`` column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box
+    keeps ``ok`` while one of its cues is uncut (the height: neither top nor bottom cut; the
+    width: no side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
+    reason ``cut_bottom``, whose distance is the least of the cut contact and width cues (each
+    says at least the true distance: the lowest visible row lies above the contact row, the
+    visible width is less than the vehicle's)."""
+    if not any_true(cut):
+        return
+    side = cut[:, 0] | cut[:, 2]
+    top, bottom = cut[:, 1], cut[:, 3]
+    uncut = ~top & ~bottom  # the height cue
+    if use_width:
+        uncut |= ~side
+    if use_ground_contact:
+        uncut |= ~bottom
+    bounded = ~uncut & (est.status == EstimateStatus.OK.value)
+    if not any_true(bounded):
+        return
+    contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
+    width = np.where(side, est.extra["distance_width_m"], np.inf)
+    bound = np.fmin(contact, width)  # NaN where a cue is missing: the other
+    est.distance_m[bounded] = bound[bounded]
+    est.set_state(bounded, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)

@@ -13,7 +13,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours import cues
-from slopedist.estimators.ours.priors import DimensionPrior, prior_row, resolve_prior
+from slopedist.estimators.ours.priors import (
+    VEHICLE_TYPE_MIXTURE,
+    DimensionPrior,
+    prior_row,
+    resolve_prior,
+)
+from slopedist.estimators.ours.vehicle_types import TypeMixture, type_rows
 
 FloatArray = NDArray[np.float64]
 
@@ -59,12 +65,18 @@ class TargetClasses(NamedTuple):
         height_sigma_m: ``(n,)`` its spread σH.
         height_log_sigma: ``(n,)`` its relative spread σH/H.
         hypotheses: the per-heading constants.
+        generic: ``(n,)`` whether the class is generic (its vehicle type unknown).
+        type_log_weight: ``(n, T)`` log prior weight of each vehicle type when a target's
+            class is generic (then :attr:`hypotheses` are ``(n, T·K)``, type-major:
+            :mod:`~slopedist.estimators.ours.vehicle_types`), else None.
     """
 
     height_m: FloatArray
     height_sigma_m: FloatArray
     height_log_sigma: FloatArray
     hypotheses: HypothesisConstants
+    generic: NDArray[np.bool_]
+    type_log_weight: FloatArray | None
 
 
 class ClassTable:
@@ -73,13 +85,27 @@ class ClassTable:
     Args:
         priors: class → dimension prior (None = the built-in table).
         yaw_rad: ``(K,)`` the heading hypotheses.
+        generic_classes: class names that do not name the vehicle type (a class-blind
+            detector's one class): their targets are read under ``type_mixture``.
+        type_mixture: ``(name, prior, weight)`` per vehicle type.
     """
 
-    def __init__(self, priors: dict[str, DimensionPrior] | None, yaw_rad: FloatArray) -> None:
+    def __init__(
+        self,
+        priors: dict[str, DimensionPrior] | None,
+        yaw_rad: FloatArray,
+        generic_classes: tuple[str, ...] = (),
+        type_mixture: TypeMixture = VEHICLE_TYPE_MIXTURE,
+    ) -> None:
         self._priors = priors
         self._yaw = yaw_rad
+        self._generic_names = frozenset(generic_classes)
+        self._mixture = type_mixture
         self._index: dict[object, int] = {}
         self._rows: list[tuple[float, ...]] = []
+        self._type_rows: list[tuple[float, ...]] = []  # T per class row
+        self._type_weights: list[FloatArray] = []
+        self._generic_rows: list[bool] = []
         self._build()
 
     def gather(self, classes: NDArray[np.object_]) -> TargetClasses:
@@ -87,9 +113,18 @@ class ClassTable:
         rows = self._row_indices(classes)
         scalars = self._scalars[rows]
         # rows gathered along the second axis: each plane of a frame is contiguous
-        planes = self._planes[:, rows]
+        generic = self._generic[rows]
+        if self._generic_names and generic.any():
+            planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
+        else:
+            planes, type_log_weight = self._planes[:, rows], None
         return TargetClasses(
-            scalars[:, 0], scalars[:, 3], scalars[:, 7], HypothesisConstants(*planes)
+            scalars[:, 0],
+            scalars[:, 3],
+            scalars[:, 7],
+            HypothesisConstants(*planes),
+            generic,
+            type_log_weight,
         )
 
     def _row_indices(self, classes: NDArray[np.object_]) -> NDArray[np.intp]:
@@ -100,17 +135,39 @@ class ClassTable:
             for c in classes:
                 if c not in index:
                     index[c] = len(self._rows)
-                    self._rows.append(prior_row(resolve_prior(c, self._priors)))
+                    self._add_row(c)
             self._build()
             return np.array([index[c] for c in classes], dtype=np.intp)
 
+    def _add_row(self, name: object) -> None:
+        """A new class name's prior and its vehicle types."""
+        prior = resolve_prior(name, self._priors)
+        self._rows.append(prior_row(prior))
+        generic = name in self._generic_names
+        rows, log_weight = type_rows(prior, self._mixture, generic)
+        self._generic_rows.append(generic)
+        self._type_rows.extend(rows)
+        self._type_weights.append(log_weight)
+
     def _build(self) -> None:
         """Scalars ``(rows, 10)``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; planes
-        ``(13, rows, K)`` in the order of :class:`HypothesisConstants`."""
+        ``(13, rows, K)`` in the order of :class:`HypothesisConstants`; with generic classes
+        also the type planes ``(13, rows, T·K)``, type-major."""
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
+        self._scalars = np.concatenate([a, a[:, 3:6] / a[:, 0:3]], axis=1)
+        self._planes = self._planes_of(a)
+        self._generic = np.array(self._generic_rows, dtype=bool)
+        if self._generic_names:
+            n_types = len(self._mixture)
+            by_type = np.asarray(self._type_rows, dtype=float).reshape(-1, n_types, 7)
+            planes = [self._planes_of(by_type[:, t]) for t in range(n_types)]
+            self._type_planes = np.concatenate(planes, axis=2)
+            self._type_log_weight = np.asarray(self._type_weights, dtype=float).reshape(-1, n_types)
+
+    def _planes_of(self, a: FloatArray) -> FloatArray:
+        """The per-heading planes ``(13, rows, K)`` of prior rows ``a`` ``(rows, 7)``."""
         H, W, L, sH, sW, sL, corr = (a[:, k : k + 1] for k in range(7))
         psi = self._yaw[None, :]
-        self._scalars = np.concatenate([a, sH / H, sW / W, sL / L], axis=1)
         e = cues.depth_half_extent(psi, W, L)
         var_e = 0.25 * ((np.abs(np.cos(psi)) * sL) ** 2 + (np.abs(np.sin(psi)) * sW) ** 2)
         planes = HypothesisConstants(
@@ -128,4 +185,4 @@ class ClassTable:
             half_length_cos_m=0.5 * L * np.cos(psi),
             half_length_sin_m=0.5 * L * np.sin(psi),
         )
-        self._planes = np.stack([np.broadcast_to(p, e.shape) for p in planes])
+        return np.stack([np.broadcast_to(p, e.shape) for p in planes])

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours.priors import DimensionPrior, YawPrior
+from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
 
 
@@ -79,7 +79,24 @@ class OursConfig:
         occlusion_gate_sigma: the outlier test of the occlusion check, in standard deviations
             (3, the usual test): of the two cues' noise for the excess, of the box-edge noise
             for an edge touching a nearer box.
+        consistency_gate_sigma: the cue consistency check's threshold, in standard deviations
+            of the gap between the size cues and the ground contact (3, the usual outlier
+            test, as ``occlusion_gate_sigma``; not fitted): beyond it the measurement's
+            variance covers both cues (record column ``cue_gap_sigma``).
+        reference: the point of the vehicle ``distance_m`` refers to: ``centre`` (KITTI's z,
+            the default), ``nearest_face`` or ``contact`` (the ground under the nearest face,
+            the same longitudinal distance); the records carry ``distance_centre_m`` and
+            ``distance_nearest_face_m`` whatever it is.
         priors: class → dimension prior (None = the built-in table).
+        generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
+            a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
+            RRC's boxes; ``slopedist eval kitti-tracking`` sets it for detector boxes): their
+            size cues are read under ``type_mixture``
+            (:mod:`~slopedist.estimators.ours.vehicle_types`; the body-style modes of
+            ``atypical_height_weight`` are then not used in that frame).
+        type_mixture: vehicle types ``(name, prior, weight)`` behind a generic class
+            (default the published frequencies of
+            :data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`).
         selfcal: self-calibration priors and noise levels.
     """
 
@@ -111,7 +128,11 @@ class OursConfig:
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     occlusion_gate_sigma: float = 3.0
+    consistency_gate_sigma: float = 3.0
+    reference: str = "centre"
     priors: dict[str, DimensionPrior] | None = None
+    generic_classes: tuple[str, ...] = ()
+    type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 
     def __post_init__(self) -> None:
@@ -129,6 +150,7 @@ class OursConfig:
             "truncation_factor",
             "yaw_evidence_weight",
             "occlusion_gate_sigma",
+            "consistency_gate_sigma",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):

@@ -16,9 +16,8 @@ For every box and every heading hypothesis ψ the estimator computes
 and fuses them by their propagated uncertainties in an extended Kalman filter per track whose
 state is log-distance, relative rate, the vehicle's size deviation from its class prior and α
 (:mod:`~slopedist.estimators.ours.filter`). The distance reported is to the vehicle's centre
-(KITTI's z); ``distance_nearest_face_m`` is the distance to its nearest face. The camera's mount
-angle and height are re-estimated online from the targets
-(:mod:`~slopedist.estimators.ours.selfcal`).
+(KITTI's z); ``distance_nearest_face_m`` is the distance to its nearest face. The mount angle
+and height are re-estimated online from the targets (:mod:`~slopedist.estimators.ours.selfcal`).
 
 Everything is causal: the streaming pipeline and the batch one give identical numbers, and
 :meth:`OursEstimator.reset` forgets all state.
@@ -37,15 +36,15 @@ from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
-from slopedist.estimators.base import (
-    Estimator,
-    FrameEstimates,
-    FrameInput,
-    ReferencePoint,
-)
+from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion
-from slopedist.estimators.ours.border import ImageBorder
+from slopedist.estimators.ours.border import (
+    ImageBorder,
+    boxes_all_usable,
+    settle_border_cuts,
+    usable_box_range,
+)
 from slopedist.estimators.ours.class_table import ClassTable
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
@@ -90,8 +89,10 @@ FloatArray = NDArray[np.float64]
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
-_CENTRE = ReferencePoint.CENTRE.value
-"""The reference point of every distance (an enum's value, looked up once)."""
+REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
+vehicle's centre (KITTI's z), its nearest face, or its contact point (the ground under the
+nearest face: the same longitudinal distance as the nearest face)."""
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
@@ -108,6 +109,7 @@ class OursEstimator(Estimator):
 
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
+    handles_border_cuts: ClassVar[bool] = True
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -133,7 +135,9 @@ class OursEstimator(Estimator):
         self._theta_rest = float(
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
-        self._classes = ClassTable(config.priors, grid)
+        self._classes = ClassTable(
+            config.priors, grid, tuple(config.generic_classes), config.type_mixture
+        )
         modes = [(1.0, 1.0 - config.atypical_height_weight)]
         if config.atypical_height_weight > 0:
             modes.append((config.atypical_height_factor, config.atypical_height_weight))
@@ -144,7 +148,15 @@ class OursEstimator(Estimator):
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
+        reference = next((r for r in REFERENCES if r.value == config.reference), None)
+        if reference is None:
+            raise ConfigurationError(
+                f"ours option reference must be one of "
+                f"{', '.join(r.value for r in REFERENCES)}, got {config.reference!r}"
+            )
+        self._reference = reference
         self._border = ImageBorder(camera)
+        self._box_low, self._box_high = usable_box_range(self._border.known_size)
         self.reset()
 
     def _log_prior_rows(self, n: int) -> FloatArray:
@@ -187,21 +199,13 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        # every box finite with right > left and bottom > top (the common case, checked cheaply)
-        all_usable = np.count_nonzero(boxes[:, 2:] > boxes[:, :2]) == 2 * n and bool(
-            np.isfinite(np.add.reduce(boxes, axis=None))
-        )
+        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
-        else:
-            good = np.flatnonzero(
-                np.isfinite(boxes).all(axis=1)
-                & (boxes[:, 2] > boxes[:, 0])
-                & (boxes[:, 3] > boxes[:, 1])
-            )
-            # the reasons of unusable_box_reasons(frame, needs_rotation=False)
-            reasons = box_problems(boxes)
+        else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
+            reasons = box_problems(boxes, self._border.known_size)
+            good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
@@ -217,26 +221,31 @@ class OursEstimator(Estimator):
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
-        return FrameEstimates(
+        est = FrameEstimates(
             theta_rad=filled(n, theta_in),
             theta_adj_rad=out["theta_adj_rad"],
             delta_y_px=out["delta_y_px"],
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(_CENTRE, n),
+            reference=object_column(self._reference.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
         )
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        if self._border.known_size is not None and good.size:
+            cut = np.zeros((n, 4), dtype=bool)
+            cut[good] = self._border.cut_edges(boxes[good])
+            settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+        est.extra["distance_centre_m"] = est.distance_m.copy()
+        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
+            est.distance_m -= half_extent
+        return est
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
         """The self-calibration in use, as columns of ``n`` boxes."""
         cal = self.selfcal.calibration()
-        return {
-            "calib_mount_angle_rad": filled(n, cal.mount_angle_rad),
-            "calib_mount_angle_sigma_rad": filled(n, cal.mount_angle_sigma_rad),
-            "calib_height_m": filled(n, cal.height_m),
-            "calib_height_sigma_m": filled(n, cal.height_sigma_m),
-        }
+        names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
+        return {f"calib_{k}": filled(n, getattr(cal, k)) for k in names}
 
     def _estimate_boxes(
         self,
@@ -268,7 +277,12 @@ class OursEstimator(Estimator):
             if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
                 size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
         fused = frame_cues.fuse_hypotheses(
-            targets, size, ground, self._log_prior(match), self._height_modes
+            targets,
+            size,
+            ground,
+            self._log_prior(match, targets),
+            self._height_modes,
+            cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         gradient = frame_cues.target_gradient(
@@ -339,9 +353,20 @@ class OursEstimator(Estimator):
             rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
-    def _log_prior(self, match: TrackMatch) -> FloatArray:
-        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes)."""
+    def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
+        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
+        headings × vehicle types when a target's class is generic)."""
         log_heading_prior = self._carried_heading_prior(match)
+        type_weight = targets.classes.type_log_weight
+        if type_weight is not None:
+            if log_heading_prior is None:
+                log_heading_prior = np.broadcast_to(
+                    self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
+                )
+            n_types = type_weight.shape[1]
+            return np.tile(log_heading_prior, n_types) + np.repeat(
+                type_weight, self._yaw.size, axis=1
+            )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
@@ -462,7 +487,7 @@ class OursEstimator(Estimator):
         """``(n, K)`` normalised log heading belief after this frame: the prior times the
         cues' likelihood, tempered (consecutive frames are correlated evidence)."""
         belief = fused.log_prior + self.config.yaw_evidence_weight * fused.loglik
-        n_modes = len(self._height_modes)
+        n_modes = belief.shape[1] // self._yaw.size
         if n_modes > 1:
             n = belief.shape[0]
             belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
@@ -481,7 +506,9 @@ class OursEstimator(Estimator):
         by the top or bottom border: their bottom rows and nearest-face size distances."""
         cam = self.camera
         n = uid.shape[0]
-        usable = targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        usable = (
+            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
+        ) & ~targets.classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom

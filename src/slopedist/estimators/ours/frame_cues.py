@@ -44,7 +44,7 @@ def size_cues(
     """Height and width cues per (target, heading hypothesis); a dimension cut by the image
     border keeps a weak Gaussian weight and bounds the distance from above."""
     hyp = targets.classes.hypotheses
-    tall = targets.classes.height_m > calib.height_m  # the roof above the camera
+    tall = hyp.height_m > calib.height_m  # the roof above the camera, per hypothesis
     height = cues.height_cue_log(
         targets.bottom_px - targets.top_px,
         cam.f,
@@ -54,7 +54,7 @@ def size_cues(
         hyp.height_m,
         hyp.half_extent_m,
         hyp.half_extent_var_m2,
-        tall[:, None] if any_true(tall) else None,
+        tall if any_true(tall) else None,
     )
     if cfg.use_width:
         width = cues.width_cue_log(
@@ -194,18 +194,21 @@ def fuse_hypotheses(
     ground: LogCue | None,
     log_prior: FloatArray,
     height_modes: list[float],
+    gate_sigma: float = 3.0,
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
-    vehicles and, less often, ones of atypical height), censor by the bounds, and collapse
-    the hypotheses by their posterior weights.
+    vehicles and, less often, ones of atypical height; or, when a target's class is generic,
+    the vehicle types × headings the cues were computed for), censor by the bounds, and
+    collapse the hypotheses by their posterior weights.
 
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
-    factor of each body-style mode (1: the class prior's).
+    factor of each body-style mode (1: the class prior's); ``gate_sigma``: the cue consistency
+    check's threshold (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
-    n = targets.boxes_px.shape[0]
-    n_modes = len(height_modes)
     height, width = size.height, size.width
+    type_weight = targets.classes.type_log_weight
+    n_modes = len(height_modes) if type_weight is None else 1
     size_modes = [
         fusion.fuse_size_cues(
             height.mean,
@@ -220,7 +223,7 @@ def fuse_hypotheses(
             hyp.log_sigma_width,
             hyp.corr_height_width,
         )
-        for k in height_modes
+        for k in (height_modes if type_weight is None else [1.0])
     ]
     size_cue = size_modes[0] if n_modes == 1 else fusion.concat_cues(size_modes)
     fused = size_cue
@@ -232,16 +235,72 @@ def fuse_hypotheses(
         if n_modes > 1:
             bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
-    measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
     extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
-    heading_weights = weights.reshape(n, n_modes, -1).sum(axis=1) if n_modes > 1 else weights
+    if ground is not None and n_modes > 1:
+        ground = fusion.concat_cues([ground] * n_modes)
+    if type_weight is not None:
+        n_modes = type_weight.shape[1]
+    return _collapse(
+        size,
+        size_cue,
+        fused,
+        ground,
+        n_modes,
+        log_prior,
+        extent,
+        most_likely_mode=type_weight is not None,
+        gate=gate_sigma,
+    )
+
+
+def _collapse(
+    size: SizeCues,
+    size_cue: LogCue,
+    fused: LogCue,
+    ground: LogCue | None,
+    n_modes: int,
+    log_prior: FloatArray,
+    extent: FloatArray,
+    most_likely_mode: bool = False,
+    gate: float = 3.0,
+) -> FusedCues:
+    """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
+    posterior weights (``extent``: each hypothesis's half depth extent, m).
+
+    With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
+    headings collapsed) and the other modes only widen the variance: a type the cues cannot
+    tell apart from the common one leaves the estimate where the common one puts it instead of
+    pulling it by the rarer types' prior weight.
+    """
+    n = fused.mean.shape[0]
+    measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
+    by_mode = weights.reshape(n, n_modes, -1)
+    heading_weights = by_mode.sum(axis=1) if n_modes > 1 else weights
+    size_mix = fusion.mix_hypotheses(size_cue, weights)
+    width_mean = size.width.mean
+    if most_likely_mode and n_modes > 1:
+        rows = np.arange(n)
+        best = by_mode.sum(axis=2).argmax(axis=1)
+        in_best = np.zeros_like(by_mode)
+        in_best[rows, best] = by_mode[rows, best]
+        w_best = in_best.reshape(n, -1)
+        w_best /= np.add.reduce(w_best, axis=1, keepdims=True)
+        measurement = fusion.widen_to_mixture(fused, w_best, weights)
+        size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
+        width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
+    gap = np.full(n, np.nan)
+    if ground is not None:
+        ground_mix = fusion.mix_hypotheses(ground, weights)
+        measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
     return FusedCues(
         measurement,
-        fusion.mix_hypotheses(size_cue, weights),
+        size_mix,
         fused.loglik,
         log_prior,
         heading_weights,
         np.add.reduce(weights * extent, axis=1),
+        np.add.reduce(heading_weights * width_mean, axis=1),
+        gap,
     )
 
 
@@ -323,6 +382,8 @@ def box_estimates(
         yaw_rad=yaw_grid_rad[fused.heading_weights.argmax(axis=1)],
         distance_size_m=gradient.size_distance_m,
         distance_ground_contact_m=ground,
+        distance_width_m=np.exp(fused.width_log),
+        cue_gap_sigma=fused.cue_gap_sigma,
         track_uid=uid.astype(float),
     )
 

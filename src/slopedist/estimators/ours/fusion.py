@@ -181,6 +181,38 @@ def mix_hypotheses(cue: LogCue, weight: FloatArray) -> LogCue:
     return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))
 
 
+def widen_to_mixture(cue: LogCue, mean_weight: FloatArray, weight: FloatArray) -> LogCue:
+    """One log cue from hypotheses ``(..., K)``: the mean of the weights ``mean_weight``, the
+    variance of the whole mixture ``weight`` about that mean (both normalised over the last
+    axis): the other hypotheses widen the cue, they do not move it."""
+    mean = np.add.reduce(mean_weight * cue.mean, axis=-1)
+    dev = cue.mean - mean[..., None]
+    var = np.add.reduce(weight * (cue.var + dev * dev), axis=-1)
+    white = np.add.reduce(mean_weight * cue.var_white, axis=-1)
+    return LogCue(mean, var, np.minimum(white, var), np.zeros(mean.shape))
+
+
+def check_consistency(
+    fused: LogCue, size: LogCue, ground: LogCue, gate_sigma: float
+) -> tuple[LogCue, FloatArray]:
+    """The cue consistency check: the gap between the size cue and the ground contact in
+    standard deviations of their difference, ``(ℓ_size − ℓ_ground)/√(var_size + var_ground)``
+    (NaN where the ground contact is missing), and the fused cue with its variance widened,
+    where the gap exceeds ``gate_sigma``, to at least that of an even mixture of the two cues
+    (``(var_size + var_ground)/2 + Δ²/4``): one of them is wrong and which one is unknown, so
+    the track's σ says so and its gate keeps it. The mean is left as the fusion put it."""
+    diff = size.mean - ground.mean
+    total = size.var + ground.var
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gap = diff / np.sqrt(total)
+    apart = np.abs(gap) > gate_sigma  # False for NaN
+    if not any_true(apart):
+        return fused, gap
+    mixture = 0.5 * total + 0.25 * diff * diff
+    var = np.where(apart, np.maximum(fused.var, mixture), fused.var)
+    return LogCue(fused.mean, var, fused.var_white, fused.loglik), gap
+
+
 def concat_cues(parts: list[LogCue]) -> LogCue:
     """Log cues side by side along the hypothesis axis."""
     return LogCue(

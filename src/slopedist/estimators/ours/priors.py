@@ -73,6 +73,29 @@ CLASS_PRIORS: dict[str, DimensionPrior] = {
 }
 """Dimension priors by KITTI class name (see the module docstring for their provenance)."""
 
+BUS_PRIOR = DimensionPrior(3.05, 2.55, 12.0, 0.20, 0.05, 1.5)
+"""A city or coach bus (not a KITTI class): 2.55 m is the EU's maximum vehicle width (Directive
+96/53/EC); 12 m the standard rigid bus (midi 10 m, articulated 18 m read as ±2σ-ish); low-floor
+city buses are 2.9–3.2 m tall, coaches 3.5–3.9 m."""
+
+VEHICLE_TYPE_MIXTURE: tuple[tuple[str, DimensionPrior, float], ...] = (
+    ("car", CLASS_PRIORS["Car"], 28742.0),
+    ("van", CLASS_PRIORS["Van"], 2914.0),
+    ("truck", CLASS_PRIORS["Truck"], 1094.0),
+    ("bus", BUS_PRIOR, 86.0),
+)
+"""Vehicle types behind a generic class name (``(name, prior, weight)``; weights are relative):
+what a class-blind detector's ``Car`` may be
+(:mod:`~slopedist.estimators.ours.vehicle_types`).
+
+Weights: the label counts of the KITTI object detection training set (Geiger, Lenz, Urtasun,
+CVPR 2012; 7481 images: 28 742 Car, 2 914 Van, 1 094 Truck), a published street-scene
+frequency that no scored KITTI *tracking* sequence enters; KITTI has no bus class, so the bus
+weight is the bus-to-car ratio of the EU vehicle fleet (about 0.7 M buses to 250 M passenger
+cars, ACEA "Vehicles on European roads", 2023: 0.3 %) times the car count. The dimension priors
+are the classes' own (see the module docstring) and :data:`BUS_PRIOR`. Nothing here is fitted
+to a distance error."""
+
 UNKNOWN_CLASS_PRIOR = DimensionPrior(1.80, 1.75, 4.20, 0.45, 0.35, 1.60)
 """Prior for any other class name (``Misc``, detector-specific names): a broad vehicle."""
 

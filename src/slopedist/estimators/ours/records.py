@@ -23,6 +23,7 @@ BoolArray = NDArray[np.bool_]
 
 EXTRA_COLUMNS = (
     "sigma_m",
+    "distance_centre_m",
     "distance_nearest_face_m",
     "speed_mps",
     "speed_sigma_mps",
@@ -33,6 +34,8 @@ EXTRA_COLUMNS = (
     "yaw_rad",
     "distance_size_m",
     "distance_ground_contact_m",
+    "distance_width_m",
+    "cue_gap_sigma",
     "track_uid",
     "calib_mount_angle_rad",
     "calib_mount_angle_sigma_rad",
@@ -150,6 +153,12 @@ class FusedCues(NamedTuple):
         log_prior: ``(n, K·modes)`` their log prior.
         heading_weights: ``(n, K)`` posterior weight of each heading hypothesis.
         half_extent_m: ``(n,)`` posterior mean half depth extent (centre to nearest face).
+        width_log: ``(n,)`` the width cue's log centre distance, mixed over the headings by
+            their posterior weights (NaN without the width cue).
+        cue_gap_sigma: ``(n,)`` the size cues' log distance minus the ground contact's, in
+            standard deviations of their difference (NaN without the ground contact): beyond
+            ``consistency_gate_sigma`` the cues disagree and the measurement's variance is
+            widened to cover both.
     """
 
     measurement: LogCue
@@ -158,6 +167,8 @@ class FusedCues(NamedTuple):
     log_prior: FloatArray
     heading_weights: FloatArray
     half_extent_m: FloatArray
+    width_log: FloatArray
+    cue_gap_sigma: FloatArray
 
 
 class DistanceFilterResult(NamedTuple):
@@ -214,6 +225,8 @@ class BoxEstimates(NamedTuple):
     yaw_rad: FloatArray
     distance_size_m: FloatArray
     distance_ground_contact_m: FloatArray
+    distance_width_m: FloatArray
+    cue_gap_sigma: FloatArray
     track_uid: FloatArray
 
 

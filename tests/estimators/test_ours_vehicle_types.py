@@ -1,0 +1,71 @@
+"""``ours`` with a generic class: vans and trucks that a class-blind detector calls ``Car``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slopedist.camera import Camera
+from slopedist.datasets.synthetic.traffic import SimulatedTraffic, simulate_traffic
+from slopedist.estimators import make_estimator
+from slopedist.estimators.base import FrameInput
+from slopedist.estimators.ours.class_table import ClassTable
+from slopedist.estimators.ours.priors import CLASS_PRIORS, VEHICLE_TYPE_MIXTURE, yaw_grid
+from slopedist.estimators.ours.vehicle_types import NOT_THIS_TYPE_LOG_WEIGHT, type_rows
+
+CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
+ODD_TRAFFIC = {"Car": 0.6, "Van": 0.25, "Truck": 0.15}
+
+
+def _squared_errors(sim: SimulatedTraffic, **options: object) -> np.ndarray:
+    est = make_estimator("ours", CAM, **options)
+    out = np.full(len(sim.boxes), np.nan)
+    for k, t in enumerate(sim.timestamps_s):
+        rows = np.flatnonzero(sim.boxes.frame == k)
+        if rows.size:
+            frame = FrameInput(k, float(t), 0.0, sim.boxes.select(rows), R_world_cam=np.eye(3))
+            out[rows] = est.estimate(frame).distance_m
+    assert np.isfinite(out).all()
+    return (out - sim.z_m) ** 2
+
+
+def test_a_generic_class_is_read_as_a_mixture_of_types() -> None:
+    rows, log_w = type_rows(CLASS_PRIORS["Car"], VEHICLE_TYPE_MIXTURE, generic=True)
+    assert [r[0] for r in rows] == [p.height_m for _, p, _ in VEHICLE_TYPE_MIXTURE]
+    assert np.exp(log_w).sum() == pytest.approx(1.0) and log_w.argmax() == 0
+    own, own_w = type_rows(CLASS_PRIORS["Van"], VEHICLE_TYPE_MIXTURE, generic=False)
+    assert all(r == own[0] for r in own) and own[0][0] == CLASS_PRIORS["Van"].height_m
+    assert own_w.tolist() == [0.0] + [NOT_THIS_TYPE_LOG_WEIGHT] * 3
+    table = ClassTable(None, yaw_grid(), ("Car",))
+    k = yaw_grid().size
+    specific = table.gather(np.array(["Van", "Van"], dtype=object))
+    assert specific.type_log_weight is None and specific.hypotheses.height_m.shape == (2, k)
+    mixed = table.gather(np.array(["Car", "Van"], dtype=object))
+    assert mixed.generic.tolist() == [True, False]
+    assert mixed.hypotheses.height_m.shape == (2, 4 * k)
+    assert mixed.hypotheses.height_m[0, ::k].tolist() == [r[0] for r in rows]
+    assert (mixed.hypotheses.height_m[1] == CLASS_PRIORS["Van"].height_m).all()
+
+
+def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class() -> None:
+    """Flat road, 0.5 px box noise, 12 vehicles (60 % cars, 25 % vans, 15 % trucks) over four
+    seeds: read as a mixture of types, ``ours`` errs far less than taking ``Car`` at its word.
+    The issue's figure (within 10 % of the run with the true classes) is NOT met: a van at
+    40 m and a car at 28 m differ in their ground contact by less than a 1° road-gradient
+    prior explains, so only near vehicles are told apart."""
+    true_cls, blind, generic = [], [], []
+    for seed in range(4):
+        kw = {"seed": seed, "box_noise_px": 0.5, "vehicle_types": ODD_TRAFFIC}
+        labelled = simulate_traffic(CAM, 12, 150, label_types=True, **kw)
+        called_car = simulate_traffic(CAM, 12, 150, **kw)
+        assert np.array_equal(labelled.boxes.boxes, called_car.boxes.boxes)
+        assert set(called_car.boxes.cls) == {"Car"} and len(set(labelled.boxes.cls)) >= 2
+        true_cls.append(_squared_errors(labelled))
+        blind.append(_squared_errors(called_car))
+        generic.append(_squared_errors(called_car, generic_classes=("Car",)))
+    rmse = {
+        k: float(np.sqrt(np.mean(np.concatenate(v))))
+        for k, v in {"true": true_cls, "blind": blind, "generic": generic}.items()
+    }
+    assert rmse["generic"] < 0.8 * rmse["blind"]
+    assert rmse["true"] < rmse["generic"]
