@@ -174,12 +174,20 @@ def test_size_fusion_is_exact_for_a_vehicle_of_prior_size() -> None:
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     c_h = dH * CAR[0] / zh
     out = fusion.fuse_size_cues(
-        math.log(zh), 1e-4, 0.0, c_h, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
+        cues.SizeCue(math.log(zh), c_h, 1e-4, 0.0),
+        cues.SizeCue(math.log(zw), share, 1e-4, 0.0),
+        0.085,
+        0.06,
+        0.3,
     )
     assert math.exp(out.mean) == pytest.approx(z, rel=1e-6)
     # no width: the height cue alone, with the prior's spread
     alone = fusion.fuse_size_cues(
-        math.log(zh), 1e-4, 0.0, c_h, np.nan, np.nan, np.nan, np.nan, 0.085, 0.06, 0.3
+        cues.SizeCue(math.log(zh), c_h, 1e-4, 0.0),
+        cues.SizeCue(np.nan, np.nan, np.nan, np.nan),
+        0.085,
+        0.06,
+        0.3,
     )
     assert alone.mean == pytest.approx(math.log(zh))
     assert alone.var == pytest.approx((c_h * 0.085) ** 2 + 1e-4)
@@ -195,7 +203,11 @@ def test_size_fusion_splits_a_size_surprise_between_the_cues() -> None:
     zh, _, dH, _, _ = cues.height_cue(b[1], b[3], F, H_CAM, CAR[0], e)
     zw, _, share = cues.width_cue(b[0], b[2], F, CX, 0.0, CAR[1], CAR[2])
     out = fusion.fuse_size_cues(
-        math.log(zh), 1e-4, 0.0, dH * CAR[0] / zh, math.log(zw), 1e-4, 0.0, share, 0.085, 0.06, 0.3
+        cues.SizeCue(math.log(zh), dH * CAR[0] / zh, 1e-4, 0.0),
+        cues.SizeCue(math.log(zw), share, 1e-4, 0.0),
+        0.085,
+        0.06,
+        0.3,
     )
     assert zw < math.exp(out.mean) < zh
     assert abs(math.exp(out.mean) - 40.0) < abs(zh - 40.0)

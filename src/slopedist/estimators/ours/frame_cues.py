@@ -211,14 +211,8 @@ def fuse_hypotheses(
     n_modes = len(height_modes) if type_weight is None else 1
     size_modes = [
         fusion.fuse_size_cues(
-            height.mean,
-            height.var_white,
-            height.var_other,
-            height.lever,
-            width.mean,
-            width.var_white,
-            width.var_other,
-            width.lever,
+            height,
+            width,
             hyp.log_sigma_height if k == 1.0 else k * hyp.log_sigma_height,
             hyp.log_sigma_width,
             hyp.corr_height_width,

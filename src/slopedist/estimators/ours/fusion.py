@@ -9,11 +9,14 @@ mode), leading axes the targets'.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import special
+
+if TYPE_CHECKING:
+    from slopedist.estimators.ours.cues import SizeCue
 
 FloatArray = NDArray[np.float64]
 
@@ -47,27 +50,24 @@ class LogCue(NamedTuple):
     loglik: FloatArray
 
 
-def fuse_size_cues(  # noqa: PLR0913 (the terms of one GLS equation, as in the docstring)
-    y_h: FloatArray,
-    r_h_white: FloatArray | float,
-    r_h_other: FloatArray | float,
-    c_h: FloatArray,
-    y_w: FloatArray,
-    r_w_white: FloatArray | float,
-    r_w_other: FloatArray | float,
-    c_w: FloatArray,
+def fuse_size_cues(
+    height: SizeCue,
+    width: SizeCue,
     sigma_log_h: FloatArray | float,
     sigma_log_w: FloatArray | float,
     corr_hw: FloatArray | float,
 ) -> LogCue:
     """Fuse the height and width cues (log distances) under the class size prior.
 
-    ``y_h = ℓ − c_h·ηH + n_h`` and ``y_w = ℓ − c_w·ηW + n_w``, with ``(ηH, ηW)`` the vehicle's
-    log size deviations from its class (spreads ``sigma_log_h``, ``sigma_log_w``, correlation
-    ``corr_hw``) and ``n`` measurement noise (white variances ``r_*_white`` plus other
-    per-vehicle variances ``r_*_other``, e.g. from the length): the generalised least-squares
-    estimate of ℓ. A non-finite width cue leaves the height cue alone.
+    ``y_h = ℓ − c_h·ηH + n_h`` and ``y_w = ℓ − c_w·ηW + n_w`` (``y`` the cue's mean, ``c`` its
+    lever), with ``(ηH, ηW)`` the vehicle's log size deviations from its class (spreads
+    ``sigma_log_h``, ``sigma_log_w``, correlation ``corr_hw``) and ``n`` measurement noise
+    (white variances ``var_white`` plus other per-vehicle variances ``var_other``, e.g. from the
+    length): the generalised least-squares estimate of ℓ. A non-finite width cue leaves the
+    height cue alone.
     """
+    y_h, r_h_white, r_h_other, c_h = height.mean, height.var_white, height.var_other, height.lever
+    y_w, r_w_white, r_w_other, c_w = width.mean, width.var_white, width.var_other, width.lever
     yh, yw = np.asarray(y_h, dtype=float), np.asarray(y_w, dtype=float)
     sh = c_h * np.asarray(sigma_log_h)
     sw = c_w * np.asarray(sigma_log_w)
