@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from pathlib import Path
 
 import click
@@ -10,13 +10,9 @@ import click
 from slopedist.cli.options import (
     check_methods,
     estimator_options,
-    height_option,
-    kitti_source_options,
-    lookback_option,
-    mount_option,
+    kitti_eval_options,
     split_list,
 )
-from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours.estimator import REFERENCES
@@ -39,7 +35,7 @@ def eval_group() -> None:
     show_default=True,
     help="Comma-separated estimator names.",
 )
-@kitti_source_options("")
+@kitti_eval_options("")
 @click.option(
     "--depth-dir",
     type=click.Path(file_okay=False, path_type=Path),
@@ -67,37 +63,24 @@ def eval_group() -> None:
     help="The point of the vehicle the truth's distance refers to (KITTI labels: the centre); "
     "ours reports the same point.",
 )
-@height_option
-@mount_option
-@lookback_option
 @estimator_options()
-def kitti_tracking(  # noqa: PLR0913 (a click command: one parameter per option)
+def kitti_tracking(
     data_dir: Path,
     sequences: str | None,
     methods: str,
-    rotation: str,
-    boxes: str,
-    score: float | None,
     depth_dir: Path | None,
     json_out: Path | None,
     generic_class: bool,
     gt_reference: str,
-    height_m: float,
-    mount_angle_deg: float,
-    lookback_s: float,
     estimator_config: EstimatorConfig,
+    kitti_config: KittiEvalConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
-    cfg = KittiEvalConfig(
+    cfg = dataclasses.replace(
+        kitti_config,
         sequences=split_list(sequences),
         methods=names,
-        rotation=RotationSource(rotation),
-        boxes=BoxSource(boxes),
-        min_score=score,
-        height_m=height_m,
-        mount_angle_rad=math.radians(mount_angle_deg),
-        lookback_s=lookback_s,
         method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
         generic_detector_class=generic_class,

@@ -360,38 +360,64 @@ drive_file_options = _files_decorator(required=False)
 computes the rotations from the frames and may detect the boxes)."""
 
 
-def kitti_source_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """``--rotation``, ``--boxes`` and ``--score`` of KITTI tracking sources (help text starts
-    with ``prefix``)."""
+def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
+    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle`` and
+    ``--lookback`` — handed to the command as one ``kitti_config``
+    (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command adds its sequences, methods and
+    method options with :func:`dataclasses.replace`)."""
+    source_options = (
+        click.option(
+            "--rotation",
+            type=click.Choice([r.value for r in RotationSource]),
+            default=RotationSource.ORBSLAM3.value,
+            show_default=True,
+            help=f"{prefix}Rotation source of the visual-odometry methods "
+            "(imu and imu-ego always use oxts).",
+        ),
+        click.option(
+            "--boxes",
+            type=click.Choice([b.value for b in BoxSource]),
+            default=BoxSource.GT.value,
+            show_default=True,
+            help=f"{prefix}Ground-truth boxes, PointRCNN or RRC (camera) detections.",
+        ),
+        click.option(
+            "--score",
+            type=float,
+            default=None,
+            help=f"{prefix}Keep detections with score >= SCORE (PointRCNN, RRC boxes).",
+        ),
+        height_option,
+        mount_option,
+        lookback_option,
+    )
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
-        for option in reversed(
-            (
-                click.option(
-                    "--rotation",
-                    type=click.Choice([r.value for r in RotationSource]),
-                    default=RotationSource.ORBSLAM3.value,
-                    show_default=True,
-                    help=f"{prefix}Rotation source of the visual-odometry methods "
-                    "(imu and imu-ego always use oxts).",
-                ),
-                click.option(
-                    "--boxes",
-                    type=click.Choice([b.value for b in BoxSource]),
-                    default=BoxSource.GT.value,
-                    show_default=True,
-                    help=f"{prefix}Ground-truth boxes, PointRCNN or RRC (camera) detections.",
-                ),
-                click.option(
-                    "--score",
-                    type=float,
-                    default=None,
-                    help=f"{prefix}Keep detections with score >= SCORE (PointRCNN, RRC boxes).",
-                ),
+        @functools.wraps(command)
+        def wrapper(
+            *args: Any,
+            rotation: str,
+            boxes: str,
+            score: float | None,
+            height_m: float,
+            mount_angle_deg: float,
+            lookback_s: float,
+            **kwargs: Any,
+        ) -> Any:
+            from slopedist.kitti_eval import KittiEvalConfig
+
+            kwargs["kitti_config"] = KittiEvalConfig(
+                rotation=RotationSource(rotation),
+                boxes=BoxSource(boxes),
+                min_score=score,
+                height_m=height_m,
+                mount_angle_rad=math.radians(mount_angle_deg),
+                lookback_s=lookback_s,
             )
-        ):
-            command = option(command)
-        return command
+            return command(*args, **kwargs)
+
+        return _apply(source_options, wrapper)
 
     return decorate
 

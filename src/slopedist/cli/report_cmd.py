@@ -3,7 +3,7 @@ tracking folder or of ``slopedist run`` outputs, as Markdown, HTML and CSV."""
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from pathlib import Path
 
 import click
@@ -11,13 +11,9 @@ import click
 from slopedist.cli.options import (
     check_methods,
     estimator_options,
-    height_option,
-    kitti_source_options,
-    lookback_option,
-    mount_option,
+    kitti_eval_options,
     split_list,
 )
-from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
@@ -63,45 +59,32 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
     help="Depth maps for the depthmap method: DIR/<sequence>/<frame>.png (KITTI "
     "depth PNG, uint16/256 m) or .npy (float metres).",
 )
-@kitti_source_options("KITTI: ")
+@kitti_eval_options("KITTI: ")
 @click.option(
     "--tracks",
     help="Tracks to plot over time, SEQUENCE:TRACK_ID,... [default: the longest tracks].",
 )
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
-@height_option
-@mount_option
-@lookback_option
 @estimator_options(depth=True)
-def report(  # noqa: PLR0913 (a click command: one parameter per option)
+def report(
     source: Path,
     out_dir: Path,
     methods: str | None,
     sequences: str | None,
     depth_dir: Path | None,
-    rotation: str,
-    boxes: str,
-    score: float | None,
     tracks: str | None,
     no_parquet: bool,
-    height_m: float,
-    mount_angle_deg: float,
-    lookback_s: float,
     estimator_config: EstimatorConfig,
+    kitti_config: KittiEvalConfig,
 ) -> None:
     """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
     output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
     names = check_methods(split_list(methods) or [])
     kind = detect_source(source)
-    cfg = KittiEvalConfig(
+    cfg = dataclasses.replace(
+        kitti_config,
         sequences=split_list(sequences),
         methods=tuple(names),
-        rotation=RotationSource(rotation),
-        boxes=BoxSource(boxes),
-        min_score=score,
-        height_m=height_m,
-        mount_angle_rad=math.radians(mount_angle_deg),
-        lookback_s=lookback_s,
         method_options=estimator_config.method_options(names or available_methods()),
         depth_dir=depth_dir,
     )
