@@ -6,7 +6,9 @@ the command line turns these into one clear message and exit code 2, never a tra
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from types import ModuleType
 
 
 class SlopedistError(Exception):
@@ -53,3 +55,12 @@ class OptionalDependencyError(SlopedistError):
             f"{purpose} needs the optional package '{package}', which is not installed; "
             f"install it with: pip install 'slopedist[{extra}]'"
         )
+
+
+def import_optional(module: str, extra: str, purpose: str) -> ModuleType:
+    """``module`` imported, or an :class:`OptionalDependencyError` naming the extra that
+    installs it (``pip install 'slopedist[extra]'``) and what it is for."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise OptionalDependencyError(module.split(".")[0], extra, purpose) from None

@@ -45,7 +45,7 @@ from slopedist.batch.fleet import (
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import input_stamp
 from slopedist.batch.status import STATUS_NAME, DriveOutcome, DriveStatus, write_status
-from slopedist.errors import ConfigurationError, OptionalDependencyError
+from slopedist.errors import ConfigurationError, import_optional
 from slopedist.runner import SUMMARY_NAME
 
 DEFAULT_MAX_RETRIES = 2
@@ -108,11 +108,7 @@ class BatchResult:
 
 def import_ray() -> Any:
     """The ``ray`` module, or an :class:`OptionalDependencyError` saying how to install it."""
-    try:
-        import ray
-    except ImportError:
-        raise OptionalDependencyError("ray", "batch", "slopedist batch") from None
-    return ray
+    return import_optional("ray", "batch", "slopedist batch")
 
 
 @contextmanager

@@ -36,7 +36,7 @@ from slopedist.errors import (
     DataMismatchError,
     InputFileError,
     MissingInputError,
-    OptionalDependencyError,
+    import_optional,
 )
 
 
@@ -93,16 +93,6 @@ class OnnxDepthConfig:
             )
 
 
-def _import_onnxruntime() -> Any:
-    try:
-        import onnxruntime
-    except ImportError:
-        raise OptionalDependencyError(
-            "onnxruntime", "onnx", "running an ONNX depth model"
-        ) from None
-    return onnxruntime
-
-
 def _check_input_size(path: Path, shape: list[Any], height: int, width: int) -> None:
     """A model with a fixed input size must be fed that size (``--depth-input-size``)."""
     fixed_h, fixed_w = shape[2], shape[3]
@@ -132,7 +122,7 @@ class OnnxDepthModel:
     """
 
     def __init__(self, config: OnnxDepthConfig) -> None:
-        ort = _import_onnxruntime()
+        ort = import_optional("onnxruntime", "onnx", "running an ONNX depth model")
         self.config = config
         path = Path(config.model_path)
         if not path.is_file():

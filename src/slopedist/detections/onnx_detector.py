@@ -39,7 +39,7 @@ from slopedist.errors import (
     DataMismatchError,
     InputFileError,
     MissingInputError,
-    OptionalDependencyError,
+    import_optional,
 )
 
 COCO_VEHICLES: dict[int, str] = {2: "Car", 3: "Motorcycle", 5: "Bus", 7: "Truck"}
@@ -142,14 +142,6 @@ def class_aware_nms(cand: Candidates, iou_threshold: float) -> NDArray[np.int64]
     return idx[np.argsort(-cand.scores[idx], kind="stable")]
 
 
-def _import_onnxruntime() -> Any:
-    try:
-        import onnxruntime
-    except ImportError:
-        raise OptionalDependencyError("onnxruntime", "onnx", "running an ONNX detector") from None
-    return onnxruntime
-
-
 @dataclass(frozen=True)
 class DetectorSettings:
     """How an :class:`OnnxDetector` reads its model and filters its boxes.
@@ -239,7 +231,7 @@ class OnnxDetector:
         self._buffer_box: Letterbox | None = None
 
     def _load(self, threads: int | None) -> Any:
-        ort = _import_onnxruntime()
+        ort = import_optional("onnxruntime", "onnx", "running an ONNX detector")
         if not self.model_path.is_file():
             raise MissingInputError(f"ONNX detector model not found: {self.model_path}")
         options = ort.SessionOptions()
