@@ -32,7 +32,7 @@ from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators import EstimatorConfig, build_estimator
 from slopedist.io.calibration import read_calibration
-from slopedist.io.frames import Frame, FrameSource
+from slopedist.io.frames import Frame, FrameSource, with_frame_size
 from slopedist.io.intrinsics import RectifiedDetector
 from slopedist.io.sources import open_source
 from slopedist.io.tables import write_json
@@ -57,9 +57,7 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
     """
     source = open_source(spec.frames, spec.fps, spec.timestamps)
     calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
-    camera = calibration.camera
-    if camera.image_width is None or camera.image_height is None:  # as run: the frames' size
-        camera = camera.with_image_size(*source.frame_size())
+    camera = with_frame_size(calibration.camera, source)  # as run
     boxes = BoxTable.empty()
     detector: Detector | None = None
     if spec.boxes is not None:

@@ -44,7 +44,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import CameraCalibration, read_calibration
-from slopedist.io.frames import FrameSource
+from slopedist.io.frames import FrameSource, with_frame_size
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
 from slopedist.io.outputs import (
     RunStoppedError,
@@ -500,14 +500,6 @@ def rotation_source(
         return None
     camera, lookback_s, point_map = visual
     return build_odometry(odometry, camera, vocab, lookback_s, point_map)
-
-
-def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
-    """``camera`` knowing the image size for the border test of every box: the frames' size,
-    unless the calibration states its own (then the run checks that the two agree)."""
-    if camera.image_width is not None and camera.image_height is not None:
-        return camera
-    return camera.with_image_size(*frames.frame_size())
 
 
 def check_run_outputs(

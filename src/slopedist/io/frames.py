@@ -177,6 +177,14 @@ def _parse_time(text: str, t0: datetime | None) -> float | datetime | None:
     return whole.replace(microsecond=min(round(frac * 1e6), 999_999))
 
 
+def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
+    """``camera`` knowing the image size for the border test of every box: the frames' size,
+    unless the calibration states its own (then the run checks that the two agree)."""
+    if camera.image_width is not None and camera.image_height is not None:
+        return camera
+    return camera.with_image_size(*frames.frame_size())
+
+
 def check_calibration(camera: Camera, width: int, height: int, where: str = "frames") -> None:
     """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
 
