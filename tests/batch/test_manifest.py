@@ -65,6 +65,24 @@ def test_csv_manifest_errors_name_line_and_field(
     assert f"line {line}, field '{field}'" in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("name", "content", "line", "message"),
+    [
+        ("drives.csv", b"drive,frames,calib,boxes\n\xffa,f,c,b\n", 2, "not UTF-8"),
+        ("drives.csv", b"drive,frames,calib,boxes\na," + b"9" * 200_000 + b",c,b\n", 2, "CSV row"),
+        ("drives.toml", b'[[drive]]\ndrive = "a"\n# \xff\n', 3, "not UTF-8"),
+    ],
+)
+def test_manifests_read_as_strict_text(
+    tmp_path: Path, name: str, content: bytes, line: int, message: str
+) -> None:
+    manifest = tmp_path / name
+    manifest.write_bytes(content)
+    with pytest.raises(InputFileError, match=message) as err:
+        load_drives(manifest)
+    assert err.value.line == line
+
+
 def test_toml_manifest(tmp_path: Path) -> None:
     manifest = write(
         tmp_path / "drives.toml",

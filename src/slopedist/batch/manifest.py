@@ -16,7 +16,7 @@ from __future__ import annotations
 import csv
 import math
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +25,7 @@ from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.errors import InputFileError, MissingInputError
 from slopedist.estimators import DEFAULT_METHOD, available_methods
 from slopedist.odometry.base import LOOKBACK_S
+from slopedist.textfiles import decoded_lines, read_text
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -208,45 +209,62 @@ def _check_unique(specs: list[DriveSpec], where: Callable[[int, str], InputFileE
 
 def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
     """The drives of a CSV manifest (see the module docstring)."""
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        header = [h.strip() for h in reader.fieldnames or []]
-        missing = [c for c in REQUIRED_COLUMNS if c not in header]
-        missing += [] if set(BOX_COLUMNS) & set(header) else ["boxes"]
-        if missing:
-            names = ", ".join(missing).replace("boxes", "boxes (or detector)")
-            raise InputFileError(path, f"missing column(s) {names}", line=1, field=missing[0])
-        unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
-        if unknown:
-            raise InputFileError(
-                path,
-                f"unknown column; known: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
-                line=1,
-                field=unknown[0],
-            )
-        reader.fieldnames = header
-        specs, lines = [], []
-        for row in reader:
-            line = reader.line_num
-            if not any((v or "").strip() for v in row.values()):
-                continue
-            if None in row:
-                raise InputFileError(path, "more cells than columns", line=line)
+    reader = csv.DictReader(decoded_lines(path, "batch manifest"))  # strict UTF-8
+    try:
+        fieldnames = reader.fieldnames or []
+    except csv.Error as exc:
+        raise InputFileError(path, f"not a valid CSV header ({exc})", line=1) from None
+    header = [h.strip() for h in fieldnames]
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    missing += [] if set(BOX_COLUMNS) & set(header) else ["boxes"]
+    if missing:
+        names = ", ".join(missing).replace("boxes", "boxes (or detector)")
+        raise InputFileError(path, f"missing column(s) {names}", line=1, field=missing[0])
+    unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+    if unknown:
+        raise InputFileError(
+            path,
+            f"unknown column; known: {', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)}",
+            line=1,
+            field=unknown[0],
+        )
+    reader.fieldnames = header
+    specs, lines = [], []
+    for row in _rows(reader, path):
+        line = reader.line_num
+        if not any((v or "").strip() for v in row.values()):
+            continue
+        if None in row:
+            raise InputFileError(path, "more cells than columns", line=line)
 
-            def where(field: str, message: str, line: int = line) -> InputFileError:
-                return InputFileError(path, message, line=line, field=field)
+        def where(field: str, message: str, line: int = line) -> InputFileError:
+            return InputFileError(path, message, line=line, field=field)
 
-            specs.append(spec_from_row(row, path.parent, defaults, where, f"{path}:{line}"))
-            lines.append(line)
+        specs.append(spec_from_row(row, path.parent, defaults, where, f"{path}:{line}"))
+        lines.append(line)
     _check_unique(specs, lambda i, msg: InputFileError(path, msg, line=lines[i], field="drive"))
     return specs
+
+
+def _rows(reader: csv.DictReader[str], path: Path) -> Iterator[dict[str | Any, Any]]:
+    """The reader's rows; a malformed CSV row (an over-long field, an open quote, a NUL
+    byte) is an error naming its line."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            line = reader.reader.line_num  # DictReader's own count lags on an error
+            raise InputFileError(path, f"not a valid CSV row ({exc})", line=line) from None
+        yield row
 
 
 def read_toml_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
     """The drives of a TOML manifest: ``[[drive]]`` tables with the CSV manifest's keys
     (``drive`` is the name); errors name the n-th ``[[drive]]`` entry."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_text(path, "batch manifest"))
     except tomllib.TOMLDecodeError as exc:
         raise InputFileError(path, f"not valid TOML: {exc}") from None
     entries = data.get("drive")
