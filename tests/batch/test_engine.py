@@ -1,13 +1,13 @@
 """The batch on a local Ray instance with 2 CPUs: records identical to running each drive
 alone, a corrupt drive isolated, a killed worker retried, a second run that skips complete
-drives and redoes a deleted one. Ray starts once for the module."""
+drives and redoes a deleted one. Ray starts once for the session (``ray_instance`` of
+tests/conftest.py)."""
 
 from __future__ import annotations
 
 import csv
 import shutil
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,16 +25,6 @@ from .conftest import real_drive, run_alone, simulate
 SHARED_LEAD = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "kitti_raw_lead"
 SCENARIOS = ("ego_crest", "same_downhill", "target_steep_uphill")
 CRASHED = "ego_crest_paper"
-
-
-@pytest.fixture(scope="module")
-def ray_instance() -> Iterator[Any]:
-    ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'slopedist[batch]'")
-    pytest.importorskip("pyarrow", reason="pyarrow is not installed")
-    with kept_signal_handlers():  # for the tests that follow in this process
-        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-        yield ray
-        ray.shutdown()
 
 
 @dataclass
