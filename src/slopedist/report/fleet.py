@@ -25,17 +25,18 @@ FAILED_ROWS = 20
 """Failed drives listed in the report's status table (all are in ``status.csv``)."""
 
 _METRIC_HEADERS = ("n", "RMSE", "MAE", "AbsRel", "δ<1.25")
-_SAFETY_HEADERS = (
-    "hours",
-    "tracks",
-    "min dist (m)",
-    "min TTC (s)",
-    "tracks with TTC events",
-    "TTC events",
-    "events / h",
-    "short-headway tracks",
-    "min headway (s)",
-)
+_SAFETY_HEADERS = {
+    "duration_s": "hours",
+    "tracks": "tracks",
+    "min_distance_m": "min dist (m)",
+    "min_ttc_s": "min TTC (s)",
+    "ttc_tracks": "tracks with TTC events",
+    "ttc_events": "TTC events",
+    "ttc_events_per_h": "events / h",
+    "short_headway_tracks": "short-headway tracks",
+    "min_headway_s": "min headway (s)",
+}
+"""Column header of each safety field (:data:`~slopedist.batch.safety.SAFETY_FIELDS`)."""
 _SAFETY_FORMATS = {1: "d", 4: "d", 5: "d", 7: "d", 0: ".2f", 2: ".1f", 3: ".2f", 6: ".2f"}
 
 
@@ -219,7 +220,7 @@ def safety_tables(summary: FleetSummary) -> list[Table]:
         Table(
             "fleet_safety_pooled",
             "Fleet: safety summary pooled over all drives",
-            ["method", "drives", *_SAFETY_HEADERS, "min TTC drive"],
+            ["method", "drives", *(_SAFETY_HEADERS[f] for f in SAFETY_FIELDS), "min TTC drive"],
             pooled,
             [],
             note,
@@ -228,7 +229,7 @@ def safety_tables(summary: FleetSummary) -> list[Table]:
         Table(
             "fleet_safety",
             "Fleet: safety summary per drive",
-            ["drive", "method", *_SAFETY_HEADERS],
+            ["drive", "method", *(_SAFETY_HEADERS[f] for f in SAFETY_FIELDS)],
             drives,
             [],
             note,
