@@ -33,9 +33,10 @@ def ray_instance() -> Iterator[Any]:
     pytest.importorskip("pyarrow", reason="pyarrow is not installed")
     from slopedist.batch.engine import kept_signal_handlers
 
-    with kept_signal_handlers():  # for the tests that follow in this process
+    with kept_signal_handlers():  # ray.init's SIGINT/SIGTERM handlers would outlive the tests
         ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-        yield ray
+    yield ray
+    with kept_signal_handlers():
         ray.shutdown()
 
 
