@@ -264,15 +264,16 @@ def draw_fig3_overlay(
     """Annotate a frame in the style of the paper's Fig. 3; returns a new image.
 
     Draws each box in its track's colour (:func:`track_colour`; dashed when the image border
-    cuts it, :func:`is_cut`), a dashed yellow line at each box's vertical centre ``b_y``, and a
-    label per box — ``#track distance m`` (or ``missing: reason``) and Δy (px, eq. 6) — laid
-    out by :func:`slopedist.labels.layout_labels` so that no two labels overlap (the lead
-    vehicle first, then the nearest targets; a leader line joins a label set away from its
-    box; where the full label finds no room, the distance alone, in a smaller font last). The lead vehicle
-    (:func:`lead_index`) gets a yellow frame and a banner under the header with its distance,
-    relative speed and TTC where the method gives them. Last and on top, the vanishing line of
-    the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green line. Hershey fonts have no
-    Greek letters, so Δy is written ``dy`` and θ ``theta``.
+    cuts it, :func:`is_cut`), a dashed yellow line at each box's vertical centre ``b_y``, the
+    vanishing line of the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green line,
+    and, last and on top, a label per box — ``#track distance m`` (or ``missing: reason``) and
+    Δy (px, eq. 6) — laid out by :func:`slopedist.labels.layout_labels` so that no two labels
+    overlap: the lead vehicle first, then the nearest targets; a leader line joins a label set
+    away from its box; where the full label finds no room, the distance alone on one line, in a
+    smaller font as a last resort (:func:`_label_forms`). The lead vehicle (:func:`lead_index`)
+    gets a yellow frame and a banner under the header with its distance, relative speed and TTC
+    where the method gives them. Hershey fonts have no Greek letters, so Δy is written ``dy``
+    and θ ``theta``.
 
     Args:
         image: BGR ``H×W×3`` (or grey ``H×W``) uint8 frame; not modified.
