@@ -13,8 +13,13 @@ frames of ``../shared/data/kitti_raw_lead`` with the vehicle boxes of its LiDAR 
   rectangles beyond the 3 px gap; over 5 px a leader line joins them), and how many cover more
   than a quarter of their area of other boxes;
 - draw time: milliseconds per frame of :func:`draw_fig3_overlay` (the run's overlay stage
-  without the encoder), the minimum over the repeats of each frame's time, then the mean and
-  the maximum over the frames.
+  without the encoder), processor time of the drawing thread (steadier than wall time on a
+  shared machine), the minimum over the repeats of each frame's time, then the mean and the
+  maximum over the frames.
+
+Compare two source trees by running the script with each first on ``PYTHONPATH`` (the
+placement statistics work with any version whose ``viz._draw_labels`` returns the label
+rectangles).
 
 Usage::
 
@@ -77,9 +82,9 @@ def frame_labels(args: tuple[Any, ...]) -> tuple[list[Any], float]:
         return drawn
 
     with mock.patch.object(viz, "_draw_labels", keep):
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         viz.draw_fig3_overlay(*args)
-        ms = (time.perf_counter() - t0) * 1e3
+        ms = (time.thread_time() - t0) * 1e3
     return drawn, ms
 
 
