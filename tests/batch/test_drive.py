@@ -86,6 +86,12 @@ def test_stamps_see_content_and_options_not_touches(sim: Path, tmp_path: Path) -
     assert input_stamp(spec) == before
     assert input_stamp(spec_of(local, method="flat")) != before
     assert input_stamp(spec_of(local, height_m=1.5)) != before
+    for topic in ("image_topic", "rotation_topic", "speed_topic"):  # a log's topics count too
+        with_topic = input_stamp(spec_of(local, **{topic: "/a"}))
+        assert with_topic != before
+        assert input_stamp(spec_of(local, **{topic: "/b"})) != with_topic
+    no_calib = input_stamp(spec_of(local, calib=None))  # a log's camera_info instead
+    assert no_calib != before and "calib" not in no_calib["inputs"]
     (local / "boxes.csv").write_text((local / "boxes.csv").read_text().replace(",1,", ",2,", 1))
     assert input_stamp(spec)["inputs"]["boxes"] != before["inputs"]["boxes"]
     sorted((local / "image_02").iterdir())[-1].unlink()
