@@ -45,3 +45,25 @@ def test_json_dash_writes_only_json_to_stdout(
     assert _strict(captured.out)["protocol"]["sequences"] == ["0014"]
     assert "Table 1: RMSE (m) per sequence" in captured.err
     assert not (tmp_path / "-").exists()
+
+
+def test_the_learned_peer_row_and_a_declared_reference_from_the_command_line(
+    kitti_tracking_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out.json"
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0003"]
+    args += ["--methods", "flat,learned-peer", "--gt-reference", "centre", "--json", str(out)]
+    assert main(args) == 0
+    report = _strict(out.read_text())
+    assert report["protocol"]["ground_truth"]["reference"] == "centre"
+    assert "leave-one-sequence-out" in report["protocol"]["learned_peer"]
+    assert report["methods"]["learned-peer"]["overall"]["n"] > 0
+    assert "learned-peer" in capsys.readouterr().out
+
+
+def test_an_unknown_method_names_the_learned_peer_among_the_choices(
+    kitti_tracking_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "nope"]
+    assert main(args) != 0
+    assert "learned-peer" in capsys.readouterr().err
