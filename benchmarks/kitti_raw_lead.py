@@ -38,6 +38,8 @@ from slopedist.datasets.kitti_raw import KittiRawDrive
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
 from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
@@ -94,19 +96,31 @@ def lead_track(boxes: BoxTable) -> int:
     return int(first.track_id[int(np.argmin(first.extra["z"]))])
 
 
-NEAREST_FACE_COLUMN = "distance_nearest_face_m"
-"""Records column of methods whose ``distance_m`` refers to the vehicle's centre (``ours``)."""
+TRUTH_REFERENCE = ReferencePoint.NEAREST_FACE
+"""The point the LiDAR truth refers to: the cluster's nearest face."""
+
+
+def _number(cell: str | None) -> float:
+    return float(cell) if cell else math.nan
 
 
 def read_estimates(path: Path) -> dict[tuple[int, int], float]:
     """``{(frame, track_id): distance to the nearest face, m}`` of a records CSV (NaN when
-    missing): ``distance_nearest_face_m`` where the records have it, else ``distance_m`` (the
-    ground-contact methods' distance refers to the contact point under the box bottom)."""
+    missing): every method's ``distance_m`` moved from its ``reference`` to the truth's
+    (:func:`slopedist.estimators.references.to_reference`; ``ours`` by its own half extent, the
+    ground-contact methods' contact point is already at the nearest face)."""
     out = {}
     with path.open(newline="") as fh:
         for row in csv.DictReader(fh):
-            d = row.get(NEAREST_FACE_COLUMN) or row["distance_m"]
-            out[(int(row["frame"]), int(row["track_id"]))] = float(d) if d else math.nan
+            half = _number(row.get(CENTRE_COLUMN)) - _number(row.get(NEAREST_FACE_COLUMN))
+            d = to_reference(
+                [_number(row["distance_m"])],
+                [row["reference"]],
+                [row["class"]],
+                TRUTH_REFERENCE,
+                [half],
+            )
+            out[(int(row["frame"]), int(row["track_id"]))] = float(d[0])
     return out
 
 
@@ -213,8 +227,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels, "
         f"on the {int(common.sum())} scored boxes every method estimates (of {int(scored.sum())}"
-        f"); 'own' = each method over all the scored boxes it estimates; methods that report "
-        f"the vehicle centre are read from their {NEAREST_FACE_COLUMN} column:"
+        f"); 'own' = each method over all the scored boxes it estimates; every method's "
+        f"distance is moved to the truth's reference ({TRUTH_REFERENCE.value}):"
     )
     print(
         f"{'method':12s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
