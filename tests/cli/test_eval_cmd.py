@@ -58,7 +58,9 @@ def test_the_learned_peer_row_and_a_declared_reference_from_the_command_line(
     assert report["protocol"]["ground_truth"]["reference"] == "centre"
     assert "leave-one-sequence-out" in report["protocol"]["learned_peer"]
     assert report["methods"]["learned-peer"]["overall"]["n"] > 0
-    assert "learned-peer" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "learned-peer: trained leave-one-sequence-out" in printed
+    assert "Truth refers to the vehicle's centre; methods compared at the truth's" in printed
 
 
 def test_an_unknown_method_names_the_learned_peer_among_the_choices(
