@@ -418,7 +418,7 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             "--gt-reference",
             type=click.Choice([r.value for r in GT_REFERENCES]),
             default=None,
-            help=f"{prefix}Declare the point of the vehicle the truth's distance refers to "
+            help="Declare the point of the vehicle the truth's distance refers to "
             "(KITTI labels: centre): every method's distance is moved to it (ground-contact "
             "methods by half their class's length prior; ours reports it itself). Default: "
             "undeclared, each method scored at its own point (the published protocol).",
