@@ -144,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
         help="options of ours and ours-selfcal as JSON, e.g. "
         "'{\"occlusion_aware\": false}' (default: none)",
     )
+    parser.add_argument(
+        "--top-clusters", type=int, default=8, help="clusters listed by share of ours' error"
+    )
     args = parser.parse_args(argv)
     if not args.data.is_dir():
         print(f"kitti_raw_lead data not found at {args.data}", file=sys.stderr)
@@ -248,7 +251,43 @@ def main(argv: list[str] | None = None) -> int:
     )
     for m in methods:
         print(f"{m:12s} " + " ".join(f"{v:16.2f}" for v in binned[m]))
+    errors = {m: np.array([estimates[m].get(k, math.nan) for k in key]) - z for m in methods}
+    print_clusters(truth, errors, common, args.top_clusters)
     return 0
+
+
+def print_clusters(
+    truth: BoxTable, errors: dict[str, np.ndarray], common: np.ndarray, top: int
+) -> None:
+    """The clusters (tracks) that hold most of the last method's squared error on the scored
+    boxes: their size, mean LiDAR z and lateral x, each method's bias and RMSE there; then every
+    method's RMSE without the two largest (a diagnostic of where an error comes from, not a
+    figure to report as the benchmark's)."""
+    worst = list(errors)[-1] if "ours" not in errors else "ours"
+    tids = np.unique(truth.track_id[common])
+    sq = {t: float(np.sum(errors[worst][common & (truth.track_id == t)] ** 2)) for t in tids}
+    order = sorted(tids, key=lambda t: -sq[t])[:top]
+    total = sum(sq.values())
+    print()
+    print(f"Clusters with the largest share of {worst}'s squared error (bias / RMSE, m):")
+    print(
+        f"{'track':>5s} {'n':>4s} {'z m':>6s} {'x m':>6s} {'share':>6s} "
+        + " ".join(f"{m:>14s}" for m in errors)
+    )
+    for t in order:
+        sel = common & (truth.track_id == t)
+        cells = " ".join(
+            f"{np.mean(e[sel]):+6.2f}/{rmse(list(e[sel])):6.2f} " for e in errors.values()
+        )
+        print(
+            f"{int(t):5d} {int(sel.sum()):4d} {np.mean(truth.extra['z'][sel]):6.1f} "
+            f"{np.mean(truth.extra['x'][sel]):6.1f} {sq[t] / total:6.1%} {cells}"
+        )
+    rest = common & ~np.isin(truth.track_id, order[:2])
+    print(
+        f"without tracks {', '.join(str(int(t)) for t in order[:2])} (n = {int(rest.sum())}): "
+        + ", ".join(f"{m} {rmse(list(e[rest])):.2f}" for m, e in errors.items())
+    )
 
 
 if __name__ == "__main__":
