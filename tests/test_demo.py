@@ -232,19 +232,25 @@ def test_tables_and_frame_logs_have_lf_line_ends_and_results_json_is_strict(demo
 
 
 def test_scenarios_in_worker_processes_give_the_same_figures(tmp_path: Path) -> None:
-    """Two scenarios run at once in worker processes write what one after the other writes
-    (timings aside)."""
+    """Two scenarios run at once in worker processes (their plots written by tasks of their
+    own) write what one after the other writes (timings aside), and list the same files."""
     outputs = []
     for jobs in (1, 2):
         out = tmp_path / f"jobs{jobs}"
         cfg = DemoConfig(
-            out, SCENARIOS, ("flat", "ours"), "visual", False, False, 6, False, jobs=jobs
+            out, SCENARIOS, ("flat", "ours"), "visual", False, True, 6, False, jobs=jobs
         )
         result = run_demo(cfg, echo=lambda s: None)
         assert [r.name for r in result.runs] == list(SCENARIOS)
         records = [(out / s / "records.csv").read_text() for s in SCENARIOS]
         rmse = (out / "rmse.csv").read_text()
-        outputs.append((records, rmse, [r.theta_est.tolist() for r in result.runs]))
+        files = [[str(Path(f).relative_to(out)) for f in r.files] for r in result.runs]
+        listed = json.loads((out / "results.json").read_text())["scenarios"]
+        assert [listed[s]["files"] for s in SCENARIOS] == [r.files for r in result.runs]
+        for s in SCENARIOS:
+            assert (out / s / "distance.png").stat().st_size > 1000
+            assert (out / s / "theta.png").stat().st_size > 1000
+        outputs.append((records, rmse, files, [r.theta_est.tolist() for r in result.runs]))
     assert outputs[0] == outputs[1]
 
 

@@ -33,7 +33,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -85,13 +85,19 @@ __all__ = [
 
 
 def run_scenario(
-    name: str, cfg: DemoConfig, method_names: list[str], bar: tqdm | None = None
-) -> tuple[ScenarioRun, list[MethodPlan]]:
-    """Run every method on one scenario (see the module docstring)."""
+    name: str,
+    cfg: DemoConfig,
+    method_names: list[str],
+    bar: tqdm | None = None,
+    plot: bool = True,
+) -> tuple[ScenarioRun, list[MethodPlan], ScenarioPlots | None]:
+    """Run every method on one scenario (see the module docstring). With ``cfg.plots``, the
+    plots' inputs are returned, and the plots written here too when ``plot`` (False: the caller
+    writes them with :func:`write_plots`, in another process if it likes)."""
     scenario = load_scenario(name)
     folder = scenario_folder(cfg.out_dir, scenario.name, name)
     folder.mkdir(parents=True, exist_ok=True)
-    plans = plan_methods(method_names, SyntheticSequence(scenario).camera, cfg.estimator)
+    plans = plan_methods(method_names, scenario.camera.camera(), cfg.estimator)
     loop = ScenarioLoop(scenario, cfg, plans, folder)
     files = loop.run(bar)
     run = ScenarioRun(
@@ -106,9 +112,10 @@ def run_scenario(
         loop.theta_true[: loop.n],
         files,
     )
-    if cfg.plots:
-        run.files += _plots(run, loop.seq, folder, [p.name for p in loop.active])
-    return run, plans
+    plots = plot_inputs(run, loop.seq, folder, [p.name for p in loop.active]) if cfg.plots else None
+    if plots is not None and plot:
+        run.files += write_plots(plots)
+    return run, plans, plots
 
 
 SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
@@ -132,8 +139,30 @@ def scenario_folder(out_dir: Path, name: str, source: str | Path = "") -> Path:
     return out_dir / name
 
 
-def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list[str]) -> list[str]:
-    """Distance vs truth and θ vs truth plots of one scenario."""
+@dataclass
+class ScenarioPlots:
+    """What the two plots of one scenario show (small arrays: cheap to send to a worker).
+
+    Attributes:
+        distance_path, theta_path: the PNG files.
+        t_s: frame times, seconds; series: per target, distances vs truth (metres).
+        theta_est, theta_true: θ of eq. 4 per frame, radians; targets: per target θ terms.
+    """
+
+    name: str
+    distance_path: Path
+    theta_path: Path
+    t_s: FloatArray
+    series: list[viz.DistanceSeries]
+    theta_est: FloatArray
+    theta_true: FloatArray
+    targets: list[viz.TargetTheta]
+
+
+def plot_inputs(
+    run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list[str]
+) -> ScenarioPlots:
+    """The distance vs truth and θ vs truth plots' data of one scenario."""
     t = seq.truth.timestamps_s[: run.frames]
     cam = seq.camera
     series = []
@@ -163,13 +192,32 @@ def _plots(run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list
                 if tr == tid:
                     adj[f], dy[f] = a, y
         theta_targets.append(viz.TargetTheta(int(tid), needed, adj, dy))
-    p1 = folder / "distance.png"
-    viz.plot_distance_series(p1, t, series, f"{run.name}: distance vs truth (KITTI z)")
-    p2 = folder / "theta.png"
-    viz.plot_theta_series(
-        p2, t, run.theta_est, run.theta_true, theta_targets, f"{run.name}: ego gradient θ vs truth"
+    return ScenarioPlots(
+        run.name,
+        folder / "distance.png",
+        folder / "theta.png",
+        t,
+        series,
+        run.theta_est,
+        run.theta_true,
+        theta_targets,
     )
-    return [str(p1), str(p2)]
+
+
+def write_plots(plots: ScenarioPlots) -> list[str]:
+    """Write the two plots of one scenario; returns their paths."""
+    viz.plot_distance_series(
+        plots.distance_path, plots.t_s, plots.series, f"{plots.name}: distance vs truth (KITTI z)"
+    )
+    viz.plot_theta_series(
+        plots.theta_path,
+        plots.t_s,
+        plots.theta_est,
+        plots.theta_true,
+        plots.targets,
+        f"{plots.name}: ego gradient θ vs truth",
+    )
+    return [str(plots.distance_path), str(plots.theta_path)]
 
 
 def demo_jobs(cfg: DemoConfig) -> int:
@@ -184,21 +232,40 @@ def _scenario_runs(
 ) -> Iterator[tuple[ScenarioRun, list[MethodPlan]]]:
     """Every scenario's run, in the order of ``cfg.scenarios`` (``titles``: their names for the
     progress bar); with more than one job, the scenarios run in worker processes (the bar then
-    moves by whole scenarios)."""
+    moves by whole scenarios), and each scenario's plots are written by a task of their own,
+    queued when the scenario ends, so the workers stay busy while the last scenarios run. The
+    runs' plot files are listed once every plot is written (after the last run is yielded)."""
     jobs = demo_jobs(cfg)
     if jobs == 1:
         for name, title in zip(cfg.scenarios, titles):
             bar.set_postfix_str(title)
-            yield run_scenario(name, cfg, method_names, bar)
+            run, plans, _ = run_scenario(name, cfg, method_names, bar)
+            yield run, plans
         return
     context = multiprocessing.get_context("spawn")  # no fork of a process with threads
     with ProcessPoolExecutor(jobs, mp_context=context) as pool:
-        futures = [pool.submit(run_scenario, name, cfg, method_names) for name in cfg.scenarios]
-        for future in futures:
-            run, plans = future.result()
-            bar.set_postfix_str(run.name)
-            bar.update(run.frames)
-            yield run, plans
+        pending = {
+            pool.submit(run_scenario, name, cfg, method_names, None, False): i
+            for i, name in enumerate(cfg.scenarios)
+        }
+        finished: dict[int, tuple[ScenarioRun, list[MethodPlan]]] = {}
+        plot_jobs: list[tuple[ScenarioRun, Future[list[str]]]] = []
+        following = 0  # the next scenario to yield
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                run, plans, plots = future.result()
+                finished[pending.pop(future)] = run, plans
+                if plots is not None:
+                    plot_jobs.append((run, pool.submit(write_plots, plots)))
+            while following in finished:
+                run, plans = finished.pop(following)
+                following += 1
+                bar.set_postfix_str(run.name)
+                bar.update(run.frames)
+                yield run, plans
+        for run, job in plot_jobs:
+            run.files += job.result()
 
 
 @dataclass
