@@ -87,6 +87,14 @@ class OursConfig:
             the default), ``nearest_face`` or ``contact`` (the ground under the nearest face,
             the same longitudinal distance); the records carry ``distance_centre_m`` and
             ``distance_nearest_face_m`` whatever it is.
+        size_learning: learn each track's own size (an isotropic scale of its class prior's
+            dimensions, with its variance) from the frames where the ground contact is
+            reliable, and use it in the size cues (:mod:`~slopedist.estimators.ours.
+            size_learning`; record columns ``size_scale``, ``size_log_sigma``,
+            ``track_height_m``).
+        size_evidence_time_s: the time τ over which a track's ground-contact evidence about
+            its size is one independent observation (consecutive frames share the target
+            road's gradient error): a frame's evidence weighs ``min(1, dt/τ)``.
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
@@ -130,6 +138,8 @@ class OursConfig:
     occlusion_gate_sigma: float = 3.0
     consistency_gate_sigma: float = 3.0
     reference: str = "centre"
+    size_learning: bool = False
+    size_evidence_time_s: float = 1.0
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
@@ -151,6 +161,7 @@ class OursConfig:
             "yaw_evidence_weight",
             "occlusion_gate_sigma",
             "consistency_gate_sigma",
+            "size_evidence_time_s",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -164,5 +175,9 @@ class OursConfig:
     def tracking(self) -> bool:
         """Whether any state is carried from frame to frame (so boxes must be associated)."""
         return (
-            self.motion_model or self.yaw_memory or self.gradient_feedback or self.adapt_box_noise
+            self.motion_model
+            or self.yaw_memory
+            or self.gradient_feedback
+            or self.adapt_box_noise
+            or self.size_learning
         )

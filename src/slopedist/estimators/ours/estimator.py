@@ -38,7 +38,7 @@ from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import frame_cues, fusion
+from slopedist.estimators.ours import frame_cues, fusion, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
     boxes_all_usable,
@@ -56,6 +56,7 @@ from slopedist.estimators.ours.records import (
     DistanceFilterResult,
     FrameTargets,
     FusedCues,
+    SizeCues,
     TargetGradient,
     TrackMatch,
     filled,
@@ -72,6 +73,7 @@ from slopedist.estimators.ours.tracking import (
     ROW_LAST_T,
     ROW_LOG_W,
     ROW_ROT,
+    ROW_SIZE,
     TrackArrays,
     TrackUpdate,
     associate,
@@ -217,7 +219,8 @@ class OursEstimator(Estimator):
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
         if good.size:
-            values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)._asdict()
+            box_values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+            values = {k: v for k, v in box_values._asdict().items() if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
@@ -266,8 +269,18 @@ class OursEstimator(Estimator):
         cfg = self.config
         cam = self.camera
         targets = self._frame_targets(frame, good, all_good)
-        size = frame_cues.size_cues(cfg, cam, targets, calib)
         match = self._match_tracks(targets, frame.R_world_cam)
+        track_size = None
+        if cfg.size_learning:
+            track_size = self._track_size(targets, match)
+            targets = targets._replace(
+                classes=targets.classes._replace(
+                    hypotheses=size_learning.scale_hypotheses(
+                        targets.classes.hypotheses, track_size
+                    )
+                )
+            )
+        size = frame_cues.size_cues(cfg, cam, targets, calib)
         ground = None
         if cfg.use_ground_contact:
             alpha, alpha_var = self._contact_gradient_prior(match)
@@ -288,12 +301,65 @@ class OursEstimator(Estimator):
         gradient = frame_cues.target_gradient(
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )
-        uid = self._update_tracks(targets, match, fused, distance, gradient, frame.R_world_cam)
+        size_rows = None
+        if track_size is not None:
+            size_rows = self._learn_size(targets, match, size, fused, distance, track_size)
+        uid = self._update_tracks(
+            targets, match, fused, distance, gradient, frame.R_world_cam, size_rows
+        )
         if cfg.self_calibrate:
             self._feed_selfcal(targets, fused, gradient, uid, theta_rad, calib)
-        return frame_cues.box_estimates(
+        out = frame_cues.box_estimates(
             cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
         )
+        if size_rows is not None:
+            scale = np.exp(size_rows[0])
+            out = out._replace(
+                size_scale=scale,
+                size_log_sigma=np.sqrt(size_rows[1]),
+                track_height_m=targets.classes.height_m * scale,
+            )
+        return out
+
+    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
+        """Each target's size belief before this frame (its track's, else the class prior)."""
+        stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
+        return size_learning.track_size(
+            stored, match.continued, targets.classes.height_log_sigma
+        )
+
+    def _learn_size(
+        self,
+        targets: FrameTargets,
+        match: TrackMatch,
+        size: SizeCues,
+        fused: FusedCues,
+        distance: DistanceFilterResult,
+        track_size: size_learning.TrackSize,
+    ) -> FloatArray:
+        """``(2, n)`` each target's size belief after this frame: this frame's evidence where
+        its box is whole and its cues agree; a target whose track failed the gate starts
+        from the class prior again."""
+        cfg = self.config
+        usable = np.abs(fused.cue_gap_sigma) <= cfg.consistency_gate_sigma
+        cuts = targets.border_cuts
+        if cuts is not None:
+            usable &= ~(cuts.sides | cuts.top | cuts.bottom)
+        if size.hidden is not None:
+            usable &= ~size.hidden
+        weight = size_learning.evidence_weight(
+            match.elapsed_s, match.continued, cfg.size_evidence_time_s
+        )
+        restarted = match.continued & ~distance.continued
+        if any_true(restarted):
+            weight[restarted] = 0.0
+            track_size = track_size._replace(
+                log_scale=np.where(restarted, 0.0, track_size.log_scale),
+                log_var=np.where(restarted, track_size.prior_log_var, track_size.log_var),
+            )
+        if fused.ground is None:
+            return np.stack([track_size.log_scale, track_size.log_var])
+        return size_learning.learn(track_size, fused.size, fused.ground, weight, usable)
 
     # -- the steps of a frame, in order -----------------------------------------------------
 
@@ -458,6 +524,7 @@ class OursEstimator(Estimator):
         distance: DistanceFilterResult,
         gradient: TargetGradient,
         R_now: FloatArray | None,
+        size_rows: FloatArray | None = None,
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
@@ -480,6 +547,7 @@ class OursEstimator(Estimator):
                 targets.time_s,
                 np.eye(3) if R_now is None else np.asarray(R_now, dtype=float),
                 match.turned_boxes_px if match.box_motion else None,
+                size_rows,
             )
         )
 

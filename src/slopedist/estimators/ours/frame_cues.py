@@ -85,7 +85,7 @@ def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues
     if cuts is None:
         return size
     hyp = targets.classes.hypotheses
-    height, width, bounds = size
+    height, width, bounds, _ = size
     cut_h = (cuts.top | cuts.bottom)[:, None]
     if any_true(cut_h):
         height = _cut_by_border(cfg, height, hyp.log_sigma_height, cut_h, bounds, True)
@@ -171,7 +171,7 @@ def occlusion_adjusted(
     ground contact; the unexplained excess becomes per-vehicle variance."""
     gate = cfg.occlusion_gate_sigma
     hyp = targets.classes.hypotheses
-    height, width, bounds = size
+    height, width, bounds, _ = size
     cut_w, cut_h = hidden_sides(targets.boxes_px, gate * targets.box_sigma_px)
     if any_true(cut_h):
         excess = unexplained_excess(
@@ -185,7 +185,7 @@ def occlusion_adjusted(
         )
         extra = occlusion_log_var(excess, cut_w[:, None])
         width = SizeCue(width.mean, width.lever, width.var_white, width.var_other + extra)
-    return SizeCues(height, width, bounds)
+    return SizeCues(height, width, bounds, cut_w | cut_h)
 
 
 def fuse_hypotheses(
@@ -283,6 +283,7 @@ def _collapse(
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
     gap = np.full(n, np.nan)
+    ground_mix = None
     if ground is not None:
         ground_mix = fusion.mix_hypotheses(ground, weights)
         measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
@@ -295,6 +296,7 @@ def _collapse(
         np.add.reduce(weights * extent, axis=1),
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
+        ground_mix,
     )
 
 

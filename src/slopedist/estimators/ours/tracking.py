@@ -44,7 +44,11 @@ ROW_ROT = slice(18, 27)
 """Camera-to-world rotation at the last update, row-major (identity if unknown)."""
 ROW_N_OBS = 27
 """Number of updates."""
-ROW_LOG_W = 28
+ROW_SIZE = slice(28, 30)
+"""The track's learned size: log of its dimensions over its class prior's (isotropic scale
+b, dimensionless) and that log's variance, NaN while it is the class prior's
+(:mod:`~slopedist.estimators.ours.size_learning`)."""
+ROW_LOG_W = 30
 """First row of the log belief over the heading hypotheses (K rows)."""
 
 
@@ -82,10 +86,11 @@ class TrackArrays:
         t: float,
         boxes: FloatArray,
         R_world_cam: FloatArray,
+        size_rows: FloatArray | None = None,
     ) -> TrackArrays:
         """New tracks after their first update at time ``t``: ``filter_rows`` ``(5, k)`` (the
-        :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, the others
-        ``(k,)``."""
+        :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, ``size_rows``
+        ``(2, k)`` (:data:`ROW_SIZE`; None: the class prior), the others ``(k,)``."""
         k = uid.shape[0]
         st = np.empty((ROW_LOG_W + log_w.shape[1], k))
         st[ROW_FILTER] = filter_rows
@@ -98,6 +103,11 @@ class TrackArrays:
         st[ROW_PREV_T] = np.nan
         st[ROW_ROT] = np.asarray(R_world_cam, dtype=float).reshape(9, 1)
         st[ROW_N_OBS] = 1.0
+        if size_rows is None:
+            st[ROW_SIZE.start] = 0.0
+            st[ROW_SIZE.start + 1] = np.nan
+        else:
+            st[ROW_SIZE] = size_rows
         st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
@@ -201,6 +211,8 @@ class TrackUpdate(NamedTuple):
         R_world_cam: ``(3, 3)`` camera-to-world rotation (identity when unknown).
         turned_boxes_px: ``(T, 4)`` the tracks' last boxes turned with the camera, or None when
             the box motion is not kept (only id-less tracks and the box-noise estimate use it).
+        size_rows: ``(2, n)`` the learned size (:data:`ROW_SIZE`), or None when it is not
+            learned (tracks keep the class prior).
     """
 
     rows: IntArray
@@ -214,6 +226,7 @@ class TrackUpdate(NamedTuple):
     time_s: float
     R_world_cam: FloatArray
     turned_boxes_px: FloatArray | None
+    size_rows: FloatArray | None = None
 
 
 def write_continued(
@@ -249,6 +262,10 @@ def write_continued(
     S[ROW_N_OBS] += 1.0
     if log_w is not None:
         S[ROW_LOG_W:] = log_w
+    if update.size_rows is not None:
+        S[ROW_SIZE] = (
+            update.size_rows if continued is None else update.size_rows[:, continued]
+        )
     tracks.state[:, r] = S
 
 
@@ -285,6 +302,7 @@ def start_tracks(
         update.time_s,
         update.boxes_px[new],
         update.R_world_cam,
+        None if update.size_rows is None else update.size_rows[:, new],
     )
     claimed = ext[ext >= 0]
     if claimed.size and len(tracks):
