@@ -26,6 +26,7 @@ from slopedist.estimators.ground_contact import (
 )
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
+from slopedist.estimators.ours.offline import OursOfflineEstimator
 
 
 class Method(str, Enum):
@@ -39,6 +40,7 @@ class Method(str, Enum):
     DEPTHMAP = "depthmap"
     OURS = "ours"
     OURS_SELFCAL = "ours-selfcal"
+    OURS_OFFLINE = "ours-offline"
 
 
 DEFAULT_METHOD = Method.OURS.value
@@ -53,6 +55,7 @@ ESTIMATORS: dict[str, Callable[..., Estimator]] = {
     Method.DEPTHMAP.value: DepthMapEstimator,
     Method.OURS.value: OursEstimator,
     Method.OURS_SELFCAL.value: OursSelfCalibratingEstimator,
+    Method.OURS_OFFLINE.value: OursOfflineEstimator,
 }
 
 
@@ -165,6 +168,7 @@ __all__ = [
     "Method",
     "MissingReason",
     "OursEstimator",
+    "OursOfflineEstimator",
     "OursSelfCalibratingEstimator",
     "PaperEstimator",
     "ReferencePoint",

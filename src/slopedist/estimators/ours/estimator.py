@@ -112,6 +112,8 @@ class OursEstimator(Estimator):
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
+    _keep_predicted: ClassVar[bool] = False
+    """Whether the distance filter's predicted states are kept (offline smoothing)."""
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -497,16 +499,20 @@ class OursEstimator(Estimator):
         updated, _ = kf.cv_update_rows(pred, m_old, w_old)
         dev = m_old - pred[0]
         same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
+        predicted = None
+        if self._keep_predicted:
+            predicted = np.full((5, n), np.nan)
+            predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
         if every and all_true(same):  # every target continues its track
             continued[:] = True
-            return DistanceFilterResult(updated, match.rows, continued)
+            return DistanceFilterResult(updated, match.rows, continued, predicted)
         filt = self._new_filter_rows(measurement)
         idx = np.flatnonzero(old)
         filt[:, idx[same]] = updated[:, same]
         continued[idx[same]] = True
         rows = match.rows.copy()
         rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
-        return DistanceFilterResult(filt, rows, continued)
+        return DistanceFilterResult(filt, rows, continued, predicted)
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:
         """``Z_now/Z_last`` of the continued tracks' box centres from the camera's rotation."""

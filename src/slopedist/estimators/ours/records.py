@@ -187,11 +187,15 @@ class DistanceFilterResult(NamedTuple):
         rows: ``(n,)`` track column each box continues, −1 where it starts a track (the
             association's, minus the boxes that failed the gate).
         continued: ``(n,)`` whether the box continued its track's filter.
+        predicted_rows: ``(5, n)`` the rows predicted for this frame from each continued
+            track's last update (NaN where a track starts), when the estimator keeps them
+            (offline smoothing), else None.
     """
 
     filter_rows: FloatArray
     rows: IntArray
     continued: BoolArray
+    predicted_rows: FloatArray | None = None
 
 
 class TargetGradient(NamedTuple):
