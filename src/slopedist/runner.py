@@ -192,6 +192,8 @@ class _RunLoop:
         self.camera = estimator.camera
         self.method = estimator.name
         self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
+        self.held: list[tuple[BoxTable, float]] | None = [] if estimator.offline else None
+        """An offline method's frames with boxes, whose records wait for the end of the drive."""
         self.by_frame = boxes.frame_index()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
@@ -272,7 +274,12 @@ class _RunLoop:
         )
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
-        n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        if self.held is None:
+            n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        else:  # offline: the records come from the pass over the whole drive (finish)
+            if len(frame_boxes):
+                self.held.append((frame_boxes, frame.timestamp_s))
+            n_est = int(np.sum(res.estimates.status == EstimateStatus.OK.value))
         speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
         self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         with self.files.writing(FRAMES_NAME):
@@ -358,6 +365,11 @@ class _RunLoop:
         self.result.not_vehicles += int(np.sum(est.reason == MissingReason.NOT_A_VEHICLE.value))
         return n_est
 
+    def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:
+        """An offline method's records of every frame seen, from its pass over the drive."""
+        for (frame_boxes, timestamp_s), est in zip(held, self.step.finish(), strict=True):
+            self._write_records(frame_boxes, timestamp_s, est)
+
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
         if self.painter is None:
             return
@@ -411,6 +423,8 @@ class _RunLoop:
         if self.bar is not None:
             self.bar.close()
         files = self.files
+        if self.held:
+            self._write_offline_records(self.held)
         files.close(RECORDS_NAME, lambda: close_records(self.records))
         files.close(FRAMES_NAME, self.frame_log.close)
         files.close(TRACKS_NAME, self._write_tracks)

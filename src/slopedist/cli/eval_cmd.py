@@ -11,9 +11,10 @@ from slopedist.cli.options import (
     check_methods,
     estimator_options,
     kitti_eval_options,
+    offline_option,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators import EstimatorConfig, available_methods, with_offline
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours.estimator import REFERENCES
 from slopedist.io.tables import STDOUT_PATH, write_json
@@ -63,6 +64,7 @@ def eval_group() -> None:
     help="The point of the vehicle the truth's distance refers to (KITTI labels: the centre); "
     "ours reports the same point.",
 )
+@offline_option
 @estimator_options()
 def kitti_tracking(
     data_dir: Path,
@@ -72,11 +74,14 @@ def kitti_tracking(
     json_out: Path | None,
     generic_class: bool,
     gt_reference: str,
+    offline: bool,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [])
+    if offline:
+        names = with_offline(names)
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),

@@ -41,6 +41,14 @@ def check_methods(names: list[str]) -> list[str]:
     return names
 
 
+offline_option = click.option(
+    "--offline",
+    is_flag=True,
+    help="Also the offline mode of each method that has one (ours → ours-offline: smoothed "
+    "over the whole drive, for log analysis; reported under its own name, never mixed with "
+    "the causal method).",
+)
+
 height_option = click.option(
     "--height",
     "height_m",

@@ -12,10 +12,12 @@ from slopedist.cli.options import (
     check_methods,
     estimator_options,
     kitti_eval_options,
+    offline_option,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators import EstimatorConfig, available_methods, with_offline
 from slopedist.kitti_eval import KittiEvalConfig
+from slopedist.report.kitti import default_kitti_methods
 from slopedist.report import (
     ReportOptions,
     SourceKind,
@@ -65,6 +67,7 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
     help="Tracks to plot over time, SEQUENCE:TRACK_ID,... [default: the longest tracks].",
 )
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
+@offline_option
 @estimator_options(depth=True)
 def report(
     source: Path,
@@ -74,6 +77,7 @@ def report(
     depth_dir: Path | None,
     tracks: str | None,
     no_parquet: bool,
+    offline: bool,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
@@ -81,6 +85,13 @@ def report(
     output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
     names = check_methods(split_list(methods) or [])
     kind = detect_source(source)
+    if offline:
+        if kind is not SourceKind.KITTI_TRACKING:
+            raise click.UsageError(
+                "--offline runs the offline methods on a KITTI tracking folder; for run "
+                "outputs, make the runs with `slopedist run --offline` (method ours-offline)"
+            )
+        names = with_offline(names or default_kitti_methods(depth_dir is not None))
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),

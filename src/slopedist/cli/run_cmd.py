@@ -41,7 +41,13 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import DEFAULT_METHOD, Estimator, EstimatorConfig, build_estimator
+from slopedist.estimators import (
+    DEFAULT_METHOD,
+    Estimator,
+    EstimatorConfig,
+    build_estimator,
+    offline_method,
+)
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.frames import FrameSource, with_frame_size
@@ -324,6 +330,13 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 )
 @click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
 @click.option(
+    "--offline",
+    is_flag=True,
+    help="The method's offline mode (ours → ours-offline: smoothed over the whole drive, for "
+    "log analysis): records.csv is written when the drive ends; the overlay, frames.csv and "
+    "the MCAP export show the causal pass as the frames come.",
+)
+@click.option(
     "--odometry",
     type=click.Choice(ODOMETRY_BACKENDS),
     default="builtin",
@@ -392,6 +405,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     boxes_path: Path | None,
     detector_model: Path | None,
     method: str | None,
+    offline: bool,
     odometry: str,
     vocab: Path | None,
     out_dir: Path,
@@ -423,6 +437,8 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
+    if offline:
+        method = offline_method(method)
     source = open_source(frames, fps, timestamps, image_topic)
     calibration = run_calibration(source, calib, height_m, math.radians(mount_angle_deg))
     camera = with_frame_size(calibration.camera, source)

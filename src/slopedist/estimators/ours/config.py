@@ -94,7 +94,10 @@ class OursConfig:
             ``track_height_m``).
         size_evidence_time_s: the time τ over which a track's ground-contact evidence about
             its size is one independent observation (consecutive frames share the target
-            road's gradient error): a frame's evidence weighs ``min(1, dt/τ)``.
+            road's gradient error): a frame's evidence weighs ``min(1, dt/τ)``. None (the
+            default): the time the target gradient's random walk takes to wander by its prior
+            spread, ``(gradient_sigma_rad / process.gradient_rad)²`` = 4 s with the physical
+            defaults (nothing fitted).
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
@@ -139,7 +142,7 @@ class OursConfig:
     consistency_gate_sigma: float = 3.0
     reference: str = "centre"
     size_learning: bool = False
-    size_evidence_time_s: float = 1.0
+    size_evidence_time_s: float | None = None
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
@@ -161,15 +164,26 @@ class OursConfig:
             "yaw_evidence_weight",
             "occlusion_gate_sigma",
             "consistency_gate_sigma",
-            "size_evidence_time_s",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigurationError(
                     f"ours option {name} must be a finite number > 0, got {value!r}"
                 )
+        tau = self.size_evidence_time_s
+        if tau is not None and not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
+            raise ConfigurationError(
+                f"ours option size_evidence_time_s must be a finite number > 0, got {tau!r}"
+            )
         if not 0.0 <= self.min_iou <= 1.0:
             raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
+
+    @property
+    def size_evidence_time(self) -> float:
+        """τ of ``size_evidence_time_s``, seconds (derived when it is None)."""
+        if self.size_evidence_time_s is not None:
+            return float(self.size_evidence_time_s)
+        return (self.gradient_sigma_rad / self.process.gradient_rad) ** 2
 
     @property
     def tracking(self) -> bool:

@@ -340,17 +340,16 @@ class OursEstimator(Estimator):
         track_size: size_learning.TrackSize,
     ) -> FloatArray:
         """``(2, n)`` each target's size belief after this frame: this frame's evidence where
-        its box is whole and its cues agree; a target whose track failed the gate starts
-        from the class prior again."""
+        its box is not cut by the border and its cues agree (where a nearer box may cut it,
+        only evidence that it is bigger); a target whose track failed the gate starts from
+        the class prior again."""
         cfg = self.config
         usable = np.abs(fused.cue_gap_sigma) <= cfg.consistency_gate_sigma
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~(cuts.sides | cuts.top | cuts.bottom)
-        if size.hidden is not None:
-            usable &= ~size.hidden
         weight = size_learning.evidence_weight(
-            match.elapsed_s, match.continued, cfg.size_evidence_time_s
+            match.elapsed_s, match.continued, cfg.size_evidence_time
         )
         restarted = match.continued & ~distance.continued
         if any_true(restarted):
@@ -361,7 +360,9 @@ class OursEstimator(Estimator):
             )
         if fused.ground is None:
             return np.stack([track_size.log_scale, track_size.log_var])
-        return size_learning.learn(track_size, fused.size, fused.ground, weight, usable)
+        return size_learning.learn(
+            track_size, fused.size, fused.ground, weight, usable, size.hidden
+        )
 
     # -- the steps of a frame, in order -----------------------------------------------------
 

@@ -14,8 +14,9 @@ contact (which grows as the distance squared, and holds the target road's gradie
 and on the ego's plane it is tight, far or on a hill it is loose) plus the size cue's white
 noise. Consecutive frames share the target road's gradient error, so a frame's evidence is
 tempered by ``min(1, dt/τ)`` (τ = ``size_evidence_time_s``: one independent observation per τ
-seconds). Frames whose box is cut by the image border or may be hidden by a nearer box, and
-frames where the cues disagree beyond the consistency check, give no evidence. The learned
+seconds). Frames whose box is cut by the image border, and frames where the cues disagree
+beyond the consistency check, give no evidence; a box that a nearer box may cut shows at most
+its vehicle, so its frame counts only when it says the vehicle is bigger than believed. The learned
 size then carries the distance where the ground contact cannot (far away, on hills).
 
 The learned scale multiplies every dimension of the track's hypotheses and its variance
@@ -115,16 +116,22 @@ def learn(
     ground: LogCue,
     weight: FloatArray,
     usable: BoolArray,
+    hidden: BoolArray | None = None,
 ) -> FloatArray:
     """The size belief after this frame, rows ``(2, n)`` (log scale, its variance).
 
     ``size_cue``: the size cues' log distance (computed with the learned size); ``ground``:
     the ground contact's; ``weight``: the evidence weight (:func:`evidence_weight`);
-    ``usable``: the targets whose frame may teach (box uncut, not hidden, cues consistent).
+    ``usable``: the targets whose frame may teach (box uncut by the border, cues consistent);
+    ``hidden``: the targets whose box a nearer box may cut: such a box shows at most its
+    vehicle, so its evidence is a lower bound of the size and counts only where it says
+    bigger than believed.
     """
     obs = size.log_scale + ground.mean - size_cue.mean
     obs_var = ground.var + size_cue.var_white
     ok = usable & np.isfinite(obs) & np.isfinite(obs_var) & (weight > 0)
+    if hidden is not None:
+        ok &= ~hidden | (obs > size.log_scale)
     info = np.where(ok, weight / np.where(ok, obs_var, 1.0), 0.0)
     prec = 1.0 / size.log_var
     var = 1.0 / (prec + info)
