@@ -340,11 +340,11 @@ class OursEstimator(Estimator):
         track_size: size_learning.TrackSize,
     ) -> FloatArray:
         """``(2, n)`` each target's size belief after this frame: this frame's evidence where
-        its box is not cut by the border and its cues agree (where a nearer box may cut it,
-        only evidence that it is bigger); a target whose track failed the gate starts from
-        the class prior again."""
+        its box is not cut by the border (where a nearer box may cut it, only evidence that
+        it is bigger); a target whose track failed the gate starts from the class prior
+        again."""
         cfg = self.config
-        usable = np.abs(fused.cue_gap_sigma) <= cfg.consistency_gate_sigma
+        usable = np.ones(targets.boxes_px.shape[0], dtype=bool)
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~(cuts.sides | cuts.top | cuts.bottom)

@@ -14,8 +14,8 @@ contact (which grows as the distance squared, and holds the target road's gradie
 and on the ego's plane it is tight, far or on a hill it is loose) plus the size cue's white
 noise. Consecutive frames share the target road's gradient error, so a frame's evidence is
 tempered by ``min(1, dt/τ)`` (τ = ``size_evidence_time_s``: one independent observation per τ
-seconds). Frames whose box is cut by the image border, and frames where the cues disagree
-beyond the consistency check, give no evidence; a box that a nearer box may cut shows at most
+seconds). Frames whose box is cut by the image border give no evidence (cues that disagree
+beyond the consistency check do: a van called ``Car`` is such a disagreement); a box that a nearer box may cut shows at most
 its vehicle, so its frame counts only when it says the vehicle is bigger than believed. The learned
 size then carries the distance where the ground contact cannot (far away, on hills).
 
@@ -122,7 +122,7 @@ def learn(
 
     ``size_cue``: the size cues' log distance (computed with the learned size); ``ground``:
     the ground contact's; ``weight``: the evidence weight (:func:`evidence_weight`);
-    ``usable``: the targets whose frame may teach (box uncut by the border, cues consistent);
+    ``usable``: the targets whose frame may teach (box uncut by the border);
     ``hidden``: the targets whose box a nearer box may cut: such a box shows at most its
     vehicle, so its evidence is a lower bound of the size and counts only where it says
     bigger than believed.
