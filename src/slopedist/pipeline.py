@@ -129,9 +129,7 @@ class FrameStep:
             NotImplementedError: the estimator is causal (its per-frame estimates are final).
         """
         est = self.estimator.finish()
-        return [
-            self._settle(e, boxes) for e, boxes in zip(est, self._offline_boxes, strict=True)
-        ]
+        return [self._settle(e, boxes) for e, boxes in zip(est, self._offline_boxes, strict=True)]
 
     def step(
         self,

@@ -271,3 +271,19 @@ def test_a_distorted_calibration_maps_the_odometry_points(
     assert main(["run", *args, "--method", "ego"]) == 0
     point = np.array([[300.0, 180.0]])
     assert seen["point_map"](point)[0, 0] > 300.0  # barrel distortion undone: moved outwards
+
+
+def test_offline_run_writes_the_offline_records_at_the_end(tmp_path: Path) -> None:
+    args = setup(tmp_path, n=6)
+    assert main(["run", *args, "--method", "ours", "--odometry", "none"]) == 0
+    causal = records(tmp_path)
+    assert main(["run", *args, "--offline", "--odometry", "none"]) == 0
+    offline = records(tmp_path)
+    assert [r["method"] for r in offline] == ["ours-offline"] * 6
+    assert [r["frame"] for r in offline] == [r["frame"] for r in causal]
+    assert all(r["size_scale"] != "" for r in offline)
+    assert [r["estimated"] for r in frame_log(tmp_path)] == ["1"] * 6
+
+
+def test_offline_needs_a_method_with_an_offline_mode(tmp_path: Path) -> None:
+    assert main(["run", *setup(tmp_path), "--method", "paper", "--offline"]) != 0

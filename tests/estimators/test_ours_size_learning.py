@@ -80,7 +80,9 @@ def _run(sim: SimulatedTraffic, method: str, **options: object) -> tuple[np.ndar
     for k, t in enumerate(sim.timestamps_s):
         rows = np.flatnonzero(sim.boxes.frame == k)
         if rows.size:
-            e = est.estimate(FrameInput(k, float(t), 0.0, sim.boxes.select(rows), None, None, np.eye(3)))
+            e = est.estimate(
+                FrameInput(k, float(t), 0.0, sim.boxes.select(rows), None, None, np.eye(3))
+            )
             out[rows] = e.distance_m
             frames.append(rows)
             extra = e.extra
@@ -120,7 +122,10 @@ def test_a_van_called_car_seen_near_carries_its_size_far() -> None:
     assert extra["size_log_sigma"][0] < 0.8 * CLASS_PRIORS["Car"].height_sigma_m / 1.53
     assert extra["track_height_m"][0] == pytest.approx(1.53 * extra["size_scale"][0], rel=0.01)
     far = sim.z_m > 30
-    err = {k: np.sqrt(np.mean((d[far] - sim.z_m[far]) ** 2)) for k, d in (("plain", plain), ("learned", learned))}
+    err = {
+        k: np.sqrt(np.mean((d[far] - sim.z_m[far]) ** 2))
+        for k, d in (("plain", plain), ("learned", learned))
+    }
     assert err["learned"] < 0.7 * err["plain"]  # 5.97 against 9.54 m
 
 
@@ -130,12 +135,17 @@ def test_offline_carries_the_size_learned_near_back_to_the_far_frames() -> None:
     sim = _van_called_car((60.0, 61.0), (-3.6, -3.5))
     causal, _ = _run(sim, "ours", size_learning=True)
     offline, _ = _run(sim, "ours-offline")
-    rmse = {k: np.sqrt(np.mean((d - sim.z_m) ** 2)) for k, d in (("causal", causal), ("offline", offline))}
+    rmse = {
+        k: np.sqrt(np.mean((d - sim.z_m) ** 2))
+        for k, d in (("causal", causal), ("offline", offline))
+    }
     assert rmse["offline"] < 0.7 * rmse["causal"]  # 4.65 against 7.41 m
 
 
 def test_off_by_default_and_streaming_equals_batch() -> None:
-    sim = simulate_traffic(CAM, 6, 60, seed=1, box_noise_px=0.5, vehicle_types={"Car": 0.6, "Van": 0.4})
+    sim = simulate_traffic(
+        CAM, 6, 60, seed=1, box_noise_px=0.5, vehicle_types={"Car": 0.6, "Van": 0.4}
+    )
     default, extra = _run(sim, "ours")
     assert np.isnan(extra["size_scale"]).all()
     assert np.array_equal(default, _run(sim, "ours", size_learning=False)[0])

@@ -171,7 +171,9 @@ class OursConfig:
                     f"ours option {name} must be a finite number > 0, got {value!r}"
                 )
         tau = self.size_evidence_time_s
-        if tau is not None and not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
+        if tau is not None and not (
+            isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0
+        ):
             raise ConfigurationError(
                 f"ours option size_evidence_time_s must be a finite number > 0, got {tau!r}"
             )

@@ -326,9 +326,7 @@ class OursEstimator(Estimator):
     def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
         """Each target's size belief before this frame (its track's, else the class prior)."""
         stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
-        return size_learning.track_size(
-            stored, match.continued, targets.classes.height_log_sigma
-        )
+        return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
 
     def _learn_size(
         self,

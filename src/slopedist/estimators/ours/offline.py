@@ -89,7 +89,9 @@ class OursOfflineEstimator(OursEstimator):
         return second.smoothed(estimates)
 
 
-def _final_sizes(frames: list[FrameInput], causal: list[FrameEstimates]) -> dict[BoxKey, FloatArray]:
+def _final_sizes(
+    frames: list[FrameInput], causal: list[FrameEstimates]
+) -> dict[BoxKey, FloatArray]:
     """Every box's pass-1 track's size belief at its last frame, ``(2,)`` (log scale, its
     variance), keyed by the box; boxes without one (unusable) are left out."""
     final: dict[float, FloatArray] = {}
@@ -123,9 +125,7 @@ class _SmoothingPass(OursEstimator):
 
     _keep_predicted: ClassVar[bool] = True
 
-    def __init__(
-        self, camera: Camera, config: OursConfig, seeds: dict[BoxKey, FloatArray]
-    ) -> None:
+    def __init__(self, camera: Camera, config: OursConfig, seeds: dict[BoxKey, FloatArray]) -> None:
         super().__init__(camera, config, size_learning=True)
         self._seeds = seeds
         self.log: list[_TargetLog | None] = []
@@ -135,9 +135,7 @@ class _SmoothingPass(OursEstimator):
         self.log.append(None)
         return super().estimate(frame)
 
-    def _estimate_boxes(
-        self, frame: FrameInput, good: NDArray[np.intp], *args: Any
-    ) -> Any:
+    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], *args: Any) -> Any:
         self._good = good
         return super()._estimate_boxes(frame, good, *args)
 

@@ -263,9 +263,7 @@ def write_continued(
     if log_w is not None:
         S[ROW_LOG_W:] = log_w
     if update.size_rows is not None:
-        S[ROW_SIZE] = (
-            update.size_rows if continued is None else update.size_rows[:, continued]
-        )
+        S[ROW_SIZE] = update.size_rows if continued is None else update.size_rows[:, continued]
     tracks.state[:, r] = S
 
 
