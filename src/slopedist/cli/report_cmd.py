@@ -17,7 +17,6 @@ from slopedist.cli.options import (
 )
 from slopedist.estimators import EstimatorConfig, available_methods, with_offline
 from slopedist.kitti_eval import KittiEvalConfig
-from slopedist.report.kitti import default_kitti_methods
 from slopedist.report import (
     ReportOptions,
     SourceKind,
@@ -25,6 +24,7 @@ from slopedist.report import (
     report_data,
     write_report,
 )
+from slopedist.report.kitti import default_kitti_methods
 from slopedist.tables import format_text
 
 

@@ -71,12 +71,12 @@ from slopedist.estimators.ours.tracking import (
     ROW_GRAD_VAR,
     ROW_LAST_BOX,
     ROW_LAST_T,
-    ROW_LOG_W,
     ROW_ROT,
     ROW_SIZE,
     TrackArrays,
     TrackUpdate,
     associate,
+    box_noise_sums,
     depth_ratios,
     moved_boxes,
     start_tracks,
@@ -112,8 +112,7 @@ class OursEstimator(Estimator):
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
-    _keep_predicted: ClassVar[bool] = False
-    """Whether the distance filter's predicted states are kept (offline smoothing)."""
+    _keep_predicted: ClassVar[bool] = False  # keep the filter's predictions (offline pass)
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -273,15 +272,9 @@ class OursEstimator(Estimator):
         targets = self._frame_targets(frame, good, all_good)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
-        if cfg.size_learning:
+        if cfg.size_learning:  # the tracks' own sizes in the class constants
             track_size = self._track_size(targets, match)
-            targets = targets._replace(
-                classes=targets.classes._replace(
-                    hypotheses=size_learning.scale_hypotheses(
-                        targets.classes.hypotheses, track_size
-                    )
-                )
-            )
+            targets = size_learning.with_track_size(targets, track_size)
         size = frame_cues.size_cues(cfg, cam, targets, calib)
         ground = None
         if cfg.use_ground_contact:
@@ -315,12 +308,7 @@ class OursEstimator(Estimator):
             cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
         )
         if size_rows is not None:
-            scale = np.exp(size_rows[0])
-            out = out._replace(
-                size_scale=scale,
-                size_log_sigma=np.sqrt(size_rows[1]),
-                track_height_m=targets.classes.height_m * scale,
-            )
+            out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
         return out
 
     def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
@@ -337,29 +325,10 @@ class OursEstimator(Estimator):
         distance: DistanceFilterResult,
         track_size: size_learning.TrackSize,
     ) -> FloatArray:
-        """``(2, n)`` each target's size belief after this frame: this frame's evidence where
-        its box is not cut by the border (where a nearer box may cut it, only evidence that
-        it is bigger); a target whose track failed the gate starts from the class prior
-        again."""
-        cfg = self.config
-        usable = np.ones(targets.boxes_px.shape[0], dtype=bool)
-        cuts = targets.border_cuts
-        if cuts is not None:
-            usable &= ~(cuts.sides | cuts.top | cuts.bottom)
-        weight = size_learning.evidence_weight(
-            match.elapsed_s, match.continued, cfg.size_evidence_time
-        )
-        restarted = match.continued & ~distance.continued
-        if any_true(restarted):
-            weight[restarted] = 0.0
-            track_size = track_size._replace(
-                log_scale=np.where(restarted, 0.0, track_size.log_scale),
-                log_var=np.where(restarted, track_size.prior_log_var, track_size.log_var),
-            )
-        if fused.ground is None:
-            return np.stack([track_size.log_scale, track_size.log_var])
-        return size_learning.learn(
-            track_size, fused.size, fused.ground, weight, usable, size.hidden
+        """``(2, n)`` each target's size belief after this frame
+        (:func:`~slopedist.estimators.ours.size_learning.learn_frame`)."""
+        return size_learning.learn_frame(
+            targets, match, size, fused, distance, track_size, self.config.size_evidence_time
         )
 
     # -- the steps of a frame, in order -----------------------------------------------------
@@ -415,7 +384,11 @@ class OursEstimator(Estimator):
         elapsed = t - state[ROW_LAST_T]
         grad_var = state[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * elapsed  # predicted
         if cfg.adapt_box_noise and r_old.size and predicted is not None:
-            self._learn_box_noise(boxes[continued] - predicted[r_old], r_old, t)
+            d2_sum, d2_count = box_noise_sums(
+                tr, boxes[continued] - predicted[r_old], r_old, t, self.box_sigma_px
+            )
+            self._d2_sum += d2_sum
+            self._d2_count += d2_count
         return TrackMatch(
             rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
@@ -423,7 +396,11 @@ class OursEstimator(Estimator):
     def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
         """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
         headings × vehicle types when a target's class is generic)."""
-        log_heading_prior = self._carried_heading_prior(match)
+        log_heading_prior = None
+        if self.config.yaw_memory and match.continued_rows.size:
+            log_heading_prior = frame_cues.carried_heading_prior(
+                match, self._log_yaw_prior, self.config.yaw_memory_s
+            )
         type_weight = targets.classes.type_log_weight
         if type_weight is not None:
             if log_heading_prior is None:
@@ -437,20 +414,6 @@ class OursEstimator(Estimator):
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
-
-    def _carried_heading_prior(self, match: TrackMatch) -> FloatArray | None:
-        """``(n, K)`` log heading prior of each target when the tracks carry their belief
-        (relaxing to the prior with time), or None when it is the prior for every target."""
-        if not (self.config.yaw_memory and match.continued_rows.size):
-            return None
-        mix = 1.0 - np.exp(-match.elapsed_s / self.config.yaw_memory_s)
-        carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
-            :, None
-        ] * np.exp(self._log_yaw_prior)
-        n = match.rows.shape[0]
-        log_pi = np.broadcast_to(self._log_yaw_prior[None, :], (n, self._yaw.size)).copy()
-        log_pi[match.continued] = np.log(np.maximum(carried, 1e-300))
-        return log_pi
 
     def _contact_gradient_prior(
         self, match: TrackMatch
@@ -484,7 +447,8 @@ class OursEstimator(Estimator):
         n = match.rows.shape[0]
         continued = np.zeros(n, dtype=bool)
         if not (cfg.motion_model and match.continued_rows.size):
-            return DistanceFilterResult(self._new_filter_rows(measurement), match.rows, continued)
+            filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+            return DistanceFilterResult(filt, match.rows, continued)
         prior = match.continued_state[ROW_FILTER]
         prior[0] += np.log(np.maximum(self._continued_depth_ratios(match, R_now), 0.1))
         pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
@@ -505,7 +469,7 @@ class OursEstimator(Estimator):
         if every and all_true(same):  # every target continues its track
             continued[:] = True
             return DistanceFilterResult(updated, match.rows, continued, predicted)
-        filt = self._new_filter_rows(measurement)
+        filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
         idx = np.flatnonzero(old)
         filt[:, idx[same]] = updated[:, same]
         continued[idx[same]] = True
@@ -538,7 +502,7 @@ class OursEstimator(Estimator):
             return self._new_uids(targets.boxes_px.shape[0])
         belief: FloatArray | None = None
         if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
-            belief = self._heading_belief(fused)
+            belief = frame_cues.heading_belief(fused, cfg.yaw_evidence_weight, self._yaw.size)
         return self._store(
             TrackUpdate(
                 distance.rows,
@@ -555,16 +519,6 @@ class OursEstimator(Estimator):
                 size_rows,
             )
         )
-
-    def _heading_belief(self, fused: FusedCues) -> FloatArray:
-        """``(n, K)`` normalised log heading belief after this frame: the prior times the
-        cues' likelihood, tempered (consecutive frames are correlated evidence)."""
-        belief = fused.log_prior + self.config.yaw_evidence_weight * fused.loglik
-        n_modes = belief.shape[1] // self._yaw.size
-        if n_modes > 1:
-            n = belief.shape[0]
-            belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
-        return belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
 
     def _feed_selfcal(
         self,
@@ -592,15 +546,6 @@ class OursEstimator(Estimator):
             uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near
         )
 
-    def _new_filter_rows(self, meas: LogCue) -> FloatArray:
-        """Filter state rows of tracks that start at this frame's measurement (its white part)
-        with zero rate."""
-        filt = np.zeros((5, meas.mean.shape[0]))
-        filt[0] = meas.mean
-        filt[2] = meas.var_white
-        filt[4] = self.config.rate_sigma_per_s**2
-        return filt
-
     def _new_uids(self, k: int) -> NDArray[np.int64]:
         uid = np.arange(self._next_uid, self._next_uid + k)
         self._next_uid += k
@@ -624,24 +569,6 @@ class OursEstimator(Estimator):
         uid[new] = new_uid
         self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
         return uid
-
-    def _learn_box_noise(self, miss: FloatArray, rows: NDArray[np.int64], t: float) -> None:
-        """Pool the misses of the constant-velocity box predictions of tracks updated at an even
-        pace (``miss`` = box − predicted box, pixels): a second difference, variance 6σ²."""
-        tr = self.tracks
-        dt1 = t - tr.last_t[rows]
-        dt0 = tr.last_t[rows] - tr.prev_t[rows]
-        even = (
-            np.isfinite(dt0)
-            & (np.abs(dt1 - dt0) <= 0.2 * dt0)
-            & np.all(np.isfinite(tr.box_vel[rows]), axis=1)
-        )
-        if not np.any(even):
-            return
-        d2 = miss[even]
-        cap = 4.0 * math.sqrt(6.0) * self.box_sigma_px  # an id switch or a jump is not noise
-        self._d2_sum += float(np.sum(np.minimum(d2 * d2, cap * cap)))
-        self._d2_count += int(d2.size)
 
     def _drop_stale(self, t: float) -> None:
         tr = self.tracks

@@ -63,6 +63,17 @@ def cv_predict_rows(s: FloatArray, dt_s: FloatArray, accel_mps2: float) -> Float
     return out
 
 
+def start_rows(log_z: FloatArray, var: FloatArray, rate_sigma_per_s: float) -> FloatArray:
+    """State rows ``(5, n)`` (see :func:`cv_predict_rows`) of filters that start at the log
+    distances ``log_z`` with variance ``var`` and zero rate (prior spread
+    ``rate_sigma_per_s``, 1/s)."""
+    s = np.zeros((5, log_z.shape[0]))
+    s[0] = log_z
+    s[2] = var
+    s[4] = rate_sigma_per_s * rate_sigma_per_s
+    return s
+
+
 def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
     """:func:`cv_update` on state rows (see :func:`cv_predict_rows`): the updated rows and the
     normalised innovation squared."""

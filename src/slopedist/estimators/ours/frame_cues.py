@@ -33,7 +33,7 @@ from slopedist.estimators.ours.records import (
     UpperBound,
     filled,
 )
-from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN
+from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN, ROW_LOG_W
 
 FloatArray = NDArray[np.float64]
 
@@ -426,3 +426,31 @@ def _gradient_prior(
     mean[idx] = mean_old[kept]
     var[idx] = np.minimum(var_old[kept], 1e6)
     return mean, var
+
+
+def carried_heading_prior(
+    match: TrackMatch, log_yaw_prior: FloatArray, memory_s: float
+) -> FloatArray:
+    """``(n, K)`` log heading prior of each target when the tracks carry their heading belief
+    (``yaw_memory``): a continued track's belief relaxing to the prior ``log_yaw_prior``
+    ``(K,)`` with time constant ``memory_s`` (s); the prior for a new track."""
+    mix = 1.0 - np.exp(-match.elapsed_s / memory_s)
+    carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
+        :, None
+    ] * np.exp(log_yaw_prior)
+    n = match.rows.shape[0]
+    log_pi = np.broadcast_to(log_yaw_prior[None, :], (n, log_yaw_prior.size)).copy()
+    log_pi[match.continued] = np.log(np.maximum(carried, 1e-300))
+    return log_pi
+
+
+def heading_belief(fused: FusedCues, evidence_weight: float, n_headings: int) -> FloatArray:
+    """``(n, K)`` normalised log heading belief after this frame: the prior times the cues'
+    likelihood tempered by ``evidence_weight`` (consecutive frames are correlated evidence),
+    summed over the body-style modes or vehicle types."""
+    belief = fused.log_prior + evidence_weight * fused.loglik
+    n_modes = belief.shape[1] // n_headings
+    if n_modes > 1:
+        n = belief.shape[0]
+        belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
+    return belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)

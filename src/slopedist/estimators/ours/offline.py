@@ -46,7 +46,7 @@ FloatArray = NDArray[np.float64]
 
 MOTION_COLUMNS = ("speed_mps", "speed_sigma_mps", "ttc_s", "ttc_sigma_s")
 
-BoxKey = tuple[float, float, float, float, float]
+BoxKey = tuple[float, ...]
 """A box of the drive: its frame's timestamp and its edges (s, px)."""
 
 

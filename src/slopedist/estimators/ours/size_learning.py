@@ -15,9 +15,10 @@ and on the ego's plane it is tight, far or on a hill it is loose) plus the size 
 noise. Consecutive frames share the target road's gradient error, so a frame's evidence is
 tempered by ``min(1, dt/τ)`` (τ = ``size_evidence_time_s``: one independent observation per τ
 seconds). Frames whose box is cut by the image border give no evidence (cues that disagree
-beyond the consistency check do: a van called ``Car`` is such a disagreement); a box that a nearer box may cut shows at most
-its vehicle, so its frame counts only when it says the vehicle is bigger than believed. The learned
-size then carries the distance where the ground contact cannot (far away, on hills).
+beyond the consistency check do: a van called ``Car`` is such a disagreement); a box that a
+nearer box may cut shows at most its vehicle, so its frame counts only when it says the vehicle
+is bigger than believed. The learned size then carries the distance where the ground contact
+cannot (far away, on hills).
 
 The learned scale multiplies every dimension of the track's hypotheses and its variance
 replaces the class spread (each dimension's relative spread is scaled by ``√v / σ_H``).
@@ -33,7 +34,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.class_table import MIN_NEAR_M, HypothesisConstants
-from slopedist.estimators.ours.fusion import LogCue
+from slopedist.estimators.ours.fusion import LogCue, any_true
+from slopedist.estimators.ours.records import (
+    DistanceFilterResult,
+    FrameTargets,
+    FusedCues,
+    SizeCues,
+    TrackMatch,
+)
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -137,3 +145,52 @@ def learn(
     var = 1.0 / (prec + info)
     mean = var * (prec * size.log_scale + info * np.where(ok, obs, 0.0))
     return np.stack([mean, var])
+
+
+def with_track_size(targets: FrameTargets, size: TrackSize) -> FrameTargets:
+    """``targets`` with their class constants scaled by their tracks' learned sizes."""
+    classes = targets.classes
+    hyp = scale_hypotheses(classes.hypotheses, size)
+    return targets._replace(classes=classes._replace(hypotheses=hyp))
+
+
+def learn_frame(
+    targets: FrameTargets,
+    match: TrackMatch,
+    size_cues: SizeCues,
+    fused: FusedCues,
+    distance: DistanceFilterResult,
+    size: TrackSize,
+    evidence_time_s: float,
+) -> FloatArray:
+    """``(2, n)`` each target's size belief after this frame (:func:`learn`): this frame's
+    evidence where its box is not cut by the image border (where a nearer box may cut it,
+    only evidence that it is bigger), weighed by :func:`evidence_weight`; a target whose track
+    failed the distance gate starts from the class prior again."""
+    usable = np.ones(targets.boxes_px.shape[0], dtype=bool)
+    cuts = targets.border_cuts
+    if cuts is not None:
+        usable &= ~(cuts.sides | cuts.top | cuts.bottom)
+    weight = evidence_weight(match.elapsed_s, match.continued, evidence_time_s)
+    restarted = match.continued & ~distance.continued
+    if any_true(restarted):
+        weight[restarted] = 0.0
+        size = size._replace(
+            log_scale=np.where(restarted, 0.0, size.log_scale),
+            log_var=np.where(restarted, size.prior_log_var, size.log_var),
+        )
+    if fused.ground is None:
+        return np.stack([size.log_scale, size.log_var])
+    return learn(size, fused.size, fused.ground, weight, usable, size_cues.hidden)
+
+
+def size_columns(rows: FloatArray, class_height_m: FloatArray) -> dict[str, FloatArray]:
+    """The record columns of the size beliefs ``rows`` ``(2, n)``: ``size_scale`` (the
+    track's dimensions over its class prior's), ``size_log_sigma`` (1σ of its log) and
+    ``track_height_m`` (the class height times the scale, m)."""
+    scale = np.exp(rows[0])
+    return {
+        "size_scale": scale,
+        "size_log_sigma": np.sqrt(rows[1]),
+        "track_height_m": class_height_m * scale,
+    }

@@ -10,6 +10,7 @@ update all tracks of a frame at once.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -86,11 +87,10 @@ class TrackArrays:
         t: float,
         boxes: FloatArray,
         R_world_cam: FloatArray,
-        size_rows: FloatArray | None = None,
     ) -> TrackArrays:
         """New tracks after their first update at time ``t``: ``filter_rows`` ``(5, k)`` (the
-        :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, ``size_rows``
-        ``(2, k)`` (:data:`ROW_SIZE`; None: the class prior), the others ``(k,)``."""
+        :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, the others
+        ``(k,)``; their size (:data:`ROW_SIZE`) the class prior's."""
         k = uid.shape[0]
         st = np.empty((ROW_LOG_W + log_w.shape[1], k))
         st[ROW_FILTER] = filter_rows
@@ -103,11 +103,8 @@ class TrackArrays:
         st[ROW_PREV_T] = np.nan
         st[ROW_ROT] = np.asarray(R_world_cam, dtype=float).reshape(9, 1)
         st[ROW_N_OBS] = 1.0
-        if size_rows is None:
-            st[ROW_SIZE.start] = 0.0
-            st[ROW_SIZE.start + 1] = np.nan
-        else:
-            st[ROW_SIZE] = size_rows
+        st[ROW_SIZE.start] = 0.0
+        st[ROW_SIZE.start + 1] = np.nan
         st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
@@ -300,8 +297,9 @@ def start_tracks(
         update.time_s,
         update.boxes_px[new],
         update.R_world_cam,
-        None if update.size_rows is None else update.size_rows[:, new],
     )
+    if update.size_rows is not None:
+        add.state[ROW_SIZE] = update.size_rows[:, new]
     claimed = ext[ext >= 0]
     if claimed.size and len(tracks):
         replaced = (
@@ -373,6 +371,27 @@ def depth_ratios(
     return (
         (b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0] + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2]
     )
+
+
+def box_noise_sums(
+    tracks: TrackArrays, miss: FloatArray, rows: IntArray, t: float, sigma_px: float
+) -> tuple[float, int]:
+    """Sum of squares and count of the misses of the constant-velocity box predictions
+    (``miss`` = box − predicted box, pixels, of the tracks ``rows``) of tracks updated at an
+    even pace: second differences of the box edges, variance 6σ² each; a miss beyond
+    ``4·√6·sigma_px`` (an id switch, a jump) counts at that cap."""
+    dt1 = t - tracks.last_t[rows]
+    dt0 = tracks.last_t[rows] - tracks.prev_t[rows]
+    even = (
+        np.isfinite(dt0)
+        & (np.abs(dt1 - dt0) <= 0.2 * dt0)
+        & np.all(np.isfinite(tracks.box_vel[rows]), axis=1)
+    )
+    if not np.any(even):
+        return 0.0, 0
+    d2 = miss[even]
+    cap = 4.0 * math.sqrt(6.0) * sigma_px
+    return float(np.sum(np.minimum(d2 * d2, cap * cap))), int(d2.size)
 
 
 def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray:
