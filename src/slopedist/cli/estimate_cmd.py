@@ -17,6 +17,7 @@ from slopedist.cli.options import (
     vehicle_classes_option,
 )
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.detections.boxes import BoxTable
 from slopedist.estimators import EstimatorConfig, build_estimator
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
@@ -49,7 +50,8 @@ def estimate(
     lookback_s: float,
     estimator_config: EstimatorConfig,
 ) -> None:
-    """Estimate per-target distances for one sequence, streaming frame by frame."""
+    """Estimate per-target distances for one sequence, streaming frame by frame (an offline
+    method, e.g. ours-offline, writes its records when the sequence ends)."""
     check_methods([method])
     check_outputs_spare_inputs([out], files.input_files)
     size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
@@ -59,9 +61,17 @@ def estimate(
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     writer = open_records(out)
     n = 0
+    held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
     try:
         for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
+            if estimator.offline:
+                if len(frame_boxes):
+                    held.append((frame_boxes, t))
+                continue
             n += writer.write_rows(iter_records(frame_boxes, t, result.estimates, method))
+        if held:
+            for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
+                n += writer.write_rows(iter_records(frame_boxes, t, est, method))
         close_records(writer)
     except BrokenPipeError:
         if out is not None:
