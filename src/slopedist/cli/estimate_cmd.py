@@ -50,8 +50,9 @@ def estimate(
     lookback_s: float,
     estimator_config: EstimatorConfig,
 ) -> None:
-    """Estimate per-target distances for one sequence, streaming frame by frame (an offline
-    method, e.g. ours-offline, writes its records when the sequence ends)."""
+    """Estimate per-target distances for one sequence, streaming frame by frame.
+
+    An offline method (ours-offline) writes its records when the sequence ends."""
     check_methods([method])
     check_outputs_spare_inputs([out], files.input_files)
     size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
