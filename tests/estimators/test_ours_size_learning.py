@@ -20,6 +20,8 @@ from slopedist.estimators.ours.size_learning import (
     scale_hypotheses,
     track_size,
 )
+from slopedist.odometry.base import RotationTrack
+from slopedist.pipeline import FrameStep, concat_estimates, estimate_sequence, stream_track
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 
@@ -149,6 +151,13 @@ def test_off_by_default_and_streaming_equals_batch() -> None:
     default, extra = _run(sim, "ours")
     assert np.isnan(extra["size_scale"]).all()
     assert np.array_equal(default, _run(sim, "ours", size_learning=False)[0])
-    a, _ = _run(sim, "ours", size_learning=True)
-    b, _ = _run(sim, "ours", size_learning=True)
-    assert np.array_equal(a, b) and not np.array_equal(a, default)
+    n = sim.timestamps_s.size
+    track = RotationTrack(sim.timestamps_s, np.repeat(np.eye(3)[None], n, 0), np.ones(n, bool))
+    batch = estimate_sequence(
+        make_estimator("ours", CAM, size_learning=True), sim.boxes, sim.timestamps_s, track
+    )
+    step = FrameStep(make_estimator("ours", CAM, size_learning=True))
+    streamed = concat_estimates([r.estimates for _, _, r in stream_track(step, track, sim.boxes)])
+    np.testing.assert_array_equal(streamed.distance_m, batch.estimates.distance_m)
+    np.testing.assert_array_equal(streamed.extra["size_scale"], batch.estimates.extra["size_scale"])
+    assert not np.array_equal(batch.estimates.distance_m, default)
