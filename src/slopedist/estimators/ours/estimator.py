@@ -56,7 +56,6 @@ from slopedist.estimators.ours.records import (
     DistanceFilterResult,
     FrameTargets,
     FusedCues,
-    SizeCues,
     TargetGradient,
     TrackMatch,
     filled,
@@ -113,6 +112,7 @@ class OursEstimator(Estimator):
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
     _keep_predicted: ClassVar[bool] = False  # keep the filter's predictions (offline pass)
+    _learns_size: ClassVar[bool] = True  # learn the tracks' sizes (with size_learning)
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -297,11 +297,19 @@ class OursEstimator(Estimator):
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )
         size_rows = None
-        if track_size is not None:
-            size_rows = self._learn_size(targets, match, size, fused, distance, track_size)
+        if track_size is not None:  # this frame's evidence (none in an offline pass's second)
+            size_rows = (
+                size_learning.learn_frame(
+                    targets, match, size, fused, distance, track_size, cfg.size_evidence_time
+                )
+                if self._learns_size
+                else np.stack([track_size.log_scale, track_size.log_var])
+            )
         uid = self._update_tracks(
             targets, match, fused, distance, gradient, frame.R_world_cam, size_rows
         )
+        if self._keep_predicted:
+            self._keep_frame(match, fused, distance, uid)
         if cfg.self_calibrate:
             self._feed_selfcal(targets, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
@@ -316,20 +324,9 @@ class OursEstimator(Estimator):
         stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
         return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
 
-    def _learn_size(
-        self,
-        targets: FrameTargets,
-        match: TrackMatch,
-        size: SizeCues,
-        fused: FusedCues,
-        distance: DistanceFilterResult,
-        track_size: size_learning.TrackSize,
-    ) -> FloatArray:
-        """``(2, n)`` each target's size belief after this frame
-        (:func:`~slopedist.estimators.ours.size_learning.learn_frame`)."""
-        return size_learning.learn_frame(
-            targets, match, size, fused, distance, track_size, self.config.size_evidence_time
-        )
+    def _keep_frame(self, *frame_state: Any) -> None:
+        """Keep a frame's filter states (match, fused cues, distance filters, uids) for an
+        offline pass (``_keep_predicted``: see :mod:`~slopedist.estimators.ours.offline`)."""
 
     # -- the steps of a frame, in order -----------------------------------------------------
 

@@ -37,8 +37,6 @@ from slopedist.estimators.ours.records import (
     DistanceFilterResult,
     FrameTargets,
     FusedCues,
-    SizeCues,
-    TargetGradient,
     TrackMatch,
 )
 
@@ -124,6 +122,7 @@ class _SmoothingPass(OursEstimator):
     each frame's predicted and updated distance filter states for the backward pass."""
 
     _keep_predicted: ClassVar[bool] = True
+    _learns_size: ClassVar[bool] = False
 
     def __init__(self, camera: Camera, config: OursConfig, seeds: dict[BoxKey, FloatArray]) -> None:
         super().__init__(camera, config, size_learning=True)
@@ -148,28 +147,13 @@ class _SmoothingPass(OursEstimator):
                 log_scale[i], log_var[i] = s
         return size_learning.TrackSize(log_scale, log_var, prior.prior_log_var)
 
-    def _learn_size(
+    def _keep_frame(
         self,
-        targets: FrameTargets,
-        match: TrackMatch,
-        size: SizeCues,
-        fused: FusedCues,
-        distance: DistanceFilterResult,
-        track_size: size_learning.TrackSize,
-    ) -> FloatArray:
-        return np.stack([track_size.log_scale, track_size.log_var])
-
-    def _update_tracks(
-        self,
-        targets: FrameTargets,
         match: TrackMatch,
         fused: FusedCues,
         distance: DistanceFilterResult,
-        gradient: TargetGradient,
-        R_now: FloatArray | None,
-        size_rows: FloatArray | None = None,
-    ) -> NDArray[np.int64]:
-        uid = super()._update_tracks(targets, match, fused, distance, gradient, R_now, size_rows)
+        uid: NDArray[np.int64],
+    ) -> None:
         n = uid.shape[0]
         elapsed = np.full(n, np.nan)
         elapsed[match.continued] = match.elapsed_s
@@ -183,7 +167,6 @@ class _SmoothingPass(OursEstimator):
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
         )
-        return uid
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
         """``estimates`` (this pass's, one per frame) with each track's distance, σ, speed and
