@@ -12,8 +12,9 @@ import cv2
 import numpy as np
 import pytest
 
+from slopedist import run_setup
 from slopedist.camera import Camera
-from slopedist.cli import main, run_cmd
+from slopedist.cli import main
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
 from slopedist.errors import DataMismatchError, InputFileError
@@ -201,7 +202,7 @@ def test_cli_run_writes_outputs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
-    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    monkeypatch.setattr(run_setup, "build_odometry", lambda *a, **k: ScriptedOdometry())
     out = tmp_path / "out"
     code = main(
         [
@@ -232,7 +233,7 @@ def test_cli_snapshot_is_the_overlay_frame_as_jpeg(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
-    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    monkeypatch.setattr(run_setup, "build_odometry", lambda *a, **k: ScriptedOdometry())
     base = ["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--quiet"]
     with_overlay = tmp_path / "a"
     args = ["--overlay", "--overlay-format", "png", "--snapshot", "3"]
@@ -255,7 +256,7 @@ def test_cli_bad_inputs_exit_2_with_a_message(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
-    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    monkeypatch.setattr(run_setup, "build_odometry", lambda *a, **k: ScriptedOdometry())
     video = tmp_path / "clip.mp4"
     video.write_text("garbage")
     base = ["--calib", str(calib), "--boxes", str(boxes), "--out", str(tmp_path / "o"), "--quiet"]
@@ -277,7 +278,7 @@ def test_cli_bad_inputs_exit_2_with_a_message(
 
 def test_default_method_is_ours(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     frames, calib, boxes = _cli_setup(tmp_path)
-    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    monkeypatch.setattr(run_setup, "build_odometry", lambda *a, **k: ScriptedOdometry())
     out = tmp_path / "out"
     assert (
         main(

@@ -64,6 +64,18 @@ def test_a_drive_gives_the_records_of_run_alone(sim: Path, tmp_path: Path) -> No
     assert not [p for p in out.iterdir() if p.name.startswith(".tmp-")]
 
 
+def test_a_distorted_calibration_gives_the_records_of_run_alone(sim: Path, tmp_path: Path) -> None:
+    calib = tmp_path / "k.txt"  # the simulated camera's K with some barrel distortion
+    calib.write_text("721.5377 0 609.5593\n0 721.5377 172.854\n0 0 1\n-0.05 0.01 0 0\n")
+    spec = spec_of(sim, method="ego", calib=calib)
+    out = tmp_path / "batch"
+    out.mkdir()
+    assert process_drive(spec, out, input_stamp(spec)).status is DriveStatus.DONE
+    times = ["--timestamps", str(sim / "times.txt")]
+    alone = run_alone(sim / "image_02", calib, sim / "boxes.csv", "ego", tmp_path / "a", *times)
+    assert (out / "crest" / "records.csv").read_bytes() == alone.read_bytes()
+
+
 def test_a_corrupt_drive_fails_alone_and_leaves_no_folder(sim: Path, tmp_path: Path) -> None:
     calib = tmp_path / "calib.txt"
     calib.write_text("P2: 1 2 3\n")
@@ -86,6 +98,12 @@ def test_stamps_see_content_and_options_not_touches(sim: Path, tmp_path: Path) -
     assert input_stamp(spec) == before
     assert input_stamp(spec_of(local, method="flat")) != before
     assert input_stamp(spec_of(local, height_m=1.5)) != before
+    for topic in ("image_topic", "rotation_topic", "speed_topic"):  # a log's topics count too
+        with_topic = input_stamp(spec_of(local, **{topic: "/a"}))
+        assert with_topic != before
+        assert input_stamp(spec_of(local, **{topic: "/b"})) != with_topic
+    no_calib = input_stamp(spec_of(local, calib=None))  # a log's camera_info instead
+    assert no_calib != before and "calib" not in no_calib["inputs"]
     (local / "boxes.csv").write_text((local / "boxes.csv").read_text().replace(",1,", ",2,", 1))
     assert input_stamp(spec)["inputs"]["boxes"] != before["inputs"]["boxes"]
     sorted((local / "image_02").iterdir())[-1].unlink()

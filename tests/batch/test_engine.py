@@ -1,6 +1,8 @@
 """The batch on a local Ray instance with 2 CPUs: records identical to running each drive
 alone, a corrupt drive isolated, a killed worker retried, a second run that skips complete
-drives and redoes a deleted one. Ray starts once for the session (``ray_instance`` of
+drives and redoes a deleted one; drive logs (ROS 1 bag, ROS 2 MCAP) with their camera_info,
+IMU and speed topics giving the records of ``slopedist run`` on the log and the headways of the
+fleet safety table. Ray starts once for the session (``ray_instance`` of
 tests/conftest.py)."""
 
 from __future__ import annotations
@@ -12,15 +14,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from slopedist.batch import BatchOptions, BatchResult, DriveStatus, load_drives, run_batch
 from slopedist.batch.drive import CRASH_ENV
 from slopedist.batch.engine import import_ray, kept_signal_handlers
+from slopedist.batch.safety import SHORT_HEADWAY_S
 from slopedist.cli import main
 from slopedist.errors import OptionalDependencyError
 
-from .conftest import real_drive, run_alone, simulate
+from .conftest import real_drive, run_alone, simulate, simulated_log, write_drive_log
 
 SHARED_LEAD = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "kitti_raw_lead"
 SCENARIOS = ("ego_crest", "same_downhill", "target_steep_uphill")
@@ -206,3 +210,126 @@ def test_signal_handlers_are_restored() -> None:
     with kept_signal_handlers():
         signal.signal(signal.SIGTERM, lambda *_: None)
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+LOG_SPEED_MPS = 12.0
+"""Ego speed written on the odometry topic of the real frames' log, m/s (the shared frames
+come without one)."""
+
+
+@dataclass
+class LogFleet:
+    root: Path
+    out: Path
+    rows: list[dict[str, str]]
+    speeds: dict[str, list[float]]
+    """Ego speed per frame of each log drive, m/s."""
+
+
+@pytest.fixture(scope="module")
+def log_fleet(ray_instance: Any, tmp_path_factory: pytest.TempPathFactory) -> LogFleet:
+    """A batch of drive logs next to an image folder: a ROS 1 bag of a synthetic scenario
+    (camera_info as the calibration, visual odometry or its IMU topic, its speed topic) and a
+    ROS 2 MCAP log of the shared real frames."""
+    pytest.importorskip("rosbags")
+    from slopedist.io.rosbag_write import LogFormat, LogTopics
+
+    root = tmp_path_factory.mktemp("logs")
+    sim = simulate("ego_crest", root / "sim")
+    _, sim_speeds = simulated_log(sim, root / "sim.bag", LogFormat.ROS1)
+    topics = LogTopics()
+    log = {"calib": "", "timestamps": "", "image_topic": topics.image}
+    rows = [
+        {**log, "drive": "sim_log", "frames": "sim.bag", "method": "paper"},
+        {**log, "drive": "sim_imu", "frames": "sim.bag", "method": "imu"},
+        {
+            **{k: "" for k in log},
+            "drive": "sim_folder",
+            "frames": "sim/image_02",
+            "calib": "sim/calib.txt",
+            "method": "paper",
+            "timestamps": "sim/times.txt",
+        },
+    ]
+    rows[0]["speed_topic"] = rows[1]["speed_topic"] = topics.odometry
+    rows[1]["rotation_topic"] = topics.imu
+    for row in rows:
+        row["boxes"] = "sim/boxes.csv"
+    speeds = {"sim_log": sim_speeds, "sim_imu": sim_speeds}
+    if SHARED_LEAD.is_dir():  # the shared real frames (absent in a fresh clone)
+        frames = 8
+        kitti = real_drive(SHARED_LEAD, root / "kitti", frames)
+        speeds["kitti_log"] = [LOG_SPEED_MPS] * frames
+        times = [k / 10 for k in range(frames)]
+        write_drive_log(kitti, root / "kitti_log", LogFormat.ROS2_MCAP, times, speeds["kitti_log"])
+        rows.append(
+            {
+                **log,
+                "drive": "kitti_log",
+                "frames": "kitti_log",
+                "boxes": "kitti/boxes.csv",
+                "method": "ego",
+                "speed_topic": topics.odometry,
+            }
+        )
+    columns = ["drive", "frames", "calib", "boxes", "method", "timestamps"]
+    columns += ["image_topic", "rotation_topic", "speed_topic"]
+    manifest = root / "drives.csv"
+    with manifest.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, columns, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
+    run_batch(load_drives(manifest), root / "out", BatchOptions(progress=False))
+    return LogFleet(root, root / "out", rows, speeds)
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_drive_logs_in_a_batch_give_the_records_of_run_alone(
+    log_fleet: LogFleet, tmp_path: Path
+) -> None:
+    status = {r["drive"]: r["status"] for r in read_rows(log_fleet.out / "status.csv")}
+    assert status == {r["drive"]: "done" for r in log_fleet.rows}
+    logs = [r for r in log_fleet.rows if r.get("image_topic")]
+    assert len(logs) >= 2
+    for row in logs:
+        frames, boxes = log_fleet.root / row["frames"], log_fleet.root / row["boxes"]
+        args = ["run", str(frames), "--image-topic", row["image_topic"], "--boxes", str(boxes)]
+        for topic in ("rotation_topic", "speed_topic"):  # no --calib: the log's camera_info
+            args += [f"--{topic.replace('_', '-')}", row[topic]] if row.get(topic) else []
+        alone = tmp_path / row["drive"]
+        assert main([*args, "--method", row["method"], "--out", str(alone), "--quiet"]) == 0
+        for name in ("records.csv", "tracks.csv"):
+            mine = (log_fleet.out / row["drive"] / name).read_bytes()
+            assert mine == (alone / name).read_bytes(), (row["drive"], name)
+        assert any(r["status"] == "ok" for r in read_rows(alone / "records.csv")), row["drive"]
+
+
+def test_fleet_safety_has_the_headways_of_the_logs_with_a_speed_topic(log_fleet: LogFleet) -> None:
+    safety = {r["drive"]: r for r in read_rows(log_fleet.out / "fleet" / "safety.csv")}
+    for drive, speeds in log_fleet.speeds.items():
+        records = read_rows(log_fleet.out / drive / "records.csv")
+        tracks = read_rows(log_fleet.out / drive / "tracks.csv")
+        for track in tracks:  # headway = distance / ego speed of the frame, over the track
+            mine = [
+                float(r["distance_m"]) / speeds[int(r["frame"])]
+                for r in records
+                if r["track_id"] == track["track_id"] and r["reason"] == "" and r["distance_m"]
+            ]
+            assert float(track["mean_headway_s"]) == pytest.approx(np.mean(mine), rel=1e-5)
+        headways = [float(t["mean_headway_s"]) for t in tracks]
+        row = safety[drive]
+        assert float(row["min_headway_s"]) == pytest.approx(min(headways), rel=1e-6)
+        assert int(row["short_headway_tracks"]) == sum(h < SHORT_HEADWAY_S for h in headways)
+    assert safety["sim_folder"]["min_headway_s"] == ""  # no ego speed without a log
+    assert safety["sim_folder"]["short_headway_tracks"] == "0"
+
+
+def test_a_second_batch_of_logs_skips_them(log_fleet: LogFleet) -> None:
+    result = run_batch(
+        load_drives(log_fleet.root / "drives.csv"), log_fleet.out, BatchOptions(progress=False)
+    )
+    assert {o.status for o in result.outcomes} == {DriveStatus.SKIPPED}

@@ -53,6 +53,16 @@ def test_csv_manifest_paths_are_relative_to_the_manifest(tmp_path: Path) -> None
         ("drive,frames,calib,boxes,odometry\na,f,c,b,gps\n", 2, "odometry"),
         ("drive,frames,calib,boxes\n../up,f,c,b\n", 2, "drive"),
         ("drive,frames,calib,boxes\na,f,c,b\n\na,g,c,b\n", 4, "drive"),
+        # calib: required for image folders and videos, optional for a drive log
+        ("drive,frames,boxes\na,f,b\n", 2, "calib"),
+        ("drive,frames,calib,boxes,image_topic\na,l.bag,,b,/c\nb,v.mp4,,b,\n", 3, "calib"),
+        # a drive log needs its image topic and takes no timestamps file
+        ("drive,frames,boxes,image_topic\na,l.bag,b,/cam\nb,l.mcap,b,\n", 3, "image_topic"),
+        ("drive,frames,boxes,image_topic,timestamps\na,l.db3,b,/cam,t.txt\n", 2, "timestamps"),
+        # topics are for drive logs only
+        ("drive,frames,calib,boxes,speed_topic\na,f,c,b,/odom\n", 2, "speed_topic"),
+        ("drive,frames,calib,boxes,rotation_topic\na,v.mp4,c,b,/imu\n", 2, "rotation_topic"),
+        ("drive,frames,calib,boxes,image_topic\na,f,c,b,/cam\n", 2, "image_topic"),
     ],
 )
 def test_csv_manifest_errors_name_line_and_field(
@@ -97,6 +107,44 @@ def test_toml_manifest(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match=r"entry 3: is empty") as err:
         load_drives(bad)
     assert err.value.field == "frames"
+
+
+def test_drive_logs_name_their_topics_and_may_leave_out_calib(tmp_path: Path) -> None:
+    bag_dir = tmp_path / "logs" / "ros2_bag"  # a ROS 2 bag folder is a log too
+    write(bag_dir / "metadata.yaml", "rosbag2_bagfile_information: {}\n")
+    csv_manifest = write(
+        tmp_path / "logs" / "drives.csv",
+        "drive,frames,boxes,method,image_topic,rotation_topic,speed_topic\n"
+        "a,a.bag,a.csv,imu,/cam/image_raw,/imu/data,/odom\n"
+        "b,ros2_bag,b.csv,,/cam/image_rect,,\n",
+    )
+    a, b = read_csv_manifest(csv_manifest)
+    assert (a.frames, a.calib) == (tmp_path / "logs" / "a.bag", None)
+    assert (a.image_topic, a.rotation_topic, a.speed_topic) == (
+        "/cam/image_raw",
+        "/imu/data",
+        "/odom",
+    )
+    assert (b.frames, b.image_topic, b.rotation_topic, b.speed_topic) == (
+        bag_dir,
+        "/cam/image_rect",
+        None,
+        None,
+    )
+    toml_manifest = write(
+        tmp_path / "logs" / "drives.toml",
+        '[[drive]]\ndrive = "a"\nframes = "a.bag"\nboxes = "a.csv"\nmethod = "imu"\n'
+        'image_topic = "/cam/image_raw"\nrotation_topic = "/imu/data"\nspeed_topic = "/odom"\n'
+        '\n[[drive]]\ndrive = "c"\nframes = "c.mcap"\ncalib = "c.txt"\nboxes = "c.csv"\n'
+        'image_topic = "/front"\n',
+    )
+    from_toml, c = load_drives(toml_manifest)
+    assert from_toml == a.__class__(**{**a.__dict__, "origin": from_toml.origin})
+    assert (c.calib, c.image_topic) == (tmp_path / "logs" / "c.txt", "/front")
+    with pytest.raises(InputFileError, match=r"entry 2: is empty: frames 'c.mcap' is a drive log"):
+        load_drives(
+            write(tmp_path / "bad.toml", toml_manifest.read_text().replace('"/front"', '""'))
+        )
 
 
 def test_folder_layout(tmp_path: Path) -> None:

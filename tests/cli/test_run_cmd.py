@@ -13,8 +13,9 @@ import cv2
 import numpy as np
 import pytest
 
+from slopedist import run_setup
 from slopedist.camera import Camera
-from slopedist.cli import main, run_cmd
+from slopedist.cli import main
 from slopedist.depth import write_kitti_depth_png
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
@@ -227,16 +228,16 @@ def test_lookback_reaches_the_builtin_odometry(
 ) -> None:
     pytest.importorskip("slopedist.odometry.visual")
     cam = Camera(500.0, 160.0, 100.0, height_m=1.5)
-    vo = run_cmd.build_odometry("builtin", cam, None, 0.5)
+    vo = run_setup.build_odometry("builtin", cam, None, 0.5)
     assert vo.config.lookback_s == 0.5  # type: ignore[attr-defined]
     seen: dict[str, Any] = {}
-    real = run_cmd.make_odometry
+    real = run_setup.make_odometry
 
     def spy(name: str, camera: Camera, **options: Any) -> Any:
         seen.update(name=name, **options)
         return real(name, camera, **options)
 
-    monkeypatch.setattr(run_cmd, "make_odometry", spy)
+    monkeypatch.setattr(run_setup, "make_odometry", spy)
     assert main(["run", *setup(tmp_path), "--method", "ego", "--lookback", "0.3"]) == 0
     assert seen == {"name": "builtin", "lookback_s": 0.3}
 
@@ -261,13 +262,13 @@ def test_a_distorted_calibration_maps_the_odometry_points(
     calib.write_text("500 0 160\n0 500 100\n0 0 1\n-0.3 0.1 0 0\n")
     args[args.index("--calib") + 1] = str(calib)
     seen: dict[str, Any] = {}
-    real = run_cmd.make_odometry
+    real = run_setup.make_odometry
 
     def spy(name: str, camera: Camera, **options: Any) -> Any:
         seen.update(options)
         return real(name, camera, **options)
 
-    monkeypatch.setattr(run_cmd, "make_odometry", spy)
+    monkeypatch.setattr(run_setup, "make_odometry", spy)
     assert main(["run", *args, "--method", "ego"]) == 0
     point = np.array([[300.0, 180.0]])
     assert seen["point_map"](point)[0, 0] > 300.0  # barrel distortion undone: moved outwards

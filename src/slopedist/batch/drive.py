@@ -1,7 +1,7 @@
 """One drive of a batch: run it into a temporary folder, stamp it, publish it atomically.
 
 :func:`run_single_drive` is the one adapter between the batch engine and the single-drive
-library (:func:`slopedist.runner.run_frames`, built the way ``slopedist run`` builds it).
+library: it runs :func:`slopedist.run_setup.prepare_run`, the code ``slopedist run`` runs.
 :func:`process_drive` is the task the engine runs per drive (in a Ray worker): it never raises
 for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
 
@@ -12,6 +12,7 @@ absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the ne
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -25,19 +26,13 @@ from typing import Any, cast
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
-from slopedist.depth import FileDepthSource
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.onnx_detector import Detector, OnnxDetector
-from slopedist.detections.readers import read_box_file
-from slopedist.errors import ConfigurationError, SlopedistError
-from slopedist.estimators import EstimatorConfig, build_estimator
-from slopedist.io.calibration import read_calibration
-from slopedist.io.frames import Frame, FrameSource, with_frame_size
-from slopedist.io.intrinsics import RectifiedDetector
-from slopedist.io.sources import open_source
+from slopedist.detections.onnx_detector import OnnxDetector
+from slopedist.errors import SlopedistError
+from slopedist.estimators import EstimatorConfig
+from slopedist.io.frames import Frame, FrameSource
 from slopedist.io.tables import write_json
-from slopedist.odometry import make_odometry
-from slopedist.runner import SUMMARY_NAME, RunConfig, RunResult, run_frames
+from slopedist.run_config import SUMMARY_NAME, RunConfig, RunResult
+from slopedist.run_setup import LogTopicNames, RunInputs, folder_depth_source, prepare_run
 
 TMP_PREFIX = ".tmp-"
 ATTEMPTS_PREFIX = ".attempts-"
@@ -46,48 +41,49 @@ CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
 (``os._exit``) after ``N`` frames, as a worker killed mid-drive would."""
 
 
+def drive_inputs(spec: DriveSpec) -> RunInputs:
+    """The :class:`~slopedist.run_setup.RunInputs` of ``slopedist run`` with the options of
+    ``spec`` (the detector with its default settings; estimator defaults but the method)."""
+    detector = spec.detector
+    return RunInputs(
+        spec.frames,
+        spec.calib,
+        boxes=spec.boxes,
+        score=spec.score,
+        detector=functools.partial(OnnxDetector, detector) if detector is not None else None,
+        fps=spec.fps,
+        timestamps=spec.timestamps,
+        topics=LogTopicNames(spec.image_topic, spec.rotation_topic, spec.speed_topic),
+        height_m=spec.height_m,
+        mount_angle_deg=spec.mount_angle_deg,
+        odometry=spec.odometry,
+        lookback_s=spec.lookback_s,
+        estimator=EstimatorConfig(method=spec.method),
+        depth=functools.partial(folder_depth_source, spec.depth_dir) if spec.depth_dir else None,
+    )
+
+
 def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
-    """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options: the one
-    adapter between the batch and the single-drive library (``crash_after`` is the test hook
-    of :data:`CRASH_ENV`).
+    """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options (both
+    through :func:`~slopedist.run_setup.prepare_run`); ``crash_after`` is the test hook of
+    :data:`CRASH_ENV`.
 
     Raises:
-        ConfigurationError: a method ``run`` cannot feed (defined on IMU rotations).
-        SlopedistError / OSError: bad inputs, as ``slopedist run`` raises them.
+        SlopedistError / OSError: bad inputs or options, as ``slopedist run`` raises them.
     """
-    source = open_source(spec.frames, spec.fps, spec.timestamps)
-    calibration = read_calibration(spec.calib, spec.height_m, math.radians(spec.mount_angle_deg))
-    camera = with_frame_size(calibration.camera, source)  # as run
-    boxes = BoxTable.empty()
-    detector: Detector | None = None
-    if spec.boxes is not None:
-        boxes = calibration.intrinsics.rectify_table(read_box_file(spec.boxes, spec.score))
-    elif spec.detector is not None:
-        detector = OnnxDetector(spec.detector)
-        if not calibration.intrinsics.is_ideal:
-            detector = RectifiedDetector(detector, calibration.intrinsics)
-    estimator = build_estimator(EstimatorConfig(method=spec.method), camera)
-    if estimator.rotation_source is not None:
-        raise ConfigurationError(
-            f"method '{spec.method}' is defined on '{estimator.rotation_source}' rotations; "
-            "a batch feeds visual-odometry rotations from the frames"
-        )
-    depth = None
-    if spec.depth_dir is not None:
-        width, height = source.frame_size()
-        depth = FileDepthSource(spec.depth_dir, missing_ok=True, expected_shape=(height, width))
-    odometry = None
-    if spec.odometry == "builtin":
-        odometry = make_odometry(spec.odometry, camera, lookback_s=spec.lookback_s)
-    elif spec.odometry != "none":
-        odometry = make_odometry(spec.odometry, camera)
-    frames: FrameSource = source
+    prepared = prepare_run(drive_inputs(spec))
+    frames: FrameSource = prepared.source
     if crash_after is not None:
-        frames = cast(FrameSource, _CrashingFrames(source, crash_after))
+        frames = cast(FrameSource, _CrashingFrames(prepared.source, crash_after))
     config = RunConfig(
-        out_dir, spec.lookback_s, progress=False, sequence=spec.sequence or spec.name
+        out_dir,
+        spec.lookback_s,
+        progress=False,
+        sequence=spec.sequence or spec.name,
+        time_origin_ns=prepared.time_origin_ns,
+        ego_speed=prepared.ego_speed,
     )
-    return run_frames(frames, boxes, odometry, estimator, config, depth, detector)
+    return prepared.run(config, frames)
 
 
 class _CrashingFrames:

@@ -1,11 +1,15 @@
 """The drives of a batch: a CSV or TOML manifest, or a folder of drives in the usual layout.
 
 A CSV manifest has one drive per row and at least the columns ``drive`` (a name, also the output
-sub-folder), ``frames`` (image folder or video), ``calib`` and ``boxes``; ``method`` and the
-columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch default). Paths
-are relative to the manifest's folder. A TOML manifest holds the same keys in ``[[drive]]``
-tables. A folder without a manifest is read as one drive per sub-folder (:data:`FRAME_NAMES`,
-``calib.txt``, ``boxes.csv`` and optionally ``times.txt``).
+sub-folder), ``frames`` (image folder, video or drive log), ``calib`` and ``boxes``; ``method`` and
+the columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch default).
+A drive log (``.bag``, ``.mcap``, ``.db3`` or a ROS 2 bag folder) names its topics in
+``image_topic`` (required for a log), ``rotation_topic`` and ``speed_topic``, and may leave
+``calib`` empty (or a manifest of logs leave the column out) to use the log's ``camera_info``;
+``calib`` is required for image folders and videos. Paths are relative to the manifest's
+folder. A TOML manifest holds the same keys in ``[[drive]]`` tables. A folder without a manifest
+is read as one drive per sub-folder (:data:`FRAME_NAMES`, ``calib.txt``, ``boxes.csv`` and
+optionally ``times.txt``).
 
 Every mistake is an :class:`~slopedist.errors.InputFileError` naming the manifest, the line
 (CSV) or drive entry (TOML) and the field.
@@ -24,7 +28,9 @@ from typing import Any
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.errors import InputFileError, MissingInputError
 from slopedist.estimators import DEFAULT_METHOD, available_methods
+from slopedist.io.rosbag import is_log_path
 from slopedist.odometry.base import LOOKBACK_S
+from slopedist.run_setup import ODOMETRY_CHOICES
 from slopedist.textfiles import decoded_lines, read_text
 
 if sys.version_info >= (3, 11):
@@ -32,14 +38,17 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
-"""Values of the ``odometry`` column (as ``slopedist run --odometry``)."""
-
-REQUIRED_COLUMNS = ("drive", "frames", "calib")
+REQUIRED_COLUMNS = ("drive", "frames")
+"""Columns every manifest has (``calib`` too unless every drive is a drive log)."""
 BOX_COLUMNS = ("boxes", "detector")
 """Where a drive's boxes come from: a box file or an ONNX detector (exactly one per drive)."""
+LOG_COLUMNS = ("image_topic", "rotation_topic", "speed_topic")
+"""Topics of a drive log (``slopedist run --image-topic`` etc.); only for drives whose frames
+are a log, and ``image_topic`` is required for those."""
 OPTIONAL_COLUMNS = (
+    "calib",
     *BOX_COLUMNS,
+    *LOG_COLUMNS,
     "method",
     "timestamps",
     "fps",
@@ -53,7 +62,7 @@ OPTIONAL_COLUMNS = (
 )
 """Manifest columns beyond the required ones; each is the ``slopedist run`` option of that name
 (``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s); one of
-:data:`BOX_COLUMNS` must be there."""
+:data:`BOX_COLUMNS` must be there, and ``calib`` unless every drive is a log."""
 
 FRAME_NAMES = ("image_02", "frames", "images", "video.mp4", "video.avi", "video.mkv")
 """Where a drive folder's frames are, in order of preference (folder layout)."""
@@ -80,7 +89,9 @@ class DriveSpec:
 
     Attributes:
         name: drive name, the output sub-folder ``OUT/<name>``.
-        frames / calib: absolute input paths (image folder or video; calibration file).
+        frames: absolute path of the image folder, video or drive log.
+        calib: absolute path of the calibration file, or None for a drive log's
+            ``camera_info``.
         boxes / detector: the box file, or the ONNX detector run on every frame (default
             settings); exactly one is set.
         method: estimator name.
@@ -91,12 +102,15 @@ class DriveSpec:
             relative to the vehicle (degrees); ``lookback_s``: ego-gradient look-back (seconds).
         depth_dir: folder of per-frame depth maps for the ``depthmap`` method, or None.
         sequence: sequence name in ``run.json`` (default: the drive name).
+        image_topic / rotation_topic / speed_topic: a drive log's image topic, orientation
+            topic replacing the visual odometry, and ego-speed topic (m/s; headway times), or
+            None.
         origin: where the drive was defined (manifest and line), for messages.
     """
 
     name: str
     frames: Path
-    calib: Path
+    calib: Path | None
     boxes: Path | None
     method: str = DEFAULT_METHOD
     timestamps: Path | None = None
@@ -109,6 +123,9 @@ class DriveSpec:
     depth_dir: Path | None = None
     sequence: str | None = None
     detector: Path | None = None
+    image_topic: str | None = None
+    rotation_topic: str | None = None
+    speed_topic: str | None = None
     origin: str = ""
 
 
@@ -177,12 +194,13 @@ def spec_from_row(
     if bool(cells.get("boxes")) == bool(cells.get("detector")):
         which = "both" if cells.get("boxes") else "neither"
         raise where("boxes", f"give a box file or a detector (exactly one; {which} given)")
-    frames, calib = path("frames"), path("calib")
-    assert frames is not None and calib is not None
+    frames = path("frames")
+    assert frames is not None
+    check_log_cells(cells, is_log_path(frames), where)
     return DriveSpec(
         name=cells["drive"],
         frames=frames,
-        calib=calib,
+        calib=path("calib"),
         boxes=path("boxes"),
         method=method,
         timestamps=path("timestamps"),
@@ -195,8 +213,42 @@ def spec_from_row(
         depth_dir=path("depth_dir"),
         sequence=cells.get("sequence") or None,
         detector=path("detector"),
+        image_topic=cells.get("image_topic") or None,
+        rotation_topic=cells.get("rotation_topic") or None,
+        speed_topic=cells.get("speed_topic") or None,
         origin=origin,
     )
+
+
+def check_log_cells(
+    cells: Mapping[str, str], is_log: bool, where: Callable[[str, str], InputFileError]
+) -> None:
+    """Fail for cells that do not fit the kind of ``frames``: a drive log needs an
+    ``image_topic`` and takes no ``timestamps`` (its header stamps are the times); image
+    folders and videos need a ``calib`` and take no topics."""
+    if is_log:
+        if not cells.get("image_topic"):
+            raise where(
+                "image_topic",
+                f"is empty: frames '{cells['frames']}' is a drive log; name its image topic "
+                "(list the topics with: slopedist log info LOG)",
+            )
+        if cells.get("timestamps"):
+            raise where("timestamps", "a drive log's frame times are its header stamps")
+        return
+    if not cells.get("calib"):
+        raise where(
+            "calib",
+            "is empty: image folders and videos need a calibration file (only a drive log "
+            "can use its camera_info topic)",
+        )
+    for column in LOG_COLUMNS:
+        if cells.get(column):
+            raise where(
+                column,
+                f"is for drive logs (.bag, .mcap, .db3 or a ROS 2 bag folder); frames "
+                f"'{cells['frames']}' is not one",
+            )
 
 
 def _check_unique(specs: list[DriveSpec], where: Callable[[int, str], InputFileError]) -> None:

@@ -8,9 +8,9 @@ import click
 
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
-from slopedist.batch.manifest import ODOMETRY_CHOICES
 from slopedist.cli.options import check_methods, height_option, lookback_option, mount_option
 from slopedist.estimators import DEFAULT_METHOD
+from slopedist.run_setup import ODOMETRY_CHOICES
 
 
 @click.command("batch")
@@ -76,11 +76,12 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
 ) -> None:
     """Run every drive of SOURCE (a CSV or TOML manifest, or a folder of drives) into OUT.
 
-    A manifest row names drive, frames, calib, boxes and optionally method and other `run`
-    options (paths relative to the manifest). Complete drives with unchanged inputs are
-    skipped; a failed drive is recorded in OUT/status.csv and does not stop the others. Exit
-    code 1 when every drive failed, or at a failure with --fail-fast. Needs Ray:
-    pip install 'slopedist[batch]'.
+    A manifest row names drive, frames (image folder, video or drive log), calib (a log may
+    use its camera_info instead), boxes and optionally method, the log's image_topic,
+    rotation_topic and speed_topic and other `run` options (paths relative to the manifest).
+    Complete drives with unchanged inputs are skipped; a failed drive is recorded in
+    OUT/status.csv and does not stop the others. Exit code 1 when every drive failed, or at a
+    failure with --fail-fast. Needs Ray: pip install 'slopedist[batch]'.
     """
     method = method or DEFAULT_METHOD
     check_methods([method])

@@ -8,7 +8,6 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +15,6 @@ from typing import Any
 
 import click
 
-from slopedist.camera import Camera
 from slopedist.cli.options import (
     check_methods,
     detector_options,
@@ -30,38 +28,16 @@ from slopedist.cli.options import (
     parse_triple,
     vehicle_classes_option,
 )
-from slopedist.depth import (
-    DepthOutputKind,
-    DepthSource,
-    FileDepthSource,
-    OnnxDepthConfig,
-    OnnxDepthSource,
-)
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.onnx_detector import Detector
-from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
+from slopedist.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import (
-    DEFAULT_METHOD,
-    Estimator,
-    EstimatorConfig,
-    build_estimator,
-    offline_method,
-)
-from slopedist.estimators.depthmap import DepthScaling
-from slopedist.io.calibration import CameraCalibration, read_calibration
-from slopedist.io.frames import FrameSource, with_frame_size
-from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
+from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
+from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.outputs import (
     RunStoppedError,
     check_outputs_spare_inputs,
     partial_path,
     stop_on_signals,
 )
-from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
-from slopedist.odometry import make_odometry
-from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
-from slopedist.odometry.point_map import PointMap
 from slopedist.run_config import (
     FRAMES_NAME,
     MCAP_NAME,
@@ -74,34 +50,18 @@ from slopedist.run_config import (
     RunResult,
     snapshot_path,
 )
-from slopedist.runner import run_frames
+from slopedist.run_setup import (
+    ODOMETRY_CHOICES,
+    DepthFactory,
+    LogTopicNames,
+    RunInputs,
+    folder_depth_source,
+    prepare_run,
+)
 from slopedist.tracks import TRACKS_NAME
 
-ODOMETRY_BACKENDS = ("builtin", "orbslam3", "none")
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
-
-
-def build_odometry(
-    name: str,
-    camera: Camera,
-    vocab: Path | None = None,
-    lookback_s: float = LOOKBACK_S,
-    point_map: PointMap | None = None,
-) -> RotationOdometry:
-    """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
-
-    The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
-    look-back of the gradient) and maps its tracked points into the ideal ``camera`` with
-    ``point_map`` (lens distortion, fx ≠ fy); ORB-SLAM3 tracks a map and has neither setting.
-    """
-    if vocab is not None and name != "orbslam3":
-        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    if name == "orbslam3":
-        return make_odometry(name, camera, vocabulary=vocab)
-    if point_map is not None:
-        return make_odometry(name, camera, lookback_s=lookback_s, point_map=point_map)
-    return make_odometry(name, camera, lookback_s=lookback_s)
 
 
 @dataclass(frozen=True)
@@ -119,12 +79,12 @@ class DepthOptions:
     threads: int | None = None
 
 
-def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource | None:
-    """The depth source the options ask for (files or an ONNX model), or None.
+def depth_factory(opts: DepthOptions) -> DepthFactory | None:
+    """What builds the depth source the options ask for (files or an ONNX model), or None;
+    the options are checked here, before any input is opened.
 
     Raises:
         ConfigurationError: both a folder and a model, or model options without a model.
-        OptionalDependencyError: ``--depth-model`` without onnxruntime installed.
     """
     if opts.folder is not None and opts.model is not None:
         raise ConfigurationError("give either --depth-dir or --depth-model, not both")
@@ -143,9 +103,8 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
             f"{', '.join(stray)} configure an ONNX depth model: "
             "give it with --depth-model MODEL.onnx"
         )
-    width, height = frames.frame_size()
     if opts.folder is not None:
-        return FileDepthSource(opts.folder, missing_ok=True, expected_shape=(height, width))
+        return functools.partial(folder_depth_source, opts.folder)
     if opts.model is None:
         return None
     size = parse_size(opts.input_size, "--depth-input-size WIDTHxHEIGHT in pixels, e.g. 640x192")
@@ -166,46 +125,7 @@ def build_depth_source(opts: DepthOptions, frames: FrameSource) -> DepthSource |
         bgr_input=opts.bgr,
         threads=opts.threads,
     )
-    return OnnxDepthSource(config)
-
-
-def check_runnable(
-    estimator: Estimator,
-    has_depth: bool = False,
-    boxes: BoxTable | None = None,
-    logged_rotations: bool = False,
-) -> None:
-    """Fail for methods ``run`` cannot feed: those defined on another rotation source (IMU)
-    unless the rotations come from a log topic (``logged_rotations``), depth-map methods without
-    a depth source (or depth without a depth-map method), and the ``truth`` depth scaling
-    without a ground-truth column in the boxes."""
-    source = getattr(estimator, "rotation_source", None)
-    if source is not None and not logged_rotations:
-        raise ConfigurationError(
-            f"method '{estimator.name}' is defined on '{source}' rotations; slopedist run feeds "
-            "visual-odometry rotations from the frames, or a drive log's IMU / odometry topic "
-            "with --rotation-topic (or use slopedist estimate with pose files)"
-        )
-    if estimator.needs_depth and not has_depth:
-        raise ConfigurationError(
-            f"method '{estimator.name}' needs depth maps: give a folder of per-frame depth "
-            "files (--depth-dir DIR) or an ONNX depth model (--depth-model MODEL.onnx "
-            "--depth-input-size WxH)"
-        )
-    if has_depth and not estimator.needs_depth:
-        raise ConfigurationError(
-            f"--depth-dir / --depth-model feed depth-map methods; method '{estimator.name}' "
-            "does not use depth (use --method depthmap)"
-        )
-    if (
-        getattr(estimator, "scaling", None) is DepthScaling.TRUTH
-        and boxes is not None
-        and CSV_TRUTH_COLUMN not in boxes.extra
-    ):
-        raise ConfigurationError(
-            f"--depth-scaling truth needs the ground-truth distance column "
-            f"'{CSV_TRUTH_COLUMN}' in the box file"
-        )
+    return lambda _frames: OnnxDepthSource(config)  # needs onnxruntime (a clear error without)
 
 
 _DEPTH_SOURCE_OPTIONS = (
@@ -339,7 +259,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 )
 @click.option(
     "--odometry",
-    type=click.Choice(ODOMETRY_BACKENDS),
+    type=click.Choice(ODOMETRY_CHOICES),
     default="builtin",
     show_default=True,
     help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
@@ -449,28 +369,36 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     check_methods([method])
     if offline:
         method = offline_method(method)
-    source = open_source(frames, fps, timestamps, image_topic)
-    calibration = run_calibration(source, calib, height_m, math.radians(mount_angle_deg))
-    camera = with_frame_size(calibration.camera, source)
-    boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
-    boxes, detector = rectified_inputs(calibration, boxes, detector)
-    estimator = build_estimator(estimator_config.with_method(method), camera)
-    has_depth = depth_opts.folder is not None or depth_opts.model is not None
-    check_runnable(estimator, has_depth, boxes, rotation_topic is not None)
-    depth = build_depth_source(depth_opts, source)
-    backend = rotation_source(
-        source, rotation_topic, odometry, vocab, (camera, lookback_s, calibration.point_map)
+    model = detector_model
+    inputs = RunInputs(
+        frames,
+        calib,
+        boxes=boxes_path,
+        score=score,
+        detector=functools.partial(make_detector, model, **detector_opts) if model else None,
+        fps=fps,
+        timestamps=timestamps,
+        topics=LogTopicNames(image_topic, rotation_topic, speed_topic),
+        height_m=height_m,
+        mount_angle_deg=mount_angle_deg,
+        odometry=odometry,
+        vocab=vocab,
+        lookback_s=lookback_s,
+        estimator=estimator_config.with_method(method),
+        depth=depth_factory(depth_opts),
     )
+    prepared = prepare_run(inputs)
+    source = prepared.source
     overlay_path = (
         out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay") if overlay else None
     )
     overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
-    inputs = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
-    inputs += [vocab, detector_model]
+    paths = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
+    paths += [vocab, detector_model]
     mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
     tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
     shots = [snapshot_path(out_dir, k) for k in snapshots]
-    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path, *shots], inputs)
+    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path, *shots], paths)
     config = RunConfig(
         out_dir,
         lookback_s,
@@ -480,54 +408,13 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         sequence,
         mcap=mcap_path,
         trajectory=tum_path,
-        time_origin_ns=int(getattr(source, "t0_ns", 0)),
-        ego_speed=log_speed(source, speed_topic) if speed_topic else None,
+        time_origin_ns=prepared.time_origin_ns,
+        ego_speed=prepared.ego_speed,
         vehicle_classes=vehicle_classes,
         snapshots=snapshots,
     )
-    result = run_until_stopped(
-        lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config
-    )
+    result = run_until_stopped(lambda: prepared.run(config), config)
     click.echo(summary_text(result, out_dir), err=True)
-
-
-def run_calibration(
-    source: FrameSource, calib: Any, height_m: float, mount_rad: float
-) -> CameraCalibration:
-    """The ``--calib`` calibration (any form :func:`read_calibration` takes), else the drive
-    log's ``camera_info``."""
-    if calib is not None:
-        return read_calibration(calib, height_m, mount_rad)
-    return log_calibration(source, height_m, mount_rad)
-
-
-def rectified_inputs(
-    calibration: CameraCalibration, boxes: BoxTable, detector: Detector | None
-) -> tuple[BoxTable, Detector | None]:
-    """Boxes (and the detector's future boxes) mapped into the calibration's ideal camera."""
-    boxes = calibration.intrinsics.rectify_table(boxes)
-    if detector is not None and not calibration.intrinsics.is_ideal:
-        detector = RectifiedDetector(detector, calibration.intrinsics)
-    return boxes, detector
-
-
-def rotation_source(
-    source: FrameSource,
-    rotation_topic: str | None,
-    odometry: str,
-    vocab: Path | None,
-    visual: tuple[Camera, float, PointMap | None],
-) -> RotationOdometry | None:
-    """The run's rotations: a drive log's IMU/odometry topic, else the ``odometry`` backend on
-    the frames (``visual``: its camera, look-back in seconds and point map), else None."""
-    if odometry == "none" and vocab is not None:
-        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    if rotation_topic is not None:
-        return log_rotation_source(source, rotation_topic)
-    if odometry == "none":
-        return None
-    camera, lookback_s, point_map = visual
-    return build_odometry(odometry, camera, vocab, lookback_s, point_map)
 
 
 def check_run_outputs(
@@ -540,20 +427,6 @@ def check_run_outputs(
     outputs += [e for e in extras if e is not None]
     outputs += [partial_path(o) for o in outputs]
     check_outputs_spare_inputs(outputs, [p for p in inputs if isinstance(p, Path)], out_dir)
-
-
-def boxes_or_detector(
-    boxes_path: Path | None,
-    score: float | None,
-    detector_model: Path | None,
-    detector_opts: dict[str, Any],
-) -> tuple[BoxTable, Detector | None]:
-    """The box file's boxes, or no boxes and the ONNX detector (exactly one must be given)."""
-    if boxes_path is not None and detector_model is None:
-        return read_box_file(boxes_path, score), None
-    if detector_model is not None and boxes_path is None:
-        return BoxTable.empty(), make_detector(detector_model, **detector_opts)
-    raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
 def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
