@@ -15,8 +15,8 @@ from hypothesis import strategies as st
 
 from slopedist.depth.files import read_kitti_depth_png
 from slopedist.errors import InputFileError
-from slopedist.io.frames import FrameStatus, open_frames
 from slopedist.io import images
+from slopedist.io.frames import FrameStatus, open_frames
 from slopedist.io.images import (
     header_image_size,
     image_size_problem,
