@@ -1,4 +1,4 @@
-"""Frames decoded ahead, and overlays encoded behind, in background threads.
+"""Frames decoded ahead, and overlays drawn and encoded behind, in background threads.
 
 Decoding a frame (PNG inflate, H.264) runs in OpenCV without Python's global lock, so a thread
 that decodes the next frames while the odometry works on the current one lets a stream use a
