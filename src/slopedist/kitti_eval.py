@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.batch.engine import map_tasks
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import (
     DETECTOR_CLASSES,
@@ -75,6 +76,9 @@ class KittiEvalConfig:
     generic_detector_class: bool = False
     """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
     of vehicle types (option ``generic_classes``), unless its options say otherwise."""
+    workers: int = 1
+    """CPUs to run the sequences on: above 1, one Ray task per sequence
+    (:func:`slopedist.batch.engine.map_tasks`, the batch extra); the results are those of 1."""
 
     def options_of(self, method: str) -> dict[str, Any]:
         """Constructor options of ``method`` on this evaluation's boxes."""
@@ -407,20 +411,36 @@ class KittiEvaluation:
         return report
 
 
+def load_and_run(root: str | Path, name: str, cfg: KittiEvalConfig) -> SequenceRun:
+    """Load sequence ``name`` under ``root`` and run every method of ``cfg`` on it (one task
+    of a parallel evaluation)."""
+    return run_sequence(load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad), cfg)
+
+
 def run_kitti_tracking(
     root: str | Path,
     cfg: KittiEvalConfig,
     on_sequence: Callable[[str], None] | None = None,
 ) -> KittiEvaluation:
     """Run every method of ``cfg`` on the sequences it names under ``root`` (all when none),
-    calling ``on_sequence(name)`` before each."""
+    calling ``on_sequence(name)`` before each; with ``cfg.workers`` > 1 on Ray, one task per
+    sequence (``on_sequence`` as each is submitted).
+
+    Raises:
+        OptionalDependencyError: ``cfg.workers`` > 1 without the batch extra (Ray).
+    """
     names = check_run(root, cfg)
+    if cfg.workers > 1:
+        calls = [(Path(root).absolute(), name, cfg) for name in names]
+        announce = (lambda i: on_sequence(names[i])) if on_sequence is not None else None
+        purpose = f"--workers {cfg.workers} (one Ray task per sequence)"
+        results = map_tasks(load_and_run, calls, cfg.workers, purpose, announce)
+        return KittiEvaluation(replace(cfg, sequences=list(names)), dict(zip(names, results)))
     runs: dict[str, SequenceRun] = {}
     for name in names:
         if on_sequence is not None:
             on_sequence(name)
-        seq = load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad)
-        runs[name] = run_sequence(seq, cfg)
+        runs[name] = load_and_run(root, name, cfg)
     return KittiEvaluation(replace(cfg, sequences=list(names)), runs)
 
 

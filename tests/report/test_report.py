@@ -309,3 +309,26 @@ def test_runs_of_different_methods_on_one_sequence_are_grouped(tmp_path: Path) -
     (tmp_path / "again" / "run.json").write_text('{"sequence": "lead"}')
     with pytest.raises(ConfigurationError, match="method paper appears twice for sequence lead"):
         report_data(tmp_path, ReportOptions())
+
+
+def test_kitti_report_with_workers_is_that_of_one_worker(
+    kitti_tracking_dir: Path, ray_instance: object
+) -> None:
+    from dataclasses import replace
+
+    from slopedist.report.tables import metric_records
+
+    cfg = KittiEvalConfig(sequences=["0001", "0014"], methods=("flat", "paper", "imu", "ours"))
+    one = report_data(kitti_tracking_dir, ReportOptions(eval=cfg))
+    two = report_data(kitti_tracking_dir, ReportOptions(eval=replace(cfg, workers=2)))
+    assert one.records.names == two.records.names and len(one.records) > 0
+    for name in one.records.names:
+        np.testing.assert_equal(two.records.data[name], one.records.data[name], err_msg=name)
+    for name in one.theta.names:
+        np.testing.assert_equal(two.theta.data[name], one.theta.data[name], err_msg=name)
+    scores = [
+        [r for r in metric_records(d) if r["scope"] != "timing" and r["metric"] != "ms_per_frame"]
+        for d in (one, two)
+    ]
+    np.testing.assert_equal(scores[1], scores[0])
+    assert one.protocol == two.protocol

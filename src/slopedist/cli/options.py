@@ -362,8 +362,8 @@ computes the rotations from the frames and may detect the boxes)."""
 
 def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
-    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle`` and
-    ``--lookback`` — handed to the command as one ``kitti_config``
+    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
+    ``--lookback`` and ``--workers`` — handed to the command as one ``kitti_config``
     (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command adds its sequences, methods and
     method options with :func:`dataclasses.replace`)."""
     source_options = (
@@ -391,6 +391,14 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
         height_option,
         mount_option,
         lookback_option,
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            default=1,
+            show_default=True,
+            help=f"{prefix}Run the sequences on N CPUs, one Ray task per sequence (needs "
+            "pip install 'slopedist[batch]'); the results are those of 1.",
+        ),
     )
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
@@ -403,6 +411,7 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             height_m: float,
             mount_angle_deg: float,
             lookback_s: float,
+            workers: int,
             **kwargs: Any,
         ) -> Any:
             from slopedist.kitti_eval import KittiEvalConfig
@@ -414,6 +423,7 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
                 height_m=height_m,
                 mount_angle_rad=math.radians(mount_angle_deg),
                 lookback_s=lookback_s,
+                workers=workers,
             )
             return command(*args, **kwargs)
 

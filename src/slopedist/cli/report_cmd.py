@@ -17,6 +17,7 @@ from slopedist.cli.options import (
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
+    SUMMARY_TABLES,
     ReportOptions,
     SourceKind,
     detect_source,
@@ -77,8 +78,9 @@ def report(
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
-    """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
-    output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
+    """Write the comparison report of SOURCE: a KITTI tracking folder, `slopedist run`
+    output(s) or a `slopedist batch` output (the fleet report). Prints Table 1 (RMSE) and
+    Table 2 (time per frame), and for a batch the pooled fleet tables."""
     names = check_methods(split_list(methods) or [])
     kind = detect_source(source)
     cfg = dataclasses.replace(
@@ -96,9 +98,9 @@ def report(
         data, out_dir, opts.tracks, opts.n_tracks, parquet=False if no_parquet else None
     )
     for t in written.tables:
-        if t.key in ("table1_rmse", "table2_time"):
+        if t.key in SUMMARY_TABLES:
             click.echo(format_text(t) + "\n")
-    if kind is SourceKind.RUN and not data.has_truth:
+    if kind in (SourceKind.RUN, SourceKind.FLEET) and not data.has_truth:
         click.echo("no ground truth in the records: Table 1 is not available", err=True)
     click.echo(
         f"wrote {out_dir / 'report.html'}, {out_dir / 'report.md'} and "

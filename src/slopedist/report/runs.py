@@ -349,15 +349,18 @@ def _notes(names: list[str], truth_found: bool) -> list[str]:
     ]
 
 
-def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
-    """Read one ``slopedist run`` output folder, or a folder of them (one per sequence).
+def run_report_data(
+    root: str | Path, opts: ReportOptions, folders: Sequence[Path] | None = None
+) -> ReportData:
+    """Read one ``slopedist run`` output folder, or a folder of them (one per sequence);
+    ``folders``: the run folders to read (default: :func:`run_folders` of ``root``).
 
     Raises:
         InputFileError: a bad cell or a missing column (file, line, field), or no records.
         ConfigurationError: two runs of one method on one sequence.
     """
     root = Path(root)
-    folders = run_folders(root)
+    folders = list(folders) if folders is not None else run_folders(root)
     by_seq: dict[str, list[Path]] = {}
     for folder in folders:
         by_seq.setdefault(run_sequence_name(folder), []).append(folder)
