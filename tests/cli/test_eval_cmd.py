@@ -83,3 +83,27 @@ def test_workers_without_ray_name_the_extra(
         "slopedist: error: --workers 2 (one Ray task per sequence) needs the optional package "
         "'ray', which is not installed; install it with: pip install 'slopedist[batch]'"
     ]
+
+
+def test_the_learned_peer_row_and_a_declared_reference_from_the_command_line(
+    kitti_tracking_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out.json"
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0003"]
+    args += ["--methods", "flat,learned-peer", "--gt-reference", "centre", "--json", str(out)]
+    assert main(args) == 0
+    report = _strict(out.read_text())
+    assert report["protocol"]["ground_truth"]["reference"] == "centre"
+    assert "leave-one-sequence-out" in report["protocol"]["learned_peer"]
+    assert report["methods"]["learned-peer"]["overall"]["n"] > 0
+    printed = capsys.readouterr().out
+    assert "learned-peer: trained leave-one-sequence-out" in printed
+    assert "Truth refers to the vehicle's centre; methods compared at the truth's" in printed
+
+
+def test_an_unknown_method_names_the_learned_peer_among_the_choices(
+    kitti_tracking_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "nope"]
+    assert main(args) != 0
+    assert "learned-peer" in capsys.readouterr().err

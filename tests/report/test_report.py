@@ -332,3 +332,27 @@ def test_kitti_report_with_workers_is_that_of_one_worker(
     ]
     np.testing.assert_equal(scores[1], scores[0])
     assert one.protocol == two.protocol
+
+
+@pytest.mark.kitti
+def test_the_learned_peer_row_in_the_kitti_report(tmp_path: Path) -> None:
+    """The report's peer row is the evaluation's, with its training protocol in the notes and
+    no rotation; a declared truth reference reaches the notes."""
+    from slopedist.estimators.base import ReferencePoint
+    from slopedist.learned_peer import PEER_METHOD
+
+    kitti = shared_data_path("kitti_tracking")
+    cfg = KittiEvalConfig(
+        sequences=["0003"], methods=("flat", PEER_METHOD), gt_reference=ReferencePoint.CENTRE
+    )
+    data = report_data(kitti, ReportOptions(eval=cfg))
+    ref = evaluate_kitti_tracking(kitti, cfg)
+    assert data.overall[PEER_METHOD]["rmse"] == pytest.approx(
+        ref["methods"][PEER_METHOD]["overall"]["rmse"]
+    )
+    notes = " ".join(data.notes)
+    assert "leave-one-sequence-out" in notes and "learned-peer = none" in notes
+    assert "referring to the vehicle's centre" in notes
+    written = write_report(data, tmp_path / "o", parquet=False)
+    assert PEER_METHOD in (tmp_path / "o" / "report.md").read_text()
+    assert written.files
