@@ -518,8 +518,9 @@ def test_depth_and_method_must_match(tmp_path: Path) -> None:
 
 
 def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
-    """The default run decodes frames in a background thread; its records and frame log are
-    those of a run decoding in the loop (timings aside)."""
+    """The default run decodes frames in a background thread and draws and writes the overlay
+    in another; its records, frame log and overlay images are those of a run doing everything
+    in the loop (timings aside)."""
     n = 12
     folder = make_frames(tmp_path / "f", n, skip=(5,))
     outputs = []
@@ -530,12 +531,14 @@ def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
             boxes_every_frame(n),
             ScriptedOdometry(),
             make_estimator("ego", CAM),
-            RunConfig(out, progress=False, decode_ahead=ahead),
+            RunConfig(out, overlay=out / "overlay", progress=False, decode_ahead=ahead),
         )
         frames = read_csv(out / "frames.csv")
         for row in frames:
             for key in ("odometry_ms", "estimation_ms", "depth_ms"):
                 row.pop(key)
-        outputs.append((read_csv(out / "records.csv"), frames))
+        pngs = {p.name: p.read_bytes() for p in sorted((out / "overlay").glob("*.png"))}
+        outputs.append((read_csv(out / "records.csv"), frames, pngs))
     assert outputs[0] == outputs[1]
+    assert len(outputs[0][2]) == n - 1  # the missing frame has no image
     assert len(outputs[0][1]) == n and outputs[0][1][5]["frame_status"] == "missing"

@@ -44,6 +44,7 @@ Convention: θ in radians inside, degrees in the CSV files; timestamps in second
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections import Counter
@@ -375,9 +376,20 @@ class _RunLoop:
         head = f"frame {k}  t {t:.2f} s"
         if not math.isfinite(theta):
             head += f"  no rotation ({state or 'no odometry'})"
-        image = draw_fig3_overlay(
-            frame.image, self.camera, frame_boxes, res.estimates, theta, head, self.method
+        draw = functools.partial(
+            draw_fig3_overlay,
+            frame.image,
+            self.camera,
+            frame_boxes,
+            res.estimates,
+            theta,
+            head,
+            self.method,
         )
+        if isinstance(self.painter, BackgroundOverlay) and not snapshot:
+            self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread
+            return
+        image = draw()
         if self.painter is not None:
             self.painter.write(k, image, t)
         if snapshot:
