@@ -391,7 +391,7 @@ class _RunLoop:
             frame.source,
             frame.status.value,
             frame.image,
-            frame_boxes,
+            in_frame_pixels(frame_boxes),  # annotations of the source image
             res.estimates,
             res.theta_rad,
             lead_index(self.camera, frame_boxes, res.estimates),
