@@ -385,6 +385,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 def run(  # noqa: PLR0913 (a click command: one parameter per option)
     frames: Path,
     calib: Path | Intrinsics | None,
+    image_size: tuple[int, int] | None,
     image_topic: str | None,
     rotation_topic: str | None,
     speed_topic: str | None,
@@ -424,7 +425,8 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     method = method or DEFAULT_METHOD
     check_methods([method])
     source = open_source(frames, fps, timestamps, image_topic)
-    calibration = run_calibration(source, calib, height_m, math.radians(mount_angle_deg))
+    mount = (height_m, math.radians(mount_angle_deg))
+    calibration = run_calibration(source, calib, *mount, image_size)
     camera = with_frame_size(calibration.camera, source)
     boxes, detector = boxes_or_detector(boxes_path, score, detector_model, detector_opts)
     boxes, detector = rectified_inputs(calibration, boxes, detector)
@@ -464,13 +466,17 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
 
 
 def run_calibration(
-    source: FrameSource, calib: Any, height_m: float, mount_rad: float
+    source: FrameSource,
+    calib: Any,
+    height_m: float,
+    mount_rad: float,
+    image_size: tuple[int, int] | None = None,
 ) -> CameraCalibration:
     """The ``--calib`` calibration (any form :func:`read_calibration` takes), else the drive
-    log's ``camera_info``."""
-    if calib is not None:
-        return read_calibration(calib, height_m, mount_rad)
-    return log_calibration(source, height_m, mount_rad)
+    log's ``camera_info``; ``image_size`` (``--image-size``) completes or is checked against it."""
+    if calib is None:
+        calib = log_calibration(source, height_m, mount_rad).intrinsics
+    return read_calibration(calib, height_m, mount_rad, image_size=image_size)
 
 
 def rectified_inputs(

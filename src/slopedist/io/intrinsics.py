@@ -91,6 +91,23 @@ class Intrinsics:
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
         return cls(K, np.asarray(dist, dtype=float), image_size=image_size)
 
+    def with_image_size(self, image_size: tuple[int, int] | None) -> Intrinsics:
+        """These intrinsics for images of ``image_size`` (width, height; pixels); unchanged
+        when None.
+
+        Raises:
+            ConfigurationError: the intrinsics state another size.
+        """
+        if image_size is None or self.image_size == tuple(image_size):
+            return self
+        width, height = (int(v) for v in image_size)
+        if self.image_size is not None:
+            raise ConfigurationError(
+                f"the calibration is for {self.image_size[0]}×{self.image_size[1]} px images, "
+                f"not {width}×{height} px as given"
+            )
+        return replace(self, image_size=(width, height))
+
     @property
     def ideal_K(self) -> NDArray[np.float64]:
         """K of the ideal camera boxes are mapped to: ``f = fy``, same principal point."""
