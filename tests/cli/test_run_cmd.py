@@ -293,7 +293,8 @@ def test_image_size_completes_the_intrinsics_flags(
     yaml = tmp_path / "cam.yaml"
     yaml.write_text(
         "%YAML:1.0\n---\nimage_width: 320\nimage_height: 200\ncamera_matrix: !!opencv-matrix\n"
-        "   rows: 3\n   cols: 3\n   dt: d\n   data: [ 500., 0., 160., 0., 500., 100., 0., 0., 1. ]\n"
+        "   rows: 3\n   cols: 3\n   dt: d\n"
+        "   data: [ 500., 0., 160., 0., 500., 100., 0., 0., 1. ]\n"
     )
     args[i : i + 8] = ["--calib", str(yaml)]
     assert (
