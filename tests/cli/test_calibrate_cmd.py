@@ -65,7 +65,9 @@ def test_calibrate_recovers_a_wrong_calibration(
     )
     assert code == 0
     text = capsys.readouterr().out
-    assert "use: --mount-angle" in text
+    # 15 s of 10 cars: the estimate finds the truth, but not 5σ from the configured mount
+    # (ADVISE_Z), so the advice is to keep it, with the reason
+    assert "within 5σ" in text and "no advice: keep the configured mount" in text
     final = json.loads(out.read_text())["final"]
     assert final["mount_angle_deg"] == pytest.approx(0.0, abs=0.3)
     assert final["height_m"] == pytest.approx(1.65, rel=0.05)
