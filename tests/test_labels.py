@@ -4,13 +4,25 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from slopedist import viz
-from slopedist.labels import Rect, box_rect, candidate_spots, place_labels
+from slopedist.labels import (
+    COVER_COST_PX,
+    LINE_COST_PX,
+    Placement,
+    Rect,
+    SpotGrid,
+    box_rect,
+    candidate_grid,
+    grid_costs,
+    layout_labels,
+    place_labels,
+)
 
 W, H = 1242, 375
 
@@ -49,8 +61,46 @@ def test_reserved_areas_are_avoided() -> None:
 
 
 def test_spots_start_next_to_the_box() -> None:
-    spots = candidate_spots(Rect(100, 100, 150, 140), 60, 30)
-    assert spots[0].left == 153 and spots[1].bottom == 97  # right of it, then above it
+    grid = candidate_grid(Rect(100, 100, 150, 140), 60, 30)
+    assert (grid.xs[0], grid.ys[0]) == (153, 100)  # right of it, top-aligned first
+    assert {37, 153} <= set(grid.xs) and {67, 143} <= set(grid.ys)  # left, right; above, below
+    assert 110 in grid.ys  # slid down the side by half the label's height
+    assert max(grid.xs) == 153 + 6 * 33 and min(grid.ys) == 67 - 6 * 33  # pushed 6 steps out
+
+
+def test_costs_hand_computed() -> None:
+    own = Rect(100, 100, 150, 140)
+    other = Rect(153, 100, 183, 130)  # covers half of a 60×30 label right of the box
+    boxes = np.array([[*vars(own).values()], [*vars(other).values()]], float)
+    weights = np.array([0.0, COVER_COST_PX / 1800])
+    grid = SpotGrid([153, 173], [100])  # touching; 20 px further right
+    cost = grid_costs(grid, (60, 30), own, boxes, weights, None)
+    np.testing.assert_allclose(cost, [[COVER_COST_PX / 2, 20 + COVER_COST_PX / 6]])
+    crossed = grid_costs(grid, (60, 30), own, boxes, weights, 129)  # row 129 crosses both
+    np.testing.assert_allclose(crossed - cost, LINE_COST_PX)
+
+
+def test_first_label_takes_the_best_spot() -> None:
+    boxes = [[100, 100, 150, 140], [100, 100, 150, 140]]
+    first, second = layout_labels(boxes, [[(60, 30)], [(60, 30)]], (W, H))
+    assert first is not None and second is not None
+    assert first.rect == Rect(153, 100, 213, 130) and first.gap_px == 0.0
+    assert not second.rect.intersects(first.rect)
+
+
+def test_shorter_form_when_the_full_one_has_no_room() -> None:
+    box = [100, 40, 140, 60]  # free room only in a 50×20 strip right of the box
+    reserved = [Rect(0, 0, 300, 40), Rect(0, 60, 300, 100), Rect(0, 40, 100, 60)]
+    reserved.append(Rect(190, 40, 300, 60))
+    (p,) = layout_labels([box], [[(80, 34), (45, 16)]], (300, 100), reserved)
+    assert p == Placement(Rect(143, 40, 188, 56), 1, 0.0)
+
+
+def test_anywhere_in_the_image_when_nothing_near_the_box_is_free() -> None:
+    (p,) = layout_labels([[10, 40, 50, 60]], [[(40, 16)]], (400, 100), [Rect(0, 0, 300, 100)])
+    assert p is not None and p.rect.left == 300 and p.gap_px > 240  # a leader line's job
+    (none,) = layout_labels([[10, 40, 50, 60]], [[(40, 16)]], (400, 100), [Rect(0, 0, 400, 100)])
+    assert none is None  # only a full image leaves a label out
 
 
 @settings(max_examples=60, deadline=None)
@@ -67,38 +117,51 @@ def test_random_crowds_never_overlap(raw: list[tuple[int, int, int, int]]) -> No
     boxes = [[x, y, min(x + w, W - 1), min(y + h, H - 1)] for x, y, w, h in raw]
     rects = place_labels(boxes, [(74, 34)] * len(boxes), (W, H))
     assert_no_overlap(rects)
-    assert all(r is None or r.inside(W, H) for r in rects)
+    assert all(r is not None and r.inside(W, H) for r in rects)  # room is left: all placed
 
 
-def test_real_lidar_boxes_labels_never_overlap(kitti_raw_lead_dir: Path) -> None:
-    from slopedist.datasets.kitti_raw import (
-        KittiRawDrive,
-        lidar_vehicle_boxes,
-        link_tracks,
-        read_velodyne,
-    )
+def test_every_label_on_the_real_lidar_boxes(kitti_raw_lead_dir: Path) -> None:
+    """All 78 kitti_raw_lead frames with their LiDAR boxes through the real overlay: every box
+    with a distance (ok or upper bound) gets a label inside the image, none overlap, the lead
+    vehicle's label touches its box, and few labels need a leader line or a shorter form."""
+    from slopedist.datasets.kitti_raw import KittiRawDrive
+    from slopedist.estimators import make_estimator
+    from slopedist.estimators.base import FrameInput
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
-    ks = range(0, 78, 6)
-    boxes = link_tracks(
-        [
-            lidar_vehicle_boxes(read_velodyne(drive.velodyne_paths[k]), drive.calib, (W, H), k)
-            for k in ks
-        ]
-    )
-    by_frame = boxes.frame_index()
-    placed = total = 0
-    for k in ks:
-        fb = by_frame[k]
-        texts = [
-            [f"#{int(t)} {float(z):.1f} m  cut", "dy +12 px"]
-            for t, z in zip(fb.track_id, fb.extra["z"])
-        ]
-        sizes = [viz._text_block_size(t, viz.LABEL_SCALE)[:2] for t in texts]
-        order = np.argsort(fb.extra["z"])
-        rects = place_labels(fb.boxes[order], [sizes[i] for i in order], (W, H))
-        assert_no_overlap(rects)
-        placed += sum(r is not None for r in rects)
-        total += len(rects)
-    assert total >= 9 * len(ks)  # about ten boxes per frame
-    assert placed / total > 0.9, f"only {placed} of {total} labels found room"
+    camera = drive.calib.camera().with_image_size(W, H)
+    by_frame = drive.lidar_boxes((W, H)).frame_index()
+    estimator = make_estimator("ours", camera)
+    image = np.zeros((H, W, 3), np.uint8)
+    layouts: list[list[Placement | None]] = []
+    real = viz._draw_labels
+
+    def keep(*args: object) -> list[Placement | None]:
+        layouts.append(real(*args))  # type: ignore[arg-type]
+        return layouts[-1]
+
+    statuses: list[str] = []
+    lead_gaps: list[float] = []
+    with mock.patch.object(viz, "_draw_labels", keep):
+        for k in range(78):
+            boxes = by_frame[k]
+            est = estimator.estimate(FrameInput(k, 0.1 * k, 0.0, boxes))
+            viz.draw_fig3_overlay(image, camera, boxes, est, 0.0, f"frame {k}", "ours")
+            statuses += list(est.status)
+            lead = viz.lead_index(camera, boxes, est)
+            if lead is not None:
+                placement = layouts[-1][lead]
+                assert placement is not None
+                lead_gaps.append(placement.gap_px)
+    placements = [p for layout in layouts for p in layout]
+    assert len(placements) >= 9 * 78  # about ten boxes per frame
+    assert {"ok", "upper_bound"} <= set(statuses)
+    for layout in layouts:
+        assert_no_overlap([p.rect if p else None for p in layout])
+    missing = [s for p, s in zip(placements, statuses) if p is None]
+    assert not [s for s in missing if s in ("ok", "upper_bound")], f"unlabelled: {missing}"
+    assert all(p is None or p.rect.inside(W, H) for p in placements)
+    assert len(lead_gaps) > 70 and max(lead_gaps) == 0.0  # the lead's label touches its box
+    detached = sum(p is not None and p.gap_px > viz.LEADER_MIN_PX for p in placements)
+    short = sum(p is not None and p.form > 0 for p in placements)
+    assert detached < 0.3 * len(placements) and short < 0.1 * len(placements)

@@ -21,7 +21,7 @@ from slopedist.estimators import make_estimator
 from slopedist.io.frames import open_frames
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.odometry.base import OdometryResult, OdometryState
-from slopedist.run_config import RunAbortedError, RunConfig
+from slopedist.run_config import SNAPSHOT_QUALITY, RunAbortedError, RunConfig
 from slopedist.runner import run_frames
 
 W, H = 320, 200
@@ -227,6 +227,29 @@ def test_cli_run_writes_outputs(
     assert "wrote 10 records" in err and "frames/s" in err
     assert len(read_csv(out / "records.csv")) == 10
     assert len(list((out / "overlay").glob("*.png"))) == 5
+
+
+def test_cli_snapshot_is_the_overlay_frame_as_jpeg(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    frames, calib, boxes = _cli_setup(tmp_path)
+    monkeypatch.setattr(run_cmd, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    base = ["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--quiet"]
+    with_overlay = tmp_path / "a"
+    args = ["--overlay", "--overlay-format", "png", "--snapshot", "3"]
+    assert main([*base, "--out", str(with_overlay), *args]) == 0
+    snapshot = cv2.imread(str(with_overlay / "snapshot_000003.jpg"))
+    overlay = cv2.imread(str(with_overlay / "overlay" / "000003.png"))
+    _, jpeg = cv2.imencode(".jpg", overlay, [cv2.IMWRITE_JPEG_QUALITY, SNAPSHOT_QUALITY])
+    np.testing.assert_array_equal(snapshot, cv2.imdecode(jpeg, cv2.IMREAD_COLOR))
+    alone = tmp_path / "b"  # without --overlay: only the snapshots
+    assert main([*base, "--out", str(alone), "--snapshot", "1", "--snapshot", "4"]) == 0
+    assert sorted(p.name for p in alone.glob("snapshot_*")) == [
+        "snapshot_000001.jpg",
+        "snapshot_000004.jpg",
+    ]
+    assert not (alone / "overlay").exists() and not (alone / "overlay.mp4").exists()
+    assert f"export: {alone / 'snapshot_000004.jpg'}" in capsys.readouterr().err
 
 
 def test_cli_bad_inputs_exit_2_with_a_message(

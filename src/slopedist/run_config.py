@@ -28,6 +28,15 @@ MCAP_NAME = "run.mcap"
 TRAJECTORY_NAME = "trajectory.tum"
 
 
+SNAPSHOT_QUALITY = 92
+"""JPEG quality of a snapshot image (``run --snapshot``)."""
+
+
+def snapshot_path(out_dir: Path, frame_index: int) -> Path:
+    """``OUT/snapshot_NNNNNN.jpg``: the overlay of one frame as a JPEG (``run --snapshot``)."""
+    return out_dir / f"snapshot_{frame_index:06d}.jpg"
+
+
 class RunExport(str, Enum):
     """Optional outputs for viewers (``slopedist run --export``)."""
 
@@ -127,7 +136,8 @@ class RunResult:
         detection_ms_mean: mean detection time per frame, milliseconds.
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
-        overlay: overlay path, or None; ``exports``: the MCAP / TUM files written.
+        overlay: overlay path, or None; ``exports``: the MCAP / TUM files and snapshot images
+            written.
         complete: whether every frame was processed.
         last_complete_frame: index of the last frame whose rows are all written (None: none).
         error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
@@ -210,6 +220,8 @@ class RunConfig:
         stop: checked after every frame; once its ``signum`` is set the run ends there
             (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
             :class:`RunStoppedError`.
+        snapshots: frame indices whose overlay is also written as a JPEG
+            (:func:`snapshot_path`), with or without ``overlay``.
         decode_ahead: frames decoded ahead in a background thread
             (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
             odometry works), and overlay frames queued for encoding in another
@@ -229,3 +241,4 @@ class RunConfig:
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
     stop: StopFlag = field(default_factory=StopFlag)
     decode_ahead: int = DEFAULT_AHEAD
+    snapshots: tuple[int, ...] = ()

@@ -80,6 +80,7 @@ from slopedist.run_config import (
     FRAME_FIELDS,
     FRAMES_NAME,
     RECORDS_NAME,
+    SNAPSHOT_QUALITY,
     SUMMARY_NAME,
     RunAbortedError,
     RunConfig,
@@ -87,6 +88,7 @@ from slopedist.run_config import (
     RunResult,
     default_sequence_name,
     describe_depth,
+    snapshot_path,
 )
 from slopedist.tracks import TRACKS_NAME, TrackSummaries
 from slopedist.viz import draw_fig3_overlay, lead_index
@@ -361,11 +363,15 @@ class _RunLoop:
         return n_est
 
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
-        if self.painter is None:
-            return
+        """The frame's overlay: to the overlay video or folder, and as a snapshot JPEG when
+        asked for."""
         k, t = frame.index, frame.timestamp_s
+        snapshot = k in self.config.snapshots
+        if self.painter is None and not snapshot:
+            return
         if frame.image is None:
-            self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
+            if self.painter is not None:
+                self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
             return
         theta = res.theta_rad
         head = f"frame {k}  t {t:.2f} s"
@@ -375,7 +381,13 @@ class _RunLoop:
         image = draw_fig3_overlay(
             frame.image, self.camera, drawn, res.estimates, theta, head, self.method
         )
-        self.painter.write(k, image, t)
+        if self.painter is not None:
+            self.painter.write(k, image, t)
+        if snapshot:
+            path = snapshot_path(Path(self.config.out_dir), k)
+            if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, SNAPSHOT_QUALITY]):
+                raise OutputWriteError(path, OSError(f"OpenCV could not write {path.name}"))
+            self.result.exports.append(str(path))
 
     def _export(
         self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, odo: _OdometryOutput

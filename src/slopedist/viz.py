@@ -21,7 +21,7 @@ from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.estimators.base import FrameEstimates
-from slopedist.labels import Rect, box_rect, place_labels
+from slopedist.labels import Placement, Rect, box_rect, layout_labels
 
 # --- Fig. 3 overlay (paper style) -------------------------------------------------------------
 
@@ -81,6 +81,13 @@ def outlined_text(
 
 LABEL_SCALE = 0.45
 """Font scale of the box labels (Hershey simplex)."""
+
+SMALL_LABEL_SCALE = 0.38
+"""Font scale of a label's last, smallest form (Hershey simplex; still readable on a
+1242-pixel-wide frame)."""
+
+LEADER_MIN_PX = 5.0
+"""A label further than this from its box (beyond the layout's gap) gets a leader line."""
 
 TRACK_COLOURS = (
     (255, 160, 0),
@@ -152,18 +159,26 @@ def _motion_text(estimates: FrameEstimates, i: int) -> str:
     return "  ".join(parts)
 
 
-def _label_lines(boxes: BoxTable, estimates: FrameEstimates, i: int, cut: bool) -> list[str]:
+def _label_forms(
+    boxes: BoxTable, estimates: FrameEstimates, i: int, cut: bool
+) -> list[tuple[list[str], float]]:
+    """The forms of box ``i``'s label, best first, as ``(lines, font scale)``: the full one
+    (``#track distance m`` or ``<= bound m (reason)`` or ``missing: reason``, ``cut``, and
+    Δy), the distance alone on one line, and that line in :data:`SMALL_LABEL_SCALE`."""
     tid = int(boxes.track_id[i])
     name = f"#{tid} " if tid >= 0 else ""
     dy = float(estimates.delta_y_px[i])
     dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
+    z = float(estimates.distance_m[i])
     if estimates.status[i] == "ok":
-        first = f"{name}{float(estimates.distance_m[i]):.1f} m"
+        first = short = f"{name}{z:.1f} m"
     elif estimates.status[i] == "upper_bound":  # a bound, not a distance to trust
-        first = f"{name}<= {float(estimates.distance_m[i]):.1f} m ({estimates.reason[i]})"
+        first = f"{name}<= {z:.1f} m ({estimates.reason[i]})"
+        short = f"{name}<={z:.1f} m"
     else:
-        first = f"{name}missing: {estimates.reason[i]}"
-    return [first + ("  cut" if cut else ""), dy_text]
+        first, short = f"{name}missing: {estimates.reason[i]}", f"{name}missing"
+    full = [first + ("  cut" if cut else ""), dy_text]
+    return [(full, LABEL_SCALE), ([short], LABEL_SCALE), ([short], SMALL_LABEL_SCALE)]
 
 
 def _text_block_size(lines: list[str], scale: float) -> tuple[int, int, int]:
@@ -191,31 +206,36 @@ def _draw_box(
 def _draw_labels(
     out: NDArray[np.uint8],
     boxes: BoxTable,
-    texts: list[list[str]],
+    forms: list[list[tuple[list[str], float]]],
     colours: list[tuple[int, int, int]],
     order: list[int],
-    reserved: list[Rect],
-) -> list[Rect | None]:
-    """Lay out (:func:`slopedist.labels.place_labels`, in ``order``) and draw the labels;
-    returns each box's label rectangle (None where it found no room)."""
-    blocks = [_text_block_size(texts[i], LABEL_SCALE) for i in order]
-    rects = place_labels(
-        boxes.boxes[order], [(w, h) for w, h, _ in blocks], (out.shape[1], out.shape[0]), reserved
+    keep_clear: tuple[list[Rect], int | None],
+) -> list[Placement | None]:
+    """Lay out (:func:`slopedist.labels.layout_labels`, in ``order``, off the ``keep_clear``
+    rectangles and rather not across its row) and draw the labels; returns each box's
+    placement (None where the image had no room left)."""
+    blocks = [[_text_block_size(lines, scale) for lines, scale in forms[i]] for i in order]
+    reserved, clear_row = keep_clear
+    placements = layout_labels(
+        boxes.boxes[order],
+        [[(w, h) for w, h, _ in b] for b in blocks],
+        (out.shape[1], out.shape[0]),
+        reserved,
+        clear_row,
     )
-    placed: list[Rect | None] = [None] * len(boxes)
-    for i, rect, (_, _, line_h) in zip(order, rects, blocks):
-        placed[i] = rect
-        if rect is None:
+    placed: list[Placement | None] = [None] * len(boxes)
+    for i, p, block in zip(order, placements, blocks):
+        placed[i] = p
+        if p is None:
             continue
-        own = box_rect(boxes.boxes[i])
-        if not rect.intersects(own):  # a leader line between the nearest points
+        rect, (lines, scale), line_h = p.rect, forms[i][p.form], block[p.form][2]
+        if p.gap_px > LEADER_MIN_PX:  # a leader line between the nearest points
+            own = box_rect(boxes.boxes[i])
             a = _nearest_point(rect, ((own.left + own.right) // 2, (own.top + own.bottom) // 2))
-            b = _nearest_point(own, a)
-            if abs(a[0] - b[0]) + abs(a[1] - b[1]) > 8:
-                cv2.line(out, a, b, colours[i], 1, cv2.LINE_AA)
+            cv2.line(out, a, _nearest_point(own, a), colours[i], 1, cv2.LINE_AA)
         y = rect.top + line_h - 3
-        for text in texts[i]:
-            outlined_text(out, text, (rect.left + 2, y), LABEL_SCALE, colours[i])
+        for text in lines:
+            outlined_text(out, text, (rect.left + 2, y), scale, colours[i])
             y += line_h
     return placed
 
@@ -244,14 +264,16 @@ def draw_fig3_overlay(
     """Annotate a frame in the style of the paper's Fig. 3; returns a new image.
 
     Draws each box in its track's colour (:func:`track_colour`; dashed when the image border
-    cuts it, :func:`is_cut`), a dashed yellow line at each box's vertical centre ``b_y``, and a
-    label per box — ``#track distance m`` (or ``missing: reason``) and Δy (px, eq. 6) — laid
-    out by :func:`slopedist.labels.place_labels` so that no two labels overlap (nearest target
-    first; a leader line joins a label set away from its box). The lead vehicle
-    (:func:`lead_index`) gets a yellow frame and a banner under the header with its distance,
-    relative speed and TTC where the method gives them. Last and on top, the vanishing line of
-    the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green line. Hershey fonts have no
-    Greek letters, so Δy is written ``dy`` and θ ``theta``.
+    cuts it, :func:`is_cut`), a dashed yellow line at each box's vertical centre ``b_y``, the
+    vanishing line of the ego gradient (eq. 5, ``v = c_y − f·tan θ``) as a solid green line,
+    and, last and on top, a label per box — ``#track distance m`` (or ``missing: reason``) and
+    Δy (px, eq. 6) — laid out by :func:`slopedist.labels.layout_labels` so that no two labels
+    overlap: the lead vehicle first, then the nearest targets; a leader line joins a label set
+    away from its box; where the full label finds no room, the distance alone on one line, in a
+    smaller font as a last resort (:func:`_label_forms`). The lead vehicle (:func:`lead_index`)
+    gets a yellow frame and a banner under the header with its distance, relative speed and TTC
+    where the method gives them. Hershey fonts have no Greek letters, so Δy is written ``dy``
+    and θ ``theta``.
 
     Args:
         image: BGR ``H×W×3`` (or grey ``H×W``) uint8 frame; not modified.
@@ -283,23 +305,31 @@ def draw_fig3_overlay(
         _draw_box(out, boxes.boxes[i], colours[i] if ok else FIG3_MISSING, cut[i])
     lead = lead_index(camera, boxes, estimates)
     reserved = _draw_header(out, _header_text(header, method, theta_rad), boxes, estimates, lead)
-    texts = [_label_lines(boxes, estimates, i, cut.get(i, False)) for i in range(len(boxes))]
+    forms = [_label_forms(boxes, estimates, i, cut.get(i, False)) for i in range(len(boxes))]
     label_colours = [
         FIG3_MISSING if estimates.status[i] != "ok" else FIG3_TEXT if t < 0 else colours[i]
         for i, t in enumerate(boxes.track_id)
     ]
-    order = sorted(valid, key=lambda i: (i != lead, _distance_key(estimates, i)))
-    _draw_labels(out, boxes, texts, label_colours, order, reserved)
-    if math.isfinite(theta_rad):
-        row = round(float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)))
-        if 0 <= row < h:
-            cv2.line(out, (0, row), (w - 1, row), FIG3_GREEN, 2, cv2.LINE_8)
+    order = sorted(valid, key=lambda i: _label_priority(estimates, i, lead))
+    row = (
+        round(float(geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)))
+        if math.isfinite(theta_rad)
+        else None
+    )
+    if row is not None and 0 <= row < h:
+        cv2.line(out, (0, row), (w - 1, row), FIG3_GREEN, 2, cv2.LINE_8)
+    _draw_labels(out, boxes, forms, label_colours, order, (reserved, row))
     return out
 
 
-def _distance_key(estimates: FrameEstimates, i: int) -> float:
+def _label_priority(estimates: FrameEstimates, i: int, lead: int | None) -> tuple[int, float]:
+    """Order in which the labels are laid out: the lead vehicle, the targets with a distance
+    (nearest first), then those with an upper bound (smallest first), then the rest."""
+    if i == lead:
+        return 0, 0.0
     z = float(estimates.distance_m[i])
-    return z if estimates.reason[i] == "" and math.isfinite(z) else math.inf
+    rank = {"ok": 1, "upper_bound": 2}.get(str(estimates.status[i]), 3)
+    return rank, z if math.isfinite(z) else math.inf
 
 
 def _draw_header(

@@ -48,6 +48,8 @@ def test_mot_gt_txt_drops_ignored_rows_and_names_classes(tmp_path: Path) -> None
         ("1,-1,10,20,30,40,0.9,-1,-1,-1\n1,-1,x,20,30,40,0.9,-1,-1,-1\n", 2, "left"),
         ("1.5,-1,10,20,30,40,0.9\n", 1, "frame"),
         ("0,-1,10,20,30,40,0.9\n", 1, "frame"),
+        ("1,-1,10,20,30,40,0.9\n2,-1,1e308,161.7,158.5,130.6,0.9\n", 2, "left,top,width,height"),
+        ("1,-1,9e5,20,2e5,40,0.9\n", 1, "left,top,width,height"),
         ("1,2,3\n", 1, None),
     ],
 )
@@ -101,6 +103,7 @@ def test_coco_dataset_file_maps_images_by_file_name_and_categories_by_name(tmp_p
         ([{"image_id": 1, "bbox": [0, 0, 1, 1]}], "[0].category_id"),
         ([{"image_id": 1, "category_id": 3, "bbox": [0, 0, 1, 1], "score": "x"}], "[0].score"),
         ([7], "[0]"),
+        ([{"image_id": 1, "category_id": 3, "bbox": [0, 0, 1e300, 1]}], "[0].bbox"),
     ],
 )
 def test_coco_errors_name_the_element_and_field(tmp_path: Path, items: list, field: str) -> None:
@@ -137,6 +140,9 @@ def test_yolo_errors(tmp_path: Path) -> None:
     _write(tmp_path / "c" / "frame.txt", "2 0.5 0.5 0.25 0.5\n")
     with pytest.raises(InputFileError, match="must end with the frame number"):
         read_yolo_folder(tmp_path / "c", (10, 10))
+    _write(tmp_path / "d" / "000001.txt", "2 0.5 0.5 1e300 0.5\n")
+    with pytest.raises(InputFileError, match=r"line 1.*not a pixel box"):
+        read_yolo_folder(tmp_path / "d", (10, 10))
     with pytest.raises(ConfigurationError, match="image size"):
         read_yolo_folder(tmp_path / "a", (0, 10))
     with pytest.raises(MissingInputError):

@@ -66,6 +66,7 @@ from slopedist.run_config import (
     RunConfig,
     RunExport,
     RunResult,
+    snapshot_path,
 )
 from slopedist.runner import run_frames
 from slopedist.tracks import TRACKS_NAME
@@ -354,6 +355,14 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
 )
 @click.option(
+    "--snapshot",
+    "snapshots",
+    type=click.IntRange(min=0),
+    multiple=True,
+    help="Also write the overlay of frame N as OUT/snapshot_NNNNNN.jpg (with or without "
+    "--overlay). Repeatable.",
+)
+@click.option(
     "--fps",
     type=click.FloatRange(min=0, min_open=True),
     default=None,
@@ -398,6 +407,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     out_dir: Path,
     overlay: bool,
     overlay_format: str,
+    snapshots: tuple[int, ...],
     fps: float | None,
     timestamps: Path | None,
     score: float | None,
@@ -445,7 +455,8 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     inputs += [vocab, detector_model]
     mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
     tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
-    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path], inputs)
+    shots = [snapshot_path(out_dir, k) for k in snapshots]
+    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path, *shots], inputs)
     config = RunConfig(
         out_dir,
         lookback_s,
@@ -458,6 +469,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
         ego_speed=log_speed(source, speed_topic) if speed_topic else None,
         vehicle_classes=vehicle_classes,
+        snapshots=snapshots,
     )
     result = run_until_stopped(
         lambda: run_frames(source, boxes, backend, estimator, config, depth, detector), config

@@ -36,6 +36,7 @@ from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import _index, _int, _parse
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.limits import MAX_ABS_PIXEL
 from slopedist.textfiles import numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
@@ -56,9 +57,26 @@ MOT_DET_FIELDS = ("frame", "id", "left", "top", "width", "height", "conf")
 MOT_GT_FIELDS = (*MOT_DET_FIELDS[:6], "flag", "class", "visibility")
 
 
-def _xywh_to_corners(xywh: list[list[float]]) -> np.ndarray:
-    a = np.asarray(xywh, dtype=float).reshape(-1, 4)
-    return np.concatenate([a[:, :2], a[:, :2] + a[:, 2:]], axis=1)
+def _corners(
+    path: str | Path, xywh: list[float], *, line: int | None = None, field: str | None = None
+) -> list[float]:
+    """Box corners ``[x1, y1, x2, y2]`` (px) of a ``[left, top, width, height]`` box; a finite
+    corner beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` is an error naming the line or field
+    (NaN/inf pass, flagged per box later)."""
+    left, top, width, height = xywh
+    corners = [left, top, left + width, top + height]
+    if any(np.isfinite(c) and abs(c) > MAX_ABS_PIXEL for c in corners):
+        raise InputFileError(
+            path,
+            f"box {xywh} reaches beyond ±{MAX_ABS_PIXEL:g} px: not a pixel box",
+            line=line,
+            field=field,
+        )
+    return corners
+
+
+def _corner_array(boxes: list[list[float]]) -> np.ndarray:
+    return np.asarray(boxes, dtype=float).reshape(-1, 4)
 
 
 def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
@@ -92,8 +110,9 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
             scores.append(v["conf"])
         frames.append(v["frame"] - frame_base)
         tids.append(v["id"] if v["id"] >= 0 else NO_TRACK)
-        boxes.append([v["left"], v["top"], v["width"], v["height"]])
-    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)
+        xywh = [v["left"], v["top"], v["width"], v["height"]]
+        boxes.append(_corners(path, xywh, line=lineno, field="left,top,width,height"))
+    return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 
 
 def _load_json(path: str | Path) -> Any:
@@ -182,12 +201,12 @@ def read_coco(
                 field=f"[{i}].image_id",
             )
         frames.append(image if image_frames is None else image_frames[image])
-        boxes.append(xywh)
+        boxes.append(_corners(path, xywh, field=f"[{i}].bbox"))
         scores.append(_coco_number(path, i, item, "score", float) if "score" in item else np.nan)
         tid = item.get("track_id")
         tids.append(NO_TRACK if tid is None else _coco_number(path, i, item, "track_id", int))
         classes.append(cmap[category])
-    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)
+    return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 
 
 _TRAILING_NUMBER = re.compile(r"(\d+)$")
@@ -233,8 +252,9 @@ def read_yolo_folder(
             if cls not in cmap:
                 continue
             frames.append(frame)
-            boxes.append([(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h])
+            xywh = [(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h]
+            boxes.append(_corners(path, xywh, line=lineno, field="cx,cy,w,h"))
             scores.append(score)
             tids.append(tid)
             classes.append(cmap[cls])
-    return BoxTable.build(frames, _xywh_to_corners(boxes), tids, scores, classes)
+    return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
