@@ -20,6 +20,7 @@ from slopedist.io.frames import Frame, FrameStatus
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.mount_calibration import (
     ADVISE_Z,
+    AGREE_Z,
     MountSigma,
     advise_from_frames,
     advise_mount,
@@ -104,6 +105,17 @@ def test_advised_mount_is_the_smallest_change_that_agrees_with_the_estimate() ->
     assert height == pytest.approx(1.70 - 2 * 0.05)  # to the lower 2σ edge
     inside = advised_mount(estimate, _cal(-0.5, 1.65), sigma, 2.0)
     assert math.degrees(inside[0]) == pytest.approx(-0.5) and inside[1] == pytest.approx(1.65)
+    # h shown wrong beyond 5σ (6.2σ); θ0 only 3.2σ off, yet moved with it to within 2σ
+    floor = MountSigma(math.radians(0.3), 0.08)
+    segments = [_cal(1.0, 1.15)] * 3
+    advice = judge_mount(_cal(1.0, 1.15), segments, _cal(0.0, 1.65), floor, advise_z=5.0)
+    assert advice.advise_mount and advice.advise_height
+    assert math.degrees(advice.mount_angle_rad) == pytest.approx(1.0 - 2 * math.hypot(0.1, 0.3))
+    assert advice.height_m == pytest.approx(1.15 + 2 * math.hypot(0.01, 0.08))
+    assert advice.reasons == (
+        "θ0: +1.00° from the configured 0°, within 5σ = 1.58°: moved with the other to within "
+        "2σ of the estimate",
+    )
 
 
 def test_boxes_unlike_their_class_decline_everything() -> None:
@@ -139,7 +151,7 @@ def test_advice_on_a_simulated_drive(height: float, mount_deg: float) -> None:
     assert abs(e.height_m - 1.65) < ADVISE_Z * sigma.height_m
     assert abs(e.mount_angle_rad) < ADVISE_Z * sigma.mount_angle_rad
     # the advice moves the configured mount towards the truth, to the estimate's 2σ edge
-    assert height < advice.height_m == pytest.approx(e.height_m - ADVISE_Z * sigma.height_m)
+    assert height < advice.height_m == pytest.approx(e.height_m - AGREE_Z * sigma.height_m)
     assert 0 < advice.mount_angle_rad < math.radians(mount_deg)
     assert len(advice.segments) == 3 and advice.estimate.n_tracks >= 8
 
