@@ -38,6 +38,8 @@ from slopedist.datasets.kitti_raw import KittiRawDrive
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
 from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
@@ -94,19 +96,31 @@ def lead_track(boxes: BoxTable) -> int:
     return int(first.track_id[int(np.argmin(first.extra["z"]))])
 
 
-NEAREST_FACE_COLUMN = "distance_nearest_face_m"
-"""Records column of methods whose ``distance_m`` refers to the vehicle's centre (``ours``)."""
+TRUTH_REFERENCE = ReferencePoint.NEAREST_FACE
+"""The point the LiDAR truth refers to: the cluster's nearest face."""
+
+
+def _number(cell: str | None) -> float:
+    return float(cell) if cell else math.nan
 
 
 def read_estimates(path: Path) -> dict[tuple[int, int], float]:
     """``{(frame, track_id): distance to the nearest face, m}`` of a records CSV (NaN when
-    missing): ``distance_nearest_face_m`` where the records have it, else ``distance_m`` (the
-    ground-contact methods' distance refers to the contact point under the box bottom)."""
+    missing): every method's ``distance_m`` moved from its ``reference`` to the truth's
+    (:func:`slopedist.estimators.references.to_reference`; ``ours`` by its own half extent, the
+    ground-contact methods' contact point is already at the nearest face)."""
     out = {}
     with path.open(newline="") as fh:
         for row in csv.DictReader(fh):
-            d = row.get(NEAREST_FACE_COLUMN) or row["distance_m"]
-            out[(int(row["frame"]), int(row["track_id"]))] = float(d) if d else math.nan
+            half = _number(row.get(CENTRE_COLUMN)) - _number(row.get(NEAREST_FACE_COLUMN))
+            d = to_reference(
+                [_number(row["distance_m"])],
+                [row["reference"]],
+                [row["class"]],
+                TRUTH_REFERENCE,
+                [half],
+            )
+            out[(int(row["frame"]), int(row["track_id"]))] = float(d[0])
     return out
 
 
@@ -129,6 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         default={},
         help="options of ours and ours-selfcal as JSON, e.g. "
         "'{\"occlusion_aware\": false}' (default: none)",
+    )
+    parser.add_argument(
+        "--top-clusters", type=int, default=8, help="clusters listed by share of ours' error"
     )
     args = parser.parse_args(argv)
     if not args.data.is_dir():
@@ -213,8 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"RMSE against LiDAR z (nearest face), {args.odometry} visual odometry, from pixels, "
         f"on the {int(common.sum())} scored boxes every method estimates (of {int(scored.sum())}"
-        f"); 'own' = each method over all the scored boxes it estimates; methods that report "
-        f"the vehicle centre are read from their {NEAREST_FACE_COLUMN} column:"
+        f"); 'own' = each method over all the scored boxes it estimates; every method's "
+        f"distance is moved to the truth's reference ({TRUTH_REFERENCE.value}):"
     )
     print(
         f"{'method':12s} {'RMSE m':>8s} {'n':>5s} {'bias m':>8s} {'lead RMSE':>10s} "
@@ -234,7 +251,43 @@ def main(argv: list[str] | None = None) -> int:
     )
     for m in methods:
         print(f"{m:12s} " + " ".join(f"{v:16.2f}" for v in binned[m]))
+    errors = {m: np.array([estimates[m].get(k, math.nan) for k in key]) - z for m in methods}
+    print_clusters(truth, errors, common, args.top_clusters)
     return 0
+
+
+def print_clusters(
+    truth: BoxTable, errors: dict[str, np.ndarray], common: np.ndarray, top: int
+) -> None:
+    """The clusters (tracks) that hold most of the last method's squared error on the scored
+    boxes: their size, mean LiDAR z and lateral x, each method's bias and RMSE there; then every
+    method's RMSE without the two largest (a diagnostic of where an error comes from, not a
+    figure to report as the benchmark's)."""
+    worst = list(errors)[-1] if "ours" not in errors else "ours"
+    tids = np.unique(truth.track_id[common])
+    sq = {t: float(np.sum(errors[worst][common & (truth.track_id == t)] ** 2)) for t in tids}
+    order = sorted(tids, key=lambda t: -sq[t])[:top]
+    total = sum(sq.values())
+    print()
+    print(f"Clusters with the largest share of {worst}'s squared error (bias / RMSE, m):")
+    print(
+        f"{'track':>5s} {'n':>4s} {'z m':>6s} {'x m':>6s} {'share':>6s} "
+        + " ".join(f"{m:>14s}" for m in errors)
+    )
+    for t in order:
+        sel = common & (truth.track_id == t)
+        cells = " ".join(
+            f"{np.mean(e[sel]):+6.2f}/{rmse(list(e[sel])):6.2f} " for e in errors.values()
+        )
+        print(
+            f"{int(t):5d} {int(sel.sum()):4d} {np.mean(truth.extra['z'][sel]):6.1f} "
+            f"{np.mean(truth.extra['x'][sel]):6.1f} {sq[t] / total:6.1%} {cells}"
+        )
+    rest = common & ~np.isin(truth.track_id, order[:2])
+    print(
+        f"without tracks {', '.join(str(int(t)) for t in order[:2])} (n = {int(rest.sum())}): "
+        + ", ".join(f"{m} {rmse(list(e[rest])):.2f}" for m, e in errors.items())
+    )
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +23,21 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if KITTI_FIXTURES.intersection(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.kitti)
+
+
+@pytest.fixture(scope="session")
+def ray_instance() -> Iterator[Any]:
+    """A local Ray instance with 2 CPUs for the session (skips when ray or pyarrow is absent);
+    the engine's ``ray_session`` uses it instead of starting its own."""
+    ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'slopedist[batch]'")
+    pytest.importorskip("pyarrow", reason="pyarrow is not installed")
+    from slopedist.batch.engine import kept_signal_handlers
+
+    with kept_signal_handlers():  # ray.init's SIGINT/SIGTERM handlers would outlive the tests
+        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    with kept_signal_handlers():
+        ray.shutdown()
 
 
 def shared_data_path(*parts: str) -> Path:

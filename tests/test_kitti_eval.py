@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
@@ -107,3 +109,28 @@ def test_the_truth_declares_its_reference_and_ours_reports_the_same_point() -> N
     assert "reference" not in cfg.options_of("paper")
     assert cfg.protocol()["ground_truth"]["reference"] == "nearest_face"
     assert KittiEvalConfig().protocol()["ground_truth"]["reference"] == "centre"
+
+
+def test_a_declared_truth_reference_moves_the_ground_contact_methods_to_it(
+    kitti_tracking_dir: Path,
+) -> None:
+    """Undeclared, flat is scored at its contact row (the published protocol); declared as the
+    centre, each flat distance gains half its class's length prior and ours is unchanged."""
+    from slopedist.estimators.base import ReferencePoint
+    from slopedist.kitti_eval import run_kitti_tracking
+
+    base = KittiEvalConfig(sequences=["0003"], methods=("flat", "ours"))
+    published = run_kitti_tracking(kitti_tracking_dir, base).runs["0003"]
+    declared_cfg = dataclasses.replace(base, gt_reference=ReferencePoint.CENTRE)
+    declared = run_kitti_tracking(kitti_tracking_dir, declared_cfg).runs["0003"]
+    half = np.where(published.boxes.cls == "Van", 5.08 / 2, 3.88 / 2)
+    before, after = published.runs["flat"].distance_m, declared.runs["flat"].distance_m
+    inside = np.isfinite(before) & (before + half < 80.0)
+    assert inside.sum() > 100
+    np.testing.assert_allclose(after[inside], before[inside] + half[inside])
+    np.testing.assert_array_equal(
+        declared.runs["ours"].distance_m, published.runs["ours"].distance_m
+    )
+    protocol = declared_cfg.protocol()["ground_truth"]
+    assert protocol["methods_compared_at"].startswith("the truth's reference")
+    assert base.protocol()["ground_truth"]["methods_compared_at"].startswith("each method's own")

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.batch.engine import map_tasks
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import (
     DETECTOR_CLASSES,
@@ -33,12 +34,13 @@ from slopedist.datasets.kitti_tracking import (
     protocol_mask,
 )
 from slopedist.depth.files import FileDepthSource
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import BoxTable, box_problems
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
-from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.base import MissingReason, ReferencePoint, image_size
 from slopedist.estimators.depthmap import TRUTH_COLUMN
 from slopedist.estimators.ours import OursEstimator
+from slopedist.estimators.references import own_half_extent_m, to_reference
 from slopedist.evaluation import (
     PooledScores,
     ScoredSet,
@@ -46,6 +48,14 @@ from slopedist.evaluation import (
     cap_estimates,
     match_by_frame,
     pool_methods,
+)
+from slopedist.learned_peer import (
+    PEER_METHOD,
+    PEER_PROTOCOL,
+    LeaveOneSequenceOut,
+    PeerSamples,
+    box_features,
+    regressor_class,
 )
 from slopedist.odometry.base import LOOKBACK_S, RotationTrack
 from slopedist.pipeline import ego_gradients, estimate_sequence
@@ -68,13 +78,19 @@ class KittiEvalConfig:
     method_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     depth_dir: Path | None = None
     """Depth maps of methods that need them: ``depth_dir/<sequence>/<frame>.png|.npy``."""
-    gt_reference: ReferencePoint = ReferencePoint.CENTRE
-    """The point of the vehicle the truth's distance refers to (KITTI's label z: the centre);
-    ``ours`` reports the same point (option ``reference``), unless its options say otherwise,
-    so that the evaluation compares like with like."""
+    gt_reference: ReferencePoint | None = None
+    """The point of the vehicle the truth's distance refers to, when declared (KITTI's label z
+    is the centre): every method's distance is then moved to that point
+    (:func:`~slopedist.estimators.references.to_reference`; ``ours`` reports it itself, option
+    ``reference``, unless its options say otherwise), so that the evaluation compares like with
+    like. None (the published protocol): the truth is the label z and each method is scored
+    at its own point (ground-contact methods: the contact row; ``ours``: the centre)."""
     generic_detector_class: bool = False
     """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
     of vehicle types (option ``generic_classes``), unless its options say otherwise."""
+    workers: int = 1
+    """CPUs to run the sequences on: above 1, one Ray task per sequence
+    (:func:`slopedist.batch.engine.map_tasks`, the batch extra); the results are those of 1."""
 
     def options_of(self, method: str) -> dict[str, Any]:
         """Constructor options of ``method`` on this evaluation's boxes."""
@@ -84,14 +100,15 @@ class KittiEvalConfig:
             return options
         if self.generic_detector_class and BoxSource(self.boxes).is_detector:
             options.setdefault("generic_classes", DETECTOR_CLASSES)
-        options.setdefault("reference", ReferencePoint(self.gt_reference).value)
+        if self.gt_reference is not None:
+            options.setdefault("reference", ReferencePoint(self.gt_reference).value)
         return options
 
     def rotation_of(self, method: str) -> str | None:
         """Rotation source ``method`` is fed: the one it declares, else :attr:`rotation`; None
         for methods that use no rotation."""
         factory = ESTIMATORS.get(method)
-        if not getattr(factory, "needs_rotation", True):
+        if factory is None or not getattr(factory, "needs_rotation", True):
             return None
         return getattr(factory, "rotation_source", None) or RotationSource(self.rotation).value
 
@@ -105,7 +122,12 @@ class KittiEvalConfig:
                 "max_occluded": PROTOCOL_MAX_OCCLUDED,
                 "max_distance_m": PROTOCOL_MAX_DISTANCE_M,
                 "distance": "label z (longitudinal, camera 2)",
-                "reference": ReferencePoint(self.gt_reference).value,
+                "reference": ReferencePoint(self.gt_reference or ReferencePoint.CENTRE).value,
+                "methods_compared_at": (
+                    "each method's own point (published protocol)"
+                    if self.gt_reference is None
+                    else "the truth's reference (every method's distance moved to it)"
+                ),
             },
             "camera": {
                 "f": "P2[0,0]",
@@ -140,6 +162,7 @@ class KittiEvalConfig:
                 "sequences all of them ran on, when those differ"
             ),
             "rotation_per_method": {m: self.rotation_of(m) for m in self.methods},
+            "learned_peer": PEER_PROTOCOL if PEER_METHOD in self.methods else None,
             "depth_dir": str(self.depth_dir) if self.depth_dir is not None else None,
             "sequences": list(self.sequences) if self.sequences is not None else None,
             "methods": list(self.methods),
@@ -337,9 +360,17 @@ def _run_method(
             cfg.lookback_s,
             depth=depth_source.depth if depth_source is not None else None,
         )
-    capped, scorable = cap_estimates(
-        result.estimates.distance_m, result.estimates.reason, cfg.cap_m
-    )
+    est = result.estimates
+    distance = est.distance_m
+    if cfg.gt_reference is not None:
+        distance = to_reference(
+            distance,
+            est.reference,
+            result.boxes.cls,
+            ReferencePoint(cfg.gt_reference),
+            own_half_extent_m(est.extra, len(distance)),
+        )
+    capped, scorable = cap_estimates(distance, est.reason, cfg.cap_m)
     rows = result.boxes.extra["row"]
     run = MethodRun(
         name,
@@ -351,24 +382,84 @@ def _run_method(
     )
     run.distance_m[rows] = capped
     run.scorable[rows] = scorable
-    run.theta_rad[rows] = result.estimates.theta_rad
-    run.reason[rows] = result.estimates.reason
+    run.theta_rad[rows] = est.theta_rad
+    run.reason[rows] = est.reason
     run.depth_seconds = depth_source.seconds if depth_source is not None else 0.0
     run.seconds = watch.seconds - run.depth_seconds
     return run
 
 
-def run_sequence(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> SequenceRun:
+def peer_samples(seq: KittiTrackingSequence, cfg: KittiEvalConfig) -> PeerSamples:
+    """The learned peer's training pairs of one sequence: the features of the boxes ``cfg``
+    feeds (its box source and score threshold) that are matched to a truth, with its z."""
+    _, boxes, det_rows, _ = _boxes_with_truth(seq, cfg)
+    features = box_features(boxes, seq.camera)[det_rows]
+    return PeerSamples(features, boxes.extra[TRUTH_COLUMN][det_rows])
+
+
+def learned_peer(root: str | Path, cfg: KittiEvalConfig) -> LeaveOneSequenceOut:
+    """The learned peer of ``cfg``'s evaluation, with the training pairs of every sequence
+    under ``root`` (scored or not; each is held out of its own model).
+
+    Raises:
+        OptionalDependencyError: scikit-learn (extra ``learned``) is not installed.
+    """
+    regressor_class()
+    samples = {
+        name: peer_samples(load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad), cfg)
+        for name in list_sequences(root)
+    }
+    return LeaveOneSequenceOut(samples)
+
+
+def _run_peer(
+    seq: KittiTrackingSequence, cfg: KittiEvalConfig, boxes: BoxTable, peer: LeaveOneSequenceOut
+) -> MethodRun:
+    """The learned peer over the sequence's boxes, from the model that never saw it (fitting
+    not timed)."""
+    n = len(boxes)
+    if not peer.training_sequences(seq.name):
+        nan = np.full(n, np.nan)
+        missing = f"no other sequence to train the learned peer of {seq.name} on"
+        reason = np.full(n, "missing", dtype=object)
+        return MethodRun(PEER_METHOD, None, nan, np.zeros(n, bool), nan, reason, missing=missing)
+    reason = box_problems(boxes.boxes, image_size(seq.camera))
+    peer.model(seq.name)
+    with Stopwatch() as watch:
+        distance = peer.predict(seq.name, box_features(boxes, seq.camera))
+    distance[reason != ""] = np.nan
+    reason[(reason == "") & ~(distance > 0)] = MissingReason.INVALID_DISTANCE.value
+    capped, scorable = cap_estimates(distance, reason, cfg.cap_m)
+    theta = np.full(n, np.nan)
+    return MethodRun(PEER_METHOD, None, capped, scorable, theta, reason, seconds=watch.seconds)
+
+
+def run_sequence(
+    seq: KittiTrackingSequence, cfg: KittiEvalConfig, peer: LeaveOneSequenceOut | None = None
+) -> SequenceRun:
     """Run every method of ``cfg`` on one sequence.
 
     Each method is fed the rotation source it declares (``Estimator.rotation_source``, e.g. the
     IMU baseline's OXTS poses), else ``cfg.rotation``. A declared source, or a depth folder,
     that the sequence lacks makes that method missing for the sequence (with the reason); a
-    missing ``cfg.rotation`` file is an error, as before.
+    missing ``cfg.rotation`` file is an error, as before. The learned peer
+    (:data:`~slopedist.learned_peer.PEER_METHOD`) needs ``peer`` (:func:`learned_peer`).
+
+    Raises:
+        ConfigurationError: the learned peer is asked for without ``peer``.
     """
+    if PEER_METHOD in cfg.methods and peer is None:
+        raise ConfigurationError(f"{PEER_METHOD} needs its leave-one-sequence-out training set")
     gt, boxes, det_rows, gt_rows = _boxes_with_truth(seq, cfg)
     rotations = _SequenceRotations(seq, cfg)
-    runs = {name: _run_method(name, seq, cfg, boxes, rotations) for name in cfg.methods}
+    runs = {
+        name: (
+            _run_peer(seq, cfg, boxes, peer)
+            if name == PEER_METHOD and peer is not None
+            else _run_method(name, seq, cfg, boxes, rotations)
+        )
+        for name in cfg.methods
+    }
     return SequenceRun(seq.name, seq.n_frames, gt, boxes, det_rows, gt_rows, runs, rotations.theta)
 
 
@@ -407,20 +498,39 @@ class KittiEvaluation:
         return report
 
 
+def load_and_run(
+    root: str | Path, name: str, cfg: KittiEvalConfig, peer: LeaveOneSequenceOut | None = None
+) -> SequenceRun:
+    """Load sequence ``name`` under ``root`` and run every method of ``cfg`` on it, the learned
+    peer from ``peer`` (one task of a parallel evaluation)."""
+    return run_sequence(load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad), cfg, peer)
+
+
 def run_kitti_tracking(
     root: str | Path,
     cfg: KittiEvalConfig,
     on_sequence: Callable[[str], None] | None = None,
 ) -> KittiEvaluation:
     """Run every method of ``cfg`` on the sequences it names under ``root`` (all when none),
-    calling ``on_sequence(name)`` before each."""
+    calling ``on_sequence(name)`` before each; with ``cfg.workers`` > 1 on Ray, one task per
+    sequence (``on_sequence`` as each is submitted).
+
+    Raises:
+        OptionalDependencyError: ``cfg.workers`` > 1 without the batch extra (Ray).
+    """
     names = check_run(root, cfg)
+    peer = learned_peer(root, cfg) if PEER_METHOD in cfg.methods else None
+    if cfg.workers > 1:
+        calls = [(Path(root).absolute(), name, cfg, peer) for name in names]
+        announce = (lambda i: on_sequence(names[i])) if on_sequence is not None else None
+        purpose = f"--workers {cfg.workers} (one Ray task per sequence)"
+        results = map_tasks(load_and_run, calls, cfg.workers, purpose, announce)
+        return KittiEvaluation(replace(cfg, sequences=list(names)), dict(zip(names, results)))
     runs: dict[str, SequenceRun] = {}
     for name in names:
         if on_sequence is not None:
             on_sequence(name)
-        seq = load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad)
-        runs[name] = run_sequence(seq, cfg)
+        runs[name] = load_and_run(root, name, cfg, peer)
     return KittiEvaluation(replace(cfg, sequences=list(names)), runs)
 
 

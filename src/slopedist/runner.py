@@ -195,7 +195,7 @@ class _RunLoop:
         self.camera = estimator.camera
         self.method = estimator.name
         self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
-        self.by_frame = boxes.frame_index()
+        self.by_frame = boxes.frame_lookup()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
         self.segment = 0
@@ -421,7 +421,7 @@ class _RunLoop:
         result.depth_ms_mean = self.times["depth"].mean()
         result.detection_ms_mean = self.times["detection"].mean()
         result.boxes_without_frame = sum(
-            len(b) for k, b in self.by_frame.items() if k not in self.seen_box_frames
+            self.by_frame.count(k) for k in self.by_frame if k not in self.seen_box_frames
         )
         if self.bar is not None:
             self.bar.close()

@@ -190,5 +190,16 @@ def score_tables(scores: PooledScores, with_time: bool = False) -> list[Table]:
 
 
 def format_report_tables(report: Mapping[str, Any]) -> str:
-    """The :func:`score_tables` of a JSON evaluation report (``slopedist eval``), as text."""
-    return format_texts(score_tables(PooledScores.from_report(report), with_time=True))
+    """The :func:`score_tables` of a JSON evaluation report (``slopedist eval``), as text, and
+    how the truth's reference point and the learned peer were handled when the protocol says."""
+    text = format_texts(score_tables(PooledScores.from_report(report), with_time=True))
+    protocol = report.get("protocol", {})
+    truth = protocol.get("ground_truth", {})
+    if "methods_compared_at" in truth:
+        text += (
+            f"\nTruth refers to the vehicle's {truth['reference']}; methods compared at "
+            f"{truth['methods_compared_at']}."
+        )
+    if protocol.get("learned_peer"):
+        text += f"\nlearned-peer: {protocol['learned_peer']}."
+    return text

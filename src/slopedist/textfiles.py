@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -105,6 +106,20 @@ def read_json(path: str | Path, what: str) -> Any:
         raise InputFileError(path, f"not valid JSON ({exc})") from None
     except RecursionError:
         raise InputFileError(path, "not valid JSON (nested too deeply)") from None
+
+
+def number_cell(text: str | None, path: str | Path, line: int, field: str) -> float:
+    """A CSV cell as a number; empty (or absent) is NaN.
+
+    Raises:
+        InputFileError: the cell is not a number (naming file, line and field).
+    """
+    if text is None or not text.strip():
+        return math.nan
+    try:
+        return float(text)
+    except ValueError:
+        raise InputFileError(path, f"'{text}' is not a number", line=line, field=field) from None
 
 
 def _no_constant(name: str) -> float:

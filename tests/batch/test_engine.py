@@ -1,13 +1,13 @@
 """The batch on a local Ray instance with 2 CPUs: records identical to running each drive
 alone, a corrupt drive isolated, a killed worker retried, a second run that skips complete
-drives and redoes a deleted one. Ray starts once for the module."""
+drives and redoes a deleted one. Ray starts once for the session (``ray_instance`` of
+tests/conftest.py)."""
 
 from __future__ import annotations
 
 import csv
 import shutil
 import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,16 +25,6 @@ from .conftest import real_drive, run_alone, simulate
 SHARED_LEAD = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "kitti_raw_lead"
 SCENARIOS = ("ego_crest", "same_downhill", "target_steep_uphill")
 CRASHED = "ego_crest_paper"
-
-
-@pytest.fixture(scope="module")
-def ray_instance() -> Iterator[Any]:
-    ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'slopedist[batch]'")
-    pytest.importorskip("pyarrow", reason="pyarrow is not installed")
-    with kept_signal_handlers():  # for the tests that follow in this process
-        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-        yield ray
-        ray.shutdown()
 
 
 @dataclass
@@ -59,6 +49,8 @@ def fleet(ray_instance: Any, tmp_path_factory: pytest.TempPathFactory) -> Fleet:
         for method in ("paper", "flat"):
             files = [f"{scenario}/{n}" for n in ("image_02", "calib.txt", "boxes.csv")]
             rows.append([f"{scenario}_{method}", *files, method, f"{scenario}/times.txt"])
+    ours = [f"{SCENARIOS[0]}/{n}" for n in ("image_02", "calib.txt", "boxes.csv")]
+    rows.append([f"{SCENARIOS[0]}_ours", *ours, "ours", f"{SCENARIOS[0]}/times.txt"])  # TTC
     if SHARED_LEAD.is_dir():  # the shared real frames (absent in a fresh clone)
         real_drive(SHARED_LEAD, root / "kitti")
         rows.append(["kitti", "kitti/image_02", "kitti/calib.txt", "kitti/boxes.csv", "ego", ""])
@@ -120,6 +112,32 @@ def test_fleet_dataset_and_summary(fleet: Fleet) -> None:
         mine = [r for r in per_drive if r["method"] == method]
         assert int(row["drives"]) == len(mine)
         assert int(row["n"]) == sum(int(r["n"]) for r in mine) > 0
+
+
+def test_fleet_report_of_the_batch(fleet: Fleet, tmp_path: Path) -> None:
+    from slopedist.report import ReportOptions, SourceKind, report_data, write_report
+
+    data = report_data(fleet.out, ReportOptions())
+    assert data.kind is SourceKind.FLEET
+    status = fleet.status()
+    assert sorted(data.sequences) == sorted(d for d, r in status.items() if r["status"] == "done")
+    tables = {t.key: t for t in write_report(data, tmp_path / "rep", parquet=False).tables}
+    assert data.fleet is not None
+    per_drive = {(r["drive"], r["method"]): r["rmse"] for r in data.fleet.drives}
+    table1 = tables["table1_rmse"]
+    assert len(per_drive) >= 6
+    compared = 0
+    for row in table1.rows[: len(data.sequences)]:  # Table 1 per drive = the fleet table
+        for method, value in zip(table1.headers[2:], row[2:]):
+            if (row[0], method) in per_drive:
+                assert value == pytest.approx(per_drive[(row[0], method)]), (row[0], method)
+                compared += 1
+    assert compared == len(per_drive)
+    tracks = list(csv.DictReader((fleet.out / f"{SCENARIOS[0]}_ours" / "tracks.csv").open()))
+    safety = {r[0]: r for r in tables["fleet_safety_pooled"].rows}
+    assert safety["ours"][3] == len(tracks) > 0
+    assert safety["ours"][5] == pytest.approx(min(float(t["min_ttc_s"]) for t in tracks))
+    assert tables["fleet_failed"].rows == [["broken", status["broken"]["error"]]]
 
 
 def test_a_second_run_skips_complete_drives_and_redoes_a_deleted_one(

@@ -58,7 +58,13 @@ def test_fleet_summary_by_hand(batch_out: Path) -> None:
     assert (ranges["10-20"]["n"], ranges["10-20"]["rmse"]) == (1, pytest.approx(2.0))
     assert (ranges["40-80"]["n"], ranges["20-30"]["n"]) == (1, 0)
     files = write_fleet_summary(batch_out, summary)
-    assert [p.name for p in files] == ["drives.csv", "pooled.csv", "range.csv"]
+    assert [p.name for p in files] == [
+        "drives.csv",
+        "pooled.csv",
+        "range.csv",
+        "safety.csv",
+        "safety_pooled.csv",
+    ]
     assert files[1].read_text().splitlines()[1].startswith("m,2,4,15.0")
 
 

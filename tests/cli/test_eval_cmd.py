@@ -45,3 +45,65 @@ def test_json_dash_writes_only_json_to_stdout(
     assert _strict(captured.out)["protocol"]["sequences"] == ["0014"]
     assert "Table 1: RMSE (m) per sequence" in captured.err
     assert not (tmp_path / "-").exists()
+
+
+def _without_times(report: Any) -> Any:
+    """The report without its measured times (``ms_per_frame``), which differ run to run."""
+    if isinstance(report, dict):
+        return {k: _without_times(v) for k, v in report.items() if k != "ms_per_frame"}
+    if isinstance(report, list):
+        return [_without_times(v) for v in report]
+    return report
+
+
+def test_workers_give_the_results_of_one_worker(
+    kitti_tracking_dir: Path, tmp_path: Path, ray_instance: Any
+) -> None:
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0001,0009,0014"]
+    args += ["--methods", "flat,paper,imu,ours"]  # imu: no OXTS on 0014, a missing method
+    reports = []
+    for workers in ("1", "2"):
+        out = tmp_path / f"w{workers}.json"
+        assert main([*args, "--workers", workers, "--json", str(out)]) == 0
+        reports.append(_strict(out.read_text()))
+    assert _without_times(reports[1]) == _without_times(reports[0])
+    assert reports[0]["methods"]["paper"]["overall"]["n"] > 0
+
+
+def test_workers_without_ray_name_the_extra(
+    kitti_tracking_dir: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0001"]
+    assert main([*args, "--workers", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "slopedist: error: --workers 2 (one Ray task per sequence) needs the optional package "
+        "'ray', which is not installed; install it with: pip install 'slopedist[batch]'"
+    ]
+
+
+def test_the_learned_peer_row_and_a_declared_reference_from_the_command_line(
+    kitti_tracking_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out.json"
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0003"]
+    args += ["--methods", "flat,learned-peer", "--gt-reference", "centre", "--json", str(out)]
+    assert main(args) == 0
+    report = _strict(out.read_text())
+    assert report["protocol"]["ground_truth"]["reference"] == "centre"
+    assert "leave-one-sequence-out" in report["protocol"]["learned_peer"]
+    assert report["methods"]["learned-peer"]["overall"]["n"] > 0
+    printed = capsys.readouterr().out
+    assert "learned-peer: trained leave-one-sequence-out" in printed
+    assert "Truth refers to the vehicle's centre; methods compared at the truth's" in printed
+
+
+def test_an_unknown_method_names_the_learned_peer_among_the_choices(
+    kitti_tracking_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "nope"]
+    assert main(args) != 0
+    assert "learned-peer" in capsys.readouterr().err

@@ -95,6 +95,32 @@ def test_concat_of_nothing_keeps_the_columns_of_like() -> None:
 def test_empty_table_has_no_frames() -> None:
     empty = BoxTable.empty()
     assert list(empty.by_frame()) == [] and empty.frame_index() == {}
+    lookup = empty.frame_lookup()
+    assert len(lookup) == 0 and 0 not in lookup and lookup.get(0) is None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 6), max_size=30))
+def test_frame_lookup_is_the_frame_index(frames: list[int]) -> None:
+    n = len(frames)
+    table = BoxTable.build(
+        frames,
+        np.arange(4 * n, dtype=float).reshape(n, 4),
+        track_id=np.arange(n),
+        classes=[f"c{i}" for i in range(n)],
+        z=np.arange(n) * 0.5,
+    )
+    index, lookup = table.frame_index(), table.frame_lookup()
+    assert list(lookup) == list(index) and len(lookup) == len(index)
+    for k in range(-1, 8):
+        assert (k in lookup) == (k in index)
+        assert lookup.count(k) == (len(index[k]) if k in index else 0)
+        if k in index:
+            got, want = lookup[k], index[k]
+            for column in ("frame", "boxes", "track_id", "score", "cls"):
+                np.testing.assert_array_equal(getattr(got, column), getattr(want, column))
+            np.testing.assert_array_equal(got.extra["z"], want.extra["z"])
+    assert "1" not in lookup and lookup.get(99) is None
 
 
 # --- box checks against the image (hand-computed, 1242 × 375 image) ---------------------------

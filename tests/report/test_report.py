@@ -309,3 +309,50 @@ def test_runs_of_different_methods_on_one_sequence_are_grouped(tmp_path: Path) -
     (tmp_path / "again" / "run.json").write_text('{"sequence": "lead"}')
     with pytest.raises(ConfigurationError, match="method paper appears twice for sequence lead"):
         report_data(tmp_path, ReportOptions())
+
+
+def test_kitti_report_with_workers_is_that_of_one_worker(
+    kitti_tracking_dir: Path, ray_instance: object
+) -> None:
+    from dataclasses import replace
+
+    from slopedist.report.tables import metric_records
+
+    cfg = KittiEvalConfig(sequences=["0001", "0014"], methods=("flat", "paper", "imu", "ours"))
+    one = report_data(kitti_tracking_dir, ReportOptions(eval=cfg))
+    two = report_data(kitti_tracking_dir, ReportOptions(eval=replace(cfg, workers=2)))
+    assert one.records.names == two.records.names and len(one.records) > 0
+    for name in one.records.names:
+        np.testing.assert_equal(two.records.data[name], one.records.data[name], err_msg=name)
+    for name in one.theta.names:
+        np.testing.assert_equal(two.theta.data[name], one.theta.data[name], err_msg=name)
+    scores = [
+        [r for r in metric_records(d) if r["scope"] != "timing" and r["metric"] != "ms_per_frame"]
+        for d in (one, two)
+    ]
+    np.testing.assert_equal(scores[1], scores[0])
+    assert one.protocol == two.protocol
+
+
+@pytest.mark.kitti
+def test_the_learned_peer_row_in_the_kitti_report(tmp_path: Path) -> None:
+    """The report's peer row is the evaluation's, with its training protocol in the notes and
+    no rotation; a declared truth reference reaches the notes."""
+    from slopedist.estimators.base import ReferencePoint
+    from slopedist.learned_peer import PEER_METHOD
+
+    kitti = shared_data_path("kitti_tracking")
+    cfg = KittiEvalConfig(
+        sequences=["0003"], methods=("flat", PEER_METHOD), gt_reference=ReferencePoint.CENTRE
+    )
+    data = report_data(kitti, ReportOptions(eval=cfg))
+    ref = evaluate_kitti_tracking(kitti, cfg)
+    assert data.overall[PEER_METHOD]["rmse"] == pytest.approx(
+        ref["methods"][PEER_METHOD]["overall"]["rmse"]
+    )
+    notes = " ".join(data.notes)
+    assert "leave-one-sequence-out" in notes and "learned-peer = none" in notes
+    assert "referring to the vehicle's centre" in notes
+    written = write_report(data, tmp_path / "o", parquet=False)
+    assert PEER_METHOD in (tmp_path / "o" / "report.md").read_text()
+    assert written.files

@@ -84,3 +84,38 @@ def test_infinite_or_huge_numbers_are_errors(tmp_path: Path, column: int, value:
     name = HEADER.split(",")[column]
     with pytest.raises(InputFileError, match=rf"line 3, field '{name}'"):
         report_data(_run(tmp_path / "r", [GOOD[0], ",".join(cells)]), ReportOptions())
+
+
+def test_a_declared_truth_reference_moves_every_method_to_it(tmp_path: Path) -> None:
+    """paper's contact distance gains half the car's length prior to meet a centre truth; ours'
+    centre distance loses its own half extent to meet a nearest-face truth."""
+    from slopedist.estimators.base import ReferencePoint
+    from slopedist.kitti_eval import KittiEvalConfig
+
+    header = HEADER + ",reference,distance_centre_m,distance_nearest_face_m"
+    folder = tmp_path / "r"
+    folder.mkdir()
+    (folder / "records.csv").write_text(
+        "\n".join(
+            [
+                header,
+                "0,0.0,3,Car,paper,10.0,ok,,0.1,11.94,contact,,",
+                "0,0.0,3,Car,ours,12.0,ok,,0.1,11.94,centre,12.0,10.0",
+            ]
+        )
+        + "\n"
+    )
+    (folder / "frames.csv").write_text("frame,estimation_ms\n0,1.0\n")
+    as_given = report_data(folder, ReportOptions())
+    assert as_given.overall["paper"]["rmse"] == pytest.approx(1.94)
+    centre = report_data(
+        folder, ReportOptions(eval=KittiEvalConfig(gt_reference=ReferencePoint.CENTRE))
+    )
+    assert centre.overall["paper"]["rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert centre.overall["ours"]["rmse"] == pytest.approx(0.06)
+    face = report_data(
+        folder, ReportOptions(eval=KittiEvalConfig(gt_reference=ReferencePoint.NEAREST_FACE))
+    )
+    assert face.overall["ours"]["rmse"] == pytest.approx(1.94)
+    assert face.overall["paper"]["rmse"] == pytest.approx(1.94)
+    assert "nearest_face" in " ".join(face.notes)

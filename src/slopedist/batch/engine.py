@@ -6,7 +6,8 @@ skipped), starts Ray (an embedded local instance on this machine's cores, or the
 (:func:`~slopedist.batch.drive.process_drive`, retried by Ray when its worker process dies),
 collects outcomes as they finish (a progress bar over drives with the overall frames/s) and
 writes ``OUT/status.csv`` and, with pyarrow, the fleet Parquet dataset. The engine is not a
-scheduler: placement, retries and the cluster are Ray's.
+scheduler: placement, retries and the cluster are Ray's. :func:`map_tasks` runs other
+per-sequence work (``eval kitti-tracking --workers N``) on the same engine.
 """
 
 from __future__ import annotations
@@ -18,11 +19,11 @@ import shutil
 import signal
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from tqdm import tqdm
 
@@ -45,8 +46,10 @@ from slopedist.batch.fleet import (
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import input_stamp
 from slopedist.batch.status import STATUS_NAME, DriveOutcome, DriveStatus, write_status
-from slopedist.errors import ConfigurationError, import_optional
+from slopedist.errors import ConfigurationError, SlopedistError, import_optional
 from slopedist.runner import SUMMARY_NAME
+
+T = TypeVar("T")
 
 DEFAULT_MAX_RETRIES = 2
 """Ray retries of a drive whose worker process died (not of a drive that failed on its data)."""
@@ -106,17 +109,20 @@ class BatchResult:
         return bool(self.outcomes) and self.count(DriveStatus.FAILED) == len(self.outcomes)
 
 
-def import_ray() -> Any:
-    """The ``ray`` module, or an :class:`OptionalDependencyError` saying how to install it."""
-    return import_optional("ray", "batch", "slopedist batch")
+def import_ray(purpose: str = "slopedist batch") -> Any:
+    """The ``ray`` module, or an :class:`OptionalDependencyError` saying how to install it
+    (and what ``purpose`` needed it)."""
+    return import_optional("ray", "batch", purpose)
 
 
 @contextmanager
-def ray_session(workers: int | None, address: str | None) -> Iterator[Any]:
+def ray_session(
+    workers: int | None, address: str | None, purpose: str = "slopedist batch"
+) -> Iterator[Any]:
     """Ray, initialised for the batch: the running instance if this process has one, else the
     cluster at ``address`` / ``$RAY_ADDRESS``, else an embedded instance with ``workers`` CPUs
     (all cores when None), shut down again at the end."""
-    ray = import_ray()
+    ray = import_ray(purpose)
     if ray.is_initialized():
         yield ray
         return
@@ -154,6 +160,37 @@ def kept_signal_handlers() -> Iterator[None]:
         if threading.current_thread() is threading.main_thread():
             for sig, handler in saved.items():
                 signal.signal(sig, handler)
+
+
+def map_tasks(
+    fn: Callable[..., T],
+    calls: Sequence[tuple[Any, ...]],
+    workers: int,
+    purpose: str,
+    on_submit: Callable[[int], None] | None = None,
+) -> list[T]:
+    """``[fn(*args) for args in calls]``, one Ray task per call on an embedded instance with
+    ``workers`` CPUs (or the running one), in the order of ``calls``; ``on_submit(i)`` as
+    call ``i`` is submitted. ``fn`` must be a module-level function (workers import it).
+
+    Raises:
+        OptionalDependencyError: Ray is not installed (the message names ``purpose``).
+        SlopedistError: the first call (in order) that raised one, re-raised as such.
+    """
+    with ray_session(workers, None, purpose) as ray:
+        task = ray.remote(num_cpus=1, max_retries=DEFAULT_MAX_RETRIES)(fn)
+        refs = []
+        for i, args in enumerate(calls):
+            if on_submit is not None:
+                on_submit(i)
+            refs.append(task.remote(*args))
+        try:
+            return list(ray.get(refs))
+        except ray.exceptions.RayTaskError as exc:
+            cause = getattr(exc, "cause", None)
+            if isinstance(cause, SlopedistError):
+                raise cause from None
+            raise
 
 
 def plan(
@@ -268,4 +305,4 @@ def _cancel(
         )
 
 
-__all__ = ["STATUS_NAME", "BatchOptions", "BatchResult", "run_batch"]
+__all__ = ["STATUS_NAME", "BatchOptions", "BatchResult", "map_tasks", "run_batch"]

@@ -9,13 +9,13 @@
   the records carry the true distance ``gt_distance_m``, and the error by true-distance range
   (:data:`~slopedist.evaluation.DISTANCE_BINS_M`), scored as ``slopedist report`` scores runs
   (estimates capped at 80 m, below-horizon counted at the cap). :func:`write_fleet_summary`
-  writes them to ``OUT/fleet/{drives,pooled,range}.csv``.
+  writes them to ``OUT/fleet/{drives,pooled,range}.csv``; with the per-track safety
+  summaries of :mod:`~slopedist.batch.safety` per drive and pooled per method
+  (``OUT/fleet/safety.csv``, ``OUT/fleet/safety_pooled.csv``).
 """
 
 from __future__ import annotations
 
-import csv
-import math
 import os
 import shutil
 from dataclasses import dataclass
@@ -25,11 +25,13 @@ from typing import Any
 import numpy as np
 
 from slopedist.batch.drive import completed_stamp
+from slopedist.batch.safety import DRIVE_SAFETY_FIELDS, POOLED_SAFETY_FIELDS, fleet_safety
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
-from slopedist.errors import InputFileError, OptionalDependencyError
+from slopedist.errors import OptionalDependencyError
 from slopedist.evaluation import DISTANCE_BINS_M, bin_label, cap_estimates, distance_metrics
 from slopedist.io.tables import write_csv
-from slopedist.runner import RECORDS_NAME
+from slopedist.run_config import RECORDS_NAME
+from slopedist.textfiles import CsvRows, number_cell
 
 DATASET_NAME = "records.parquet"
 FLEET_DIR = "fleet"
@@ -111,11 +113,17 @@ class FleetSummary:
         pooled: one row per method, all drives pooled (``drives`` = drives with the method).
         by_range: one row per method and true-distance range ``range_m`` (e.g. ``"10-20"``),
             pooled over the drives.
+        safety: one row per drive: its per-track safety summary
+            (:data:`~slopedist.batch.safety.DRIVE_SAFETY_FIELDS`; seconds, metres).
+        safety_pooled: one row per method, every drive's tracks pooled
+            (:data:`~slopedist.batch.safety.POOLED_SAFETY_FIELDS`).
     """
 
     drives: list[dict[str, Any]]
     pooled: list[dict[str, Any]]
     by_range: list[dict[str, Any]]
+    safety: list[dict[str, Any]]
+    safety_pooled: list[dict[str, Any]]
 
 
 def batch_drive_folders(out_dir: Path) -> list[Path]:
@@ -130,18 +138,11 @@ def batch_drive_folders(out_dir: Path) -> list[Path]:
 def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
     """Per method: distances, truths, reasons of ``records.csv`` (NaN where empty)."""
     out: dict[str, dict[str, Any]] = {}
-    with path.open(newline="", encoding="utf-8") as fh:
-        for line, row in enumerate(csv.DictReader(fh), start=2):
-            acc = out.setdefault(row["method"], {"d": [], "g": [], "r": []})
-            for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
-                text = row.get(column) or ""
-                try:
-                    acc[key].append(float(text) if text else math.nan)
-                except ValueError:
-                    raise InputFileError(
-                        path, f"'{text}' is not a number", line=line, field=column
-                    ) from None
-            acc["r"].append(row.get("reason") or "")
+    for line, row in CsvRows(path, "run records"):
+        acc = out.setdefault(row.get("method") or "", {"d": [], "g": [], "r": []})
+        for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
+            acc[key].append(number_cell(row.get(column), path, line, column))
+        acc["r"].append(row.get("reason") or "")
     return out
 
 
@@ -153,9 +154,10 @@ def _metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, Any]:
 def fleet_summary(out_dir: str | Path) -> FleetSummary:
     """The fleet tables over every complete drive of the batch output ``out_dir``."""
     out = Path(out_dir)
+    folders = batch_drive_folders(out)
     drives: list[dict[str, Any]] = []
     pooled: dict[str, dict[str, list[np.ndarray]]] = {}
-    for folder in batch_drive_folders(out):
+    for folder in folders:
         for method, acc in _read_pairs(folder / RECORDS_NAME).items():
             d, g = np.asarray(acc["d"], float), np.asarray(acc["g"], float)
             capped, ok = cap_estimates(d, np.asarray(acc["r"], dtype=object))
@@ -183,11 +185,12 @@ def fleet_summary(out_dir: str | Path) -> FleetSummary:
             range_rows.append(
                 {"method": method, "range_m": bin_label(lo, hi), **_metrics(p[sel], g[sel])}
             )
-    return FleetSummary(drives, pooled_rows, range_rows)
+    return FleetSummary(drives, pooled_rows, range_rows, *fleet_safety(folders))
 
 
 def write_fleet_summary(out_dir: str | Path, summary: FleetSummary | None = None) -> list[Path]:
-    """Write :func:`fleet_summary` to ``OUT/fleet/{drives,pooled,range}.csv``."""
+    """Write :func:`fleet_summary` to ``OUT/fleet/{drives,pooled,range,safety,
+    safety_pooled}.csv``."""
     out = Path(out_dir)
     summary = summary if summary is not None else fleet_summary(out)
     folder = out / FLEET_DIR
@@ -197,4 +200,6 @@ def write_fleet_summary(out_dir: str | Path, summary: FleetSummary | None = None
         write_csv(folder / "drives.csv", summary.drives, drive_fields),
         write_csv(folder / "pooled.csv", summary.pooled, ("method", "drives", *METRICS)),
         write_csv(folder / "range.csv", summary.by_range, ("method", "range_m", *METRICS)),
+        write_csv(folder / "safety.csv", summary.safety, DRIVE_SAFETY_FIELDS),
+        write_csv(folder / "safety_pooled.csv", summary.safety_pooled, POOLED_SAFETY_FIELDS),
     ]

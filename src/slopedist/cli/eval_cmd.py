@@ -10,12 +10,11 @@ import click
 from slopedist.cli.options import (
     check_methods,
     estimator_options,
+    evaluation_method_options,
     kitti_eval_options,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig, available_methods
-from slopedist.estimators.base import ReferencePoint
-from slopedist.estimators.ours.estimator import REFERENCES
+from slopedist.estimators import EstimatorConfig
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -33,7 +32,8 @@ def eval_group() -> None:
     "--methods",
     default="flat,ego,paper",
     show_default=True,
-    help="Comma-separated estimator names.",
+    help="Comma-separated estimator names, and learned-peer (a box-feature regressor trained "
+    "leave-one-sequence-out; needs the extra 'learned').",
 )
 @kitti_eval_options("")
 @click.option(
@@ -48,21 +48,6 @@ def eval_group() -> None:
     help="Write the full report as strict JSON here ('-': standard output, the tables then "
     "go to standard error).",
 )
-@click.option(
-    "--generic-class/--class-as-given",
-    default=False,
-    show_default=True,
-    help="With detector boxes (every box 'Car'), let ours read the class as generic: a "
-    "mixture of car/van/truck/bus (option generic_classes).",
-)
-@click.option(
-    "--gt-reference",
-    type=click.Choice([r.value for r in REFERENCES]),
-    default=ReferencePoint.CENTRE.value,
-    show_default=True,
-    help="The point of the vehicle the truth's distance refers to (KITTI labels: the centre); "
-    "ours reports the same point.",
-)
 @estimator_options()
 def kitti_tracking(
     data_dir: Path,
@@ -70,21 +55,17 @@ def kitti_tracking(
     methods: str,
     depth_dir: Path | None,
     json_out: Path | None,
-    generic_class: bool,
-    gt_reference: str,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
-    names = check_methods(split_list(methods) or [])
+    names = check_methods(split_list(methods) or [], evaluation=True)
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),
         methods=names,
-        method_options=estimator_config.method_options(names or available_methods()),
+        method_options=evaluation_method_options(estimator_config, names),
         depth_dir=depth_dir,
-        generic_detector_class=generic_class,
-        gt_reference=ReferencePoint(gt_reference),
     )
     report = evaluate_kitti_tracking(
         data_dir, cfg, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)

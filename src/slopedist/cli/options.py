@@ -18,8 +18,10 @@ from slopedist.detections.layouts import LogitKind, OutputLayout
 from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.io.intrinsics import Intrinsics
+from slopedist.learned_peer import PEER_METHOD
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -29,9 +31,10 @@ def split_list(value: str | None) -> list[str] | None:
     return [v.strip() for v in value.split(",") if v.strip()]
 
 
-def check_methods(names: list[str]) -> list[str]:
-    """Fail with a usage error on an unknown method name."""
-    known = available_methods()
+def check_methods(names: list[str], evaluation: bool = False) -> list[str]:
+    """Fail with a usage error on an unknown method name (``evaluation``: the evaluation-only
+    rows, such as the learned peer, are known too)."""
+    known = available_methods() + ([PEER_METHOD] if evaluation else [])
     bad = [n for n in names if n not in known]
     if bad:
         raise click.BadParameter(
@@ -39,6 +42,15 @@ def check_methods(names: list[str]) -> list[str]:
             param_hint="--methods/--method",
         )
     return names
+
+
+def evaluation_method_options(
+    config: EstimatorConfig, names: list[str]
+) -> dict[str, dict[str, Any]]:
+    """The constructor options of an evaluation's estimators (of every method when ``names``
+    is empty; the evaluation-only rows have none)."""
+    estimators = [n for n in names if n != PEER_METHOD]
+    return config.method_options(estimators if names else available_methods())
 
 
 height_option = click.option(
@@ -378,12 +390,16 @@ drive_file_options = _files_decorator(required=False)
 computes the rotations from the frames and may detect the boxes)."""
 
 
+GT_REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The reference points a ground truth can declare (``--gt-reference``)."""
+
+
 def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
-    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle`` and
-    ``--lookback`` — handed to the command as one ``kitti_config``
-    (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command adds its sequences, methods and
-    method options with :func:`dataclasses.replace`)."""
+    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
+    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
+    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
+    adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
     source_options = (
         click.option(
             "--rotation",
@@ -409,6 +425,30 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
         height_option,
         mount_option,
         lookback_option,
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            default=1,
+            show_default=True,
+            help=f"{prefix}Run the sequences on N CPUs, one Ray task per sequence (needs "
+            "pip install 'slopedist[batch]'); the results are those of 1.",
+        ),
+        click.option(
+            "--generic-class/--class-as-given",
+            default=False,
+            show_default=True,
+            help=f"{prefix}With detector boxes (every box 'Car'), let ours read the class as "
+            "generic: a mixture of car/van/truck/bus (option generic_classes).",
+        ),
+        click.option(
+            "--gt-reference",
+            type=click.Choice([r.value for r in GT_REFERENCES]),
+            default=None,
+            help="Declare the point of the vehicle the truth's distance refers to "
+            "(KITTI labels: centre): every method's distance is moved to it (ground-contact "
+            "methods by half their class's length prior; ours reports it itself). Default: "
+            "undeclared, each method scored at its own point (the published protocol).",
+        ),
     )
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
@@ -421,6 +461,9 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             height_m: float,
             mount_angle_deg: float,
             lookback_s: float,
+            workers: int,
+            generic_class: bool,
+            gt_reference: str | None,
             **kwargs: Any,
         ) -> Any:
             from slopedist.kitti_eval import KittiEvalConfig
@@ -432,6 +475,9 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
                 height_m=height_m,
                 mount_angle_rad=math.radians(mount_angle_deg),
                 lookback_s=lookback_s,
+                workers=workers,
+                generic_detector_class=generic_class,
+                gt_reference=ReferencePoint(gt_reference) if gt_reference else None,
             )
             return command(*args, **kwargs)
 

@@ -11,12 +11,14 @@ import click
 from slopedist.cli.options import (
     check_methods,
     estimator_options,
+    evaluation_method_options,
     kitti_eval_options,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators import EstimatorConfig
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
+    SUMMARY_TABLES,
     ReportOptions,
     SourceKind,
     detect_source,
@@ -50,7 +52,8 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
 @click.option(
     "--methods",
     help="Comma-separated methods [default: every method that can run; "
-    "depthmap when --depth-dir is given].",
+    "depthmap when --depth-dir is given]; learned-peer adds the box-feature regressor "
+    "trained leave-one-sequence-out (KITTI; extra 'learned').",
 )
 @click.option("--sequences", help="KITTI: comma-separated sequences (default: all).")
 @click.option(
@@ -77,15 +80,16 @@ def report(
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
-    """Write the comparison report of SOURCE: a KITTI tracking folder or `slopedist run`
-    output(s). Prints Table 1 (RMSE) and Table 2 (time per frame)."""
-    names = check_methods(split_list(methods) or [])
+    """Write the comparison report of SOURCE: a KITTI tracking folder, `slopedist run`
+    output(s) or a `slopedist batch` output (the fleet report). Prints Table 1 (RMSE) and
+    Table 2 (time per frame), and for a batch the pooled fleet tables."""
+    names = check_methods(split_list(methods) or [], evaluation=True)
     kind = detect_source(source)
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),
         methods=tuple(names),
-        method_options=estimator_config.method_options(names or available_methods()),
+        method_options=evaluation_method_options(estimator_config, names),
         depth_dir=depth_dir,
     )
     opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))
@@ -96,9 +100,9 @@ def report(
         data, out_dir, opts.tracks, opts.n_tracks, parquet=False if no_parquet else None
     )
     for t in written.tables:
-        if t.key in ("table1_rmse", "table2_time"):
+        if t.key in SUMMARY_TABLES:
             click.echo(format_text(t) + "\n")
-    if kind is SourceKind.RUN and not data.has_truth:
+    if kind in (SourceKind.RUN, SourceKind.FLEET) and not data.has_truth:
         click.echo("no ground truth in the records: Table 1 is not available", err=True)
     click.echo(
         f"wrote {out_dir / 'report.html'}, {out_dir / 'report.md'} and "

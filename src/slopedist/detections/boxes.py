@@ -5,7 +5,7 @@ Convention: boxes are ``(left, top, right, bottom)`` in pixels, origin top-left,
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -272,6 +272,52 @@ class BoxTable:
     def frame_index(self) -> dict[int, BoxTable]:
         """``{frame index: boxes of that frame}``."""
         return dict(self.by_frame())
+
+    def frame_lookup(self) -> FrameLookup:
+        """The boxes of each frame, cut out when asked for (:class:`FrameLookup`)."""
+        return FrameLookup(self)
+
+
+class FrameLookup(Mapping[int, "BoxTable"]):
+    """``{frame index: boxes of that frame}`` like :meth:`BoxTable.frame_index`, but each
+    frame's table is cut out of ``table`` when it is asked for, so a long drive's boxes are
+    held once (plus 8 bytes per box and 24 per frame), not as one small table per frame.
+    The rows of a frame come in the order of ``table`` (as :meth:`BoxTable.by_frame`)."""
+
+    def __init__(self, table: BoxTable) -> None:
+        self.table = table
+        self._order = np.argsort(table.frame, kind="stable")
+        frames = table.frame[self._order]
+        starts = np.flatnonzero(np.r_[True, np.diff(frames) != 0]) if len(frames) else frames
+        self._keys = frames[starts]
+        self._bounds = np.r_[starts, len(frames)].astype(np.int64)
+
+    def _position(self, frame: object) -> int:
+        """Position of ``frame`` among the frames with boxes, or -1."""
+        if not isinstance(frame, (int, np.integer)):
+            return -1
+        i = int(np.searchsorted(self._keys, frame))
+        return i if i < len(self._keys) and self._keys[i] == frame else -1
+
+    def __getitem__(self, frame: int) -> BoxTable:
+        i = self._position(frame)
+        if i < 0:
+            raise KeyError(frame)
+        return self.table.select(self._order[self._bounds[i] : self._bounds[i + 1]])
+
+    def __contains__(self, frame: object) -> bool:
+        return self._position(frame) >= 0
+
+    def __iter__(self) -> Iterator[int]:
+        return (int(k) for k in self._keys)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def count(self, frame: int) -> int:
+        """Number of boxes of ``frame`` (0 when it has none)."""
+        i = self._position(frame)
+        return int(self._bounds[i + 1] - self._bounds[i]) if i >= 0 else 0
 
 
 def concat_boxes(parts: list[BoxTable], like: BoxTable | None = None) -> BoxTable:

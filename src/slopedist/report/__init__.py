@@ -14,6 +14,11 @@ Sources:
   (odometry time only for methods that use rotations). A folder of ``slopedist simulate``
   outputs with the runs made from their frames inside (``SIM/run_paper/``, ...) is read the
   same way, with the true θ of each simulation (``SIM/frames.csv``);
+- a ``slopedist batch`` output (``status.csv``): its complete drives are read as run outputs
+  (each drive one sequence), and the fleet tables come first: the batch status, the distance
+  error pooled over all drives, by true-distance range and per drive (where the records carry
+  the truth), and the per-track safety summaries (minimum TTC, TTC events, short headways) per
+  drive and pooled (:mod:`slopedist.report.fleet`);
 - a ``slopedist demo`` output (``results.json``, ``<scenario>/records.csv`` and
   ``<scenario>/frames.csv``): Table 1 per scenario × method against the synthetic truth, θ of
   the odometry against the true θ, times from ``results.json``.
@@ -40,15 +45,17 @@ from slopedist.report.data import (
     SourceKind,
 )
 from slopedist.report.figures import Figure, report_figures
+from slopedist.report.fleet import fleet_report_data
 from slopedist.report.kitti import kitti_report_data
 from slopedist.report.runs import THETA_TRUTH_COLUMNS, TRUTH_COLUMNS, run_report_data
 from slopedist.report.sources import detect_source, report_data
 from slopedist.report.synthetic import synthetic_report_data
-from slopedist.report.tables import report_tables
+from slopedist.report.tables import SUMMARY_TABLES, report_tables
 from slopedist.report.writer import WrittenReport, write_report
 
 __all__ = [
     "RECORD_COLUMNS",
+    "SUMMARY_TABLES",
     "THETA_COLUMNS",
     "THETA_TRUTH_COLUMNS",
     "TRUTH_COLUMNS",
@@ -59,6 +66,7 @@ __all__ = [
     "SourceKind",
     "WrittenReport",
     "detect_source",
+    "fleet_report_data",
     "kitti_report_data",
     "report_data",
     "report_figures",

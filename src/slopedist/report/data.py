@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.batch.fleet import FleetSummary
 from slopedist.evaluation import PooledScores
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.tracks import TRACK_FIELDS
@@ -24,6 +25,8 @@ class SourceKind(str, Enum):
     RUN = "run"
     SYNTHETIC = "synthetic"
     """A ``slopedist demo`` output folder (the synthetic-hill suite)."""
+    FLEET = "fleet"
+    """A ``slopedist batch`` output folder (``status.csv`` and one run folder per drive)."""
 
 
 @dataclass
@@ -112,6 +115,10 @@ class ReportData:
         truth_source: name of the rotation source taken as θ truth (``"oxts"``), if any.
         has_truth: whether the records carry a ground-truth distance.
         tracks: per-track summaries of run outputs (:data:`TRACK_COLUMNS`), or None.
+        fleet: the fleet tables of a batch output (per drive, pooled, by range, safety), or
+            None.
+        batch_status: the rows of a batch output's ``status.csv`` (``drive``, ``status``,
+            ``error``, ``frames``, ...), or None.
     """
 
     title: str
@@ -126,6 +133,8 @@ class ReportData:
     truth_source: str | None = None
     has_truth: bool = True
     tracks: Columns | None = None
+    fleet: FleetSummary | None = None
+    batch_status: list[dict[str, str]] | None = None
 
     @property
     def methods(self) -> list[str]:

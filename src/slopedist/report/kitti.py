@@ -14,6 +14,7 @@ from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, available_methods
 from slopedist.kitti_eval import KittiEvaluation, SequenceRun, run_kitti_tracking
+from slopedist.learned_peer import PEER_METHOD, PEER_PROTOCOL
 from slopedist.report.data import (
     RECORD_COLUMNS,
     THETA_COLUMNS,
@@ -83,7 +84,7 @@ def _timing(evaluation: KittiEvaluation, method: str) -> dict[str, float]:
     frames = sum(r.n_frames for r in present)
     seconds = sum(r.runs[method].seconds for r in present)
     depth_s = sum(r.runs[method].depth_seconds for r in present)
-    needs_depth = getattr(ESTIMATORS[method], "needs_depth", False)
+    needs_depth = getattr(ESTIMATORS.get(method), "needs_depth", False)
     return {
         "odometry_ms": math.nan,
         "estimation_ms": 1000 * seconds / frames if frames else math.nan,
@@ -100,10 +101,12 @@ def _notes(protocol: dict[str, Any], boxes: BoxSource) -> list[str]:
         "the truth by IoU"
     )
     rotations: dict[str, str | None] = protocol["rotation_per_method"]
-    return [
+    truth = protocol["ground_truth"]
+    notes = [
         f"Protocol: {boxes_kind}; "
-        f"ground truth = KITTI label z of Car/Van, truncated 0, occluded <= 1, 0 < z <= 80 m; "
-        f"{protocol['cap_rule']}.",
+        f"ground truth = KITTI label z of Car/Van, truncated 0, occluded <= 1, 0 < z <= 80 m, "
+        f"referring to the vehicle's {truth['reference']}, methods compared at "
+        f"{truth['methods_compared_at']}; {protocol['cap_rule']}.",
         "Rotation per method: "
         + ", ".join(f"{m} = {r or 'none'}" for m, r in rotations.items())
         + ".",
@@ -111,6 +114,9 @@ def _notes(protocol: dict[str, Any], boxes: BoxSource) -> list[str]:
         "files (ORB-SLAM3, OXTS). Estimation = the estimator's own time; depth = reading the "
         "depth maps (file read, not network inference). The 2D detector is excluded.",
     ]
+    if protocol.get("learned_peer"):
+        notes.append(f"{PEER_METHOD} (not an estimator: a yardstick): {PEER_PROTOCOL}.")
+    return notes
 
 
 def kitti_report_data(
@@ -126,10 +132,11 @@ def kitti_report_data(
     root = Path(root)
     cfg = opts.eval
     methods = list(cfg.methods) or default_kitti_methods(cfg.depth_dir is not None)
-    unknown = [m for m in methods if m not in ESTIMATORS]
+    unknown = [m for m in methods if m not in ESTIMATORS and m != PEER_METHOD]
     if unknown:
         raise ConfigurationError(
-            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
+            f"unknown method(s) {', '.join(unknown)}; choose from "
+            f"{', '.join([*available_methods(), PEER_METHOD])}"
         )
     evaluation = run_kitti_tracking(root, replace(cfg, methods=tuple(methods)), on_sequence)
     records = Columns(RECORD_COLUMNS)

@@ -20,6 +20,8 @@ import numpy as np
 
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import ESTIMATORS
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_methods
 from slopedist.limits import MAX_INDEX
 from slopedist.report.data import (
@@ -146,6 +148,8 @@ class _RunReader:
     """What the run folders add up to, folder by folder."""
 
     methods: Sequence[str] | None
+    reference: ReferencePoint | None = None
+    """The truth's declared reference point: every distance is moved to it (None: as given)."""
     records: Columns = field(default_factory=lambda: Columns(RECORD_COLUMNS))
     theta: Columns = field(default_factory=lambda: Columns(THETA_COLUMNS))
     tracks: Columns = field(default_factory=lambda: Columns(TRACK_COLUMNS))
@@ -170,6 +174,8 @@ class _RunReader:
             if self.methods and method not in self.methods:
                 continue
             d = _distance(row, path, lineno)
+            if self.reference is not None:
+                d = _at_reference(d, row, path, lineno, self.reference)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             reason = row.get("reason", "") or ""
             by_method.setdefault(method, []).append((d, g, reason))
@@ -302,6 +308,20 @@ def _distance(row: dict[str, str], path: Path, line: int) -> float:
     return d
 
 
+def _at_reference(
+    d: float, row: dict[str, str], path: Path, line: int, wanted: ReferencePoint
+) -> float:
+    """A record's distance moved from its ``reference`` to ``wanted``
+    (:func:`~slopedist.estimators.references.to_reference`; the record's own half extent where
+    it has the centre and nearest-face columns)."""
+    centre = _float(row.get(CENTRE_COLUMN), path, line, CENTRE_COLUMN)
+    face = _float(row.get(NEAREST_FACE_COLUMN), path, line, NEAREST_FACE_COLUMN)
+    moved = to_reference(
+        [d], [row.get("reference", "")], [row.get("class", "")], wanted, [centre - face]
+    )
+    return float(moved[0])
+
+
 def _scored_set(vals: list[tuple[float, float, str]]) -> ScoredSet:
     """``(distance, truth, reason)`` triples scored with the KITTI cap rule (only targets
     with a positive truth count)."""
@@ -331,11 +351,18 @@ def _truth_frame_log(folder: Path) -> Path | None:
     return None
 
 
-def _notes(names: list[str], truth_found: bool) -> list[str]:
+def _notes(names: list[str], truth_found: bool, reference: ReferencePoint | None) -> list[str]:
+    compared = (
+        f"declared to refer to the vehicle's {reference.value}, every method's distance moved "
+        "to that point"
+        if reference is not None
+        else "each method scored at its own reference point"
+    )
     truth = (
         (
-            "Ground truth: column " + ", ".join(TRUTH_COLUMNS) + " of records.csv; the same cap "
-            "rule as KITTI (estimates above 80 m count as 80 m, below-horizon targets as 80 m)."
+            "Ground truth: column " + ", ".join(TRUTH_COLUMNS) + f" of records.csv, {compared}; "
+            "the same cap rule as KITTI (estimates above 80 m count as 80 m, below-horizon "
+            "targets as 80 m)."
         )
         if truth_found
         else "No ground-truth column in records.csv (" + ", ".join(TRUTH_COLUMNS) + "): "
@@ -349,19 +376,23 @@ def _notes(names: list[str], truth_found: bool) -> list[str]:
     ]
 
 
-def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
-    """Read one ``slopedist run`` output folder, or a folder of them (one per sequence).
+def run_report_data(
+    root: str | Path, opts: ReportOptions, folders: Sequence[Path] | None = None
+) -> ReportData:
+    """Read one ``slopedist run`` output folder, or a folder of them (one per sequence);
+    ``folders``: the run folders to read (default: :func:`run_folders` of ``root``).
 
     Raises:
         InputFileError: a bad cell or a missing column (file, line, field), or no records.
         ConfigurationError: two runs of one method on one sequence.
     """
     root = Path(root)
-    folders = run_folders(root)
+    folders = list(folders) if folders is not None else run_folders(root)
     by_seq: dict[str, list[Path]] = {}
     for folder in folders:
         by_seq.setdefault(run_sequence_name(folder), []).append(folder)
-    reader = _RunReader(opts.methods)
+    reference = opts.eval.gt_reference
+    reader = _RunReader(opts.methods, ReferencePoint(reference) if reference else None)
     for folder in folders:
         seq = run_sequence_name(folder)
         methods = reader.read_records(folder, seq)
@@ -382,8 +413,12 @@ def run_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         timing={m: reader.timing(m) for m in methods},
         records=reader.records,
         theta=reader.theta,
-        protocol={"source": "run", "folders": [str(f) for f in folders]},
-        notes=_notes(list(by_seq), reader.truth_found),
+        protocol={
+            "source": "run",
+            "folders": [str(f) for f in folders],
+            "gt_reference": reader.reference.value if reader.reference else None,
+        },
+        notes=_notes(list(by_seq), reader.truth_found, reader.reference),
         truth_source="truth" if reader.theta_truth else None,
         has_truth=reader.truth_found,
         tracks=reader.tracks if len(reader.tracks) else None,

@@ -7,14 +7,16 @@ from pathlib import Path
 
 from slopedist.errors import MissingInputError
 from slopedist.report.data import ReportData, ReportOptions, SourceKind
+from slopedist.report.fleet import fleet_report_data, is_batch_output
 from slopedist.report.kitti import kitti_report_data
 from slopedist.report.runs import run_folders, run_report_data
 from slopedist.report.synthetic import DEMO_RESULTS, synthetic_report_data
 
 
 def detect_source(path: str | Path) -> SourceKind:
-    """Tell a KITTI tracking folder from a ``slopedist demo`` output and from a run output (or
-    a folder of run outputs, or of ``slopedist simulate`` outputs with runs inside).
+    """Tell a KITTI tracking folder from a ``slopedist demo`` output, a ``slopedist batch``
+    output (``status.csv``) and a run output (or a folder of run outputs, or of
+    ``slopedist simulate`` outputs with runs inside).
 
     Raises:
         MissingInputError: the folder does not exist or is neither.
@@ -26,6 +28,8 @@ def detect_source(path: str | Path) -> SourceKind:
         return SourceKind.KITTI_TRACKING
     if (path / DEMO_RESULTS).is_file() and any(path.glob("*/records.csv")):
         return SourceKind.SYNTHETIC
+    if is_batch_output(path):
+        return SourceKind.FLEET
     if run_folders(path):
         return SourceKind.RUN
     sims = [
@@ -56,4 +60,6 @@ def report_data(
         return kitti_report_data(source, opts, on_sequence)
     if kind is SourceKind.SYNTHETIC:
         return synthetic_report_data(source, opts)
+    if kind is SourceKind.FLEET:
+        return fleet_report_data(source, opts)
     return run_report_data(source, opts)

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from slopedist.report.data import ReportData
+from slopedist.report.fleet import fleet_tables
 from slopedist.score_tables import score_tables
 from slopedist.tables import Table, best_marks
 
@@ -146,9 +147,14 @@ def _nan_last(x: float) -> float:
     return x if math.isfinite(x) else math.inf
 
 
+SUMMARY_TABLES = ("fleet_pooled", "fleet_safety_pooled", "table1_rmse", "table2_time")
+"""Keys of the tables ``slopedist report`` prints (the others are on the page and in CSV)."""
+
+
 def report_tables(data: ReportData) -> list[Table]:
-    """Every table of the report, in page order."""
-    tables = score_tables(data.scores) if data.has_truth else []
+    """Every table of the report, in page order (a batch output's fleet tables first)."""
+    tables = fleet_tables(data)
+    tables += score_tables(data.scores) if data.has_truth else []
     tables.append(table2(data))
     for extra in (theta_table(data), tracks_table(data)):
         if extra is not None:

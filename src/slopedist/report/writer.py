@@ -105,6 +105,8 @@ def _write_data_files(
         "timing": data.timing,
         "notes": data.notes,
     }
+    if data.fleet is not None:
+        summary["fleet"] = vars(data.fleet)
     write_json(out / "report.json", summary, indent=1)
     return [*files, out / "report.json"]
 
