@@ -64,6 +64,7 @@ from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.export_mcap import McapExportWriter
 from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.intrinsics import in_frame_pixels
 from slopedist.io.outputs import (
     OutputFiles,
     OutputWriteError,
@@ -318,12 +319,13 @@ class _RunLoop:
         return boxes, ms
 
     def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
-        """The odometry's rotation of a frame with pixels (its boxes masked out)."""
+        """The odometry's rotation of a frame with pixels (its boxes, in the frame's own
+        pixels, masked out)."""
         if frame.image is None or self.odometry is None:
             return _OdometryOutput(None, self.segment)
         gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
         t0 = time.perf_counter()
-        res = self.odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
+        res = self.odometry.process(gray, frame.timestamp_s, in_frame_pixels(frame_boxes).boxes)
         # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its own
         # working time
         ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
@@ -376,11 +378,12 @@ class _RunLoop:
         head = f"frame {k}  t {t:.2f} s"
         if not math.isfinite(theta):
             head += f"  no rotation ({state or 'no odometry'})"
+        drawn = in_frame_pixels(frame_boxes)  # the frame's own pixels, distorted or not
         draw = functools.partial(
             draw_fig3_overlay,
             frame.image,
             self.camera,
-            frame_boxes,
+            drawn,
             res.estimates,
             theta,
             head,
@@ -412,7 +415,7 @@ class _RunLoop:
             frame.source,
             frame.status.value,
             frame.image,
-            frame_boxes,
+            in_frame_pixels(frame_boxes),  # annotations of the source image
             res.estimates,
             res.theta_rad,
             lead_index(self.camera, frame_boxes, res.estimates),

@@ -290,7 +290,8 @@ class OursEstimator(Estimator):
         )
         uid = self._update_tracks(targets, match, fused, distance, gradient, frame.R_world_cam)
         if cfg.self_calibrate:
-            self._feed_selfcal(targets, fused, gradient, uid, theta_rad, calib)
+            shape_gap = frame_cues.shape_gap(targets, size)
+            self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         return frame_cues.box_estimates(
             cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
         )
@@ -496,6 +497,7 @@ class OursEstimator(Estimator):
     def _feed_selfcal(
         self,
         targets: FrameTargets,
+        shape_gap: FloatArray,
         fused: FusedCues,
         gradient: TargetGradient,
         uid: NDArray[np.int64],
@@ -503,12 +505,10 @@ class OursEstimator(Estimator):
         calib: CalibrationInUse,
     ) -> None:
         """Give the self-calibration the targets of tightly sized classes whose box is not cut
-        by the top or bottom border: their bottom rows and nearest-face size distances."""
-        cam = self.camera
-        n = uid.shape[0]
-        usable = (
-            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
-        ) & ~targets.classes.generic
+        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps."""
+        cam, n = self.camera, uid.shape[0]
+        classes = targets.classes
+        usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom
@@ -516,7 +516,7 @@ class OursEstimator(Estimator):
         v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
         near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
         self.selfcal.update(
-            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near
+            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near, shape_gap
         )
 
     def _new_filter_rows(self, meas: LogCue) -> FloatArray:
