@@ -91,7 +91,7 @@ def run_scenario(
     scenario = load_scenario(name)
     folder = scenario_folder(cfg.out_dir, scenario.name, name)
     folder.mkdir(parents=True, exist_ok=True)
-    plans = plan_methods(method_names, SyntheticSequence(scenario).camera, cfg.estimator)
+    plans = plan_methods(method_names, scenario.camera.camera(), cfg.estimator)
     loop = ScenarioLoop(scenario, cfg, plans, folder)
     files = loop.run(bar)
     run = ScenarioRun(

@@ -44,6 +44,7 @@ Convention: θ in radians inside, degrees in the CSV files; timestamps in second
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections import Counter
@@ -63,6 +64,7 @@ from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.export_mcap import McapExportWriter
 from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.intrinsics import in_frame_pixels
 from slopedist.io.outputs import (
     OutputFiles,
     OutputWriteError,
@@ -324,12 +326,13 @@ class _RunLoop:
         return boxes, ms
 
     def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
-        """The odometry's rotation of a frame with pixels (its boxes masked out)."""
+        """The odometry's rotation of a frame with pixels (its boxes, in the frame's own
+        pixels, masked out)."""
         if frame.image is None or self.odometry is None:
             return _OdometryOutput(None, self.segment)
         gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
         t0 = time.perf_counter()
-        res = self.odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
+        res = self.odometry.process(gray, frame.timestamp_s, in_frame_pixels(frame_boxes).boxes)
         # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its own
         # working time
         ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
@@ -387,9 +390,21 @@ class _RunLoop:
         head = f"frame {k}  t {t:.2f} s"
         if not math.isfinite(theta):
             head += f"  no rotation ({state or 'no odometry'})"
-        image = draw_fig3_overlay(
-            frame.image, self.camera, frame_boxes, res.estimates, theta, head, self.method
+        drawn = in_frame_pixels(frame_boxes)  # the frame's own pixels, distorted or not
+        draw = functools.partial(
+            draw_fig3_overlay,
+            frame.image,
+            self.camera,
+            drawn,
+            res.estimates,
+            theta,
+            head,
+            self.method,
         )
+        if isinstance(self.painter, BackgroundOverlay) and not snapshot:
+            self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread
+            return
+        image = draw()
         if self.painter is not None:
             self.painter.write(k, image, t)
         if snapshot:
@@ -412,7 +427,7 @@ class _RunLoop:
             frame.source,
             frame.status.value,
             frame.image,
-            frame_boxes,
+            in_frame_pixels(frame_boxes),  # annotations of the source image
             res.estimates,
             res.theta_rad,
             lead_index(self.camera, frame_boxes, res.estimates),

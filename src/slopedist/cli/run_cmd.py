@@ -327,6 +327,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 def run(  # noqa: PLR0913 (a click command: one parameter per option)
     frames: Path,
     calib: Path | Intrinsics | None,
+    image_size: tuple[int, int] | None,
     image_topic: str | None,
     rotation_topic: str | None,
     speed_topic: str | None,
@@ -373,6 +374,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     inputs = RunInputs(
         frames,
         calib,
+        image_size=image_size,
         boxes=boxes_path,
         score=score,
         detector=functools.partial(make_detector, model, **detector_opts) if model else None,

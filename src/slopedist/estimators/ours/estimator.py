@@ -311,7 +311,8 @@ class OursEstimator(Estimator):
         if self._keep_predicted:
             self._keep_frame(match, fused, distance, uid)
         if cfg.self_calibrate:
-            self._feed_selfcal(targets, fused, gradient, uid, theta_rad, calib)
+            shape_gap = frame_cues.shape_gap(targets, size)
+            self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
             cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
         )
@@ -520,6 +521,7 @@ class OursEstimator(Estimator):
     def _feed_selfcal(
         self,
         targets: FrameTargets,
+        shape_gap: FloatArray,
         fused: FusedCues,
         gradient: TargetGradient,
         uid: NDArray[np.int64],
@@ -527,12 +529,10 @@ class OursEstimator(Estimator):
         calib: CalibrationInUse,
     ) -> None:
         """Give the self-calibration the targets of tightly sized classes whose box is not cut
-        by the top or bottom border: their bottom rows and nearest-face size distances."""
-        cam = self.camera
-        n = uid.shape[0]
-        usable = (
-            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
-        ) & ~targets.classes.generic
+        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps."""
+        cam, n = self.camera, uid.shape[0]
+        classes = targets.classes
+        usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom
@@ -540,7 +540,7 @@ class OursEstimator(Estimator):
         v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
         near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
         self.selfcal.update(
-            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near
+            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near, shape_gap
         )
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:

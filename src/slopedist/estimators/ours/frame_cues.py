@@ -78,6 +78,16 @@ def size_cues(
     return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
 
 
+def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
+    """How far each target's box shape is from its class's: the gap between its height and
+    width cues at the heading that explains it best, in σ of the class prior (``(n,)``; NaN
+    without a width cue; :func:`~slopedist.estimators.ours.fusion.shape_gap_sigma`)."""
+    hyp = targets.classes.hypotheses
+    return fusion.shape_gap_sigma(
+        size.height, size.width, hyp.log_sigma_height, hyp.log_sigma_width, hyp.corr_height_width
+    )
+
+
 def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
     """The size cues with the dimensions cut by the image border (height: top or bottom;
     width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
