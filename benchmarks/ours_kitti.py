@@ -120,6 +120,7 @@ ABLATION: list[tuple[str, dict[str, Any]]] = [
     ("ours + self-calibration = ours-selfcal", {"self_calibrate": True}),
     ("ours + heading memory over the track", {"yaw_memory": True}),
     ("ours + 'Car' read as a vehicle-type mixture", {"generic_classes": ("Car",)}),
+    ("ours + per-track size learning (size_learning)", {"size_learning": True}),
 ]
 
 SENSITIVITY: list[tuple[str, Callable[[float], dict[str, Any]]]] = [
@@ -146,6 +147,15 @@ SENSITIVITY: list[tuple[str, Callable[[float], dict[str, Any]]]] = [
         },
     ),
 ]
+
+SYNTHETIC_METHODS: list[tuple[str, str, dict[str, Any]]] = [
+    ("paper", "paper", {}),
+    ("ours", "ours", {}),
+    ("ours +size", "ours", {"size_learning": True}),
+    ("ours-offline", "ours-offline", {}),
+]
+"""The columns of the synthetic section: label, method, options (ours with per-track size
+learning; ours-offline)."""
 
 MIN_SCORE = {BoxSource.POINTRCNN: 2.0, BoxSource.RRC: 0.5}
 """The detectors' score thresholds of the issue's figures (PointRCNN ≥ 2, RRC ≥ 0.5)."""
@@ -447,15 +457,16 @@ def section_synthetic(scenarios: Sequence[str]) -> None:
         t = seq.truth.timestamps_s
         track = RotationTrack.from_arrays(t, seq.truth.poses_cam0()[:, :, :3])
         row: list[Any] = [name, len(boxes)]
-        for m in ("paper", "ours"):
-            r = estimate_sequence(make_estimator(m, seq.camera), boxes, t, track)
+        for _, m, opts in SYNTHETIC_METHODS:
+            r = estimate_sequence(make_estimator(m, seq.camera, **opts), boxes, t, track)
             idx = np.searchsorted(seq.truth.track_ids, r.boxes.track_id)
             z = seq.truth.z_m[r.boxes.frame, idx]
             d, ok = cap_estimates(r.estimates.distance_m, r.estimates.reason, 80.0)
             row.append(float(np.sqrt(np.mean((d[ok] - z[ok]) ** 2))))
         row.append(row[3] / row[2])
         rows.append(row)
-    print(format_table(["scenario", "n", "paper", "ours", "ours/paper"], rows) + "\n")
+    header = ["scenario", "n", *(label for label, _, _ in SYNTHETIC_METHODS), "ours/paper"]
+    print(format_table(header, rows) + "\n")
 
 
 def section_sensitivity(data: Path) -> None:
@@ -497,12 +508,16 @@ def section_box_sources(data: Path) -> None:
     )
     rows = []
     for boxes in (BoxSource.GT, BoxSource.POINTRCNN, BoxSource.RRC):
-        rep = report(data, ["flat", "paper", "ours"], boxes)
-        sc = {m: scores(rep, m) for m in ("flat", "paper", "ours")}
-        within = sum(
-            rmse_of(sc["ours"], s) <= 1.1 * min(rmse_of(sc["flat"], s), rmse_of(sc["paper"], s))
-            for s in sc["ours"]
+        rep = report(data, ["flat", "paper", "ours", "ours-offline"], boxes)
+        sc = {m: scores(rep, m) for m in ("flat", "paper", "ours", "ours-offline")}
+        sc["ours +size"] = scores(
+            report(data, ["ours"], boxes, {"ours": {"size_learning": True}}), "ours"
         )
+        best = {s: min(rmse_of(sc["flat"], s), rmse_of(sc["paper"], s)) for s in sc["ours"]}
+        within = {
+            m: sum(rmse_of(sc[m], s) <= 1.1 * best[s] for s in sc["ours"])
+            for m in ("ours", "ours +size", "ours-offline")
+        }
         generic = "-"
         if boxes is not BoxSource.GT:
             cfg = KittiEvalConfig(
@@ -520,10 +535,23 @@ def section_box_sources(data: Path) -> None:
                 "-" if recall is None else f"{recall:.3f}",
                 *(f"{overall(rep, m)['rmse']:.3f}" for m in ("flat", "paper", "ours")),
                 generic,
-                f"{within}/{len(sc['ours'])}",
+                f"{pooled(sc['ours +size']):.3f}",
+                f"{overall(rep, 'ours-offline')['rmse']:.3f}",
+                " ".join(f"{within[m]}/{len(sc['ours'])}" for m in within),
             ]
         )
-    header = ["boxes", "n", "recall", "flat", "paper", "ours", "ours generic", "seq ok"]
+    header = [
+        "boxes",
+        "n",
+        "recall",
+        "flat",
+        "paper",
+        "ours",
+        "ours generic",
+        "ours +size",
+        "ours-offline",
+        "seq ok (ours, +size, offline)",
+    ]
     print(format_table(header, rows) + "\n")
 
 

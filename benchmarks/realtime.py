@@ -18,7 +18,8 @@ odometry, estimation, writing the CSV rows, overlay draw, overlay encode; proces
 thread running the stage: OpenCV's own worker threads are not in it) and of the whole run (wall,
 and processor time of all threads). ``other`` = the loop's wall time outside the named stages
 (grey conversion, bookkeeping, waiting for a decoded frame or for room in the overlay queue;
-with ``ahead 4`` decoding and overlay encoding run in threads of their own). Runs alternate
+with ``ahead 4`` decoding, and the overlay's drawing and encoding, run in threads of their
+own). Runs alternate
 between the configurations; min and median of ``--repeats`` runs.
 
 Part 2, the odometry alone (frames decoded beforehand, one core, one process): the built-in
@@ -258,7 +259,8 @@ def worker(args: argparse.Namespace) -> int:
         result = runner.run_frames(source, boxes, odometry, estimator, config)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     n = result.frames
-    behind = ("decode", "overlay encode") if args.ahead else ()  # in their own threads
+    # in threads of their own: decoding, and the overlay's drawing and encoding
+    behind = ("decode", "overlay draw", "overlay encode") if args.ahead else ()
     main_thread = sum(v for k, v in clock.wall.items() if k not in behind)
     figures = {f"{k} wall": v / n * 1e3 for k, v in clock.wall.items()}
     figures |= {f"{k} cpu": v / n * 1e3 for k, v in clock.cpu.items()}

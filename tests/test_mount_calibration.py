@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -19,9 +20,11 @@ from slopedist.io.frames import Frame, FrameStatus
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.mount_calibration import (
     ADVISE_Z,
+    AGREE_Z,
     MountSigma,
     advise_from_frames,
     advise_mount,
+    advised_mount,
     calibrated_floor,
     drive_from_frames,
     judge_mount,
@@ -73,25 +76,68 @@ def test_judge_advises_only_what_the_data_can_tell() -> None:
     prior = _cal(0.0, 1.65)
     floor = MountSigma(math.radians(0.3), 0.08)
     segments = [_cal(1.0, 1.64), _cal(1.1, 1.66), _cal(0.9, 1.65)]
-    advice = judge_mount(_cal(1.0, 1.65 + 0.1), segments, prior, floor)
+    advice = judge_mount(_cal(1.0, 1.65 + 0.1), segments, prior, floor, advise_z=2.0)
     # σ_h = √(0.01² + 0.08²) ≈ 0.081 m: 0.1 m is within 2σ; θ0 = 1° is beyond 2 × 0.32°
     assert advice.advise_mount and not advice.advise_height and not advice.declined
-    assert advice.height_m == 1.65 and math.degrees(advice.mount_angle_rad) == pytest.approx(1.0)
+    # the configured 0° moves only to the edge of the estimate's 2σ interval: 1° − 2σ
+    sigma_deg = math.hypot(0.1, 0.3)
+    assert advice.height_m == 1.65
+    assert math.degrees(advice.mount_angle_rad) == pytest.approx(1.0 - 2 * sigma_deg)
     assert advice.sigma.height_m == pytest.approx(math.hypot(0.01, 0.08))
     assert any(r.startswith("h:") for r in advice.reasons)
     # a spread larger than the fit replaces it
     wide = [_cal(0.0, 1.65), _cal(3.0, 1.65), _cal(-2.0, 1.65)]
-    assert judge_mount(_cal(1.0, 1.65), wide, prior, floor).declined
+    assert judge_mount(_cal(1.0, 1.65), wide, prior, floor, advise_z=2.0).declined
     little = judge_mount(_cal(3.0, 1.2, n_obs=50, n_tracks=3), segments, prior, floor)
     assert little.declined and "too little data" in little.reasons[0]
     d = advice.as_dict()
     assert d["use"]["height_m"] == 1.65 and d["advise"] == {"mount_angle": True, "height": False}
+    # the leave-one-vehicle-out jackknife widens σ like the spread
+    vehicles = MountSigma(math.radians(2.0), 0.01)
+    assert judge_mount(_cal(1.0, 1.65), segments, prior, floor, vehicles, 2.0).declined
 
 
-@pytest.mark.parametrize(("height", "mount_deg"), [(1.65, 0.0), (1.35, 1.5)])
+def test_advised_mount_is_the_smallest_change_that_agrees_with_the_estimate() -> None:
+    sigma = MountSigma(math.radians(0.5), 0.05)
+    estimate, prior = _cal(-1.0, 1.70), _cal(1.0, 1.45)
+    mount, height = advised_mount(estimate, prior, sigma, 2.0)
+    assert math.degrees(mount) == pytest.approx(-1.0 + 2 * 0.5)  # to the upper 2σ edge
+    assert height == pytest.approx(1.70 - 2 * 0.05)  # to the lower 2σ edge
+    inside = advised_mount(estimate, _cal(-0.5, 1.65), sigma, 2.0)
+    assert math.degrees(inside[0]) == pytest.approx(-0.5) and inside[1] == pytest.approx(1.65)
+    # h shown wrong beyond 5σ (6.2σ); θ0 only 3.2σ off, yet moved with it to within 2σ
+    floor = MountSigma(math.radians(0.3), 0.08)
+    segments = [_cal(1.0, 1.15)] * 3
+    advice = judge_mount(_cal(1.0, 1.15), segments, _cal(0.0, 1.65), floor, advise_z=5.0)
+    assert advice.advise_mount and advice.advise_height
+    assert math.degrees(advice.mount_angle_rad) == pytest.approx(1.0 - 2 * math.hypot(0.1, 0.3))
+    assert advice.height_m == pytest.approx(1.15 + 2 * math.hypot(0.01, 0.08))
+    assert advice.reasons == (
+        "θ0: +1.00° from the configured 0°, within 5σ = 1.58°: moved with the other to within "
+        "2σ of the estimate",
+    )
+
+
+def test_boxes_unlike_their_class_decline_everything() -> None:
+    """A drive where more than 6 % of the checked targets have a shape their class does not
+    give (the LiDAR clusters of kitti_raw_lead: 12 %) cannot calibrate from the size cue."""
+    prior = _cal(0.0, 1.65)
+    floor = MountSigma(math.radians(0.3), 0.08)
+    far_off = _cal(1.0, 1.15)  # what such boxes give: far beyond 2σ
+    segments = [_cal(1.0, 1.15)] * 3
+    fitting = dataclasses.replace(far_off, n_shape_checked=500, n_shape_outliers=15)
+    assert not judge_mount(fitting, segments, prior, floor).declined  # 3 %: advised
+    unlike = dataclasses.replace(far_off, n_shape_checked=500, n_shape_outliers=60)
+    advice = judge_mount(unlike, segments, prior, floor)
+    assert advice.declined and "do not fit their classes: 12 %" in advice.reasons[0]
+    assert advice.as_dict()["shape_outlier_share"] == pytest.approx(0.12)
+
+
+@pytest.mark.parametrize(("height", "mount_deg"), [(1.65, 0.0), (1.15, 3.0)])
 def test_advice_on_a_simulated_drive(height: float, mount_deg: float) -> None:
     """A camera truly 1.65 m high at θ0 = 0 configured right declines (nothing to correct);
-    configured 0.3 m and 1.5° off, it advises the truth within its σ."""
+    configured 0.5 m and 3° off (beyond 5σ), its estimate holds the truth within 2σ and the
+    advice moves both parameters towards it."""
     truth = Camera(F, CX, CY, 1.65, 0.0)
     sim = simulate_traffic(truth, 12, 200, seed=5)
     track = RotationTrack.from_arrays(sim.timestamps_s, np.tile(np.eye(3), (200, 1, 1)))
@@ -101,8 +147,12 @@ def test_advice_on_a_simulated_drive(height: float, mount_deg: float) -> None:
         assert advice.declined
         return
     assert advice.advise_mount and advice.advise_height
-    assert abs(advice.height_m - 1.65) < ADVISE_Z * advice.sigma.height_m
-    assert abs(advice.mount_angle_rad) < ADVISE_Z * advice.sigma.mount_angle_rad
+    e, sigma = advice.estimate, advice.sigma
+    assert abs(e.height_m - 1.65) < ADVISE_Z * sigma.height_m
+    assert abs(e.mount_angle_rad) < ADVISE_Z * sigma.mount_angle_rad
+    # the advice moves the configured mount towards the truth, to the estimate's 2σ edge
+    assert height < advice.height_m == pytest.approx(e.height_m - AGREE_Z * sigma.height_m)
+    assert 0 < advice.mount_angle_rad < math.radians(mount_deg)
     assert len(advice.segments) == 3 and advice.estimate.n_tracks >= 8
 
 

@@ -20,6 +20,7 @@ from slopedist.detections.writers import write_box_csv
 from slopedist.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import open_frames
+from slopedist.io.intrinsics import Intrinsics
 from slopedist.odometry.base import OdometryResult, OdometryState
 from slopedist.run_config import SNAPSHOT_QUALITY, RunAbortedError, RunConfig
 from slopedist.runner import run_frames
@@ -518,8 +519,9 @@ def test_depth_and_method_must_match(tmp_path: Path) -> None:
 
 
 def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
-    """The default run decodes frames in a background thread; its records and frame log are
-    those of a run decoding in the loop (timings aside)."""
+    """The default run decodes frames in a background thread and draws and writes the overlay
+    in another; its records, frame log and overlay images are those of a run doing everything
+    in the loop (timings aside)."""
     n = 12
     folder = make_frames(tmp_path / "f", n, skip=(5,))
     outputs = []
@@ -530,12 +532,51 @@ def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
             boxes_every_frame(n),
             ScriptedOdometry(),
             make_estimator("ego", CAM),
-            RunConfig(out, progress=False, decode_ahead=ahead),
+            RunConfig(out, overlay=out / "overlay", progress=False, decode_ahead=ahead),
         )
         frames = read_csv(out / "frames.csv")
         for row in frames:
             for key in ("odometry_ms", "estimation_ms", "depth_ms"):
                 row.pop(key)
-        outputs.append((read_csv(out / "records.csv"), frames))
+        pngs = {p.name: p.read_bytes() for p in sorted((out / "overlay").glob("*.png"))}
+        outputs.append((read_csv(out / "records.csv"), frames, pngs))
     assert outputs[0] == outputs[1]
+    assert len(outputs[0][2]) == n - 1  # the missing frame has no image
     assert len(outputs[0][1]) == n and outputs[0][1][5]["frame_status"] == "missing"
+
+
+def test_overlay_and_odometry_mask_use_the_distorted_frames_pixels(tmp_path: Path) -> None:
+    """With a strongly distorted camera the boxes are mapped into the ideal camera for the
+    estimator, but the overlay draws them (and the odometry masks them) where they are in the
+    distorted frames: the original boxes, not the mapped ones (10 px apart here)."""
+    intrinsics = Intrinsics(
+        np.array([[400.0, 0.0, 160.0], [0.0, 400.0, 100.0], [0.0, 0.0, 1.0]]),
+        np.array([-0.5, 0.2, 0.0, 0.0, 0.0]),
+    )
+    n = 3
+    original = BoxTable.build(
+        np.repeat(np.arange(n), 2),
+        np.tile([[20.0, 30.0, 90.0, 110.0], [200.0, 60.0, 300.0, 150.0]], (n, 1)),
+        np.tile([0, 1], n),
+    )
+    mapped = intrinsics.rectify_table(original)
+    assert np.abs(mapped.boxes - original.boxes).max() > 9.0
+    odometry = ScriptedOdometry()
+    camera = intrinsics.camera(1.5).with_image_size(W, H)
+    out = tmp_path / "out"
+    config = RunConfig(out, overlay=out / "overlay", progress=False, decode_ahead=0)
+    frames = open_frames(make_frames(tmp_path / "f", n))
+    run_frames(frames, mapped, odometry, make_estimator("flat", camera), config)
+    for _, mask in odometry.calls:
+        np.testing.assert_array_equal(mask, original.boxes[:2])
+    image = cv2.imread(str(out / "overlay" / f"{n - 1:06d}.png")).astype(int)
+    background = 40 + n - 1
+
+    def drawn_share(column: float, rows: tuple[float, float]) -> float:
+        pixels = image[round(rows[0]) + 5 : round(rows[1]) - 5, round(column)]
+        return float(np.mean(np.abs(pixels - background).max(axis=1) > 30))
+
+    for i, edge in ((0, 0), (1, 2)):  # the left edge of box 0, the right edge of box 1
+        rows = (original.boxes[i, 1], original.boxes[i, 3])
+        assert drawn_share(original.boxes[i, edge], rows) > 0.8
+        assert drawn_share(mapped.boxes[i, edge], rows) < 0.2

@@ -61,7 +61,7 @@ from slopedist.demo_scenario import (
     plan_methods,
 )
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import available_methods
+from slopedist.estimators import causal_methods
 from slopedist.estimators.base import MissingReason
 from slopedist.evaluation import ScoredSet, pool_methods
 from slopedist.io.tables import write_csv, write_json
@@ -285,11 +285,12 @@ class DemoResult:
 def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult:
     """Run the demo and write its outputs (see the module docstring)."""
     start = time.perf_counter()
-    names = list(cfg.methods) if cfg.methods is not None else available_methods()
-    unknown = [m for m in names if m not in available_methods()]
+    names = list(cfg.methods) if cfg.methods is not None else causal_methods()
+    unknown = [m for m in names if m not in causal_methods()]
     if unknown:
         raise ConfigurationError(
-            f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(available_methods())}"
+            f"unknown or offline method(s) {', '.join(unknown)}; the demo runs causally, "
+            f"choose from {', '.join(causal_methods())}"
         )
     scenarios = [load_scenario(s) for s in cfg.scenarios]  # fail early on a bad name or file
     folders = [scenario_folder(cfg.out_dir, sc.name, s) for s, sc in zip(cfg.scenarios, scenarios)]

@@ -112,12 +112,24 @@ class FrameStep:
         self.vehicle_classes = tuple(vehicle_classes)
         self.gradient = EgoGradientTracker(estimator.camera.mount_angle_rad, lookback_s)
         self._last_timestamp: float | None = None
+        self._offline_boxes: list[BoxTable] = []
 
     def reset(self) -> None:
         """Start a new sequence."""
         self.gradient = EgoGradientTracker(self.gradient.mount_angle_rad, self.gradient.lookback_s)
         self.estimator.reset()
         self._last_timestamp = None
+        self._offline_boxes = []
+
+    def finish(self) -> list[FrameEstimates]:
+        """An offline estimator's final estimates (:meth:`Estimator.finish`) of every frame
+        with boxes since :meth:`reset`, in order, settled as :meth:`estimate` settles them.
+
+        Raises:
+            NotImplementedError: the estimator is causal (its per-frame estimates are final).
+        """
+        est = self.estimator.finish()
+        return [self._settle(e, boxes) for e, boxes in zip(est, self._offline_boxes, strict=True)]
 
     def step(
         self,
@@ -164,6 +176,11 @@ class FrameStep:
         est = self.estimator.estimate(
             FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
+        if self.estimator.offline:
+            self._offline_boxes.append(boxes)
+        return self._settle(est, boxes)
+
+    def _settle(self, est: FrameEstimates, boxes: BoxTable) -> FrameEstimates:
         return settle_states(
             est,
             boxes,
@@ -256,7 +273,8 @@ def estimate_sequence(
     depth: Callable[[int], NDArray[np.float32] | None] | None = None,
     vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
 ) -> SequenceEstimates:
-    """Batch use: all frames' θ at once (vectorised), then the estimator frame by frame.
+    """Batch use: all frames' θ at once (vectorised), then the estimator frame by frame (and,
+    for an offline estimator such as ``ours-offline``, its pass over the whole drive).
 
     Args:
         estimator: the method (reset before use).
@@ -290,6 +308,8 @@ def estimate_sequence(
             step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
         )
         box_parts.append(frame_boxes)
+    if estimator.offline:  # the whole drive seen: the offline pass revises every frame
+        est_parts = step.finish()
     return SequenceEstimates(
         concat_boxes(box_parts, like=boxes),
         np.asarray(timestamps_s),

@@ -224,8 +224,8 @@ class RunConfig:
             (:func:`snapshot_path`), with or without ``overlay``.
         decode_ahead: frames decoded ahead in a background thread
             (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
-            odometry works), and overlay frames queued for encoding in another
-            (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: both in the loop's thread.
+            odometry works), and overlay frames queued for drawing and encoding in another
+            (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: all in the loop's thread.
     """
 
     out_dir: Path

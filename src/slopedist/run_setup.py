@@ -112,13 +112,18 @@ def check_runnable(
 
 
 def run_calibration(
-    source: FrameSource, calib: Path | Intrinsics | None, height_m: float, mount_rad: float
+    source: FrameSource,
+    calib: Path | Intrinsics | None,
+    height_m: float,
+    mount_rad: float,
+    image_size: tuple[int, int] | None = None,
 ) -> CameraCalibration:
     """The ``calib`` calibration (any form :func:`read_calibration` takes), else the drive
-    log's ``camera_info``; the mount in metres and radians."""
-    if calib is not None:
-        return read_calibration(calib, height_m, mount_rad)
-    return log_calibration(source, height_m, mount_rad)
+    log's ``camera_info``; the mount in metres and radians; ``image_size`` (``--image-size``,
+    pixels) completes or is checked against it."""
+    if calib is None:
+        calib = log_calibration(source, height_m, mount_rad).intrinsics
+    return read_calibration(calib, height_m, mount_rad, image_size=image_size)
 
 
 def rectified_inputs(
@@ -172,6 +177,8 @@ class RunInputs:
     Attributes:
         frames: image folder, video file or drive log.
         calib: calibration file or values; None takes a drive log's ``camera_info``.
+        image_size: ``(width, height)`` pixels completing or checked against the calibration
+            (``--image-size``), or None.
         boxes: box file, or None with ``detector``; ``score``: minimum box score or None.
         detector: builds the ONNX detector run on every frame instead of a box file.
         fps: frames per second (None: the source's default); ``timestamps``: a timestamps file.
@@ -186,6 +193,7 @@ class RunInputs:
 
     frames: Path
     calib: Path | Intrinsics | None = None
+    image_size: tuple[int, int] | None = None
     boxes: Path | None = None
     score: float | None = None
     detector: Callable[[], Detector] | None = None
@@ -250,7 +258,9 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
     topics = inputs.topics
     source = open_source(inputs.frames, inputs.fps, inputs.timestamps, topics.image)
     mount_rad = math.radians(inputs.mount_angle_deg)
-    calibration = run_calibration(source, inputs.calib, inputs.height_m, mount_rad)
+    calibration = run_calibration(
+        source, inputs.calib, inputs.height_m, mount_rad, inputs.image_size
+    )
     camera = with_frame_size(calibration.camera, source)
     boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs))
     estimator = build_estimator(inputs.estimator, camera)

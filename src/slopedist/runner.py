@@ -44,6 +44,7 @@ Convention: θ in radians inside, degrees in the CSV files; timestamps in second
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections import Counter
@@ -63,6 +64,7 @@ from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.export_mcap import McapExportWriter
 from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.intrinsics import in_frame_pixels
 from slopedist.io.outputs import (
     OutputFiles,
     OutputWriteError,
@@ -194,6 +196,8 @@ class _RunLoop:
         self.camera = estimator.camera
         self.method = estimator.name
         self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
+        self.held: list[tuple[BoxTable, float]] | None = [] if estimator.offline else None
+        """An offline method's frames with boxes, whose records wait for the end of the drive."""
         self.by_frame = boxes.frame_lookup()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
@@ -274,7 +278,12 @@ class _RunLoop:
         )
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
-        n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        if self.held is None:
+            n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
+        else:  # offline: the records come from the pass over the whole drive (finish)
+            if len(frame_boxes):
+                self.held.append((frame_boxes, frame.timestamp_s))
+            n_est = int(np.sum(res.estimates.status == EstimateStatus.OK.value))
         speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
         self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         with self.files.writing(FRAMES_NAME):
@@ -317,12 +326,13 @@ class _RunLoop:
         return boxes, ms
 
     def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
-        """The odometry's rotation of a frame with pixels (its boxes masked out)."""
+        """The odometry's rotation of a frame with pixels (its boxes, in the frame's own
+        pixels, masked out)."""
         if frame.image is None or self.odometry is None:
             return _OdometryOutput(None, self.segment)
         gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
         t0 = time.perf_counter()
-        res = self.odometry.process(gray, frame.timestamp_s, frame_boxes.boxes)
+        res = self.odometry.process(gray, frame.timestamp_s, in_frame_pixels(frame_boxes).boxes)
         # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its own
         # working time
         ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
@@ -360,6 +370,11 @@ class _RunLoop:
         self.result.not_vehicles += int(np.sum(est.reason == MissingReason.NOT_A_VEHICLE.value))
         return n_est
 
+    def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:
+        """An offline method's records of every frame seen, from its pass over the drive."""
+        for (frame_boxes, timestamp_s), est in zip(held, self.step.finish(), strict=True):
+            self._write_records(frame_boxes, timestamp_s, est)
+
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
         """The frame's overlay: to the overlay video or folder, and as a snapshot JPEG when
         asked for."""
@@ -375,9 +390,21 @@ class _RunLoop:
         head = f"frame {k}  t {t:.2f} s"
         if not math.isfinite(theta):
             head += f"  no rotation ({state or 'no odometry'})"
-        image = draw_fig3_overlay(
-            frame.image, self.camera, frame_boxes, res.estimates, theta, head, self.method
+        drawn = in_frame_pixels(frame_boxes)  # the frame's own pixels, distorted or not
+        draw = functools.partial(
+            draw_fig3_overlay,
+            frame.image,
+            self.camera,
+            drawn,
+            res.estimates,
+            theta,
+            head,
+            self.method,
         )
+        if isinstance(self.painter, BackgroundOverlay) and not snapshot:
+            self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread
+            return
+        image = draw()
         if self.painter is not None:
             self.painter.write(k, image, t)
         if snapshot:
@@ -400,7 +427,7 @@ class _RunLoop:
             frame.source,
             frame.status.value,
             frame.image,
-            frame_boxes,
+            in_frame_pixels(frame_boxes),  # annotations of the source image
             res.estimates,
             res.theta_rad,
             lead_index(self.camera, frame_boxes, res.estimates),
@@ -423,6 +450,8 @@ class _RunLoop:
         if self.bar is not None:
             self.bar.close()
         files = self.files
+        if self.held:
+            self._write_offline_records(self.held)
         files.close(RECORDS_NAME, lambda: close_records(self.records))
         files.close(FRAMES_NAME, self.frame_log.close)
         files.close(TRACKS_NAME, self._write_tracks)

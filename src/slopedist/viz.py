@@ -386,6 +386,7 @@ METHOD_COLOURS: dict[str, str] = {
     "depthmap": "tab:brown",
     "ours": "tab:pink",
     "ours-selfcal": "tab:olive",
+    "ours-offline": "crimson",
 }
 """The colour of each built-in method in every plot (demo and report alike)."""
 

@@ -47,6 +47,23 @@ def test_json_dash_writes_only_json_to_stdout(
     assert not (tmp_path / "-").exists()
 
 
+def test_offline_adds_its_own_row_and_leaves_ours_alone(
+    kitti_tracking_dir: Path, tmp_path: Path
+) -> None:
+    out, off = tmp_path / "causal.json", tmp_path / "offline.json"
+    args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--sequences", "0014"]
+    assert main([*args, "--methods", "paper,ours", "--json", str(out)]) == 0
+    assert main([*args, "--methods", "paper,ours", "--offline", "--json", str(off)]) == 0
+    causal, offline = _strict(out.read_text()), _strict(off.read_text())
+    assert list(offline["methods"]) == ["paper", "ours", "ours-offline"]
+    for key in ("rmse", "n", "mae"):  # (the timings differ from run to run)
+        assert (
+            offline["methods"]["ours"]["overall"][key] == causal["methods"]["ours"]["overall"][key]
+        )
+    rmse = offline["methods"]["ours-offline"]["overall"]["rmse"]
+    assert rmse < causal["methods"]["ours"]["overall"]["rmse"]  # 2.87 against 2.94 m
+
+
 def _without_times(report: Any) -> Any:
     """The report without its measured times (``ms_per_frame``), which differ run to run."""
     if isinstance(report, dict):

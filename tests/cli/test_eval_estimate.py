@@ -202,3 +202,18 @@ def test_estimate_applies_the_eq7_options_to_every_method_built_on_paper(
     assert [(r["theta_adj_deg"], r["distance_m"]) for r in imu] == [
         (r["theta_adj_deg"], r["distance_m"]) for r in paper
     ]
+
+
+def test_estimate_an_offline_method(small_sequence: dict[str, Path], tmp_path: Path) -> None:
+    """``ours-offline`` writes its (offline) records once the sequence has ended, in order."""
+    args = ["estimate", "--calib", str(small_sequence["calib"]), "--poses"]
+    args += [str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"]), "--out"]
+    rows = {}
+    for method in ("ours", "ours-offline"):
+        out = tmp_path / f"{method}.csv"
+        assert main([*args, str(out), "--method", method]) == 0
+        rows[method] = list(csv.DictReader(out.open()))
+    assert [r["frame"] for r in rows["ours-offline"]] == [r["frame"] for r in rows["ours"]]
+    assert {r["method"] for r in rows["ours-offline"]} == {"ours-offline"}
+    assert rows["ours-offline"][2]["reason"] == "inverted_box"
+    assert rows["ours-offline"][0]["size_scale"] != ""

@@ -272,3 +272,52 @@ def test_a_distorted_calibration_maps_the_odometry_points(
     assert main(["run", *args, "--method", "ego"]) == 0
     point = np.array([[300.0, 180.0]])
     assert seen["point_map"](point)[0, 0] > 300.0  # barrel distortion undone: moved outwards
+
+
+def test_offline_run_writes_the_offline_records_at_the_end(tmp_path: Path) -> None:
+    args = setup(tmp_path, n=6)
+    assert main(["run", *args, "--method", "ours", "--odometry", "none"]) == 0
+    causal = records(tmp_path)
+    assert main(["run", *args, "--offline", "--odometry", "none"]) == 0
+    offline = records(tmp_path)
+    assert [r["method"] for r in offline] == ["ours-offline"] * 6
+    assert [r["frame"] for r in offline] == [r["frame"] for r in causal]
+    assert all(r["size_scale"] != "" for r in offline)
+    assert [r["estimated"] for r in frame_log(tmp_path)] == ["1"] * 6
+
+
+def test_offline_needs_a_method_with_an_offline_mode(tmp_path: Path) -> None:
+    assert main(["run", *setup(tmp_path), "--method", "paper", "--offline"]) != 0
+
+
+def test_image_size_completes_the_intrinsics_flags(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--image-size`` goes with ``--fx --fy --cx --cy`` as an OpenCV file's own size: it must
+    agree with the frames (a clear error otherwise) and with a file that states one; a
+    malformed size names the option."""
+    args = setup(tmp_path)
+    i = args.index("--calib")
+    args[i : i + 2] = ["--fx", "500", "--fy", "500", "--cx", "160", "--cy", "100"]
+    run = ["run", *args, "--method", "flat", "--odometry", "none"]
+    assert main([*run, "--image-size", f"{W}x{H}"]) == 0
+    assert records(tmp_path)
+    assert main([*run, "--image-size", f"{W + 2}x{H}"]) == 2
+    err = capsys.readouterr().err
+    assert f"images are {W}×{H} px but the calibration is for {W + 2}×{H} px" in err
+    assert main([*run, "--image-size", "wide"]) == 2
+    assert "--image-size WIDTHxHEIGHT" in capsys.readouterr().err
+    yaml = tmp_path / "cam.yaml"
+    yaml.write_text(
+        "%YAML:1.0\n---\nimage_width: 320\nimage_height: 200\ncamera_matrix: !!opencv-matrix\n"
+        "   rows: 3\n   cols: 3\n   dt: d\n"
+        "   data: [ 500., 0., 160., 0., 500., 100., 0., 0., 1. ]\n"
+    )
+    args[i : i + 8] = ["--calib", str(yaml)]
+    assert (
+        main(["run", *args, "--method", "flat", "--odometry", "none", "--image-size", "640x400"])
+        == 2
+    )
+    assert "the calibration is for 320×200 px images, not 640×400 px as given" in (
+        capsys.readouterr().err
+    )

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from slopedist.estimators.ours import fusion
+from slopedist.estimators.ours.cues import SizeCue
 
 
 def test_fuse_log_cues_weights_by_variance_and_scores_consistency() -> None:
@@ -115,3 +116,21 @@ def test_fused_is_never_much_worse_than_the_better_single_cue(kitti_tracking_dir
 
 def _capped_rmse(d: np.ndarray, z: np.ndarray) -> float:
     return float(np.sqrt(np.nanmean((np.minimum(d, 80.0) - z) ** 2)))
+
+
+def test_shape_gap_is_the_best_headings_height_width_gap_in_sigma() -> None:
+    """Two targets × two headings; the class prior's log spreads 0.1 (height) and 0.1 (width),
+    uncorrelated, no pixel noise: ``var(y_h − y_w) = 0.02``. Target 0's width agrees with its
+    height at heading 1 (gap 0); target 1's box is 40 % too narrow at both (a truck called a
+    car): ``log 1.4 / √0.02``. A missing width cue gives NaN."""
+    ell = math.log(10.0)
+    zero = np.zeros((3, 2))
+    height = SizeCue(np.full((3, 2), ell), np.ones((3, 2)), zero, zero)
+    width_mean = np.array(
+        [[ell + 0.3, ell], [ell - math.log(1.4), ell - math.log(1.4)], [np.nan, np.nan]]
+    )
+    width = SizeCue(width_mean, np.ones((3, 2)), zero, zero)
+    gap = fusion.shape_gap_sigma(height, width, 0.1, 0.1, 0.0)
+    assert gap[0] == pytest.approx(0.0)
+    assert gap[1] == pytest.approx(math.log(1.4) / math.sqrt(0.02))
+    assert math.isnan(gap[2])

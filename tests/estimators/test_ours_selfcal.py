@@ -98,3 +98,57 @@ def test_selfcal_brings_accuracy_back_under_a_wrong_calibration() -> None:
     assert rmse["wrong"] > 1.05 * rmse["right"]
     assert rmse["wrong+selfcal"] < rmse["wrong"]
     assert rmse["wrong+selfcal"] < 1.1 * rmse["right"]
+
+
+def _feed(cal: SelfCalibrator, size_bias: dict[int, float], shape_gap: float = 0.0) -> None:
+    """Targets of a camera 1.65 m high at θ0 = 0 at rest; vehicle ``k``'s size cue is off by
+    the factor ``size_bias.get(k, 1)`` (a vehicle larger than its class prior)."""
+    f, c_y = 721.5, 172.9
+    keys = np.arange(12)
+    for frame in range(40):
+        near = 8.0 + 2.5 * keys + 0.05 * frame
+        bias = np.array([size_bias.get(int(k), 1.0) for k in keys])
+        cal.update(
+            keys,
+            c_y + f * 1.65 / near,
+            np.full(keys.size, c_y),
+            np.zeros(keys.size),
+            near * bias,
+            np.full(keys.size, shape_gap),
+        )
+
+
+def test_the_vehicle_jackknife_grows_when_one_vehicle_disagrees() -> None:
+    """Leave-one-vehicle-out: vehicles that agree give a jackknife σ of h near zero (noise-free
+    rows); one vehicle 40 % larger than its class moves the estimate and the jackknife sees it,
+    far beyond the model's own σ of that difference."""
+    agree = SelfCalibrator(721.5, 0.0, 1.65)
+    _feed(agree, {})
+    assert math.sqrt(agree.track_jackknife()[1, 1]) < 1e-3
+    odd = SelfCalibrator(721.5, 0.0, 1.65)
+    _feed(odd, {5: 0.6})
+    shift = abs(odd.calibration().height_m - agree.calibration().height_m)
+    jack_h = math.sqrt(odd.track_jackknife()[1, 1])
+    assert shift > 0.005 and jack_h > 0.5 * shift
+    assert SelfCalibrator(721.5, 0.0, 1.65).track_jackknife().tolist() == [[0, 0], [0, 0]]
+
+
+def test_targets_of_a_shape_unlike_their_class_are_counted_and_left_out() -> None:
+    cal = SelfCalibrator(721.5, 0.0, 1.65)
+    _feed(cal, {}, shape_gap=3.5)  # beyond the 3σ gate: nothing used
+    c = cal.calibration()
+    assert (c.n_observations, c.n_shape_checked, c.n_shape_outliers) == (0, 480, 480)
+    assert c.shape_outlier_share == 1.0 and c.height_m == 1.65
+    cal = SelfCalibrator(721.5, 0.0, 1.65)
+    _feed(cal, {}, shape_gap=1.0)
+    c = cal.calibration()
+    assert (c.n_observations, c.n_shape_outliers, c.shape_outlier_share) == (480, 0, 0.0)
+    assert math.isnan(SelfCalibrator(721.5, 0.0, 1.65).calibration().shape_outlier_share)
+
+
+def test_selfcal_on_simulated_traffic_finds_every_box_shape_fits_its_class() -> None:
+    sim = simulate_traffic(TRUE, 10, 150, seed=3)
+    est = OursEstimator(TRUE, self_calibrate=True)
+    estimate_sequence(est, sim.boxes, sim.timestamps_s, _at_rest(sim.timestamps_s))
+    c = est.calibration()
+    assert c.n_shape_checked > 500 and c.shape_outlier_share < 0.01

@@ -15,8 +15,14 @@ from hypothesis import strategies as st
 
 from slopedist.depth.files import read_kitti_depth_png
 from slopedist.errors import InputFileError
+from slopedist.io import images
 from slopedist.io.frames import FrameStatus, open_frames
-from slopedist.io.images import header_image_size, image_size_problem, read_image_file
+from slopedist.io.images import (
+    header_image_size,
+    image_size_problem,
+    read_colour,
+    read_image_file,
+)
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -122,3 +128,74 @@ def test_video_frames_over_the_limit_are_refused_before_decoding(tmp_path: Path)
     assert open_frames(path).frame_size() == (64, 48)
     with pytest.raises(InputFileError, match=r"clip\.mp4: its frames are 64×48 px, over the limit"):
         open_frames(path, max_pixels=64 * 48 - 1)
+
+
+# ----------------------------------------------------------------------------- read_colour
+def _colour_files(tmp_path: Path) -> list[Path]:
+    """PNGs of every kind (8-bit grey, RGB, RGBA, 16-bit, palette, RGB with tRNS), a JPEG and
+    a PNG whose data fails its CRC: the fast path's cases and its fallbacks."""
+    from PIL import Image
+
+    rng = np.random.default_rng(3)
+    bgr = rng.integers(0, 256, (37, 53, 3), dtype=np.uint8)
+    files = []
+    for name, image, params in (
+        ("grey.png", bgr[:, :, 0], [cv2.IMWRITE_PNG_COMPRESSION, 1]),
+        ("bgr.png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 9]),
+        ("bgra.png", np.dstack([bgr, bgr[:, :, :1]]), []),
+        ("deep.png", bgr.astype(np.uint16) * 257, []),
+        ("frame.jpg", bgr, []),
+    ):
+        cv2.imwrite(str(tmp_path / name), image, params)
+        files.append(tmp_path / name)
+    rgb = Image.fromarray(bgr[:, :, ::-1])
+    rgb.save(tmp_path / "trns.png", transparency=(0, 0, 0))
+    rgb.quantize(16).save(tmp_path / "palette.png")
+    data = bytearray((tmp_path / "bgr.png").read_bytes())
+    data[data.find(b"IEND") - 5] ^= 0x10  # the IDAT chunk's CRC
+    (tmp_path / "crc.png").write_bytes(bytes(data))
+    return [*files, tmp_path / "trns.png", tmp_path / "palette.png", tmp_path / "crc.png"]
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["imagecodecs", "opencv"])
+def test_read_colour_is_opencvs_imread(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fast: bool
+) -> None:
+    """Every kind of file gives exactly ``cv2.imread(..., IMREAD_COLOR)`` (None for the PNG
+    whose data fails its CRC), with and without imagecodecs."""
+    if fast:
+        pytest.importorskip("imagecodecs")
+    else:
+        monkeypatch.setattr(images, "_png_codec", lambda: None)
+    for path in _colour_files(tmp_path):
+        expected = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        got = read_colour(path)
+        if expected is None:
+            assert got is None, path.name
+        else:
+            assert got is not None and got.dtype == np.uint8, path.name
+            np.testing.assert_array_equal(got, expected, err_msg=path.name)
+    assert read_colour(tmp_path / "crc.png") is None
+
+
+def test_fast_png_path_takes_only_8_bit_grey_and_rgb(tmp_path: Path) -> None:
+    """The header rule: 8-bit grey and RGB, not interlaced, without tRNS; nothing else."""
+    taken = {
+        p.name
+        for p in _colour_files(tmp_path)
+        if images._fast_png_conversion(p.read_bytes()) is not None
+    }
+    assert taken == {"grey.png", "bgr.png", "crc.png"}
+    header = bytearray((tmp_path / "bgr.png").read_bytes())
+    header[28] = 1  # IHDR interlace method: Adam7
+    assert images._fast_png_conversion(bytes(header)) is None
+
+
+def test_kitti_frames_decode_identically(kitti_raw_lead_dir: Path) -> None:
+    """The shared KITTI colour frames: the fast path's pixels are OpenCV's, bit for bit."""
+    pytest.importorskip("imagecodecs")
+    files = sorted((kitti_raw_lead_dir / "image_02").glob("*.png"))[:10]
+    assert files
+    for path in files:
+        assert images._fast_png_conversion(path.read_bytes()) == cv2.COLOR_RGB2BGR
+        np.testing.assert_array_equal(read_colour(path), cv2.imread(str(path)))

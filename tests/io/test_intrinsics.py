@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from slopedist.detections.boxes import BoxTable, box_problems
 from slopedist.errors import ConfigurationError
-from slopedist.io.intrinsics import Intrinsics
+from slopedist.io.intrinsics import Intrinsics, in_frame_pixels
 
 K = np.array([[700.0, 0.0, 640.0], [0.0, 650.0, 360.0], [0.0, 0.0, 1.0]])
 STRONG = np.array([-0.35, 0.12, 0.001, -0.001, -0.02])  # strong barrel distortion
@@ -103,6 +103,8 @@ def test_ideal_intrinsics_leave_boxes_alone_and_table_keeps_columns() -> None:
     moved = Intrinsics(K, STRONG).rectify_table(table)
     assert moved.track_id.tolist() == [5] and list(moved.cls) == ["Van"]
     assert moved.extra["z"].tolist() == [10.0] and not np.allclose(moved.boxes, table.boxes)
+    assert in_frame_pixels(moved).boxes.tolist() == [[1, 2, 3, 4]]  # as drawn on the frame
+    assert in_frame_pixels(table) is table
 
 
 @settings(max_examples=40, deadline=None)

@@ -148,6 +148,35 @@ def test_background_overlay_error_reaches_the_caller() -> None:
     assert sink.calls == [("write", k) for k in range(3)] and sink.closed
 
 
+def test_background_overlay_draws_in_its_thread_in_order() -> None:
+    """``write_drawn``: the images are drawn in the overlay thread, written in call order
+    among plain writes; an error of a drawing reaches the caller like a sink error."""
+    sink = RecordingSink()
+    writer = BackgroundOverlay(sink, ahead=2)
+    drawn_in: set[str] = set()
+
+    def draw() -> np.ndarray:
+        drawn_in.add(threading.current_thread().name)
+        return np.zeros((2, 2, 3), np.uint8)
+
+    for k in range(8):
+        if k % 3:
+            writer.write_drawn(k, draw)
+        else:
+            writer.write(k, np.zeros((2, 2, 3), np.uint8))
+    writer.close()
+    assert sink.calls == [("write", k) for k in range(8)] and sink.closed
+    assert drawn_in == {"slopedist-overlay"}
+
+    def broken() -> np.ndarray:
+        raise ValueError("no pixels to draw on")
+
+    failing = BackgroundOverlay(RecordingSink(), ahead=1)
+    with pytest.raises(ValueError, match="no pixels"):
+        failing.write_drawn(0, broken)
+        failing.close()
+
+
 def test_background_overlay_video_equals_the_direct_one(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     images = [rng.integers(0, 255, (48, 64, 3), np.uint8) for _ in range(6)]

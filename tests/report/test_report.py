@@ -17,7 +17,7 @@ from slopedist.cli import main
 from slopedist.datasets.kitti_tracking import load_sequence, protocol_mask
 from slopedist.depth import write_kitti_depth_png
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
-from slopedist.estimators import available_methods
+from slopedist.estimators import causal_methods
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.pipeline import RECORD_FIELDS
 from slopedist.report import (
@@ -119,7 +119,7 @@ def test_kitti_outputs_are_complete(kitti_report: tuple[Path, str, Path]) -> Non
     assert timing["paper"]["odometry"] == ""  # precomputed poses: not timed
     records = _csv(out / "records.csv")
     # every registered method runs by default (methods added later included)
-    assert {r["method"] for r in records} == set(available_methods())
+    assert {r["method"] for r in records} == set(causal_methods())
     theta = _csv(out / "theta_agreement.csv")
     assert [(r["sequence"], r["source"]) for r in theta] == [("0000", "orbslam3")]
     assert float(theta[0]["RMS diff"]) < 0.1  # ORB-SLAM3 agrees with OXTS to < 0.1°
@@ -309,6 +309,17 @@ def test_runs_of_different_methods_on_one_sequence_are_grouped(tmp_path: Path) -
     (tmp_path / "again" / "run.json").write_text('{"sequence": "lead"}')
     with pytest.raises(ConfigurationError, match="method paper appears twice for sequence lead"):
         report_data(tmp_path, ReportOptions())
+
+
+@pytest.mark.kitti
+def test_offline_adds_its_own_rows_to_a_kitti_report(tmp_path: Path) -> None:
+    kitti = shared_data_path("kitti_tracking")
+    out = tmp_path / "out"
+    args = ["report", str(kitti), "--sequences", "0014", "--methods", "paper,ours"]
+    assert main([*args, "--offline", "--out", str(out), "--no-parquet"]) == 0
+    table1 = {r["sequence"]: r for r in _csv(out / "table1_rmse.csv")}
+    assert float(table1["0014"]["ours-offline"]) < float(table1["0014"]["ours"])
+    assert main(["report", str(tmp_path / "out"), "--offline", "--out", str(tmp_path / "o")]) == 2
 
 
 def test_kitti_report_with_workers_is_that_of_one_worker(

@@ -83,8 +83,11 @@ def advice_text(advice: MountAdvice) -> str:
         f"{advice.prior.height_m:g} m)",
         f"1σ parts: fit {deg(advice.fit.mount_angle_rad):.2f}°, {advice.fit.height_m:.3f} m; "
         f"spread of {len(advice.segments)} stretches {deg(advice.spread.mount_angle_rad):.2f}°, "
-        f"{advice.spread.height_m:.3f} m; model floor {deg(advice.floor.mount_angle_rad):.2f}°, "
-        f"{advice.floor.height_m:.3f} m",
+        f"{advice.spread.height_m:.3f} m; leave-one-vehicle-out "
+        f"{deg(advice.vehicles.mount_angle_rad):.2f}°, {advice.vehicles.height_m:.3f} m; model "
+        f"floor {deg(advice.floor.mount_angle_rad):.2f}°, {advice.floor.height_m:.3f} m",
+        f"box shapes: {advice.estimate.n_shape_outliers} of {advice.estimate.n_shape_checked} "
+        "targets unlike their class (left out)",
         *advice.reasons,
     ]
     if advice.declined:
@@ -92,6 +95,7 @@ def advice_text(advice: MountAdvice) -> str:
     else:
         lines.append(
             f"use: --mount-angle {deg(advice.mount_angle_rad):.2f} --height {advice.height_m:.3f}"
+            " (the configured mount moved only as far as needed to agree with the estimate)"
         )
     return "\n".join(lines)
 

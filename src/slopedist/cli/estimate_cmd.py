@@ -12,11 +12,11 @@ from slopedist.cli.options import (
     check_methods,
     estimator_options,
     lookback_option,
-    parse_size,
     sequence_file_options,
     vehicle_classes_option,
 )
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.detections.boxes import BoxTable
 from slopedist.estimators import EstimatorConfig, build_estimator
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
@@ -30,13 +30,6 @@ from slopedist.pipeline import FrameStep, close_records, iter_records, open_reco
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the records CSV here (default: standard output).",
 )
-@click.option(
-    "--image-size",
-    default=None,
-    help="The frames' size WIDTHxHEIGHT in pixels (e.g. 1242x375): boxes cut by the image "
-    "border get a cut flag (a bottom cut makes ground-contact distances an upper_bound) and "
-    "boxes outside the image are missing. Without it no box is tested against the border.",
-)
 @vehicle_classes_option
 @lookback_option
 @estimator_options()
@@ -44,24 +37,31 @@ def estimate(
     files: SequenceFiles,
     method: str,
     out: Path | None,
-    image_size: str | None,
     vehicle_classes: tuple[str, ...],
     lookback_s: float,
     estimator_config: EstimatorConfig,
 ) -> None:
-    """Estimate per-target distances for one sequence, streaming frame by frame."""
+    """Estimate per-target distances for one sequence, streaming frame by frame.
+
+    An offline method (ours-offline) writes its records when the sequence ends."""
     check_methods([method])
     check_outputs_spare_inputs([out], files.input_files)
-    size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
-    seq = read_sequence_files(files)
-    camera = seq.camera.with_image_size(*size) if size is not None else seq.camera
-    estimator = build_estimator(estimator_config.with_method(method), camera)
+    seq = read_sequence_files(files)  # the camera knows --image-size, if given
+    estimator = build_estimator(estimator_config.with_method(method), seq.camera)
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     writer = open_records(out)
     n = 0
+    held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
     try:
         for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
+            if estimator.offline:
+                if len(frame_boxes):
+                    held.append((frame_boxes, t))
+                continue
             n += writer.write_rows(iter_records(frame_boxes, t, result.estimates, method))
+        if held:
+            for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
+                n += writer.write_rows(iter_records(frame_boxes, t, est, method))
         close_records(writer)
     except BrokenPipeError:
         if out is not None:

@@ -12,9 +12,10 @@ from slopedist.cli.options import (
     estimator_options,
     evaluation_method_options,
     kitti_eval_options,
+    offline_option,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig
+from slopedist.estimators import EstimatorConfig, with_offline
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -48,6 +49,7 @@ def eval_group() -> None:
     help="Write the full report as strict JSON here ('-': standard output, the tables then "
     "go to standard error).",
 )
+@offline_option
 @estimator_options()
 def kitti_tracking(
     data_dir: Path,
@@ -55,11 +57,14 @@ def kitti_tracking(
     methods: str,
     depth_dir: Path | None,
     json_out: Path | None,
+    offline: bool,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [], evaluation=True)
+    if offline:
+        names = with_offline(names)
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),

@@ -44,6 +44,15 @@ def check_methods(names: list[str], evaluation: bool = False) -> list[str]:
     return names
 
 
+offline_option = click.option(
+    "--offline",
+    is_flag=True,
+    help="Also the offline mode of each method that has one (ours → ours-offline: smoothed "
+    "over the whole drive, for log analysis; reported under its own name, never mixed with "
+    "the causal method).",
+)
+
+
 def evaluation_method_options(
     config: EstimatorConfig, names: list[str]
 ) -> dict[str, dict[str, Any]]:
@@ -237,15 +246,28 @@ _CALIBRATION_OPTIONS = (
             ),
         )
     ),
+    click.option(
+        "--image-size",
+        default=None,
+        help="Size WIDTHxHEIGHT (pixels, e.g. 1242x375) of the calibrated images: completes "
+        "--fx --fy --cx --cy or a calibration file without one (KITTI, 3×3 K), as an OpenCV or "
+        "ROS file's own size; must agree with a file's and the frames' size. Boxes cut by the "
+        "image border are flagged only when the size is known (from the frames, the file or "
+        "this).",
+    ),
 )
 
 
 def calibration_source(
-    calib: Path | None, values: dict[str, float | None], required: bool = True
+    calib: Path | None,
+    values: dict[str, float | None],
+    required: bool = True,
+    image_size: tuple[int, int] | None = None,
 ) -> Path | Intrinsics | None:
     """The calibration of ``--calib FILE`` or of ``--fx --fy --cx --cy`` (exactly one form, or
-    none when not ``required``; usage errors name the options). The image size comes from the
-    frames (``run``, ``calibrate FRAMES``) or ``estimate --image-size``."""
+    none when not ``required``; usage errors name the options); ``image_size`` (``--image-size``)
+    goes into the values' :class:`Intrinsics` (a file gets it in
+    :func:`~slopedist.io.calibration.read_calibration`)."""
     given = [f"--{k}" for k, v in values.items() if v is not None]
     if calib is not None:
         if given:
@@ -264,7 +286,7 @@ def calibration_source(
         raise click.UsageError(f"--fx --fy --cx --cy go together: missing {', '.join(missing)}")
     fx, fy, cx, cy = (float(values[k] or 0.0) for k in CALIBRATION_FLAGS)
     try:
-        return Intrinsics.from_values(fx, fy, cx, cy)
+        return Intrinsics.from_values(fx, fy, cx, cy, image_size=image_size)
     except ConfigurationError as exc:
         raise click.BadParameter(str(exc), param_hint="--fx/--fy/--cx/--cy") from None
 
@@ -272,9 +294,11 @@ def calibration_source(
 def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
-        def wrapper(*args: Any, calib: Path | None, **kwargs: Any) -> Any:
+        def wrapper(*args: Any, calib: Path | None, image_size: str | None, **kwargs: Any) -> Any:
             values = {k: kwargs.pop(k) for k in CALIBRATION_FLAGS}
-            kwargs["calib"] = calibration_source(calib, values, required)
+            size = parse_size(image_size, "--image-size WIDTHxHEIGHT in pixels, e.g. 1242x375")
+            kwargs["calib"] = calibration_source(calib, values, required, size)
+            kwargs["image_size"] = size
             return command(*args, **kwargs)
 
         return _apply(_CALIBRATION_OPTIONS, wrapper)
@@ -283,9 +307,10 @@ def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Cal
 
 
 calibration_options = _calibration_decorator(required=True)
-"""``--calib`` or ``--fx --fy --cx --cy``, handed to the command as one ``calib``
-(a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
-:func:`~slopedist.io.calibration.read_calibration` reads)."""
+"""``--calib`` or ``--fx --fy --cx --cy``, and ``--image-size``, handed to the command as one
+``calib`` (a file path or :class:`~slopedist.io.intrinsics.Intrinsics`; both are what
+:func:`~slopedist.io.calibration.read_calibration` reads) and ``image_size`` (width, height in
+pixels, or None)."""
 
 optional_calibration_options = _calibration_decorator(required=False)
 """:data:`calibration_options`, with ``calib`` None when neither form is given (``run`` takes a
@@ -335,6 +360,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
         def wrapper(
             *args: Any,
             calib: Path | Intrinsics,
+            image_size: tuple[int, int] | None,
             poses: Path | None,
             boxes_path: Path | None,
             pose_format: str,
@@ -353,6 +379,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
                 score,
                 height_m,
                 math.radians(mount_angle_deg),
+                image_size,
             )
             return command(*args, **kwargs)
 

@@ -13,9 +13,10 @@ from slopedist.cli.options import (
     estimator_options,
     evaluation_method_options,
     kitti_eval_options,
+    offline_option,
     split_list,
 )
-from slopedist.estimators import EstimatorConfig
+from slopedist.estimators import EstimatorConfig, with_offline
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
     SUMMARY_TABLES,
@@ -25,6 +26,7 @@ from slopedist.report import (
     report_data,
     write_report,
 )
+from slopedist.report.kitti import default_kitti_methods
 from slopedist.tables import format_text
 
 
@@ -68,6 +70,7 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
     help="Tracks to plot over time, SEQUENCE:TRACK_ID,... [default: the longest tracks].",
 )
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
+@offline_option
 @estimator_options(depth=True)
 def report(
     source: Path,
@@ -77,6 +80,7 @@ def report(
     depth_dir: Path | None,
     tracks: str | None,
     no_parquet: bool,
+    offline: bool,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
@@ -85,6 +89,13 @@ def report(
     Table 2 (time per frame), and for a batch the pooled fleet tables."""
     names = check_methods(split_list(methods) or [], evaluation=True)
     kind = detect_source(source)
+    if offline:
+        if kind is not SourceKind.KITTI_TRACKING:
+            raise click.UsageError(
+                "--offline runs the offline methods on a KITTI tracking folder; for run "
+                "outputs, make the runs with `slopedist run --offline` (method ours-offline)"
+            )
+        names = with_offline(names or default_kitti_methods(depth_dir is not None))
     cfg = dataclasses.replace(
         kitti_config,
         sequences=split_list(sequences),

@@ -30,7 +30,7 @@ from slopedist.cli.options import (
 )
 from slopedist.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig
+from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.outputs import (
     RunStoppedError,
@@ -251,6 +251,13 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 )
 @click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
 @click.option(
+    "--offline",
+    is_flag=True,
+    help="The method's offline mode (ours → ours-offline: smoothed over the whole drive, for "
+    "log analysis): records.csv is written when the drive ends; the overlay, frames.csv and "
+    "the MCAP export show the causal pass as the frames come.",
+)
+@click.option(
     "--odometry",
     type=click.Choice(ODOMETRY_CHOICES),
     default="builtin",
@@ -320,6 +327,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 def run(  # noqa: PLR0913 (a click command: one parameter per option)
     frames: Path,
     calib: Path | Intrinsics | None,
+    image_size: tuple[int, int] | None,
     image_topic: str | None,
     rotation_topic: str | None,
     speed_topic: str | None,
@@ -327,6 +335,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     boxes_path: Path | None,
     detector_model: Path | None,
     method: str | None,
+    offline: bool,
     odometry: str,
     vocab: Path | None,
     out_dir: Path,
@@ -359,10 +368,13 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
+    if offline:
+        method = offline_method(method)
     model = detector_model
     inputs = RunInputs(
         frames,
         calib,
+        image_size=image_size,
         boxes=boxes_path,
         score=score,
         detector=functools.partial(make_detector, model, **detector_opts) if model else None,

@@ -46,6 +46,8 @@ class SequenceFiles:
         min_score: keep boxes with score ≥ this (None: all).
         height_m: camera height above the road, metres.
         mount_angle_rad: camera mount angle θ0, radians.
+        image_size: the images' (width, height) in pixels when the calibration states none
+            (None: unknown, or the calibration's own).
     """
 
     calib: Path | Intrinsics
@@ -56,6 +58,7 @@ class SequenceFiles:
     min_score: float | None = None
     height_m: float = KITTI_CAMERA_HEIGHT_M
     mount_angle_rad: float = 0.0
+    image_size: tuple[int, int] | None = None
 
     @property
     def input_files(self) -> list[Path]:
@@ -83,7 +86,9 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
     if files.poses is None or files.boxes is None:
         missing = "pose" if files.poses is None else "box"
         raise MissingInputError(f"no {missing} file given")
-    calibration = read_calibration(files.calib, files.height_m, files.mount_angle_rad)
+    calibration = read_calibration(
+        files.calib, files.height_m, files.mount_angle_rad, image_size=files.image_size
+    )
     layout = PoseFileLayout(files.pose_layout)
     if layout is PoseFileLayout.OXTS:
         if isinstance(files.calib, Intrinsics):

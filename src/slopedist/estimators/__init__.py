@@ -26,6 +26,7 @@ from slopedist.estimators.ground_contact import (
 )
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
+from slopedist.estimators.ours.offline import OursOfflineEstimator
 
 
 class Method(str, Enum):
@@ -39,6 +40,7 @@ class Method(str, Enum):
     DEPTHMAP = "depthmap"
     OURS = "ours"
     OURS_SELFCAL = "ours-selfcal"
+    OURS_OFFLINE = "ours-offline"
 
 
 DEFAULT_METHOD = Method.OURS.value
@@ -53,12 +55,52 @@ ESTIMATORS: dict[str, Callable[..., Estimator]] = {
     Method.DEPTHMAP.value: DepthMapEstimator,
     Method.OURS.value: OursEstimator,
     Method.OURS_SELFCAL.value: OursSelfCalibratingEstimator,
+    Method.OURS_OFFLINE.value: OursOfflineEstimator,
 }
+
+
+OFFLINE_COUNTERPARTS = {Method.OURS.value: Method.OURS_OFFLINE.value}
+"""The offline method (``--offline``: smoothed over the whole drive) of each causal method
+that has one; reported under its own name, next to the causal one."""
+
+
+def offline_method(name: str) -> str:
+    """The offline counterpart of method ``name`` (itself if it is offline already).
+
+    Raises:
+        ConfigurationError: the method has no offline counterpart.
+    """
+    value = _method_name(name)
+    if getattr(ESTIMATORS[value], "offline", False):
+        return value
+    if value not in OFFLINE_COUNTERPARTS:
+        raise ConfigurationError(
+            f"method '{value}' has no offline mode (methods with one: "
+            f"{', '.join(OFFLINE_COUNTERPARTS)})"
+        )
+    return OFFLINE_COUNTERPARTS[value]
+
+
+def with_offline(names: Iterable[str]) -> list[str]:
+    """``names`` with the offline counterpart of each causal method that has one right after
+    it (once): ``ours`` → ``ours, ours-offline``."""
+    out: list[str] = []
+    for name in names:
+        for m in (name, OFFLINE_COUNTERPARTS.get(name)):
+            if m is not None and m not in out:
+                out.append(m)
+    return out
 
 
 def available_methods() -> list[str]:
     """Names of every registered estimator."""
     return list(ESTIMATORS)
+
+
+def causal_methods() -> list[str]:
+    """Names of every registered causal estimator (the default of the commands that run
+    "every method"; offline ones are asked for by name or ``--offline``)."""
+    return [m for m in ESTIMATORS if not getattr(ESTIMATORS[m], "offline", False)]
 
 
 def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
@@ -165,10 +207,14 @@ __all__ = [
     "Method",
     "MissingReason",
     "OursEstimator",
+    "OursOfflineEstimator",
     "OursSelfCalibratingEstimator",
     "PaperEstimator",
     "ReferencePoint",
     "available_methods",
     "build_estimator",
+    "causal_methods",
     "make_estimator",
+    "offline_method",
+    "with_offline",
 ]

@@ -185,6 +185,10 @@ class Estimator:
     When False, :func:`settle_states` applies the cautious rule: an ``ok`` box cut by the
     bottom becomes an ``upper_bound`` (:func:`bottom_cut_is_upper_bound`)."""
 
+    offline: ClassVar[bool] = False
+    """Whether the method revises its estimates once the whole drive has been seen
+    (:meth:`finish`): an offline method, reported under its own name, never a causal one."""
+
     def __init__(self, camera: Camera) -> None:
         self.camera = camera
 
@@ -194,6 +198,15 @@ class Estimator:
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         """Estimate a distance for every box of ``frame``."""
         raise NotImplementedError
+
+    def finish(self) -> list[FrameEstimates]:
+        """An :attr:`offline` method's final estimates of every frame :meth:`estimate` was given
+        since :meth:`reset`, in order (a causal method has none to give).
+
+        Raises:
+            NotImplementedError: the method is causal.
+        """
+        raise NotImplementedError(f"method {self.name!r} is causal: it has no offline pass")
 
 
 def image_size(camera: Camera) -> tuple[int, int] | None:

@@ -62,11 +62,18 @@ def read_calibration(
     height_m: float = KITTI_CAMERA_HEIGHT_M,
     mount_angle_rad: float = 0.0,
     kitti_key: str = "P2",
+    image_size: tuple[int, int] | None = None,
 ) -> CameraCalibration:
     """Read a calibration file of any supported form (see the module docstring), or take
     ``Intrinsics`` given as values (``--fx --fy --cx --cy``); the mount is given in metres and
-    radians."""
+    radians. ``image_size`` (width, height; pixels; ``--image-size``) completes a calibration
+    that states none (KITTI, K text, the values); it must agree with one that does.
+
+    Raises:
+        ConfigurationError: ``image_size`` differs from the calibration's own.
+    """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
+    intrinsics = intrinsics.with_image_size(image_size)
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 

@@ -41,7 +41,7 @@ from slopedist.errors import (
     MissingInputError,
 )
 from slopedist.io.framefiles import list_frame_files
-from slopedist.io.images import header_image_size, image_size_problem
+from slopedist.io.images import header_image_size, image_size_problem, read_colour
 from slopedist.limits import DEFAULT_MAX_PIXELS
 from slopedist.textfiles import numbered_lines
 
@@ -360,7 +360,7 @@ class ImageFolderSource:
                 )
                 continue
             problem = image_size_problem(path, self.max_pixels)
-            image = None if problem else cv2.imread(str(path), cv2.IMREAD_COLOR)
+            image = None if problem else read_colour(path)
             if image is None:
                 yield Frame(
                     k,

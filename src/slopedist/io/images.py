@@ -6,12 +6,18 @@ header (PNG ``IHDR``, JPEG ``SOFn``) and is refused above ``max_pixels``
 (:data:`~slopedist.limits.DEFAULT_MAX_PIXELS` by default) before any pixel is decoded. Files in
 other formats OpenCV reads (BMP, PGM, TIFF) are bounded by their file length instead (4 bytes
 per pixel), which holds for uncompressed formats only.
+
+Colour frames (:func:`read_colour`) are what ``cv2.imread(path, cv2.IMREAD_COLOR)`` gives; the
+8-bit grey and RGB PNGs among them (KITTI's frames) are decoded faster by the optional
+``imagecodecs`` (``pip install 'slopedist[png]'``) when it is installed.
 """
 
 from __future__ import annotations
 
+import functools
 import struct
 from pathlib import Path
+from types import ModuleType
 from typing import BinaryIO
 
 import cv2
@@ -126,3 +132,56 @@ def read_image_file(
     if image is None:
         raise InputFileError(path, not_decoded)
     return np.asarray(image)
+
+
+FAST_PNG_CONVERSIONS = {0: cv2.COLOR_GRAY2BGR, 2: cv2.COLOR_RGB2BGR}
+"""PNG colour types (``IHDR``) that :func:`read_colour` decodes with ``imagecodecs`` when it is
+installed, at 8 bits and not interlaced: grey (0) and RGB (2), with the conversion to BGR."""
+
+
+@functools.cache
+def _png_codec() -> ModuleType | None:
+    """The optional ``imagecodecs`` module if installed with its PNG codec, else None."""
+    try:
+        import imagecodecs
+    except ImportError:
+        return None
+    return imagecodecs if hasattr(imagecodecs, "png_decode") else None
+
+
+def _fast_png_conversion(data: bytes) -> int | None:
+    """The BGR conversion of a PNG that :func:`read_colour` decodes itself (8-bit grey or RGB,
+    not interlaced, no ``tRNS`` chunk), None for any other file."""
+    if len(data) < 33 or data[:8] != PNG_SIGNATURE or data[12:16] != b"IHDR":
+        return None
+    bit_depth, colour_type, interlace = data[24], data[25], data[28]
+    if bit_depth != 8 or interlace != 0 or b"tRNS" in data[33 : data.find(b"IDAT")]:
+        return None
+    return FAST_PNG_CONVERSIONS.get(colour_type)
+
+
+def read_colour(path: str | Path) -> NDArray[np.uint8] | None:
+    """The pixels of an image file as BGR ``H×W×3`` uint8: exactly ``cv2.imread(path,
+    cv2.IMREAD_COLOR)``, None when the file cannot be decoded (check its size first:
+    :func:`image_size_problem`).
+
+    With the optional ``imagecodecs`` installed, 8-bit grey and RGB PNGs are decoded by its
+    libpng with zlib-ng, which inflates faster than OpenCV's build: 6.5 against 8.9 ms per
+    1242×375 KITTI frame, bit for bit the same pixels, and the same CRC and Adler-32 checks of
+    the data (``pyspng`` is faster still but skips them, so a corrupt frame would pass as
+    readable). Any other file, and any file it cannot decode, goes to OpenCV.
+    """
+    codec = _png_codec()
+    if codec is not None:
+        data = Path(path).read_bytes()
+        conversion = _fast_png_conversion(data)
+        if conversion is not None:
+            try:
+                pixels = np.asarray(codec.png_decode(data))
+            except Exception:  # imagecodecs' errors are its own types: OpenCV decides
+                pixels = None
+            shape = () if conversion == cv2.COLOR_GRAY2BGR else (3,)  # after (H, W)
+            if pixels is not None and pixels.dtype == np.uint8 and pixels.shape[2:] == shape:
+                return np.asarray(cv2.cvtColor(pixels, conversion), dtype=np.uint8)
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    return None if image is None else np.asarray(image, dtype=np.uint8)

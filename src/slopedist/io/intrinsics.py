@@ -39,6 +39,10 @@ barrel distortion; 50 reach 1e-6 px."""
 MAX_ROUND_TRIP_PX = 0.01
 """A mapped point must distort back to within this many pixels of the input point."""
 
+FRAME_BOX_COLUMN = "frame_box"
+"""Extra column of a mapped box table: each box as it was in the frame's own pixels ``(N, 4)``
+(what overlays draw on the distorted frames and the odometry masks out of them)."""
+
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -86,6 +90,23 @@ class Intrinsics:
         ``--fx --fy --cx --cy --image-size``."""
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
         return cls(K, np.asarray(dist, dtype=float), image_size=image_size)
+
+    def with_image_size(self, image_size: tuple[int, int] | None) -> Intrinsics:
+        """These intrinsics for images of ``image_size`` (width, height; pixels); unchanged
+        when None.
+
+        Raises:
+            ConfigurationError: the intrinsics state another size.
+        """
+        if image_size is None or self.image_size == tuple(image_size):
+            return self
+        width, height = (int(v) for v in image_size)
+        if self.image_size is not None:
+            raise ConfigurationError(
+                f"the calibration is for {self.image_size[0]}×{self.image_size[1]} px images, "
+                f"not {width}×{height} px as given"
+            )
+        return replace(self, image_size=(width, height))
 
     @property
     def ideal_K(self) -> NDArray[np.float64]:
@@ -165,17 +186,31 @@ class Intrinsics:
         return np.c_[mapped[:, 0, 0], mapped[:, 1, 1], mapped[:, 2, 0], mapped[:, 3, 1]]
 
     def rectify_table(self, table: BoxTable) -> BoxTable:
-        """A copy of ``table`` with :meth:`rectify_boxes` applied."""
+        """A copy of ``table`` with :meth:`rectify_boxes` applied; the boxes as they were, in
+        the frame's pixels, are kept in the extra column :data:`FRAME_BOX_COLUMN`
+        (:func:`in_frame_pixels`)."""
         if self.is_ideal:
             return table
+        extra = dict(table.extra)
+        extra.setdefault(FRAME_BOX_COLUMN, table.boxes.copy())
         return BoxTable(
             table.frame,
             self.rectify_boxes(table.boxes),
             table.track_id,
             table.score,
             table.cls,
-            dict(table.extra),
+            extra,
         )
+
+
+def in_frame_pixels(table: BoxTable) -> BoxTable:
+    """``table`` with its boxes in the frame's own pixels: the boxes
+    :meth:`Intrinsics.rectify_table` mapped into the ideal camera back as they were (column
+    :data:`FRAME_BOX_COLUMN`), else ``table`` itself (its boxes were never mapped)."""
+    original = table.extra.get(FRAME_BOX_COLUMN)
+    if original is None:
+        return table
+    return BoxTable(table.frame, original, table.track_id, table.score, table.cls, table.extra)
 
 
 class RectifiedDetector:

@@ -1,4 +1,4 @@
-"""Frames decoded ahead, and overlays encoded behind, in background threads.
+"""Frames decoded ahead, and overlays drawn and encoded behind, in background threads.
 
 Decoding a frame (PNG inflate, H.264) runs in OpenCV without Python's global lock, so a thread
 that decodes the next frames while the odometry works on the current one lets a stream use a
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -129,18 +129,21 @@ class OverlaySink(Protocol):
 
 
 class BackgroundOverlay:
-    """An overlay writer whose encoding runs in a background thread, up to ``ahead`` frames
-    behind the caller (the images handed over must not be changed afterwards).
+    """An overlay writer whose encoding (and, with :meth:`write_drawn`, drawing) runs in a
+    background thread, up to ``ahead`` frames behind the caller (the images and data handed
+    over must not be changed afterwards).
 
-    Calls reach ``sink`` in order; an error of the sink is raised by the next call (or by
-    :meth:`close`), after which nothing more is written.
+    Calls reach ``sink`` in order; an error of the sink or of a drawing is raised by the next
+    call (or by :meth:`close`), after which nothing more is written.
     """
 
     def __init__(self, sink: OverlaySink, ahead: int = DEFAULT_AHEAD) -> None:
         if ahead < 1:
             raise ConfigurationError(f"overlay frames queued must be ≥ 1, got {ahead}")
         self.sink = sink
-        self._calls: queue.Queue[tuple[str, tuple[object, ...]] | None] = queue.Queue(ahead)
+        self._calls: queue.Queue[tuple[Callable[..., None], tuple[object, ...]] | None] = (
+            queue.Queue(ahead)
+        )
         self._error: BaseException | None = None
         self._worker = threading.Thread(target=self._drain, name="slopedist-overlay", daemon=True)
         self._worker.start()
@@ -151,10 +154,21 @@ class BackgroundOverlay:
         return self.sink.target
 
     def write(self, index: int, image: NDArray[np.uint8], timestamp_s: float | None = None) -> None:
-        self._submit("write", (index, image, timestamp_s))
+        self._submit(self.sink.write, (index, image, timestamp_s))
+
+    def write_drawn(
+        self,
+        index: int,
+        draw: Callable[[], NDArray[np.uint8]],
+        timestamp_s: float | None = None,
+    ) -> None:
+        """Write the image ``draw()`` returns, drawn in the background thread (``draw`` must
+        only read data that the caller no longer changes): the drawing leaves the caller's
+        thread, as the encoding does."""
+        self._submit(self._draw_and_write, (index, draw, timestamp_s))
 
     def write_placeholder(self, index: int, text: str, timestamp_s: float | None = None) -> None:
-        self._submit("write_placeholder", (index, text, timestamp_s))
+        self._submit(self.sink.write_placeholder, (index, text, timestamp_s))
 
     def close(self) -> None:
         """Write everything queued, close the sink, and raise the sink's error if any."""
@@ -163,9 +177,14 @@ class BackgroundOverlay:
             self._worker.join()
         self._raise()
 
-    def _submit(self, name: str, args: tuple[object, ...]) -> None:
+    def _submit(self, call: Callable[..., None], args: tuple[object, ...]) -> None:
         self._raise()
-        self._calls.put((name, args))
+        self._calls.put((call, args))
+
+    def _draw_and_write(
+        self, index: int, draw: Callable[[], NDArray[np.uint8]], timestamp_s: float | None
+    ) -> None:
+        self.sink.write(index, draw(), timestamp_s)
 
     def _raise(self) -> None:
         if self._error is not None:
@@ -181,7 +200,7 @@ class BackgroundOverlay:
             if failed:
                 continue  # keep taking calls so that the caller never blocks
             try:
-                getattr(self.sink, call[0])(*call[1])
+                call[0](*call[1])
             except BaseException as exc:  # raised in the caller's thread
                 self._error, failed = exc, True
         try:

@@ -12,7 +12,7 @@ import numpy as np
 
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import ESTIMATORS, available_methods
+from slopedist.estimators import ESTIMATORS, available_methods, causal_methods
 from slopedist.kitti_eval import KittiEvaluation, SequenceRun, run_kitti_tracking
 from slopedist.learned_peer import PEER_METHOD, PEER_PROTOCOL
 from slopedist.report.data import (
@@ -31,7 +31,7 @@ FRAME_PERIOD_S = 0.1
 def default_kitti_methods(depth: bool) -> list[str]:
     """Every registered method that can run on KITTI tracking (``depthmap`` with depth only)."""
     return [
-        m for m in available_methods() if depth or not getattr(ESTIMATORS[m], "needs_depth", False)
+        m for m in causal_methods() if depth or not getattr(ESTIMATORS[m], "needs_depth", False)
     ]
 
 

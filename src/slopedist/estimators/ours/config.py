@@ -87,6 +87,17 @@ class OursConfig:
             the default), ``nearest_face`` or ``contact`` (the ground under the nearest face,
             the same longitudinal distance); the records carry ``distance_centre_m`` and
             ``distance_nearest_face_m`` whatever it is.
+        size_learning: learn each track's own size (an isotropic scale of its class prior's
+            dimensions, with its variance) from the frames where the ground contact is
+            reliable, and use it in the size cues (:mod:`~slopedist.estimators.ours.
+            size_learning`; record columns ``size_scale``, ``size_log_sigma``,
+            ``track_height_m``).
+        size_evidence_time_s: the time τ over which a track's ground-contact evidence about
+            its size is one independent observation (consecutive frames share the target
+            road's gradient error): a frame's evidence weighs ``min(1, dt/τ)``. None (the
+            default): the time the target gradient's random walk takes to wander by its prior
+            spread, ``(gradient_sigma_rad / process.gradient_rad)²`` = 4 s with the physical
+            defaults (nothing fitted).
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
@@ -130,6 +141,8 @@ class OursConfig:
     occlusion_gate_sigma: float = 3.0
     consistency_gate_sigma: float = 3.0
     reference: str = "centre"
+    size_learning: bool = False
+    size_evidence_time_s: float | None = None
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
@@ -157,12 +170,30 @@ class OursConfig:
                 raise ConfigurationError(
                     f"ours option {name} must be a finite number > 0, got {value!r}"
                 )
+        tau = self.size_evidence_time_s
+        if tau is not None and not (
+            isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0
+        ):
+            raise ConfigurationError(
+                f"ours option size_evidence_time_s must be a finite number > 0, got {tau!r}"
+            )
         if not 0.0 <= self.min_iou <= 1.0:
             raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
+
+    @property
+    def size_evidence_time(self) -> float:
+        """τ of ``size_evidence_time_s``, seconds (derived when it is None)."""
+        if self.size_evidence_time_s is not None:
+            return float(self.size_evidence_time_s)
+        return (self.gradient_sigma_rad / self.process.gradient_rad) ** 2
 
     @property
     def tracking(self) -> bool:
         """Whether any state is carried from frame to frame (so boxes must be associated)."""
         return (
-            self.motion_model or self.yaw_memory or self.gradient_feedback or self.adapt_box_noise
+            self.motion_model
+            or self.yaw_memory
+            or self.gradient_feedback
+            or self.adapt_box_noise
+            or self.size_learning
         )

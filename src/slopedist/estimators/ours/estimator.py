@@ -38,7 +38,7 @@ from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import frame_cues, fusion
+from slopedist.estimators.ours import frame_cues, fusion, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
     boxes_all_usable,
@@ -70,11 +70,12 @@ from slopedist.estimators.ours.tracking import (
     ROW_GRAD_VAR,
     ROW_LAST_BOX,
     ROW_LAST_T,
-    ROW_LOG_W,
     ROW_ROT,
+    ROW_SIZE,
     TrackArrays,
     TrackUpdate,
     associate,
+    box_noise_sums,
     depth_ratios,
     moved_boxes,
     start_tracks,
@@ -110,6 +111,8 @@ class OursEstimator(Estimator):
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
+    _keep_predicted: ClassVar[bool] = False  # keep the filter's predictions (offline pass)
+    _learns_size: ClassVar[bool] = True  # learn the tracks' sizes (with size_learning)
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
@@ -217,7 +220,8 @@ class OursEstimator(Estimator):
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
         if good.size:
-            values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)._asdict()
+            box_values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+            values = {k: v for k, v in box_values._asdict().items() if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
@@ -266,8 +270,12 @@ class OursEstimator(Estimator):
         cfg = self.config
         cam = self.camera
         targets = self._frame_targets(frame, good, all_good)
-        size = frame_cues.size_cues(cfg, cam, targets, calib)
         match = self._match_tracks(targets, frame.R_world_cam)
+        track_size = None
+        if cfg.size_learning:  # the tracks' own sizes in the class constants
+            track_size = self._track_size(targets, match)
+            targets = size_learning.with_track_size(targets, track_size)
+        size = frame_cues.size_cues(cfg, cam, targets, calib)
         ground = None
         if cfg.use_ground_contact:
             alpha, alpha_var = self._contact_gradient_prior(match)
@@ -288,12 +296,38 @@ class OursEstimator(Estimator):
         gradient = frame_cues.target_gradient(
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )
-        uid = self._update_tracks(targets, match, fused, distance, gradient, frame.R_world_cam)
+        size_rows = None
+        if track_size is not None:  # this frame's evidence (none in an offline pass's second)
+            size_rows = (
+                size_learning.learn_frame(
+                    targets, match, size, fused, distance, track_size, cfg.size_evidence_time
+                )
+                if self._learns_size
+                else np.stack([track_size.log_scale, track_size.log_var])
+            )
+        uid = self._update_tracks(
+            targets, match, fused, distance, gradient, frame.R_world_cam, size_rows
+        )
+        if self._keep_predicted:
+            self._keep_frame(match, fused, distance, uid)
         if cfg.self_calibrate:
-            self._feed_selfcal(targets, fused, gradient, uid, theta_rad, calib)
-        return frame_cues.box_estimates(
+            shape_gap = frame_cues.shape_gap(targets, size)
+            self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
+        out = frame_cues.box_estimates(
             cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
         )
+        if size_rows is not None:
+            out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
+        return out
+
+    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
+        """Each target's size belief before this frame (its track's, else the class prior)."""
+        stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
+        return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
+
+    def _keep_frame(self, *frame_state: Any) -> None:
+        """Keep a frame's filter states (match, fused cues, distance filters, uids) for an
+        offline pass (``_keep_predicted``: see :mod:`~slopedist.estimators.ours.offline`)."""
 
     # -- the steps of a frame, in order -----------------------------------------------------
 
@@ -348,7 +382,11 @@ class OursEstimator(Estimator):
         elapsed = t - state[ROW_LAST_T]
         grad_var = state[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * elapsed  # predicted
         if cfg.adapt_box_noise and r_old.size and predicted is not None:
-            self._learn_box_noise(boxes[continued] - predicted[r_old], r_old, t)
+            d2_sum, d2_count = box_noise_sums(
+                tr, boxes[continued] - predicted[r_old], r_old, t, self.box_sigma_px
+            )
+            self._d2_sum += d2_sum
+            self._d2_count += d2_count
         return TrackMatch(
             rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
@@ -356,7 +394,11 @@ class OursEstimator(Estimator):
     def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
         """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
         headings × vehicle types when a target's class is generic)."""
-        log_heading_prior = self._carried_heading_prior(match)
+        log_heading_prior = None
+        if self.config.yaw_memory and match.continued_rows.size:
+            log_heading_prior = frame_cues.carried_heading_prior(
+                match, self._log_yaw_prior, self.config.yaw_memory_s
+            )
         type_weight = targets.classes.type_log_weight
         if type_weight is not None:
             if log_heading_prior is None:
@@ -370,20 +412,6 @@ class OursEstimator(Estimator):
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
-
-    def _carried_heading_prior(self, match: TrackMatch) -> FloatArray | None:
-        """``(n, K)`` log heading prior of each target when the tracks carry their belief
-        (relaxing to the prior with time), or None when it is the prior for every target."""
-        if not (self.config.yaw_memory and match.continued_rows.size):
-            return None
-        mix = 1.0 - np.exp(-match.elapsed_s / self.config.yaw_memory_s)
-        carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
-            :, None
-        ] * np.exp(self._log_yaw_prior)
-        n = match.rows.shape[0]
-        log_pi = np.broadcast_to(self._log_yaw_prior[None, :], (n, self._yaw.size)).copy()
-        log_pi[match.continued] = np.log(np.maximum(carried, 1e-300))
-        return log_pi
 
     def _contact_gradient_prior(
         self, match: TrackMatch
@@ -417,7 +445,8 @@ class OursEstimator(Estimator):
         n = match.rows.shape[0]
         continued = np.zeros(n, dtype=bool)
         if not (cfg.motion_model and match.continued_rows.size):
-            return DistanceFilterResult(self._new_filter_rows(measurement), match.rows, continued)
+            filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+            return DistanceFilterResult(filt, match.rows, continued)
         prior = match.continued_state[ROW_FILTER]
         prior[0] += np.log(np.maximum(self._continued_depth_ratios(match, R_now), 0.1))
         pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
@@ -431,16 +460,20 @@ class OursEstimator(Estimator):
         updated, _ = kf.cv_update_rows(pred, m_old, w_old)
         dev = m_old - pred[0]
         same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
+        predicted = None
+        if self._keep_predicted:
+            predicted = np.full((5, n), np.nan)
+            predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
         if every and all_true(same):  # every target continues its track
             continued[:] = True
-            return DistanceFilterResult(updated, match.rows, continued)
-        filt = self._new_filter_rows(measurement)
+            return DistanceFilterResult(updated, match.rows, continued, predicted)
+        filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
         idx = np.flatnonzero(old)
         filt[:, idx[same]] = updated[:, same]
         continued[idx[same]] = True
         rows = match.rows.copy()
         rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
-        return DistanceFilterResult(filt, rows, continued)
+        return DistanceFilterResult(filt, rows, continued, predicted)
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:
         """``Z_now/Z_last`` of the continued tracks' box centres from the camera's rotation."""
@@ -458,6 +491,7 @@ class OursEstimator(Estimator):
         distance: DistanceFilterResult,
         gradient: TargetGradient,
         R_now: FloatArray | None,
+        size_rows: FloatArray | None = None,
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
@@ -466,7 +500,7 @@ class OursEstimator(Estimator):
             return self._new_uids(targets.boxes_px.shape[0])
         belief: FloatArray | None = None
         if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
-            belief = self._heading_belief(fused)
+            belief = frame_cues.heading_belief(fused, cfg.yaw_evidence_weight, self._yaw.size)
         return self._store(
             TrackUpdate(
                 distance.rows,
@@ -480,22 +514,14 @@ class OursEstimator(Estimator):
                 targets.time_s,
                 np.eye(3) if R_now is None else np.asarray(R_now, dtype=float),
                 match.turned_boxes_px if match.box_motion else None,
+                size_rows,
             )
         )
-
-    def _heading_belief(self, fused: FusedCues) -> FloatArray:
-        """``(n, K)`` normalised log heading belief after this frame: the prior times the
-        cues' likelihood, tempered (consecutive frames are correlated evidence)."""
-        belief = fused.log_prior + self.config.yaw_evidence_weight * fused.loglik
-        n_modes = belief.shape[1] // self._yaw.size
-        if n_modes > 1:
-            n = belief.shape[0]
-            belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
-        return belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)
 
     def _feed_selfcal(
         self,
         targets: FrameTargets,
+        shape_gap: FloatArray,
         fused: FusedCues,
         gradient: TargetGradient,
         uid: NDArray[np.int64],
@@ -503,12 +529,10 @@ class OursEstimator(Estimator):
         calib: CalibrationInUse,
     ) -> None:
         """Give the self-calibration the targets of tightly sized classes whose box is not cut
-        by the top or bottom border: their bottom rows and nearest-face size distances."""
-        cam = self.camera
-        n = uid.shape[0]
-        usable = (
-            targets.classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA
-        ) & ~targets.classes.generic
+        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps."""
+        cam, n = self.camera, uid.shape[0]
+        classes = targets.classes
+        usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
         cuts = targets.border_cuts
         if cuts is not None:
             usable &= ~cuts.top & ~cuts.bottom
@@ -516,17 +540,8 @@ class OursEstimator(Estimator):
         v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
         near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
         self.selfcal.update(
-            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near
+            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near, shape_gap
         )
-
-    def _new_filter_rows(self, meas: LogCue) -> FloatArray:
-        """Filter state rows of tracks that start at this frame's measurement (its white part)
-        with zero rate."""
-        filt = np.zeros((5, meas.mean.shape[0]))
-        filt[0] = meas.mean
-        filt[2] = meas.var_white
-        filt[4] = self.config.rate_sigma_per_s**2
-        return filt
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
         uid = np.arange(self._next_uid, self._next_uid + k)
@@ -551,24 +566,6 @@ class OursEstimator(Estimator):
         uid[new] = new_uid
         self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
         return uid
-
-    def _learn_box_noise(self, miss: FloatArray, rows: NDArray[np.int64], t: float) -> None:
-        """Pool the misses of the constant-velocity box predictions of tracks updated at an even
-        pace (``miss`` = box − predicted box, pixels): a second difference, variance 6σ²."""
-        tr = self.tracks
-        dt1 = t - tr.last_t[rows]
-        dt0 = tr.last_t[rows] - tr.prev_t[rows]
-        even = (
-            np.isfinite(dt0)
-            & (np.abs(dt1 - dt0) <= 0.2 * dt0)
-            & np.all(np.isfinite(tr.box_vel[rows]), axis=1)
-        )
-        if not np.any(even):
-            return
-        d2 = miss[even]
-        cap = 4.0 * math.sqrt(6.0) * self.box_sigma_px  # an id switch or a jump is not noise
-        self._d2_sum += float(np.sum(np.minimum(d2 * d2, cap * cap)))
-        self._d2_count += int(d2.size)
 
     def _drop_stale(self, t: float) -> None:
         tr = self.tracks

@@ -63,6 +63,17 @@ def cv_predict_rows(s: FloatArray, dt_s: FloatArray, accel_mps2: float) -> Float
     return out
 
 
+def start_rows(log_z: FloatArray, var: FloatArray, rate_sigma_per_s: float) -> FloatArray:
+    """State rows ``(5, n)`` (see :func:`cv_predict_rows`) of filters that start at the log
+    distances ``log_z`` with variance ``var`` and zero rate (prior spread
+    ``rate_sigma_per_s``, 1/s)."""
+    s = np.zeros((5, log_z.shape[0]))
+    s[0] = log_z
+    s[2] = var
+    s[4] = rate_sigma_per_s * rate_sigma_per_s
+    return s
+
+
 def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
     """:func:`cv_update` on state rows (see :func:`cv_predict_rows`): the updated rows and the
     normalised innovation squared."""
@@ -196,3 +207,36 @@ def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
     r_ = np.where(approaching, r, -1.0)
     sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
     return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
+
+
+def rts_smooth_rows(updated: FloatArray, predicted: FloatArray, dt_s: FloatArray) -> FloatArray:
+    """Rauch–Tung–Striebel smoothing of one track's distance filter (offline use).
+
+    ``updated`` ``(5, N)``: the filter's state rows after each of the track's N updates, in
+    time order (as :func:`cv_update_rows` gives them); ``predicted`` ``(5, N)``: the rows
+    predicted for each update from the one before (column 0 is not read); ``dt_s`` ``(N,)``:
+    the time from the previous update (element 0 is not read). Returns the smoothed rows
+    ``(5, N)``: each state given every measurement of the track, before and after. The
+    transition's Jacobian is that of :func:`cv_predict_rows` at the updated state
+    (``ℓ' = ℓ + log(1 + r·dt)``, ``r' = r/(1 + r·dt)``); the camera rotation's depth shift
+    the filter added to ℓ is a constant and does not enter it.
+    """
+    out = np.array(updated, dtype=float)
+    n = out.shape[1]
+    for k in range(n - 2, -1, -1):
+        log_z, r, p00, p01, p11 = updated[:, k]
+        dt = float(dt_s[k + 1])
+        ig = 1.0 / max(r * dt + 1.0, 0.2)
+        F = np.array([[1.0, dt * ig], [0.0, ig * ig]])
+        P = np.array([[p00, p01], [p01, p11]])
+        xp = predicted[:2, k + 1]
+        Pp = np.array(
+            [[predicted[2, k + 1], predicted[3, k + 1]], [predicted[3, k + 1], predicted[4, k + 1]]]
+        )
+        C = P @ F.T @ np.linalg.inv(Pp)
+        xs_next = out[:2, k + 1]
+        Ps_next = np.array([[out[2, k + 1], out[3, k + 1]], [out[3, k + 1], out[4, k + 1]]])
+        x = np.array([log_z, r]) + C @ (xs_next - xp)
+        Ps = P + C @ (Ps_next - Pp) @ C.T
+        out[:, k] = (x[0], x[1], Ps[0, 0], 0.5 * (Ps[0, 1] + Ps[1, 0]), Ps[1, 1])
+    return out

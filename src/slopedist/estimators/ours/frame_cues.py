@@ -33,7 +33,7 @@ from slopedist.estimators.ours.records import (
     UpperBound,
     filled,
 )
-from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN
+from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN, ROW_LOG_W
 
 FloatArray = NDArray[np.float64]
 
@@ -78,6 +78,16 @@ def size_cues(
     return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
 
 
+def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
+    """How far each target's box shape is from its class's: the gap between its height and
+    width cues at the heading that explains it best, in σ of the class prior (``(n,)``; NaN
+    without a width cue; :func:`~slopedist.estimators.ours.fusion.shape_gap_sigma`)."""
+    hyp = targets.classes.hypotheses
+    return fusion.shape_gap_sigma(
+        size.height, size.width, hyp.log_sigma_height, hyp.log_sigma_width, hyp.corr_height_width
+    )
+
+
 def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
     """The size cues with the dimensions cut by the image border (height: top or bottom;
     width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
@@ -85,7 +95,7 @@ def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues
     if cuts is None:
         return size
     hyp = targets.classes.hypotheses
-    height, width, bounds = size
+    height, width, bounds, _ = size
     cut_h = (cuts.top | cuts.bottom)[:, None]
     if any_true(cut_h):
         height = _cut_by_border(cfg, height, hyp.log_sigma_height, cut_h, bounds, True)
@@ -171,7 +181,7 @@ def occlusion_adjusted(
     ground contact; the unexplained excess becomes per-vehicle variance."""
     gate = cfg.occlusion_gate_sigma
     hyp = targets.classes.hypotheses
-    height, width, bounds = size
+    height, width, bounds, _ = size
     cut_w, cut_h = hidden_sides(targets.boxes_px, gate * targets.box_sigma_px)
     if any_true(cut_h):
         excess = unexplained_excess(
@@ -185,7 +195,7 @@ def occlusion_adjusted(
         )
         extra = occlusion_log_var(excess, cut_w[:, None])
         width = SizeCue(width.mean, width.lever, width.var_white, width.var_other + extra)
-    return SizeCues(height, width, bounds)
+    return SizeCues(height, width, bounds, cut_w | cut_h)
 
 
 def fuse_hypotheses(
@@ -283,6 +293,7 @@ def _collapse(
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
     gap = np.full(n, np.nan)
+    ground_mix = None
     if ground is not None:
         ground_mix = fusion.mix_hypotheses(ground, weights)
         measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
@@ -295,6 +306,7 @@ def _collapse(
         np.add.reduce(weights * extent, axis=1),
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
+        ground_mix,
     )
 
 
@@ -424,3 +436,31 @@ def _gradient_prior(
     mean[idx] = mean_old[kept]
     var[idx] = np.minimum(var_old[kept], 1e6)
     return mean, var
+
+
+def carried_heading_prior(
+    match: TrackMatch, log_yaw_prior: FloatArray, memory_s: float
+) -> FloatArray:
+    """``(n, K)`` log heading prior of each target when the tracks carry their heading belief
+    (``yaw_memory``): a continued track's belief relaxing to the prior ``log_yaw_prior``
+    ``(K,)`` with time constant ``memory_s`` (s); the prior for a new track."""
+    mix = 1.0 - np.exp(-match.elapsed_s / memory_s)
+    carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
+        :, None
+    ] * np.exp(log_yaw_prior)
+    n = match.rows.shape[0]
+    log_pi = np.broadcast_to(log_yaw_prior[None, :], (n, log_yaw_prior.size)).copy()
+    log_pi[match.continued] = np.log(np.maximum(carried, 1e-300))
+    return log_pi
+
+
+def heading_belief(fused: FusedCues, evidence_weight: float, n_headings: int) -> FloatArray:
+    """``(n, K)`` normalised log heading belief after this frame: the prior times the cues'
+    likelihood tempered by ``evidence_weight`` (consecutive frames are correlated evidence),
+    summed over the body-style modes or vehicle types."""
+    belief = fused.log_prior + evidence_weight * fused.loglik
+    n_modes = belief.shape[1] // n_headings
+    if n_modes > 1:
+        n = belief.shape[0]
+        belief = np.logaddexp.reduce(belief.reshape(n, n_modes, -1), axis=1)
+    return belief - np.logaddexp.reduce(belief, axis=1, keepdims=True)

@@ -98,6 +98,38 @@ def fuse_size_cues(
 _HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
 
 
+def shape_gap_sigma(
+    height: SizeCue,
+    width: SizeCue,
+    sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float,
+    corr_hw: FloatArray | float,
+) -> FloatArray:
+    """How far a box's shape is from its class's, in standard deviations: the gap between the
+    height and the width cue ``|y_h − y_w| / √var(y_h − y_w)`` under the class size prior (as
+    :func:`fuse_size_cues`), at the heading hypothesis that explains it best (the minimum over
+    the last axis). A box of a vehicle of another type (a truck called ``Car``) or of part of
+    one has a height and width no heading of the class gives together. ``(n,)``; NaN without
+    a width cue.
+    """
+    sh = height.lever * np.asarray(sigma_log_h)
+    sw = width.lever * np.asarray(sigma_log_w)
+    c12 = np.asarray(corr_hw) * sh * sw
+    den = (
+        sh * sh
+        + height.var_white
+        + height.var_other
+        + sw * sw
+        + width.var_white
+        + width.var_other
+        - c12
+        - c12
+    )
+    gap = np.abs(np.asarray(height.mean) - np.asarray(width.mean)) / np.sqrt(den)
+    finite = np.isfinite(gap)
+    return np.where(finite.any(axis=-1), np.min(np.where(finite, gap, np.inf), axis=-1), np.nan)
+
+
 def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     """Inverse-variance fusion of two independent log-distance cues.
 

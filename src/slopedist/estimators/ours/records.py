@@ -36,6 +36,9 @@ EXTRA_COLUMNS = (
     "distance_ground_contact_m",
     "distance_width_m",
     "cue_gap_sigma",
+    "size_scale",
+    "size_log_sigma",
+    "track_height_m",
     "track_uid",
     "calib_mount_angle_rad",
     "calib_mount_angle_sigma_rad",
@@ -105,11 +108,13 @@ class UpperBound(NamedTuple):
 
 
 class SizeCues(NamedTuple):
-    """The two size cues per hypothesis and the upper bounds of cues cut by the border."""
+    """The two size cues per hypothesis, the upper bounds of cues cut by the border and
+    ``hidden`` ``(n,)``: the boxes a nearer box may cut (None: not checked)."""
 
     height: SizeCue
     width: SizeCue
     bounds: list[UpperBound]
+    hidden: BoolArray | None = None
 
 
 class TrackMatch(NamedTuple):
@@ -159,6 +164,8 @@ class FusedCues(NamedTuple):
             standard deviations of their difference (NaN without the ground contact): beyond
             ``consistency_gate_sigma`` the cues disagree and the measurement's variance is
             widened to cover both.
+        ground: ``(n,)`` the ground contact alone, mixed over the hypotheses (None without
+            it).
     """
 
     measurement: LogCue
@@ -169,6 +176,7 @@ class FusedCues(NamedTuple):
     half_extent_m: FloatArray
     width_log: FloatArray
     cue_gap_sigma: FloatArray
+    ground: LogCue | None = None
 
 
 class DistanceFilterResult(NamedTuple):
@@ -179,11 +187,15 @@ class DistanceFilterResult(NamedTuple):
         rows: ``(n,)`` track column each box continues, −1 where it starts a track (the
             association's, minus the boxes that failed the gate).
         continued: ``(n,)`` whether the box continued its track's filter.
+        predicted_rows: ``(5, n)`` the rows predicted for this frame from each continued
+            track's last update (NaN where a track starts), when the estimator keeps them
+            (offline smoothing), else None.
     """
 
     filter_rows: FloatArray
     rows: IntArray
     continued: BoolArray
+    predicted_rows: FloatArray | None = None
 
 
 class TargetGradient(NamedTuple):
@@ -228,6 +240,9 @@ class BoxEstimates(NamedTuple):
     distance_width_m: FloatArray
     cue_gap_sigma: FloatArray
     track_uid: FloatArray
+    size_scale: FloatArray | None = None
+    size_log_sigma: FloatArray | None = None
+    track_height_m: FloatArray | None = None
 
 
 OUTPUT_KEYS = ("distance_m", "theta_adj_rad", "v_px", "delta_y_px", *EXTRA_COLUMNS)

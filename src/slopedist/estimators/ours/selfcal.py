@@ -18,6 +18,14 @@ gradient's error) is independent per frame. The estimate is the generalised leas
 solution with these per-track random effects (Woodbury identity, accumulated incrementally per
 track) under a Gaussian prior centred on the configured calibration, with Huber weights against
 outliers (a wrong class, a false detection). It is causal and converges as tracks accumulate.
+
+The size cue is only as good as the class prior, so each target's box shape is checked against
+its class first (``shape_gap``: the gap between its height and width cues at the heading that
+explains it best, in σ of the class prior; :func:`~slopedist.estimators.ours.fusion.
+shape_gap_sigma`): a box no vehicle of its class would give (a truck called ``Car``, a box of
+part of a vehicle, two vehicles in one box) is left out, and the count of such boxes is kept
+(:attr:`Calibration.n_shape_outliers`) so that a caller can tell a box source whose classes do
+not describe its boxes.
 """
 
 from __future__ import annotations
@@ -44,6 +52,9 @@ class SelfCalConfig:
         gradient_sigma_rad: per-track spread of target road gradients, the α random effect.
         row_sigma_px: independent per-frame noise of ``b − v`` (pixels, box edge and ego pitch).
         huber_k: Huber threshold on standardised residuals.
+        shape_gate_sigma: a target whose box shape is further than this from its class's
+            (``shape_gap``, in σ) is left out (3, the usual outlier test, as ``ours``'
+            ``consistency_gate_sigma``; not fitted).
         min_near_m, max_near_m: targets used (distance to the nearest face from the size cue).
     """
 
@@ -53,6 +64,7 @@ class SelfCalConfig:
     gradient_sigma_rad: float = math.radians(1.0)
     row_sigma_px: float = 4.0
     huber_k: float = 2.0
+    shape_gate_sigma: float = 3.0
     min_near_m: float = 2.0
     max_near_m: float = 60.0
 
@@ -64,6 +76,7 @@ class SelfCalConfig:
             "gradient_sigma_rad",
             "row_sigma_px",
             "huber_k",
+            "shape_gate_sigma",
             "min_near_m",
             "max_near_m",
         ):
@@ -86,6 +99,9 @@ class Calibration:
         horizon_offset_rad: δ, the correction added to the ego gradient θ (θ + δ).
         n_observations: targets used so far.
         n_tracks: vehicles (tracks) they came from.
+        n_shape_checked: targets whose box shape was checked against their class (those
+            with both size cues, before the shape test).
+        n_shape_outliers: of those, the ones left out for a shape their class does not give.
     """
 
     mount_angle_rad: float
@@ -95,6 +111,15 @@ class Calibration:
     horizon_offset_rad: float
     n_observations: int
     n_tracks: int
+    n_shape_checked: int = 0
+    n_shape_outliers: int = 0
+
+    @property
+    def shape_outlier_share(self) -> float:
+        """Share of the checked targets left out for their shape (NaN when none was checked)."""
+        if self.n_shape_checked == 0:
+            return math.nan
+        return self.n_shape_outliers / self.n_shape_checked
 
 
 class SelfCalibrator:
@@ -129,6 +154,8 @@ class SelfCalibrator:
         self._info_tracks = np.zeros((2, 2))
         self._vec_tracks = np.zeros(2)
         self._n_obs = 0
+        self._n_shape_checked = 0
+        self._n_shape_outliers = 0
         self._p = self._prior_mean.copy()
         self._cov = _inv2(self._prior_info)
 
@@ -157,7 +184,31 @@ class SelfCalibrator:
             float(self._p[0]),
             self._n_obs,
             len(self._row_of),
+            self._n_shape_checked,
+            self._n_shape_outliers,
         )
+
+    def track_jackknife(self) -> FloatArray:
+        """2×2 covariance of (δ, h) from the spread of the leave-one-vehicle-out estimates.
+
+        Each vehicle's contribution (its information matrix and vector, random effects
+        marginalised) is taken out of the final normal equations in turn; the jackknife
+        covariance ``(n − 1)/n · Σ (p₍ᵢ₎ − p̄)(p₍ᵢ₎ − p̄)ᵀ`` of those ``n`` solutions measures how
+        much the estimate rests on vehicles that disagree with the others — beyond the
+        model's own covariance when the vehicles scatter more than the random effects allow
+        (not vehicles of the class prior, boxes of only part of a vehicle). Zeros with fewer
+        than three vehicles.
+        """
+        n = len(self._row_of)
+        if n < 3:
+            return np.zeros((2, 2))
+        sums = self._sums[:n]
+        info = self._prior_info + self._info_tracks
+        vec = self._prior_info @ self._prior_mean + self._vec_tracks
+        without = _inv2(info[None] - sums[:, _INFO].reshape(-1, 2, 2))
+        p = (without @ (vec[None] - sums[:, _VEC])[..., None])[..., 0]
+        d = p - p.mean(axis=0)
+        return (n - 1) / n * (d.T @ d)
 
     def update(
         self,
@@ -166,6 +217,7 @@ class SelfCalibrator:
         horizon_px: FloatArray,
         theta_rad: FloatArray,
         near_m: FloatArray,
+        shape_gap: FloatArray | None = None,
     ) -> None:
         """Add one frame's targets and refresh the estimate.
 
@@ -175,6 +227,8 @@ class SelfCalibrator:
             horizon_px: ``(N,)`` eq. 5 rows of the configured ego gradient θ.
             theta_rad: ``(N,)`` that θ (for the ``1/cos²θ`` factor).
             near_m: ``(N,)`` size-cue distance to the nearest face, metres.
+            shape_gap: ``(N,)`` how far each box's shape is from its class's, in σ (NaN:
+                not checked); beyond ``shape_gate_sigma`` the target is left out and counted.
         """
         c = self.config
         ok = (
@@ -185,6 +239,12 @@ class SelfCalibrator:
             & (near_m >= c.min_near_m)
             & (near_m <= c.max_near_m)
         )
+        if shape_gap is not None:
+            checked = ok & np.isfinite(shape_gap)
+            outlier = checked & (shape_gap > c.shape_gate_sigma)
+            self._n_shape_checked += int(np.count_nonzero(checked))
+            self._n_shape_outliers += int(np.count_nonzero(outlier))
+            ok &= ~outlier
         m = int(np.count_nonzero(ok))
         if not m:
             return

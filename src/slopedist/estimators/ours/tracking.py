@@ -10,6 +10,7 @@ update all tracks of a frame at once.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -44,7 +45,11 @@ ROW_ROT = slice(18, 27)
 """Camera-to-world rotation at the last update, row-major (identity if unknown)."""
 ROW_N_OBS = 27
 """Number of updates."""
-ROW_LOG_W = 28
+ROW_SIZE = slice(28, 30)
+"""The track's learned size: log of its dimensions over its class prior's (isotropic scale
+b, dimensionless) and that log's variance, NaN while it is the class prior's
+(:mod:`~slopedist.estimators.ours.size_learning`)."""
+ROW_LOG_W = 30
 """First row of the log belief over the heading hypotheses (K rows)."""
 
 
@@ -85,7 +90,7 @@ class TrackArrays:
     ) -> TrackArrays:
         """New tracks after their first update at time ``t``: ``filter_rows`` ``(5, k)`` (the
         :data:`ROW_FILTER` rows), ``log_w`` ``(k, K)``, ``boxes`` ``(k, 4)``, the others
-        ``(k,)``."""
+        ``(k,)``; their size (:data:`ROW_SIZE`) the class prior's."""
         k = uid.shape[0]
         st = np.empty((ROW_LOG_W + log_w.shape[1], k))
         st[ROW_FILTER] = filter_rows
@@ -98,6 +103,8 @@ class TrackArrays:
         st[ROW_PREV_T] = np.nan
         st[ROW_ROT] = np.asarray(R_world_cam, dtype=float).reshape(9, 1)
         st[ROW_N_OBS] = 1.0
+        st[ROW_SIZE.start] = 0.0
+        st[ROW_SIZE.start + 1] = np.nan
         st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
@@ -201,6 +208,8 @@ class TrackUpdate(NamedTuple):
         R_world_cam: ``(3, 3)`` camera-to-world rotation (identity when unknown).
         turned_boxes_px: ``(T, 4)`` the tracks' last boxes turned with the camera, or None when
             the box motion is not kept (only id-less tracks and the box-noise estimate use it).
+        size_rows: ``(2, n)`` the learned size (:data:`ROW_SIZE`), or None when it is not
+            learned (tracks keep the class prior).
     """
 
     rows: IntArray
@@ -214,6 +223,7 @@ class TrackUpdate(NamedTuple):
     time_s: float
     R_world_cam: FloatArray
     turned_boxes_px: FloatArray | None
+    size_rows: FloatArray | None = None
 
 
 def write_continued(
@@ -249,6 +259,8 @@ def write_continued(
     S[ROW_N_OBS] += 1.0
     if log_w is not None:
         S[ROW_LOG_W:] = log_w
+    if update.size_rows is not None:
+        S[ROW_SIZE] = update.size_rows if continued is None else update.size_rows[:, continued]
     tracks.state[:, r] = S
 
 
@@ -286,6 +298,8 @@ def start_tracks(
         update.boxes_px[new],
         update.R_world_cam,
     )
+    if update.size_rows is not None:
+        add.state[ROW_SIZE] = update.size_rows[:, new]
     claimed = ext[ext >= 0]
     if claimed.size and len(tracks):
         replaced = (
@@ -357,6 +371,27 @@ def depth_ratios(
     return (
         (b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0] + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2]
     )
+
+
+def box_noise_sums(
+    tracks: TrackArrays, miss: FloatArray, rows: IntArray, t: float, sigma_px: float
+) -> tuple[float, int]:
+    """Sum of squares and count of the misses of the constant-velocity box predictions
+    (``miss`` = box − predicted box, pixels, of the tracks ``rows``) of tracks updated at an
+    even pace: second differences of the box edges, variance 6σ² each; a miss beyond
+    ``4·√6·sigma_px`` (an id switch, a jump) counts at that cap."""
+    dt1 = t - tracks.last_t[rows]
+    dt0 = tracks.last_t[rows] - tracks.prev_t[rows]
+    even = (
+        np.isfinite(dt0)
+        & (np.abs(dt1 - dt0) <= 0.2 * dt0)
+        & np.all(np.isfinite(tracks.box_vel[rows]), axis=1)
+    )
+    if not np.any(even):
+        return 0.0, 0
+    d2 = miss[even]
+    cap = 4.0 * math.sqrt(6.0) * sigma_px
+    return float(np.sum(np.minimum(d2 * d2, cap * cap))), int(d2.size)
 
 
 def moved_boxes(tracks: TrackArrays, turned: FloatArray, t: float) -> FloatArray:

@@ -1,0 +1,247 @@
+"""``ours-offline``: ``ours`` over a whole drive at once, for log analysis (not causal).
+
+When the whole drive is available, each vehicle's distance at a frame may use what its track
+shows later as well as earlier. :class:`OursOfflineEstimator` runs in two passes over the
+frames it was given:
+
+1. **Learning** (while the frames stream in): ``ours`` with per-track size learning
+   (:mod:`~slopedist.estimators.ours.size_learning`), causal; its estimates are what
+   :meth:`~OursOfflineEstimator.estimate` returns frame by frame. A track's size belief at its
+   last frame holds the evidence of all its frames (the size is constant over a track, so
+   filtering to the end is smoothing).
+2. **Smoothing** (:meth:`~OursOfflineEstimator.finish`): ``ours`` again, every box's size
+   cues computed with the final size belief of its pass-1 track (no further learning), and a
+   Rauch–Tung–Striebel backward pass over each track's distance filter
+   (:func:`~slopedist.estimators.ours.filter.rts_smooth_rows`).
+
+Its figures are reported under its own name (``ours-offline``), never mixed with the causal
+``ours``: the causal estimator is untouched by this module. The records' ``sigma_m`` is the
+smoothed filter's uncertainty plus the per-vehicle part the filter cannot average away.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.camera import Camera
+from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
+from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours import size_learning
+from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.estimator import OursEstimator
+from slopedist.estimators.ours.records import (
+    DistanceFilterResult,
+    FrameTargets,
+    FusedCues,
+    TrackMatch,
+)
+
+FloatArray = NDArray[np.float64]
+
+MOTION_COLUMNS = ("speed_mps", "speed_sigma_mps", "ttc_s", "ttc_sigma_s")
+
+BoxKey = tuple[float, ...]
+"""A box of the drive: its frame's timestamp and its edges (s, px)."""
+
+
+def _box_keys(t: float, boxes: FloatArray) -> list[BoxKey]:
+    return [(t, *map(float, b)) for b in boxes]
+
+
+class OursOfflineEstimator(OursEstimator):
+    """``ours`` smoothed over the whole drive (see the module docstring).
+
+    :meth:`estimate` gives the causal pass's estimates as the frames come; the offline ones
+    come from :meth:`finish`, once the drive has ended (pipelines call it:
+    :meth:`~slopedist.pipeline.FrameStep.finish`). Options as :class:`OursEstimator`'s
+    (``size_learning`` is always on here).
+    """
+
+    name: ClassVar[str] = "ours-offline"
+    offline: ClassVar[bool] = True
+
+    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
+        overrides["size_learning"] = True
+        super().__init__(camera, config, **overrides)
+
+    def reset(self) -> None:
+        super().reset()
+        self._frames: list[FrameInput] = []
+        self._causal: list[FrameEstimates] = []
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        est = super().estimate(frame)
+        self._frames.append(frame)
+        self._causal.append(est)
+        return est
+
+    def finish(self) -> list[FrameEstimates]:
+        """The offline estimates of every frame given since :meth:`reset`, in order."""
+        seeds = _final_sizes(self._frames, self._causal)
+        second = _SmoothingPass(self.camera, self.config, seeds)
+        estimates = [second.estimate(frame) for frame in self._frames]
+        return second.smoothed(estimates)
+
+
+def _final_sizes(
+    frames: list[FrameInput], causal: list[FrameEstimates]
+) -> dict[BoxKey, FloatArray]:
+    """Every box's pass-1 track's size belief at its last frame, ``(2,)`` (log scale, its
+    variance), keyed by the box; boxes without one (unusable) are left out."""
+    final: dict[float, FloatArray] = {}
+    rows: list[tuple[BoxKey, float]] = []
+    for frame, est in zip(frames, causal, strict=True):
+        uid = est.extra["track_uid"]
+        log_scale = np.log(est.extra["size_scale"])
+        log_var = est.extra["size_log_sigma"] ** 2
+        keys = _box_keys(frame.timestamp_s, frame.boxes.boxes)
+        for i in np.flatnonzero(np.isfinite(uid) & np.isfinite(log_var)).tolist():
+            final[float(uid[i])] = np.array([log_scale[i], log_var[i]])
+            rows.append((keys[i], float(uid[i])))
+    return {key: final[u] for key, u in rows}
+
+
+@dataclass
+class _TargetLog:
+    """What the smoothing pass keeps of each frame's targets (``(n,)`` or ``(5, n)``)."""
+
+    good: NDArray[np.intp]
+    uid: NDArray[np.int64]
+    predicted: FloatArray
+    updated: FloatArray
+    elapsed_s: FloatArray
+    extra_log_var: FloatArray
+
+
+class _SmoothingPass(OursEstimator):
+    """Pass 2: ``ours`` with every box's size fixed at its pass-1 track's final belief, keeping
+    each frame's predicted and updated distance filter states for the backward pass."""
+
+    _keep_predicted: ClassVar[bool] = True
+    _learns_size: ClassVar[bool] = False
+
+    def __init__(self, camera: Camera, config: OursConfig, seeds: dict[BoxKey, FloatArray]) -> None:
+        super().__init__(camera, config, size_learning=True)
+        self._seeds = seeds
+        self.log: list[_TargetLog | None] = []
+        self._good: NDArray[np.intp] = np.zeros(0, np.intp)
+
+    def estimate(self, frame: FrameInput) -> FrameEstimates:
+        self.log.append(None)
+        return super().estimate(frame)
+
+    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], *args: Any) -> Any:
+        self._good = good
+        return super()._estimate_boxes(frame, good, *args)
+
+    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
+        prior = super()._track_size(targets, match)
+        seeded = [self._seeds.get(k) for k in _box_keys(targets.time_s, targets.boxes_px)]
+        log_scale, log_var = prior.log_scale.copy(), prior.prior_log_var.copy()
+        for i, s in enumerate(seeded):
+            if s is not None:
+                log_scale[i], log_var[i] = s
+        return size_learning.TrackSize(log_scale, log_var, prior.prior_log_var)
+
+    def _keep_frame(
+        self,
+        match: TrackMatch,
+        fused: FusedCues,
+        distance: DistanceFilterResult,
+        uid: NDArray[np.int64],
+    ) -> None:
+        n = uid.shape[0]
+        elapsed = np.full(n, np.nan)
+        elapsed[match.continued] = match.elapsed_s
+        predicted = distance.predicted_rows
+        meas = fused.measurement
+        self.log[-1] = _TargetLog(
+            self._good.copy(),
+            uid,
+            np.full((5, n), np.nan) if predicted is None else predicted,
+            distance.filter_rows.copy(),
+            np.where(distance.continued, elapsed, np.nan),
+            meas.var - meas.var_white,
+        )
+
+    def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
+        """``estimates`` (this pass's, one per frame) with each track's distance, σ, speed and
+        time to collision replaced by the smoothed ones where the row is ``ok``."""
+        logs = [log for log in self.log if log is not None]
+        if not logs:
+            return estimates
+        uid = np.concatenate([log.uid for log in logs])
+        pred = np.concatenate([log.predicted for log in logs], axis=1)
+        upd = np.concatenate([log.updated for log in logs], axis=1)
+        dt = np.concatenate([log.elapsed_s for log in logs])
+        smooth = upd.copy()
+        multi = np.zeros(uid.size, dtype=bool)  # rows of tracks with more than one update
+        order = np.argsort(uid, kind="stable")  # each track's rows, in time order
+        bounds = np.flatnonzero(np.diff(uid[order])) + 1
+        for rows in np.split(order, bounds):
+            if rows.size > 1:
+                smooth[:, rows] = kf.rts_smooth_rows(upd[:, rows], pred[:, rows], dt[rows])
+                multi[rows] = True
+        extra = np.concatenate([log.extra_log_var for log in logs])
+        dist, sigma = kf.distance_moments_rows(smooth, extra)
+        speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(smooth)
+        out = [_copy(e) for e in estimates]
+        k = 0
+        for f, log in enumerate(self.log):
+            if log is None:
+                continue
+            m = log.uid.size
+            part = slice(k, k + m)
+            _replace_rows(
+                out[f],
+                log.good,
+                dist[part],
+                sigma[part],
+                multi[part],
+                (speed[part], speed_sd[part], ttc[part], ttc_sd[part]),
+            )
+            k += m
+        return out
+
+
+def _copy(est: FrameEstimates) -> FrameEstimates:
+    return FrameEstimates(
+        est.theta_rad.copy(),
+        est.theta_adj_rad.copy(),
+        est.delta_y_px.copy(),
+        est.v_px.copy(),
+        est.distance_m.copy(),
+        est.reason.copy(),
+        est.reference.copy(),
+        {k: v.copy() for k, v in est.extra.items()},
+        est.status.copy(),
+        est.cut.copy(),
+    )
+
+
+def _replace_rows(
+    est: FrameEstimates,
+    rows: NDArray[np.intp],
+    centre_m: FloatArray,
+    sigma_m: FloatArray,
+    tracked: NDArray[np.bool_],
+    motion: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+) -> None:
+    """Put the smoothed centre distances of the targets ``rows`` into ``est`` (in place) where
+    they are ``ok``: ``distance_m`` and the nearest face move with the centre; the smoothed
+    motion (speed, its σ, time to collision, its σ) where the track has more than one update
+    (``tracked``)."""
+    ok = est.status[rows] == EstimateStatus.OK.value
+    r = rows[ok]
+    shift = centre_m[ok] - est.extra["distance_centre_m"][r]
+    est.distance_m[r] += shift
+    est.extra["distance_centre_m"][r] += shift
+    est.extra["distance_nearest_face_m"][r] += shift
+    est.extra["sigma_m"][r] = sigma_m[ok]
+    moving = ok & tracked
+    for name, values in zip(MOTION_COLUMNS, motion, strict=True):
+        est.extra[name][rows[moving]] = values[moving]
