@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 from orbslam3_vs_builtin import c_stdout_to_stderr
 
-from slopedist.cli.run_cmd import build_odometry
 from slopedist.datasets.kitti_raw import KittiRawDrive
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
@@ -43,6 +42,7 @@ from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, 
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
 from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
+from slopedist.run_setup import build_odometry
 from slopedist.runner import run_frames
 
 REPO = Path(__file__).resolve().parents[1]
