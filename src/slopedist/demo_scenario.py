@@ -92,8 +92,9 @@ class DemoConfig:
         progress: show a progress bar.
         estimator: the methods' options (its method is set per method).
         jobs: scenarios run at once, each in a process of its own (None: one per usable
-            core, at most one per scenario; 1: one after the other in this process). Every
-            scenario's figures are the same either way.
+            core, at most one per scenario; 1: one after the other in this process; with
+            more than one, each scenario's plots are a task of their own in the same pool).
+            Every scenario's figures are the same either way.
     """
 
     out_dir: Path = DEFAULT_OUT
