@@ -12,6 +12,7 @@ absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the ne
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
@@ -22,6 +23,8 @@ import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
+
+import cv2
 
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
@@ -82,8 +85,24 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
         sequence=spec.sequence or spec.name,
         time_origin_ns=prepared.time_origin_ns,
         ego_speed=prepared.ego_speed,
+        decode_ahead=0,
     )
-    return prepared.run(config, frames)
+    with one_thread():
+        return prepared.run(config, frames)
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[None]:
+    """OpenCV on one thread while a drive runs (restored after). A drive task holds one CPU
+    (``num_cpus=1``) and its frames are decoded in the loop (``decode_ahead=0``): more
+    threads per task would only compete with the other workers on the node, at a higher CPU
+    cost per frame; a batch scales by running one drive per core."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
 
 
 class _CrashingFrames:
