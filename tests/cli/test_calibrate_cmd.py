@@ -221,3 +221,21 @@ def test_calibrate_frames_with_a_detector(
     assert main(["calibrate", frames, "--calib", calib, "--detector", str(model)]) == 0
     text = capsys.readouterr().out
     assert "too little data" in text and "no advice: keep the configured mount" in text
+
+
+def test_calibrate_frames_checks_the_calibrations_image_size_against_the_frames(
+    kitti_raw_lead_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``calibrate FRAMES`` takes the frames' size as ``run`` does: a calibration made for
+    1280×720 images used on the 1242×375 frames is one error naming both sizes."""
+    calib = tmp_path / "camera_info.yaml"
+    calib.write_text(
+        "image_width: 1280\nimage_height: 720\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+        "  data: [721.5, 0.0, 609.6, 0.0, 721.5, 172.9, 0.0, 0.0, 1.0]\n"
+    )
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,600,180,660,220\n")
+    frames = str(kitti_raw_lead_dir / "image_02")
+    assert main(["calibrate", frames, "--calib", str(calib), "--boxes", str(boxes)]) == 2
+    err = capsys.readouterr().err
+    assert "1280" in err and "1242" in err and "Traceback" not in err

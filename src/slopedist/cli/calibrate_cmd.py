@@ -12,6 +12,7 @@ rotations and the boxes come from ``--boxes`` or an ONNX ``--detector``. The con
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -172,6 +173,8 @@ def calibrate(
             None if detector_model is None else make_detector(detector_model, **detector_opts)
         )
         source = open_frames(frames, fps, timestamps)
+        if files.image_size is None:  # the frames' size for the border test, as in `run`
+            files = dataclasses.replace(files, image_size=source.frame_size())
         bar = tqdm(total=source.expected_frames(), unit="frame", desc="odometry", disable=None)
         with bar:
             advice = advise_from_frames(
