@@ -18,5 +18,9 @@ MAX_ABS_PIXEL = 1e6
 """Largest magnitude of a box coordinate, pixels; beyond it a value is not a pixel of any
 camera image."""
 
+MAX_RECORD_MAGNITUDE = 1e12
+"""Largest magnitude of a number in a run's CSVs (metres, degrees, seconds since the epoch,
+milliseconds); beyond it, or infinite, a value is corrupt and would break the figures."""
+
 DEFAULT_MAX_PIXELS = 50_000_000
 """Largest image decoded by default, pixels (50 Mpx: above every dashcam and KITTI frame)."""

@@ -108,18 +108,26 @@ def read_json(path: str | Path, what: str) -> Any:
         raise InputFileError(path, "not valid JSON (nested too deeply)") from None
 
 
-def number_cell(text: str | None, path: str | Path, line: int, field: str) -> float:
+def number_cell(
+    text: str | None, path: str | Path, line: int, field: str, bound: float | None = None
+) -> float:
     """A CSV cell as a number; empty (or absent) is NaN.
 
     Raises:
-        InputFileError: the cell is not a number (naming file, line and field).
+        InputFileError: the cell is not a number, or (with ``bound``) infinite or beyond
+            ±``bound`` (naming file, line and field).
     """
     if text is None or not text.strip():
         return math.nan
     try:
-        return float(text)
+        x = float(text)
     except ValueError:
         raise InputFileError(path, f"'{text}' is not a number", line=line, field=field) from None
+    if bound is not None and abs(x) > bound:
+        raise InputFileError(
+            path, f"'{text}' is beyond ±{bound:g} (a corrupt record?)", line=line, field=field
+        )
+    return x
 
 
 def _no_constant(name: str) -> float:

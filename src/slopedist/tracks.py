@@ -25,8 +25,11 @@ from typing import Any
 import numpy as np
 
 from slopedist.detections.boxes import BoxTable
+from slopedist.errors import InputFileError
 from slopedist.estimators.base import FrameEstimates
 from slopedist.io.tables import write_csv
+from slopedist.limits import MAX_RECORD_MAGNITUDE
+from slopedist.textfiles import CsvRows, number_cell
 
 TRACKS_NAME = "tracks.csv"
 """File name of the summary in a run's output folder."""
@@ -138,3 +141,23 @@ class TrackSummaries:
     def write(self, path: str | Path) -> Path:
         """Write ``tracks.csv`` (via :func:`slopedist.io.tables.write_csv`)."""
         return write_csv(path, self.rows(), TRACK_FIELDS)
+
+
+def read_tracks(path: Path) -> list[dict[str, float]]:
+    """The rows of a run's ``tracks.csv`` as numbers (NaN where empty); no file = no tracks.
+
+    Raises:
+        InputFileError: bad UTF-8, a broken row, a missing column, or a cell that is not a
+            number, infinite or beyond ±:data:`~slopedist.limits.MAX_RECORD_MAGNITUDE`
+            (naming file, line and field).
+    """
+    if not path.is_file():
+        return []
+    table = CsvRows(path, "track summary", strict=True)
+    absent = [c for c in TRACK_FIELDS if c not in table.header]
+    if absent:
+        raise InputFileError(path, f"missing column(s) {', '.join(absent)}", line=1)
+    return [
+        {k: number_cell(row[k], path, line, k, bound=MAX_RECORD_MAGNITUDE) for k in TRACK_FIELDS}
+        for line, row in table
+    ]

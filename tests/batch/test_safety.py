@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from slopedist.batch.safety import drive_duration_s, fleet_safety, read_tracks
+from slopedist.batch.safety import drive_duration_s, fleet_safety
 from slopedist.errors import InputFileError
 from slopedist.io.tables import write_csv, write_json
-from slopedist.tracks import TRACK_FIELDS
+from slopedist.tracks import TRACK_FIELDS, read_tracks
 
 nan = math.nan
 
@@ -87,4 +87,7 @@ def test_a_bad_track_cell_names_file_line_and_field(tmp_path: Path) -> None:
         read_tracks(path)
     path.write_text("track_id,first_s\n1,0\n")
     with pytest.raises(InputFileError, match="missing column"):
+        read_tracks(path)
+    path.write_text(",".join(TRACK_FIELDS) + "\n1,0,1,2,3,4,inf,,0,\n")
+    with pytest.raises(InputFileError, match=r"line 2, field 'min_ttc_s'.*corrupt record"):
         read_tracks(path)

@@ -18,10 +18,9 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from slopedist.errors import InputFileError
 from slopedist.run_config import FRAMES_NAME, SUMMARY_NAME
 from slopedist.textfiles import CsvRows, number_cell, read_json
-from slopedist.tracks import TRACK_FIELDS, TRACKS_NAME
+from slopedist.tracks import TRACKS_NAME, read_tracks
 
 SHORT_HEADWAY_S = 1.0
 """Mean headway time below which a track counts as a short headway, seconds (half the
@@ -56,21 +55,6 @@ def _finite_min(values: Iterable[float]) -> float:
 
 def _per_hour(count: float, duration_s: float) -> float:
     return count * SECONDS_PER_HOUR / duration_s if duration_s > 0 else math.nan
-
-
-def read_tracks(path: Path) -> list[dict[str, float]]:
-    """The rows of a run's ``tracks.csv`` as numbers (NaN where empty); no file = no tracks.
-
-    Raises:
-        InputFileError: a missing column or a cell that is not a number (file, line, field).
-    """
-    if not path.is_file():
-        return []
-    table = CsvRows(path, "track summary", strict=True)
-    absent = [c for c in TRACK_FIELDS if c not in table.header]
-    if absent:
-        raise InputFileError(path, f"missing column(s) {', '.join(absent)}", line=1)
-    return [{k: number_cell(row[k], path, line, k) for k in TRACK_FIELDS} for line, row in table]
 
 
 def drive_duration_s(folder: Path) -> float:

@@ -23,7 +23,7 @@ from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_methods
-from slopedist.limits import MAX_INDEX
+from slopedist.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
 from slopedist.report.data import (
     RECORD_COLUMNS,
     THETA_COLUMNS,
@@ -33,8 +33,8 @@ from slopedist.report.data import (
     ReportOptions,
     SourceKind,
 )
-from slopedist.textfiles import CsvRows, read_json
-from slopedist.tracks import TRACK_FIELDS, TRACKS_NAME
+from slopedist.textfiles import CsvRows, number_cell, read_json
+from slopedist.tracks import TRACKS_NAME, read_tracks
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
@@ -47,10 +47,6 @@ TIME_COLUMNS = ("odometry_ms", "estimation_ms", "depth_ms", "detection_ms")
 with ``--detector``)."""
 
 NOT_IN_RECORDS = "not in records"
-
-MAX_RECORD_MAGNITUDE = 1e12
-"""Largest magnitude of a number in a run's CSVs (metres, degrees, seconds since the epoch,
-milliseconds); beyond it, or infinite, a value is corrupt and would break the figures."""
 
 
 def run_folders(root: Path) -> list[Path]:
@@ -65,26 +61,9 @@ def run_folders(root: Path) -> list[Path]:
 
 
 def _float(value: str | None, path: Path, line: int, name: str) -> float:
-    """A CSV cell as a number (empty or ``nan`` = NaN).
-
-    Raises:
-        InputFileError: the cell is not a number, infinite or beyond ±
-            :data:`MAX_RECORD_MAGNITUDE` (names file, line and field).
-    """
-    if value is None or value.strip() == "":
-        return math.nan
-    try:
-        x = float(value)
-    except ValueError:
-        raise InputFileError(path, f"'{value}' is not a number", line=line, field=name) from None
-    if abs(x) > MAX_RECORD_MAGNITUDE:
-        raise InputFileError(
-            path,
-            f"'{value}' is beyond ±{MAX_RECORD_MAGNITUDE:g} (a corrupt record?)",
-            line=line,
-            field=name,
-        )
-    return x
+    """A CSV cell as a number (empty or ``nan`` = NaN; infinite or beyond ±
+    :data:`~slopedist.limits.MAX_RECORD_MAGNITUDE` is an error naming file, line and field)."""
+    return number_cell(value, path, line, name, bound=MAX_RECORD_MAGNITUDE)
 
 
 def _index(value: str | None, path: Path, line: int, name: str, lowest: int = 0) -> int:
@@ -205,12 +184,7 @@ class _RunReader:
 
     def read_tracks(self, folder: Path, seq: str, methods: list[str]) -> None:
         """Add a run folder's per-track summaries (``tracks.csv``, if there is one)."""
-        path = folder / TRACKS_NAME
-        if not path.is_file():
-            return
-        _, rows, lines = read_csv(path, TRACK_FIELDS)
-        for lineno, row in zip(lines, rows):
-            values = {k: _float(row[k], path, lineno, k) for k in TRACK_FIELDS}
+        for values in read_tracks(folder / TRACKS_NAME):
             self.tracks.add(sequence=seq, method=", ".join(methods), **values)
 
     def read_frame_log(self, folder: Path, seq: str, methods: list[str], shared: bool) -> None:
