@@ -141,10 +141,8 @@ class OursEstimator(Estimator):
         self._classes = ClassTable(
             config.priors, grid, tuple(config.generic_classes), config.type_mixture
         )
-        modes = [(1.0, 1.0 - config.atypical_height_weight)]
-        if config.atypical_height_weight > 0:
-            modes.append((config.atypical_height_factor, config.atypical_height_weight))
-        self._height_modes = [k for k, _ in modes]  # spread factor of each body-style mode
+        modes = config.size_modes
+        self._size_modes = [m for m, _ in modes]
         self._log_mode = np.repeat(np.log([p for _, p in modes]), grid.size)
         self._log_prior_all = (np.tile(self._log_yaw_prior, len(modes)) + self._log_mode)[None, :]
         self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
@@ -289,7 +287,7 @@ class OursEstimator(Estimator):
             size,
             ground,
             self._log_prior(match, targets),
-            self._height_modes,
+            self._size_modes,
             cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
@@ -411,7 +409,7 @@ class OursEstimator(Estimator):
             )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
-        return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
+        return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
 
     def _contact_gradient_prior(
         self, match: TrackMatch

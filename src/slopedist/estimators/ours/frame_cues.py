@@ -19,7 +19,7 @@ from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
+from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -203,33 +203,34 @@ def fuse_hypotheses(
     size: SizeCues,
     ground: LogCue | None,
     log_prior: FloatArray,
-    height_modes: list[float],
+    size_modes: list[SizeMode],
     gate_sigma: float = 3.0,
 ) -> FusedCues:
-    """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
-    vehicles and, less often, ones of atypical height; or, when a target's class is generic,
-    the vehicle types × headings the cues were computed for), censor by the bounds, and
-    collapse the hypotheses by their posterior weights.
+    """Fuse the cues per hypothesis (headings × size modes: a class mixes typical vehicles
+    and, less often, ones of atypical height and odd objects of no class's size; or, when a
+    target's class is generic, the vehicle types × headings the cues were computed for),
+    censor by the bounds, and collapse the hypotheses by their posterior weights.
 
-    ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
-    factor of each body-style mode (1: the class prior's); ``gate_sigma``: the cue consistency
-    check's threshold (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
+    ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``size_modes``: how each mode
+    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.SizeMode`);
+    ``gate_sigma``: the cue consistency check's threshold
+    (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
     height, width = size.height, size.width
     type_weight = targets.classes.type_log_weight
-    n_modes = len(height_modes) if type_weight is None else 1
-    size_modes = [
+    modes = size_modes if type_weight is None else [SizeMode()]
+    n_modes = len(modes)
+    size_by_mode = [
         fusion.fuse_size_cues(
             height,
             width,
-            hyp.log_sigma_height if k == 1.0 else k * hyp.log_sigma_height,
-            hyp.log_sigma_width,
+            *mode.spreads(hyp.log_sigma_height, hyp.log_sigma_width),
             hyp.corr_height_width,
         )
-        for k in (height_modes if type_weight is None else [1.0])
+        for mode in modes
     ]
-    size_cue = size_modes[0] if n_modes == 1 else fusion.concat_cues(size_modes)
+    size_cue = size_by_mode[0] if n_modes == 1 else fusion.concat_cues(size_by_mode)
     fused = size_cue
     if ground is not None:
         fused = fusion.fuse_log_cues(
@@ -242,6 +243,7 @@ def fuse_hypotheses(
     extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
     if ground is not None and n_modes > 1:
         ground = fusion.concat_cues([ground] * n_modes)
+    odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
     if type_weight is not None:
         n_modes = type_weight.shape[1]
     return _collapse(
@@ -254,6 +256,7 @@ def fuse_hypotheses(
         extent,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
+        odd_mode=odd_mode,
     )
 
 
@@ -267,9 +270,11 @@ def _collapse(
     extent: FloatArray,
     most_likely_mode: bool = False,
     gate: float = 3.0,
+    odd_mode: int | None = None,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
-    posterior weights (``extent``: each hypothesis's half depth extent, m).
+    posterior weights (``extent``: each hypothesis's half depth extent, m; ``odd_mode``: the
+    index of the odd-object mode, whose posterior weight is reported, if there is one).
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -307,6 +312,7 @@ def _collapse(
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
         ground_mix,
+        by_mode[:, odd_mode].sum(axis=1) if odd_mode is not None else np.zeros(n),
     )
 
 
@@ -391,6 +397,7 @@ def box_estimates(
         distance_width_m=np.exp(fused.width_log),
         cue_gap_sigma=fused.cue_gap_sigma,
         track_uid=uid.astype(float),
+        odd_size_prob=fused.odd_size_prob,
     )
 
 

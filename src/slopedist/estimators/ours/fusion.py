@@ -98,6 +98,42 @@ def fuse_size_cues(
 _HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
 
 
+class SizeMode(NamedTuple):
+    """A mode of the size prior: how the class's relative size spreads widen in it.
+
+    The typical vehicle of a class is the default mode. A body style of atypical height (a
+    sports car, a pick-up, a box van labelled ``Car``) widens the height spread by
+    ``height_factor``. An **odd object**, one whose size is not its class's at all (a concrete
+    block or a covered trailer boxed as ``Car``, a truck partly hidden), has every dimension's
+    relative spread at least ``log_sigma_floor``: its size cues then say little, and where they
+    disagree with the ground contact the fusion follows the ground contact, instead of being
+    pulled by a confident class size.
+
+    Attributes:
+        height_factor: multiplier of the class's relative height spread (1: the class's).
+        log_sigma_floor: the smallest relative spread (of the logarithm) of the height and the
+            width in this mode; 0: the class's (not an odd-object mode).
+    """
+
+    height_factor: float = 1.0
+    log_sigma_floor: float = 0.0
+
+    @property
+    def odd(self) -> bool:
+        """Whether this is the odd-object mode."""
+        return self.log_sigma_floor > 0.0
+
+    def spreads(
+        self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The relative height and width spreads of the class (``(n, K)``) in this mode."""
+        sigma_h = sigma_log_h if self.height_factor == 1.0 else self.height_factor * sigma_log_h
+        if not self.odd:
+            return sigma_h, sigma_log_w
+        floor = self.log_sigma_floor
+        return np.maximum(sigma_h, floor), np.maximum(sigma_log_w, floor)
+
+
 def shape_gap_sigma(
     height: SizeCue,
     width: SizeCue,
