@@ -14,7 +14,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import FrameEstimates, FrameInput
 from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.ours.cues import project_box
-from slopedist.estimators.ours.fusion import SizeMode
+from slopedist.estimators.ours.fusion import SizeMode, mode_spreads
 from slopedist.estimators.ours.odd_objects import (
     frame_log_ratio,
     updated_evidence,
@@ -81,14 +81,18 @@ def test_without_tracks_each_frame_stands_alone() -> None:
     assert odd[0] > 0.5 and np.allclose(odd, odd[0])
 
 
-def test_size_mode_spreads() -> None:
+def test_mode_spreads() -> None:
+    """Per mode: the class's spreads, the height's times the atypical factor, both at least
+    the odd object's floor."""
     sh, sw = np.array([[0.08, 0.2]]), np.array([[0.06, 0.7]])
-    assert SizeMode().spreads(sh, sw) == (sh, sw)
-    h, w = SizeMode(height_factor=3.0).spreads(sh, sw)
-    assert np.allclose(h, [[0.24, 0.6]]) and w is sw
-    h, w = SizeMode(log_sigma_floor=0.5).spreads(sh, sw)
-    assert np.allclose(h, [[0.5, 0.5]]) and np.allclose(w, [[0.5, 0.7]])
-    assert SizeMode(log_sigma_floor=0.5).odd and not SizeMode(height_factor=3.0).odd
+    modes = [SizeMode(), SizeMode(height_factor=3.0), SizeMode(log_sigma_floor=0.5)]
+    h, w = mode_spreads(modes, sh, sw)
+    assert h.shape == w.shape == (1, 3, 2)
+    assert np.allclose(h[0], [[0.08, 0.2], [0.24, 0.6], [0.5, 0.5]])
+    assert np.allclose(w[0], [[0.06, 0.7], [0.06, 0.7], [0.5, 0.7]])
+    one_h, one_w = mode_spreads(modes[2:], sh, sw)
+    assert np.allclose(one_h, [[0.5, 0.5]]) and np.allclose(one_w, [[0.5, 0.7]])
+    assert modes[2].odd and not modes[1].odd
 
 
 def test_frame_log_ratio_by_hand() -> None:

@@ -10,6 +10,7 @@ OursEstimator`. Camera frame x right, y down, z forward; distances in metres, lo
 from __future__ import annotations
 
 import math
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +18,7 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.class_table import HypothesisConstants
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
@@ -217,47 +219,63 @@ def fuse_hypotheses(
     (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
-    height, width = size.height, size.width
     type_weight = targets.classes.type_log_weight
-    modes = size_modes if type_weight is None else [SizeMode()]
-    n_modes = len(modes)
-    size_by_mode = [
-        fusion.fuse_size_cues(
-            height,
-            width,
-            *mode.spreads(hyp.log_sigma_height, hyp.log_sigma_width),
-            hyp.corr_height_width,
-        )
-        for mode in modes
-    ]
-    size_cue = size_by_mode[0] if n_modes == 1 else fusion.concat_cues(size_by_mode)
-    fused = size_cue
-    if ground is not None:
-        fused = fusion.fuse_log_cues(
-            size_cue, ground if n_modes == 1 else fusion.concat_cues([ground] * n_modes)
-        )
-    for bound, bound_var, rows_cut in size.bounds:
-        if n_modes > 1:
-            bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
-        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
-    extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
-    if ground is not None and n_modes > 1:
-        ground = fusion.concat_cues([ground] * n_modes)
+    modes = size_modes if type_weight is None else size_modes[:1]
+    if len(modes) > 1:  # (n, modes, K): the cues shared by the modes broadcast over them
+        size_cue, fused = _fuse_by_mode(size, ground, modes, hyp)
+    else:
+        spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
+        if modes[0] != SizeMode():
+            spreads = fusion.mode_spreads(modes, *spreads)
+        size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
+        fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
+        for bound, bound_var, rows_cut in size.bounds:
+            fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
-    if type_weight is not None:
-        n_modes = type_weight.shape[1]
     return _collapse(
         size,
         size_cue,
         fused,
         ground,
-        n_modes,
+        len(modes) if type_weight is None else type_weight.shape[1],
         log_prior,
-        extent,
+        hyp.half_extent_m,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
         odd_mode=odd_mode,
     )
+
+
+def _fuse_by_mode(
+    size: SizeCues, ground: LogCue | None, modes: list[SizeMode], hyp: HypothesisConstants
+) -> tuple[LogCue, LogCue]:
+    """The size cues and the fused cues of every size mode, ``(n, modes·K)`` (mode-major):
+    computed as ``(n, modes, K)`` arrays, the cues that do not depend on the mode (height,
+    width, ground contact, bounds) broadcast over the modes' axis."""
+    n = hyp.half_extent_m.shape[0]
+    sigma_h, sigma_w = fusion.mode_spreads(modes, hyp.log_sigma_height, hyp.log_sigma_width)
+    size_cue = fusion.fuse_size_cues(
+        _over_modes(size.height),
+        _over_modes(size.width),
+        sigma_h,
+        sigma_w,
+        hyp.corr_height_width[:, None],
+    )
+    fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, _over_modes(ground))
+    for bound, bound_var, rows_cut in size.bounds:
+        fused = fusion.censor_upper(fused, bound[:, None], bound_var[:, None], rows_cut[:, None])
+    return (
+        LogCue(*(np.reshape(a, (n, -1)) for a in size_cue)),
+        LogCue(*(np.reshape(a, (n, -1)) for a in fused)),
+    )
+
+
+_Cue = TypeVar("_Cue", LogCue, SizeCue)
+
+
+def _over_modes(cue: _Cue) -> _Cue:
+    """A cue's ``(n, K)`` fields as ``(n, 1, K)``, to broadcast over the size modes."""
+    return type(cue)(*(np.asarray(a)[:, None] for a in cue))
 
 
 def _collapse(
@@ -273,8 +291,10 @@ def _collapse(
     odd_mode: int | None = None,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
-    posterior weights (``extent``: each hypothesis's half depth extent, m; ``odd_mode``: the
-    index of the odd-object mode, whose posterior weight is reported, if there is one).
+    posterior weights (``extent``: the half depth extent, m, and ``ground``: the ground
+    contact, each per hypothesis or, when the same in every mode, per heading ``(n, K)``;
+    ``odd_mode``: the index of the odd-object mode, whose posterior weight is reported, if
+    there is one).
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -299,16 +319,18 @@ def _collapse(
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
     gap = np.full(n, np.nan)
     ground_mix = None
-    if ground is not None:
-        ground_mix = fusion.mix_hypotheses(ground, weights)
+    if ground is not None:  # per heading (the same in every size mode), or per hypothesis
+        by_heading = ground.mean.shape[1] == heading_weights.shape[1]
+        ground_mix = fusion.mix_hypotheses(ground, heading_weights if by_heading else weights)
         measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
+    extent_weights = heading_weights if extent.shape[1] == heading_weights.shape[1] else weights
     return FusedCues(
         measurement,
         size_mix,
         fused.loglik,
         log_prior,
         heading_weights,
-        np.add.reduce(weights * extent, axis=1),
+        np.add.reduce(extent_weights * extent, axis=1),
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
         ground_mix,

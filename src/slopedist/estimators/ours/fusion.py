@@ -123,15 +123,22 @@ class SizeMode(NamedTuple):
         """Whether this is the odd-object mode."""
         return self.log_sigma_floor > 0.0
 
-    def spreads(
-        self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
-    ) -> tuple[FloatArray, FloatArray]:
-        """The relative height and width spreads of the class (``(n, K)``) in this mode."""
-        sigma_h = sigma_log_h if self.height_factor == 1.0 else self.height_factor * sigma_log_h
-        if not self.odd:
-            return sigma_h, sigma_log_w
-        floor = self.log_sigma_floor
-        return np.maximum(sigma_h, floor), np.maximum(sigma_log_w, floor)
+
+def mode_spreads(
+    modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The class's relative height and width spreads ``(n, K)`` in each size mode: ``(n, M,
+    K)`` arrays (``(n, K)`` for one mode), the height's times the mode's factor, both at least
+    the mode's floor."""
+    factor = np.array([m.height_factor for m in modes])[:, None]
+    floor = np.array([m.log_sigma_floor for m in modes])[:, None]
+    if len(modes) == 1:
+        factor, floor = factor[0], floor[0]
+        return np.maximum(sigma_log_h * factor, floor), np.maximum(sigma_log_w, floor)
+    return (
+        np.maximum(sigma_log_h[:, None] * factor, floor),
+        np.maximum(sigma_log_w[:, None], floor),
+    )
 
 
 def shape_gap_sigma(
