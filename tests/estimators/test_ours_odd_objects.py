@@ -16,6 +16,8 @@ from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.ours.cues import project_box
 from slopedist.estimators.ours.fusion import SizeMode, mode_spreads
 from slopedist.estimators.ours.odd_objects import (
+    MAX_EVIDENCE,
+    MAX_LOG_ODDS,
     frame_log_ratio,
     updated_evidence,
     with_evidence,
@@ -96,16 +98,21 @@ def test_mode_spreads() -> None:
 
 
 def test_frame_log_ratio_by_hand() -> None:
-    """Two headings (prior 0.7, 0.3), three modes (typical 0.9, atypical 0.07, odd 0.03): the
-    odd mode's likelihood over the others', each a prior-weighted mean over the headings."""
+    """Two headings (prior 0.7, 0.3), three modes (typical 0.9, atypical 0.07, odd 0.03) and
+    a track evidence of 1.5 nats: the frame's ratio read back from the odd mode's posterior is
+    its likelihood over the others', each a prior-weighted mean over the headings."""
     pi_h = np.array([0.7, 0.3])
     pi_m = np.array([0.9, 0.07, 0.03])
     lik = np.array([[0.2, 0.1], [0.5, 0.05], [0.4, 0.3]])  # (modes, headings)
-    log_prior = (np.log(pi_m)[:, None] + np.log(pi_h)[None, :]).reshape(1, -1)
-    ratio = frame_log_ratio(np.log(lik).reshape(1, -1), log_prior, np.log(pi_m), 2, 2)
     per_mode = lik @ pi_h
     others = (pi_m[0] * per_mode[0] + pi_m[1] * per_mode[1]) / (pi_m[0] + pi_m[1])
+    prior_odds = pi_m[2] / (1 - pi_m[2]) * math.exp(1.5)
+    posterior_odds = prior_odds * per_mode[2] / others
+    p = posterior_odds / (1 + posterior_odds)
+    ratio = frame_log_ratio(np.array([p]), np.array([math.log(prior_odds)]))
     assert ratio[0] == pytest.approx(math.log(per_mode[2] / others))
+    sure = frame_log_ratio(np.array([1.0, 0.0]), np.zeros(2))  # saturated: bounded
+    assert sure.tolist() == [MAX_LOG_ODDS, -MAX_LOG_ODDS]
 
 
 def test_evidence_update_and_prior() -> None:
@@ -116,6 +123,8 @@ def test_evidence_update_and_prior() -> None:
         np.array([False, False, True]),
     )
     assert ev.tolist() == [2.0, 2.0, 0.0]  # a NaN ratio adds nothing; a restart forgets
+    capped = updated_evidence(np.array([19.0]), np.array([30.0]), np.ones(1), np.zeros(1, bool))
+    assert capped.tolist() == [MAX_EVIDENCE]
     prior = np.zeros((2, 6))
     out = with_evidence(prior, np.array([1.0, -2.0]), 1, 3)
     assert out[:, :3].tolist() == [[0.0] * 3] * 2  # the typical mode's columns

@@ -293,7 +293,7 @@ class OursEstimator(Estimator):
             cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
-        odd = self._odd_check.after_frame(odd, fused.loglik, log_prior, match, distance)
+        odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
         gradient = frame_cues.target_gradient(
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )

@@ -9,6 +9,7 @@ mode), leading axes the targets'.
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -124,14 +125,22 @@ class SizeMode(NamedTuple):
         return self.log_sigma_floor > 0.0
 
 
+@functools.lru_cache(maxsize=16)
+def _mode_constants(modes: tuple[SizeMode, ...]) -> tuple[FloatArray, FloatArray]:
+    """``(M, 1)`` height factors and spread floors of the size modes (built once per set)."""
+    factor = np.array([m.height_factor for m in modes])[:, None]
+    floor = np.array([m.log_sigma_floor for m in modes])[:, None]
+    factor.flags.writeable = floor.flags.writeable = False
+    return factor, floor
+
+
 def mode_spreads(
     modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """The class's relative height and width spreads ``(n, K)`` in each size mode: ``(n, M,
     K)`` arrays (``(n, K)`` for one mode), the height's times the mode's factor, both at least
     the mode's floor."""
-    factor = np.array([m.height_factor for m in modes])[:, None]
-    floor = np.array([m.log_sigma_floor for m in modes])[:, None]
+    factor, floor = _mode_constants(tuple(modes))
     if len(modes) == 1:
         factor, floor = factor[0], floor[0]
         return np.maximum(sigma_log_h * factor, floor), np.maximum(sigma_log_w, floor)

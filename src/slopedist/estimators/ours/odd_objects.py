@@ -7,7 +7,8 @@ truck boxed as ``Car`` has a size no vehicle of its class has, so its size cues 
 the fusion follows the ground contact. One frame weighs the mode by how well each mode explains
 the disagreement of its cues (the hypotheses' log-likelihood); a vehicle keeps its size over
 its track, so the track also carries the evidence of its past frames: the log-likelihood ratio
-``λ = log p(cues | odd) − log p(cues | not odd)`` of each frame, summed with the weight
+``λ = log p(cues | odd) − log p(cues | not odd)`` of each frame (read from the mode's posterior
+and prior odds), summed with the weight
 ``min(1, dt/τ)`` (:func:`~slopedist.estimators.ours.size_learning.evidence_weight`: consecutive
 frames share the target road's gradient error, so only one frame per τ seconds is independent
 evidence; τ the size-learning time, 4 s from the gradient priors). That sum is added to the
@@ -25,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.fusion import all_true
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
 from slopedist.estimators.ours.tracking import ROW_ODD
@@ -54,42 +56,36 @@ def with_evidence(
     return out
 
 
-def frame_log_ratio(
-    loglik: FloatArray,
-    log_prior: FloatArray,
-    log_mode_weight: FloatArray,
-    odd_mode: int,
-    n_headings: int,
-) -> FloatArray:
-    """``(n,)`` this frame's log-likelihood ratio of the odd mode over the others.
+def frame_log_ratio(odd_prob: FloatArray, prior_log_odds: FloatArray) -> FloatArray:
+    """``(n,)`` this frame's log-likelihood ratio of the odd mode over the others: the log
+    odds of its posterior probability ``odd_prob`` minus those of its prior (the mode's prior
+    plus the track's evidence, ``prior_log_odds``), Bayes' rule read backwards. The posterior
+    log odds are taken at most :data:`MAX_LOG_ODDS` (a probability of 1 in float64)."""
+    p = np.minimum(np.asarray(odd_prob, dtype=float), 1.0)  # a sum of weights may round above
+    with np.errstate(divide="ignore", invalid="ignore"):  # NaN (no weights) stays NaN
+        log_odds = np.log(p) - np.log1p(-p)
+    return np.minimum(np.maximum(log_odds, -MAX_LOG_ODDS), MAX_LOG_ODDS) - prior_log_odds
 
-    Args:
-        loglik: ``(n, M·K)`` the hypotheses' log-likelihood of the frame's cues.
-        log_prior: ``(n, M·K)`` their prior log weight (heading prior + mode prior, without
-            any track evidence).
-        log_mode_weight: ``(M,)`` the modes' prior log weight (the part of ``log_prior`` owed
-            to the mode).
-        odd_mode: index of the odd-object mode.
-        n_headings: ``K``.
-    """
-    n = loglik.shape[0]
-    joint = (loglik + log_prior).reshape(n, -1, n_headings)
-    per_mode = np.logaddexp.reduce(joint, axis=2)  # log p(cues, mode)
-    others = np.delete(per_mode, odd_mode, axis=1)
-    log_others = np.logaddexp.reduce(np.delete(log_mode_weight, odd_mode))
-    return (per_mode[:, odd_mode] - log_mode_weight[odd_mode]) - (
-        np.logaddexp.reduce(others, axis=1) - log_others
-    )
+
+MAX_LOG_ODDS = 36.0
+"""Largest posterior log odds read from a probability (1 − 2⁻⁵³ has log odds 36.7)."""
+
+MAX_EVIDENCE = 20.0
+"""Bound of a track's evidence (nats, either sign): well inside the log odds a probability
+resolves, so a frame can always be read back (:func:`frame_log_ratio`), and a long track can
+still change its mind within a few τ when its cues change (a vehicle no longer hidden)."""
 
 
 def updated_evidence(
     evidence: FloatArray, log_ratio: FloatArray, weight: FloatArray, restarted: BoolArray
 ) -> FloatArray:
-    """``(n,)`` the track evidence after this frame: ``evidence + weight·log_ratio`` (a
-    non-finite ratio adds nothing); a target whose track failed the distance gate
-    (``restarted``) starts afresh from 0."""
-    add = np.where(np.isfinite(log_ratio), weight * log_ratio, 0.0)
-    return np.where(restarted, 0.0, evidence + add)
+    """``(n,)`` the track evidence after this frame: ``evidence + weight·log_ratio`` within
+    ±:data:`MAX_EVIDENCE` (a non-finite ratio adds nothing); a target whose track failed the
+    distance gate (``restarted``) starts afresh from 0."""
+    add = weight * log_ratio
+    total = np.minimum(np.maximum(evidence + add, -MAX_EVIDENCE), MAX_EVIDENCE)
+    ok = np.isfinite(add) & ~restarted
+    return total if all_true(ok) else np.where(ok, total, np.where(restarted, 0.0, evidence))
 
 
 @dataclass(frozen=True)
@@ -101,13 +97,13 @@ class OddObjectCheck:
         odd_mode: index of the odd-object mode among the size modes (None: no check, as
             without an odd-object mode or without tracks).
         n_headings: ``K``, the heading hypotheses per mode.
-        log_mode_weight: ``(M,)`` the size modes' prior log weights.
+        prior_log_odds: the odd mode's prior log odds against the other modes.
         evidence_time_s: τ, seconds (one independent frame per τ).
     """
 
     odd_mode: int | None
     n_headings: int
-    log_mode_weight: FloatArray
+    prior_log_odds: float
     evidence_time_s: float
 
     @classmethod
@@ -115,8 +111,11 @@ class OddObjectCheck:
         """The check of ``config``."""
         modes = config.size_modes
         odd = next((k for k, (mode, _) in enumerate(modes) if mode.odd), None)
-        log_w = np.log([w for _, w in modes])
-        return cls(odd if config.tracking else None, n_headings, log_w, config.size_evidence_time)
+        weight = modes[odd][1] if odd is not None else 0.5
+        log_odds = float(np.log(weight) - np.log1p(-weight))
+        return cls(
+            odd if config.tracking else None, n_headings, log_odds, config.size_evidence_time
+        )
 
     def carried(self, match: TrackMatch, targets: FrameTargets) -> FloatArray | None:
         """:func:`carried_evidence`; None without a check or when the frame's classes are
@@ -134,19 +133,16 @@ class OddObjectCheck:
     def after_frame(
         self,
         evidence: FloatArray | None,
-        loglik: FloatArray,
-        log_prior: FloatArray,
+        odd_prob: FloatArray | None,
         match: TrackMatch,
         distance: DistanceFilterResult,
     ) -> FloatArray | None:
         """``(n,)`` the tracks' evidence after this frame (None without ``evidence``): its
-        log-likelihood ratio (:func:`frame_log_ratio` of the hypotheses' ``loglik`` and
-        ``log_prior``, without the track evidence) weighed by ``min(1, dt/τ)``; a track that
-        failed the distance gate starts afresh."""
-        if evidence is None or self.odd_mode is None:
+        log-likelihood ratio (:func:`frame_log_ratio` of the odd mode's posterior probability
+        ``odd_prob`` and its prior with ``evidence``) weighed by ``min(1, dt/τ)``; a track
+        that failed the distance gate starts afresh."""
+        if evidence is None or odd_prob is None:
             return None
         weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
-        ratio = frame_log_ratio(
-            loglik, log_prior, self.log_mode_weight, self.odd_mode, self.n_headings
-        )
+        ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
         return updated_evidence(evidence, ratio, weight, match.continued & ~distance.continued)
