@@ -83,7 +83,7 @@ def outlined_text(
     if top < bottom and left < right:
         coverage = np.zeros((bottom - top, right - left), dtype=np.uint8)
         cv2.putText(coverage, text, (x - left, y - top), _FONT, scale, 255, thickness, cv2.LINE_AA)
-        keep = cv2.subtract(255, cv2.dilate(coverage, _OUTLINE_KERNEL))  # 255: untouched
+        keep = 255 - cv2.dilate(coverage, _OUTLINE_KERNEL)  # 255: untouched (uint8, no wrap)
         roi = image[top:bottom, left:right]
         if roi.ndim == 3:
             keep = cv2.merge([keep] * roi.shape[2])
