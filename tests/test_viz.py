@@ -64,7 +64,8 @@ def test_missing_target_in_red_and_no_line_without_rotation() -> None:
     out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, math.nan)
     assert not _is(GREEN, out).any()
     red = _is(np.array(viz.FIG3_MISSING), out)
-    assert red[120:161, 100].mean() > 0.9 and red[100:170, 165:].any()
+    assert red[120:161, 100].mean() > 0.9  # the box in red, its label in a lighter red
+    assert _is(np.array(viz.FIG3_MISSING_TEXT), out)[100:170, 165:].any()
 
 
 def test_line_outside_the_image_is_not_drawn() -> None:

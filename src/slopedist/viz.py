@@ -32,7 +32,10 @@ FIG3_YELLOW = (0, 255, 255)
 FIG3_BOX = (255, 160, 0)
 """BGR colour of the boxes (blue)."""
 FIG3_MISSING = (0, 0, 255)
-"""BGR colour of boxes and text of targets without a distance (red)."""
+"""BGR colour of the boxes of targets without a distance (red)."""
+FIG3_MISSING_TEXT = (110, 110, 255)
+"""BGR colour of the labels of targets without a distance: a light red, twice pure red's
+luma (153 against 76 of 255), so that it reads on dark backgrounds too."""
 FIG3_TEXT = (255, 255, 255)
 """BGR colour of the labels."""
 
@@ -319,7 +322,7 @@ def draw_fig3_overlay(
     reserved = _draw_header(out, _header_text(header, method, theta_rad), boxes, estimates, lead)
     forms = [_label_forms(boxes, estimates, i, cut.get(i, False)) for i in range(len(boxes))]
     label_colours = [
-        FIG3_MISSING if estimates.status[i] != "ok" else FIG3_TEXT if t < 0 else colours[i]
+        FIG3_MISSING_TEXT if estimates.status[i] != "ok" else FIG3_TEXT if t < 0 else colours[i]
         for i, t in enumerate(boxes.track_id)
     ]
     order = sorted(valid, key=lambda i: _label_priority(estimates, i, lead))
