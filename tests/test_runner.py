@@ -19,6 +19,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.detections.writers import write_box_csv
 from slopedist.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
+from slopedist.io import prefetch
 from slopedist.io.frames import open_frames
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.odometry.base import OdometryResult, OdometryState
@@ -57,6 +58,20 @@ class ScriptedOdometry:
 
     def reset(self) -> None:
         self.calls.clear()
+
+
+class ThreadCountingOdometry(ScriptedOdometry):
+    """:class:`ScriptedOdometry` that notes OpenCV's thread setting at each frame."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.threads: list[int] = []
+
+    def process(
+        self, image_gray: np.ndarray, timestamp_s: float, mask_boxes: np.ndarray | None = None
+    ) -> OdometryResult:
+        self.threads.append(cv2.getNumThreads())
+        return super().process(image_gray, timestamp_s, mask_boxes)
 
 
 def make_frames(root: Path, n: int, skip: tuple[int, ...] = ()) -> Path:
@@ -543,6 +558,29 @@ def test_frames_decoded_ahead_give_the_same_outputs(tmp_path: Path) -> None:
     assert outputs[0] == outputs[1]
     assert len(outputs[0][2]) == n - 1  # the missing frame has no image
     assert len(outputs[0][1]) == n and outputs[0][1][5]["frame_status"] == "missing"
+
+
+def test_frames_decoded_ahead_leave_a_core_to_the_decoding_thread(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On two cores, a run decoding ahead runs the loop's OpenCV on one thread (the decoding
+    thread has the other core), one decoding in the loop keeps the caller's setting, and the
+    setting is given back after the run."""
+    monkeypatch.setattr(prefetch, "usable_cores", lambda: 2)
+    folder = make_frames(tmp_path / "f", 3)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        for ahead, threads in ((2, 1), (0, 2)):
+            odometry = ThreadCountingOdometry()
+            out = tmp_path / f"out{ahead}"
+            config = RunConfig(out, progress=False, decode_ahead=ahead)
+            estimator = make_estimator("ego", CAM)
+            run_frames(open_frames(folder), boxes_every_frame(3), odometry, estimator, config)
+            assert odometry.threads == [threads] * 3
+            assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(before)
 
 
 def test_overlay_and_odometry_mask_use_the_distorted_frames_pixels(tmp_path: Path) -> None:

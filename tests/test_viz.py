@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
+import pytest
 
 from slopedist import viz
 from slopedist.camera import Camera
@@ -62,7 +64,8 @@ def test_missing_target_in_red_and_no_line_without_rotation() -> None:
     out = viz.draw_fig3_overlay(np.zeros((200, 320, 3), np.uint8), CAM, boxes, est, math.nan)
     assert not _is(GREEN, out).any()
     red = _is(np.array(viz.FIG3_MISSING), out)
-    assert red[120:161, 100].mean() > 0.9 and red[100:170, 165:].any()
+    assert red[120:161, 100].mean() > 0.9  # the box in red, its label in a lighter red
+    assert _is(np.array(viz.FIG3_MISSING_TEXT), out)[100:170, 165:].any()
 
 
 def test_line_outside_the_image_is_not_drawn() -> None:
@@ -79,3 +82,22 @@ def test_one_colour_per_method_whatever_its_position() -> None:
     assert viz.method_colour("ours") == "tab:pink"
     assert viz.method_colour("custom-x") == viz.method_colour("custom-x")
     assert viz.method_colour("custom-x") in viz.OTHER_METHOD_COLOURS
+
+
+@pytest.mark.parametrize("org", [(40, 30), (-8, 6), (125, 66)], ids=["inside", "cut", "corner"])
+def test_outlined_text_is_the_text_in_a_dark_ring_one_pixel_wide(org: tuple[int, int]) -> None:
+    """On a white frame: the text's own pixels are as ``cv2.putText`` draws them, every
+    pixel one step from the text is darkened, and nothing two steps away changes (also where
+    the image border cuts the text)."""
+    white = np.full((70, 160, 3), 255, np.uint8)
+    out = white.copy()
+    viz.outlined_text(out, "#12 23.4 m", org, 0.45, (0, 200, 255))
+    text = np.zeros((70, 160), np.uint8)
+    cv2.putText(text, "#12 23.4 m", org, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 255, 1, cv2.LINE_AA)
+    solid = text == 255
+    assert solid.any()
+    np.testing.assert_array_equal(out[solid], np.tile([0, 200, 255], (int(solid.sum()), 1)))
+    ring = (cv2.dilate(text, np.ones((3, 3), np.uint8)) > 0) & (text == 0)
+    assert ring.any() and (out[ring].max(axis=1) < 255).all()
+    far = cv2.dilate(text, np.ones((5, 5), np.uint8)) == 0
+    np.testing.assert_array_equal(out[far], white[far])

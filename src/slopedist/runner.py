@@ -72,7 +72,13 @@ from slopedist.io.outputs import (
     partial_path,
 )
 from slopedist.io.overlay import OverlayWriter
-from slopedist.io.prefetch import BackgroundOverlay, OverlaySink, PrefetchedFrames
+from slopedist.io.prefetch import (
+    BackgroundOverlay,
+    OverlaySink,
+    PrefetchedFrames,
+    loop_threads,
+    opencv_threads,
+)
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import RotationOdometry
 from slopedist.odometry.posefiles import TumPoseWriter
@@ -151,7 +157,10 @@ def run_frames(
     loop = _RunLoop(boxes, odometry, estimator, depth, config, result, detector)
     if config.decode_ahead:
         frames = PrefetchedFrames(frames, config.decode_ahead)
-    return loop.run(frames)
+    # with frames decoded ahead, the loop's OpenCV calls leave a core to the decoding thread
+    # (never more threads than the caller allowed)
+    with opencv_threads(min(cv2.getNumThreads(), loop_threads(config.decode_ahead))):
+        return loop.run(frames)
 
 
 def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None:

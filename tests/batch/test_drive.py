@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist.batch.drive import completed_stamp, one_thread, process_drive, publish
+from slopedist.batch.drive import completed_stamp, process_drive, publish
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY, input_stamp
 from slopedist.batch.status import DriveStatus
@@ -156,14 +156,3 @@ def test_a_drive_with_a_detector_gives_the_records_of_run_alone(
     assert main([*args, "--method", "flat", "--odometry", "none", "--out", str(alone)]) == 0
     records = (batch / "det" / "records.csv").read_bytes()
     assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") == 4
-
-
-def test_a_drive_runs_opencv_on_one_thread_and_gives_the_threads_back() -> None:
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(3)
-    try:
-        with one_thread():
-            assert cv2.getNumThreads() == 1
-        assert cv2.getNumThreads() == 3
-    finally:
-        cv2.setNumThreads(before)

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from slopedist.batch.fleet import fleet_summary, write_fleet_summary, write_partition
+from slopedist.errors import InputFileError
 from slopedist.io.tables import write_csv, write_json
 
 FIELDS = ("frame", "track_id", "method", "distance_m", "status", "reason", "gt_distance_m")
@@ -79,3 +80,16 @@ def test_parquet_partition_round_trip(batch_out: Path) -> None:
     assert table.column("reason").to_pylist()[2] == "below_horizon"
     stamp = path.stat().st_mtime_ns
     assert write_partition(batch_out, "d1", refresh=False).stat().st_mtime_ns == stamp
+
+
+@pytest.mark.parametrize("value", ["1e308", "inf", "-inf"])
+def test_an_absurd_distance_is_one_error_naming_file_line_and_field(
+    tmp_path: Path, value: str
+) -> None:
+    """The fleet tables read records.csv with the report's bound: a distance beyond it (a
+    corrupt record) is refused, not pooled."""
+    drive(tmp_path, "d1", [(0, 1, "m", 11.0, "ok", "", 10.0), (1, 1, "m", value, "ok", "", 9.0)])
+    with pytest.raises(InputFileError) as err:
+        fleet_summary(tmp_path)
+    message = str(err.value)
+    assert "records.csv" in message and "line 3" in message and "distance_m" in message

@@ -15,7 +15,13 @@ import pytest
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.io.frames import Frame, FrameStatus, open_frames
 from slopedist.io.overlay import OverlayWriter
-from slopedist.io.prefetch import BackgroundOverlay, PrefetchedFrames
+from slopedist.io.prefetch import (
+    BackgroundOverlay,
+    PrefetchedFrames,
+    loop_threads,
+    opencv_threads,
+    usable_cores,
+)
 
 
 class ListSource:
@@ -191,3 +197,25 @@ def test_background_overlay_video_equals_the_direct_one(tmp_path: Path) -> None:
     assert len(decoded[0]) == len(images) == len(decoded[1])
     for a, b in zip(*decoded):
         assert a.image is not None and b.image is not None and np.array_equal(a.image, b.image)
+
+
+def test_opencv_threads_sets_and_gives_back_the_threads() -> None:
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        with opencv_threads(1):
+            assert cv2.getNumThreads() == 1
+        assert cv2.getNumThreads() == 3
+        with pytest.raises(RuntimeError), opencv_threads(2):
+            raise RuntimeError
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(before)
+
+
+def test_the_loop_leaves_a_core_to_the_decoding_thread() -> None:
+    """With frames decoded ahead, the loop's OpenCV gets the other cores (at least one);
+    without, every core."""
+    assert [loop_threads(4, cores) for cores in (1, 2, 8)] == [1, 1, 7]
+    assert [loop_threads(0, cores) for cores in (1, 2, 8)] == [1, 2, 8]
+    assert loop_threads(0) == usable_cores() >= 1

@@ -12,7 +12,6 @@ absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the ne
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import json
 import math
@@ -24,8 +23,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
 
-import cv2
-
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
@@ -33,6 +30,7 @@ from slopedist.detections.onnx_detector import OnnxDetector
 from slopedist.errors import SlopedistError
 from slopedist.estimators import EstimatorConfig
 from slopedist.io.frames import Frame, FrameSource
+from slopedist.io.prefetch import opencv_threads
 from slopedist.io.tables import write_json
 from slopedist.run_config import SUMMARY_NAME, RunConfig, RunResult
 from slopedist.run_setup import LogTopicNames, RunInputs, folder_depth_source, prepare_run
@@ -87,22 +85,11 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
         ego_speed=prepared.ego_speed,
         decode_ahead=0,
     )
-    with one_thread():
+    # a drive task holds one CPU (num_cpus=1) and decodes in its loop (decode_ahead=0): more
+    # OpenCV threads would only compete with the other workers on the node, at a higher CPU
+    # cost per frame; a batch scales by running one drive per core
+    with opencv_threads(1):
         return prepared.run(config, frames)
-
-
-@contextlib.contextmanager
-def one_thread() -> Iterator[None]:
-    """OpenCV on one thread while a drive runs (restored after). A drive task holds one CPU
-    (``num_cpus=1``) and its frames are decoded in the loop (``decode_ahead=0``): more
-    threads per task would only compete with the other workers on the node, at a higher CPU
-    cost per frame; a batch scales by running one drive per core."""
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        yield
-    finally:
-        cv2.setNumThreads(before)
 
 
 class _CrashingFrames:

@@ -30,6 +30,7 @@ from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import OptionalDependencyError
 from slopedist.evaluation import DISTANCE_BINS_M, bin_label, cap_estimates, distance_metrics
 from slopedist.io.tables import write_csv
+from slopedist.limits import MAX_RECORD_MAGNITUDE
 from slopedist.run_config import RECORDS_NAME
 from slopedist.textfiles import CsvRows, number_cell
 
@@ -141,7 +142,7 @@ def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
     for line, row in CsvRows(path, "run records"):
         acc = out.setdefault(row.get("method") or "", {"d": [], "g": [], "r": []})
         for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
-            acc[key].append(number_cell(row.get(column), path, line, column))
+            acc[key].append(number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE))
         acc["r"].append(row.get("reason") or "")
     return out
 

@@ -18,6 +18,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from slopedist.limits import MAX_RECORD_MAGNITUDE
 from slopedist.run_config import FRAMES_NAME, SUMMARY_NAME
 from slopedist.textfiles import CsvRows, number_cell, read_json
 from slopedist.tracks import TRACKS_NAME, read_tracks
@@ -65,7 +66,7 @@ def drive_duration_s(folder: Path) -> float:
         return math.nan
     first = last = math.nan
     for line, row in CsvRows(path, "frame log"):
-        t = number_cell(row.get("timestamp_s"), path, line, "timestamp_s")
+        t = number_cell(row.get("timestamp_s"), path, line, "timestamp_s", MAX_RECORD_MAGNITUDE)
         if math.isfinite(t):
             first = t if math.isnan(first) else first
             last = t

@@ -12,6 +12,8 @@ thread and waits for it.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import queue
 import threading
 from collections.abc import Callable, Iterator
@@ -19,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -29,6 +32,35 @@ DEFAULT_AHEAD = 4
 """Frames decoded ahead by default (a 1920×1080 BGR frame is 6 MB)."""
 _POLL_S = 0.05
 """How often a blocked producer checks whether the consumer has gone, seconds."""
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(len(os.sched_getaffinity(0)), 1)
+    return max(os.cpu_count() or 1, 1)
+
+
+def loop_threads(decode_ahead: int, cores: int | None = None) -> int:
+    """OpenCV threads for a frame loop: with frames decoded ahead (and an overlay encoded
+    behind) in a thread that keeps one core busy, the loop's OpenCV calls get the other
+    cores (``cores − 1``, at least 1; on two cores, one thread: OpenCV's own parallel loops
+    would only take turns with the decoding thread, at a higher processor cost per frame);
+    without, every core (``cores``). ``cores``: default :func:`usable_cores`."""
+    cores = usable_cores() if cores is None else cores
+    return max(cores - 1, 1) if decode_ahead else max(cores, 1)
+
+
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    """OpenCV on ``n`` threads inside the block, its earlier setting restored after (the
+    setting is the process's: blocks must not overlap in different threads)."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
 
 
 @dataclass(frozen=True)

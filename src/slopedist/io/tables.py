@@ -30,6 +30,11 @@ STDOUT_PATH = "-"
 
 def format_cell(value: Any) -> Any:
     """One CSV cell: ints as ints, floats ``.6g`` (non-finite → ``""``), bools 0/1, else as is."""
+    kind = type(value)
+    if kind is float or kind is np.float64:  # most cells: a float64 formats as its float
+        return f"{value:.6g}" if math.isfinite(value) else ""
+    if kind is str:
+        return value
     if value is None:
         return ""
     if isinstance(value, (bool, np.bool_)):
