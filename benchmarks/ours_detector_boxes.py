@@ -48,15 +48,13 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.datasets.kitti_tracking import (
     BoxSource,
-    KittiTrackingSequence,
-    RotationSource,
     list_sequences,
     load_sequence,
     protocol_mask,
@@ -70,7 +68,13 @@ from slopedist.learned_peer import PEER_METHOD, box_features
 from slopedist.pipeline import estimate_sequence
 from slopedist.tables import format_table
 
+if TYPE_CHECKING:
+    from slopedist.datasets.kitti_tracking import KittiTrackingSequence
+
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
+
+ROTATION = KittiEvalConfig().rotation
+"""The rotation source the evaluation feeds by default (ORB-SLAM3)."""
 
 MIN_SCORE = {BoxSource.POINTRCNN: 2.0, BoxSource.RRC: 0.5}
 """The detectors' score thresholds of the issue's figures (PointRCNN ≥ 2, RRC ≥ 0.5)."""
@@ -154,7 +158,7 @@ def run_ours(scene: Scene, options: dict[str, Any], boxes: BoxTable | None = Non
         estimator,
         fed,
         seq.timestamps_s,
-        seq.rotations(RotationSource.ORBSLAM3),
+        seq.rotations(ROTATION),
         vehicle_classes=set(fed.cls.tolist()),
     )
     est = result.estimates
@@ -420,7 +424,7 @@ def parallax(source: BoxSource, sc: dict[str, Scene]) -> None:
     n = [0, 0]
     for scene in sc.values():
         seq = scene.seq
-        poses = np.loadtxt(seq.rotation_path(RotationSource.ORBSLAM3)).reshape(-1, 3, 4)
+        poses = np.loadtxt(seq.rotation_path(ROTATION)).reshape(-1, 3, 4)
         r = run_ours(scene, {})
         fixed = r.distance_m.copy()
         tracks = scene.gt.track_id[scene.gt_rows]
