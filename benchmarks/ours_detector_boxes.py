@@ -31,7 +31,7 @@ Prints
    candidate with the lowest pooled RMSE on the other twelve, scored on the held-out one
    (the noise of a camera detector's box edges, the online noise estimate, per-track size
    learning, the vehicle-type mixture, the consistency fallback, the width cue, the heading
-   memory, the target gradient fed back to the ground contact).
+   memory, the target gradient fed back to the ground contact, a heavier-tailed height prior).
 
 Usage::
 
@@ -92,6 +92,7 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "no width cue": {"use_width": False},
     "heading memory": {"yaw_memory": True},
     "gradient feedback": {"gradient_feedback": True},
+    "atypical heights 5 %": {"atypical_height_weight": 0.05},
 }
 """Section 6's candidates: a label (as printed) and ``ours``' options."""
 
