@@ -265,8 +265,8 @@ def _fuse_by_mode(
     for bound, bound_var, rows_cut in size.bounds:
         fused = fusion.censor_upper(fused, bound[:, None], bound_var[:, None], rows_cut[:, None])
     return (
-        LogCue(*(np.reshape(a, (n, -1)) for a in size_cue)),
-        LogCue(*(np.reshape(a, (n, -1)) for a in fused)),
+        LogCue(*(a.reshape(n, -1) for a in size_cue)),
+        LogCue(*(a.reshape(n, -1) for a in fused)),
     )
 
 
@@ -275,7 +275,7 @@ _Cue = TypeVar("_Cue", LogCue, SizeCue)
 
 def _over_modes(cue: _Cue) -> _Cue:
     """A cue's ``(n, K)`` fields as ``(n, 1, K)``, to broadcast over the size modes."""
-    return type(cue)(*(np.asarray(a)[:, None] for a in cue))
+    return type(cue)(*(a[:, None] for a in cue))
 
 
 def _collapse(

@@ -61,10 +61,15 @@ def frame_log_ratio(odd_prob: FloatArray, prior_log_odds: FloatArray) -> FloatAr
     odds of its posterior probability ``odd_prob`` minus those of its prior (the mode's prior
     plus the track's evidence, ``prior_log_odds``), Bayes' rule read backwards. The posterior
     log odds are taken at most :data:`MAX_LOG_ODDS` (a probability of 1 in float64)."""
-    p = np.minimum(np.asarray(odd_prob, dtype=float), 1.0)  # a sum of weights may round above
-    with np.errstate(divide="ignore", invalid="ignore"):  # NaN (no weights) stays NaN
-        log_odds = np.log(p) - np.log1p(-p)
+    # within (0, 1) so that both logarithms are finite (a sum of weights may round to 1 or
+    # above, or underflow to 0); NaN (no weights) stays NaN
+    p = np.minimum(np.maximum(odd_prob, _TINY), _ALMOST_ONE)
+    log_odds = np.log(p) - np.log1p(-p)
     return np.minimum(np.maximum(log_odds, -MAX_LOG_ODDS), MAX_LOG_ODDS) - prior_log_odds
+
+
+_TINY = 1e-300
+_ALMOST_ONE = 1.0 - 2.0**-53
 
 
 MAX_LOG_ODDS = 36.0
