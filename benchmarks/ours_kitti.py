@@ -81,8 +81,10 @@ PER_FRAME = {
 }
 NO_OCCLUSION = {"occlusion_aware": False}
 NO_CENSOR = {"censor_border_cuts": False}
-NO_CONSISTENCY: dict[str, Any] = {"consistency_gate_sigma": 1e9}
-"""The cue consistency check off (no gap is ever beyond the gate)."""
+NO_CONSISTENCY: dict[str, Any] = {"consistency_gate_sigma": 1e9, "odd_object_weight": 0.0}
+"""The cue consistency check off (no gap is ever beyond the gate), and the odd-object mode."""
+NO_ODD: dict[str, Any] = {"odd_object_weight": 0.0}
+"""The odd-object size mode off."""
 
 ABLATION: list[tuple[str, dict[str, Any]]] = [
     (
@@ -114,7 +116,8 @@ ABLATION: list[tuple[str, dict[str, Any]]] = [
         {**NO_CENSOR, **NO_CONSISTENCY},
     ),
     ("+ border cuts bound the distance (censored)", dict(NO_CONSISTENCY)),
-    ("+ cue consistency check (3σ, variance widened) = ours", {}),
+    ("+ cue consistency check (3σ, variance widened)", dict(NO_ODD)),
+    ("+ odd-object size mode, its evidence carried over the track = ours", {}),
     ("+ continuous target gradient fed back to the ground contact", {"gradient_feedback": True}),
     ("+ self-calibration", {"gradient_feedback": True, "self_calibrate": True}),
     ("ours + self-calibration = ours-selfcal", {"self_calibrate": True}),
@@ -132,6 +135,8 @@ SENSITIVITY: list[tuple[str, Callable[[float], dict[str, Any]]]] = [
     ("process accel (2 m/s²/√s)", lambda k: {"process": ProcessNoise(2.0 * k)}),
     ("gate_sigma (5σ)", lambda k: {"gate_sigma": 5.0 * k}),
     ("truncation_factor (10)", lambda k: {"truncation_factor": 10.0 * k}),
+    ("odd_object_weight (2.8 %)", lambda k: {"odd_object_weight": 0.028 * k}),
+    ("odd_object_log_sigma (0.5)", lambda k: {"odd_object_log_sigma": 0.5 * k}),
     (
         "class size spreads",
         lambda k: {

@@ -49,11 +49,13 @@ def test_a_generic_class_is_read_as_a_mixture_of_types() -> None:
 
 def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class() -> None:
     """Flat road, 0.5 px box noise, 12 vehicles (60 % cars, 25 % vans, 15 % trucks) over four
-    seeds: read as a mixture of types, ``ours`` errs far less than taking ``Car`` at its word.
-    The issue's figure (within 10 % of the run with the true classes) is NOT met: a van at
-    40 m and a car at 28 m differ in their ground contact by less than a 1° road-gradient
-    prior explains, so only near vehicles are told apart."""
-    true_cls, blind, generic = [], [], []
+    seeds: read as a mixture of types, ``ours`` errs far less than taking ``Car`` at its word
+    (no odd-object mode), and less than with the odd-object mode alone (which already helps:
+    a near van far from a car's size is an odd object). The issue's figure (within 10 % of the
+    run with the true classes) is NOT met: a van at 40 m and a car at 28 m differ in their
+    ground contact by less than a 1° road-gradient prior explains, so only near vehicles are
+    told apart."""
+    true_cls, strict, blind, generic = [], [], [], []
     for seed in range(4):
         kw = {"seed": seed, "box_noise_px": 0.5, "vehicle_types": ODD_TRAFFIC}
         labelled = simulate_traffic(CAM, 12, 150, label_types=True, **kw)
@@ -61,11 +63,13 @@ def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class()
         assert np.array_equal(labelled.boxes.boxes, called_car.boxes.boxes)
         assert set(called_car.boxes.cls) == {"Car"} and len(set(labelled.boxes.cls)) >= 2
         true_cls.append(_squared_errors(labelled))
+        strict.append(_squared_errors(called_car, odd_object_weight=0.0))
         blind.append(_squared_errors(called_car))
         generic.append(_squared_errors(called_car, generic_classes=("Car",)))
     rmse = {
         k: float(np.sqrt(np.mean(np.concatenate(v))))
-        for k, v in {"true": true_cls, "blind": blind, "generic": generic}.items()
+        for k, v in {"true": true_cls, "strict": strict, "blind": blind, "generic": generic}.items()
     }
-    assert rmse["generic"] < 0.8 * rmse["blind"]
+    assert rmse["generic"] < 0.8 * rmse["strict"]
+    assert rmse["generic"] < rmse["blind"] < 0.95 * rmse["strict"]
     assert rmse["true"] < rmse["generic"]

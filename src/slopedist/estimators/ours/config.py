@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.fusion import SizeMode
 from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
 
@@ -56,6 +57,20 @@ class OursConfig:
         atypical_height_weight: prior probability that a vehicle's height is atypical for its
             class (a sports car, a pick-up or a box van labelled ``Car``); 0 turns it off.
         atypical_height_factor: how much wider the height spread of such a vehicle is.
+        odd_object_weight: prior probability that a box holds an **odd object**, one whose
+            size is not its class's at all (a concrete block, a covered trailer, a vehicle
+            partly hidden, boxed as ``Car``): 2.8 %, the share of ``Misc`` among the vehicle
+            labels of the KITTI object detection training set (973 of 34 234 Car, Van, Truck,
+            Tram and Misc; Geiger, Lenz, Urtasun, CVPR 2012), the published frequency of
+            street objects a vehicle detector boxes that have no vehicle class's size. 0 turns
+            it off. In that mode the size cues barely constrain the distance, so where they
+            disagree with the ground contact by more than the class's spread explains, the
+            posterior moves to it and the fusion follows the ground contact (record column
+            ``odd_size_prob``; :class:`~slopedist.estimators.ours.fusion.SizeMode`). Not used
+            for a generic class (whose vehicle-type mixture covers odd vehicles).
+        odd_object_log_sigma: the relative spread (of the logarithm) of an odd object's height
+            and width: 0.5, objects from 0.5 m to 4 m tall (a block to a truck) read as ±2σ
+            about the class's size (physical, not fitted).
         yaw_evidence_weight: weight (0–1] of one frame's heading evidence in a track's belief
             (consecutive frames are not independent evidence).
         yaw_memory_s: time constant with which a track's heading belief relaxes to the prior.
@@ -129,6 +144,8 @@ class OursConfig:
     yaw_prior: YawPrior = field(default_factory=YawPrior)
     atypical_height_weight: float = 0.0
     atypical_height_factor: float = 3.0
+    odd_object_weight: float = 0.028
+    odd_object_log_sigma: float = 0.5
     yaw_evidence_weight: float = 0.3
     yaw_memory_s: float = 2.0
     process: kf.ProcessNoise = field(default_factory=kf.ProcessNoise)
@@ -164,6 +181,7 @@ class OursConfig:
             "yaw_evidence_weight",
             "occlusion_gate_sigma",
             "consistency_gate_sigma",
+            "odd_object_log_sigma",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -177,6 +195,12 @@ class OursConfig:
             raise ConfigurationError(
                 f"ours option size_evidence_time_s must be a finite number > 0, got {tau!r}"
             )
+        rare = (self.atypical_height_weight, self.odd_object_weight)
+        if not (all(0.0 <= w < 1.0 for w in rare) and sum(rare) < 1.0):
+            raise ConfigurationError(
+                f"ours options atypical_height_weight and odd_object_weight must be in [0, 1) "
+                f"with a sum below 1, got {rare[0]!r} and {rare[1]!r}"
+            )
         if not 0.0 <= self.min_iou <= 1.0:
             raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
 
@@ -186,6 +210,17 @@ class OursConfig:
         if self.size_evidence_time_s is not None:
             return float(self.size_evidence_time_s)
         return (self.gradient_sigma_rad / self.process.gradient_rad) ** 2
+
+    @property
+    def size_modes(self) -> list[tuple[SizeMode, float]]:
+        """The size modes of a class with their prior probabilities: the typical vehicle, and
+        where their weights are above 0 the atypical height and the odd object."""
+        rare = [
+            (SizeMode(height_factor=self.atypical_height_factor), self.atypical_height_weight),
+            (SizeMode(log_sigma_floor=self.odd_object_log_sigma), self.odd_object_weight),
+        ]
+        typical = 1.0 - sum(w for _, w in rare)
+        return [(SizeMode(), typical)] + [(m, w) for m, w in rare if w > 0]
 
     @property
     def tracking(self) -> bool:

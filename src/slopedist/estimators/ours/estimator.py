@@ -4,10 +4,9 @@ For every box and every heading hypothesis ψ the estimator computes
 
 1. the **height cue** (:func:`~slopedist.estimators.ours.cues.height_cue`): distance from the box
    height and the class's height prior, exact for a 3D box (roof and footprint in perspective);
-2. the **width cue** (:func:`~slopedist.estimators.ours.cues.width_cue`): distance from the box
-   width, the class's width and length and ψ — a car seen at an angle shows its side, so the
-   heading is a hypothesis, weighted by how well it reconciles width and height and by a prior
-   that most traffic is aligned with the road;
+2. the **width cue** (:func:`~slopedist.estimators.ours.cues.width_cue`): from the box width,
+   the class's width and length and ψ — a car seen at an angle shows its side, so the heading is
+   a hypothesis, weighed by how it reconciles width and height and by a prior of aligned traffic;
 3. the **ground-contact cue**: eq. 1 with the vanishing line of the ego gradient θ (eq. 4–5), as
    the paper, plus the target's own continuous road gradient α; a size cue whose box side
    lies on a nearer target's box and that says farther than the ground contact by more than
@@ -38,7 +37,7 @@ from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import frame_cues, fusion, size_learning
+from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
     boxes_all_usable,
@@ -141,12 +140,11 @@ class OursEstimator(Estimator):
         self._classes = ClassTable(
             config.priors, grid, tuple(config.generic_classes), config.type_mixture
         )
-        modes = [(1.0, 1.0 - config.atypical_height_weight)]
-        if config.atypical_height_weight > 0:
-            modes.append((config.atypical_height_factor, config.atypical_height_weight))
-        self._height_modes = [k for k, _ in modes]  # spread factor of each body-style mode
-        self._log_mode = np.repeat(np.log([p for _, p in modes]), grid.size)
-        self._log_prior_all = (np.tile(self._log_yaw_prior, len(modes)) + self._log_mode)[None, :]
+        self._size_modes = [m for m, _ in config.size_modes]
+        self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
+        self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
+        n_modes = len(self._size_modes)
+        self._log_prior_all = (np.tile(self._log_yaw_prior, n_modes) + self._log_mode)[None, :]
         self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
@@ -284,15 +282,18 @@ class OursEstimator(Estimator):
             )
             if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
                 size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
+        log_prior = self._log_prior(match, targets)
+        odd = self._odd_check.carried(match, targets)  # the tracks' odd-object evidence
         fused = frame_cues.fuse_hypotheses(
             targets,
             size,
             ground,
-            self._log_prior(match, targets),
-            self._height_modes,
+            self._odd_check.prior(log_prior, odd),
+            self._size_modes,
             cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
+        odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
         gradient = frame_cues.target_gradient(
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )
@@ -306,7 +307,7 @@ class OursEstimator(Estimator):
                 else np.stack([track_size.log_scale, track_size.log_var])
             )
         uid = self._update_tracks(
-            targets, match, fused, distance, gradient, frame.R_world_cam, size_rows
+            targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
         )
         if self._keep_predicted:
             self._keep_frame(match, fused, distance, uid)
@@ -411,7 +412,7 @@ class OursEstimator(Estimator):
             )
         if log_heading_prior is None:
             return self._log_prior_rows(match.rows.shape[0])
-        return np.tile(log_heading_prior, len(self._height_modes)) + self._log_mode
+        return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
 
     def _contact_gradient_prior(
         self, match: TrackMatch
@@ -492,6 +493,7 @@ class OursEstimator(Estimator):
         gradient: TargetGradient,
         R_now: FloatArray | None,
         size_rows: FloatArray | None = None,
+        odd_evidence: FloatArray | None = None,
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
@@ -515,6 +517,7 @@ class OursEstimator(Estimator):
                 np.eye(3) if R_now is None else np.asarray(R_now, dtype=float),
                 match.turned_boxes_px if match.box_motion else None,
                 size_rows,
+                odd_evidence,
             )
         )
 

@@ -10,6 +10,7 @@ OursEstimator`. Camera frame x right, y down, z forward; distances in metres, lo
 from __future__ import annotations
 
 import math
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,9 +18,10 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
+from slopedist.estimators.ours.class_table import HypothesisConstants
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
+from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -203,58 +205,77 @@ def fuse_hypotheses(
     size: SizeCues,
     ground: LogCue | None,
     log_prior: FloatArray,
-    height_modes: list[float],
+    size_modes: list[SizeMode],
     gate_sigma: float = 3.0,
 ) -> FusedCues:
-    """Fuse the cues per hypothesis (headings × body-style modes: a class mixes typical
-    vehicles and, less often, ones of atypical height; or, when a target's class is generic,
-    the vehicle types × headings the cues were computed for), censor by the bounds, and
-    collapse the hypotheses by their posterior weights.
+    """Fuse the cues per hypothesis (headings × size modes: a class mixes typical vehicles
+    and, less often, ones of atypical height and odd objects of no class's size; or, when a
+    target's class is generic, the vehicle types × headings the cues were computed for),
+    censor by the bounds, and collapse the hypotheses by their posterior weights.
 
-    ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``height_modes``: the spread
-    factor of each body-style mode (1: the class prior's); ``gate_sigma``: the cue consistency
-    check's threshold (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
+    ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``size_modes``: how each mode
+    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.SizeMode`);
+    ``gate_sigma``: the cue consistency check's threshold
+    (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
-    height, width = size.height, size.width
     type_weight = targets.classes.type_log_weight
-    n_modes = len(height_modes) if type_weight is None else 1
-    size_modes = [
-        fusion.fuse_size_cues(
-            height,
-            width,
-            hyp.log_sigma_height if k == 1.0 else k * hyp.log_sigma_height,
-            hyp.log_sigma_width,
-            hyp.corr_height_width,
-        )
-        for k in (height_modes if type_weight is None else [1.0])
-    ]
-    size_cue = size_modes[0] if n_modes == 1 else fusion.concat_cues(size_modes)
-    fused = size_cue
-    if ground is not None:
-        fused = fusion.fuse_log_cues(
-            size_cue, ground if n_modes == 1 else fusion.concat_cues([ground] * n_modes)
-        )
-    for bound, bound_var, rows_cut in size.bounds:
-        if n_modes > 1:
-            bound, bound_var = np.tile(bound, n_modes), np.tile(bound_var, n_modes)
-        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
-    extent = np.tile(hyp.half_extent_m, n_modes) if n_modes > 1 else hyp.half_extent_m
-    if ground is not None and n_modes > 1:
-        ground = fusion.concat_cues([ground] * n_modes)
-    if type_weight is not None:
-        n_modes = type_weight.shape[1]
+    modes = size_modes if type_weight is None else size_modes[:1]
+    if len(modes) > 1:  # (n, modes, K): the cues shared by the modes broadcast over them
+        size_cue, fused = _fuse_by_mode(size, ground, modes, hyp)
+    else:
+        spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
+        if modes[0] != SizeMode():
+            spreads = fusion.mode_spreads(modes, *spreads)
+        size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
+        fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
+        for bound, bound_var, rows_cut in size.bounds:
+            fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
+    odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
     return _collapse(
         size,
         size_cue,
         fused,
         ground,
-        n_modes,
+        len(modes) if type_weight is None else type_weight.shape[1],
         log_prior,
-        extent,
+        hyp.half_extent_m,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
+        odd_mode=odd_mode,
     )
+
+
+def _fuse_by_mode(
+    size: SizeCues, ground: LogCue | None, modes: list[SizeMode], hyp: HypothesisConstants
+) -> tuple[LogCue, LogCue]:
+    """The size cues and the fused cues of every size mode, ``(n, modes·K)`` (mode-major):
+    computed as ``(n, modes, K)`` arrays, the cues that do not depend on the mode (height,
+    width, ground contact, bounds) broadcast over the modes' axis."""
+    n = hyp.half_extent_m.shape[0]
+    sigma_h, sigma_w = fusion.mode_spreads(modes, hyp.log_sigma_height, hyp.log_sigma_width)
+    size_cue = fusion.fuse_size_cues(
+        _over_modes(size.height),
+        _over_modes(size.width),
+        sigma_h,
+        sigma_w,
+        hyp.corr_height_width[:, None],
+    )
+    fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, _over_modes(ground))
+    for bound, bound_var, rows_cut in size.bounds:
+        fused = fusion.censor_upper(fused, bound[:, None], bound_var[:, None], rows_cut[:, None])
+    return (
+        LogCue(*(a.reshape(n, -1) for a in size_cue)),
+        LogCue(*(a.reshape(n, -1) for a in fused)),
+    )
+
+
+_Cue = TypeVar("_Cue", LogCue, SizeCue)
+
+
+def _over_modes(cue: _Cue) -> _Cue:
+    """A cue's ``(n, K)`` fields as ``(n, 1, K)``, to broadcast over the size modes."""
+    return type(cue)(*(a[:, None] for a in cue))
 
 
 def _collapse(
@@ -267,9 +288,13 @@ def _collapse(
     extent: FloatArray,
     most_likely_mode: bool = False,
     gate: float = 3.0,
+    odd_mode: int | None = None,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
-    posterior weights (``extent``: each hypothesis's half depth extent, m).
+    posterior weights (``extent``: the half depth extent, m, and ``ground``: the ground
+    contact, each per hypothesis or, when the same in every mode, per heading ``(n, K)``;
+    ``odd_mode``: the index of the odd-object mode, whose posterior weight is reported, if
+    there is one).
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -294,19 +319,22 @@ def _collapse(
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
     gap = np.full(n, np.nan)
     ground_mix = None
-    if ground is not None:
-        ground_mix = fusion.mix_hypotheses(ground, weights)
+    if ground is not None:  # per heading (the same in every size mode), or per hypothesis
+        by_heading = ground.mean.shape[1] == heading_weights.shape[1]
+        ground_mix = fusion.mix_hypotheses(ground, heading_weights if by_heading else weights)
         measurement, gap = fusion.check_consistency(measurement, size_mix, ground_mix, gate)
+    extent_weights = heading_weights if extent.shape[1] == heading_weights.shape[1] else weights
     return FusedCues(
         measurement,
         size_mix,
         fused.loglik,
         log_prior,
         heading_weights,
-        np.add.reduce(weights * extent, axis=1),
+        np.add.reduce(extent_weights * extent, axis=1),
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
         ground_mix,
+        by_mode[:, odd_mode].sum(axis=1) if odd_mode is not None else np.zeros(n),
     )
 
 
@@ -391,6 +419,7 @@ def box_estimates(
         distance_width_m=np.exp(fused.width_log),
         cue_gap_sigma=fused.cue_gap_sigma,
         track_uid=uid.astype(float),
+        odd_size_prob=fused.odd_size_prob,
     )
 
 

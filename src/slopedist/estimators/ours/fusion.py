@@ -9,6 +9,7 @@ mode), leading axes the targets'.
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -96,6 +97,57 @@ def fuse_size_cues(
 
 
 _HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
+
+
+class SizeMode(NamedTuple):
+    """A mode of the size prior: how the class's relative size spreads widen in it.
+
+    The typical vehicle of a class is the default mode. A body style of atypical height (a
+    sports car, a pick-up, a box van labelled ``Car``) widens the height spread by
+    ``height_factor``. An **odd object**, one whose size is not its class's at all (a concrete
+    block or a covered trailer boxed as ``Car``, a truck partly hidden), has every dimension's
+    relative spread at least ``log_sigma_floor``: its size cues then say little, and where they
+    disagree with the ground contact the fusion follows the ground contact, instead of being
+    pulled by a confident class size.
+
+    Attributes:
+        height_factor: multiplier of the class's relative height spread (1: the class's).
+        log_sigma_floor: the smallest relative spread (of the logarithm) of the height and the
+            width in this mode; 0: the class's (not an odd-object mode).
+    """
+
+    height_factor: float = 1.0
+    log_sigma_floor: float = 0.0
+
+    @property
+    def odd(self) -> bool:
+        """Whether this is the odd-object mode."""
+        return self.log_sigma_floor > 0.0
+
+
+@functools.lru_cache(maxsize=16)
+def _mode_constants(modes: tuple[SizeMode, ...]) -> tuple[FloatArray, FloatArray]:
+    """``(M, 1)`` height factors and spread floors of the size modes (built once per set)."""
+    factor = np.array([m.height_factor for m in modes])[:, None]
+    floor = np.array([m.log_sigma_floor for m in modes])[:, None]
+    factor.flags.writeable = floor.flags.writeable = False
+    return factor, floor
+
+
+def mode_spreads(
+    modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The class's relative height and width spreads ``(n, K)`` in each size mode: ``(n, M,
+    K)`` arrays (``(n, K)`` for one mode), the height's times the mode's factor, both at least
+    the mode's floor."""
+    factor, floor = _mode_constants(tuple(modes))
+    if len(modes) == 1:
+        factor, floor = factor[0], floor[0]
+        return np.maximum(sigma_log_h * factor, floor), np.maximum(sigma_log_w, floor)
+    return (
+        np.maximum(sigma_log_h[:, None] * factor, floor),
+        np.maximum(sigma_log_w[:, None], floor),
+    )
 
 
 def shape_gap_sigma(

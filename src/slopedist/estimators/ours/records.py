@@ -36,6 +36,7 @@ EXTRA_COLUMNS = (
     "distance_ground_contact_m",
     "distance_width_m",
     "cue_gap_sigma",
+    "odd_size_prob",
     "size_scale",
     "size_log_sigma",
     "track_height_m",
@@ -166,6 +167,8 @@ class FusedCues(NamedTuple):
             widened to cover both.
         ground: ``(n,)`` the ground contact alone, mixed over the hypotheses (None without
             it).
+        odd_size_prob: ``(n,)`` posterior probability of the odd-object size mode (0 without
+            it): the target's size is not its class's.
     """
 
     measurement: LogCue
@@ -177,6 +180,7 @@ class FusedCues(NamedTuple):
     width_log: FloatArray
     cue_gap_sigma: FloatArray
     ground: LogCue | None = None
+    odd_size_prob: FloatArray | None = None
 
 
 class DistanceFilterResult(NamedTuple):
@@ -240,6 +244,7 @@ class BoxEstimates(NamedTuple):
     distance_width_m: FloatArray
     cue_gap_sigma: FloatArray
     track_uid: FloatArray
+    odd_size_prob: FloatArray | None = None
     size_scale: FloatArray | None = None
     size_log_sigma: FloatArray | None = None
     track_height_m: FloatArray | None = None

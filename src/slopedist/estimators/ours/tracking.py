@@ -49,7 +49,11 @@ ROW_SIZE = slice(28, 30)
 """The track's learned size: log of its dimensions over its class prior's (isotropic scale
 b, dimensionless) and that log's variance, NaN while it is the class prior's
 (:mod:`~slopedist.estimators.ours.size_learning`)."""
-ROW_LOG_W = 30
+ROW_ODD = 30
+"""The track's evidence that its size is not its class's: the odd-object mode's log-likelihood
+ratio summed over its frames, each weighed by ``min(1, dt/τ)``, 0 for a new track
+(:mod:`~slopedist.estimators.ours.odd_objects`)."""
+ROW_LOG_W = 31
 """First row of the log belief over the heading hypotheses (K rows)."""
 
 
@@ -105,6 +109,7 @@ class TrackArrays:
         st[ROW_N_OBS] = 1.0
         st[ROW_SIZE.start] = 0.0
         st[ROW_SIZE.start + 1] = np.nan
+        st[ROW_ODD] = 0.0
         st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
@@ -210,6 +215,8 @@ class TrackUpdate(NamedTuple):
             the box motion is not kept (only id-less tracks and the box-noise estimate use it).
         size_rows: ``(2, n)`` the learned size (:data:`ROW_SIZE`), or None when it is not
             learned (tracks keep the class prior).
+        odd_evidence: ``(n,)`` the odd-object evidence (:data:`ROW_ODD`), or None when this
+            frame has none (tracks keep theirs; a new track starts from 0).
     """
 
     rows: IntArray
@@ -224,6 +231,7 @@ class TrackUpdate(NamedTuple):
     R_world_cam: FloatArray
     turned_boxes_px: FloatArray | None
     size_rows: FloatArray | None = None
+    odd_evidence: FloatArray | None = None
 
 
 def write_continued(
@@ -261,6 +269,9 @@ def write_continued(
         S[ROW_LOG_W:] = log_w
     if update.size_rows is not None:
         S[ROW_SIZE] = update.size_rows if continued is None else update.size_rows[:, continued]
+    if update.odd_evidence is not None:
+        odd = update.odd_evidence
+        S[ROW_ODD] = odd if continued is None else odd[continued]
     tracks.state[:, r] = S
 
 

@@ -1,0 +1,153 @@
+"""The per-track check of ``ours`` that a target's size is its class's: the odd-object mode's
+evidence, carried over the track.
+
+A class's size prior has a rare **odd-object** mode (:class:`~slopedist.estimators.ours.fusion.
+SizeMode`, option ``odd_object_weight``): a concrete block, a covered trailer or a partly hidden
+truck boxed as ``Car`` has a size no vehicle of its class has, so its size cues say little and
+the fusion follows the ground contact. One frame weighs the mode by how well each mode explains
+the disagreement of its cues (the hypotheses' log-likelihood); a vehicle keeps its size over
+its track, so the track also carries the evidence of its past frames: the log-likelihood ratio
+``λ = log p(cues | odd) − log p(cues | not odd)`` of each frame (read from the mode's posterior
+and prior odds), summed with the weight
+``min(1, dt/τ)`` (:func:`~slopedist.estimators.ours.size_learning.evidence_weight`: consecutive
+frames share the target road's gradient error, so only one frame per τ seconds is independent
+evidence; τ the size-learning time, 4 s from the gradient priors). That sum is added to the
+odd mode's log prior in the next frame.
+
+Pure functions of arrays; per-target arrays are ``(n,)``, per-hypothesis ones ``(n, M·K)``
+(``M`` size modes × ``K`` headings, mode-major). Log-likelihoods are natural logarithms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.fusion import all_true
+from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
+from slopedist.estimators.ours.size_learning import evidence_weight
+from slopedist.estimators.ours.tracking import ROW_ODD
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+def carried_evidence(match: TrackMatch) -> FloatArray:
+    """``(n,)`` each target's odd-object evidence from its track's past frames (0 for a target
+    that starts a track)."""
+    evidence = np.zeros(match.rows.shape[0])
+    if match.continued_rows.size:
+        evidence[match.continued] = match.continued_state[ROW_ODD]
+    return evidence
+
+
+def with_evidence(
+    log_prior: FloatArray, evidence: FloatArray, odd_mode: int, n_headings: int
+) -> FloatArray:
+    """The hypotheses' log prior ``(n, M·K)`` with each target's track evidence added to the
+    odd mode's ``K`` columns (the odds of the modes, not normalised: the posterior weights
+    are)."""
+    out = np.array(log_prior, dtype=float)
+    block = slice(odd_mode * n_headings, (odd_mode + 1) * n_headings)
+    out[:, block] += evidence[:, None]
+    return out
+
+
+def frame_log_ratio(odd_prob: FloatArray, prior_log_odds: FloatArray) -> FloatArray:
+    """``(n,)`` this frame's log-likelihood ratio of the odd mode over the others: the log
+    odds of its posterior probability ``odd_prob`` minus those of its prior (the mode's prior
+    plus the track's evidence, ``prior_log_odds``), Bayes' rule read backwards. The posterior
+    log odds are taken at most :data:`MAX_LOG_ODDS` (a probability of 1 in float64)."""
+    # within (0, 1) so that both logarithms are finite (a sum of weights may round to 1 or
+    # above, or underflow to 0); NaN (no weights) stays NaN
+    p = np.minimum(np.maximum(odd_prob, _TINY), _ALMOST_ONE)
+    log_odds = np.log(p) - np.log1p(-p)
+    return np.minimum(np.maximum(log_odds, -MAX_LOG_ODDS), MAX_LOG_ODDS) - prior_log_odds
+
+
+_TINY = 1e-300
+_ALMOST_ONE = 1.0 - 2.0**-53
+
+
+MAX_LOG_ODDS = 36.0
+"""Largest posterior log odds read from a probability (1 − 2⁻⁵³ has log odds 36.7)."""
+
+MAX_EVIDENCE = 20.0
+"""Bound of a track's evidence (nats, either sign): well inside the log odds a probability
+resolves, so a frame can always be read back (:func:`frame_log_ratio`), and a long track can
+still change its mind within a few τ when its cues change (a vehicle no longer hidden)."""
+
+
+def updated_evidence(
+    evidence: FloatArray, log_ratio: FloatArray, weight: FloatArray, restarted: BoolArray
+) -> FloatArray:
+    """``(n,)`` the track evidence after this frame: ``evidence + weight·log_ratio`` within
+    ±:data:`MAX_EVIDENCE` (a non-finite ratio adds nothing); a target whose track failed the
+    distance gate (``restarted``) starts afresh from 0."""
+    add = weight * log_ratio
+    total = np.minimum(np.maximum(evidence + add, -MAX_EVIDENCE), MAX_EVIDENCE)
+    ok = np.isfinite(add) & ~restarted
+    return total if all_true(ok) else np.where(ok, total, np.where(restarted, 0.0, evidence))
+
+
+@dataclass(frozen=True)
+class OddObjectCheck:
+    """The per-track odd-object check of an estimator's options (:meth:`of`); it does
+    nothing when ``odd_mode`` is None.
+
+    Attributes:
+        odd_mode: index of the odd-object mode among the size modes (None: no check, as
+            without an odd-object mode or without tracks).
+        n_headings: ``K``, the heading hypotheses per mode.
+        prior_log_odds: the odd mode's prior log odds against the other modes.
+        evidence_time_s: τ, seconds (one independent frame per τ).
+    """
+
+    odd_mode: int | None
+    n_headings: int
+    prior_log_odds: float
+    evidence_time_s: float
+
+    @classmethod
+    def of(cls, config: OursConfig, n_headings: int) -> OddObjectCheck:
+        """The check of ``config``."""
+        modes = config.size_modes
+        odd = next((k for k, (mode, _) in enumerate(modes) if mode.odd), None)
+        weight = modes[odd][1] if odd is not None else 0.5
+        log_odds = float(np.log(weight) - np.log1p(-weight))
+        return cls(
+            odd if config.tracking else None, n_headings, log_odds, config.size_evidence_time
+        )
+
+    def carried(self, match: TrackMatch, targets: FrameTargets) -> FloatArray | None:
+        """:func:`carried_evidence`; None without a check or when the frame's classes are
+        read as generic (vehicle types instead of size modes)."""
+        if self.odd_mode is None or targets.classes.type_log_weight is not None:
+            return None
+        return carried_evidence(match)
+
+    def prior(self, log_prior: FloatArray, evidence: FloatArray | None) -> FloatArray:
+        """:func:`with_evidence` (``log_prior`` itself without evidence)."""
+        if evidence is None or self.odd_mode is None:
+            return log_prior
+        return with_evidence(log_prior, evidence, self.odd_mode, self.n_headings)
+
+    def after_frame(
+        self,
+        evidence: FloatArray | None,
+        odd_prob: FloatArray | None,
+        match: TrackMatch,
+        distance: DistanceFilterResult,
+    ) -> FloatArray | None:
+        """``(n,)`` the tracks' evidence after this frame (None without ``evidence``): its
+        log-likelihood ratio (:func:`frame_log_ratio` of the odd mode's posterior probability
+        ``odd_prob`` and its prior with ``evidence``) weighed by ``min(1, dt/τ)``; a track
+        that failed the distance gate starts afresh."""
+        if evidence is None or odd_prob is None:
+            return None
+        weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
+        ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
+        return updated_evidence(evidence, ratio, weight, match.continued & ~distance.continued)
