@@ -217,3 +217,38 @@ def test_estimate_an_offline_method(small_sequence: dict[str, Path], tmp_path: P
     assert {r["method"] for r in rows["ours-offline"]} == {"ours-offline"}
     assert rows["ours-offline"][2]["reason"] == "inverted_box"
     assert rows["ours-offline"][0]["size_scale"] != ""
+
+
+def test_ours_options_reach_ours_from_the_command_line(
+    small_sequence: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``--ours-option KEY=VALUE`` sets options of ``ours`` (``size_learning=true`` fills
+    the size columns, ``use_width=false`` changes the distances); a bad key or value is one
+    usage error naming the option, and nothing is written."""
+    default = _estimate_rows(small_sequence, tmp_path / "d.csv", "--method", "ours")
+    learned = _estimate_rows(
+        small_sequence,
+        tmp_path / "l.csv",
+        "--method",
+        "ours",
+        "--ours-option",
+        "size_learning=true",
+        "--ours-option",
+        "use_width=false",
+    )
+    assert all(r["size_scale"] == "" for r in default)
+    assert any(r["size_scale"] != "" for r in learned)
+    assert [r["distance_m"] for r in learned] != [r["distance_m"] for r in default]
+    args = ["estimate", "--calib", str(small_sequence["calib"]), "--poses"]
+    args += [str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])]
+    for bad, message in (
+        ("bogus=1", "'bogus' is not an ours option"),
+        ("min_iou=2", "min_iou must be in [0, 1]"),
+        ("use_width=maybe", "'maybe' is not a bool"),
+        ("size_learning", "is not KEY=VALUE"),
+    ):
+        out = tmp_path / "bad.csv"
+        assert main([*args, "--out", str(out), "--ours-option", bad]) == 2
+        err = capsys.readouterr().err
+        assert "--ours-option" in err and message in err and "Traceback" not in err
+        assert not out.exists()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from slopedist.camera import Camera
 from slopedist.errors import ConfigurationError
@@ -18,6 +20,8 @@ from slopedist.estimators import (
     build_estimator,
 )
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.estimators.ours.config import parse_option, settable_options
+from slopedist.estimators.ours.estimator import OursEstimator
 
 CAMERA = Camera(721.5, 609.6, 172.9, 1.65)
 STEEP = EstimatorConfig(alphas_deg=(20.0, 30.0, 40.0), thresholds_px=(5.0, -5.0, -15.0))
@@ -65,3 +69,55 @@ def test_method_options_feed_an_evaluation_config() -> None:
 def test_bad_options_are_configuration_errors(kwargs: dict, message: str) -> None:
     with pytest.raises(ConfigurationError, match=message):
         EstimatorConfig(**kwargs)
+
+
+def test_ours_options_reach_ours_and_ours_selfcal() -> None:
+    """``ours_options`` (``--ours-option``) set the ``ours`` configuration, with the reference
+    point; other methods ignore them."""
+    cfg = EstimatorConfig(
+        "ours", reference="contact", ours_options=(("odd_object_weight", 0.0), ("use_width", False))
+    )
+    for method in ("ours", "ours-selfcal"):
+        est = build_estimator(cfg.with_method(method), CAMERA)
+        assert isinstance(est, OursEstimator)
+        assert est.config.odd_object_weight == 0.0 and not est.config.use_width
+        assert est.config.reference == "contact"
+    assert cfg.options("paper").keys() == {"adjustment"} and cfg.options("flat") == {}
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("odd_object_weight=0", ("odd_object_weight", 0.0)),
+        (" size_learning = Yes ", ("size_learning", True)),
+        ("use_width=0", ("use_width", False)),
+        ("size_evidence_time_s=none", ("size_evidence_time_s", None)),
+        ("box_sigma_px=1e-1", ("box_sigma_px", 0.1)),
+    ],
+)
+def test_parse_ours_option(text: str, expected: tuple) -> None:
+    assert parse_option(text) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("bogus=1", "choose from .*odd_object_weight"),
+        ("priors=x", "not an ours option settable here"),
+        ("box_sigma_px=inf", "'inf' is not a float"),
+        ("min_iou=1.5", r"min_iou must be in \[0, 1\]"),
+        ("=3", "is not KEY=VALUE"),
+    ],
+)
+def test_bad_ours_options_are_configuration_errors(text: str, message: str) -> None:
+    with pytest.raises(ConfigurationError, match=message):
+        parse_option(text)
+
+
+@given(st.text(max_size=40))
+def test_parse_ours_option_gives_a_value_or_a_configuration_error(text: str) -> None:
+    try:
+        key, _ = parse_option(text)
+    except ConfigurationError:
+        return
+    assert key in settable_options()

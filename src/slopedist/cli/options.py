@@ -20,6 +20,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.estimators.ours.config import parse_option
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.learned_peer import PEER_METHOD
 
@@ -108,6 +109,25 @@ reference_option = click.option(
 )
 
 
+ours_option = click.option(
+    "--ours-option",
+    "ours_options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="ours, ours-selfcal: set one of its options, e.g. odd_object_weight=0 or "
+    "size_learning=true (repeatable; docs/method.md lists them).",
+)
+
+
+def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:
+    """``--ours-option KEY=VALUE`` values as ``(name, value)`` pairs (usage errors name the
+    option)."""
+    try:
+        return tuple(parse_option(text) for text in texts)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--ours-option") from None
+
+
 def parse_triple(value: str, name: str) -> tuple[float, float, float]:
     """Parse ``"a,b,c"`` into three floats or fail with a usage error naming ``name``."""
     parts = split_list(value) or []
@@ -130,6 +150,7 @@ def estimator_config(
     depth_scaling: str = DepthScaling.NONE.value,
     method: str | None = None,
     reference: str | None = None,
+    ours_options: tuple[tuple[str, Any], ...] = (),
 ) -> EstimatorConfig:
     """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
     errors name the option)."""
@@ -147,6 +168,7 @@ def estimator_config(
             depth_window_px=depth_window,
             depth_scaling=DepthScaling(depth_scaling),
             reference=reference,
+            ours_options=ours_options,
         )
         return config if method is None else config.with_method(method)
     except ConfigurationError as exc:
@@ -196,7 +218,12 @@ def estimator_options(
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
         def wrapper(
-            *args: Any, alphas: str, thresholds: str, reference: str | None, **kwargs: Any
+            *args: Any,
+            alphas: str,
+            thresholds: str,
+            reference: str | None,
+            ours_options: tuple[str, ...],
+            **kwargs: Any,
         ) -> Any:
             depth_values = {
                 k: kwargs.pop(k)
@@ -204,11 +231,15 @@ def estimator_options(
                 if k in kwargs
             }
             kwargs["estimator_config"] = estimator_config(
-                alphas, thresholds, **depth_values, reference=reference
+                alphas,
+                thresholds,
+                **depth_values,
+                reference=reference,
+                ours_options=parse_ours_options(ours_options),
             )
             return command(*args, **kwargs)
 
-        options = (alphas_option, thresholds_option, reference_option) + (
+        options = (alphas_option, thresholds_option, reference_option, ours_option) + (
             _DEPTHMAP_OPTIONS if depth else ()
         )
         return _apply(options, wrapper)

@@ -125,6 +125,9 @@ class EstimatorConfig:
         depth_scaling: per-frame median scaling of scale-less depth (``depthmap``).
         reference: the point of the vehicle ``ours`` reports (``centre``, ``nearest_face``,
             ``contact``; None: its default, the centre).
+        ours_options: ``(name, value)`` settings of ``ours`` and ``ours-selfcal``
+            (:class:`~slopedist.estimators.ours.config.OursConfig` fields, e.g. from
+            ``--ours-option``, :func:`~slopedist.estimators.ours.config.parse_option`).
 
     Raises:
         ConfigurationError: an unknown method, thresholds that do not decrease, an unknown
@@ -138,6 +141,7 @@ class EstimatorConfig:
     depth_window_px: int = 5
     depth_scaling: DepthScaling = DepthScaling.NONE
     reference: str | None = None
+    ours_options: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "method", _method_name(self.method))
@@ -170,7 +174,8 @@ class EstimatorConfig:
                 "scaling": self.depth_scaling,
             }
         if isinstance(factory, type) and issubclass(factory, OursEstimator):
-            return {} if self.reference is None else {"reference": self.reference}
+            ours = dict(self.ours_options)
+            return ours if self.reference is None else ours | {"reference": self.reference}
         return {}
 
     def method_options(self, methods: Iterable[str]) -> dict[str, dict[str, Any]]:

@@ -7,7 +7,7 @@ Convention: camera x right, y down, z forward; metres, seconds, radians, pixels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours import filter as kf
@@ -232,3 +232,68 @@ class OursConfig:
             or self.adapt_box_noise
             or self.size_learning
         )
+
+
+def _parse_bool(text: str) -> bool:
+    """``true/false``, ``yes/no``, ``on/off``, ``1/0`` (any case)."""
+    value = text.strip().lower()
+    if value in ("true", "yes", "on", "1"):
+        return True
+    if value in ("false", "no", "off", "0"):
+        return False
+    raise ValueError(text)
+
+
+def _parse_float(text: str) -> float:
+    """A finite number."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(text)
+    return value
+
+
+def _parse_optional_float(text: str) -> float | None:
+    """A finite number, or ``none`` for None."""
+    return None if text.strip().lower() == "none" else _parse_float(text)
+
+
+_OPTION_PARSERS = {
+    "bool": _parse_bool,
+    "float": _parse_float,
+    "float | None": _parse_optional_float,
+}
+"""How a ``KEY=VALUE`` text becomes each settable kind of :class:`OursConfig` field (by its
+annotation); fields of other kinds (priors, mixtures, nested settings, and ``reference`` and
+``generic_classes``, which have options of their own) are not set this way."""
+
+
+def settable_options() -> list[str]:
+    """The :class:`OursConfig` fields :func:`parse_option` sets (sorted)."""
+    return sorted(f.name for f in fields(OursConfig) if str(f.type) in _OPTION_PARSERS)
+
+
+def parse_option(text: str) -> tuple[str, bool | float | None]:
+    """``KEY=VALUE`` (e.g. ``odd_object_weight=0``, ``size_learning=true``) as an
+    :class:`OursConfig` field and its value; the value is checked with the whole
+    configuration's rules (:meth:`OursConfig.__post_init__`).
+
+    Raises:
+        ConfigurationError: not ``KEY=VALUE``, a key that is no settable field (the message
+            lists them), or a value of the wrong kind or out of range.
+    """
+    key, sep, value = (part.strip() for part in text.partition("="))
+    if not sep or not key:
+        raise ConfigurationError(f"'{text}' is not KEY=VALUE")
+    kinds = {f.name: str(f.type) for f in fields(OursConfig)}
+    parser = _OPTION_PARSERS.get(kinds.get(key, ""))
+    if parser is None:
+        raise ConfigurationError(
+            f"'{key}' is not an ours option settable here; choose from "
+            f"{', '.join(settable_options())}"
+        )
+    try:
+        parsed = parser(value)
+    except ValueError:
+        raise ConfigurationError(f"ours option {key}: '{value}' is not a {kinds[key]}") from None
+    OursConfig(**{key: parsed})  # type: ignore[arg-type]  # the range checks
+    return key, parsed
