@@ -304,7 +304,7 @@ def _collapse(
     n = fused.mean.shape[0]
     measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
     by_mode = weights.reshape(n, n_modes, -1)
-    heading_weights = by_mode.sum(axis=1) if n_modes > 1 else weights
+    heading_weights = np.add.reduce(by_mode, axis=1) if n_modes > 1 else weights
     size_mix = fusion.mix_hypotheses(size_cue, weights)
     width_mean = size.width.mean
     if most_likely_mode and n_modes > 1:
@@ -317,7 +317,7 @@ def _collapse(
         measurement = fusion.widen_to_mixture(fused, w_best, weights)
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
-    gap = np.full(n, np.nan)
+    gap = filled(n, np.nan)
     ground_mix = None
     if ground is not None:  # per heading (the same in every size mode), or per hypothesis
         by_heading = ground.mean.shape[1] == heading_weights.shape[1]
@@ -334,7 +334,7 @@ def _collapse(
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
         ground_mix,
-        by_mode[:, odd_mode].sum(axis=1) if odd_mode is not None else np.zeros(n),
+        np.add.reduce(by_mode[:, odd_mode], axis=1) if odd_mode is not None else np.zeros(n),
     )
 
 
@@ -460,7 +460,7 @@ def _gradient_prior(
     kept = rows[old] >= 0 if not every_old else rows >= 0
     if every_old and all_true(kept):
         return mean_old, np.minimum(var_old, 1e6)
-    mean, var = np.zeros(rows.shape), np.full(rows.shape, 1e6)
+    mean, var = np.zeros(rows.shape), filled(rows.shape[0], 1e6)
     idx = np.flatnonzero(old)[kept]
     mean[idx] = mean_old[kept]
     var[idx] = np.minimum(var_old[kept], 1e6)

@@ -21,15 +21,20 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
+try:  # numpy's C count (np.count_nonzero without its Python wrapper: a third of the cost)
+    from numpy._core.multiarray import count_nonzero as _count_nonzero
+except ImportError:  # numpy < 2
+    from numpy.core.multiarray import count_nonzero as _count_nonzero  # type: ignore[no-redef]
+
 
 def all_true(mask: NDArray[np.bool_]) -> bool:
     """``mask.all()`` for the small arrays of one frame (counting is cheaper than reducing)."""
-    return bool(np.count_nonzero(mask) == mask.size)
+    return bool(_count_nonzero(mask) == mask.size)
 
 
 def any_true(mask: NDArray[np.bool_]) -> bool:
     """``mask.any()`` for the small arrays of one frame."""
-    return bool(np.count_nonzero(mask))
+    return bool(_count_nonzero(mask))
 
 
 class LogCue(NamedTuple):
