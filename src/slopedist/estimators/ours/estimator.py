@@ -35,7 +35,13 @@ from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
-from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
+from slopedist.estimators.base import (
+    EstimateStatus,
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    ReferencePoint,
+)
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
 from slopedist.estimators.ours.border import (
@@ -96,6 +102,9 @@ nearest face: the same longitudinal distance as the nearest face)."""
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
+
+_NO_COLUMN = np.zeros(0, dtype=object)
+"""An empty status column: :class:`FrameEstimates` derives the statuses from the reasons."""
 
 
 class OursEstimator(Estimator):
@@ -232,14 +241,19 @@ class OursEstimator(Estimator):
             reason=reasons,
             reference=object_column(self._reference.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
+            # every box usable: every status ok (what FrameEstimates would derive, cheaper)
+            status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
+            cut=object_column("", n),
         )
-        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        half_extent = None
+        if self._reference is not ReferencePoint.CENTRE:  # before the border cuts settle
+            half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and good.size:
             cut = np.zeros((n, 4), dtype=bool)
             cut[good] = self._border.cut_edges(boxes[good])
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
         est.extra["distance_centre_m"] = est.distance_m.copy()
-        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
+        if half_extent is not None:  # the nearest face (or its foot)
             est.distance_m -= half_extent
         return est
 
