@@ -356,7 +356,9 @@ class OursEstimator(Estimator):
         classes = self._classes.gather(table.cls if all_good else table.cls[good])
         border_cuts = self._border.cuts(boxes)
         n_hyp = classes.hypotheses.half_extent_m.shape[1]
-        left, top, right, bottom = np.repeat(boxes.T[:, :, None], n_hyp, axis=2)
+        edges = np.empty((4, boxes.shape[0], n_hyp))  # each edge over the hypotheses
+        edges[:] = boxes.T[:, :, None]
+        left, top, right, bottom = edges
         return FrameTargets(
             boxes,
             ids,

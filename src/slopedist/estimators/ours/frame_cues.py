@@ -275,7 +275,8 @@ _Cue = TypeVar("_Cue", LogCue, SizeCue)
 
 def _over_modes(cue: _Cue) -> _Cue:
     """A cue's ``(n, K)`` fields as ``(n, 1, K)``, to broadcast over the size modes."""
-    return type(cue)(*(a[:, None] for a in cue))
+    a, b, c, d = cue
+    return type(cue)(a[:, None], b[:, None], c[:, None], d[:, None])
 
 
 def _collapse(
