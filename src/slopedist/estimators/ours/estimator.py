@@ -146,10 +146,14 @@ class OursEstimator(Estimator):
         self._theta_rest = float(
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
-        self._classes = ClassTable(
-            config.priors, grid, tuple(config.generic_classes), config.type_mixture
-        )
         self._size_modes = [m for m, _ in config.size_modes]
+        self._classes = ClassTable(
+            config.priors,
+            grid,
+            tuple(config.generic_classes),
+            config.type_mixture,
+            len(self._size_modes),
+        )
         self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
         self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
         n_modes = len(self._size_modes)
