@@ -158,12 +158,13 @@ class ClassTable:
 
     def _build(self) -> None:
         """Scalars ``(rows, 10)``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; planes
-        ``(13, rows, n_modes·K)`` in the order of :class:`HypothesisConstants`; with generic classes
-        also the type planes ``(13, rows, T·K)``, type-major."""
+        ``(13, rows, n_modes·K)`` in the order of :class:`HypothesisConstants`; with generic
+        classes also the type planes ``(13, rows, T·K)``, type-major."""
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
         self._scalars = np.concatenate([a, a[:, 3:6] / a[:, 0:3]], axis=1)
-        planes = self._planes_of(a)
-        self._planes = np.tile(planes, self._n_modes) if self._n_modes > 1 else planes
+        self._planes = self._planes_of(a)
+        if self._n_modes > 1:
+            self._planes = np.tile(self._planes, self._n_modes)
         self._generic = np.array(self._generic_rows, dtype=bool)
         if self._generic_names:
             n_types = len(self._mixture)

@@ -46,6 +46,7 @@ from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
+    border_cuts_of,
     boxes_all_usable,
     settle_border_cuts,
     usable_box_range,
@@ -230,8 +231,12 @@ class OursEstimator(Estimator):
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
+        edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            box_values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+            edges = self._border.cut_edges(boxes if all_usable else boxes[good])
+            box_values = self._estimate_boxes(
+                frame, good, all_usable, theta_f, jitter, calib, edges
+            )
             values = {k: v for k, v in box_values._asdict().items() if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
@@ -252,9 +257,11 @@ class OursEstimator(Estimator):
         half_extent = None
         if self._reference is not ReferencePoint.CENTRE:  # before the border cuts settle
             half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
-        if self._border.known_size is not None and good.size:
-            cut = np.zeros((n, 4), dtype=bool)
-            cut[good] = self._border.cut_edges(boxes[good])
+        if self._border.known_size is not None and edges is not None:
+            cut = edges
+            if not all_usable:
+                cut = np.zeros((n, 4), dtype=bool)
+                cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
         est.extra["distance_centre_m"] = est.distance_m.copy()
         if half_extent is not None:  # the nearest face (or its foot)
@@ -275,17 +282,20 @@ class OursEstimator(Estimator):
         theta_rad: float,
         jitter_rad: float,
         calib: CalibrationInUse,
+        cut_edges: NDArray[np.bool_],
     ) -> BoxEstimates:
         """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates).
 
         ``theta_rad`` is the ego gradient θ plus the calibration's horizon offset, ``jitter_rad``
-        its per-frame noise. Per (target, heading hypothesis) quantities are ``(n, K)`` arrays;
-        the class constants come as such planes from one gather (:class:`ClassTable`), so that
-        the arithmetic of a frame's few targets never broadcasts.
+        its per-frame noise; ``cut_edges`` ``(len(good), 4)``: the boxes' edges the image border
+        cuts (:meth:`~slopedist.estimators.ours.border.ImageBorder.cut_edges`). Per (target,
+        hypothesis) quantities are ``(n, K)`` arrays (``(n, M·K)`` over ``M`` size modes or
+        vehicle types); the class constants come as such planes from one gather
+        (:class:`ClassTable`), so that the arithmetic of a frame's few targets never broadcasts.
         """
         cfg = self.config
         cam = self.camera
-        targets = self._frame_targets(frame, good, all_good)
+        targets = self._frame_targets(frame, good, all_good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
         if cfg.size_learning:  # the tracks' own sizes in the class constants
@@ -351,14 +361,18 @@ class OursEstimator(Estimator):
     # -- the steps of a frame, in order -----------------------------------------------------
 
     def _frame_targets(
-        self, frame: FrameInput, good: NDArray[np.intp], all_good: bool
+        self,
+        frame: FrameInput,
+        good: NDArray[np.intp],
+        all_good: bool,
+        cut_edges: NDArray[np.bool_],
     ) -> FrameTargets:
-        """The usable boxes, their class constants, edges and border cuts."""
+        """The usable boxes, their class constants, edges and border cuts (``cut_edges``)."""
         table = frame.boxes
         boxes = table.boxes if all_good else table.boxes[good]
         ids = table.track_id if all_good else table.track_id[good]
         classes = self._classes.gather(table.cls if all_good else table.cls[good])
-        border_cuts = self._border.cuts(boxes)
+        border_cuts = border_cuts_of(cut_edges)
         n_hyp = classes.hypotheses.half_extent_m.shape[1]
         edges = np.empty((4, boxes.shape[0], n_hyp))  # each edge over the hypotheses
         edges[:] = boxes.T[:, :, None]
