@@ -14,7 +14,7 @@ from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import make_estimator
-from slopedist.estimators.ours.border import ImageBorder
+from slopedist.estimators.ours.border import ImageBorder, border_cuts_of
 from slopedist.pipeline import FrameStep
 
 W, H = 1240, 375
@@ -124,3 +124,15 @@ def test_the_reference_option_chooses_the_main_column() -> None:
     assert face.status[1] == "upper_bound" and face.distance_m[1] < centre.distance_m[1]
     with pytest.raises(ConfigurationError, match="reference must be one of"):
         make_estimator("ours", CAMERA, reference="box_centre_pixel")
+
+
+def test_border_cuts_of_the_cut_edges() -> None:
+    """The (side, top, bottom) flags of the cut edges (left, top, right, bottom); None when no
+    box is cut."""
+    edges = np.array([[False, False, True, False], [False, True, False, True], [False] * 4])
+    cuts = border_cuts_of(edges)
+    assert cuts is not None
+    assert cuts.sides.tolist() == [True, False, False]
+    assert cuts.top.tolist() == [False, True, False]
+    assert cuts.bottom.tolist() == [False, True, False]
+    assert border_cuts_of(np.zeros((2, 4), dtype=bool)) is None

@@ -85,13 +85,13 @@ def test_without_tracks_each_frame_stands_alone() -> None:
 
 def test_mode_spreads() -> None:
     """Per mode: the class's spreads, the height's times the atypical factor, both at least
-    the odd object's floor."""
+    the odd object's floor (the class's spreads come repeated over the modes, mode-major)."""
     sh, sw = np.array([[0.08, 0.2]]), np.array([[0.06, 0.7]])
     modes = [SizeMode(), SizeMode(height_factor=3.0), SizeMode(log_sigma_floor=0.5)]
-    h, w = mode_spreads(modes, sh, sw)
-    assert h.shape == w.shape == (1, 3, 2)
-    assert np.allclose(h[0], [[0.08, 0.2], [0.24, 0.6], [0.5, 0.5]])
-    assert np.allclose(w[0], [[0.06, 0.7], [0.06, 0.7], [0.5, 0.7]])
+    h, w = mode_spreads(modes, np.tile(sh, 3), np.tile(sw, 3))
+    assert h.shape == w.shape == (1, 6)
+    assert np.allclose(h[0], [0.08, 0.2, 0.24, 0.6, 0.5, 0.5])
+    assert np.allclose(w[0], [0.06, 0.7, 0.06, 0.7, 0.5, 0.7])
     one_h, one_w = mode_spreads(modes[2:], sh, sw)
     assert np.allclose(one_h, [[0.5, 0.5]]) and np.allclose(one_w, [[0.5, 0.7]])
     assert modes[2].odd and not modes[1].odd

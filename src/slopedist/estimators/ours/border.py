@@ -54,14 +54,6 @@ class ImageBorder:
         """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?"""
         return border_cuts(boxes, self.known_size or self._seen_size(boxes))
 
-    def cuts(self, boxes: FloatArray) -> BorderCuts | None:
-        """Boxes ``(n, 4)`` cut by the border: (left or right, top, bottom) flags, or None
-        when no box is."""
-        cut = self.cut_edges(boxes)
-        if not any_true(cut):
-            return None
-        return BorderCuts(cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3])
-
     def _seen_size(self, boxes: FloatArray) -> tuple[float, float]:
         """The image size as far as the boxes show it (inf while unknown)."""
         cam = self._camera
@@ -71,6 +63,14 @@ class ImageBorder:
         right = self._max_right if self._max_right >= 2 * cam.c_x else math.inf
         bottom = self._max_bottom if self._max_bottom >= 2 * cam.c_y else math.inf
         return right + 1.0, bottom + 1.0
+
+
+def border_cuts_of(cut: NDArray[np.bool_]) -> BorderCuts | None:
+    """The (left or right, top, bottom) flags of boxes whose edges ``cut`` ``(n, 4)``
+    (:meth:`ImageBorder.cut_edges`) the border cuts, or None when no box is cut."""
+    if not any_true(cut):
+        return None
+    return BorderCuts(cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3])
 
 
 def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:

@@ -28,7 +28,8 @@ MIN_NEAR_M = 0.5
 
 
 class HypothesisConstants(NamedTuple):
-    """Class constants per (target, heading hypothesis), each ``(n, K)``.
+    """Class constants per (target, heading hypothesis), each ``(n, K)``, or ``(n, M·K)``
+    when repeated over ``M`` size modes (mode-major; the same constants in every mode).
 
     Attributes:
         half_extent_m: the footprint's half depth extent e (centre to nearest face along z).
@@ -88,6 +89,10 @@ class ClassTable:
         generic_classes: class names that do not name the vehicle type (a class-blind
             detector's one class): their targets are read under ``type_mixture``.
         type_mixture: ``(name, prior, weight)`` per vehicle type.
+        n_modes: the size modes (:class:`~slopedist.estimators.ours.fusion.SizeMode`) a
+            specific class's hypotheses are repeated over: its planes are ``(n, n_modes·K)``,
+            so that the cues of every mode are computed as arrays of one shape (a generic
+            class's vehicle types take the modes' place).
     """
 
     def __init__(
@@ -96,8 +101,10 @@ class ClassTable:
         yaw_rad: FloatArray,
         generic_classes: tuple[str, ...] = (),
         type_mixture: TypeMixture = VEHICLE_TYPE_MIXTURE,
+        n_modes: int = 1,
     ) -> None:
         self._priors = priors
+        self._n_modes = n_modes
         self._yaw = yaw_rad
         self._generic_names = frozenset(generic_classes)
         self._mixture = type_mixture
@@ -151,11 +158,13 @@ class ClassTable:
 
     def _build(self) -> None:
         """Scalars ``(rows, 10)``: H, W, L, σH, σW, σL, corr_hw, σH/H, σW/W, σL/L; planes
-        ``(13, rows, K)`` in the order of :class:`HypothesisConstants`; with generic classes
-        also the type planes ``(13, rows, T·K)``, type-major."""
+        ``(13, rows, n_modes·K)`` in the order of :class:`HypothesisConstants`; with generic
+        classes also the type planes ``(13, rows, T·K)``, type-major."""
         a = np.asarray(self._rows, dtype=float).reshape(-1, 7)
         self._scalars = np.concatenate([a, a[:, 3:6] / a[:, 0:3]], axis=1)
         self._planes = self._planes_of(a)
+        if self._n_modes > 1:
+            self._planes = np.tile(self._planes, self._n_modes)
         self._generic = np.array(self._generic_rows, dtype=bool)
         if self._generic_names:
             n_types = len(self._mixture)

@@ -35,11 +35,18 @@ from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import box_problems
 from slopedist.errors import ConfigurationError
-from slopedist.estimators.base import Estimator, FrameEstimates, FrameInput, ReferencePoint
+from slopedist.estimators.base import (
+    EstimateStatus,
+    Estimator,
+    FrameEstimates,
+    FrameInput,
+    ReferencePoint,
+)
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
+    border_cuts_of,
     boxes_all_usable,
     settle_border_cuts,
     usable_box_range,
@@ -97,6 +104,9 @@ nearest face: the same longitudinal distance as the nearest face)."""
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
 
+_NO_COLUMN = np.zeros(0, dtype=object)
+"""An empty status column: :class:`FrameEstimates` derives the statuses from the reasons."""
+
 
 class OursEstimator(Estimator):
     """slopedist's own estimator; see the module docstring.
@@ -137,10 +147,14 @@ class OursEstimator(Estimator):
         self._theta_rest = float(
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
-        self._classes = ClassTable(
-            config.priors, grid, tuple(config.generic_classes), config.type_mixture
-        )
         self._size_modes = [m for m, _ in config.size_modes]
+        self._classes = ClassTable(
+            config.priors,
+            grid,
+            tuple(config.generic_classes),
+            config.type_mixture,
+            len(self._size_modes),
+        )
         self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
         self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
         n_modes = len(self._size_modes)
@@ -217,8 +231,12 @@ class OursEstimator(Estimator):
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
+        edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            box_values = self._estimate_boxes(frame, good, all_usable, theta_f, jitter, calib)
+            edges = self._border.cut_edges(boxes if all_usable else boxes[good])
+            box_values = self._estimate_boxes(
+                frame, good, all_usable, theta_f, jitter, calib, edges
+            )
             values = {k: v for k, v in box_values._asdict().items() if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
@@ -232,14 +250,21 @@ class OursEstimator(Estimator):
             reason=reasons,
             reference=object_column(self._reference.value, n),
             extra={k: out[k] for k in EXTRA_COLUMNS},
+            # every box usable: every status ok (what FrameEstimates would derive, cheaper)
+            status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
+            cut=object_column("", n),
         )
-        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
-        if self._border.known_size is not None and good.size:
-            cut = np.zeros((n, 4), dtype=bool)
-            cut[good] = self._border.cut_edges(boxes[good])
+        half_extent = None
+        if self._reference is not ReferencePoint.CENTRE:  # before the border cuts settle
+            half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        if self._border.known_size is not None and edges is not None:
+            cut = edges
+            if not all_usable:
+                cut = np.zeros((n, 4), dtype=bool)
+                cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
         est.extra["distance_centre_m"] = est.distance_m.copy()
-        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
+        if half_extent is not None:  # the nearest face (or its foot)
             est.distance_m -= half_extent
         return est
 
@@ -257,17 +282,20 @@ class OursEstimator(Estimator):
         theta_rad: float,
         jitter_rad: float,
         calib: CalibrationInUse,
+        cut_edges: NDArray[np.bool_],
     ) -> BoxEstimates:
         """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates).
 
         ``theta_rad`` is the ego gradient θ plus the calibration's horizon offset, ``jitter_rad``
-        its per-frame noise. Per (target, heading hypothesis) quantities are ``(n, K)`` arrays;
-        the class constants come as such planes from one gather (:class:`ClassTable`), so that
-        the arithmetic of a frame's few targets never broadcasts.
+        its per-frame noise; ``cut_edges`` ``(len(good), 4)``: the boxes' edges the image border
+        cuts (:meth:`~slopedist.estimators.ours.border.ImageBorder.cut_edges`). Per (target,
+        hypothesis) quantities are ``(n, K)`` arrays (``(n, M·K)`` over ``M`` size modes or
+        vehicle types); the class constants come as such planes from one gather
+        (:class:`ClassTable`), so that the arithmetic of a frame's few targets never broadcasts.
         """
         cfg = self.config
         cam = self.camera
-        targets = self._frame_targets(frame, good, all_good)
+        targets = self._frame_targets(frame, good, all_good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
         if cfg.size_learning:  # the tracks' own sizes in the class constants
@@ -333,16 +361,22 @@ class OursEstimator(Estimator):
     # -- the steps of a frame, in order -----------------------------------------------------
 
     def _frame_targets(
-        self, frame: FrameInput, good: NDArray[np.intp], all_good: bool
+        self,
+        frame: FrameInput,
+        good: NDArray[np.intp],
+        all_good: bool,
+        cut_edges: NDArray[np.bool_],
     ) -> FrameTargets:
-        """The usable boxes, their class constants, edges and border cuts."""
+        """The usable boxes, their class constants, edges and border cuts (``cut_edges``)."""
         table = frame.boxes
         boxes = table.boxes if all_good else table.boxes[good]
         ids = table.track_id if all_good else table.track_id[good]
         classes = self._classes.gather(table.cls if all_good else table.cls[good])
-        border_cuts = self._border.cuts(boxes)
+        border_cuts = border_cuts_of(cut_edges)
         n_hyp = classes.hypotheses.half_extent_m.shape[1]
-        left, top, right, bottom = np.repeat(boxes.T[:, :, None], n_hyp, axis=2)
+        edges = np.empty((4, boxes.shape[0], n_hyp))  # each edge over the hypotheses
+        edges[:] = boxes.T[:, :, None]
+        left, top, right, bottom = edges
         return FrameTargets(
             boxes,
             ids,

@@ -10,7 +10,6 @@ OursEstimator`. Camera frame x right, y down, z forward; distances in metres, lo
 from __future__ import annotations
 
 import math
-from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,7 +17,6 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours.class_table import HypothesisConstants
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
@@ -213,6 +211,9 @@ def fuse_hypotheses(
     target's class is generic, the vehicle types × headings the cues were computed for),
     censor by the bounds, and collapse the hypotheses by their posterior weights.
 
+    The targets' class constants, and so the cues, are ``(n, modes·K)``: repeated over the size
+    modes (mode-major, :class:`~slopedist.estimators.ours.class_table.ClassTable`'s
+    ``n_modes``) for a specific class, over the vehicle types for a generic one.
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``size_modes``: how each mode
     widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.SizeMode`);
     ``gate_sigma``: the cue consistency check's threshold
@@ -221,65 +222,38 @@ def fuse_hypotheses(
     hyp = targets.classes.hypotheses
     type_weight = targets.classes.type_log_weight
     modes = size_modes if type_weight is None else size_modes[:1]
-    if len(modes) > 1:  # (n, modes, K): the cues shared by the modes broadcast over them
-        size_cue, fused = _fuse_by_mode(size, ground, modes, hyp)
-    else:
-        spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
-        if modes[0] != SizeMode():
-            spreads = fusion.mode_spreads(modes, *spreads)
-        size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
-        fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
-        for bound, bound_var, rows_cut in size.bounds:
-            fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
+    spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
+    if len(modes) > 1 or modes[0] != SizeMode():
+        spreads = fusion.mode_spreads(modes, *spreads)
+    size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
+    fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
+    for bound, bound_var, rows_cut in size.bounds:
+        fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
+    extent, width_mean = hyp.half_extent_m, size.width.mean
+    if len(modes) > 1:  # what every mode shares, per heading: the first mode's columns
+        k = extent.shape[1] // len(modes)
+        extent, width_mean = extent[:, :k], width_mean[:, :k]
+        if ground is not None:
+            ground = LogCue(
+                ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
+            )
     odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
     return _collapse(
-        size,
+        width_mean,
         size_cue,
         fused,
         ground,
         len(modes) if type_weight is None else type_weight.shape[1],
         log_prior,
-        hyp.half_extent_m,
+        extent,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
         odd_mode=odd_mode,
     )
 
 
-def _fuse_by_mode(
-    size: SizeCues, ground: LogCue | None, modes: list[SizeMode], hyp: HypothesisConstants
-) -> tuple[LogCue, LogCue]:
-    """The size cues and the fused cues of every size mode, ``(n, modes·K)`` (mode-major):
-    computed as ``(n, modes, K)`` arrays, the cues that do not depend on the mode (height,
-    width, ground contact, bounds) broadcast over the modes' axis."""
-    n = hyp.half_extent_m.shape[0]
-    sigma_h, sigma_w = fusion.mode_spreads(modes, hyp.log_sigma_height, hyp.log_sigma_width)
-    size_cue = fusion.fuse_size_cues(
-        _over_modes(size.height),
-        _over_modes(size.width),
-        sigma_h,
-        sigma_w,
-        hyp.corr_height_width[:, None],
-    )
-    fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, _over_modes(ground))
-    for bound, bound_var, rows_cut in size.bounds:
-        fused = fusion.censor_upper(fused, bound[:, None], bound_var[:, None], rows_cut[:, None])
-    return (
-        LogCue(*(a.reshape(n, -1) for a in size_cue)),
-        LogCue(*(a.reshape(n, -1) for a in fused)),
-    )
-
-
-_Cue = TypeVar("_Cue", LogCue, SizeCue)
-
-
-def _over_modes(cue: _Cue) -> _Cue:
-    """A cue's ``(n, K)`` fields as ``(n, 1, K)``, to broadcast over the size modes."""
-    return type(cue)(*(a[:, None] for a in cue))
-
-
 def _collapse(
-    size: SizeCues,
+    width_mean: FloatArray,
     size_cue: LogCue,
     fused: LogCue,
     ground: LogCue | None,
@@ -291,8 +265,9 @@ def _collapse(
     odd_mode: int | None = None,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
-    posterior weights (``extent``: the half depth extent, m, and ``ground``: the ground
-    contact, each per hypothesis or, when the same in every mode, per heading ``(n, K)``;
+    posterior weights (``extent``: the half depth extent, m, ``ground``: the ground contact and
+    ``width_mean``: the width cue's ℓ, each per hypothesis or, when the same in every mode, per
+    heading ``(n, K)``;
     ``odd_mode``: the index of the odd-object mode, whose posterior weight is reported, if
     there is one).
 
@@ -304,9 +279,8 @@ def _collapse(
     n = fused.mean.shape[0]
     measurement, weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)
     by_mode = weights.reshape(n, n_modes, -1)
-    heading_weights = by_mode.sum(axis=1) if n_modes > 1 else weights
+    heading_weights = np.add.reduce(by_mode, axis=1) if n_modes > 1 else weights
     size_mix = fusion.mix_hypotheses(size_cue, weights)
-    width_mean = size.width.mean
     if most_likely_mode and n_modes > 1:
         rows = np.arange(n)
         best = by_mode.sum(axis=2).argmax(axis=1)
@@ -317,7 +291,7 @@ def _collapse(
         measurement = fusion.widen_to_mixture(fused, w_best, weights)
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
-    gap = np.full(n, np.nan)
+    gap = filled(n, np.nan)
     ground_mix = None
     if ground is not None:  # per heading (the same in every size mode), or per hypothesis
         by_heading = ground.mean.shape[1] == heading_weights.shape[1]
@@ -334,7 +308,7 @@ def _collapse(
         np.add.reduce(heading_weights * width_mean, axis=1),
         gap,
         ground_mix,
-        by_mode[:, odd_mode].sum(axis=1) if odd_mode is not None else np.zeros(n),
+        np.add.reduce(by_mode[:, odd_mode], axis=1) if odd_mode is not None else np.zeros(n),
     )
 
 
@@ -460,7 +434,7 @@ def _gradient_prior(
     kept = rows[old] >= 0 if not every_old else rows >= 0
     if every_old and all_true(kept):
         return mean_old, np.minimum(var_old, 1e6)
-    mean, var = np.zeros(rows.shape), np.full(rows.shape, 1e6)
+    mean, var = np.zeros(rows.shape), filled(rows.shape[0], 1e6)
     idx = np.flatnonzero(old)[kept]
     mean[idx] = mean_old[kept]
     var[idx] = np.minimum(var_old[kept], 1e6)

@@ -38,6 +38,8 @@ BoolArray = NDArray[np.bool_]
 def carried_evidence(match: TrackMatch) -> FloatArray:
     """``(n,)`` each target's odd-object evidence from its track's past frames (0 for a target
     that starts a track)."""
+    if match.all_continued:
+        return match.continued_state[ROW_ODD].copy()
     evidence = np.zeros(match.rows.shape[0])
     if match.continued_rows.size:
         evidence[match.continued] = match.continued_state[ROW_ODD]
