@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 import multiprocessing
-import os
 import re
 import time
 from collections.abc import Callable, Iterator
@@ -64,6 +63,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import causal_methods
 from slopedist.estimators.base import MissingReason
 from slopedist.evaluation import ScoredSet, pool_methods
+from slopedist.io.prefetch import usable_cores
 from slopedist.io.tables import write_csv, write_json
 from slopedist.tables import Table, format_texts
 
@@ -224,7 +224,7 @@ def demo_jobs(cfg: DemoConfig) -> int:
     """Scenarios run at once (:attr:`DemoConfig.jobs`; None: usable cores, ≤ scenarios)."""
     if cfg.jobs is not None:
         return min(cfg.jobs, len(cfg.scenarios))
-    return max(1, min(len(os.sched_getaffinity(0)), len(cfg.scenarios)))
+    return max(1, min(usable_cores(), len(cfg.scenarios)))
 
 
 def _scenario_runs(
