@@ -96,7 +96,7 @@ def gradient_energy(image: NDArray[np.uint8], small: NDArray[np.uint8] | None = 
     return square_sum / max(grey_std**2, 1.0)
 
 
-def mean_std(values: NDArray[np.integer] | NDArray[np.floating]) -> tuple[float, float]:
+def mean_std(values: NDArray[np.integer | np.floating]) -> tuple[float, float]:
     """Mean and standard deviation of integer-valued ``values`` exactly as ``cv2.meanStdDev``
     gives them (its formulas on the exact sum and sum of squares), without its slow int16
     path (the sums are exact while below 2⁵³)."""
