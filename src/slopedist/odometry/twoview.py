@@ -228,46 +228,86 @@ def sampson_residuals(R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArr
     return e / np.sqrt(D)
 
 
-def _cross_into(out: FloatArray, a: FloatArray, b: FloatArray) -> None:
-    """``out = a × b`` row-wise for ``(N, 3)`` arrays whose last column ``b[:, 2]`` is 1
-    (homogeneous coordinates; the products with that 1 are skipped, which is exact)."""
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    b0, b1 = b[:, 0], b[:, 1]
-    np.subtract(a1, a2 * b1, out=out[:, 0])
-    np.subtract(a2 * b0, a0, out=out[:, 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
+_SKEW_AXES = np.array(
+    [
+        [[0.0, 0, 0], [0, 0, -1], [0, 1, 0]],
+        [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
+        [[0, -1, 0], [1, 0, 0], [0, 0, 0]],
+    ]
+)
+"""``[e_k]ₓ`` of the three axes ``(3, 3, 3)``: ``[v]ₓ = Σ v_k [e_k]ₓ``."""
+_SKEW_AXES.flags.writeable = False
+
+_EPIPOLE_GATHER = np.array(
+    [
+        [9, 9, 9, 9],
+        [9, 9, 9, 9],
+        [9, 9, 0, 1],  # x₂₀: (Eᵀ x₂)ₖ += x₂₀ E₀ₖ
+        [9, 9, 9, 9],
+        [9, 9, 9, 9],
+        [9, 9, 3, 4],  # x₂₁
+        [0, 3, 9, 9],  # x₁₀: (E x₁)ₖ += Eₖ₀ x₁₀
+        [1, 4, 9, 9],  # x₁₁
+        [2, 5, 6, 7],  # 1 = x₁₂ = x₂₂
+    ]
+)
+"""Where the entries of ``E`` (flattened; 9: zero) go in the ``(9, 4)`` matrix that takes the
+pair products (:func:`pair_products`) to ``((E x₁)₀, (E x₁)₁, (Eᵀ x₂)₀, (Eᵀ x₂)₁)``: the
+columns ``6 + j`` of the products are ``x₁ⱼ`` and the columns ``3i + 2`` are ``x₂ᵢ``."""
+
+
+def pair_products(x1: FloatArray, x2: FloatArray) -> FloatArray:
+    """``(N, 9)`` products ``x₂ᵢ x₁ⱼ`` (column ``3i + j``) of homogeneous correspondences
+    (last columns 1): a bilinear form ``x₂ᵀ M x₁`` of every correspondence is this times ``M``
+    flattened (row-major)."""
+    return (x2[:, :, None] * x1[:, None, :]).reshape(len(x1), 9)
 
 
 def _sampson_system(
     R: FloatArray,
     t: FloatArray,
-    x1: FloatArray,
-    x2: FloatArray,
+    products: FloatArray,
     scale: float,
     redescending: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t.
+    """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t, from
+    the correspondences' :func:`pair_products`.
 
     Weights are Cauchy's, or with ``redescending`` Tukey's biweight (zero beyond
     ``TUKEY_SCALES × scale``).
 
-    Gauss–Newton with D held fixed within a step (Sampson reweighting):
-    ``∂e/∂ω = x₁ × Rᵀ(x₂ × t)`` for ``R ← R·exp(ω)``, ``∂e/∂t = R x₁ × x₂`` along the basis.
+    Gauss–Newton with D held fixed within a step (Sampson reweighting). The algebraic error
+    ``e = x₂ᵀ E x₁`` (``E = [t]ₓ R``), its derivatives ``x₂ᵀ E [e_k]ₓ x₁`` for ``R ← R·exp(ω)``
+    and ``x₂ᵀ [b_k]ₓ R x₁`` along the tangent basis ``b_k`` of t, and the four terms of D are
+    all linear in the pair products: one matrix product for every correspondence.
     """
-    a, Etx2, e, D = _sampson_terms(R, t, x1, x2)
-    inv_sqrt_D = np.sqrt(D, out=D)
-    np.divide(1.0, inv_sqrt_D, out=inv_sqrt_D)
-    r = e * inv_sqrt_D
     B = _tangent_basis(t)
-    J = np.empty((len(r), 5))
-    _cross_into(J[:, :3], Etx2, x1)  # x₁ × Etx2 = −(Etx2 × x₁)
-    np.negative(J[:, :3], out=J[:, :3])
-    ax2 = np.empty_like(a)
-    _cross_into(ax2, a, x2)
-    J[:, 3:] = ax2 @ B
-    J *= inv_sqrt_D[:, None]
+    SR = _skews(t, B) @ R  # E = [t]ₓ R, then ∂E/∂b_k = [b_k]ₓ R
+    E = SR[0].ravel()
+    M = np.empty((9, 10))
+    M[:, 0] = E
+    M[:, 1:4] = (SR[0] @ _SKEW_AXES).reshape(3, 9).T  # ∂E/∂ω_k = E [e_k]ₓ
+    M[:, 4:6] = SR[1:].reshape(2, 9).T
+    M[:, 6:] = np.concatenate((E, _ZERO))[_EPIPOLE_GATHER]
+    P = products @ M
+    D = np.einsum("ij,ij->i", P[:, 6:], P[:, 6:])
+    sqrt_D = np.sqrt(np.maximum(D, 1e-30, out=D), out=D)
+    rJ = np.divide(P[:, :6], sqrt_D[:, None])
+    r, J = rJ[:, 0], rJ[:, 1:]
     w = tukey_weights(r, TUKEY_SCALES * scale) if redescending else cauchy_weights(r, scale)
     return r, w, J, B
+
+
+_ZERO = np.zeros(1)
+_ZERO.flags.writeable = False
+
+
+def _skews(t: FloatArray, B: FloatArray) -> FloatArray:
+    """``[t]ₓ`` and ``[b_k]ₓ`` of the tangent basis' columns, ``(3, 3, 3)``."""
+    rows = []
+    for x, y, z in (t.tolist(), *B.T.tolist()):
+        rows.append([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.array(rows)
 
 
 def _tangent_basis(t: FloatArray) -> FloatArray:
@@ -350,9 +390,10 @@ def fit_relative_pose(
         t = translation_given_rotation(R, x1, x2, w)
     else:
         t = np.asarray(t_init, dtype=float) / np.linalg.norm(t_init)
+    products = pair_products(x1, x2)
     redescending = False
     for k in range(iterations + TUKEY_ITERATIONS):
-        r, w, J, B = _sampson_system(R, t, x1, x2, scale, redescending)
+        r, w, J, B = _sampson_system(R, t, products, scale, redescending)
         Jw = J * w[:, None]
         A = Jw.T @ J + _RIDGE5
         delta = -np.linalg.solve(A, Jw.T @ r)
@@ -367,7 +408,7 @@ def fit_relative_pose(
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return _failed_fit(np.asarray(R_init, dtype=float), len(x1))
     R = project_to_rotation(R)
-    r, w, J, _ = _sampson_system(R, t, x1, x2, scale, True)
+    r, w, J, _ = _sampson_system(R, t, products, scale, True)
     A = (J * w[:, None]).T @ J
     try:
         schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
