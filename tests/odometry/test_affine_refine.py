@@ -7,7 +7,12 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from slopedist.odometry.affine_refine import _inverse_hessians, refine_affine
+from slopedist.odometry.affine_refine import (
+    PRODUCT_ROWS,
+    _inverse_hessians,
+    _rows_times,
+    refine_affine,
+)
 
 W, H = 480, 320
 
@@ -133,3 +138,10 @@ def test_many_tracks_refined_at_once_are_refined_as_one_by_one() -> None:
         alone, ok_i = refine_affine(image, moved, p0[i : i + 1], p1[i : i + 1])
         assert ok_i[0] == ok[i]
         np.testing.assert_allclose(alone[0], together[i], atol=1e-3)
+
+
+def test_products_in_row_blocks_are_the_whole_product() -> None:
+    rng = np.random.default_rng(6)
+    a, b = rng.standard_normal((2 * PRODUCT_ROWS + 7, 121)), rng.standard_normal((121, 6))
+    np.testing.assert_allclose(_rows_times(a, b), a @ b, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(_rows_times(a[:5], b), a[:5] @ b, rtol=1e-12, atol=1e-12)
