@@ -103,10 +103,9 @@ def mean_std(values: NDArray[np.integer | np.floating]) -> tuple[float, float]:
     v = np.asarray(values, dtype=np.float64).ravel()
     scale = 1.0 / max(v.size, 1)
     # integers: both sums are exact in float64 (below 2⁵³), whatever the order of the additions
-    # (einsum, not a BLAS dot: OpenBLAS would spread it over threads that spin when the
-    # cores are busy)
+    # (no BLAS dot: OpenBLAS would spread it over threads that spin when the cores are busy)
     mean = float(np.add.reduce(v)) * scale
-    square_sum = float(np.einsum("i,i->", v, v))
+    square_sum = float(np.add.reduce(v * v))
     return mean, math.sqrt(max(square_sum * scale - mean * mean, 0.0))
 
 
