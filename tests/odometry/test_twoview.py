@@ -162,3 +162,12 @@ def _check_fails_cleanly(rng: np.random.Generator) -> None:
     fit = tv.fit_relative_pose(x1, x2, 700.0, R_wild, np.array([0.0, -0.96, 0.29]))
     assert fit.n_inliers <= 3
     assert np.all(np.isfinite(fit.R))
+
+
+def test_solve_small_is_numpys_solve_and_refuses_a_singular_system() -> None:
+    rng = np.random.default_rng(8)
+    J = rng.standard_normal((30, 5))
+    A, b = J.T @ J, rng.standard_normal(5)
+    np.testing.assert_allclose(tv.solve_small(A, b), np.linalg.solve(A, b), rtol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError):
+        tv.solve_small(np.ones((5, 5)), b)
