@@ -190,6 +190,8 @@ def fit_rotation_only(
         iterations: number of reweighting steps.
     """
     b1, b2 = _bearings(x1), _bearings(x2)
+    # b₂ᵢ b₁ⱼ per bearing pair: Σ w b₂ b₁ᵀ and b₂ᵀ R b₁ are products with it
+    pairs = (b2[:, :, None] * b1[:, None, :]).reshape(len(b1), 9)
     if R_init is None:
         w = np.ones(len(b1))
     else:
@@ -197,9 +199,13 @@ def fit_rotation_only(
     R = np.eye(3) if R_init is None else np.asarray(R_init, dtype=float)
     r = rotation_residuals_px(R, b1, b2, f_px) if iterations < 1 else np.empty(0)
     for _ in range(iterations):
-        H = (b2 * w[:, None]).T @ b1  # Σ w b₂ b₁ᵀ; R maximises tr(Rᵀ H)
-        R = project_to_rotation(H)
-        r = rotation_residuals_px(R, b1, b2, f_px)
+        R = project_to_rotation((w @ pairs).reshape(3, 3))  # R maximises tr(Rᵀ Σ w b₂ b₁ᵀ)
+        # ‖b₂ − R b₁‖² = 2 − 2 b₂ᵀ R b₁ for unit bearings
+        chord2 = pairs @ R.ravel()
+        np.multiply(chord2, -2.0, out=chord2)
+        chord2 += 2.0
+        r = np.sqrt(np.maximum(chord2, 0.0, out=chord2), out=chord2)
+        r *= f_px
         w = cauchy_weights(r, threshold_px)
     # information: Jᵢ = R[b₁]ₓ per bearing, so Σ w JᵀJ = Σ w (I − b₁b₁ᵀ); 2 residual dof per point
     A = np.sum(w) * np.eye(3) - (b1 * w[:, None]).T @ b1
