@@ -300,13 +300,15 @@ def parse_options(texts: Iterable[str]) -> tuple[tuple[str, bool | float | None]
     """Several ``KEY=VALUE`` texts (:func:`parse_option` each), in their order.
 
     Raises:
-        ConfigurationError: a bad text (:func:`parse_option`), or a key given twice.
+        ConfigurationError: a bad text (:func:`parse_option`), a key given twice, or values
+            that do not go together (e.g. rare-size weights summing to 1 or more).
     """
     pairs = tuple(parse_option(text) for text in texts)
     keys = [key for key, _ in pairs]
     twice = sorted({key for key in keys if keys.count(key) > 1})
     if twice:
         raise ConfigurationError(f"ours option {', '.join(twice)} given more than once")
+    OursConfig(**dict(pairs))  # type: ignore[arg-type]  # the rules across options
     return pairs
 
 
