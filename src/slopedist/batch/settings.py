@@ -213,3 +213,21 @@ def settings_json(values: Mapping[str, Any]) -> dict[str, Any]:
         k: dict(v) if k == "ours_options" else list(v) if isinstance(v, tuple) else v
         for k, v in values.items()
     }
+
+
+def _item_text(value: Any) -> str:
+    """An ``ours_options`` value as its cell text (``true``, ``none``, ``0.028``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return "none" if value is None else str(value)
+
+
+def settings_cell(value: Any) -> Any:
+    """A value of :func:`settings_json` as a manifest cell: a table as ``key=value`` items and
+    a list as its items, joined by :data:`LIST_SEPARATOR` (what the manifest column reads back);
+    other values as they are."""
+    if isinstance(value, dict):
+        return LIST_SEPARATOR.join(f"{k}={_item_text(v)}" for k, v in value.items())
+    if isinstance(value, list):
+        return LIST_SEPARATOR.join(str(v) for v in value)
+    return value
