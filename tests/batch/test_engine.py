@@ -1,9 +1,9 @@
 """The batch on a local Ray instance with 2 CPUs: records identical to running each drive
 alone, a corrupt drive isolated, a killed worker retried, a second run that skips complete
-drives and redoes a deleted one; drive logs (ROS 1 bag, ROS 2 MCAP) with their camera_info,
-IMU and speed topics giving the records of ``slopedist run`` on the log and the headways of the
-fleet safety table. Ray starts once for the session (``ray_instance`` of
-tests/conftest.py)."""
+drives and redoes a deleted one or one whose settings changed; drive logs (ROS 1 bag, ROS 2
+MCAP) with their camera_info, IMU and speed topics giving the records of ``slopedist run`` on
+the log and the headways of the fleet safety table, also found in a folder of drives. Ray
+starts once for the session (``ray_instance`` of tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -402,3 +402,25 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
     )
     status = {r["drive"]: r["status"] for r in read_rows(out / "status.csv")}
     assert status == {"face": "skipped", "batchwide": "done", "paper": "skipped"}
+
+
+def test_a_folder_of_drive_logs_with_a_batch_wide_image_topic(
+    log_fleet: LogFleet, tmp_path: Path
+) -> None:
+    """Folder layout: a drive folder holding a log (and its boxes, no calib.txt) runs as
+    ``slopedist run LOG --image-topic`` with the log's camera_info."""
+    from slopedist.io.rosbag_write import LogTopics
+
+    folder = tmp_path / "drives" / "monday"
+    folder.mkdir(parents=True)
+    shutil.copy(log_fleet.root / "sim.bag", folder / "monday.bag")
+    shutil.copy(log_fleet.root / "sim" / "boxes.csv", folder / "boxes.csv")
+    out, topic = tmp_path / "out", LogTopics().image
+    args = ["batch", str(tmp_path / "drives"), "--out", str(out), "--quiet", "--no-parquet"]
+    assert main([*args, "--method", "paper"]) == 2  # a log needs its image topic
+    assert main([*args, "--method", "paper", "--image-topic", topic]) == 0
+    alone = tmp_path / "alone"
+    run = ["run", str(folder / "monday.bag"), "--image-topic", topic, "--method", "paper"]
+    assert main([*run, "--boxes", str(folder / "boxes.csv"), "--out", str(alone), "--quiet"]) == 0
+    records = (out / "monday" / "records.csv").read_bytes()
+    assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") > 1
