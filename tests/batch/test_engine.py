@@ -424,3 +424,29 @@ def test_a_folder_of_drive_logs_with_a_batch_wide_image_topic(
     assert main([*run, "--boxes", str(folder / "boxes.csv"), "--out", str(alone), "--quiet"]) == 0
     records = (out / "monday" / "records.csv").read_bytes()
     assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") > 1
+
+
+def test_the_embedded_ray_instance_gets_the_usable_cores(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without --workers, the embedded instance has the cores this process may use (a
+    container's or taskset's limit), not the machine's count."""
+    from slopedist.batch import engine
+
+    calls: list[dict[str, Any]] = []
+
+    class FakeRay:
+        def is_initialized(self) -> bool:
+            return False
+
+        def init(self, **kwargs: Any) -> None:
+            calls.append(kwargs)
+
+        def shutdown(self) -> None:
+            pass
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(engine, "import_ray", lambda purpose="": FakeRay())
+    monkeypatch.setattr(engine, "usable_cores", lambda: 3)
+    for workers, cpus in ((None, 3), (5, 5)):
+        with engine.ray_session(workers, None):
+            pass
+        assert calls.pop()["num_cpus"] == cpus

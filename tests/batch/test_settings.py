@@ -14,6 +14,7 @@ from slopedist.batch.settings import (
     RunSettings,
     settings_cell,
     settings_json,
+    unapplied,
 )
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.ours.config import OursConfig, settable_options
@@ -89,3 +90,15 @@ def test_settings_cells_read_back_as_the_same_settings() -> None:
     assert RunSettings(**{k: CELL_PARSERS[k](v) for k, v in text.items()}) == settings
     assert settings.changed().keys() == set(cells)
     assert RunSettings().changed() == {}
+
+
+def test_batch_wide_values_no_drive_takes_are_warned_about() -> None:
+    batch = RunSettings(reference="contact", ours_options=(("use_width", False),), offline=True)
+    assert unapplied(batch, ["ours", "paper"]) == []
+    assert unapplied(batch, ["ours-selfcal"]) == [
+        "--offline applies to no drive of this batch (methods: ours-selfcal)"
+    ]
+    warnings = unapplied(batch, ["paper", "flat", "paper"])
+    assert [w.split()[0] for w in warnings] == ["--reference", "--ours-option", "--offline"]
+    assert all(w.endswith("(methods: flat, paper)") for w in warnings)
+    assert unapplied(RunSettings(), ["paper"]) == []

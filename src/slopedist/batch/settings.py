@@ -19,7 +19,7 @@ not take it is an error, as is an ``overlay_format`` cell of a drive without an 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -231,3 +231,22 @@ def settings_cell(value: Any) -> Any:
     if isinstance(value, list):
         return LIST_SEPARATOR.join(str(v) for v in value)
     return value
+
+
+def unapplied(batch: RunSettings, drive_methods: Iterable[str]) -> list[str]:
+    """Warnings for batch-wide ``reference``, ``ours_options`` and ``offline`` values that no
+    drive takes (none of the drives' methods ``drive_methods`` is one they apply to), so that
+    a batch of ``paper`` drives given ``--offline`` says it ran them causally."""
+    methods = list(drive_methods)
+    ours = any(takes_ours_options(m) for m in methods)
+    offline = any(_offline_problem(m) is None for m in methods)
+    given = {
+        "--reference": batch.reference is not None and not ours,
+        "--ours-option": bool(batch.ours_options) and not ours,
+        "--offline": batch.offline and not offline,
+    }
+    return [
+        f"{option} applies to no drive of this batch (methods: {', '.join(sorted(set(methods)))})"
+        for option, unused in given.items()
+        if unused
+    ]

@@ -8,7 +8,7 @@ import click
 
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
-from slopedist.batch.settings import RunSettings
+from slopedist.batch.settings import RunSettings, unapplied
 from slopedist.cli.options import (
     check_methods,
     export_option,
@@ -132,6 +132,8 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
         method, odometry, height_m, mount_angle_deg, lookback_s, settings, image_topic
     )
     drives = load_drives(source, defaults)
+    for warning in unapplied(settings, [d.method for d in drives]):
+        click.echo(f"slopedist: warning: {warning}", err=True)
     options = BatchOptions(
         workers=workers,
         address=address,
