@@ -2,14 +2,30 @@
 
 A CSV manifest has one drive per row and at least the columns ``drive`` (a name, also the output
 sub-folder), ``frames`` (image folder, video or drive log), ``calib`` and ``boxes``; ``method`` and
-the columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch default).
+the columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch-wide value
+of :class:`DriveDefaults`, the ``slopedist batch`` option of that name).
 A drive log (``.bag``, ``.mcap``, ``.db3`` or a ROS 2 bag folder) names its topics in
-``image_topic`` (required for a log), ``rotation_topic`` and ``speed_topic``, and may leave
-``calib`` empty (or a manifest of logs leave the column out) to use the log's ``camera_info``;
-``calib`` is required for image folders and videos. Paths are relative to the manifest's
-folder. A TOML manifest holds the same keys in ``[[drive]]`` tables. A folder without a manifest
-is read as one drive per sub-folder (:data:`FRAME_NAMES`, ``calib.txt``, ``boxes.csv`` and
-optionally ``times.txt``).
+``image_topic`` (required for a log unless the batch gives one), ``rotation_topic`` and
+``speed_topic``, and may leave ``calib`` empty (or a manifest of logs leave the column out) to
+use the log's ``camera_info``; ``calib`` is required for image folders and videos. Paths are
+relative to the manifest's folder.
+
+The run settings (:mod:`~slopedist.batch.settings`) are the columns ``reference``
+(``centre``, ``nearest_face``, ``contact``), ``ours_options`` (``KEY=VALUE`` items separated by
+``;``: ``odd_object_weight=0;size_learning=true``), ``vehicle_classes`` (``Car;Van;Truck``),
+``offline`` and ``overlay`` (``true``/``false``, ``yes``/``no``, ``1``/``0``),
+``overlay_format`` (``mp4``, ``png``) and ``export`` (``mcap``, ``tum``, ``mcap;tum``).
+``reference`` and ``ours_options`` are for ``ours``, ``ours-selfcal`` and ``ours-offline``,
+``offline`` for a method with an offline mode, ``overlay_format`` for a drive with an overlay.
+
+A TOML manifest holds the same keys in ``[[drive]]`` tables; there a list cell may be a list
+(``export = ["mcap", "tum"]``), ``ours_options`` a table (``{odd_object_weight = 0,
+size_learning = true}``) or a list of ``KEY=VALUE`` texts, and a flag a boolean.
+
+A folder without a manifest is read as one drive per sub-folder: its frames
+(:data:`FRAME_NAMES`, else its one drive log, or the folder itself when it is a ROS 2 bag),
+``calib.txt`` (optional for a log), ``boxes.csv`` and optionally ``times.txt`` (not for a log);
+a log's image topic is the batch-wide one.
 
 Every mistake is an :class:`~slopedist.errors.InputFileError` naming the manifest, the line
 (CSV) or drive entry (TOML) and the field.
