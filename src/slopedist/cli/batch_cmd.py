@@ -11,18 +11,20 @@ from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
 from slopedist.batch.settings import RunSettings, unapplied
 from slopedist.cli.options import (
     check_methods,
-    export_option,
     height_option,
-    image_topic_option,
     lookback_option,
     mount_option,
     ours_option,
-    overlay_format_option,
-    overlay_option,
     parse_ours_options,
     reference_option,
-    run_offline_option,
     vehicle_classes_option,
+)
+from slopedist.cli.run_options import (
+    export_option,
+    image_topic_option,
+    overlay_format_option,
+    overlay_option,
+    run_offline_option,
 )
 from slopedist.estimators import DEFAULT_METHOD
 from slopedist.run_setup import ODOMETRY_CHOICES

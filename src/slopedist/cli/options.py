@@ -23,7 +23,6 @@ from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.estimators.ours.config import parse_options
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.learned_peer import PEER_METHOD
-from slopedist.run_config import OverlayFormat, RunExport
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -685,37 +684,4 @@ vehicle_classes_option = click.option(
     help="Comma-separated class names scored as vehicles (case-insensitive); boxes of other "
     "classes (Pedestrian, Cyclist, Tram, Misc, DontCare, ...) keep a row with status missing, "
     "reason not_a_vehicle.",
-)
-
-
-image_topic_option = click.option(
-    "--image-topic",
-    default=None,
-    help="Drive log (.bag, .mcap, .db3, ROS 2 bag folder): the sensor_msgs/Image or "
-    "CompressedImage topic (see: slopedist log info LOG).",
-)
-run_offline_option = click.option(
-    "--offline",
-    is_flag=True,
-    help="The method's offline mode (ours → ours-offline: smoothed over the whole drive, for "
-    "log analysis): records.csv is written when the drive ends; the overlay, frames.csv and "
-    "the MCAP export show the causal pass as the frames come.",
-)
-export_option = click.option(
-    "--export",
-    "exports",
-    type=click.Choice([e.value for e in RunExport]),
-    multiple=True,
-    help="Also write OUT/run.mcap (Foxglove schemas) and/or OUT/trajectory.tum (rotations, "
-    "for evo). Repeatable.",
-)
-overlay_option = click.option(
-    "--overlay", is_flag=True, help="Also write annotated frames (paper Fig. 3 style)."
-)
-overlay_format_option = click.option(
-    "--overlay-format",
-    type=click.Choice([f.value for f in OverlayFormat]),
-    default=OverlayFormat.MP4.value,
-    show_default=True,
-    help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
 )

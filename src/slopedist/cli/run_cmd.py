@@ -19,19 +19,21 @@ from slopedist.cli.options import (
     check_methods,
     detector_options,
     estimator_options,
-    export_option,
     height_option,
-    image_topic_option,
     lookback_option,
     make_detector,
     mount_option,
     optional_calibration_options,
-    overlay_format_option,
-    overlay_option,
     parse_size,
     parse_triple,
-    run_offline_option,
     vehicle_classes_option,
+)
+from slopedist.cli.run_options import (
+    export_option,
+    image_topic_option,
+    overlay_format_option,
+    overlay_option,
+    run_offline_option,
 )
 from slopedist.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.errors import ConfigurationError
