@@ -7,12 +7,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from slopedist.odometry.affine_refine import (
-    PRODUCT_ROWS,
-    _inverse_hessians,
-    _rows_times,
-    refine_affine,
-)
+from slopedist.odometry.affine_refine import refine_affine
 
 W, H = 480, 320
 
@@ -106,25 +101,6 @@ def test_no_points() -> None:
     assert refined.shape == (0, 2) and ok.shape == (0,)
 
 
-def test_the_hessians_from_basis_products_are_those_of_the_centred_steepest_descent_images() -> (
-    None
-):
-    """Each warp parameter's steepest-descent image is a gradient times (dx, dy, 1); the
-    Hessian assembled from the sums of gradient products is the one of the explicit images."""
-    half = 3
-    rng = np.random.default_rng(4)
-    grad = rng.normal(0.0, 20.0, (5, 2, (2 * half + 1) ** 2)).astype(np.float32)
-    g = np.arange(-half, half + 1, dtype=np.float64)
-    dy, dx = (v.ravel() for v in np.meshgrid(g, g, indexing="ij"))
-    gx, gy = grad[:, 0].astype(np.float64), grad[:, 1].astype(np.float64)
-    sd = np.stack([gx * dx, gx * dy, gy * dx, gy * dy, gx, gy], axis=1)  # D row-major, then δ
-    sd -= sd.mean(axis=2, keepdims=True)
-    H = sd @ sd.transpose(0, 2, 1)
-    H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(6)
-    got = _inverse_hessians(grad, half).astype(np.float64)
-    np.testing.assert_allclose(got @ H, np.broadcast_to(np.eye(6), H.shape), atol=1e-4)
-
-
 def test_many_tracks_refined_at_once_are_refined_as_one_by_one() -> None:
     """The windows of all tracks are sampled and solved together: each track's result does
     not depend on the others."""
@@ -138,10 +114,3 @@ def test_many_tracks_refined_at_once_are_refined_as_one_by_one() -> None:
         alone, ok_i = refine_affine(image, moved, p0[i : i + 1], p1[i : i + 1])
         assert ok_i[0] == ok[i]
         np.testing.assert_allclose(alone[0], together[i], atol=1e-3)
-
-
-def test_products_in_row_blocks_are_the_whole_product() -> None:
-    rng = np.random.default_rng(6)
-    a, b = rng.standard_normal((2 * PRODUCT_ROWS + 7, 121)), rng.standard_normal((121, 6))
-    np.testing.assert_allclose(_rows_times(a, b), a @ b, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(_rows_times(a[:5], b), a[:5] @ b, rtol=1e-12, atol=1e-12)

@@ -19,7 +19,7 @@ Convention: pixels ``(x, y)`` with integer coordinates at pixel centres (OpenCV'
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import cv2
 import numpy as np
@@ -53,55 +53,6 @@ def _offset_rows(half: int) -> F32:
     return rows
 
 
-@functools.lru_cache(maxsize=4)
-def _offset_basis(half: int) -> tuple[F32, NDArray[np.float64]]:
-    """The window's ``(M, 3)`` columns ``(dx, dy, 1)`` and ``(M, 6)`` their products
-    ``(dx², dx·dy, dx, dy², dy, 1)`` (float64; read-only)."""
-    dx, dy = _offsets(half)
-    basis = np.stack([dx, dy, np.ones_like(dx)], axis=1)
-    b64 = basis.astype(np.float64)
-    products = np.stack([b64[:, i] * b64[:, j] for i, j in _BASIS_PAIRS], axis=1)
-    basis.flags.writeable = products.flags.writeable = False
-    return basis, products
-
-
-_BASIS_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-"""The products of the basis columns ``(dx, dy, 1)`` in :func:`_offset_basis`."""
-
-_PARAMETERS = ((0, 0), (0, 1), (1, 0), (1, 1), (0, 2), (1, 2))
-"""Each warp parameter's steepest-descent image as ``(gradient, basis column)``: the warp
-``x' = (I + D) x + δ`` with ``D`` row-major, then ``δ``; e.g. ``∂/∂D₀₁ = g_x · dy``."""
-
-
-PRODUCT_ROWS = 128
-"""Rows per matrix product with the window's basis: OpenBLAS spreads a product of more than
-about 2.6·10⁵ multiply-adds over its threads, which spin waiting for each other when the cores
-are busy (with the decoding thread: twice the processor time); 128 rows × 121 pixels × 6
-columns stay on one thread."""
-
-
-def _rows_times(a: NDArray[np.floating], b: NDArray[np.floating]) -> NDArray[np.floating]:
-    """``a @ b`` for ``(R, M)`` ``a`` and a small ``(M, K)`` ``b``, :data:`PRODUCT_ROWS` rows
-    at a time."""
-    if len(a) <= PRODUCT_ROWS:
-        return np.asarray(a @ b)
-    return np.concatenate([a[i : i + PRODUCT_ROWS] @ b for i in range(0, len(a), PRODUCT_ROWS)])
-
-
-def _pair(i: int, j: int) -> int:
-    return _BASIS_PAIRS.index((min(i, j), max(i, j)))
-
-
-_HESSIAN_INDEX = np.array(
-    [[6 * (ga + gb) + _pair(ba, bb) for gb, bb in _PARAMETERS] for ga, ba in _PARAMETERS]
-)
-"""Where each Hessian entry ``(6, 6)`` lies among the ``(3, 6)`` sums of gradient products
-``(g_x², g_x·g_y, g_y²)`` times basis products (flattened)."""
-_MEAN_INDEX = np.array([3 * g + b for g, b in _PARAMETERS])
-"""Where each steepest-descent image's sum lies among the ``(2, 3)`` sums of gradients times
-basis columns (flattened)."""
-
-
 def refine_affine(
     previous: NDArray[np.uint8] | F32,
     current: NDArray[np.uint8] | F32,
@@ -131,7 +82,7 @@ def refine_affine(
     cur = np.asarray(current, dtype=np.float32)
     template = _template(prev, p0, half_window)
     A, t, sq0 = _gauss_newton(cur, template, p1, iterations)
-    e = _residuals(cur, A, t, template)
+    e = _residuals(cur, A, t, template.offsets, template.T)
     sq = np.einsum("nm,nm->n", e, e)  # the patch's squared residuals (sq0: at the start)
     ok = (
         np.all(np.isfinite(t), axis=1)
@@ -148,53 +99,44 @@ class _Template(NamedTuple):
 
     Attributes:
         T: ``(N, M)`` grey levels of each window.
-        grad: ``(N, 2, M)`` their x and y gradients; the steepest-descent image of each warp
-            parameter is a gradient times a basis column (:data:`_PARAMETERS`).
-        H_inv: ``(N, 6, 6)`` inverse Gauss–Newton Hessians of the centred steepest-descent
-            images (slightly damped).
-        half: half side of the window, pixels.
+        sd: ``(N, 6, M)`` steepest-descent images of the warp parameters, centred.
+        H_inv: ``(N, 6, 6)`` inverse Gauss–Newton Hessians (slightly damped).
+        offsets: ``(2, M)`` the window's column and row offsets.
     """
 
     T: F32
-    grad: F32
+    sd: F32
     H_inv: F32
-    half: int
+    offsets: F32
 
 
 def _template(prev: F32, p0: F32, half_window: int) -> _Template:
-    """The windows of ``prev`` around ``p0`` with their gradients and Hessians."""
+    """The windows of ``prev`` around ``p0`` with their steepest-descent images and Hessians."""
     n = len(p0)
+    dx, dy = _offsets(half_window)
     # template and its central-difference gradients from one sampling of a window 1 px wider
     ex, ey = _offsets(half_window + 1)
     side = 2 * half_window + 3
     big = _sample(prev, p0[:, 0:1] + ex, p0[:, 1:2] + ey).reshape(n, side, side)
     T = big[:, 1:-1, 1:-1].reshape(n, -1)
-    sides = np.empty((n, 2, side - 2, side - 2), dtype=np.float32)
-    np.subtract(big[:, 1:-1, 2:], big[:, 1:-1, :-2], out=sides[:, 0])
-    np.subtract(big[:, 2:, 1:-1], big[:, :-2, 1:-1], out=sides[:, 1])
-    grad = sides.reshape(n, 2, -1)
-    grad *= 0.5
-    return _Template(T, grad, _inverse_hessians(grad, half_window), half_window)
-
-
-def _inverse_hessians(grad: F32, half_window: int) -> F32:
-    """``(N, 6, 6)`` inverse Hessians of the warp's steepest-descent images, centred over the
-    window (which leaves a grey-level offset free), from the gradients ``(N, 2, M)``: every
-    entry is a sum of a gradient product times a product of basis columns, so all of them
-    come from one matrix product (float64)."""
-    n, m = len(grad), grad.shape[2]
-    basis, products = _offset_basis(half_window)
-    g = grad.astype(np.float64)
-    gg = np.empty((n, 3, m))
-    np.multiply(g[:, 0], g[:, 0], out=gg[:, 0])
-    np.multiply(g[:, 0], g[:, 1], out=gg[:, 1])
-    np.multiply(g[:, 1], g[:, 1], out=gg[:, 2])
-    sums = _rows_times(gg.reshape(-1, m), products).reshape(n, 18)
-    H = sums[:, _HESSIAN_INDEX]  # Σ s_i s_j
-    mean = _rows_times(g.reshape(-1, m), basis).reshape(n, 6)[:, _MEAN_INDEX] / m  # means
-    H -= m * mean[:, :, None] * mean[:, None, :]  # centred: Σ (s_i − s̄_i)(s_j − s̄_j)
-    H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(6)
-    return np.asarray(np.linalg.inv(H), dtype=np.float32)
+    gx = (0.5 * (big[:, 1:-1, 2:] - big[:, 1:-1, :-2])).reshape(n, -1)
+    gy = (0.5 * (big[:, 2:, 1:-1] - big[:, :-2, 1:-1])).reshape(n, -1)
+    # steepest-descent images of the warp x' = (I + D) x + δ, D row-major, then δ; centred over
+    # the window, which leaves a grey-level offset free
+    sd = np.empty((n, 6, len(dx)), dtype=np.float32)  # (N, 6, M)
+    np.multiply(gx, dx, out=sd[:, 0])
+    np.multiply(gx, dy, out=sd[:, 1])
+    np.multiply(gy, dx, out=sd[:, 2])
+    np.multiply(gy, dy, out=sd[:, 3])
+    sd[:, 4] = gx
+    sd[:, 5] = gy
+    sd -= sd.mean(axis=2, keepdims=True)
+    H = np.matmul(sd, sd.transpose(0, 2, 1))
+    H += (1e-6 * np.trace(H, axis1=1, axis2=2)[:, None, None] / 6.0 + 1e-9) * np.eye(
+        6, dtype=np.float32
+    )
+    H_inv = cast(F32, np.linalg.inv(H))  # float32, as H
+    return _Template(T, sd, H_inv, _offset_rows(half_window))
 
 
 def _gauss_newton(
@@ -203,19 +145,16 @@ def _gauss_newton(
     """Inverse-compositional Gauss–Newton from the translational positions ``p1``: the 2×2
     warps ``(N, 2, 2)``, the positions ``(N, 2)`` and the squared residuals at the start."""
     n = len(p1)
-    H_inv = template.H_inv
-    basis = _offset_basis(template.half)[0]
+    sd, H_inv = template.sd, template.H_inv
     A = np.tile(np.eye(2, dtype=np.float32), (n, 1, 1))
     D_inv = np.empty((n, 2, 2), dtype=np.float32)
     t = p1.copy()
     sq0 = None
     for _ in range(iterations):
-        e = _residuals(cur, A, t, template)
+        e = _residuals(cur, A, t, template.offsets, template.T)
         if sq0 is None:
             sq0 = np.einsum("nm,nm->n", e, e)
-        # the steepest-descent images times the residuals: Σ g e (dx, dy, 1) per gradient
-        sd_e = _rows_times((template.grad * e[:, None, :]).reshape(2 * n, -1), basis).reshape(n, 6)
-        step = np.matmul(H_inv, sd_e[:, _MEAN_INDEX, None])[:, :, 0]
+        step = np.matmul(H_inv, np.matmul(sd, e[:, :, None]))[:, :, 0]
         # inverse composition: W ← W ∘ ΔW⁻¹, ΔW(x) = (I + D) x + δ
         D = step[:, :4].reshape(n, 2, 2) + np.eye(2, dtype=np.float32)
         det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
@@ -248,12 +187,11 @@ def _sample(image: F32, x: F32, y: F32) -> F32:
     )
 
 
-def _residuals(image: F32, A: F32, t: F32, template: _Template) -> F32:
-    """``image(W(x)) − T(x)`` over the window (``W(x) = A x + t`` at the window's pixels
+def _residuals(image: F32, A: F32, t: F32, offsets: F32, T: F32) -> F32:
+    """``image(W(x)) − T(x)`` over the window (``offsets``: ``(2, M)`` the window's pixels
     ``x``), centred (the grey-level offset removed)."""
-    # positions (2, N, M): x and y of every window, each contiguous for OpenCV
-    pos = np.matmul(A.transpose(1, 0, 2), _offset_rows(template.half))
-    pos += t.T[:, :, None]
-    e = _sample(image, pos[0], pos[1]) - template.T
+    pos = np.matmul(A, offsets)
+    pos += t[:, :, None]
+    e = _sample(image, pos[:, 0], pos[:, 1]) - T
     e -= e.mean(axis=1, keepdims=True)
     return e
