@@ -46,7 +46,10 @@ def dash_spans(x0: int, x1: int, dash_px: int, gap_px: int) -> NDArray[np.int32]
     """``(K, 2)`` first and last coordinate of each dash from ``x0`` to ``x1`` (pixels): dashes of
     ``dash_px`` every ``dash_px + gap_px``, the last one cut at ``x1``."""
     starts = np.arange(x0, x1, dash_px + gap_px, dtype=np.int32)
-    return np.stack([starts, np.minimum(starts + dash_px, x1)], axis=1)
+    spans = np.empty((len(starts), 2), dtype=np.int32)
+    spans[:, 0] = starts
+    np.minimum(starts + dash_px, x1, out=spans[:, 1])
+    return spans
 
 
 def draw_segments(
