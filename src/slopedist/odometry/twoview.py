@@ -291,9 +291,10 @@ def _sampson_system(
     products: FloatArray,
     scale: float,
     redescending: bool = False,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t, from
-    the correspondences' :func:`pair_products`.
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Residuals ``r = e/√D`` and Jacobian side by side (``(N, 6)``: ``r``, then the five
+    derivatives), weights and the tangent basis of t, from the correspondences'
+    :func:`pair_products`.
 
     Weights are Cauchy's, or with ``redescending`` Tukey's biweight (zero beyond
     ``TUKEY_SCALES × scale``).
@@ -315,9 +316,9 @@ def _sampson_system(
     D = np.einsum("ij,ij->i", P[:, 6:], P[:, 6:])
     sqrt_D = np.sqrt(np.maximum(D, 1e-30, out=D), out=D)
     rJ = np.divide(P[:, :6], sqrt_D[:, None])
-    r, J = rJ[:, 0], rJ[:, 1:]
+    r = rJ[:, 0]
     w = tukey_weights(r, TUKEY_SCALES * scale) if redescending else cauchy_weights(r, scale)
-    return r, w, J, B
+    return rJ, w, B
 
 
 _ZERO = np.zeros(1)
@@ -415,10 +416,9 @@ def fit_relative_pose(
     products = pair_products(x1, x2)
     redescending = False
     for k in range(iterations + TUKEY_ITERATIONS):
-        r, w, J, B = _sampson_system(R, t, products, scale, redescending)
-        Jw = J * w[:, None]
-        A = Jw.T @ J + _RIDGE5
-        delta = -solve_small(A, Jw.T @ r)
+        rJ, w, B = _sampson_system(R, t, products, scale, redescending)
+        normal = (rJ[:, 1:] * w[:, None]).T @ rJ  # Jᵀ W r, then Jᵀ W J
+        delta = -solve_small(normal[:, 1:] + _RIDGE5, normal[:, 0])
         R = R @ so3_exp(delta[:3])
         t = t + B @ delta[3:]
         t /= math.sqrt(float(t @ t))  # = np.linalg.norm(t), bit for bit
@@ -430,7 +430,8 @@ def fit_relative_pose(
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return _failed_fit(np.asarray(R_init, dtype=float), len(x1))
     R = project_to_rotation(R)
-    r, w, J, _ = _sampson_system(R, t, products, scale, True)
+    rJ, w, _ = _sampson_system(R, t, products, scale, True)
+    r, J = rJ[:, 0], rJ[:, 1:]
     A = (J * w[:, None]).T @ J
     try:
         schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
