@@ -155,6 +155,10 @@ class OursEstimator(Estimator):
             config.type_mixture,
             len(self._size_modes),
         )
+        self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
+        self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
+            self._size_modes[:1], grid.size * len(config.type_mixture)
+        )
         self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
         self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
         n_modes = len(self._size_modes)
@@ -317,7 +321,7 @@ class OursEstimator(Estimator):
             size,
             ground,
             self._odd_check.prior(log_prior, odd),
-            self._size_modes,
+            self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
             cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)

@@ -19,7 +19,7 @@ from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
+from slopedist.estimators.ours.fusion import LogCue, ModeSpreads, all_true, any_true
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -203,7 +203,7 @@ def fuse_hypotheses(
     size: SizeCues,
     ground: LogCue | None,
     log_prior: FloatArray,
-    size_modes: list[SizeMode],
+    size_modes: ModeSpreads,
     gate_sigma: float = 3.0,
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × size modes: a class mixes typical vehicles
@@ -215,40 +215,38 @@ def fuse_hypotheses(
     modes (mode-major, :class:`~slopedist.estimators.ours.class_table.ClassTable`'s
     ``n_modes``) for a specific class, over the vehicle types for a generic one.
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``size_modes``: how each mode
-    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.SizeMode`);
+    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.ModeSpreads`
+    of the targets' hypotheses: of a single mode when their class is generic);
     ``gate_sigma``: the cue consistency check's threshold
     (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
     type_weight = targets.classes.type_log_weight
-    modes = size_modes if type_weight is None else size_modes[:1]
-    spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
-    if len(modes) > 1 or modes[0] != SizeMode():
-        spreads = fusion.mode_spreads(modes, *spreads)
+    n_modes = len(size_modes.modes)
+    spreads = size_modes.spreads(hyp.log_sigma_height, hyp.log_sigma_width)
     size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
     fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
     for bound, bound_var, rows_cut in size.bounds:
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent, width_mean = hyp.half_extent_m, size.width.mean
-    if len(modes) > 1:  # what every mode shares, per heading: the first mode's columns
-        k = extent.shape[1] // len(modes)
+    if n_modes > 1:  # what every mode shares, per heading: the first mode's columns
+        k = extent.shape[1] // n_modes
         extent, width_mean = extent[:, :k], width_mean[:, :k]
         if ground is not None:
             ground = LogCue(
                 ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
             )
-    odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
     return _collapse(
         width_mean,
         size_cue,
         fused,
         ground,
-        len(modes) if type_weight is None else type_weight.shape[1],
+        n_modes if type_weight is None else type_weight.shape[1],
         log_prior,
         extent,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
-        odd_mode=odd_mode,
+        odd_mode=size_modes.odd,
     )
 
 

@@ -9,7 +9,7 @@ mode), leading axes the targets'.
 
 from __future__ import annotations
 
-import functools
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -130,24 +130,52 @@ class SizeMode(NamedTuple):
         return self.log_sigma_floor > 0.0
 
 
-@functools.lru_cache(maxsize=16)
-def _mode_constants(modes: tuple[SizeMode, ...], n_headings: int) -> tuple[FloatArray, FloatArray]:
-    """``(M·K,)`` height factors and spread floors of the size modes, each repeated over the
-    ``K`` headings (mode-major; built once per set)."""
-    factor = np.repeat([m.height_factor for m in modes], n_headings)
-    floor = np.repeat([m.log_sigma_floor for m in modes], n_headings)
-    factor.flags.writeable = floor.flags.writeable = False
-    return factor, floor
+class ModeSpreads:
+    """How size modes widen a class's relative spreads, per hypothesis: the constants of
+    hypotheses ``(n, M·K)`` (``M`` modes, ``K`` columns each, mode-major) built once, so that
+    a frame only reads them.
+
+    Args:
+        modes: the size modes.
+        n_columns: ``K``, the hypotheses per mode.
+
+    Attributes:
+        modes: the size modes.
+        odd: index of the odd-object mode (:attr:`SizeMode.odd`), or None.
+    """
+
+    def __init__(self, modes: Sequence[SizeMode], n_columns: int) -> None:
+        self.modes = tuple(modes)
+        self.odd = next((k for k, mode in enumerate(self.modes) if mode.odd), None)
+        self._typical = self.modes == (SizeMode(),)  # the class's spreads as they are
+        self._scaled = any(m.height_factor != 1.0 for m in self.modes)
+        factor = np.repeat([m.height_factor for m in self.modes], n_columns)
+        floor = np.repeat([m.log_sigma_floor for m in self.modes], n_columns)
+        self._row = np.stack([factor, floor])[:, None, :]  # (2, 1, M·K)
+        self._rows = self._row
+
+    def spreads(
+        self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The class's relative height and width spreads in each size mode, per hypothesis:
+        from ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the
+        modes, the height's times its mode's factor, both at least its mode's floor."""
+        if self._typical:
+            return sigma_log_h, sigma_log_w
+        n = sigma_log_h.shape[0]
+        if self._rows.shape[1] < n:  # (2, rows, M·K): sliced per frame, never broadcast
+            self._rows = np.repeat(self._row, 2 * n, axis=1)
+        factor, floor = self._rows[:, :n]
+        scaled = sigma_log_h * factor if self._scaled else sigma_log_h  # (x·1 is x)
+        return np.maximum(scaled, floor), np.maximum(sigma_log_w, floor)
 
 
 def mode_spreads(
     modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """The class's relative height and width spreads in each size mode, per hypothesis: from
-    ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the ``M`` modes
-    (mode-major), the height's times its mode's factor, both at least its mode's floor."""
-    factor, floor = _mode_constants(tuple(modes), sigma_log_h.shape[-1] // len(modes))
-    return np.maximum(sigma_log_h * factor, floor), np.maximum(sigma_log_w, floor)
+    """:meth:`ModeSpreads.spreads` of ``modes`` (``sigma_log_h``, ``sigma_log_w``
+    ``(n, M·K)``)."""
+    return ModeSpreads(modes, sigma_log_h.shape[-1] // len(modes)).spreads(sigma_log_h, sigma_log_w)
 
 
 def shape_gap_sigma(
