@@ -26,7 +26,7 @@ from slopedist.estimators.base import (
     MissingReason,
     image_size,
 )
-from slopedist.estimators.ours.fusion import any_true
+from slopedist.estimators.ours.fusion import all_true, any_true
 from slopedist.estimators.ours.records import BorderCuts
 
 FloatArray = NDArray[np.float64]
@@ -97,10 +97,9 @@ def boxes_all_usable(boxes: FloatArray, low: FloatArray, high: FloatArray) -> bo
     :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
     ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
     :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
-    n = boxes.shape[0]
     size = boxes[:, 2:] - boxes[:, :2]
     inside = (boxes > low) & (boxes < high)  # False for NaN
-    return np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+    return all_true(size >= MIN_BOX_SIZE_PX) and all_true(inside)
 
 
 def settle_border_cuts(

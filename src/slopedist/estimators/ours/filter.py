@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.cues import any_true
+from slopedist.estimators.ours.fusion import all_true, any_true
 
 FloatArray = NDArray[np.float64]
 
@@ -145,7 +145,7 @@ def random_walk_update(
     ``obs_var``); non-finite observations only predict."""
     v = var + rate * rate * np.asarray(dt_s, dtype=float) if rate else np.asarray(var)
     ok = np.isfinite(obs + obs_var)
-    if np.count_nonzero(ok) == ok.size:
+    if all_true(ok):
         k = v / (v + obs_var)
         return mean + k * (obs - mean), (1.0 - k) * v
     k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)

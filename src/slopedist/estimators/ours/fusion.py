@@ -353,6 +353,7 @@ def shrink_to_prior(
     s2 = prior_sigma * prior_sigma
     finite = np.isfinite(var)
     if all_true(finite):
-        return mean * s2 / (s2 + var), s2 * var / (s2 + var)
+        total = s2 + var
+        return mean * s2 / total, s2 * var / total
     v = np.where(finite, var, 1.0)
     return (np.where(finite, mean * s2 / (s2 + v), 0.0), np.where(finite, s2 * v / (s2 + v), s2))
