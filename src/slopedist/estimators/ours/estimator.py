@@ -241,7 +241,7 @@ class OursEstimator(Estimator):
             box_values = self._estimate_boxes(
                 frame, good, all_usable, theta_f, jitter, calib, edges
             )
-            values = {k: v for k, v in box_values._asdict().items() if v is not None}
+            values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)

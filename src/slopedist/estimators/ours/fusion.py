@@ -153,21 +153,33 @@ class ModeSpreads:
         floor = np.repeat([m.log_sigma_floor for m in self.modes], n_columns)
         self._row = np.stack([factor, floor])[:, None, :]  # (2, 1, M·K)
         self._rows = self._row
+        self._kept: tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray]] | None = None
 
     def spreads(
         self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """The class's relative height and width spreads in each size mode, per hypothesis:
         from ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the
-        modes, the height's times its mode's factor, both at least its mode's floor."""
+        modes, the height's times its mode's factor, both at least its mode's floor.
+
+        The spreads of read-only inputs (a :class:`~slopedist.estimators.ours.class_table.
+        ClassTable`'s, the same arrays while a drive's frames list the same classes) are kept
+        until other inputs come."""
         if self._typical:
             return sigma_log_h, sigma_log_w
+        kept = self._kept
+        if kept is not None and kept[0] is sigma_log_h and kept[1] is sigma_log_w:
+            return kept[2]
         n = sigma_log_h.shape[0]
         if self._rows.shape[1] < n:  # (2, rows, M·K): sliced per frame, never broadcast
             self._rows = np.repeat(self._row, 2 * n, axis=1)
         factor, floor = self._rows[:, :n]
         scaled = sigma_log_h * factor if self._scaled else sigma_log_h  # (x·1 is x)
-        return np.maximum(scaled, floor), np.maximum(sigma_log_w, floor)
+        out = np.maximum(scaled, floor), np.maximum(sigma_log_w, floor)
+        if not (sigma_log_h.flags.writeable or sigma_log_w.flags.writeable):
+            out[0].flags.writeable = out[1].flags.writeable = False
+            self._kept = (sigma_log_h, sigma_log_w, out)
+        return out
 
 
 def mode_spreads(
