@@ -104,6 +104,9 @@ nearest face: the same longitudinal distance as the nearest face)."""
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
 
+_MIN_DEPTH_RATIO = fusion.const(0.1)
+"""Smallest depth change the camera's rotation may cause a track between two updates."""
+
 _NO_COLUMN = np.zeros(0, dtype=object)
 """An empty status column: :class:`FrameEstimates` derives the statuses from the reasons."""
 
@@ -487,7 +490,7 @@ class OursEstimator(Estimator):
             filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
             return DistanceFilterResult(filt, match.rows, continued)
         prior = match.continued_state[ROW_FILTER]
-        prior[0] += np.log(np.maximum(self._continued_depth_ratios(match, R_now), 0.1))
+        prior[0] += np.log(np.maximum(self._continued_depth_ratios(match, R_now), _MIN_DEPTH_RATIO))
         pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
         every = match.all_continued
         old = match.continued

@@ -19,7 +19,15 @@ from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import LogCue, ModeSpreads, all_true, any_true
+from slopedist.estimators.ours.fusion import (
+    HALF,
+    ONE,
+    LogCue,
+    ModeSpreads,
+    all_true,
+    any_true,
+    const,
+)
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -69,7 +77,7 @@ def size_cues(
             hyp.half_length_sin_m,
             hyp.min_centre_depth_m,
         )
-        length_share = (1.0 - width.lever) * hyp.log_sigma_length
+        length_share = (ONE - width.lever) * hyp.log_sigma_length
         length_share *= length_share
         width = SizeCue(width.mean, width.lever, width.var_white, length_share)
     else:
@@ -328,14 +336,14 @@ def target_gradient(
     size = fused.size
     boxes = targets.boxes_px
     z_size = np.exp(size.mean)
-    delta_y = (boxes[:, 1] + boxes[:, 3]) * 0.5 - (cam.c_y - f * math.tan(theta_rad))
+    delta_y = (boxes[:, 1] + boxes[:, 3]) * HALF - (cam.c_y - f * math.tan(theta_rad))
     flat = cues.expected_centre_offset_px(
         z_size, f, cam_height_m, targets.classes.height_m, fused.half_extent_m
     )
     a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
     gain2 = flat * flat * (1.0 / (f * f))
     a_white = gain2 * size.var_white + (targets.box_sigma_px**2 + (f * jitter_rad) ** 2) / f**2
-    z_h_sd = targets.classes.height_sigma_m * 0.5 / z_size
+    z_h_sd = targets.classes.height_sigma_m * HALF / z_size
     a_other = gain2 * (size.var - size.var_white) + z_h_sd * z_h_sd
     prior_mean, prior_var = _gradient_prior(
         rows,
@@ -418,6 +426,10 @@ def _total_var(cue: SizeCue, log_sigma: FloatArray) -> FloatArray:
     return (cue.lever * log_sigma) ** 2 + cue.var_white + cue.var_other
 
 
+_MAX_GRADIENT_VAR = const(1e6)
+"""Prior variance of a new track's road gradient (rad², practically none)."""
+
+
 def _gradient_prior(
     rows: NDArray[np.int64],
     old: NDArray[np.bool_],
@@ -431,11 +443,11 @@ def _gradient_prior(
     < 0, after the gate)."""
     kept = rows[old] >= 0 if not every_old else rows >= 0
     if every_old and all_true(kept):
-        return mean_old, np.minimum(var_old, 1e6)
+        return mean_old, np.minimum(var_old, _MAX_GRADIENT_VAR)
     mean, var = np.zeros(rows.shape), filled(rows.shape[0], 1e6)
     idx = np.flatnonzero(old)[kept]
     mean[idx] = mean_old[kept]
-    var[idx] = np.minimum(var_old[kept], 1e6)
+    var[idx] = np.minimum(var_old[kept], _MAX_GRADIENT_VAR)
     return mean, var
 
 

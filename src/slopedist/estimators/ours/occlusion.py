@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.detections.boxes import overlapping_pairs
-from slopedist.estimators.ours.fusion import any_true
+from slopedist.estimators.ours.fusion import ZERO, any_true
 
 FloatArray = NDArray[np.float64]
 
@@ -94,7 +94,7 @@ def unexplained_excess(
     """How far a log-distance cue says farther than a reference beyond their own noise:
     ``max(y_cue − y_ref, 0)² − gate_sigma²·(var_cue + var_ref)`` (log², > 0 only for an
     outlier on the far side; NaN where either is missing)."""
-    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), 0.0)
+    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), ZERO)
     return np.asarray(
         excess * excess - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref))
     )
@@ -117,4 +117,4 @@ def occlusion_log_var(unexplained: ArrayLike, cut: ArrayLike) -> FloatArray:
         cut: whether the cue's dimension may be cut short, broadcastable to ``unexplained``.
     """
     u = np.asarray(unexplained)
-    return np.asarray(np.where(np.asarray(cut) & (u > 0.0), u, 0.0))
+    return np.asarray(np.where(np.asarray(cut) & (u > ZERO), u, ZERO))
