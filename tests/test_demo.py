@@ -16,7 +16,13 @@ from slopedist import demo_scenario
 from slopedist.cli import main
 from slopedist.datasets.synthetic.scenarios import load_scenario
 from slopedist.datasets.synthetic.sequence import SyntheticSequence
-from slopedist.demo import DemoConfig, format_demo_tables, plan_methods, run_demo
+from slopedist.demo import (
+    DemoConfig,
+    format_demo_tables,
+    plan_methods,
+    run_demo,
+    uncertainty_table,
+)
 from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.ground_contact import EgoGradientEstimator
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationTrack
@@ -75,6 +81,26 @@ def test_every_available_method_runs_and_the_table_matches_the_records(demo_run)
             rmse = float(np.sqrt(np.mean((d[ok] - z[ok]) ** 2)))
             assert run.scores[m].metrics()["rmse"] == pytest.approx(rmse, rel=1e-4)
             assert run.scores[m].metrics()["n"] == int(ok.sum())
+
+
+def test_the_summary_scores_ours_own_sigma(demo_run) -> None:
+    """ours reports a σ per target: the summary has the uncertainty table with its row (and
+    no row for a method without one), the shares as the records give them."""
+    table = uncertainty_table(demo_run)
+    assert table is not None and "ours" in [r[0] for r in table.rows]
+    assert "flat" not in [r[0] for r in table.rows]
+    assert "Uncertainty" in format_demo_tables(demo_run)
+    err, sigma = [], []
+    for run in demo_run.runs:
+        ours = run.scores["ours"]
+        for d, z, reason, s in zip(ours.distance, ours.truth, ours.reason, ours.sigma):
+            if not reason:  # estimated: capped at 80 m as the tables do
+                err.append(min(d, 80.0) - z)
+                sigma.append(s)
+    within_2 = float(np.mean(np.abs(err) <= 2 * np.asarray(sigma)))
+    row = next(r for r in table.rows if r[0] == "ours")
+    assert row[1] == len(err) and row[3] == pytest.approx(within_2)
+    assert 0.0 < row[2] <= row[3] <= row[4] <= 1.0
 
 
 def test_flat_road_estimates_are_close_to_the_truth(demo_run) -> None:

@@ -11,6 +11,8 @@ from hypothesis import strategies as st
 
 from slopedist.detections import BoxTable
 from slopedist.evaluation import (
+    GAUSSIAN_COVERAGE,
+    SIGMA_LEVELS,
     PooledScores,
     ScoredSet,
     binned_metrics,
@@ -18,8 +20,11 @@ from slopedist.evaluation import (
     distance_metrics,
     match_boxes,
     match_by_frame,
+    pool,
     pool_methods,
+    uncertainty_metrics,
 )
+from slopedist.score_tables import uncertainty_table
 
 
 def test_metrics_hand_computed() -> None:
@@ -117,3 +122,48 @@ def test_pool_methods_own_sequences_and_common_pool() -> None:
 def test_pool_methods_no_common_when_every_method_ran_everywhere() -> None:
     scores = pool_methods({"a": {"x": _set([1.0], [1.0]), "y": _set([2.0], [1.0])}}, ["x", "y"])
     assert scores.common is None and scores.pooled == {"x": ["a"], "y": ["a"]}
+
+
+def test_uncertainty_metrics_hand_computed() -> None:
+    # errors 0.5, -3, 1.5, 10 m against σ 1, 2, 1, 2: |error|/σ = 0.5, 1.5, 1.5, 5
+    u = uncertainty_metrics([10.5, 17.0, 31.5, 50.0], [10.0, 20.0, 30.0, 40.0], [1, 2, 1, 2])
+    assert u["n_sigma"] == 4
+    assert u["within_1sigma"] == pytest.approx(0.25)
+    assert u["within_2sigma"] == pytest.approx(0.75)
+    assert u["within_3sigma"] == pytest.approx(0.75)
+    assert u["z_rms"] == pytest.approx(math.sqrt((0.25 + 2.25 + 2.25 + 25.0) / 4))
+
+
+def test_uncertainty_metrics_leave_out_targets_without_a_sigma() -> None:
+    u = uncertainty_metrics([11.0, 12.0, 13.0], [10.0, 10.0, 10.0], [2.0, math.nan, 0.0])
+    assert u["n_sigma"] == 1 and u["within_1sigma"] == 1.0 and u["z_rms"] == pytest.approx(0.5)
+    none = uncertainty_metrics([11.0], [10.0], [math.nan])
+    assert none["n_sigma"] == 0 and math.isnan(none["z_rms"])
+
+
+def test_a_right_gaussian_sigma_covers_as_a_gaussian() -> None:
+    rng = np.random.default_rng(3)
+    truth = rng.uniform(5.0, 80.0, 20000)
+    sigma = 0.05 * truth
+    u = uncertainty_metrics(truth + sigma * rng.standard_normal(truth.size), truth, sigma)
+    for k in SIGMA_LEVELS:
+        assert u[f"within_{k}sigma"] == pytest.approx(GAUSSIAN_COVERAGE[k], abs=0.01)
+    assert u["z_rms"] == pytest.approx(1.0, abs=0.02)
+    # a σ half the true spread promises too much
+    assert uncertainty_metrics(truth + sigma * rng.standard_normal(truth.size), truth, sigma / 2)[
+        "within_1sigma"
+    ] == pytest.approx(0.383, abs=0.01)
+
+
+def test_sigma_is_pooled_only_when_every_set_has_one() -> None:
+    with_sigma = ScoredSet(np.array([11.0]), np.array([10.0]), 1, sigma_m=np.array([2.0]))
+    also = ScoredSet(np.array([14.0]), np.array([10.0]), 1, sigma_m=np.array([2.0]))
+    without = _set([10.0], [10.0])
+    pooled = pool([with_sigma, also]).summary(with_recall=False)["uncertainty"]
+    assert pooled["n_sigma"] == 2 and pooled["within_1sigma"] == pytest.approx(0.5)
+    assert "uncertainty" not in pool([with_sigma, without]).summary(with_recall=False)
+    scores = pool_methods({"a": {"x": with_sigma, "y": without}}, ["x", "y"])
+    table = uncertainty_table(scores)
+    assert table is not None and [r[0] for r in table.rows] == ["x"]
+    assert table.rows[0][1:] == [1, 1.0, 1.0, 1.0, 0.5]
+    assert uncertainty_table(pool_methods({"a": {"y": without}}, ["y"])) is None

@@ -134,3 +134,18 @@ def test_a_declared_truth_reference_moves_the_ground_contact_methods_to_it(
     protocol = declared_cfg.protocol()["ground_truth"]
     assert protocol["methods_compared_at"].startswith("the truth's reference")
     assert base.protocol()["ground_truth"]["methods_compared_at"].startswith("each method's own")
+
+
+def test_ours_own_sigma_is_scored_against_its_errors(kitti_tracking_dir: Path) -> None:
+    """ours reports a 1σ per target (sigma_m); the evaluation scores it (the share of errors
+    within 1, 2, 3 σ) and a method without one gets no such block."""
+    report = evaluate_kitti_tracking(
+        kitti_tracking_dir, KittiEvalConfig(sequences=["0003", "0004"], methods=("flat", "ours"))
+    )
+    overall = report["methods"]["ours"]["overall"]
+    u = overall["uncertainty"]
+    assert u["n_sigma"] == overall["n"]
+    assert u["within_1sigma"] <= u["within_2sigma"] <= u["within_3sigma"]
+    # near a Gaussian's 68 / 95 % on these two sequences (0.84 / 0.995 today: a little wide)
+    assert 0.5 < u["within_1sigma"] < 0.95 and u["within_2sigma"] > 0.85
+    assert "uncertainty" not in report["methods"]["flat"]["overall"]

@@ -411,9 +411,17 @@ def odometry_table(result: DemoResult) -> Table:
     return Table("odometry", title, headers, rows)
 
 
+def uncertainty_table(result: DemoResult) -> Table | None:
+    """How well the methods' own σ describes their errors over every scenario
+    (:func:`~slopedist.score_tables.uncertainty_table`; None when no method reports one)."""
+    return score_tables.uncertainty_table(pool_methods(_scored_sets(result), result.methods))
+
+
 def demo_tables(result: DemoResult) -> list[Table]:
     """Every table of the summary, in order (the first and the third are also CSV files)."""
-    return [rmse_table(result), missing_table(result), timing_table(result), odometry_table(result)]
+    tables = [rmse_table(result), missing_table(result), timing_table(result)]
+    sigma = uncertainty_table(result)
+    return [*tables, odometry_table(result), *([sigma] if sigma is not None else [])]
 
 
 def format_demo_tables(result: DemoResult) -> str:

@@ -163,6 +163,7 @@ class MethodScores:
     truth: list[float] = field(default_factory=list)
     theta_adj: list[float] = field(default_factory=list)
     delta_y: list[float] = field(default_factory=list)
+    sigma: list[float] = field(default_factory=list)
     seconds: float = 0.0
     failed: str = ""
 
@@ -177,12 +178,23 @@ class MethodScores:
         self.truth += truth.tolist()
         self.theta_adj += est.theta_adj_rad.tolist()
         self.delta_y += est.delta_y_px.tolist()
+        sigma = est.extra.get("sigma_m")
+        self.sigma += sigma.tolist() if sigma is not None else [math.nan] * n
 
     def scored_set(self) -> ScoredSet:
-        """The capped estimates against the truth (:meth:`metrics`'s rule) as a scored set."""
+        """The capped estimates against the truth (:meth:`metrics`'s rule) as a scored set, with
+        the method's own σ when it reports one."""
         capped, ok = cap_estimates(np.asarray(self.distance, dtype=float), self.reason, CAP_M)
         truth = np.asarray(self.truth, dtype=float)
-        return ScoredSet(capped[ok], truth[ok], len(truth), int(np.sum(~ok)), self.seconds)
+        sigma = np.asarray(self.sigma, dtype=float)
+        return ScoredSet(
+            capped[ok],
+            truth[ok],
+            len(truth),
+            int(np.sum(~ok)),
+            self.seconds,
+            sigma_m=sigma[ok] if np.isfinite(sigma).any() else None,
+        )
 
     def metrics(self) -> dict[str, Any]:
         """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m,

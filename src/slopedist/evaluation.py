@@ -147,9 +147,39 @@ def match_by_frame(
     return np.concatenate(det_rows), np.concatenate(gt_rows)
 
 
+SIGMA_LEVELS: tuple[int, ...] = (1, 2, 3)
+"""Multiples k of a method's own 1σ whose coverage (share of errors within k·σ) is reported."""
+
+GAUSSIAN_COVERAGE: dict[int, float] = {1: 0.6827, 2: 0.9545, 3: 0.9973}
+"""The share of a Gaussian within k σ: what :func:`uncertainty_metrics` gives for a right σ."""
+
+UNCERTAINTY_KEYS = ("n_sigma", *(f"within_{k}sigma" for k in SIGMA_LEVELS), "z_rms")
+
+
+def uncertainty_metrics(pred_m: ArrayLike, gt_m: ArrayLike, sigma_m: ArrayLike) -> dict[str, float]:
+    """How well a method's own 1σ (``sigma_m``, metres, one per prediction) describes its
+    errors: ``within_{k}sigma`` = the share of |prediction − truth| ≤ k·σ for k in
+    :data:`SIGMA_LEVELS` (a right, Gaussian σ gives :data:`GAUSSIAN_COVERAGE`; less means
+    the σ promises more than the estimates keep), and ``z_rms`` = the RMS of (prediction −
+    truth)/σ (1 for a right σ). Predictions without a finite positive σ are left out;
+    ``n_sigma`` counts the others (0 and NaNs when none)."""
+    p = np.asarray(pred_m, dtype=float).ravel()
+    g = np.asarray(gt_m, dtype=float).ravel()
+    s = np.asarray(sigma_m, dtype=float).ravel()
+    keep = np.isfinite(s) & (s > 0)
+    if not keep.any():
+        return {k: (0 if k == "n_sigma" else math.nan) for k in UNCERTAINTY_KEYS}
+    z = (p[keep] - g[keep]) / s[keep]
+    out: dict[str, float] = {"n_sigma": int(keep.sum())}
+    out.update({f"within_{k}sigma": float(np.mean(np.abs(z) <= k)) for k in SIGMA_LEVELS})
+    out["z_rms"] = float(np.sqrt(np.mean(z * z)))
+    return out
+
+
 @dataclass
 class ScoredSet:
-    """Paired predictions and truths of one sequence and method, with bookkeeping."""
+    """Paired predictions and truths of one sequence and method, with bookkeeping;
+    ``sigma_m``: the method's own 1σ of each prediction (metres), None when it reports none."""
 
     pred_m: NDArray[np.float64]
     gt_m: NDArray[np.float64]
@@ -158,6 +188,7 @@ class ScoredSet:
     seconds: float = 0.0
     frames: int = 0
     info: dict[str, Any] = field(default_factory=dict)
+    sigma_m: NDArray[np.float64] | None = None
 
     def summary(self, with_recall: bool) -> dict[str, Any]:
         """Metrics, per-bin metrics, counts and time per frame as a JSON-ready dict."""
@@ -168,11 +199,15 @@ class ScoredSet:
             out["recall"] = (len(self.pred_m) + self.n_unscored) / self.n_gt if self.n_gt else 0.0
         out["ms_per_frame"] = 1000.0 * self.seconds / self.frames if self.frames else math.nan
         out["bins"] = binned_metrics(self.pred_m, self.gt_m)
+        if self.sigma_m is not None:
+            out["uncertainty"] = uncertainty_metrics(self.pred_m, self.gt_m, self.sigma_m)
         return out
 
 
 def pool(sets: Sequence[ScoredSet]) -> ScoredSet:
-    """Pool several sequences' pairs into one set (overall = pooled over all targets)."""
+    """Pool several sequences' pairs into one set (overall = pooled over all targets); with
+    σ only when every set has one."""
+    with_sigma = bool(sets) and all(s.sigma_m is not None for s in sets)
     return ScoredSet(
         np.concatenate([s.pred_m for s in sets]) if sets else np.zeros(0),
         np.concatenate([s.gt_m for s in sets]) if sets else np.zeros(0),
@@ -180,6 +215,9 @@ def pool(sets: Sequence[ScoredSet]) -> ScoredSet:
         sum(s.n_unscored for s in sets),
         sum(s.seconds for s in sets),
         sum(s.frames for s in sets),
+        sigma_m=np.concatenate([s.sigma_m for s in sets if s.sigma_m is not None])
+        if with_sigma
+        else None,
     )
 
 

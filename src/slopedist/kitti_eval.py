@@ -189,6 +189,8 @@ class MethodRun:
         seconds: estimation wall time (depth-map loading excluded), seconds.
         depth_seconds: time spent producing depth maps (file reading or inference), seconds.
         missing: why the method has no result on this sequence (``""`` when it ran).
+        sigma_m: the method's own 1σ per box (metres; its ``sigma_m`` column, of its own
+            reference point), None when it reports none.
     """
 
     method: str
@@ -200,6 +202,7 @@ class MethodRun:
     seconds: float = 0.0
     depth_seconds: float = 0.0
     missing: str = ""
+    sigma_m: NDArray[np.float64] | None = None
 
 
 @dataclass
@@ -241,6 +244,7 @@ class SequenceRun:
             seconds=run.seconds,
             frames=self.n_frames,
             info={"depth_seconds": run.depth_seconds},
+            sigma_m=run.sigma_m[self.det_rows][ok] if run.sigma_m is not None else None,
         )
 
 
@@ -384,6 +388,9 @@ def _run_method(
     run.scorable[rows] = scorable
     run.theta_rad[rows] = est.theta_rad
     run.reason[rows] = est.reason
+    if "sigma_m" in est.extra:
+        run.sigma_m = np.full(n, np.nan)
+        run.sigma_m[rows] = est.extra["sigma_m"]
     run.depth_seconds = depth_source.seconds if depth_source is not None else 0.0
     run.seconds = watch.seconds - run.depth_seconds
     return run

@@ -7,7 +7,7 @@ The loop itself is :func:`slopedist.runner.run_frames`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -44,6 +44,35 @@ class RunExport(str, Enum):
     """``run.mcap``: images, boxes, distances and θ with Foxglove schemas."""
     TUM = "tum"
     """``trajectory.tum``: the rotation source's camera-to-world rotations (TUM layout)."""
+
+
+def export_paths(
+    out_dir: Path, exports: Iterable[str | RunExport]
+) -> tuple[Path | None, Path | None]:
+    """``(OUT/run.mcap, OUT/trajectory.tum)`` for the :class:`RunExport` values in ``exports``
+    (None for one not asked for)."""
+    wanted = {RunExport(e) for e in exports}
+    mcap = out_dir / MCAP_NAME if RunExport.MCAP in wanted else None
+    return mcap, out_dir / TRAJECTORY_NAME if RunExport.TUM in wanted else None
+
+
+class OverlayFormat(str, Enum):
+    """How the annotated frames are written (``slopedist run --overlay-format``)."""
+
+    MP4 = "mp4"
+    """One video, ``OUT/overlay.mp4``."""
+    PNG = "png"
+    """One PNG file per frame in ``OUT/overlay/``."""
+
+
+def overlay_path(out_dir: Path, fmt: str | OverlayFormat) -> Path:
+    """Where the overlay of format ``fmt`` goes in ``out_dir`` (:class:`OverlayFormat`)."""
+    return out_dir / ("overlay.mp4" if OverlayFormat(fmt) is OverlayFormat.MP4 else "overlay")
+
+
+def overlay_fps(fps: float | None, source: object) -> float:
+    """Frame rate of an MP4 overlay: ``fps`` (``--fps``), else a video's own rate, else 10."""
+    return fps or float(getattr(source, "container_fps", 0.0) or 0.0) or 10.0
 
 
 FRAME_FIELDS = (

@@ -11,7 +11,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from slopedist.evaluation import DISTANCE_BINS_M, PooledScores, bin_label, compact_names
+from slopedist.evaluation import (
+    DISTANCE_BINS_M,
+    GAUSSIAN_COVERAGE,
+    SIGMA_LEVELS,
+    PooledScores,
+    bin_label,
+    compact_names,
+)
 from slopedist.tables import Table, best_marks, format_texts
 
 RMSE_TITLE = "Table 1: RMSE (m) per sequence and method"
@@ -157,9 +164,51 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
     )
 
 
+def uncertainty_table(scores: PooledScores) -> Table | None:
+    """How well each method's own 1σ (``sigma_m``) describes its errors, overall: the share
+    of errors within 1, 2 and 3 σ against a Gaussian's, and the RMS of error/σ; for the
+    methods that report a σ (None when none does)."""
+    methods = [m for m in scores.methods if "uncertainty" in scores.overall[m]]
+    if not methods:
+        return None
+    rows = []
+    for m in methods:
+        u = scores.overall[m]["uncertainty"]
+        rows.append(
+            [
+                m,
+                int(u["n_sigma"]),
+                *(float(u[f"within_{k}sigma"]) for k in SIGMA_LEVELS),
+                float(u["z_rms"]),
+            ]
+        )
+    headers = [
+        "method",
+        "n",
+        *(f"within {k}σ ({GAUSSIAN_COVERAGE[k]:.3f})" for k in SIGMA_LEVELS),
+        "RMS error/σ (1)",
+    ]
+    note = (
+        "Each method's own σ (records column sigma_m, of its own reference point) against "
+        "its errors, pooled as the overall row; in brackets what a right Gaussian σ gives. "
+        "Fewer errors within kσ (or RMS error/σ above 1) means the σ promises more than the "
+        "estimates keep."
+    )
+    formats = {1: "d", **{j: ".3f" for j in range(2, 3 + len(SIGMA_LEVELS))}}
+    return Table(
+        "uncertainty",
+        "Uncertainty: errors within the methods' own σ",
+        headers,
+        rows,
+        note=note,
+        formats=formats,
+    )
+
+
 def score_tables(scores: PooledScores, with_time: bool = False) -> list[Table]:
     """Table 1 (RMSE per sequence), the extended metrics and the per-bin metrics: on the
-    common sequences when the methods ran on different ones, else overall."""
+    common sequences when the methods ran on different ones, else overall; then the
+    :func:`uncertainty_table` when a method reports its σ."""
     tables = [rmse_table(scores)]
     if scores.common is not None:
         common = scores.common["methods"]
@@ -186,7 +235,8 @@ def score_tables(scores: PooledScores, with_time: bool = False) -> list[Table]:
     )
     if scores.common is None:
         tables.append(bins_table(scores, scores.overall, "Pooled over all sequences."))
-    return tables
+    sigma = uncertainty_table(scores)
+    return tables if sigma is None else [*tables, sigma]
 
 
 def format_report_tables(report: Mapping[str, Any]) -> str:

@@ -108,6 +108,20 @@ def read_json(path: str | Path, what: str) -> Any:
         raise InputFileError(path, "not valid JSON (nested too deeply)") from None
 
 
+def parse_bool(text: str) -> bool:
+    """``true/false``, ``yes/no``, ``on/off``, ``1/0`` (any case, surrounding spaces ignored).
+
+    Raises:
+        ValueError: any other text.
+    """
+    value = text.strip().lower()
+    if value in ("true", "yes", "on", "1"):
+        return True
+    if value in ("false", "no", "off", "0"):
+        return False
+    raise ValueError(text)
+
+
 def number_cell(
     text: str | None, path: str | Path, line: int, field: str, bound: float | None = None
 ) -> float:

@@ -3,10 +3,12 @@ stamps that see changed inputs, a corrupt drive that fails alone."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -14,8 +16,9 @@ import numpy as np
 import pytest
 
 from slopedist.batch.drive import completed_stamp, process_drive, publish
-from slopedist.batch.manifest import DriveSpec
-from slopedist.batch.stamp import STAMP_KEY, input_stamp
+from slopedist.batch.manifest import DriveSpec, spec_summary
+from slopedist.batch.settings import SETTING_COLUMNS, RunSettings
+from slopedist.batch.stamp import SETTINGS_KEY, STAMP_KEY, input_stamp
 from slopedist.batch.status import DriveStatus
 from slopedist.cli import main
 
@@ -156,3 +159,88 @@ def test_a_drive_with_a_detector_gives_the_records_of_run_alone(
     assert main([*args, "--method", "flat", "--odometry", "none", "--out", str(alone)]) == 0
     records = (batch / "det" / "records.csv").read_bytes()
     assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") == 4
+
+
+def test_a_drive_with_run_settings_gives_the_outputs_of_run_alone(
+    sim: Path, tmp_path: Path
+) -> None:
+    """Reference point, ours options, vehicle classes, offline mode, a PNG overlay and the TUM
+    export of a drive's settings give what ``slopedist run`` gives with the same options;
+    ``run.json`` records them, with the paths of the published folder."""
+    settings = RunSettings(
+        reference="nearest_face",
+        ours_options=(("odd_object_weight", 0.0), ("size_learning", True)),
+        vehicle_classes=("Car", "Van"),
+        offline=True,
+        overlay=True,
+        overlay_format="png",
+        export=("tum",),
+    )
+    spec = spec_of(sim, method="ours", settings=settings)
+    out = tmp_path / "batch"
+    out.mkdir()
+    outcome = process_drive(spec, out, input_stamp(spec))
+    assert outcome.status is DriveStatus.DONE, outcome.error
+    options = ["--timestamps", str(sim / "times.txt"), "--reference", "nearest_face", "--offline"]
+    options += ["--ours-option", "size_learning=true", "--ours-option", "odd_object_weight=0"]
+    options += ["--vehicle-classes", "Car,Van", "--overlay", "--overlay-format", "png"]
+    alone = run_alone(
+        sim / "image_02",
+        sim / "calib.txt",
+        sim / "boxes.csv",
+        "ours",
+        tmp_path / "alone",
+        *options,
+        "--export",
+        "tum",
+    ).parent
+    drive = out / "crest"
+    for name in ("records.csv", "tracks.csv", "trajectory.tum"):
+        assert (drive / name).read_bytes() == (alone / name).read_bytes(), name
+    records = (drive / "records.csv").read_text().splitlines()
+    header = records[0].split(",")
+    rows = [dict(zip(header, line.split(","))) for line in records[1:]]
+    assert {r["method"] for r in rows} == {"ours-offline"}
+    ok = [r for r in rows if r["status"] == "ok"]
+    assert ok and {r["reference"] for r in ok} == {"nearest_face"}
+    assert all(r["distance_m"] == r["distance_nearest_face_m"] for r in ok)
+    pngs = sorted(p.name for p in (drive / "overlay").iterdir())
+    assert pngs == sorted(p.name for p in (alone / "overlay").iterdir()) and len(pngs) == 5
+    summary = json.loads((drive / "run.json").read_text())
+    assert summary[SETTINGS_KEY] == spec_summary(spec)
+    assert summary[SETTINGS_KEY]["ours_options"] == {
+        "odd_object_weight": 0.0,
+        "size_learning": True,
+    }
+    assert summary[SETTINGS_KEY]["reference"] == "nearest_face"
+    assert summary["out_dir"] == str(drive) and summary["overlay"] == str(drive / "overlay")
+    assert summary["exports"] == [str(drive / "trajectory.tum")]
+
+
+def test_stamps_see_changed_settings(sim: Path) -> None:
+    """Every run setting changes the stamp; the default settings leave it as before they
+    existed (a drive completed by an older batch is not run again)."""
+    spec = spec_of(sim, method="ours")
+    before = input_stamp(spec)
+    old_form = {k: v for k, v in spec_summary(spec).items() if k not in SETTING_COLUMNS}
+    digest = hashlib.sha256(json.dumps(old_form, sort_keys=True).encode()).hexdigest()
+    assert before["options_sha256"] == digest
+    changes = [
+        RunSettings(reference="contact"),
+        RunSettings(ours_options=(("use_width", False),)),
+        RunSettings(ours_options=(("use_width", True),)),
+        RunSettings(vehicle_classes=("Car",)),
+        RunSettings(offline=True),
+        RunSettings(overlay=True),
+        RunSettings(overlay=True, overlay_format="png"),
+        RunSettings(export=("mcap",)),
+    ]
+    stamps = [input_stamp(replace(spec, settings=s))["options_sha256"] for s in changes]
+    assert len({before["options_sha256"], *stamps}) == len(changes) + 1
+    same = replace(
+        spec, settings=RunSettings(ours_options=(("use_width", False), ("gate_sigma", 4.0)))
+    )
+    swapped = replace(
+        spec, settings=RunSettings(ours_options=(("gate_sigma", 4.0), ("use_width", False)))
+    )
+    assert input_stamp(same) == input_stamp(swapped)  # the options' order does not count

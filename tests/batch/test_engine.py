@@ -1,9 +1,9 @@
 """The batch on a local Ray instance with 2 CPUs: records identical to running each drive
 alone, a corrupt drive isolated, a killed worker retried, a second run that skips complete
-drives and redoes a deleted one; drive logs (ROS 1 bag, ROS 2 MCAP) with their camera_info,
-IMU and speed topics giving the records of ``slopedist run`` on the log and the headways of the
-fleet safety table. Ray starts once for the session (``ray_instance`` of
-tests/conftest.py)."""
+drives and redoes a deleted one or one whose settings changed; drive logs (ROS 1 bag, ROS 2
+MCAP) with their camera_info, IMU and speed topics giving the records of ``slopedist run`` on
+the log and the headways of the fleet safety table, also found in a folder of drives. Ray
+starts once for the session (``ray_instance`` of tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -333,3 +333,120 @@ def test_a_second_batch_of_logs_skips_them(log_fleet: LogFleet) -> None:
         load_drives(log_fleet.root / "drives.csv"), log_fleet.out, BatchOptions(progress=False)
     )
     assert {o.status for o in result.outcomes} == {DriveStatus.SKIPPED}
+
+
+def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
+    ray_instance: Any, tmp_path: Path
+) -> None:
+    """``slopedist batch`` with per-drive ``reference`` and ``ours_options`` cells and
+    batch-wide values: each drive's records are those of ``slopedist run`` with its options,
+    ``fleet/settings.csv`` lists them, and a second batch runs again exactly the drive whose
+    setting changed (the others are skipped)."""
+    sim = simulate("same_downhill", tmp_path / "sim")
+    files = "sim/image_02,sim/calib.txt,sim/boxes.csv,sim/times.txt"
+    header = "drive,frames,calib,boxes,timestamps,method,reference,ours_options"
+    rows = [
+        f"face,{files},ours,nearest_face,odd_object_weight=0;size_learning=true",
+        f"batchwide,{files},ours,,",
+        f"paper,{files},paper,,",
+    ]
+    manifest = tmp_path / "drives.csv"
+    manifest.write_text("\n".join([header, *rows]) + "\n")
+    out = tmp_path / "out"
+    batch_args = ["batch", str(manifest), "--out", str(out), "--quiet", "--no-parquet"]
+    batch_wide = ["--reference", "contact", "--ours-option", "use_width=false"]
+    assert main([*batch_args, *batch_wide]) == 0
+    face = ["--reference", "nearest_face", "--ours-option", "odd_object_weight=0"]
+    expected = {
+        "face": ("ours", *face, "--ours-option", "size_learning=true"),
+        "batchwide": ("ours", *batch_wide),
+        "paper": ("paper",),
+    }
+    for drive, (method, *options) in expected.items():
+        times = ["--timestamps", str(sim / "times.txt")]
+        alone = run_alone(
+            sim / "image_02",
+            sim / "calib.txt",
+            sim / "boxes.csv",
+            method,
+            tmp_path / "alone" / drive,
+            *times,
+            *options,
+        )
+        assert (out / drive / "records.csv").read_bytes() == alone.read_bytes(), drive
+    references = {
+        drive: {r["reference"] for r in read_rows(out / drive / "records.csv") if r["distance_m"]}
+        for drive in expected
+    }
+    assert references == {"face": {"nearest_face"}, "batchwide": {"contact"}, "paper": {"contact"}}
+    settings = {r["drive"]: r for r in read_rows(out / "fleet" / "settings.csv")}
+    assert settings["face"]["ours_options"] == "odd_object_weight=0.0;size_learning=true"
+    assert (settings["face"]["reference"], settings["batchwide"]["reference"]) == (
+        "nearest_face",
+        "contact",
+    )
+    assert (settings["batchwide"]["ours_options"], settings["paper"]["ours_options"]) == (
+        "use_width=false",
+        "",
+    )
+    assert settings["paper"]["reference"] == ""  # the batch-wide reference is ours's only
+
+    manifest.write_text(manifest.read_text().replace("nearest_face", "centre"))
+    assert main([*batch_args, *batch_wide]) == 0
+    status = {r["drive"]: r["status"] for r in read_rows(out / "status.csv")}
+    assert status == {"face": "done", "batchwide": "skipped", "paper": "skipped"}
+    centre = {r["reference"] for r in read_rows(out / "face" / "records.csv") if r["distance_m"]}
+    assert centre == {"centre"}
+    assert (
+        main([*batch_args, "--reference", "nearest_face", "--ours-option", "use_width=false"]) == 0
+    )
+    status = {r["drive"]: r["status"] for r in read_rows(out / "status.csv")}
+    assert status == {"face": "skipped", "batchwide": "done", "paper": "skipped"}
+
+
+def test_a_folder_of_drive_logs_with_a_batch_wide_image_topic(
+    log_fleet: LogFleet, tmp_path: Path
+) -> None:
+    """Folder layout: a drive folder holding a log (and its boxes, no calib.txt) runs as
+    ``slopedist run LOG --image-topic`` with the log's camera_info."""
+    from slopedist.io.rosbag_write import LogTopics
+
+    folder = tmp_path / "drives" / "monday"
+    folder.mkdir(parents=True)
+    shutil.copy(log_fleet.root / "sim.bag", folder / "monday.bag")
+    shutil.copy(log_fleet.root / "sim" / "boxes.csv", folder / "boxes.csv")
+    out, topic = tmp_path / "out", LogTopics().image
+    args = ["batch", str(tmp_path / "drives"), "--out", str(out), "--quiet", "--no-parquet"]
+    assert main([*args, "--method", "paper"]) == 2  # a log needs its image topic
+    assert main([*args, "--method", "paper", "--image-topic", topic]) == 0
+    alone = tmp_path / "alone"
+    run = ["run", str(folder / "monday.bag"), "--image-topic", topic, "--method", "paper"]
+    assert main([*run, "--boxes", str(folder / "boxes.csv"), "--out", str(alone), "--quiet"]) == 0
+    records = (out / "monday" / "records.csv").read_bytes()
+    assert records == (alone / "records.csv").read_bytes() and records.count(b"\n") > 1
+
+
+def test_the_embedded_ray_instance_gets_the_usable_cores(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without --workers, the embedded instance has the cores this process may use (a
+    container's or taskset's limit), not the machine's count."""
+    from slopedist.batch import engine
+
+    calls: list[dict[str, Any]] = []
+
+    class FakeRay:
+        def is_initialized(self) -> bool:
+            return False
+
+        def init(self, **kwargs: Any) -> None:
+            calls.append(kwargs)
+
+        def shutdown(self) -> None:
+            pass
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(engine, "import_ray", lambda purpose="": FakeRay())
+    monkeypatch.setattr(engine, "usable_cores", lambda: 3)
+    for workers, cpus in ((None, 3), (5, 5)):
+        with engine.ray_session(workers, None):
+            pass
+        assert calls.pop()["num_cpus"] == cpus

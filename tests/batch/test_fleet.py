@@ -7,7 +7,14 @@ from pathlib import Path
 
 import pytest
 
-from slopedist.batch.fleet import fleet_summary, write_fleet_summary, write_partition
+from slopedist.batch.fleet import (
+    SETTINGS_FIELDS,
+    fleet_summary,
+    settings_rows,
+    write_fleet_summary,
+    write_partition,
+)
+from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.errors import InputFileError
 from slopedist.io.tables import write_csv, write_json
 
@@ -65,8 +72,43 @@ def test_fleet_summary_by_hand(batch_out: Path) -> None:
         "range.csv",
         "safety.csv",
         "safety_pooled.csv",
+        "settings.csv",
     ]
     assert files[1].read_text().splitlines()[1].startswith("m,2,4,15.0")
+
+
+def test_settings_table_by_hand(batch_out: Path) -> None:
+    """``fleet/settings.csv``: each complete drive's options from its ``run.json``, lists and
+    ours options as manifest cells; a drive without them (an older batch's) by name only."""
+    options = {
+        "method": "ours",
+        "reference": "nearest_face",
+        "ours_options": {"size_learning": True, "size_evidence_time_s": None, "gate_sigma": 4.5},
+        "vehicle_classes": ["Car", "Van"],
+        "offline": True,
+        "export": ["mcap", "tum"],
+        "height_m": 1.7,
+    }
+    write_json(
+        batch_out / "d1" / "run.json", {"error": None, "batch_inputs": {}, SETTINGS_KEY: options}
+    )
+    rows = {r["drive"]: r for r in settings_rows(batch_out)}
+    assert sorted(rows) == ["d1", "d2"]  # "old" is no batch's drive
+    d1 = rows["d1"]
+    assert d1["ours_options"] == "size_learning=true;size_evidence_time_s=none;gate_sigma=4.5"
+    assert (d1["vehicle_classes"], d1["export"], d1["offline"]) == ("Car;Van", "mcap;tum", True)
+    assert (d1["method"], d1["reference"], d1["height_m"], d1["overlay"]) == (
+        "ours",
+        "nearest_face",
+        1.7,
+        None,
+    )
+    assert set(rows["d2"]) == set(SETTINGS_FIELDS)
+    assert [v for k, v in rows["d2"].items() if k != "drive"] == [None] * (len(SETTINGS_FIELDS) - 1)
+    lines = write_fleet_summary(batch_out)[-1].read_text().splitlines()
+    assert lines[0] == ",".join(SETTINGS_FIELDS)
+    assert lines[1].startswith("d1,ours,nearest_face,size_learning=true;size_evidence_time_s=")
+    assert ",Car;Van,1,,,mcap;tum,,1.7," in lines[1]
 
 
 def test_parquet_partition_round_trip(batch_out: Path) -> None:

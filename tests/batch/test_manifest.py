@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import io
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -13,8 +16,10 @@ from slopedist.batch.manifest import (
     check_drive_name,
     load_drives,
     read_csv_manifest,
+    spec_summary,
 )
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.batch.settings import SETTING_COLUMNS, RunSettings
+from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
 
 HEADER = "drive,frames,calib,boxes,method,height,mount_angle,timestamps"
 
@@ -171,3 +176,206 @@ def test_drive_names_are_plain_folder_names(name: str) -> None:
     plain = bool(name) and name == name.strip() and not name.startswith(".")
     plain = plain and "/" not in name and "\\" not in name
     assert (problem is None) == plain
+
+
+SETTINGS_HEADER = "drive,frames,calib,boxes,method," + ",".join(SETTING_COLUMNS)
+
+
+def settings_row(name: str, method: str = "", **cells: str) -> str:
+    """A manifest row of ``SETTINGS_HEADER`` with the given setting cells (others empty)."""
+    values = [cells.get(c, "") for c in SETTING_COLUMNS]
+    out = io.StringIO()
+    csv.writer(out, lineterminator="\n").writerow([name, "f", "c", "b", method, *values])
+    return out.getvalue()
+
+
+def test_run_settings_columns_and_batch_wide_values(tmp_path: Path) -> None:
+    """Each setting column parsed; an empty cell takes the batch-wide value, which applies
+    only to the methods that take it (ours options and reference: ours-family; offline: a
+    method with an offline mode)."""
+    batch = RunSettings(
+        reference="contact",
+        ours_options=(("use_width", False),),
+        vehicle_classes=("Car",),
+        offline=True,
+        export=("tum",),
+    )
+    manifest = write(
+        tmp_path / "drives.csv",
+        SETTINGS_HEADER
+        + "\n"
+        + settings_row(
+            "a",
+            "ours",
+            reference=" nearest_face ",
+            ours_options="size_learning=true; odd_object_weight=0;",
+            vehicle_classes="Car;Van ; Truck",
+            offline="no",
+            overlay="YES",
+            overlay_format="png",
+            export="tum;mcap;tum",
+        )
+        + settings_row("b", "ours-selfcal")
+        + settings_row("c", "paper", overlay="1")
+        + settings_row("d", "ours-offline", offline="false"),
+    )
+    a, b, c, d = read_csv_manifest(manifest, DriveDefaults(settings=batch))
+    assert a.settings == RunSettings(
+        reference="nearest_face",
+        ours_options=(("odd_object_weight", 0.0), ("size_learning", True)),
+        vehicle_classes=("Car", "Van", "Truck"),
+        offline=False,
+        overlay=True,
+        overlay_format="png",
+        export=("mcap", "tum"),
+    )
+    assert a.settings.run_method(a.method) == "ours"
+    # every cell empty: the batch-wide values, but offline (ours-selfcal has no offline mode)
+    assert b.settings == replace(batch, offline=False)
+    assert b.settings.run_method(b.method) == "ours-selfcal"
+    assert c.settings == RunSettings(vehicle_classes=("Car",), overlay=True, export=("tum",))
+    assert c.settings.estimator("paper").ours_options == ()
+    assert d.settings.run_method(d.method) == "ours-offline"
+    assert spec_summary(a)["ours_options"] == {"odd_object_weight": 0.0, "size_learning": True}
+    assert spec_summary(c, changed_only=True).keys() >= {"overlay", "export", "vehicle_classes"}
+    assert "reference" not in spec_summary(c, changed_only=True)
+
+
+@pytest.mark.parametrize(
+    ("cells", "field", "message"),
+    [
+        ({"reference": "rear"}, "reference", "choose from centre, nearest_face, contact"),
+        ({"ours_options": "odd_object_weight=0,size_learning=true"}, "ours_options", "';'"),
+        ({"ours_options": "bogus=1"}, "ours_options", "choose from .*odd_object_weight"),
+        ({"ours_options": "min_iou=2"}, "ours_options", r"min_iou must be in \[0, 1\]"),
+        ({"ours_options": "use_width=maybe"}, "ours_options", "'maybe' is not a bool"),
+        ({"ours_options": "use_width=0;use_width=1"}, "ours_options", "more than once"),
+        (
+            {"ours_options": "odd_object_weight=0.6;atypical_height_weight=0.5"},
+            "ours_options",
+            "sum below 1",
+        ),
+        ({"vehicle_classes": ";"}, "vehicle_classes", "at least one vehicle class"),
+        ({"vehicle_classes": "Car;Van,Truck"}, "vehicle_classes", "';'"),
+        ({"offline": "maybe"}, "offline", "'maybe' is not true or false"),
+        ({"overlay": "2"}, "overlay", "'2' is not true or false"),
+        ({"overlay": "true", "overlay_format": "gif"}, "overlay_format", "mp4, png"),
+        ({"overlay_format": "png"}, "overlay_format", "drives with an overlay"),
+        ({"export": "mcap;bag"}, "export", "'bag' is not one of mcap, tum"),
+    ],
+)
+def test_run_settings_cell_errors_name_line_and_field(
+    tmp_path: Path, cells: dict[str, str], field: str, message: str
+) -> None:
+    text = SETTINGS_HEADER + "\n" + settings_row("a", "ours") + settings_row("b", "ours", **cells)
+    with pytest.raises(InputFileError, match=message) as err:
+        read_csv_manifest(write(tmp_path / "drives.csv", text))
+    assert (err.value.path, err.value.line, err.value.field) == (tmp_path / "drives.csv", 3, field)
+    assert f"drives.csv, line 3, field '{field}'" in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("method", "cells", "field", "message"),
+    [
+        ("paper", {"ours_options": "use_width=false"}, "ours_options", "is for methods ours,"),
+        ("flat", {"reference": "contact"}, "reference", "this drive's method is 'flat'"),
+        ("paper", {"offline": "true"}, "offline", "method 'paper' has no offline mode"),
+    ],
+)
+def test_run_settings_for_a_method_that_does_not_take_them(
+    tmp_path: Path, method: str, cells: dict[str, str], field: str, message: str
+) -> None:
+    text = SETTINGS_HEADER + "\n" + settings_row("a", method, **cells)
+    with pytest.raises(InputFileError, match=message) as err:
+        read_csv_manifest(write(tmp_path / "drives.csv", text))
+    assert (err.value.line, err.value.field) == (2, field)
+    defaults = DriveDefaults(method=method)  # the same through the batch-wide method
+    text = SETTINGS_HEADER + "\n" + settings_row("a", "", **cells)
+    with pytest.raises(InputFileError, match=message):
+        read_csv_manifest(write(tmp_path / "drives.csv", text), defaults)
+
+
+def test_run_settings_in_a_toml_manifest(tmp_path: Path) -> None:
+    """TOML takes the settings as booleans, lists and (``ours_options``) a table or a list of
+    ``KEY=VALUE`` texts; errors name the ``[[drive]]`` entry and the key."""
+    head = 'frames = "f"\ncalib = "c"\nboxes = "b"\n'
+    manifest = write(
+        tmp_path / "drives.toml",
+        f'[[drive]]\ndrive = "a"\n{head}method = "ours"\nreference = "contact"\n'
+        "ours_options = { odd_object_weight = 0, size_learning = true }\n"
+        'vehicle_classes = ["Car", "Van"]\noffline = true\noverlay = true\n'
+        'overlay_format = "png"\nexport = ["mcap", "tum"]\n\n'
+        f'[[drive]]\ndrive = "b"\n{head}ours_options = ["use_width=false", "min_iou=0.5"]\n\n'
+        f'[[drive]]\ndrive = "c"\n{head}ours_options = "use_width=false;min_iou=0.5"\n',
+    )
+    a, b, c = load_drives(manifest)
+    assert a.settings == RunSettings(
+        "contact",
+        (("odd_object_weight", 0.0), ("size_learning", True)),
+        ("Car", "Van"),
+        offline=True,
+        overlay=True,
+        overlay_format="png",
+        export=("mcap", "tum"),
+    )
+    assert (
+        b.settings.ours_options
+        == c.settings.ours_options
+        == (
+            ("min_iou", 0.5),
+            ("use_width", False),
+        )
+    )
+    for bad, field, message in (
+        ("ours_options = { bogus = 1 }", "ours_options", "choose from"),
+        ('ours_options = { use_width = "perhaps" }', "ours_options", "'perhaps' is not a bool"),
+        ("offline = 3", "offline", "'3' is not true or false"),
+        ("reference = [1, 2]", "reference", "not a reference point"),
+        ("reference = { a = 1 }", "reference", "expected a string, number or boolean"),
+        ("export = [[1]]", "export", "expected a string, number or boolean"),
+    ):
+        text = manifest.read_text() + f'\n[[drive]]\ndrive = "d"\n{head}{bad}\n'
+        with pytest.raises(InputFileError, match=f"entry 4: .*{message}") as err:
+            load_drives(write(tmp_path / "bad.toml", text))
+        assert err.value.field == field and "bad.toml" in str(err.value)
+
+
+def test_folder_layout_with_drive_logs(tmp_path: Path) -> None:
+    """A drive folder whose frames are a drive log (a log file, a ROS 2 bag sub-folder, or the
+    folder itself a ROS 2 bag): the log is the frames, ``calib.txt`` optional, the image topic
+    batch-wide; image frames win over a log."""
+    write(tmp_path / "a_bag" / "drive.bag", "x")
+    write(tmp_path / "a_bag" / "boxes.csv", "frame")
+    write(tmp_path / "a_bag" / "times.txt", "0\n")  # a log's times are its stamps: not read
+    write(tmp_path / "b_ros2" / "metadata.yaml", "rosbag2_bagfile_information: {}\n")
+    write(tmp_path / "b_ros2" / "b_ros2_0.db3", "x")
+    write(tmp_path / "c_sub" / "log" / "metadata.yaml", "rosbag2_bagfile_information: {}\n")
+    write(tmp_path / "c_sub" / "calib.txt", "P2: 1")
+    write(tmp_path / "c_sub" / ".old.mcap", "x")  # hidden: ignored
+    (tmp_path / "d_images" / "image_02").mkdir(parents=True)
+    write(tmp_path / "d_images" / "d.mcap", "x")
+    defaults = DriveDefaults(method="ours", image_topic="/cam", settings=RunSettings(offline=True))
+    a, b, c, d = load_drives(tmp_path, defaults)
+    assert (a.frames, a.calib, a.timestamps) == (tmp_path / "a_bag" / "drive.bag", None, None)
+    assert (a.image_topic, a.boxes) == ("/cam", tmp_path / "a_bag" / "boxes.csv")
+    assert (b.frames, b.calib) == (tmp_path / "b_ros2", None)
+    assert (c.frames, c.calib) == (tmp_path / "c_sub" / "log", tmp_path / "c_sub" / "calib.txt")
+    assert (d.frames, d.image_topic) == (tmp_path / "d_images" / "image_02", None)
+    assert all(s.settings.offline for s in (a, b, c, d))
+    with pytest.raises(ConfigurationError, match=r"a_bag: frames 'drive.bag' are a drive log; "):
+        load_drives(tmp_path, DriveDefaults())
+    write(tmp_path / "a_bag" / "second.mcap", "x")
+    with pytest.raises(ConfigurationError, match=r"several drive logs \(drive.bag, second.mcap\)"):
+        load_drives(tmp_path, defaults)
+
+
+def test_a_batch_wide_image_topic_fills_the_empty_cells_of_logs(tmp_path: Path) -> None:
+    manifest = write(
+        tmp_path / "drives.csv",
+        "drive,frames,calib,boxes,image_topic\na,a.bag,,b,\nb,b.mcap,,b,/own\nc,f,c,b,\n",
+    )
+    a, b, c = read_csv_manifest(manifest, DriveDefaults(image_topic="/cam"))
+    assert (a.image_topic, b.image_topic, c.image_topic) == ("/cam", "/own", None)
+    with pytest.raises(InputFileError, match="or with batch --image-topic") as err:
+        read_csv_manifest(manifest)
+    assert (err.value.line, err.value.field) == (2, "image_topic")

@@ -141,7 +141,7 @@ def test_yolo_errors(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="must end with the frame number"):
         read_yolo_folder(tmp_path / "c", (10, 10))
     _write(tmp_path / "d" / "000001.txt", "2 0.5 0.5 1e300 0.5\n")
-    with pytest.raises(InputFileError, match=r"line 1.*not a pixel box"):
+    with pytest.raises(InputFileError, match=r"line 1.*not a pixel coordinate"):
         read_yolo_folder(tmp_path / "d", (10, 10))
     with pytest.raises(ConfigurationError, match="image size"):
         read_yolo_folder(tmp_path / "a", (0, 10))

@@ -28,6 +28,7 @@ from slopedist.report import (
     report_tables,
     write_report,
 )
+from slopedist.report.tables import metric_records
 from tests.conftest import shared_data_path
 
 SEQS = ("0000", "0014")
@@ -250,6 +251,22 @@ def test_run_output_is_scored_and_timed(tmp_path: Path) -> None:
         "error_vs_distance.png",
         "theta_over_time.png",
     }
+
+
+def test_a_run_with_its_own_sigma_gets_the_uncertainty_table(tmp_path: Path) -> None:
+    rows = [_record(0, 10.0, 11.0), _record(1, 21.0, 20.0), _record(2, 33.0, 30.0)]
+    for r, sigma in zip(rows, (2.0, 0.5, 1.0)):  # |error|/σ = 0.5, 2, 3
+        r["method"], r["sigma_m"] = "ours", sigma
+    write_run(tmp_path / "seqA", rows, [{"frame": 0}], extra=("gt_distance_m", "sigma_m"))
+    data = report_data(tmp_path, ReportOptions())
+    u = data.overall["ours"]["uncertainty"]
+    assert u["n_sigma"] == 3 and u["within_1sigma"] == pytest.approx(1 / 3)
+    assert u["within_2sigma"] == pytest.approx(2 / 3) and u["within_3sigma"] == 1.0
+    assert u["z_rms"] == pytest.approx(math.sqrt((0.25 + 4 + 9) / 3))
+    table = next(t for t in report_tables(data) if t.key == "uncertainty")
+    assert table.rows == [["ours", 3, 1 / 3, 2 / 3, 1.0, u["z_rms"]]]
+    longform = {(r["scope"], r["metric"]): r["value"] for r in metric_records(data)}
+    assert longform[("overall", "within_2sigma")] == pytest.approx(2 / 3)
 
 
 def test_run_output_without_truth_has_no_table1(tmp_path: Path) -> None:

@@ -1,6 +1,8 @@
 """Many drives at once: ``slopedist batch`` on Ray (optional extra ``batch``).
 
 - :mod:`~slopedist.batch.manifest`: the drives (CSV / TOML manifest or a folder of drives);
+- :mod:`~slopedist.batch.settings`: a drive's run settings (reference point, ``ours`` options,
+  vehicle classes, offline mode, overlay, exports) from its cells and the batch-wide values;
 - :mod:`~slopedist.batch.drive`: one drive, run atomically into ``OUT/<drive>``;
 - :mod:`~slopedist.batch.stamp`: input stamps that make a re-run skip unchanged drives;
 - :mod:`~slopedist.batch.engine`: Ray tasks, retries, progress, ``OUT/status.csv``;
@@ -12,6 +14,7 @@ from __future__ import annotations
 from slopedist.batch.engine import BatchOptions, BatchResult, run_batch
 from slopedist.batch.fleet import FleetSummary, fleet_summary, write_fleet_summary
 from slopedist.batch.manifest import DriveDefaults, DriveSpec, load_drives
+from slopedist.batch.settings import RunSettings
 from slopedist.batch.status import DriveOutcome, DriveStatus
 
 __all__ = [
@@ -22,6 +25,7 @@ __all__ = [
     "DriveSpec",
     "DriveStatus",
     "FleetSummary",
+    "RunSettings",
     "fleet_summary",
     "load_drives",
     "run_batch",

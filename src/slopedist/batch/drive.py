@@ -6,8 +6,9 @@ library: it runs :func:`slopedist.run_setup.prepare_run`, the code ``slopedist r
 for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
 
 A drive's outputs appear in ``OUT/<drive>/`` by one rename of a complete folder, so a batch
-killed at any moment leaves each drive either complete (with its input stamp in ``run.json``) or
-absent; temporary folders (``OUT/.tmp-*``) of killed tasks are removed by the next batch.
+killed at any moment leaves each drive either complete (with its input stamp and the options it
+was run with in ``run.json``) or absent; temporary folders (``OUT/.tmp-*``) of killed tasks are
+removed by the next batch.
 """
 
 from __future__ import annotations
@@ -23,17 +24,29 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
 
-from slopedist.batch.manifest import DriveSpec
-from slopedist.batch.stamp import STAMP_KEY
+from slopedist.batch.manifest import DriveSpec, spec_summary
+from slopedist.batch.stamp import SETTINGS_KEY, STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
 from slopedist.detections.onnx_detector import OnnxDetector
 from slopedist.errors import SlopedistError
-from slopedist.estimators import EstimatorConfig
 from slopedist.io.frames import Frame, FrameSource
 from slopedist.io.prefetch import opencv_threads
 from slopedist.io.tables import write_json
-from slopedist.run_config import SUMMARY_NAME, RunConfig, RunResult
-from slopedist.run_setup import LogTopicNames, RunInputs, folder_depth_source, prepare_run
+from slopedist.run_config import (
+    SUMMARY_NAME,
+    RunConfig,
+    RunResult,
+    export_paths,
+    overlay_fps,
+    overlay_path,
+)
+from slopedist.run_setup import (
+    LogTopicNames,
+    PreparedRun,
+    RunInputs,
+    folder_depth_source,
+    prepare_run,
+)
 
 TMP_PREFIX = ".tmp-"
 ATTEMPTS_PREFIX = ".attempts-"
@@ -44,7 +57,8 @@ CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
 
 def drive_inputs(spec: DriveSpec) -> RunInputs:
     """The :class:`~slopedist.run_setup.RunInputs` of ``slopedist run`` with the options of
-    ``spec`` (the detector with its default settings; estimator defaults but the method)."""
+    ``spec`` (the detector with its default settings; estimator defaults but the method, its
+    offline mode, the reference point and the ``ours`` options of ``spec.settings``)."""
     detector = spec.detector
     return RunInputs(
         spec.frames,
@@ -59,7 +73,7 @@ def drive_inputs(spec: DriveSpec) -> RunInputs:
         mount_angle_deg=spec.mount_angle_deg,
         odometry=spec.odometry,
         lookback_s=spec.lookback_s,
-        estimator=EstimatorConfig(method=spec.method),
+        estimator=spec.settings.estimator(spec.method),
         depth=functools.partial(folder_depth_source, spec.depth_dir) if spec.depth_dir else None,
     )
 
@@ -76,20 +90,35 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
     frames: FrameSource = prepared.source
     if crash_after is not None:
         frames = cast(FrameSource, _CrashingFrames(prepared.source, crash_after))
-    config = RunConfig(
-        out_dir,
-        spec.lookback_s,
-        progress=False,
-        sequence=spec.sequence or spec.name,
-        time_origin_ns=prepared.time_origin_ns,
-        ego_speed=prepared.ego_speed,
-        decode_ahead=0,
-    )
+    config = drive_config(spec, out_dir, prepared)
     # a drive task holds one CPU (num_cpus=1) and decodes in its loop (decode_ahead=0): more
     # OpenCV threads would only compete with the other workers on the node, at a higher CPU
     # cost per frame; a batch scales by running one drive per core
     with opencv_threads(1):
         return prepared.run(config, frames)
+
+
+def drive_config(spec: DriveSpec, out_dir: Path, prepared: PreparedRun) -> RunConfig:
+    """The :class:`~slopedist.run_config.RunConfig` of ``slopedist run`` with the options of
+    ``spec`` (overlay, exports, vehicle classes of ``spec.settings``) into ``out_dir``, with no
+    progress bar and frames decoded in the loop (``decode_ahead=0``, see
+    :func:`run_single_drive`)."""
+    settings = spec.settings
+    mcap, trajectory = export_paths(out_dir, settings.export)
+    return RunConfig(
+        out_dir,
+        spec.lookback_s,
+        overlay_path(out_dir, settings.overlay_format) if settings.overlay else None,
+        overlay_fps(spec.fps, prepared.source),
+        progress=False,
+        sequence=spec.sequence or spec.name,
+        mcap=mcap,
+        trajectory=trajectory,
+        time_origin_ns=prepared.time_origin_ns,
+        ego_speed=prepared.ego_speed,
+        vehicle_classes=settings.vehicle_classes,
+        decode_ahead=0,
+    )
 
 
 class _CrashingFrames:
@@ -143,6 +172,20 @@ def publish(tmp: Path, final: Path) -> None:
         tmp.rename(final)
 
 
+def relocated(summary: dict[str, Any], tmp: Path, final: Path) -> dict[str, Any]:
+    """``run.json`` of a run into ``tmp`` with its paths (``out_dir``, the overlay, the
+    exports) pointing into ``final``, where the folder is published."""
+
+    def move(value: Any) -> Any:
+        if isinstance(value, list):
+            return [move(v) for v in value]
+        if isinstance(value, str) and (value == str(tmp) or value.startswith(f"{tmp}{os.sep}")):
+            return str(final) + value[len(str(tmp)) :]
+        return value
+
+    return {k: move(v) for k, v in summary.items()}
+
+
 def error_text(exc: BaseException) -> str:
     """One line for ``status.csv``: the message of a slopedist error, else type and message."""
     text = str(exc) if isinstance(exc, SlopedistError) else f"{type(exc).__name__}: {exc}"
@@ -161,8 +204,9 @@ def process_drive(
     try:
         result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
         summary_path = tmp / SUMMARY_NAME
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        summary = relocated(json.loads(summary_path.read_text(encoding="utf-8")), tmp, final)
         summary[STAMP_KEY] = stamp
+        summary[SETTINGS_KEY] = spec_summary(spec)
         write_json(summary_path, summary)
         publish(tmp, final)
     except Exception as exc:  # failure isolation: any error of this drive is its own

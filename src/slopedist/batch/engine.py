@@ -47,6 +47,7 @@ from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import input_stamp
 from slopedist.batch.status import STATUS_NAME, DriveOutcome, DriveStatus, write_status
 from slopedist.errors import ConfigurationError, SlopedistError, import_optional
+from slopedist.io.prefetch import usable_cores
 from slopedist.runner import SUMMARY_NAME
 
 T = TypeVar("T")
@@ -60,7 +61,8 @@ class BatchOptions:
     """How to run a batch.
 
     Attributes:
-        workers: CPUs of the embedded Ray instance (None: all cores); not with ``address``.
+        workers: CPUs of the embedded Ray instance (None: the cores this process may use,
+            :func:`~slopedist.io.prefetch.usable_cores`); not with ``address``.
         address: Ray cluster to use (None: ``$RAY_ADDRESS`` if set, else an embedded instance).
         fail_fast: cancel the remaining drives at the first failure.
         force: run every drive, complete or not.
@@ -121,7 +123,8 @@ def ray_session(
 ) -> Iterator[Any]:
     """Ray, initialised for the batch: the running instance if this process has one, else the
     cluster at ``address`` / ``$RAY_ADDRESS``, else an embedded instance with ``workers`` CPUs
-    (all cores when None), shut down again at the end."""
+    (when None, the cores this process may use: :func:`~slopedist.io.prefetch.usable_cores`,
+    so a container's or ``taskset``'s CPU limit holds), shut down again at the end."""
     ray = import_ray(purpose)
     if ray.is_initialized():
         yield ray
@@ -142,7 +145,7 @@ def ray_session(
             ray.init(address=address, **settings)
         else:
             # "local": a new instance even when an earlier `ray start` left its address behind
-            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **settings)
+            ray.init(address="local", num_cpus=workers or usable_cores(), **settings)
         try:
             yield ray
         finally:

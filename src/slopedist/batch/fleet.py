@@ -11,7 +11,8 @@
   (estimates capped at 80 m, below-horizon counted at the cap). :func:`write_fleet_summary`
   writes them to ``OUT/fleet/{drives,pooled,range}.csv``; with the per-track safety
   summaries of :mod:`~slopedist.batch.safety` per drive and pooled per method
-  (``OUT/fleet/safety.csv``, ``OUT/fleet/safety_pooled.csv``).
+  (``OUT/fleet/safety.csv``, ``OUT/fleet/safety_pooled.csv``), and the options each drive was
+  run with (``OUT/fleet/settings.csv``, :func:`settings_rows`).
 """
 
 from __future__ import annotations
@@ -26,18 +27,38 @@ import numpy as np
 
 from slopedist.batch.drive import completed_stamp
 from slopedist.batch.safety import DRIVE_SAFETY_FIELDS, POOLED_SAFETY_FIELDS, fleet_safety
+from slopedist.batch.settings import SETTING_COLUMNS, settings_cell
+from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import OptionalDependencyError
 from slopedist.evaluation import DISTANCE_BINS_M, bin_label, cap_estimates, distance_metrics
 from slopedist.io.tables import write_csv
 from slopedist.limits import MAX_RECORD_MAGNITUDE
-from slopedist.run_config import RECORDS_NAME
-from slopedist.textfiles import CsvRows, number_cell
+from slopedist.run_config import RECORDS_NAME, SUMMARY_NAME
+from slopedist.textfiles import CsvRows, number_cell, read_json
 
 DATASET_NAME = "records.parquet"
 FLEET_DIR = "fleet"
 FLEET_NAMES = frozenset({DATASET_NAME, FLEET_DIR, "status.csv"})
 """Names in ``OUT`` that belong to the batch, not to a drive."""
+
+SETTINGS_FIELDS = (
+    "drive",
+    "method",
+    *SETTING_COLUMNS,
+    "odometry",
+    "height_m",
+    "mount_angle_deg",
+    "lookback_s",
+    "score",
+    "fps",
+    "frames",
+    "boxes",
+    "detector",
+)
+"""Columns of ``OUT/fleet/settings.csv`` (:func:`settings_rows`): the drive, its method and
+run settings (:data:`~slopedist.batch.settings.SETTING_COLUMNS`; ``offline`` and ``overlay``
+as 0/1), camera (metres, degrees), look-back (s), box score threshold, frame rate and inputs."""
 
 METRICS = ("n", "rmse", "mae", "abs_rel", "delta_1.25")
 """Metrics of the fleet tables (see :func:`slopedist.evaluation.distance_metrics`)."""
@@ -189,9 +210,24 @@ def fleet_summary(out_dir: str | Path) -> FleetSummary:
     return FleetSummary(drives, pooled_rows, range_rows, *fleet_safety(folders))
 
 
+def settings_rows(out_dir: str | Path) -> list[dict[str, Any]]:
+    """One row per complete drive of the batch output ``out_dir``: the options it was run with
+    (:data:`SETTINGS_FIELDS`, from the ``batch_drive`` entry of its ``run.json``; lists and the
+    ``ours`` options as manifest cells, items joined by ``;``). A drive completed by a batch
+    that did not record them has its name only."""
+    rows = []
+    for folder in batch_drive_folders(Path(out_dir)):
+        summary = read_json(folder / SUMMARY_NAME, "run summary")
+        options = summary.get(SETTINGS_KEY) if isinstance(summary, dict) else None
+        options = options if isinstance(options, dict) else {}
+        cells = {k: settings_cell(options.get(k)) for k in SETTINGS_FIELDS[1:]}
+        rows.append({"drive": folder.name, **cells})
+    return rows
+
+
 def write_fleet_summary(out_dir: str | Path, summary: FleetSummary | None = None) -> list[Path]:
     """Write :func:`fleet_summary` to ``OUT/fleet/{drives,pooled,range,safety,
-    safety_pooled}.csv``."""
+    safety_pooled}.csv`` and :func:`settings_rows` to ``OUT/fleet/settings.csv``."""
     out = Path(out_dir)
     summary = summary if summary is not None else fleet_summary(out)
     folder = out / FLEET_DIR
@@ -203,4 +239,5 @@ def write_fleet_summary(out_dir: str | Path, summary: FleetSummary | None = None
         write_csv(folder / "range.csv", summary.by_range, ("method", "range_m", *METRICS)),
         write_csv(folder / "safety.csv", summary.safety, DRIVE_SAFETY_FIELDS),
         write_csv(folder / "safety_pooled.csv", summary.safety_pooled, POOLED_SAFETY_FIELDS),
+        write_csv(folder / "settings.csv", settings_rows(out), SETTINGS_FIELDS),
     ]

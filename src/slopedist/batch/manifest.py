@@ -2,14 +2,30 @@
 
 A CSV manifest has one drive per row and at least the columns ``drive`` (a name, also the output
 sub-folder), ``frames`` (image folder, video or drive log), ``calib`` and ``boxes``; ``method`` and
-the columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch default).
+the columns of :data:`OPTIONAL_COLUMNS` are optional (an empty cell takes the batch-wide value
+of :class:`DriveDefaults`, the ``slopedist batch`` option of that name).
 A drive log (``.bag``, ``.mcap``, ``.db3`` or a ROS 2 bag folder) names its topics in
-``image_topic`` (required for a log), ``rotation_topic`` and ``speed_topic``, and may leave
-``calib`` empty (or a manifest of logs leave the column out) to use the log's ``camera_info``;
-``calib`` is required for image folders and videos. Paths are relative to the manifest's
-folder. A TOML manifest holds the same keys in ``[[drive]]`` tables. A folder without a manifest
-is read as one drive per sub-folder (:data:`FRAME_NAMES`, ``calib.txt``, ``boxes.csv`` and
-optionally ``times.txt``).
+``image_topic`` (required for a log unless the batch gives one), ``rotation_topic`` and
+``speed_topic``, and may leave ``calib`` empty (or a manifest of logs leave the column out) to
+use the log's ``camera_info``; ``calib`` is required for image folders and videos. Paths are
+relative to the manifest's folder.
+
+The run settings (:mod:`~slopedist.batch.settings`) are the columns ``reference``
+(``centre``, ``nearest_face``, ``contact``), ``ours_options`` (``KEY=VALUE`` items separated by
+``;``: ``odd_object_weight=0;size_learning=true``), ``vehicle_classes`` (``Car;Van;Truck``),
+``offline`` and ``overlay`` (``true``/``false``, ``yes``/``no``, ``1``/``0``),
+``overlay_format`` (``mp4``, ``png``) and ``export`` (``mcap``, ``tum``, ``mcap;tum``).
+``reference`` and ``ours_options`` are for ``ours``, ``ours-selfcal`` and ``ours-offline``,
+``offline`` for a method with an offline mode, ``overlay_format`` for a drive with an overlay.
+
+A TOML manifest holds the same keys in ``[[drive]]`` tables; there a list cell may be a list
+(``export = ["mcap", "tum"]``), ``ours_options`` a table (``{odd_object_weight = 0,
+size_learning = true}``) or a list of ``KEY=VALUE`` texts, and a flag a boolean.
+
+A folder without a manifest is read as one drive per sub-folder: its frames
+(:data:`FRAME_NAMES`, else its one drive log, or the folder itself when it is a ROS 2 bag),
+``calib.txt`` (optional for a log), ``boxes.csv`` and optionally ``times.txt`` (not for a log);
+a log's image topic is the batch-wide one.
 
 Every mistake is an :class:`~slopedist.errors.InputFileError` naming the manifest, the line
 (CSV) or drive entry (TOML) and the field.
@@ -21,12 +37,19 @@ import csv
 import math
 import sys
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from slopedist.batch.settings import (
+    LIST_SEPARATOR,
+    SETTING_COLUMNS,
+    RunSettings,
+    drive_settings,
+    settings_json,
+)
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
 from slopedist.estimators import DEFAULT_METHOD, available_methods
 from slopedist.io.rosbag import is_log_path
 from slopedist.odometry.base import LOOKBACK_S
@@ -59,10 +82,12 @@ OPTIONAL_COLUMNS = (
     "lookback",
     "depth_dir",
     "sequence",
+    *SETTING_COLUMNS,
 )
 """Manifest columns beyond the required ones; each is the ``slopedist run`` option of that name
-(``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s); one of
-:data:`BOX_COLUMNS` must be there, and ``calib`` unless every drive is a log."""
+(``height`` metres, ``mount_angle`` degrees, ``lookback`` seconds, ``fps`` frames/s; the
+settings of :mod:`~slopedist.batch.settings`); one of :data:`BOX_COLUMNS` must be there, and
+``calib`` unless every drive is a log."""
 
 FRAME_NAMES = ("image_02", "frames", "images", "video.mp4", "video.avi", "video.mkv")
 """Where a drive folder's frames are, in order of preference (folder layout)."""
@@ -74,13 +99,17 @@ TIMESTAMPS_NAME = "times.txt"
 
 @dataclass(frozen=True)
 class DriveDefaults:
-    """Batch-wide values for the cells a manifest leaves empty (and for folder layouts)."""
+    """Batch-wide values for the cells a manifest leaves empty (and for folder layouts):
+    ``settings`` apply to the drives whose method takes them (:func:`~slopedist.batch.
+    settings.drive_settings`), ``image_topic`` to drives whose frames are a drive log."""
 
     method: str = DEFAULT_METHOD
     odometry: str = "builtin"
     height_m: float = KITTI_CAMERA_HEIGHT_M
     mount_angle_deg: float = 0.0
     lookback_s: float = LOOKBACK_S
+    settings: RunSettings = field(default_factory=RunSettings)
+    image_topic: str | None = None
 
 
 @dataclass(frozen=True)
@@ -105,6 +134,8 @@ class DriveSpec:
         image_topic / rotation_topic / speed_topic: a drive log's image topic, orientation
             topic replacing the visual odometry, and ego-speed topic (m/s; headway times), or
             None.
+        settings: reference point, ``ours`` options, vehicle classes, offline mode, overlay
+            and exports (:class:`~slopedist.batch.settings.RunSettings`).
         origin: where the drive was defined (manifest and line), for messages.
     """
 
@@ -126,6 +157,7 @@ class DriveSpec:
     image_topic: str | None = None
     rotation_topic: str | None = None
     speed_topic: str | None = None
+    settings: RunSettings = field(default_factory=RunSettings)
     origin: str = ""
 
 
@@ -196,7 +228,10 @@ def spec_from_row(
         raise where("boxes", f"give a box file or a detector (exactly one; {which} given)")
     frames = path("frames")
     assert frames is not None
-    check_log_cells(cells, is_log_path(frames), where)
+    is_log = is_log_path(frames)
+    if is_log and not cells.get("image_topic") and defaults.image_topic:
+        cells["image_topic"] = defaults.image_topic
+    check_log_cells(cells, is_log, where)
     return DriveSpec(
         name=cells["drive"],
         frames=frames,
@@ -216,6 +251,7 @@ def spec_from_row(
         image_topic=cells.get("image_topic") or None,
         rotation_topic=cells.get("rotation_topic") or None,
         speed_topic=cells.get("speed_topic") or None,
+        settings=drive_settings(cells, method, defaults.settings, where),
         origin=origin,
     )
 
@@ -231,7 +267,7 @@ def check_log_cells(
             raise where(
                 "image_topic",
                 f"is empty: frames '{cells['frames']}' is a drive log; name its image topic "
-                "(list the topics with: slopedist log info LOG)",
+                "here or with batch --image-topic (list the topics with: slopedist log info LOG)",
             )
         if cells.get("timestamps"):
             raise where("timestamps", "a drive log's frame times are its header stamps")
@@ -332,7 +368,7 @@ def read_toml_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) ->
         unknown = [k for k in entry if k not in known]
         if unknown:
             raise where(unknown[0], f"unknown key; known: {', '.join(known)}")
-        row = {k: str(v) for k, v in entry.items()}
+        row = {k: toml_cell(k, v, where) for k, v in entry.items()}
         specs.append(spec_from_row(row, path.parent, defaults, where, f"{path} entry {i}"))
     _check_unique(
         specs, lambda i, msg: InputFileError(path, f"[[drive]] entry {i + 1}: {msg}", field="drive")
@@ -340,35 +376,116 @@ def read_toml_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) ->
     return specs
 
 
+def toml_cell(key: str, value: Any, where: Callable[[str, str], InputFileError]) -> str:
+    """A TOML manifest value as the CSV cell it stands for: a boolean as ``true``/``false``, a
+    list as its items joined by ``;`` (:data:`~slopedist.batch.settings.LIST_SEPARATOR`), a
+    table (only ``ours_options``) as ``KEY=VALUE`` items joined the same way."""
+    if isinstance(value, dict) and key == "ours_options":
+        items = [f"{k}={toml_cell(key, v, where)}" for k, v in value.items()]
+        return LIST_SEPARATOR.join(items)
+    if isinstance(value, list) and all(isinstance(v, (str, bool, int, float)) for v in value):
+        return LIST_SEPARATOR.join(toml_cell(key, v, where) for v in value)
+    if isinstance(value, (dict, list)):
+        raise where(key, f"expected a string, number or boolean, got {value!r}")
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
 def _first_existing(folder: Path, names: tuple[str, ...]) -> Path | None:
     return next((folder / n for n in names if (folder / n).exists()), None)
 
 
+def folder_log(folder: Path) -> Path | None:
+    """The drive log of a drive folder (folder layout): the folder itself when it is a ROS 2
+    bag folder, else its one ``.bag``, ``.mcap`` or ``.db3`` file or ROS 2 bag sub-folder
+    (hidden names ignored); None when it holds none.
+
+    Raises:
+        ConfigurationError: the folder holds several logs (which one is the drive is unclear).
+    """
+    if is_log_path(folder):
+        return folder
+    logs = sorted(p for p in folder.iterdir() if not p.name.startswith(".") and is_log_path(p))
+    if len(logs) > 1:
+        raise ConfigurationError(
+            f"drive folder {folder} holds several drive logs ({', '.join(p.name for p in logs)}); "
+            "keep one per folder, or name the drives in a manifest"
+        )
+    return logs[0] if logs else None
+
+
+def _log_drive(folder: Path, log: Path, defaults: DriveDefaults) -> DriveSpec:
+    """The drive of a folder whose frames are the drive log ``log`` (folder layout): its
+    ``calib.txt`` if there is one (else the log's ``camera_info``), the batch-wide image topic
+    (``times.txt`` is not read: a log's frame times are its header stamps)."""
+    if not defaults.image_topic:
+        raise ConfigurationError(
+            f"drive folder {folder}: frames '{log.name}' are a drive log; name its image topic "
+            "with --image-topic (list the topics with: slopedist log info LOG)"
+        )
+    calib = folder / CALIB_NAME
+    return _folder_drive(
+        folder, log, calib if calib.is_file() else None, None, defaults, defaults.image_topic
+    )
+
+
+def _folder_drive(
+    folder: Path,
+    frames: Path,
+    calib: Path | None,
+    timestamps: Path | None,
+    defaults: DriveDefaults,
+    image_topic: str | None = None,
+) -> DriveSpec:
+    """A drive of the folder layout with the batch-wide options of ``defaults``."""
+    method = defaults.method
+
+    def where(field: str, message: str) -> InputFileError:  # the batch-wide options' errors
+        return InputFileError(folder, message, field=field)
+
+    return DriveSpec(
+        name=folder.name,
+        frames=frames.absolute(),
+        calib=calib.absolute() if calib is not None else None,
+        boxes=(folder / BOXES_NAME).absolute(),
+        method=method,
+        timestamps=timestamps.absolute() if timestamps is not None else None,
+        odometry=defaults.odometry,
+        height_m=defaults.height_m,
+        mount_angle_deg=defaults.mount_angle_deg,
+        lookback_s=defaults.lookback_s,
+        image_topic=image_topic,
+        settings=drive_settings({}, method, defaults.settings, where),
+        origin=str(folder),
+    )
+
+
 def discover_drives(root: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:
-    """One drive per sub-folder of ``root`` that holds frames (:data:`FRAME_NAMES`), a
-    ``calib.txt`` or a ``boxes.csv`` (sorted by name; hidden folders are ignored). A missing
-    input makes that drive fail alone when it runs."""
+    """One drive per sub-folder of ``root`` that holds frames (:data:`FRAME_NAMES`, else a
+    drive log: :func:`folder_log`), a ``calib.txt`` or a ``boxes.csv`` (sorted by name; hidden
+    folders are ignored). A missing input makes that drive fail alone when it runs.
+
+    Raises:
+        ConfigurationError: a folder with several logs, or a log without the batch-wide
+            ``image_topic``.
+    """
     specs = []
     for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        if check_drive_name(folder.name):
+            continue
         frames = _first_existing(folder, FRAME_NAMES)
+        log = folder_log(folder) if frames is None else None
+        if log is not None:
+            specs.append(_log_drive(folder, log, defaults))
+            continue
         calib, boxes = folder / CALIB_NAME, folder / BOXES_NAME
-        if check_drive_name(folder.name) or not (frames or calib.exists() or boxes.exists()):
+        if not (frames or calib.exists() or boxes.exists()):
             continue
         times = folder / TIMESTAMPS_NAME
+        frames = frames or folder / FRAME_NAMES[0]
         specs.append(
-            DriveSpec(
-                name=folder.name,
-                frames=(frames or folder / FRAME_NAMES[0]).absolute(),
-                calib=calib.absolute(),
-                boxes=boxes.absolute(),
-                method=defaults.method,
-                timestamps=times.absolute() if times.is_file() else None,
-                odometry=defaults.odometry,
-                height_m=defaults.height_m,
-                mount_angle_deg=defaults.mount_angle_deg,
-                lookback_s=defaults.lookback_s,
-                origin=str(folder),
-            )
+            _folder_drive(folder, frames, calib, times if times.is_file() else None, defaults)
         )
     return specs
 
@@ -386,7 +503,8 @@ def load_drives(source: str | Path, defaults: DriveDefaults = DriveDefaults()) -
         if not specs:
             raise MissingInputError(
                 f"no drives in {path}: expected sub-folders with frames "
-                f"({' or '.join(FRAME_NAMES[:3])}, or a video), {CALIB_NAME} and {BOXES_NAME}"
+                f"({' or '.join(FRAME_NAMES[:3])}, a video or a drive log), {CALIB_NAME} and "
+                f"{BOXES_NAME}"
             )
         return specs
     if not path.is_file():
@@ -396,9 +514,16 @@ def load_drives(source: str | Path, defaults: DriveDefaults = DriveDefaults()) -
     return read_csv_manifest(path, defaults)
 
 
-def spec_summary(spec: DriveSpec) -> dict[str, Any]:
-    """The run-relevant fields of ``spec`` as plain JSON values (paths as strings), in a fixed
-    order; ``origin`` is left out (moving a manifest row does not change a drive)."""
-    return {
-        k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(spec).items() if k != "origin"
+def spec_summary(spec: DriveSpec, changed_only: bool = False) -> dict[str, Any]:
+    """The run-relevant fields of ``spec`` as plain JSON values (paths as strings; the
+    settings flattened, ``ours_options`` as a table), in a fixed order; ``origin`` is left out
+    (moving a manifest row does not change a drive). ``changed_only``: the settings only where
+    they differ from ``slopedist run``'s defaults (the form the input stamp hashes, so that a
+    drive completed before a setting existed keeps its stamp)."""
+    summary = {
+        k: (str(v) if isinstance(v, Path) else v)
+        for k, v in asdict(spec).items()
+        if k not in ("origin", "settings")
     }
+    settings = spec.settings.changed() if changed_only else asdict(spec.settings)
+    return summary | settings_json(settings)

@@ -4,7 +4,9 @@ A stamp records, for every input path of a drive, its size and modification time
 files (calibration, boxes, timestamps: up to :data:`HASH_LIMIT_BYTES`) a SHA-256 of the content;
 for a folder (image frames, depth maps) the number of files, their total size and a SHA-256 of
 the listing (name, size, mtime). The drive's options (:func:`~slopedist.batch.manifest.
-spec_summary`) are hashed too. Two stamps are equal when nothing that could change the outputs
+spec_summary`; the run settings where they are not the defaults) are hashed too: a drive run
+with other settings (reference point, ``ours`` options, offline mode, overlay, ...) runs
+again. Two stamps are equal when nothing that could change the outputs
 changed; touching a small file without changing it does not count as a change.
 """
 
@@ -23,6 +25,10 @@ HASH_LIMIT_BYTES = 1 << 20
 
 STAMP_KEY = "batch_inputs"
 """Key of the stamp in the drive's ``run.json``."""
+
+SETTINGS_KEY = "batch_drive"
+"""Key of the drive's options (:func:`~slopedist.batch.manifest.spec_summary`: inputs, method,
+camera and run settings) in its ``run.json``."""
 
 
 def _sha256_file(path: Path) -> str:
@@ -57,7 +63,7 @@ def path_stamp(path: Path) -> dict[str, Any]:
 
 def input_stamp(spec: DriveSpec) -> dict[str, Any]:
     """Stamp of every input of ``spec`` and a hash of its options (JSON-ready)."""
-    options = json.dumps(spec_summary(spec), sort_keys=True)
+    options = json.dumps(spec_summary(spec, changed_only=True), sort_keys=True)
     paths = {
         "frames": spec.frames,
         "calib": spec.calib,

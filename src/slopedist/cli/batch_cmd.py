@@ -8,7 +8,24 @@ import click
 
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
-from slopedist.cli.options import check_methods, height_option, lookback_option, mount_option
+from slopedist.batch.settings import RunSettings, unapplied
+from slopedist.cli.options import (
+    check_methods,
+    height_option,
+    lookback_option,
+    mount_option,
+    ours_option,
+    parse_ours_options,
+    reference_option,
+    vehicle_classes_option,
+)
+from slopedist.cli.run_options import (
+    export_option,
+    image_topic_option,
+    overlay_format_option,
+    overlay_option,
+    run_offline_option,
+)
 from slopedist.estimators import DEFAULT_METHOD
 from slopedist.run_setup import ODOMETRY_CHOICES
 
@@ -58,6 +75,14 @@ from slopedist.run_setup import ODOMETRY_CHOICES
 @height_option
 @mount_option
 @lookback_option
+@reference_option
+@ours_option
+@vehicle_classes_option
+@run_offline_option
+@overlay_option
+@overlay_format_option
+@export_option
+@image_topic_option
 def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
     out_dir: Path,
@@ -73,20 +98,44 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     height_m: float,
     mount_angle_deg: float,
     lookback_s: float,
+    reference: str | None,
+    ours_options: tuple[str, ...],
+    vehicle_classes: tuple[str, ...],
+    offline: bool,
+    overlay: bool,
+    overlay_format: str,
+    exports: tuple[str, ...],
+    image_topic: str | None,
 ) -> None:
     """Run every drive of SOURCE (a CSV or TOML manifest, or a folder of drives) into OUT.
 
     A manifest row names drive, frames (image folder, video or drive log), calib (a log may
     use its camera_info instead), boxes and optionally method, the log's image_topic,
-    rotation_topic and speed_topic and other `run` options (paths relative to the manifest).
-    Complete drives with unchanged inputs are skipped; a failed drive is recorded in
+    rotation_topic and speed_topic and other `run` options (paths relative to the manifest;
+    list cells such as ours_options separate their items with ';'). The options here are the
+    values of the drives that leave a cell empty (--reference, --ours-option and --offline
+    apply to the drives whose method takes them; --image-topic to drive logs). Complete
+    drives with unchanged inputs and settings are skipped; a failed drive is recorded in
     OUT/status.csv and does not stop the others. Exit code 1 when every drive failed, or at a
     failure with --fail-fast. Needs Ray: pip install 'slopedist[batch]'.
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
-    defaults = DriveDefaults(method, odometry, height_m, mount_angle_deg, lookback_s)
+    settings = RunSettings(
+        reference,
+        parse_ours_options(ours_options),
+        vehicle_classes,
+        offline,
+        overlay,
+        overlay_format,
+        exports,
+    )
+    defaults = DriveDefaults(
+        method, odometry, height_m, mount_angle_deg, lookback_s, settings, image_topic
+    )
     drives = load_drives(source, defaults)
+    for warning in unapplied(settings, [d.method for d in drives]):
+        click.echo(f"slopedist: warning: {warning}", err=True)
     options = BatchOptions(
         workers=workers,
         address=address,

@@ -13,14 +13,14 @@ import click
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.detections.layouts import LogitKind, OutputLayout
 from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import EstimatorConfig, available_methods
-from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import parse_option
+from slopedist.estimators.ours.config import parse_options
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.learned_peer import PEER_METHOD
 
@@ -102,7 +102,7 @@ thresholds_option = click.option(
 
 reference_option = click.option(
     "--reference",
-    type=click.Choice(["centre", "nearest_face", "contact"]),
+    type=click.Choice([r.value for r in VEHICLE_REFERENCES]),
     default=None,
     help="ours: the point of the vehicle distance_m refers to (default centre; an evaluation "
     "defaults to its truth's --gt-reference).",
@@ -123,7 +123,7 @@ def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:
     """``--ours-option KEY=VALUE`` values as ``(name, value)`` pairs (usage errors name the
     option)."""
     try:
-        return tuple(parse_option(text) for text in texts)
+        return parse_options(texts)
     except ConfigurationError as exc:
         raise click.BadParameter(str(exc), param_hint="--ours-option") from None
 
@@ -430,7 +430,7 @@ drive_file_options = _files_decorator(required=False)
 computes the rotations from the frames and may detect the boxes)."""
 
 
-GT_REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+GT_REFERENCES = VEHICLE_REFERENCES
 """The reference points a ground truth can declare (``--gt-reference``)."""
 
 
@@ -669,10 +669,10 @@ def make_detector(model: Path, **opts: Any) -> OnnxDetector:
 
 
 def _vehicle_classes(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
-    names = split_list(value)
-    if not names:
-        raise click.BadParameter("give at least one class name", param_hint="--vehicle-classes")
-    return tuple(names)
+    try:
+        return vehicle_class_names(split_list(value) or [])
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--vehicle-classes") from None
 
 
 vehicle_classes_option = click.option(

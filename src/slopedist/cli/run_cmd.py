@@ -28,6 +28,13 @@ from slopedist.cli.options import (
     parse_triple,
     vehicle_classes_option,
 )
+from slopedist.cli.run_options import (
+    export_option,
+    image_topic_option,
+    overlay_format_option,
+    overlay_option,
+    run_offline_option,
+)
 from slopedist.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
@@ -40,14 +47,14 @@ from slopedist.io.outputs import (
 )
 from slopedist.run_config import (
     FRAMES_NAME,
-    MCAP_NAME,
     RECORDS_NAME,
     SUMMARY_NAME,
-    TRAJECTORY_NAME,
     RunAbortedError,
     RunConfig,
-    RunExport,
     RunResult,
+    export_paths,
+    overlay_fps,
+    overlay_path,
     snapshot_path,
 )
 from slopedist.run_setup import (
@@ -209,12 +216,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 @click.command("run")
 @click.argument("frames", type=click.Path(path_type=Path))
 @optional_calibration_options
-@click.option(
-    "--image-topic",
-    default=None,
-    help="Drive log (.bag, .mcap, .db3, ROS 2 bag folder): the sensor_msgs/Image or "
-    "CompressedImage topic (see: slopedist log info LOG).",
-)
+@image_topic_option
 @click.option(
     "--rotation-topic",
     default=None,
@@ -227,14 +229,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     help="Drive log: a nav_msgs/Odometry or TwistStamped topic giving the ego speed, for the "
     "headway time in OUT/tracks.csv.",
 )
-@click.option(
-    "--export",
-    "exports",
-    type=click.Choice([e.value for e in RunExport]),
-    multiple=True,
-    help="Also write OUT/run.mcap (Foxglove schemas) and/or OUT/trajectory.tum (rotations, "
-    "for evo). Repeatable.",
-)
+@export_option
 @click.option(
     "--boxes",
     "boxes_path",
@@ -250,13 +245,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     "'slopedist[onnx]'; docs/detectors.md); options --detector-*.",
 )
 @click.option("--method", default=None, help=f"Estimator name [default: {DEFAULT_METHOD}].")
-@click.option(
-    "--offline",
-    is_flag=True,
-    help="The method's offline mode (ours → ours-offline: smoothed over the whole drive, for "
-    "log analysis): records.csv is written when the drive ends; the overlay, frames.csv and "
-    "the MCAP export show the causal pass as the frames come.",
-)
+@run_offline_option
 @click.option(
     "--odometry",
     type=click.Choice(ODOMETRY_CHOICES),
@@ -279,14 +268,8 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     show_default=True,
     help="Output folder: records.csv, frames.csv, run.json, overlay.",
 )
-@click.option("--overlay", is_flag=True, help="Also write annotated frames (paper Fig. 3 style).")
-@click.option(
-    "--overlay-format",
-    type=click.Choice(["mp4", "png"]),
-    default="mp4",
-    show_default=True,
-    help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
-)
+@overlay_option
+@overlay_format_option
 @click.option(
     "--snapshot",
     "snapshots",
@@ -391,21 +374,17 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     )
     prepared = prepare_run(inputs)
     source = prepared.source
-    overlay_path = (
-        out_dir / ("overlay.mp4" if overlay_format == "mp4" else "overlay") if overlay else None
-    )
-    overlay_fps = fps or getattr(source, "container_fps", 0.0) or 10.0
+    overlay_out = overlay_path(out_dir, overlay_format) if overlay else None
     paths = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
     paths += [vocab, detector_model]
-    mcap_path = out_dir / MCAP_NAME if RunExport.MCAP.value in exports else None
-    tum_path = out_dir / TRAJECTORY_NAME if RunExport.TUM.value in exports else None
+    mcap_path, tum_path = export_paths(out_dir, exports)
     shots = [snapshot_path(out_dir, k) for k in snapshots]
-    check_run_outputs(out_dir, [overlay_path, mcap_path, tum_path, *shots], paths)
+    check_run_outputs(out_dir, [overlay_out, mcap_path, tum_path, *shots], paths)
     config = RunConfig(
         out_dir,
         lookback_s,
-        overlay_path,
-        overlay_fps,
+        overlay_out,
+        overlay_fps(fps, source),
         not quiet,
         sequence,
         mcap=mcap_path,

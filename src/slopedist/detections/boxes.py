@@ -12,6 +12,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from slopedist.errors import ConfigurationError
+
 NO_TRACK = -1
 """Track id used when a box has no track id."""
 
@@ -37,6 +39,18 @@ DEFAULT_VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus", "Motorcycle", "Motorbik
 """Class names scored as vehicles (case-insensitive). KITTI's ``Pedestrian``,
 ``Person_sitting``, ``Cyclist``, ``Tram``, ``Misc`` and ``DontCare`` are not: the ground
 contact of a person, a rail vehicle or an unknown object is not a car's."""
+
+
+def vehicle_class_names(names: Iterable[str]) -> tuple[str, ...]:
+    """Class names to score as vehicles (``--vehicle-classes``), stripped, empty ones dropped.
+
+    Raises:
+        ConfigurationError: no name is left.
+    """
+    kept = tuple(n.strip() for n in names if n.strip())
+    if not kept:
+        raise ConfigurationError("give at least one vehicle class name")
+    return kept
 
 
 def box_problems(

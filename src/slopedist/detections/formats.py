@@ -34,9 +34,8 @@ import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.onnx_detector import COCO_VEHICLES
-from slopedist.detections.readers import _index, _int, _parse
+from slopedist.detections.readers import _index, _int, _parse, check_pixel_range
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
-from slopedist.limits import MAX_ABS_PIXEL
 from slopedist.textfiles import numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
@@ -58,20 +57,13 @@ MOT_GT_FIELDS = (*MOT_DET_FIELDS[:6], "flag", "class", "visibility")
 
 
 def _corners(
-    path: str | Path, xywh: list[float], *, line: int | None = None, field: str | None = None
+    path: str | Path, xywh: list[float], *, line: int | None = None, field: str
 ) -> list[float]:
-    """Box corners ``[x1, y1, x2, y2]`` (px) of a ``[left, top, width, height]`` box; a finite
-    corner beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` is an error naming the line or field
-    (NaN/inf pass, flagged per box later)."""
+    """Box corners ``[x1, y1, x2, y2]`` (px) of a ``[left, top, width, height]`` box, checked
+    by :func:`~slopedist.detections.readers.check_pixel_range`."""
     left, top, width, height = xywh
     corners = [left, top, left + width, top + height]
-    if any(np.isfinite(c) and abs(c) > MAX_ABS_PIXEL for c in corners):
-        raise InputFileError(
-            path,
-            f"box {xywh} reaches beyond ±{MAX_ABS_PIXEL:g} px: not a pixel box",
-            line=line,
-            field=field,
-        )
+    check_pixel_range(path, corners, line=line, field=field, what=f"box {xywh}")
     return corners
 
 

@@ -108,19 +108,28 @@ def _index(path: str | Path, lineno: int, name: str, tok: str, lowest: int = 0) 
     return value
 
 
+def check_pixel_range(
+    path: str | Path, values: Sequence[float], *, line: int | None, field: str, what: str
+) -> None:
+    """Fail for a finite value beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` (NaN/inf pass:
+    they are flagged per box later, see ``box_problems``); ``what`` names the values in the
+    message (e.g. the box as written)."""
+    bad = [v for v in values if np.isfinite(v) and abs(v) > MAX_ABS_PIXEL]
+    if bad:
+        raise InputFileError(
+            path,
+            f"{what} reaches beyond ±{MAX_ABS_PIXEL:g} px: not a pixel coordinate",
+            line=line,
+            field=field,
+        )
+
+
 def _box(path: str | Path, lineno: int, names: Sequence[str], toks: Sequence[str]) -> list[float]:
-    """Four box coordinates in pixels; NaN/inf pass (flagged per box later, see
-    ``box_problems``), a finite value beyond :data:`~slopedist.limits.MAX_ABS_PIXEL` is an
-    error."""
+    """Four box coordinates in pixels, checked by :func:`check_pixel_range` one by one (the
+    error names the coordinate's field)."""
     box = [float(_parse(path, lineno, k, t, float)) for k, t in zip(names, toks)]
     for k, v in zip(names, box):
-        if abs(v) > MAX_ABS_PIXEL and np.isfinite(v):
-            raise InputFileError(
-                path,
-                f"{v:g} px is not a pixel coordinate (|value| > {MAX_ABS_PIXEL:g})",
-                line=lineno,
-                field=k,
-            )
+        check_pixel_range(path, [v], line=lineno, field=k, what=f"{v:g} px")
     return box
 
 

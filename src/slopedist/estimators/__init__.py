@@ -103,6 +103,18 @@ def causal_methods() -> list[str]:
     return [m for m in ESTIMATORS if not getattr(ESTIMATORS[m], "offline", False)]
 
 
+def takes_ours_options(name: str) -> bool:
+    """Whether method ``name`` is ``ours`` or built on it (``ours-selfcal``, ``ours-offline``):
+    the methods that take :attr:`EstimatorConfig.ours_options` and
+    :attr:`EstimatorConfig.reference`.
+
+    Raises:
+        ConfigurationError: an unknown method.
+    """
+    factory = ESTIMATORS[_method_name(name)]
+    return isinstance(factory, type) and issubclass(factory, OursEstimator)
+
+
 def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
     """Build the estimator registered as ``name`` for ``camera``."""
     return ESTIMATORS[_method_name(name)](camera, **options)
@@ -173,7 +185,7 @@ class EstimatorConfig:
                 "window_px": self.depth_window_px,
                 "scaling": self.depth_scaling,
             }
-        if isinstance(factory, type) and issubclass(factory, OursEstimator):
+        if takes_ours_options(method or self.method):
             ours = dict(self.ours_options)
             return ours if self.reference is None else ours | {"reference": self.reference}
         return {}
@@ -221,5 +233,6 @@ __all__ = [
     "causal_methods",
     "make_estimator",
     "offline_method",
+    "takes_ours_options",
     "with_offline",
 ]

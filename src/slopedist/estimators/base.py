@@ -30,6 +30,7 @@ from slopedist.detections.boxes import (
     cut_labels,
     vehicle_mask,
 )
+from slopedist.errors import ConfigurationError
 
 
 class EstimateStatus(str, Enum):
@@ -80,6 +81,27 @@ class ReferencePoint(str, Enum):
     """The nearest face of the vehicle (its rear, for a car ahead)."""
     BOX_CENTRE_PIXEL = "box_centre_pixel"
     """Depth at the pixel of the box centre (depth-map baselines)."""
+
+
+VEHICLE_REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The points of a vehicle a distance can be asked for (``--reference`` of ``ours``) or a
+ground truth can declare (``--gt-reference``)."""
+
+
+def parse_reference(text: str) -> ReferencePoint:
+    """One of :data:`VEHICLE_REFERENCES` by its value (``centre``, ``nearest_face``,
+    ``contact``; surrounding spaces ignored).
+
+    Raises:
+        ConfigurationError: any other text (the message lists the choices).
+    """
+    choices = {r.value: r for r in VEHICLE_REFERENCES}
+    value = text.strip()
+    if value not in choices:
+        raise ConfigurationError(
+            f"'{value}' is not a reference point; choose from {', '.join(choices)}"
+        )
+    return choices[value]
 
 
 @dataclass(frozen=True)

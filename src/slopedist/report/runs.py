@@ -39,6 +39,10 @@ from slopedist.tracks import TRACKS_NAME, read_tracks
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
 
+SIGMA_COLUMN = "sigma_m"
+"""The records' column of a method's own 1σ of ``distance_m`` (metres; ``ours``), scored
+against its errors (:func:`~slopedist.evaluation.uncertainty_metrics`)."""
+
 THETA_TRUTH_COLUMNS = ("theta_true_deg", "gt_theta_deg")
 """Columns of a run's ``frames.csv`` read as the true ego gradient (degrees), first found."""
 
@@ -147,7 +151,7 @@ class _RunReader:
         header, rows, lines = read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
         truth_col = next((c for c in TRUTH_COLUMNS if c in header), None)
         self.truth_found |= truth_col is not None
-        by_method: dict[str, list[tuple[float, float, str]]] = {}
+        by_method: dict[str, list[tuple[float, float, str, float]]] = {}
         for lineno, row in zip(lines, rows):
             method = row["method"]
             if self.methods and method not in self.methods:
@@ -157,7 +161,8 @@ class _RunReader:
                 d = _at_reference(d, row, path, lineno, self.reference)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             reason = row.get("reason", "") or ""
-            by_method.setdefault(method, []).append((d, g, reason))
+            sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
+            by_method.setdefault(method, []).append((d, g, reason, sigma))
             tid = row.get("track_id", "")
             self.records.add(
                 sequence=seq,
@@ -296,11 +301,12 @@ def _at_reference(
     return float(moved[0])
 
 
-def _scored_set(vals: list[tuple[float, float, str]]) -> ScoredSet:
-    """``(distance, truth, reason)`` triples scored with the KITTI cap rule (only targets
-    with a positive truth count)."""
+def _scored_set(vals: list[tuple[float, float, str, float]]) -> ScoredSet:
+    """``(distance, truth, reason, σ)`` records scored with the KITTI cap rule (only targets
+    with a positive truth count); with the method's own σ when any record has one."""
     dist = np.array([v[0] for v in vals])
     gt = np.array([v[1] for v in vals])
+    sigma = np.array([v[3] for v in vals])
     capped, ok = cap_estimates(dist, np.array([v[2] for v in vals], dtype=object))
     ok &= np.isfinite(gt) & (gt > 0)
     return ScoredSet(
@@ -308,6 +314,7 @@ def _scored_set(vals: list[tuple[float, float, str]]) -> ScoredSet:
         gt[ok],
         n_gt=int(np.isfinite(gt).sum()),
         n_unscored=int((np.isfinite(gt) & ~ok).sum()),
+        sigma_m=sigma[ok] if np.isfinite(sigma).any() else None,
     )
 
 

@@ -175,6 +175,11 @@ def _summary_records(scope: str, seq: str, m: str, summary: dict[str, Any]) -> l
                 for b, bm in v.items()
                 for bk, bv in bm.items()
             ]
+        elif k == "uncertainty":  # the method's own σ against its errors
+            out += [
+                dict(zip(METRIC_RECORD_FIELDS, (scope, seq, m, "all", uk, float(uv))))
+                for uk, uv in v.items()
+            ]
         elif isinstance(v, (int, float)):
             out.append(dict(zip(METRIC_RECORD_FIELDS, (scope, seq, m, "all", k, float(v)))))
     return out

@@ -7,6 +7,7 @@ Convention: camera x right, y down, z forward; metres, seconds, radians, pixels.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 
 from slopedist.errors import ConfigurationError
@@ -14,6 +15,7 @@ from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.fusion import SizeMode
 from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
+from slopedist.textfiles import parse_bool
 
 
 @dataclass(frozen=True)
@@ -234,16 +236,6 @@ class OursConfig:
         )
 
 
-def _parse_bool(text: str) -> bool:
-    """``true/false``, ``yes/no``, ``on/off``, ``1/0`` (any case)."""
-    value = text.strip().lower()
-    if value in ("true", "yes", "on", "1"):
-        return True
-    if value in ("false", "no", "off", "0"):
-        return False
-    raise ValueError(text)
-
-
 def _parse_float(text: str) -> float:
     """A finite number."""
     value = float(text)
@@ -258,7 +250,7 @@ def _parse_optional_float(text: str) -> float | None:
 
 
 _OPTION_PARSERS = {
-    "bool": _parse_bool,
+    "bool": parse_bool,
     "float": _parse_float,
     "float | None": _parse_optional_float,
 }
@@ -297,3 +289,39 @@ def parse_option(text: str) -> tuple[str, bool | float | None]:
         raise ConfigurationError(f"ours option {key}: '{value}' is not a {kinds[key]}") from None
     OursConfig(**{key: parsed})  # type: ignore[arg-type]  # the range checks
     return key, parsed
+
+
+OPTION_SEPARATOR = ";"
+"""Separator of the options in one text (a batch manifest's ``ours_options`` cell:
+``odd_object_weight=0;size_learning=true``); no option value contains it, nor a comma."""
+
+
+def parse_options(texts: Iterable[str]) -> tuple[tuple[str, bool | float | None], ...]:
+    """Several ``KEY=VALUE`` texts (:func:`parse_option` each), in their order.
+
+    Raises:
+        ConfigurationError: a bad text (:func:`parse_option`), a key given twice, or values
+            that do not go together (e.g. rare-size weights summing to 1 or more).
+    """
+    pairs = tuple(parse_option(text) for text in texts)
+    keys = [key for key, _ in pairs]
+    twice = sorted({key for key in keys if keys.count(key) > 1})
+    if twice:
+        raise ConfigurationError(f"ours option {', '.join(twice)} given more than once")
+    OursConfig(**dict(pairs))  # type: ignore[arg-type]  # the rules across options
+    return pairs
+
+
+def parse_option_list(text: str) -> tuple[tuple[str, bool | float | None], ...]:
+    """``KEY=VALUE`` options separated by :data:`OPTION_SEPARATOR` (spaces and empty items
+    ignored: ``"a=1; b=true;"``) as ``(key, value)`` pairs (:func:`parse_options`).
+
+    Raises:
+        ConfigurationError: a comma (the separator is ``;``), a bad option or a key given twice.
+    """
+    if "," in text:
+        raise ConfigurationError(
+            f"'{text}': separate ours options with '{OPTION_SEPARATOR}', "
+            "e.g. odd_object_weight=0;size_learning=true"
+        )
+    return parse_options(item for item in text.split(OPTION_SEPARATOR) if item.strip())

@@ -1,0 +1,252 @@
+"""The ``slopedist run`` settings of a batch drive beyond its inputs and camera: the reference
+point of ``distance_m``, the options of ``ours``, the vehicle classes, the offline mode, the
+overlay and the exports (:class:`RunSettings`).
+
+Each is a manifest column (:data:`SETTING_COLUMNS`, CSV and TOML) and a batch-wide option of
+``slopedist batch`` (the ``slopedist run`` option of the same name); an empty cell takes the
+batch-wide value, a non-empty one replaces it (a drive's ``ours_options`` cell replaces the
+batch-wide options as a whole). The cells are parsed by the parsers of ``slopedist run``
+(:func:`~slopedist.estimators.base.parse_reference`,
+:func:`~slopedist.estimators.ours.config.parse_option_list`, ...). A cell that holds several
+items separates them with ``;`` (:data:`LIST_SEPARATOR`): ``odd_object_weight=0;size_learning=
+true``, ``Car;Van;Truck``, ``mcap;tum`` (a comma would need quoting in a CSV file).
+
+A batch-wide value applies to the drives whose method takes it (``reference`` and
+``ours_options``: ``ours``, ``ours-selfcal``, ``ours-offline``; ``offline``: the methods with an
+offline mode), so one batch can compare ``ours`` with ``paper``; a cell for a method that does
+not take it is an error, as is an ``overlay_format`` cell of a drive without an overlay.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
+from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.estimators import (
+    EstimatorConfig,
+    available_methods,
+    offline_method,
+    takes_ours_options,
+)
+from slopedist.estimators.base import parse_reference
+from slopedist.estimators.ours.config import OPTION_SEPARATOR, parse_option_list
+from slopedist.run_config import OverlayFormat, RunExport
+from slopedist.textfiles import parse_bool
+
+LIST_SEPARATOR = OPTION_SEPARATOR
+"""Separator of the items of one manifest cell (``;``)."""
+
+SETTING_COLUMNS = (
+    "reference",
+    "ours_options",
+    "vehicle_classes",
+    "offline",
+    "overlay",
+    "overlay_format",
+    "export",
+)
+"""Manifest columns of :class:`RunSettings` (each the field of that name)."""
+
+OursOptions = tuple[tuple[str, bool | float | None], ...]
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How a drive is run beyond its inputs and camera (the ``slopedist run`` options of the
+    same names).
+
+    Attributes:
+        reference: the point of the vehicle ``distance_m`` refers to (``centre``,
+            ``nearest_face``, ``contact``; ``--reference``), None for the method's own.
+        ours_options: ``(key, value)`` options of ``ours`` (``--ours-option``), sorted by key.
+        vehicle_classes: class names scored as vehicles (``--vehicle-classes``).
+        offline: run the method's offline mode (``--offline``: ``ours`` → ``ours-offline``).
+        overlay: also write annotated frames (``--overlay``), as ``overlay_format``
+            (:class:`~slopedist.run_config.OverlayFormat` value).
+        export: :class:`~slopedist.run_config.RunExport` values (``--export``), in that
+            enum's order.
+    """
+
+    reference: str | None = None
+    ours_options: OursOptions = ()
+    vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    offline: bool = False
+    overlay: bool = False
+    overlay_format: str = OverlayFormat.MP4.value
+    export: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "ours_options", tuple(sorted(self.ours_options)))
+        object.__setattr__(self, "export", export_values(self.export))
+
+    def run_method(self, method: str) -> str:
+        """The estimator ``method`` runs as (its offline mode with :attr:`offline`)."""
+        return offline_method(method) if self.offline else method
+
+    def estimator(self, method: str) -> EstimatorConfig:
+        """The estimator configuration of a drive of ``method`` (other options default)."""
+        return EstimatorConfig(
+            method=self.run_method(method),
+            reference=self.reference,
+            ours_options=self.ours_options,
+        )
+
+    def changed(self) -> dict[str, Any]:
+        """The settings that differ from the defaults (``slopedist run`` without them)."""
+        default = RunSettings()
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if getattr(self, f.name) != getattr(default, f.name)
+        }
+
+
+def export_values(exports: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """``exports`` as :class:`~slopedist.run_config.RunExport` values, once each, in the
+    enum's order.
+
+    Raises:
+        ValueError: an unknown export.
+    """
+    wanted = {RunExport(e.strip()) for e in exports}
+    return tuple(e.value for e in RunExport if e in wanted)
+
+
+def _items(text: str) -> list[str]:
+    """The items of a list cell (:data:`LIST_SEPARATOR`; empty items dropped)."""
+    if "," in text:
+        raise ConfigurationError(
+            f"'{text}': separate the items with '{LIST_SEPARATOR}' (a comma would need quoting)"
+        )
+    return [item.strip() for item in text.split(LIST_SEPARATOR) if item.strip()]
+
+
+def _choice(kind: type[OverlayFormat] | type[RunExport], text: str) -> str:
+    try:
+        return kind(text.strip()).value
+    except ValueError:
+        raise ConfigurationError(
+            f"'{text.strip()}' is not one of {', '.join(k.value for k in kind)}"
+        ) from None
+
+
+def _flag(text: str) -> bool:
+    try:
+        return parse_bool(text)
+    except ValueError:
+        raise ConfigurationError(f"'{text.strip()}' is not true or false") from None
+
+
+CELL_PARSERS: dict[str, Callable[[str], Any]] = {
+    "reference": lambda text: parse_reference(text).value,
+    "ours_options": parse_option_list,
+    "vehicle_classes": lambda text: vehicle_class_names(_items(text)),
+    "offline": _flag,
+    "overlay": _flag,
+    "overlay_format": lambda text: _choice(OverlayFormat, text),
+    "export": lambda text: tuple(_choice(RunExport, item) for item in _items(text)),
+}
+"""How each cell of :data:`SETTING_COLUMNS` is read (raising ConfigurationError)."""
+
+
+def ours_methods() -> list[str]:
+    """The methods that take ``reference`` and ``ours_options``."""
+    return [m for m in available_methods() if takes_ours_options(m)]
+
+
+def _offline_problem(method: str) -> str | None:
+    """Why ``method`` cannot run offline, or None when it can."""
+    try:
+        offline_method(method)
+    except ConfigurationError as exc:
+        return str(exc)
+    return None
+
+
+def drive_settings(
+    cells: Mapping[str, str],
+    method: str,
+    batch: RunSettings,
+    where: Callable[[str, str], InputFileError],
+) -> RunSettings:
+    """The :class:`RunSettings` of a drive of ``method`` from its (stripped) manifest cells and
+    the batch-wide values ``batch`` (see the module docstring); ``where(field, message)``
+    builds the error for a bad cell."""
+    given: dict[str, Any] = {}
+    for column in SETTING_COLUMNS:
+        if cells.get(column):
+            try:
+                given[column] = CELL_PARSERS[column](cells[column])
+            except ConfigurationError as exc:
+                raise where(column, str(exc)) from None
+    ours = takes_ours_options(method)
+    for column in ("reference", "ours_options"):
+        if column in given and not ours:
+            raise where(
+                column,
+                f"is for methods {', '.join(ours_methods())}; this drive's method is '{method}'",
+            )
+    problem = _offline_problem(method)
+    if given.get("offline") and problem:
+        raise where("offline", problem)
+    settings: dict[str, Any] = {
+        "reference": batch.reference if ours else None,
+        "ours_options": batch.ours_options if ours else (),
+        "vehicle_classes": batch.vehicle_classes,
+        "offline": batch.offline and problem is None,
+        "overlay": batch.overlay,
+        "overlay_format": batch.overlay_format,
+        "export": batch.export,
+    } | given
+    if "overlay_format" in given and not settings["overlay"]:
+        raise where("overlay_format", "is for drives with an overlay (overlay = true)")
+    return RunSettings(**settings)
+
+
+def settings_json(values: Mapping[str, Any]) -> dict[str, Any]:
+    """:class:`RunSettings` fields (all or some) as plain JSON values: ``ours_options`` as a
+    table ``{key: value}``, the other tuples as lists."""
+    return {
+        k: dict(v) if k == "ours_options" else list(v) if isinstance(v, tuple) else v
+        for k, v in values.items()
+    }
+
+
+def _item_text(value: Any) -> str:
+    """An ``ours_options`` value as its cell text (``true``, ``none``, ``0.028``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return "none" if value is None else str(value)
+
+
+def settings_cell(value: Any) -> Any:
+    """A value of :func:`settings_json` as a manifest cell: a table as ``key=value`` items and
+    a list as its items, joined by :data:`LIST_SEPARATOR` (what the manifest column reads back);
+    other values as they are."""
+    if isinstance(value, dict):
+        return LIST_SEPARATOR.join(f"{k}={_item_text(v)}" for k, v in value.items())
+    if isinstance(value, list):
+        return LIST_SEPARATOR.join(str(v) for v in value)
+    return value
+
+
+def unapplied(batch: RunSettings, drive_methods: Iterable[str]) -> list[str]:
+    """Warnings for batch-wide ``reference``, ``ours_options`` and ``offline`` values that no
+    drive takes (none of the drives' methods ``drive_methods`` is one they apply to), so that
+    a batch of ``paper`` drives given ``--offline`` says it ran them causally."""
+    methods = list(drive_methods)
+    ours = any(takes_ours_options(m) for m in methods)
+    offline = any(_offline_problem(m) is None for m in methods)
+    given = {
+        "--reference": batch.reference is not None and not ours,
+        "--ours-option": bool(batch.ours_options) and not ours,
+        "--offline": batch.offline and not offline,
+    }
+    return [
+        f"{option} applies to no drive of this batch (methods: {', '.join(sorted(set(methods)))})"
+        for option, unused in given.items()
+        if unused
+    ]
