@@ -125,6 +125,9 @@ def test_evidence_update_and_prior() -> None:
     assert ev.tolist() == [2.0, 2.0, 0.0]  # a NaN ratio adds nothing; a restart forgets
     capped = updated_evidence(np.array([19.0]), np.array([30.0]), np.ones(1), np.zeros(1, bool))
     assert capped.tolist() == [MAX_EVIDENCE]
+    args = (np.array([1.0, 2.0]), np.array([4.0, np.nan]), np.array([0.25, 1.0]))
+    no_restart = updated_evidence(*args, None)  # no track restarted: as all False
+    assert no_restart.tolist() == updated_evidence(*args, np.zeros(2, bool)).tolist() == [2.0, 2.0]
     prior = np.zeros((2, 6))
     out = with_evidence(prior, np.array([1.0, -2.0]), 1, 3)
     assert out[:, :3].tolist() == [[0.0] * 3] * 2  # the typical mode's columns

@@ -87,14 +87,20 @@ _LOW_EVIDENCE, _HIGH_EVIDENCE = const(-MAX_EVIDENCE), const(MAX_EVIDENCE)
 
 
 def updated_evidence(
-    evidence: FloatArray, log_ratio: FloatArray, weight: FloatArray, restarted: BoolArray
+    evidence: FloatArray,
+    log_ratio: FloatArray,
+    weight: FloatArray,
+    restarted: BoolArray | None,
 ) -> FloatArray:
     """``(n,)`` the track evidence after this frame: ``evidence + weight·log_ratio`` within
     ±:data:`MAX_EVIDENCE` (a non-finite ratio adds nothing); a target whose track failed the
-    distance gate (``restarted``) starts afresh from 0."""
+    distance gate (``restarted``; None: none did) starts afresh from 0."""
     add = weight * log_ratio
     total = np.minimum(np.maximum(evidence + add, _LOW_EVIDENCE), _HIGH_EVIDENCE)
-    ok = np.isfinite(add) & ~restarted
+    ok = np.isfinite(add)
+    if restarted is None:
+        return total if all_true(ok) else np.where(ok, total, evidence)
+    ok &= ~restarted
     return total if all_true(ok) else np.where(ok, total, np.where(restarted, 0.0, evidence))
 
 
@@ -155,4 +161,7 @@ class OddObjectCheck:
             return None
         weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
         ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
-        return updated_evidence(evidence, ratio, weight, match.continued & ~distance.continued)
+        restarted = None
+        if not (match.all_continued and all_true(distance.continued)):
+            restarted = match.continued & ~distance.continued
+        return updated_evidence(evidence, ratio, weight, restarted)
