@@ -208,12 +208,13 @@ def height_cue_log(
     other = (de * de * half_extent_var_m2 + ee * (2.0 * cam_height_sigma_m) ** 2) * (sz * sz)
     if roof_above is not None and any_true(roof_above):
         Zt = H / d + e
-        inv_Zt = 1.0 / Zt
+        inv_Zt = ONE / Zt
         rel_t = H / (d * d) * inv_Zt
-        Z = np.where(roof_above, Zt, Z)
-        lever = np.where(roof_above, H / d * inv_Zt, lever)
-        white = np.where(roof_above, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), white)
-        other = np.where(roof_above, half_extent_var_m2 * inv_Zt * inv_Zt, other)
+        # into the arrays just computed (cheaper than np.where's new ones)
+        np.copyto(Z, Zt, where=roof_above)
+        np.copyto(lever, H / d * inv_Zt, where=roof_above)
+        np.copyto(white, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), where=roof_above)
+        np.copyto(other, half_extent_var_m2 * inv_Zt * inv_Zt, where=roof_above)
     return SizeCue(np.log(Z), lever, white, other)
 
 

@@ -288,13 +288,11 @@ def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike, where: Arr
     log_cdf = special.log_ndtr(a)
     lam = np.exp(_MINUS_HALF * a * a - log_cdf) * _INV_SQRT_2PI
     factor = ONE - var / tot * lam * (lam + a)
-    use = np.asarray(where, dtype=bool) & np.isfinite(a)
-    return LogCue(
-        np.where(use, mu - var / root * lam, mu),
-        np.where(use, var * factor, var),
-        np.where(use, cue.var_white * factor, cue.var_white),
-        np.where(use, cue.loglik + log_cdf, cue.loglik),
-    )
+    keep = ~(np.asarray(where, dtype=bool) & np.isfinite(a))
+    out = LogCue(mu - var / root * lam, var * factor, cue.var_white * factor, cue.loglik + log_cdf)
+    for new, old in zip(out, cue, strict=True):  # the cue as it was where not used (into
+        np.copyto(new, old, where=keep)  # the new arrays: cheaper than np.where's)
+    return out
 
 
 _INV_SQRT_2PI = const(1.0 / np.sqrt(2.0 * np.pi))
