@@ -41,7 +41,7 @@ from slopedist.estimators.ours.records import (
     UpperBound,
     filled,
 )
-from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN, ROW_LOG_W
+from slopedist.estimators.ours.tracking import ROW_FILTER, ROW_GRAD_MEAN, ROW_GRAD_OTHER, ROW_LOG_W
 
 FloatArray = NDArray[np.float64]
 
@@ -316,6 +316,76 @@ def _collapse(
         ground_mix,
         np.add.reduce(by_mode[:, odd_mode], axis=1) if odd_mode is not None else np.zeros(n),
     )
+
+
+def contact_gradient_prior(
+    cfg: OursConfig, match: TrackMatch
+) -> tuple[FloatArray | float, FloatArray | float]:
+    """Mean and variance (rad, rad²) of the target gradient α the ground-contact cue uses:
+    each track's estimate predicted to now (``gradient_feedback``), else the prior."""
+    if not cfg.gradient_feedback:  # the prior, the same for every target
+        return 0.0, cfg.gradient_sigma_rad**2
+    n = match.rows.shape[0]
+    grad_m = np.zeros(n)
+    grad_v = np.full(n, np.inf)
+    grad_o = np.zeros(n)
+    if match.continued_rows.size:
+        grad_m[match.continued] = match.continued_state[ROW_GRAD_MEAN]
+        grad_v[match.continued] = match.gradient_var_rad2
+        grad_o[match.continued] = match.continued_state[ROW_GRAD_OTHER]
+    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+    return a_m[:, None], a_v[:, None]
+
+
+_MIN_DEPTH_RATIO = const(0.1)
+"""Smallest depth change the camera's rotation may cause a track between two updates."""
+
+
+def filter_distance(
+    cfg: OursConfig,
+    match: TrackMatch,
+    measurement: LogCue,
+    depth_ratio: FloatArray | None,
+    keep_predicted: bool = False,
+) -> DistanceFilterResult:
+    """Update the continued tracks' distance filters (constant velocity, with the depth change
+    ``depth_ratio`` ``(m,)``, ``Z_now/Z_last``, the camera's rotation gives each continued
+    track); a box further than ``gate_sigma`` from its track's prediction and every new box
+    start a filter at the measurement, as every box does when ``depth_ratio`` is None (no
+    motion model or no continued track). ``keep_predicted``: also give the predicted rows
+    (an offline pass)."""
+    n = match.rows.shape[0]
+    continued = np.zeros(n, dtype=bool)
+    if depth_ratio is None:
+        filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+        return DistanceFilterResult(filt, match.rows, continued)
+    prior = match.continued_state[ROW_FILTER]
+    prior[0] += np.log(np.maximum(depth_ratio, _MIN_DEPTH_RATIO))
+    pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
+    every = match.all_continued
+    old = match.continued
+    m_old, v_old, w_old = (
+        (measurement.mean, measurement.var, measurement.var_white)
+        if every
+        else (measurement.mean[old], measurement.var[old], measurement.var_white[old])
+    )
+    updated, _ = kf.cv_update_rows(pred, m_old, w_old)
+    dev = m_old - pred[0]
+    same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
+    predicted = None
+    if keep_predicted:
+        predicted = np.full((5, n), np.nan)
+        predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
+    if every and all_true(same):  # every target continues its track
+        continued[:] = True
+        return DistanceFilterResult(updated, match.rows, continued, predicted)
+    filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+    idx = np.flatnonzero(old)
+    filt[:, idx[same]] = updated[:, same]
+    continued[idx[same]] = True
+    rows = match.rows.copy()
+    rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
+    return DistanceFilterResult(filt, rows, continued, predicted)
 
 
 def target_gradient(
