@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from slopedist.estimators.ours import class_table
 from slopedist.estimators.ours.class_table import ClassTable
 from slopedist.estimators.ours.priors import yaw_grid
 
@@ -44,3 +45,15 @@ def test_a_repeated_sequence_of_names_gets_its_kept_read_only_constants() -> Non
         assert not a.flags.writeable
     with pytest.raises(ValueError):
         first.hypotheses.half_extent_m[0, 0] = 1.0
+
+
+def test_the_kept_constants_are_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Beyond ``MAX_KEPT`` sequences the table starts its memory afresh; what it gives stays
+    the same."""
+    monkeypatch.setattr(class_table, "MAX_KEPT", 2)
+    table, fresh = ClassTable(None, yaw_grid()), ClassTable(None, yaw_grid())
+    for names in (["Car"], ["Van"], ["Car", "Car"], ["Van", "Car"], ["Car"]):
+        got = table.gather(np.array(names, dtype=object))
+        want = fresh.gather(np.array(names, dtype=object))
+        assert np.array_equal(got.hypotheses.half_extent_m, want.hypotheses.half_extent_m)
+        assert len(table._kept) <= 2
