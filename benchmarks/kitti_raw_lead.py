@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 from orbslam3_vs_builtin import c_stdout_to_stderr
 
 from slopedist.datasets.kitti_raw import KittiRawDrive
@@ -39,6 +40,7 @@ from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
+from slopedist.evaluation import uncertainty_metrics
 from slopedist.io.frames import open_frames
 from slopedist.odometry.base import OdometryResult, RotationOdometry
 from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
@@ -124,6 +126,42 @@ def read_estimates(path: Path) -> dict[tuple[int, int], float]:
     return out
 
 
+def read_sigmas(path: Path) -> dict[tuple[int, int], float]:
+    """``{(frame, track_id): the method's own 1σ, m}`` of a records CSV (its ``sigma_m``
+    column; empty when it has none)."""
+    with path.open(newline="") as fh:
+        return {
+            (int(row["frame"]), int(row["track_id"])): _number(row.get("sigma_m"))
+            for row in csv.DictReader(fh)
+        }
+
+
+def print_uncertainty(
+    errors: dict[str, NDArray[np.float64]],
+    sigmas: dict[str, NDArray[np.float64]],
+    common: NDArray[np.bool_],
+) -> None:
+    """How well each method's own σ covers its errors on the common boxes
+    (:func:`slopedist.evaluation.uncertainty_metrics`; methods without a σ are left out)."""
+    lines = []
+    for m, err in errors.items():
+        u = uncertainty_metrics(err[common], np.zeros(int(common.sum())), sigmas[m][common])
+        if u["n_sigma"]:
+            lines.append(
+                f"{m:12s} {u['n_sigma']:5d} {u['within_1sigma']:10.3f} "
+                f"{u['within_2sigma']:10.3f} {u['within_3sigma']:10.3f} {u['z_rms']:8.2f}"
+            )
+    if lines:
+        print(
+            "\nErrors within the method's own σ (a right Gaussian σ: 0.683, 0.954, 0.997; RMS 1):"
+        )
+        print(
+            f"{'method':12s} {'n':>5s} {'within 1σ':>10s} {'within 2σ':>10s} "
+            f"{'within 3σ':>10s} {'RMS e/σ':>8s}"
+        )
+        print("\n".join(lines))
+
+
 def rmse(errors: list[float]) -> float:
     return float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan
 
@@ -177,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     # the odometry runs once; every method is fed the same rotations (ORB-SLAM3 is not
     # deterministic, so separate runs would compare different rotations)
     recorder = RecordingOdometry(build_odometry(args.odometry, camera, args.vocab))
-    estimates, results = {}, {}
+    estimates, results, sigmas = {}, {}, {}
     for n_run, method in enumerate(methods):
         out = args.out / method
         odometry = recorder if n_run == 0 else recorder.replay()
@@ -192,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                 RunConfig(out, progress=False),
             )
         estimates[method] = read_estimates(out / RECORDS_NAME)
+        sigmas[method] = read_sigmas(out / RECORDS_NAME)
         print(
             f"  ran {method}: {results[method].records} records, odometry "
             f"{results[method].odometry_states} → {out}",
@@ -252,6 +291,8 @@ def main(argv: list[str] | None = None) -> int:
     for m in methods:
         print(f"{m:12s} " + " ".join(f"{v:16.2f}" for v in binned[m]))
     errors = {m: np.array([estimates[m].get(k, math.nan) for k in key]) - z for m in methods}
+    sigma = {m: np.array([sigmas[m].get(k, math.nan) for k in key]) for m in methods}
+    print_uncertainty(errors, sigma, common)
     print_clusters(truth, errors, common, args.top_clusters)
     return 0
 

@@ -126,9 +126,12 @@ def test_frame_lookup_is_the_frame_index(frames: list[int]) -> None:
 # --- box checks against the image (hand-computed, 1242 × 375 image) ---------------------------
 
 from slopedist.detections.boxes import (  # noqa: E402
+    BORDER_TOLERANCE_PX,
+    border_cut_limits,
     border_cuts,
     box_problems,
     cut_labels,
+    cuts_at,
     vehicle_mask,
 )
 
@@ -222,6 +225,32 @@ def test_a_usable_box_has_a_size_and_overlaps_the_image(boxes: list[list[float]]
         if r == "":
             assert right - left >= 1 and bottom - top >= 1
             assert right > -0.5 and bottom > -0.5 and left < SIZE[0] - 0.5 and top < SIZE[1] - 0.5
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(COORD, min_size=4, max_size=4), min_size=1, max_size=6))
+def test_border_cuts_are_each_edge_against_its_own_border(boxes: list[list[float]]) -> None:
+    """The cut flags (one comparison with two limit rows, NaN where an edge has no limit) are
+    left/top within 1 px of 0 and right/bottom within 1 px of the last column/row, whatever
+    the coordinates (infinite, NaN), without a warning."""
+    import warnings
+
+    b = np.asarray(boxes, dtype=float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cut = border_cuts(b, SIZE)
+        assert np.array_equal(cut, cuts_at(b, border_cut_limits(SIZE)))
+    tol = BORDER_TOLERANCE_PX
+    expected = np.stack(
+        [
+            b[:, 0] <= tol,
+            b[:, 1] <= tol,
+            b[:, 2] >= SIZE[0] - 1 - tol,
+            b[:, 3] >= SIZE[1] - 1 - tol,
+        ],
+        axis=1,
+    )
+    assert np.array_equal(cut, expected)
 
 
 def dense_pairs(a: np.ndarray, b: np.ndarray) -> list[tuple[int, int]]:

@@ -14,7 +14,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import FrameEstimates, FrameInput
 from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.ours.cues import project_box
-from slopedist.estimators.ours.fusion import SizeMode, mode_spreads
+from slopedist.estimators.ours.fusion import ModeSpreads, SizeMode, mode_spreads
 from slopedist.estimators.ours.odd_objects import (
     MAX_EVIDENCE,
     MAX_LOG_ODDS,
@@ -125,6 +125,9 @@ def test_evidence_update_and_prior() -> None:
     assert ev.tolist() == [2.0, 2.0, 0.0]  # a NaN ratio adds nothing; a restart forgets
     capped = updated_evidence(np.array([19.0]), np.array([30.0]), np.ones(1), np.zeros(1, bool))
     assert capped.tolist() == [MAX_EVIDENCE]
+    args = (np.array([1.0, 2.0]), np.array([4.0, np.nan]), np.array([0.25, 1.0]))
+    no_restart = updated_evidence(*args, None)  # no track restarted: as all False
+    assert no_restart.tolist() == updated_evidence(*args, np.zeros(2, bool)).tolist() == [2.0, 2.0]
     prior = np.zeros((2, 6))
     out = with_evidence(prior, np.array([1.0, -2.0]), 1, 3)
     assert out[:, :3].tolist() == [[0.0] * 3] * 2  # the typical mode's columns
@@ -141,3 +144,23 @@ def test_bad_odd_object_options_fail_clearly(options: dict) -> None:
         OursEstimator(CAM, **options)
     with pytest.raises(ConfigurationError, match="sum below 1"):
         OursEstimator(CAM, atypical_height_weight=0.5, odd_object_weight=0.5)
+
+
+def test_mode_spreads_of_read_only_constants_are_kept() -> None:
+    """:class:`ModeSpreads` gives :func:`mode_spreads`'s values; the spreads of read-only
+    inputs (a class table's constants) are kept while the same arrays come, those of
+    writable ones computed every time."""
+    modes = [SizeMode(), SizeMode(height_factor=3.0), SizeMode(log_sigma_floor=0.5)]
+    sh, sw = np.tile([[0.08, 0.2]], (2, 3)), np.tile([[0.06, 0.7]], (2, 3))
+    spreads = ModeSpreads(modes, 2)
+    expected = mode_spreads(modes, sh, sw)
+    first = spreads.spreads(sh, sw)
+    assert spreads.spreads(sh, sw) is not first  # writable: computed afresh
+    sh.flags.writeable = sw.flags.writeable = False
+    kept = spreads.spreads(sh, sw)
+    assert spreads.spreads(sh, sw) is kept
+    for h, w in (first, kept):
+        assert np.array_equal(h, expected[0]) and np.array_equal(w, expected[1])
+    assert spreads.odd == 2 and ModeSpreads(modes[:2], 2).odd is None
+    h, w = ModeSpreads([SizeMode()], 2).spreads(sh, sw)
+    assert h is sh and w is sw  # the typical mode alone: the class's own spreads

@@ -98,11 +98,28 @@ def border_cuts(
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     if image_size is None:
         return np.zeros(b.shape, dtype=bool)
+    return cuts_at(b, border_cut_limits(image_size, tol_px))
+
+
+def border_cut_limits(
+    image_size: tuple[float, float], tol_px: float = BORDER_TOLERANCE_PX
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The limits ``(low, high)`` of :func:`border_cuts`, ``(4,)`` each (left, top, right,
+    bottom, pixels): an edge is cut where ``edge <= low`` or ``edge >= high`` (NaN: never)."""
     width, height = image_size
-    cut = np.empty(b.shape, dtype=bool)
-    cut[:, :2] = b[:, :2] <= tol_px
-    cut[:, 2:] = b[:, 2:] >= np.array([width - 1 - tol_px, height - 1 - tol_px])
-    return cut
+    nan = float("nan")
+    return (
+        np.array([tol_px, tol_px, nan, nan]),
+        np.array([nan, nan, width - 1 - tol_px, height - 1 - tol_px]),
+    )
+
+
+def cuts_at(
+    boxes: NDArray[np.float64], limits: tuple[NDArray[np.float64], NDArray[np.float64]]
+) -> NDArray[np.bool_]:
+    """:func:`border_cuts` of boxes ``(N, 4)`` at the limits of :func:`border_cut_limits`."""
+    low, high = limits
+    return (boxes <= low) | (boxes >= high)
 
 
 def cut_labels(cuts: NDArray[np.bool_]) -> NDArray[np.object_]:

@@ -17,7 +17,8 @@ from slopedist.detections.boxes import (
     ABSURD_COORDINATE_PX,
     ABSURD_IMAGE_SIZES,
     MIN_BOX_SIZE_PX,
-    border_cuts,
+    border_cut_limits,
+    cuts_at,
 )
 from slopedist.estimators.base import (
     EstimateStatus,
@@ -25,7 +26,7 @@ from slopedist.estimators.base import (
     MissingReason,
     image_size,
 )
-from slopedist.estimators.ours.fusion import any_true
+from slopedist.estimators.ours.fusion import all_true, any_true
 from slopedist.estimators.ours.records import BorderCuts
 
 FloatArray = NDArray[np.float64]
@@ -49,10 +50,16 @@ class ImageBorder:
     def reset(self) -> None:
         self._max_right = -math.inf
         self._max_bottom = -math.inf
+        self._limits_of: tuple[tuple[float, float], tuple[FloatArray, FloatArray]] | None = None
 
     def cut_edges(self, boxes: FloatArray) -> NDArray[np.bool_]:
-        """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?"""
-        return border_cuts(boxes, self.known_size or self._seen_size(boxes))
+        """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?
+        (:func:`~slopedist.detections.boxes.border_cuts`, its limits kept while the image size
+        stays.)"""
+        size = self.known_size or self._seen_size(boxes)
+        if self._limits_of is None or self._limits_of[0] != size:
+            self._limits_of = (size, border_cut_limits(size))
+        return cuts_at(boxes, self._limits_of[1])
 
     def _seen_size(self, boxes: FloatArray) -> tuple[float, float]:
         """The image size as far as the boxes show it (inf while unknown)."""
@@ -90,10 +97,9 @@ def boxes_all_usable(boxes: FloatArray, low: FloatArray, high: FloatArray) -> bo
     :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
     ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
     :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
-    n = boxes.shape[0]
     size = boxes[:, 2:] - boxes[:, :2]
     inside = (boxes > low) & (boxes < high)  # False for NaN
-    return np.count_nonzero(size >= MIN_BOX_SIZE_PX) == 2 * n and np.count_nonzero(inside) == 4 * n
+    return all_true(size >= MIN_BOX_SIZE_PX) and all_true(inside)
 
 
 def settle_border_cuts(

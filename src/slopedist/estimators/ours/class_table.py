@@ -26,6 +26,10 @@ FloatArray = NDArray[np.float64]
 MIN_NEAR_M = 0.5
 """Smallest distance to a target's nearest face the cues accept, metres."""
 
+MAX_KEPT = 64
+"""Sequences of class names whose constants a :class:`ClassTable` keeps (a few hundred kB at
+most; on the KITTI tracking labels 90 % of the frames repeat one of them, as with 4096)."""
+
 
 class HypothesisConstants(NamedTuple):
     """Class constants per (target, heading hypothesis), each ``(n, K)``, or ``(n, M·K)``
@@ -113,10 +117,26 @@ class ClassTable:
         self._type_rows: list[tuple[float, ...]] = []  # T per class row
         self._type_weights: list[FloatArray] = []
         self._generic_rows: list[bool] = []
+        self._kept: dict[tuple[object, ...], TargetClasses] = {}
         self._build()
 
     def gather(self, classes: NDArray[np.object_]) -> TargetClasses:
-        """The constants of the class names ``classes`` ``(n,)`` (new names are added)."""
+        """The constants of the class names ``classes`` ``(n,)`` (new names are added).
+
+        Consecutive frames mostly list the same classes in the same order, so the constants
+        of each sequence of names are kept (read-only arrays; at most :data:`MAX_KEPT`
+        sequences, then the memory starts afresh) and a frame that repeats one gathers
+        nothing."""
+        names = tuple(classes.tolist())
+        kept = self._kept.get(names)
+        if kept is None:
+            if len(self._kept) >= MAX_KEPT:
+                self._kept.clear()
+            kept = self._kept[names] = self._gather(names)
+        return kept
+
+    def _gather(self, classes: tuple[object, ...]) -> TargetClasses:
+        """:meth:`gather` without the memory; the arrays are made read-only."""
         rows = self._row_indices(classes)
         scalars = self._scalars[rows]
         # rows gathered along the second axis: each plane of a frame is contiguous
@@ -125,6 +145,9 @@ class ClassTable:
             planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
         else:
             planes, type_log_weight = self._planes[:, rows], None
+        for a in (scalars, generic, planes, type_log_weight):
+            if a is not None:
+                a.flags.writeable = False
         return TargetClasses(
             scalars[:, 0],
             scalars[:, 3],
@@ -134,7 +157,7 @@ class ClassTable:
             type_log_weight,
         )
 
-    def _row_indices(self, classes: NDArray[np.object_]) -> NDArray[np.intp]:
+    def _row_indices(self, classes: tuple[object, ...]) -> NDArray[np.intp]:
         index = self._index
         try:
             return np.array([index[c] for c in classes], dtype=np.intp)

@@ -25,10 +25,12 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.estimators.ours.fusion import LogCue, any_true
+from slopedist.estimators.ours.fusion import HALF, ONE, ZERO, LogCue, any_true, const
 
 FloatArray = NDArray[np.float64]
 
+
+_TWO, _FOUR = const(2.0), const(4.0)
 
 _CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
 _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
@@ -194,24 +196,25 @@ def height_cue_log(
     d = box_height_px * (1.0 / f)
     ee = e * e
     tw = 2.0 * cam_height_m - H
-    S = np.sqrt(H * H + (4.0 * d) * (d * ee + e * tw))
-    inv_S = 1.0 / S
-    Z = (H + S) * (0.5 / d)
-    inv_Z = 1.0 / Z
+    S = np.sqrt(H * H + (_FOUR * d) * (d * ee + e * tw))
+    inv_S = ONE / S
+    Z = (H + S) * (HALF / d)
+    inv_Z = ONE / Z
     sz = inv_S * inv_Z
     lever = (Z - e) * sz * H
     rel_D = (ee - Z * Z) * sz
     white = (rel_D * rel_D) * (2.0 * (sigma_px / f) ** 2)
-    de = (2.0 * d) * e + tw
+    de = (_TWO * d) * e + tw
     other = (de * de * half_extent_var_m2 + ee * (2.0 * cam_height_sigma_m) ** 2) * (sz * sz)
     if roof_above is not None and any_true(roof_above):
         Zt = H / d + e
-        inv_Zt = 1.0 / Zt
+        inv_Zt = ONE / Zt
         rel_t = H / (d * d) * inv_Zt
-        Z = np.where(roof_above, Zt, Z)
-        lever = np.where(roof_above, H / d * inv_Zt, lever)
-        white = np.where(roof_above, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), white)
-        other = np.where(roof_above, half_extent_var_m2 * inv_Zt * inv_Zt, other)
+        # into the arrays just computed (cheaper than np.where's new ones)
+        np.copyto(Z, Zt, where=roof_above)
+        np.copyto(lever, H / d * inv_Zt, where=roof_above)
+        np.copyto(white, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), where=roof_above)
+        np.copyto(other, half_extent_var_m2 * inv_Zt * inv_Zt, where=roof_above)
     return SizeCue(np.log(Z), lever, white, other)
 
 
@@ -331,7 +334,7 @@ def ground_contact_cue(
     ``b ≤ v`` (the contact point is at or above the horizon).
     """
     gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
-    gap = np.where(gap > 0, gap, np.nan)  # NaN propagates without a warning
+    gap = np.where(gap > ZERO, gap, np.nan)  # NaN propagates without a warning
     return np.asarray(f * np.asarray(cam_height_m, dtype=float) / gap + np.asarray(half_extent_m))
 
 
@@ -419,14 +422,14 @@ def ground_contact_log_cue(
     """
     gap = bottom - np.asarray(v, dtype=float)
     fh = f * np.asarray(cam_height_m, dtype=float)
-    bad = gap <= 0
+    bad = gap <= ZERO
     zn = fh / gap
     if any_true(bad):  # NaN, which then propagates
         zn = np.where(bad, np.nan, zn)
     z = zn + half_extent_m
     gain = zn * zn * (1.0 / fh)
     gain *= gain  # (σ_d/σ_row)², see ground_contact_sigma
-    inv_z2 = 1.0 / (z * z)
+    inv_z2 = ONE / (z * z)
     white = gain * row_var_white * inv_z2
     zh = zn * (np.asarray(height_sigma_m) * f / fh)
     other = (gain * row_var_other + zh * zh + np.square(half_extent_sigma_m)) * inv_z2

@@ -42,7 +42,6 @@ from slopedist.estimators.base import (
     FrameInput,
     ReferencePoint,
 )
-from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
 from slopedist.estimators.ours.border import (
     ImageBorder,
@@ -70,9 +69,6 @@ from slopedist.estimators.ours.records import (
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalibrator
 from slopedist.estimators.ours.tracking import (
-    ROW_FILTER,
-    ROW_GRAD_MEAN,
-    ROW_GRAD_OTHER,
     ROW_GRAD_VAR,
     ROW_LAST_BOX,
     ROW_LAST_T,
@@ -154,6 +150,10 @@ class OursEstimator(Estimator):
             tuple(config.generic_classes),
             config.type_mixture,
             len(self._size_modes),
+        )
+        self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
+        self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
+            self._size_modes[:1], grid.size * len(config.type_mixture)
         )
         self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
         self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
@@ -237,7 +237,7 @@ class OursEstimator(Estimator):
             box_values = self._estimate_boxes(
                 frame, good, all_usable, theta_f, jitter, calib, edges
             )
-            values = {k: v for k, v in box_values._asdict().items() if v is not None}
+            values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good if not all_usable else None, n)
@@ -304,7 +304,7 @@ class OursEstimator(Estimator):
         size = frame_cues.size_cues(cfg, cam, targets, calib)
         ground = None
         if cfg.use_ground_contact:
-            alpha, alpha_var = self._contact_gradient_prior(match)
+            alpha, alpha_var = frame_cues.contact_gradient_prior(cfg, match)
             ground = frame_cues.ground_contact_cue(
                 cfg, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
             )
@@ -317,7 +317,7 @@ class OursEstimator(Estimator):
             size,
             ground,
             self._odd_check.prior(log_prior, odd),
-            self._size_modes,
+            self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
             cfg.consistency_gate_sigma,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
@@ -448,67 +448,17 @@ class OursEstimator(Estimator):
             return self._log_prior_rows(match.rows.shape[0])
         return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
 
-    def _contact_gradient_prior(
-        self, match: TrackMatch
-    ) -> tuple[FloatArray | float, FloatArray | float]:
-        """Mean and variance (rad, rad²) of the target gradient α the ground-contact cue uses:
-        each track's estimate predicted to now (``gradient_feedback``), else the prior."""
-        cfg = self.config
-        if not cfg.gradient_feedback:  # the prior, the same for every target
-            return 0.0, cfg.gradient_sigma_rad**2
-        n = match.rows.shape[0]
-        grad_m = np.zeros(n)
-        grad_v = np.full(n, np.inf)
-        grad_o = np.zeros(n)
-        if match.continued_rows.size:
-            grad_m[match.continued] = match.continued_state[ROW_GRAD_MEAN]
-            grad_v[match.continued] = match.gradient_var_rad2
-            grad_o[match.continued] = match.continued_state[ROW_GRAD_OTHER]
-        a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
-        return a_m[:, None], a_v[:, None]
-
     def _filter_distance(
-        self,
-        match: TrackMatch,
-        measurement: LogCue,
-        R_now: FloatArray | None,
+        self, match: TrackMatch, measurement: LogCue, R_now: FloatArray | None
     ) -> DistanceFilterResult:
-        """Update the continued tracks' distance filters (constant velocity, with the camera's
-        rotation's depth change); a box further than ``gate_sigma`` from its track's prediction
-        and every new box start a filter at the measurement."""
-        cfg = self.config
-        n = match.rows.shape[0]
-        continued = np.zeros(n, dtype=bool)
-        if not (cfg.motion_model and match.continued_rows.size):
-            filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
-            return DistanceFilterResult(filt, match.rows, continued)
-        prior = match.continued_state[ROW_FILTER]
-        prior[0] += np.log(np.maximum(self._continued_depth_ratios(match, R_now), 0.1))
-        pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
-        every = match.all_continued
-        old = match.continued
-        m_old, v_old, w_old = (
-            (measurement.mean, measurement.var, measurement.var_white)
-            if every
-            else (measurement.mean[old], measurement.var[old], measurement.var_white[old])
+        """:func:`~slopedist.estimators.ours.frame_cues.filter_distance`, with the depth change
+        the camera's rotation ``R_now`` gives each continued track."""
+        ratio = None
+        if self.config.motion_model and match.continued_rows.size:
+            ratio = self._continued_depth_ratios(match, R_now)
+        return frame_cues.filter_distance(
+            self.config, match, measurement, ratio, self._keep_predicted
         )
-        updated, _ = kf.cv_update_rows(pred, m_old, w_old)
-        dev = m_old - pred[0]
-        same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
-        predicted = None
-        if self._keep_predicted:
-            predicted = np.full((5, n), np.nan)
-            predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
-        if every and all_true(same):  # every target continues its track
-            continued[:] = True
-            return DistanceFilterResult(updated, match.rows, continued, predicted)
-        filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
-        idx = np.flatnonzero(old)
-        filt[:, idx[same]] = updated[:, same]
-        continued[idx[same]] = True
-        rows = match.rows.copy()
-        rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
-        return DistanceFilterResult(filt, rows, continued, predicted)
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:
         """``Z_now/Z_last`` of the continued tracks' box centres from the camera's rotation."""

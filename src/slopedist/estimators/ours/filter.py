@@ -22,11 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.cues import any_true
+from slopedist.estimators.ours.fusion import HALF, ONE, ZERO, all_true, any_true, const
 
 FloatArray = NDArray[np.float64]
 
 IDX_LOG_Z, IDX_RATE = 0, 1
+
+_MIN_GROWTH, _THIRD, _MINUS_TWO, _MINUS_ONE = const(0.2), const(1.0 / 3.0), const(-2.0), const(-1.0)
 
 
 @dataclass(frozen=True)
@@ -47,18 +49,18 @@ def cv_predict_rows(s: FloatArray, dt_s: FloatArray, accel_mps2: float) -> Float
     per track); returns the predicted rows."""
     log_z, r, p00, p01, p11 = s
     dt = np.asarray(dt_s, dtype=float)
-    grow = np.maximum(r * dt + 1.0, 0.2)
-    ig = 1.0 / grow
+    grow = np.maximum(r * dt + ONE, _MIN_GROWTH)
+    ig = ONE / grow
     f01 = dt * ig
     out = np.empty(s.shape)
     lp = log_z + np.log(grow)
     out[0] = lp
     out[1] = r * ig
-    qdt = np.exp(lp * -2.0) * (accel_mps2 * accel_mps2) * dt
+    qdt = np.exp(lp * _MINUS_TWO) * (accel_mps2 * accel_mps2) * dt
     a = p01 + f01 * p11
     ig2 = ig * ig
-    out[2] = p00 + f01 * (p01 + a) + qdt * dt * dt * (1.0 / 3.0)
-    out[3] = ig2 * a + qdt * dt * 0.5
+    out[2] = p00 + f01 * (p01 + a) + qdt * dt * dt * _THIRD
+    out[3] = ig2 * a + qdt * dt * HALF
     out[4] = ig2 * ig2 * p11 + qdt
     return out
 
@@ -145,9 +147,9 @@ def random_walk_update(
     ``obs_var``); non-finite observations only predict."""
     v = var + rate * rate * np.asarray(dt_s, dtype=float) if rate else np.asarray(var)
     ok = np.isfinite(obs + obs_var)
-    if np.count_nonzero(ok) == ok.size:
+    if all_true(ok):
         k = v / (v + obs_var)
-        return mean + k * (obs - mean), (1.0 - k) * v
+        return mean + k * (obs - mean), (ONE - k) * v
     k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)
     return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
 
@@ -156,8 +158,8 @@ def distance_moments_rows(
     s: FloatArray, extra_log_var: FloatArray | float = 0.0
 ) -> tuple[FloatArray, FloatArray]:
     """:func:`distance_moments` of state rows (see :func:`cv_predict_rows`)."""
-    s2 = np.maximum(s[2] + extra_log_var, 0.0)
-    mean = np.exp(s[0] + s2 * 0.5)
+    s2 = np.maximum(s[2] + extra_log_var, ZERO)
+    mean = np.exp(s[0] + s2 * HALF)
     return mean, mean * np.sqrt(np.expm1(s2))
 
 
@@ -168,11 +170,11 @@ def motion_moments_rows(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArr
     z = np.exp(log_z)
     speed = r * z
     var = speed * speed * p00 + (speed + speed) * z * p01 + z * z * p11
-    speed_sd = np.sqrt(np.maximum(var, 0.0))
-    away = r >= 0
+    speed_sd = np.sqrt(np.maximum(var, ZERO))
+    away = r >= ZERO
     r_ = np.where(away, -1.0, r) if any_true(away) else r
-    ttc = -1.0 / r_
-    ttc_sd = np.sqrt(np.maximum(p11, 0.0)) / (r_ * r_)
+    ttc = _MINUS_ONE / r_
+    ttc_sd = np.sqrt(np.maximum(p11, ZERO)) / (r_ * r_)
     if any_true(away):
         ttc[away] = np.nan
         ttc_sd[away] = np.nan

@@ -19,7 +19,15 @@ from slopedist.estimators.ours import cues, fusion
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import LogCue, SizeMode, all_true, any_true
+from slopedist.estimators.ours.fusion import (
+    HALF,
+    ONE,
+    LogCue,
+    ModeSpreads,
+    all_true,
+    any_true,
+    const,
+)
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -33,7 +41,7 @@ from slopedist.estimators.ours.records import (
     UpperBound,
     filled,
 )
-from slopedist.estimators.ours.tracking import ROW_GRAD_MEAN, ROW_LOG_W
+from slopedist.estimators.ours.tracking import ROW_FILTER, ROW_GRAD_MEAN, ROW_GRAD_OTHER, ROW_LOG_W
 
 FloatArray = NDArray[np.float64]
 
@@ -69,7 +77,7 @@ def size_cues(
             hyp.half_length_sin_m,
             hyp.min_centre_depth_m,
         )
-        length_share = (1.0 - width.lever) * hyp.log_sigma_length
+        length_share = (ONE - width.lever) * hyp.log_sigma_length
         length_share *= length_share
         width = SizeCue(width.mean, width.lever, width.var_white, length_share)
     else:
@@ -203,7 +211,7 @@ def fuse_hypotheses(
     size: SizeCues,
     ground: LogCue | None,
     log_prior: FloatArray,
-    size_modes: list[SizeMode],
+    size_modes: ModeSpreads,
     gate_sigma: float = 3.0,
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × size modes: a class mixes typical vehicles
@@ -215,40 +223,38 @@ def fuse_hypotheses(
     modes (mode-major, :class:`~slopedist.estimators.ours.class_table.ClassTable`'s
     ``n_modes``) for a specific class, over the vehicle types for a generic one.
     ``log_prior``: ``(n, K·modes)`` log prior of the hypotheses; ``size_modes``: how each mode
-    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.SizeMode`);
+    widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.ModeSpreads`
+    of the targets' hypotheses: of a single mode when their class is generic);
     ``gate_sigma``: the cue consistency check's threshold
     (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
     """
     hyp = targets.classes.hypotheses
     type_weight = targets.classes.type_log_weight
-    modes = size_modes if type_weight is None else size_modes[:1]
-    spreads = (hyp.log_sigma_height, hyp.log_sigma_width)
-    if len(modes) > 1 or modes[0] != SizeMode():
-        spreads = fusion.mode_spreads(modes, *spreads)
+    n_modes = len(size_modes.modes)
+    spreads = size_modes.spreads(hyp.log_sigma_height, hyp.log_sigma_width)
     size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
     fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
     for bound, bound_var, rows_cut in size.bounds:
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent, width_mean = hyp.half_extent_m, size.width.mean
-    if len(modes) > 1:  # what every mode shares, per heading: the first mode's columns
-        k = extent.shape[1] // len(modes)
+    if n_modes > 1:  # what every mode shares, per heading: the first mode's columns
+        k = extent.shape[1] // n_modes
         extent, width_mean = extent[:, :k], width_mean[:, :k]
         if ground is not None:
             ground = LogCue(
                 ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
             )
-    odd_mode = next((k for k, mode in enumerate(modes) if mode.odd), None)
     return _collapse(
         width_mean,
         size_cue,
         fused,
         ground,
-        len(modes) if type_weight is None else type_weight.shape[1],
+        n_modes if type_weight is None else type_weight.shape[1],
         log_prior,
         extent,
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
-        odd_mode=odd_mode,
+        odd_mode=size_modes.odd,
     )
 
 
@@ -312,6 +318,76 @@ def _collapse(
     )
 
 
+def contact_gradient_prior(
+    cfg: OursConfig, match: TrackMatch
+) -> tuple[FloatArray | float, FloatArray | float]:
+    """Mean and variance (rad, rad²) of the target gradient α the ground-contact cue uses:
+    each track's estimate predicted to now (``gradient_feedback``), else the prior."""
+    if not cfg.gradient_feedback:  # the prior, the same for every target
+        return 0.0, cfg.gradient_sigma_rad**2
+    n = match.rows.shape[0]
+    grad_m = np.zeros(n)
+    grad_v = np.full(n, np.inf)
+    grad_o = np.zeros(n)
+    if match.continued_rows.size:
+        grad_m[match.continued] = match.continued_state[ROW_GRAD_MEAN]
+        grad_v[match.continued] = match.gradient_var_rad2
+        grad_o[match.continued] = match.continued_state[ROW_GRAD_OTHER]
+    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+    return a_m[:, None], a_v[:, None]
+
+
+_MIN_DEPTH_RATIO = const(0.1)
+"""Smallest depth change the camera's rotation may cause a track between two updates."""
+
+
+def filter_distance(
+    cfg: OursConfig,
+    match: TrackMatch,
+    measurement: LogCue,
+    depth_ratio: FloatArray | None,
+    keep_predicted: bool = False,
+) -> DistanceFilterResult:
+    """Update the continued tracks' distance filters (constant velocity, with the depth change
+    ``depth_ratio`` ``(m,)``, ``Z_now/Z_last``, the camera's rotation gives each continued
+    track); a box further than ``gate_sigma`` from its track's prediction and every new box
+    start a filter at the measurement, as every box does when ``depth_ratio`` is None (no
+    motion model or no continued track). ``keep_predicted``: also give the predicted rows
+    (an offline pass)."""
+    n = match.rows.shape[0]
+    continued = np.zeros(n, dtype=bool)
+    if depth_ratio is None:
+        filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+        return DistanceFilterResult(filt, match.rows, continued)
+    prior = match.continued_state[ROW_FILTER]
+    prior[0] += np.log(np.maximum(depth_ratio, _MIN_DEPTH_RATIO))
+    pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
+    every = match.all_continued
+    old = match.continued
+    m_old, v_old, w_old = (
+        (measurement.mean, measurement.var, measurement.var_white)
+        if every
+        else (measurement.mean[old], measurement.var[old], measurement.var_white[old])
+    )
+    updated, _ = kf.cv_update_rows(pred, m_old, w_old)
+    dev = m_old - pred[0]
+    same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
+    predicted = None
+    if keep_predicted:
+        predicted = np.full((5, n), np.nan)
+        predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
+    if every and all_true(same):  # every target continues its track
+        continued[:] = True
+        return DistanceFilterResult(updated, match.rows, continued, predicted)
+    filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
+    idx = np.flatnonzero(old)
+    filt[:, idx[same]] = updated[:, same]
+    continued[idx[same]] = True
+    rows = match.rows.copy()
+    rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
+    return DistanceFilterResult(filt, rows, continued, predicted)
+
+
 def target_gradient(
     cfg: OursConfig,
     cam: Camera,
@@ -330,14 +406,14 @@ def target_gradient(
     size = fused.size
     boxes = targets.boxes_px
     z_size = np.exp(size.mean)
-    delta_y = (boxes[:, 1] + boxes[:, 3]) * 0.5 - (cam.c_y - f * math.tan(theta_rad))
+    delta_y = (boxes[:, 1] + boxes[:, 3]) * HALF - (cam.c_y - f * math.tan(theta_rad))
     flat = cues.expected_centre_offset_px(
         z_size, f, cam_height_m, targets.classes.height_m, fused.half_extent_m
     )
     a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
     gain2 = flat * flat * (1.0 / (f * f))
     a_white = gain2 * size.var_white + (targets.box_sigma_px**2 + (f * jitter_rad) ** 2) / f**2
-    z_h_sd = targets.classes.height_sigma_m * 0.5 / z_size
+    z_h_sd = targets.classes.height_sigma_m * HALF / z_size
     a_other = gain2 * (size.var - size.var_white) + z_h_sd * z_h_sd
     prior_mean, prior_var = _gradient_prior(
         rows,
@@ -420,6 +496,10 @@ def _total_var(cue: SizeCue, log_sigma: FloatArray) -> FloatArray:
     return (cue.lever * log_sigma) ** 2 + cue.var_white + cue.var_other
 
 
+_MAX_GRADIENT_VAR = const(1e6)
+"""Prior variance of a new track's road gradient (rad², practically none)."""
+
+
 def _gradient_prior(
     rows: NDArray[np.int64],
     old: NDArray[np.bool_],
@@ -433,11 +513,11 @@ def _gradient_prior(
     < 0, after the gate)."""
     kept = rows[old] >= 0 if not every_old else rows >= 0
     if every_old and all_true(kept):
-        return mean_old, np.minimum(var_old, 1e6)
+        return mean_old, np.minimum(var_old, _MAX_GRADIENT_VAR)
     mean, var = np.zeros(rows.shape), filled(rows.shape[0], 1e6)
     idx = np.flatnonzero(old)[kept]
     mean[idx] = mean_old[kept]
-    var[idx] = np.minimum(var_old[kept], 1e6)
+    var[idx] = np.minimum(var_old[kept], _MAX_GRADIENT_VAR)
     return mean, var
 
 

@@ -9,7 +9,7 @@ mode), leading axes the targets'.
 
 from __future__ import annotations
 
-import functools
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -35,6 +35,21 @@ def all_true(mask: NDArray[np.bool_]) -> bool:
 def any_true(mask: NDArray[np.bool_]) -> bool:
     """``mask.any()`` for the small arrays of one frame."""
     return bool(_count_nonzero(mask))
+
+
+def const(value: float) -> FloatArray:
+    """``value`` as a read-only 0-d float array, a constant of the per-frame arithmetic:
+    numpy takes it as the operand of an array about 0.2 µs sooner than a Python float (which
+    it converts and promotes as a weak scalar on every call), a third of an operation on a
+    frame's few targets; the results are the same to the bit. Only for array operands (with
+    a Python float it gives a numpy scalar)."""
+    out = np.array(value, dtype=float)
+    out.flags.writeable = False
+    return out
+
+
+ZERO, HALF, ONE = const(0.0), const(0.5), const(1.0)
+"""Constants of the per-frame arithmetic (:func:`const`)."""
 
 
 class LogCue(NamedTuple):
@@ -82,14 +97,14 @@ def fuse_size_cues(
     C12 = corr_hw * sh * sw
     # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
     den = C11 + C22 - C12 - C12
-    inv_den = 1.0 / den
+    inv_den = ONE / den
     a_h = (C22 - C12) * inv_den
     a_w = (C11 - C12) * inv_den
     diff = yh - yw
     mean = yw + a_h * diff
     var = (C11 * C22 - C12 * C12) * inv_den
     white = a_h * a_h * r_h_white + a_w * a_w * r_w_white
-    loglik = (diff * diff * inv_den + np.log(den)) * -0.5 - _HALF_LOG_2PI
+    loglik = (diff * diff * inv_den + np.log(den)) * _MINUS_HALF - _HALF_LOG_2PI
     both = np.isfinite(den)
     if all_true(both):
         return LogCue(mean, var, white, loglik)
@@ -101,7 +116,8 @@ def fuse_size_cues(
     )
 
 
-_HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
+_HALF_LOG_2PI = const(0.5 * float(np.log(2.0 * np.pi)))
+_MINUS_HALF = const(-0.5)
 
 
 class SizeMode(NamedTuple):
@@ -130,24 +146,64 @@ class SizeMode(NamedTuple):
         return self.log_sigma_floor > 0.0
 
 
-@functools.lru_cache(maxsize=16)
-def _mode_constants(modes: tuple[SizeMode, ...], n_headings: int) -> tuple[FloatArray, FloatArray]:
-    """``(M·K,)`` height factors and spread floors of the size modes, each repeated over the
-    ``K`` headings (mode-major; built once per set)."""
-    factor = np.repeat([m.height_factor for m in modes], n_headings)
-    floor = np.repeat([m.log_sigma_floor for m in modes], n_headings)
-    factor.flags.writeable = floor.flags.writeable = False
-    return factor, floor
+class ModeSpreads:
+    """How size modes widen a class's relative spreads, per hypothesis: the constants of
+    hypotheses ``(n, M·K)`` (``M`` modes, ``K`` columns each, mode-major) built once, so that
+    a frame only reads them.
+
+    Args:
+        modes: the size modes.
+        n_columns: ``K``, the hypotheses per mode.
+
+    Attributes:
+        modes: the size modes.
+        odd: index of the odd-object mode (:attr:`SizeMode.odd`), or None.
+    """
+
+    def __init__(self, modes: Sequence[SizeMode], n_columns: int) -> None:
+        self.modes = tuple(modes)
+        self.odd = next((k for k, mode in enumerate(self.modes) if mode.odd), None)
+        self._typical = self.modes == (SizeMode(),)  # the class's spreads as they are
+        self._scaled = any(m.height_factor != 1.0 for m in self.modes)
+        factor = np.repeat([m.height_factor for m in self.modes], n_columns)
+        floor = np.repeat([m.log_sigma_floor for m in self.modes], n_columns)
+        self._row = np.stack([factor, floor])[:, None, :]  # (2, 1, M·K)
+        self._rows = self._row
+        self._kept: tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray]] | None = None
+
+    def spreads(
+        self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The class's relative height and width spreads in each size mode, per hypothesis:
+        from ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the
+        modes, the height's times its mode's factor, both at least its mode's floor.
+
+        The spreads of read-only inputs (a :class:`~slopedist.estimators.ours.class_table.
+        ClassTable`'s, the same arrays while a drive's frames list the same classes) are kept
+        until other inputs come."""
+        if self._typical:
+            return sigma_log_h, sigma_log_w
+        kept = self._kept
+        if kept is not None and kept[0] is sigma_log_h and kept[1] is sigma_log_w:
+            return kept[2]
+        n = sigma_log_h.shape[0]
+        if self._rows.shape[1] < n:  # (2, rows, M·K): sliced per frame, never broadcast
+            self._rows = np.repeat(self._row, 2 * n, axis=1)
+        factor, floor = self._rows[:, :n]
+        scaled = sigma_log_h * factor if self._scaled else sigma_log_h  # (x·1 is x)
+        out = np.maximum(scaled, floor), np.maximum(sigma_log_w, floor)
+        if not (sigma_log_h.flags.writeable or sigma_log_w.flags.writeable):
+            out[0].flags.writeable = out[1].flags.writeable = False
+            self._kept = (sigma_log_h, sigma_log_w, out)
+        return out
 
 
 def mode_spreads(
     modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """The class's relative height and width spreads in each size mode, per hypothesis: from
-    ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the ``M`` modes
-    (mode-major), the height's times its mode's factor, both at least its mode's floor."""
-    factor, floor = _mode_constants(tuple(modes), sigma_log_h.shape[-1] // len(modes))
-    return np.maximum(sigma_log_h * factor, floor), np.maximum(sigma_log_w, floor)
+    """:meth:`ModeSpreads.spreads` of ``modes`` (``sigma_log_h``, ``sigma_log_w``
+    ``(n, M·K)``)."""
+    return ModeSpreads(modes, sigma_log_h.shape[-1] // len(modes)).spreads(sigma_log_h, sigma_log_w)
 
 
 def shape_gap_sigma(
@@ -188,20 +244,20 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     The white variance is propagated with the same weights; ``loglik`` adds the consistency of
     the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
     """
-    ok = np.isfinite(b.mean + b.var) & (b.var > 0)
+    ok = np.isfinite(b.mean + b.var) & (b.var > ZERO)
     every = all_true(ok)
     vb = b.var if every else np.where(ok, b.var, 1.0)
     mb = b.mean if every else np.where(ok, b.mean, 0.0)
     wb_white = b.var_white if every else np.where(ok, b.var_white, 0.0)
     tot = a.var + vb  # > 0: vb > 0 and a.var ≥ 0
-    inv_tot = 1.0 / tot
+    inv_tot = ONE / tot
     wa = vb * inv_tot
     wb = a.var * inv_tot
     diff = a.mean - mb
     mean = mb + wa * diff
     var = a.var * wa
     white = wa * wa * a.var_white + wb * wb * wb_white
-    ll = (diff * diff * inv_tot + np.log(tot)) * -0.5 - _HALF_LOG_2PI
+    ll = (diff * diff * inv_tot + np.log(tot)) * _MINUS_HALF - _HALF_LOG_2PI
     if every:
         return LogCue(mean, var, white, a.loglik + ll)
     return LogCue(
@@ -230,18 +286,16 @@ def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike, where: Arr
     root = np.sqrt(tot)
     a = (np.asarray(bound, dtype=float) - mu) / root
     log_cdf = special.log_ndtr(a)
-    lam = np.exp(-0.5 * a * a - log_cdf) * _INV_SQRT_2PI
-    factor = 1.0 - var / tot * lam * (lam + a)
-    use = np.asarray(where, dtype=bool) & np.isfinite(a)
-    return LogCue(
-        np.where(use, mu - var / root * lam, mu),
-        np.where(use, var * factor, var),
-        np.where(use, cue.var_white * factor, cue.var_white),
-        np.where(use, cue.loglik + log_cdf, cue.loglik),
-    )
+    lam = np.exp(_MINUS_HALF * a * a - log_cdf) * _INV_SQRT_2PI
+    factor = ONE - var / tot * lam * (lam + a)
+    keep = ~(np.asarray(where, dtype=bool) & np.isfinite(a))
+    out = LogCue(mu - var / root * lam, var * factor, cue.var_white * factor, cue.loglik + log_cdf)
+    for new, old in zip(out, cue, strict=True):  # the cue as it was where not used (into
+        np.copyto(new, old, where=keep)  # the new arrays: cheaper than np.where's)
+    return out
 
 
-_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
+_INV_SQRT_2PI = const(1.0 / np.sqrt(2.0 * np.pi))
 
 
 def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, FloatArray]:
@@ -325,6 +379,7 @@ def shrink_to_prior(
     s2 = prior_sigma * prior_sigma
     finite = np.isfinite(var)
     if all_true(finite):
-        return mean * s2 / (s2 + var), s2 * var / (s2 + var)
+        total = s2 + var
+        return mean * s2 / total, s2 * var / total
     v = np.where(finite, var, 1.0)
     return (np.where(finite, mean * s2 / (s2 + v), 0.0), np.where(finite, s2 * v / (s2 + v), s2))

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.detections.boxes import overlapping_pairs
-from slopedist.estimators.ours.fusion import any_true
+from slopedist.estimators.ours.fusion import ZERO, any_true
 
 FloatArray = NDArray[np.float64]
 
@@ -42,11 +42,10 @@ def hidden_sides(
     hi = b[:, 2:] + tol_px
     # pairs (i, j) whose boxes overlap or touch (both axes), with j nearer (its bottom lower)
     if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all():
-        i, j = _nearer_pairs_dense(b, lo, hi)
-    else:  # many boxes: only the pairs that overlap, O(n log n + pairs)
-        i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))
-        nearer = b[j, 3] > b[i, 3]
-        i, j = i[nearer], j[nearer]
+        return _hidden_sides_dense(b, lo, hi)
+    i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))  # O(n log n + pairs)
+    nearer = b[j, 3] > b[i, 3]
+    i, j = i[nearer], j[nearer]
     cut = np.zeros((b.shape[0], 2), dtype=bool)
     if not i.size:
         return cut[:, 0], cut[:, 1]
@@ -65,18 +64,24 @@ _DENSE_MAX_BOXES = 48
 """Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
 
 
-def _nearer_pairs_dense(
+def _hidden_sides_dense(
     b: FloatArray, lo: FloatArray, hi: FloatArray
-) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Pairs (i, j), row-major, of boxes ``b[i]`` overlapping the widened box ``(lo, hi)[j]``
-    with ``j`` nearer (its bottom lower), every pair tested."""
-    reach = np.minimum(b[:, None, 2:], hi[None]) > np.maximum(b[:, None, :2], lo[None])
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`hidden_sides` with every pair tested at once as ``(i, j, axis)`` arrays: box
+    ``b[i]`` overlaps the widened box ``(lo, hi)[j]``, ``j`` is nearer (its bottom lower) and
+    an edge of ``i`` lies within ``j``'s widened extent (columns: a side, rows: top or
+    bottom)."""
+    b_lo, b_hi = b[:, None, :2], b[:, None, 2:]
+    lo_j, hi_j = lo[None], hi[None]
+    reach = np.minimum(b_hi, hi_j) > np.maximum(b_lo, lo_j)
     near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
     if not any_true(near):
-        empty = np.zeros(0, dtype=np.intp)
-        return empty, empty
-    i, j = np.nonzero(near)
-    return i, j
+        no = np.zeros(b.shape[0], dtype=bool)
+        return no, no.copy()
+    on = ((b_lo >= lo_j) & (b_lo <= hi_j)) | ((b_hi >= lo_j) & (b_hi <= hi_j))
+    on &= near[..., None]
+    cut = np.logical_or.reduce(on, axis=1)
+    return cut[:, 0], cut[:, 1]
 
 
 def unexplained_excess(
@@ -89,7 +94,7 @@ def unexplained_excess(
     """How far a log-distance cue says farther than a reference beyond their own noise:
     ``max(y_cue − y_ref, 0)² − gate_sigma²·(var_cue + var_ref)`` (log², > 0 only for an
     outlier on the far side; NaN where either is missing)."""
-    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), 0.0)
+    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), ZERO)
     return np.asarray(
         excess * excess - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref))
     )
@@ -112,4 +117,4 @@ def occlusion_log_var(unexplained: ArrayLike, cut: ArrayLike) -> FloatArray:
         cut: whether the cue's dimension may be cut short, broadcastable to ``unexplained``.
     """
     u = np.asarray(unexplained)
-    return np.asarray(np.where(np.asarray(cut) & (u > 0.0), u, 0.0))
+    return np.asarray(np.where(np.asarray(cut) & (u > ZERO), u, ZERO))

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.config import OursConfig
-from slopedist.estimators.ours.fusion import all_true
+from slopedist.estimators.ours.fusion import all_true, const
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
 from slopedist.estimators.ours.tracking import ROW_ODD
@@ -67,11 +67,11 @@ def frame_log_ratio(odd_prob: FloatArray, prior_log_odds: FloatArray) -> FloatAr
     # above, or underflow to 0); NaN (no weights) stays NaN
     p = np.minimum(np.maximum(odd_prob, _TINY), _ALMOST_ONE)
     log_odds = np.log(p) - np.log1p(-p)
-    return np.minimum(np.maximum(log_odds, -MAX_LOG_ODDS), MAX_LOG_ODDS) - prior_log_odds
+    return np.minimum(np.maximum(log_odds, _LOW_LOG_ODDS), _HIGH_LOG_ODDS) - prior_log_odds
 
 
-_TINY = 1e-300
-_ALMOST_ONE = 1.0 - 2.0**-53
+_TINY = const(1e-300)
+_ALMOST_ONE = const(1.0 - 2.0**-53)
 
 
 MAX_LOG_ODDS = 36.0
@@ -82,16 +82,25 @@ MAX_EVIDENCE = 20.0
 resolves, so a frame can always be read back (:func:`frame_log_ratio`), and a long track can
 still change its mind within a few τ when its cues change (a vehicle no longer hidden)."""
 
+_LOW_LOG_ODDS, _HIGH_LOG_ODDS = const(-MAX_LOG_ODDS), const(MAX_LOG_ODDS)
+_LOW_EVIDENCE, _HIGH_EVIDENCE = const(-MAX_EVIDENCE), const(MAX_EVIDENCE)
+
 
 def updated_evidence(
-    evidence: FloatArray, log_ratio: FloatArray, weight: FloatArray, restarted: BoolArray
+    evidence: FloatArray,
+    log_ratio: FloatArray,
+    weight: FloatArray,
+    restarted: BoolArray | None,
 ) -> FloatArray:
     """``(n,)`` the track evidence after this frame: ``evidence + weight·log_ratio`` within
     ±:data:`MAX_EVIDENCE` (a non-finite ratio adds nothing); a target whose track failed the
-    distance gate (``restarted``) starts afresh from 0."""
+    distance gate (``restarted``; None: none did) starts afresh from 0."""
     add = weight * log_ratio
-    total = np.minimum(np.maximum(evidence + add, -MAX_EVIDENCE), MAX_EVIDENCE)
-    ok = np.isfinite(add) & ~restarted
+    total = np.minimum(np.maximum(evidence + add, _LOW_EVIDENCE), _HIGH_EVIDENCE)
+    ok = np.isfinite(add)
+    if restarted is None:
+        return total if all_true(ok) else np.where(ok, total, evidence)
+    ok &= ~restarted
     return total if all_true(ok) else np.where(ok, total, np.where(restarted, 0.0, evidence))
 
 
@@ -152,4 +161,7 @@ class OddObjectCheck:
             return None
         weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
         ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
-        return updated_evidence(evidence, ratio, weight, match.continued & ~distance.continued)
+        restarted = None
+        if not (match.all_continued and all_true(distance.continued)):
+            restarted = match.continued & ~distance.continued
+        return updated_evidence(evidence, ratio, weight, restarted)

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
+from slopedist.estimators.ours.fusion import all_true
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -438,7 +439,7 @@ def associate(
                 rows[k] = -1
             seen.add(i)
     has_id = track_ids >= 0
-    if np.count_nonzero(has_id) == n:
+    if all_true(has_id):
         return rows
     free_boxes = np.flatnonzero(~has_id)
     free_tracks = np.flatnonzero(tracks.ext_id < 0)
