@@ -101,3 +101,27 @@ def test_outlined_text_is_the_text_in_a_dark_ring_one_pixel_wide(org: tuple[int,
     assert ring.any() and (out[ring].max(axis=1) < 255).all()
     far = cv2.dilate(text, np.ones((5, 5), np.uint8)) == 0
     np.testing.assert_array_equal(out[far], white[far])
+
+
+@pytest.mark.parametrize("thickness", [1, 2])
+def test_dashes_drawn_in_one_call_are_the_lines_drawn_one_by_one(thickness: int) -> None:
+    image = np.zeros((40, 120, 3), np.uint8)
+    viz.dashed_hline(image, 20, 3, 110, (0, 255, 255), 12, 8, thickness)
+    expected = np.zeros_like(image)
+    for x in range(3, 110, 20):
+        cv2.line(expected, (x, 20), (min(x + 12, 110), 20), (0, 255, 255), thickness, cv2.LINE_8)
+    assert np.array_equal(image, expected)
+
+
+def test_a_cut_box_is_its_four_sides_dashed() -> None:
+    image = np.zeros((60, 80, 3), np.uint8)
+    viz._draw_box(image, np.array([5.2, 4.0, 70.0, 55.0]), (255, 160, 0), cut=True)
+    expected = np.zeros_like(image)
+    for row in (4, 55):
+        for x in range(5, 70, 13):
+            cv2.line(expected, (x, row), (min(x + 8, 70), row), (255, 160, 0), 2, cv2.LINE_8)
+    for col in (5, 70):
+        for y in range(4, 55, 13):
+            cv2.line(expected, (col, y), (col, min(y + 8, 55)), (255, 160, 0), 2, cv2.LINE_8)
+    assert np.array_equal(image, expected)
+    assert viz.dash_spans(10, 10, 8, 5).shape == (0, 2)  # nothing to draw

@@ -154,9 +154,9 @@ def _extent(starts: NDArray[np.float64], size: int, lo: NDArray, hi: NDArray) ->
     return np.maximum(np.minimum(a + size, hi) - np.maximum(a, lo), 0.0)
 
 
-def _gaps(starts: list[int], size: int, lo: int, hi: int) -> list[int]:
+def _gaps(starts: NDArray[np.float64], size: int, lo: int, hi: int) -> NDArray[np.float64]:
     """Distance between each interval ``[start, start + size)`` and ``[lo, hi)``."""
-    return [max(lo - (a + size), a - hi, 0) for a in starts]
+    return np.maximum(np.maximum(lo - (starts + size), starts - hi), 0.0)
 
 
 def grid_costs(
@@ -178,16 +178,16 @@ def grid_costs(
     overlap, so the sum over the rectangles is a matrix product of ``(ny, M)`` and ``(M, nx)``.
     """
     w, h = size
-    xs, ys = np.array(grid.xs, np.float64), np.array(grid.ys, np.float64)
+    xs, ys = np.asarray(grid.xs, np.float64), np.asarray(grid.ys, np.float64)
     wx = _extent(xs, w, rects[:, 0], rects[:, 2])
     hy = _extent(ys, h, rects[:, 1], rects[:, 3])
-    line = [
-        LINE_COST_PX if clear_row is not None and y <= clear_row < y + h else 0.0 for y in grid.ys
-    ]
-    dx = np.array(_gaps(grid.xs, w, own.left, own.right), np.float64)
-    dy = np.array(_gaps(grid.ys, h, own.top, own.bottom), np.float64)
+    line = np.zeros(len(ys))
+    if clear_row is not None:
+        line[(ys <= clear_row) & (clear_row < ys + h)] = LINE_COST_PX
+    dx = _gaps(xs, w, own.left, own.right)
+    dy = _gaps(ys, h, own.top, own.bottom)
     gap = np.maximum(np.hypot(dx[None, :], dy[:, None]) - LABEL_GAP_PX, 0.0)
-    return (hy * weights) @ wx.T + gap + np.array(line)[:, None]
+    return (hy * weights) @ wx.T + gap + line[:, None]
 
 
 @dataclass

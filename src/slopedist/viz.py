@@ -42,6 +42,28 @@ FIG3_TEXT = (255, 255, 255)
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
+def dash_spans(x0: int, x1: int, dash_px: int, gap_px: int) -> NDArray[np.int32]:
+    """``(K, 2)`` first and last coordinate of each dash from ``x0`` to ``x1`` (pixels): dashes of
+    ``dash_px`` every ``dash_px + gap_px``, the last one cut at ``x1``."""
+    starts = np.arange(x0, x1, dash_px + gap_px, dtype=np.int32)
+    spans = np.empty((len(starts), 2), dtype=np.int32)
+    spans[:, 0] = starts
+    np.minimum(starts + dash_px, x1, out=spans[:, 1])
+    return spans
+
+
+def draw_segments(
+    image: NDArray[np.uint8],
+    segments: NDArray[np.int32],
+    colour: tuple[int, int, int],
+    thickness: int,
+) -> None:
+    """Draw ``(K, 2, 2)`` line segments (start and end ``(x, y)`` pixels) in one call, each
+    exactly as ``cv2.line`` draws it (``LINE_8``; in place)."""
+    if len(segments):
+        cv2.polylines(image, list(segments), False, colour, thickness, cv2.LINE_8)
+
+
 def dashed_hline(
     image: NDArray[np.uint8],
     row: int,
@@ -53,10 +75,11 @@ def dashed_hline(
     thickness: int = 1,
 ) -> None:
     """Draw a dashed horizontal line at ``row`` from column ``x0`` to ``x1`` (in place)."""
-    x = x0
-    while x < x1:
-        cv2.line(image, (x, row), (min(x + dash_px, x1), row), colour, thickness, cv2.LINE_8)
-        x += dash_px + gap_px
+    spans = dash_spans(x0, x1, dash_px, gap_px)
+    segments = np.empty((len(spans), 2, 2), dtype=np.int32)
+    segments[:, :, 0] = spans
+    segments[:, :, 1] = row
+    draw_segments(image, segments, colour, thickness)
 
 
 _OUTLINE_KERNEL = np.ones((3, 3), dtype=np.uint8)
@@ -206,16 +229,23 @@ def _text_block_size(lines: list[str], scale: float) -> tuple[int, int, int]:
 def _draw_box(
     out: NDArray[np.uint8], box: NDArray[np.float64], colour: tuple[int, int, int], cut: bool
 ) -> None:
-    """The box outline; a cut box is dashed."""
+    """The box outline; a cut box is dashed (its four dashed sides in one call)."""
     left, top, right, bottom = (round(float(c)) for c in box)
     if not cut:
         cv2.rectangle(out, (left, top), (right, bottom), colour, 2)
         return
-    for row in (top, bottom):
-        dashed_hline(out, row, left, right, colour, 8, 5, 2)
-    for col in (left, right):
-        for y in range(top, bottom, 13):
-            cv2.line(out, (col, y), (col, min(y + 8, bottom)), colour, 2, cv2.LINE_8)
+    across, down = dash_spans(left, right, 8, 5), dash_spans(top, bottom, 8, 5)
+    segments = np.empty((2 * (len(across) + len(down)), 2, 2), dtype=np.int32)
+    n = len(across)
+    for k, row in enumerate((top, bottom)):  # the horizontal sides
+        segments[k * n : (k + 1) * n, :, 0] = across
+        segments[k * n : (k + 1) * n, :, 1] = row
+    m = len(down)
+    for k, col in enumerate((left, right)):  # the vertical sides
+        part = segments[2 * n + k * m : 2 * n + (k + 1) * m]
+        part[:, :, 0] = col
+        part[:, :, 1] = down
+    draw_segments(out, segments, colour, 2)
 
 
 def _draw_labels(

@@ -46,6 +46,13 @@ def test_csv_stream_writer_fixed_fields_missing_key_empty() -> None:
         w.write_row({"c": 1})
 
 
+def test_csv_stream_writer_quotes_text_and_leaves_none_empty() -> None:
+    buf = io.StringIO()
+    w = CsvStreamWriter(buf, fields=("a", "b", "c"))
+    w.write_rows([{"a": 'x, "y"', "b": None, "c": math.nan}, {"c": True}])
+    assert buf.getvalue() == 'a,b,c\n"x, ""y""",,\n,,1\n'
+
+
 def test_write_header_only_before_the_first_row() -> None:
     empty = io.StringIO()
     CsvStreamWriter(empty).write_header(("a", "b"))

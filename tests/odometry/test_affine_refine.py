@@ -99,3 +99,18 @@ def test_no_points() -> None:
     a = _texture()
     refined, ok = refine_affine(a, a, np.empty((0, 2)), np.empty((0, 2)))
     assert refined.shape == (0, 2) and ok.shape == (0,)
+
+
+def test_many_tracks_refined_at_once_are_refined_as_one_by_one() -> None:
+    """The windows of all tracks are sampled and solved together: each track's result does
+    not depend on the others."""
+    image = _texture(5)
+    M = np.array([[1.1, 0.03, -6.0], [-0.02, 1.05, 4.0]])
+    moved = _warped(image, M)
+    p0 = _points()
+    p1 = _klt(image, moved, p0, (p0 @ M[:, :2].T + M[:, 2]).astype(np.float32))
+    together, ok = refine_affine(image, moved, p0, p1)
+    for i in range(len(p0)):
+        alone, ok_i = refine_affine(image, moved, p0[i : i + 1], p1[i : i + 1])
+        assert ok_i[0] == ok[i]
+        np.testing.assert_allclose(alone[0], together[i], atol=1e-3)

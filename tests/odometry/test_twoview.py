@@ -71,13 +71,30 @@ def test_project_to_rotation_of_a_reflection_is_a_rotation() -> None:
     assert np.allclose(tv.project_to_rotation(2.0 * R), R, atol=1e-12)
 
 
-def test_cross_into_matches_numpy_for_homogeneous_rows() -> None:
-    rng = np.random.default_rng(5)
-    a = rng.standard_normal((7, 3))
-    b = np.column_stack([rng.standard_normal((7, 2)), np.ones(7)])
-    out = np.empty((7, 3))
-    tv._cross_into(out, a, b)
-    assert np.allclose(out, np.cross(a, b), rtol=0, atol=1e-15)
+def test_the_sampson_system_from_pair_products_is_the_direct_one() -> None:
+    """Residuals as :func:`sampson_residuals`, Jacobian as central differences of ``e/√D``
+    (D held fixed) for ``R ← R·exp(ω)`` and t moved along its tangent basis."""
+    R, t = tv.so3_exp(np.radians([1.0, 10.0, 0.5])), np.array([0.1, 0.02, 1.0])
+    t /= np.linalg.norm(t)
+    x1, x2 = correspondences(R, t, n=40, noise_px=2.0, outliers=0.2)
+    rJ, w, B = tv._sampson_system(R, t, tv.pair_products(x1, x2), 1.0 / F_PX)
+    r, J = rJ[:, 0], rJ[:, 1:]
+    np.testing.assert_allclose(r, tv.sampson_residuals(R, t, x1, x2), rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(w, tv.cauchy_weights(r, 1.0 / F_PX))
+    sqrt_D = np.sqrt(tv._sampson_terms(R, t, x1, x2)[3])
+
+    def e(R_: np.ndarray, t_: np.ndarray) -> np.ndarray:
+        return tv._sampson_terms(R_, t_, x1, x2)[2] / sqrt_D
+
+    h = 1e-6
+    for k in range(3):
+        d = h * np.eye(3)[k]
+        numeric = (e(R @ tv.so3_exp(d), t) - e(R @ tv.so3_exp(-d), t)) / (2 * h)
+        np.testing.assert_allclose(J[:, k], numeric, rtol=1e-6, atol=1e-9)
+    for k in range(2):
+        numeric = (e(R, t + h * B[:, k]) - e(R, t - h * B[:, k])) / (2 * h)
+        np.testing.assert_allclose(J[:, 3 + k], numeric, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(B.T @ t, 0.0, atol=1e-15)
 
 
 def test_sampson_residuals_vanish_for_exact_correspondences() -> None:
@@ -146,3 +163,12 @@ def _check_fails_cleanly(rng: np.random.Generator) -> None:
     fit = tv.fit_relative_pose(x1, x2, 700.0, R_wild, np.array([0.0, -0.96, 0.29]))
     assert fit.n_inliers <= 3
     assert np.all(np.isfinite(fit.R))
+
+
+def test_solve_small_is_numpys_solve_and_refuses_a_singular_system() -> None:
+    rng = np.random.default_rng(8)
+    J = rng.standard_normal((30, 5))
+    A, b = J.T @ J, rng.standard_normal(5)
+    np.testing.assert_allclose(tv.solve_small(A, b), np.linalg.solve(A, b), rtol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError):
+        tv.solve_small(np.ones((5, 5)), b)

@@ -64,7 +64,9 @@ class CsvStreamWriter:
 
     def __init__(self, stream: IO[str], fields: Sequence[str] | None = None) -> None:
         self._stream = stream
-        self._writer: csv.DictWriter[str] | None = None
+        self._writer: Any = None  # a csv.writer once the header is known
+        self._fields: list[str] = []
+        self._field_set: frozenset[str] = frozenset()
         self._owned = False
         if fields is not None:
             self._start(fields)
@@ -77,25 +79,30 @@ class CsvStreamWriter:
         writer._owned = True
         return writer
 
-    def _start(self, fields: Sequence[str]) -> csv.DictWriter[str]:
-        self._writer = csv.DictWriter(
-            self._stream, fieldnames=list(fields), lineterminator="\n", restval=""
-        )
-        self._writer.writeheader()
+    def _start(self, fields: Sequence[str]) -> None:
+        self._fields = list(fields)
+        self._field_set = frozenset(self._fields)
+        self._writer = csv.writer(self._stream, lineterminator="\n")
+        self._writer.writerow(self._fields)
         self._stream.flush()
-        return self._writer
 
     @property
     def fields(self) -> list[str] | None:
         """The header, once known."""
-        return None if self._writer is None else list(self._writer.fieldnames)
+        return None if self._writer is None else list(self._fields)
 
     def write_rows(self, rows: Iterable[Mapping[str, Any]]) -> int:
         """Write ``rows`` (formatted with :func:`format_cell`), then flush; returns the count."""
         n = 0
         for row in rows:
-            writer = self._writer if self._writer is not None else self._start(list(row))
-            writer.writerow(format_row(row))
+            if self._writer is None:
+                self._start(list(row))
+            extra = row.keys() - self._field_set
+            if extra:
+                names = ", ".join(repr(k) for k in extra)
+                raise ValueError(f"dict contains fields not in fieldnames: {names}")
+            # a missing key is None, an empty cell (format_cell)
+            self._writer.writerow([format_cell(row.get(k)) for k in self._fields])
             n += 1
         self._stream.flush()
         return n

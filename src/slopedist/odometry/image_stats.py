@@ -89,11 +89,24 @@ def gradient_energy(image: NDArray[np.uint8], small: NDArray[np.uint8] | None = 
     if small is None:
         small = half_size(image)
     square_sum = 0.0
-    for dx, dy in ((1, 0), (0, 1)):  # E[g²] = std² + mean², per axis (OpenCV, int16 Sobel)
-        mean, std = cv2.meanStdDev(cv2.Sobel(small, cv2.CV_16S, dx, dy, ksize=3))
-        square_sum += float(std[0, 0]) ** 2 + float(mean[0, 0]) ** 2
+    for gradient in cv2.spatialGradient(small):  # the int16 3×3 Sobel x and y gradients
+        mean, std = mean_std(gradient)
+        square_sum += std**2 + mean**2  # E[g²], per axis
     grey_std = float(cv2.meanStdDev(small)[1][0, 0])
     return square_sum / max(grey_std**2, 1.0)
+
+
+def mean_std(values: NDArray[np.integer | np.floating]) -> tuple[float, float]:
+    """Mean and standard deviation of integer-valued ``values`` exactly as ``cv2.meanStdDev``
+    gives them (its formulas on the exact sum and sum of squares), without its slow int16
+    path (the sums are exact while below 2⁵³)."""
+    v = np.asarray(values, dtype=np.float64).ravel()
+    scale = 1.0 / max(v.size, 1)
+    # integers: both sums are exact in float64 (below 2⁵³), whatever the order of the additions
+    # (no BLAS dot: OpenBLAS would spread it over threads that spin when the cores are busy)
+    mean = float(np.add.reduce(v)) * scale
+    square_sum = float(np.add.reduce(v * v))
+    return mean, math.sqrt(max(square_sum * scale - mean * mean, 0.0))
 
 
 def blur_to_energy(image: NDArray[np.uint8], target: float) -> NDArray[np.uint8]:

@@ -1,4 +1,5 @@
-"""Two-view relative rotation from point correspondences: pure numpy, no I/O, no state.
+"""Two-view relative rotation from point correspondences: numpy (and OpenCV's small SVD), no I/O,
+no state.
 
 Convention:
     Points are given as normalised image coordinates ``x = K⁻¹ [u, v, 1]ᵀ``, shape ``(N, 3)``
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -42,13 +44,25 @@ def skew(v: FloatArray) -> FloatArray:
 
 
 def so3_exp(w: FloatArray) -> FloatArray:
-    """Rotation matrix of the rotation vector ``w`` (axis × angle, radians), Rodrigues' formula."""
-    w = np.asarray(w, dtype=float)
-    angle = math.sqrt(float(w @ w))  # = np.linalg.norm(w), bit for bit
-    W = skew(w)
+    """Rotation matrix of the rotation vector ``w`` (axis × angle, radians), Rodrigues' formula
+    ``I + a [w]ₓ + b [w]ₓ²`` with ``[w]ₓ² = w wᵀ − θ² I`` (scalar arithmetic: a 3×3 result
+    costs less than numpy calls)."""
+    x, y, z = np.asarray(w, dtype=float).tolist()
+    angle2 = x * x + y * y + z * z
+    angle = math.sqrt(angle2)
     if angle < 1e-8:
-        return _I3 + W + 0.5 * (W @ W)
-    return _I3 + (np.sin(angle) / angle) * W + ((1.0 - np.cos(angle)) / angle**2) * (W @ W)
+        a, b = 1.0, 0.5
+    else:
+        a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / angle2
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    return np.array(
+        [
+            [1.0 + bx * x - b * angle2, bx * y - az, bx * z + ay],
+            [bx * y + az, 1.0 + by * y - b * angle2, by * z - ax],
+            [bx * z - ay, by * z + ax, 1.0 + bz * z - b * angle2],
+        ]
+    )
 
 
 def so3_log(R: FloatArray) -> FloatArray:
@@ -72,7 +86,8 @@ def so3_log(R: FloatArray) -> FloatArray:
 
 def project_to_rotation(M: FloatArray) -> FloatArray:
     """Nearest rotation matrix (Frobenius norm) to a 3×3 matrix."""
-    U, _, Vt = np.linalg.svd(M)
+    _, svd_u, svd_vt = cv2.SVDecomp(np.asarray(M, dtype=np.float64))  # 2 against 8 µs (numpy)
+    U, Vt = np.asarray(svd_u, dtype=np.float64), np.asarray(svd_vt, dtype=np.float64)
     R = U @ Vt
     if _det3(R) >= 0.0:  # (U · diag(1, 1, 1)) · Vt is U · Vt exactly
         return R
@@ -152,7 +167,8 @@ def _bearings(x: FloatArray) -> FloatArray:
 
 def rotation_residuals_px(R: FloatArray, b1: FloatArray, b2: FloatArray, f_px: float) -> FloatArray:
     """Chordal distance ``‖b₂ − R b₁‖`` of unit bearings ``(N, 3)``, times ``f_px`` (≈ pixels)."""
-    return np.linalg.norm(b2 - b1 @ R.T, axis=1) * f_px
+    d = b2 - b1 @ R.T
+    return np.sqrt(np.einsum("ij,ij->i", d, d)) * f_px
 
 
 def fit_rotation_only(
@@ -174,6 +190,8 @@ def fit_rotation_only(
         iterations: number of reweighting steps.
     """
     b1, b2 = _bearings(x1), _bearings(x2)
+    # b₂ᵢ b₁ⱼ per bearing pair: Σ w b₂ b₁ᵀ and b₂ᵀ R b₁ are products with it
+    pairs = (b2[:, :, None] * b1[:, None, :]).reshape(len(b1), 9)
     if R_init is None:
         w = np.ones(len(b1))
     else:
@@ -181,9 +199,13 @@ def fit_rotation_only(
     R = np.eye(3) if R_init is None else np.asarray(R_init, dtype=float)
     r = rotation_residuals_px(R, b1, b2, f_px) if iterations < 1 else np.empty(0)
     for _ in range(iterations):
-        H = (b2 * w[:, None]).T @ b1  # Σ w b₂ b₁ᵀ; R maximises tr(Rᵀ H)
-        R = project_to_rotation(H)
-        r = rotation_residuals_px(R, b1, b2, f_px)
+        R = project_to_rotation((w @ pairs).reshape(3, 3))  # R maximises tr(Rᵀ Σ w b₂ b₁ᵀ)
+        # ‖b₂ − R b₁‖² = 2 − 2 b₂ᵀ R b₁ for unit bearings
+        chord2 = pairs @ R.ravel()
+        np.multiply(chord2, -2.0, out=chord2)
+        chord2 += 2.0
+        r = np.sqrt(np.maximum(chord2, 0.0, out=chord2), out=chord2)
+        r *= f_px
         w = cauchy_weights(r, threshold_px)
     # information: Jᵢ = R[b₁]ₓ per bearing, so Σ w JᵀJ = Σ w (I − b₁b₁ᵀ); 2 residual dof per point
     A = np.sum(w) * np.eye(3) - (b1 * w[:, None]).T @ b1
@@ -228,46 +250,87 @@ def sampson_residuals(R: FloatArray, t: FloatArray, x1: FloatArray, x2: FloatArr
     return e / np.sqrt(D)
 
 
-def _cross_into(out: FloatArray, a: FloatArray, b: FloatArray) -> None:
-    """``out = a × b`` row-wise for ``(N, 3)`` arrays whose last column ``b[:, 2]`` is 1
-    (homogeneous coordinates; the products with that 1 are skipped, which is exact)."""
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    b0, b1 = b[:, 0], b[:, 1]
-    np.subtract(a1, a2 * b1, out=out[:, 0])
-    np.subtract(a2 * b0, a0, out=out[:, 1])
-    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
+_SKEW_AXES = np.array(
+    [
+        [[0.0, 0, 0], [0, 0, -1], [0, 1, 0]],
+        [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
+        [[0, -1, 0], [1, 0, 0], [0, 0, 0]],
+    ]
+)
+"""``[e_k]ₓ`` of the three axes ``(3, 3, 3)``: ``[v]ₓ = Σ v_k [e_k]ₓ``."""
+_SKEW_AXES.flags.writeable = False
+
+_EPIPOLE_GATHER = np.array(
+    [
+        [9, 9, 9, 9],
+        [9, 9, 9, 9],
+        [9, 9, 0, 1],  # x₂₀: (Eᵀ x₂)ₖ += x₂₀ E₀ₖ
+        [9, 9, 9, 9],
+        [9, 9, 9, 9],
+        [9, 9, 3, 4],  # x₂₁
+        [0, 3, 9, 9],  # x₁₀: (E x₁)ₖ += Eₖ₀ x₁₀
+        [1, 4, 9, 9],  # x₁₁
+        [2, 5, 6, 7],  # 1 = x₁₂ = x₂₂
+    ]
+)
+"""Where the entries of ``E`` (flattened; 9: zero) go in the ``(9, 4)`` matrix that takes the
+pair products (:func:`pair_products`) to ``((E x₁)₀, (E x₁)₁, (Eᵀ x₂)₀, (Eᵀ x₂)₁)``: the
+columns ``6 + j`` of the products are ``x₁ⱼ`` and the columns ``3i + 2`` are ``x₂ᵢ``."""
+
+
+def pair_products(x1: FloatArray, x2: FloatArray) -> FloatArray:
+    """``(N, 9)`` products ``x₂ᵢ x₁ⱼ`` (column ``3i + j``) of homogeneous correspondences
+    (last columns 1): a bilinear form ``x₂ᵀ M x₁`` of every correspondence is this times ``M``
+    flattened (row-major)."""
+    return (x2[:, :, None] * x1[:, None, :]).reshape(len(x1), 9)
 
 
 def _sampson_system(
     R: FloatArray,
     t: FloatArray,
-    x1: FloatArray,
-    x2: FloatArray,
+    products: FloatArray,
     scale: float,
     redescending: bool = False,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Residuals ``r = e/√D``, weights, Jacobian ``(N, 5)`` and the tangent basis of t.
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Residuals ``r = e/√D`` and Jacobian side by side (``(N, 6)``: ``r``, then the five
+    derivatives), weights and the tangent basis of t, from the correspondences'
+    :func:`pair_products`.
 
     Weights are Cauchy's, or with ``redescending`` Tukey's biweight (zero beyond
     ``TUKEY_SCALES × scale``).
 
-    Gauss–Newton with D held fixed within a step (Sampson reweighting):
-    ``∂e/∂ω = x₁ × Rᵀ(x₂ × t)`` for ``R ← R·exp(ω)``, ``∂e/∂t = R x₁ × x₂`` along the basis.
+    Gauss–Newton with D held fixed within a step (Sampson reweighting). The algebraic error
+    ``e = x₂ᵀ E x₁`` (``E = [t]ₓ R``), its derivatives ``x₂ᵀ E [e_k]ₓ x₁`` for ``R ← R·exp(ω)``
+    and ``x₂ᵀ [b_k]ₓ R x₁`` along the tangent basis ``b_k`` of t, and the four terms of D are
+    all linear in the pair products: one matrix product for every correspondence.
     """
-    a, Etx2, e, D = _sampson_terms(R, t, x1, x2)
-    inv_sqrt_D = np.sqrt(D, out=D)
-    np.divide(1.0, inv_sqrt_D, out=inv_sqrt_D)
-    r = e * inv_sqrt_D
     B = _tangent_basis(t)
-    J = np.empty((len(r), 5))
-    _cross_into(J[:, :3], Etx2, x1)  # x₁ × Etx2 = −(Etx2 × x₁)
-    np.negative(J[:, :3], out=J[:, :3])
-    ax2 = np.empty_like(a)
-    _cross_into(ax2, a, x2)
-    J[:, 3:] = ax2 @ B
-    J *= inv_sqrt_D[:, None]
+    SR = _skews(t, B) @ R  # E = [t]ₓ R, then ∂E/∂b_k = [b_k]ₓ R
+    E = SR[0].ravel()
+    M = np.empty((9, 10))
+    M[:, 0] = E
+    M[:, 1:4] = (SR[0] @ _SKEW_AXES).reshape(3, 9).T  # ∂E/∂ω_k = E [e_k]ₓ
+    M[:, 4:6] = SR[1:].reshape(2, 9).T
+    M[:, 6:] = np.concatenate((E, _ZERO))[_EPIPOLE_GATHER]
+    P = products @ M
+    D = np.einsum("ij,ij->i", P[:, 6:], P[:, 6:])
+    sqrt_D = np.sqrt(np.maximum(D, 1e-30, out=D), out=D)
+    rJ = np.divide(P[:, :6], sqrt_D[:, None])
+    r = rJ[:, 0]
     w = tukey_weights(r, TUKEY_SCALES * scale) if redescending else cauchy_weights(r, scale)
-    return r, w, J, B
+    return rJ, w, B
+
+
+_ZERO = np.zeros(1)
+_ZERO.flags.writeable = False
+
+
+def _skews(t: FloatArray, B: FloatArray) -> FloatArray:
+    """``[t]ₓ`` and ``[b_k]ₓ`` of the tangent basis' columns, ``(3, 3, 3)``."""
+    rows = []
+    for x, y, z in (t.tolist(), *B.T.tolist()):
+        rows.append([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.array(rows)
 
 
 def _tangent_basis(t: FloatArray) -> FloatArray:
@@ -350,12 +413,12 @@ def fit_relative_pose(
         t = translation_given_rotation(R, x1, x2, w)
     else:
         t = np.asarray(t_init, dtype=float) / np.linalg.norm(t_init)
+    products = pair_products(x1, x2)
     redescending = False
     for k in range(iterations + TUKEY_ITERATIONS):
-        r, w, J, B = _sampson_system(R, t, x1, x2, scale, redescending)
-        Jw = J * w[:, None]
-        A = Jw.T @ J + _RIDGE5
-        delta = -np.linalg.solve(A, Jw.T @ r)
+        rJ, w, B = _sampson_system(R, t, products, scale, redescending)
+        normal = (rJ[:, 1:] * w[:, None]).T @ rJ  # Jᵀ W r, then Jᵀ W J
+        delta = -solve_small(normal[:, 1:] + _RIDGE5, normal[:, 0])
         R = R @ so3_exp(delta[:3])
         t = t + B @ delta[3:]
         t /= math.sqrt(float(t @ t))  # = np.linalg.norm(t), bit for bit
@@ -367,7 +430,8 @@ def fit_relative_pose(
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return _failed_fit(np.asarray(R_init, dtype=float), len(x1))
     R = project_to_rotation(R)
-    r, w, J, _ = _sampson_system(R, t, x1, x2, scale, True)
+    rJ, w, _ = _sampson_system(R, t, products, scale, True)
+    r, J = rJ[:, 0], rJ[:, 1:]
     A = (J * w[:, None]).T @ J
     try:
         schur = A[:3, :3] - A[:3, 3:] @ np.linalg.solve(A[3:, 3:] + 1e-18 * np.eye(2), A[3:, :3])
@@ -376,6 +440,19 @@ def fit_relative_pose(
     sigma2 = np.sum(w * r**2) / max(np.sum(w) - 5.0, 1.0)
     r = np.abs(r) * f_px
     return TwoViewFit(R, t, r < threshold_px, r, False, schur / max(sigma2, 1e-16))
+
+
+def solve_small(A: FloatArray, b: FloatArray) -> FloatArray:
+    """``x`` with ``A x = b`` for a small square ``A`` and a vector ``b`` by OpenCV's LU with
+    partial pivoting (the call costs a fifth of ``np.linalg.solve``'s).
+
+    Raises:
+        np.linalg.LinAlgError: ``A`` is singular (as ``np.linalg.solve``).
+    """
+    ok, x = cv2.solve(A, np.asarray(b, dtype=np.float64).reshape(-1, 1), flags=cv2.DECOMP_LU)
+    if not ok:
+        raise np.linalg.LinAlgError("singular matrix")
+    return np.asarray(x, dtype=np.float64).ravel()
 
 
 def _failed_fit(R: FloatArray, n: int) -> TwoViewFit:
