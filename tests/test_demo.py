@@ -20,13 +20,14 @@ from slopedist.demo import (
     DemoConfig,
     format_demo_tables,
     plan_methods,
+    pooled_scores,
     run_demo,
-    uncertainty_table,
 )
 from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.ground_contact import EgoGradientEstimator
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationTrack
 from slopedist.pipeline import ego_gradients
+from slopedist.score_tables import uncertainty_table
 
 FRAMES = 8
 SCENARIOS = ("same_flat", "target_steep_uphill")
@@ -86,7 +87,7 @@ def test_every_available_method_runs_and_the_table_matches_the_records(demo_run)
 def test_the_summary_scores_ours_own_sigma(demo_run) -> None:
     """ours reports a σ per target: the summary has the uncertainty table with its row (and
     no row for a method without one), the shares as the records give them."""
-    table = uncertainty_table(demo_run)
+    table = uncertainty_table(pooled_scores(demo_run))
     assert table is not None and "ours" in [r[0] for r in table.rows]
     assert "flat" not in [r[0] for r in table.rows]
     assert "Uncertainty" in format_demo_tables(demo_run)

@@ -62,7 +62,7 @@ from slopedist.demo_scenario import (
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import causal_methods
 from slopedist.estimators.base import MissingReason
-from slopedist.evaluation import ScoredSet, pool_methods
+from slopedist.evaluation import PooledScores, pool_methods
 from slopedist.io.prefetch import usable_cores
 from slopedist.io.tables import write_csv, write_json
 from slopedist.tables import Table, format_texts
@@ -327,13 +327,16 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
 # --- tables ---------------------------------------------------------------------------------
 
 
-def _scored_sets(result: DemoResult) -> dict[str, dict[str, ScoredSet]]:
-    """``{scenario: {method: scored set}}`` of the methods that ran."""
-    return {r.name: {m: r.scores[m].scored_set() for m in result.methods} for r in result.runs}
+def pooled_scores(result: DemoResult) -> PooledScores:
+    """Every method's scores per scenario and pooled over the scenarios (the methods that
+    ran), behind Table 1 and the uncertainty table."""
+    sets = {r.name: {m: r.scores[m].scored_set() for m in result.methods} for r in result.runs}
+    return pool_methods(sets, result.methods)
 
 
-def rmse_table(result: DemoResult) -> Table:
-    """Table 1: RMSE (m) per scenario × method, and each method pooled over the scenarios."""
+def rmse_table(result: DemoResult, scores: PooledScores) -> Table:
+    """Table 1: RMSE (m) per scenario × method, and each method pooled over the scenarios
+    (``scores``: :func:`pooled_scores`)."""
     odo = (
         "the built-in visual odometry on the rendered frames"
         if result.config.odometry == "visual"
@@ -344,7 +347,6 @@ def rmse_table(result: DemoResult) -> Table:
         f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
         f"the vanishing line counts as {CAP_M:g} m"
     )
-    scores = pool_methods(_scored_sets(result), result.methods)
     return score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
 
 
@@ -411,16 +413,12 @@ def odometry_table(result: DemoResult) -> Table:
     return Table("odometry", title, headers, rows)
 
 
-def uncertainty_table(result: DemoResult) -> Table | None:
-    """How well the methods' own σ describes their errors over every scenario
-    (:func:`~slopedist.score_tables.uncertainty_table`; None when no method reports one)."""
-    return score_tables.uncertainty_table(pool_methods(_scored_sets(result), result.methods))
-
-
 def demo_tables(result: DemoResult) -> list[Table]:
-    """Every table of the summary, in order (the first and the third are also CSV files)."""
-    tables = [rmse_table(result), missing_table(result), timing_table(result)]
-    sigma = uncertainty_table(result)
+    """Every table of the summary, in order (the first and the third are also CSV files; the
+    last, how well the methods' own σ describes their errors, when a method reports one)."""
+    scores = pooled_scores(result)
+    tables = [rmse_table(result, scores), missing_table(result), timing_table(result)]
+    sigma = score_tables.uncertainty_table(scores)
     return [*tables, odometry_table(result), *([sigma] if sigma is not None else [])]
 
 
