@@ -36,7 +36,7 @@ from slopedist.estimators import (
 )
 from slopedist.estimators.base import FrameEstimates, MissingReason
 from slopedist.estimators.imu import IMU_ROTATION_SOURCE
-from slopedist.evaluation import ScoredSet, cap_estimates, distance_metrics
+from slopedist.evaluation import ScoredSet, cap_estimates, distance_metrics, reported_sigma
 from slopedist.io.overlay import GifWriter, OverlayWriter, open_overlay_video
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
@@ -186,14 +186,13 @@ class MethodScores:
         the method's own σ when it reports one."""
         capped, ok = cap_estimates(np.asarray(self.distance, dtype=float), self.reason, CAP_M)
         truth = np.asarray(self.truth, dtype=float)
-        sigma = np.asarray(self.sigma, dtype=float)
         return ScoredSet(
             capped[ok],
             truth[ok],
             len(truth),
             int(np.sum(~ok)),
             self.seconds,
-            sigma_m=sigma[ok] if np.isfinite(sigma).any() else None,
+            sigma_m=reported_sigma(self.sigma, ok),
         )
 
     def metrics(self) -> dict[str, Any]:

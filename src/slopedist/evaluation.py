@@ -176,6 +176,13 @@ def uncertainty_metrics(pred_m: ArrayLike, gt_m: ArrayLike, sigma_m: ArrayLike) 
     return out
 
 
+def reported_sigma(sigma_m: ArrayLike, keep: NDArray[np.bool_]) -> NDArray[np.float64] | None:
+    """The σ (m) of the kept predictions for :attr:`ScoredSet.sigma_m`: None when the method
+    reports none (no finite value among all of its predictions, e.g. an empty column)."""
+    sigma = np.asarray(sigma_m, dtype=float)
+    return sigma[keep] if np.isfinite(sigma).any() else None
+
+
 @dataclass
 class ScoredSet:
     """Paired predictions and truths of one sequence and method, with bookkeeping;

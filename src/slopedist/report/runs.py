@@ -22,7 +22,13 @@ from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
-from slopedist.evaluation import ScoredSet, cap_estimates, compact_names, pool_methods
+from slopedist.evaluation import (
+    ScoredSet,
+    cap_estimates,
+    compact_names,
+    pool_methods,
+    reported_sigma,
+)
 from slopedist.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
 from slopedist.report.data import (
     RECORD_COLUMNS,
@@ -306,7 +312,6 @@ def _scored_set(vals: list[tuple[float, float, str, float]]) -> ScoredSet:
     with a positive truth count); with the method's own σ when any record has one."""
     dist = np.array([v[0] for v in vals])
     gt = np.array([v[1] for v in vals])
-    sigma = np.array([v[3] for v in vals])
     capped, ok = cap_estimates(dist, np.array([v[2] for v in vals], dtype=object))
     ok &= np.isfinite(gt) & (gt > 0)
     return ScoredSet(
@@ -314,7 +319,7 @@ def _scored_set(vals: list[tuple[float, float, str, float]]) -> ScoredSet:
         gt[ok],
         n_gt=int(np.isfinite(gt).sum()),
         n_unscored=int((np.isfinite(gt) & ~ok).sum()),
-        sigma_m=sigma[ok] if np.isfinite(sigma).any() else None,
+        sigma_m=reported_sigma([v[3] for v in vals], ok),
     )
 
 
