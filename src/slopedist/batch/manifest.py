@@ -46,6 +46,7 @@ from slopedist.batch.settings import (
     SETTING_COLUMNS,
     RunSettings,
     drive_settings,
+    item_text,
     settings_json,
 )
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M
@@ -387,9 +388,7 @@ def toml_cell(key: str, value: Any, where: Callable[[str, str], InputFileError])
         return LIST_SEPARATOR.join(toml_cell(key, v, where) for v in value)
     if isinstance(value, (dict, list)):
         raise where(key, f"expected a string, number or boolean, got {value!r}")
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)
+    return item_text(value)
 
 
 def _first_existing(folder: Path, names: tuple[str, ...]) -> Path | None:

@@ -215,8 +215,9 @@ def settings_json(values: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def _item_text(value: Any) -> str:
-    """An ``ours_options`` value as its cell text (``true``, ``none``, ``0.028``)."""
+def item_text(value: Any) -> str:
+    """A scalar as the text of a manifest cell or cell item: ``true``/``false``, ``none``,
+    ``0.028`` (what the cell parsers read back)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     return "none" if value is None else str(value)
@@ -227,7 +228,7 @@ def settings_cell(value: Any) -> Any:
     a list as its items, joined by :data:`LIST_SEPARATOR` (what the manifest column reads back);
     other values as they are."""
     if isinstance(value, dict):
-        return LIST_SEPARATOR.join(f"{k}={_item_text(v)}" for k, v in value.items())
+        return LIST_SEPARATOR.join(f"{k}={item_text(v)}" for k, v in value.items())
     if isinstance(value, list):
         return LIST_SEPARATOR.join(str(v) for v in value)
     return value
