@@ -339,6 +339,7 @@ class NaiveOdometry:
         self.K = camera.K
         self.prev: Gray | None = None
         self.R = np.eye(3)
+        self.clock = StageClock()
 
     def reset(self) -> None:
         self.prev, self.R = None, np.eye(3)
@@ -349,18 +350,21 @@ class NaiveOdometry:
         prev, self.prev = self.prev, image_gray
         if prev is None:
             return OdometryResult(self.R.copy(), OdometryState.OK)
-        p0 = cv2.goodFeaturesToTrack(prev, NAIVE_POINTS, 0.01, 10)
+        with self.clock.stage("corners"):
+            p0 = cv2.goodFeaturesToTrack(prev, NAIVE_POINTS, 0.01, 10)
         if p0 is None or len(p0) < 8:
             return OdometryResult(None, OdometryState.LOST)
-        p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, image_gray, p0, np.empty_like(p0))
+        with self.clock.stage("LK"):
+            p1, status, _ = cv2.calcOpticalFlowPyrLK(prev, image_gray, p0, np.empty_like(p0))
         good = status.ravel() == 1
         a, b = p0[good].reshape(-1, 2), p1[good].reshape(-1, 2)
         if len(a) < 8:
             return OdometryResult(None, OdometryState.LOST)
-        E, mask = cv2.findEssentialMat(a, b, self.K, cv2.RANSAC, 0.999, 1.0)
-        if E is None or E.shape != (3, 3):
-            return OdometryResult(None, OdometryState.LOST)
-        _, R_rel, _, _ = cv2.recoverPose(E, a, b, self.K, mask=mask)
+        with self.clock.stage("essential"):
+            E, mask = cv2.findEssentialMat(a, b, self.K, cv2.RANSAC, 0.999, 1.0)
+            if E is None or E.shape != (3, 3):
+                return OdometryResult(None, OdometryState.LOST)
+            _, R_rel, _, _ = cv2.recoverPose(E, a, b, self.K, mask=mask)
         self.R = self.R @ np.asarray(R_rel).T  # X_cur = R_rel X_prev
         return OdometryResult(self.R.copy(), OdometryState.OK, int(np.sum(mask)))
 
@@ -442,9 +446,19 @@ def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
     )
     for inp in inputs:
         runs: dict[str, list[OdometryRun]] = defaultdict(list)
+        naive_steps: list[StageClock] = []
+        builtin_lk: list[StageClock] = []
         for _ in range(repeats):
             for name, backend in backends(inp.camera).items():
-                runs[name].append(one_run(backend, inp.frames))
+                if name == "built-in":
+                    builtin_lk.append(StageClock())
+                    flow = builtin_lk[-1].timed("LK", cv2.calcOpticalFlowPyrLK)
+                    with mock.patch.object(cv2, "calcOpticalFlowPyrLK", flow):
+                        runs[name].append(one_run(backend, inp.frames))
+                else:
+                    runs[name].append(one_run(backend, inp.frames))
+                if isinstance(backend, NaiveOdometry):
+                    naive_steps.append(backend.clock)
         full = runs["built-in full"][0]
         naive_wall = statistics.median(r.seconds for r in runs["naive"])
         naive_cpu = statistics.median(r.cpu_seconds for r in runs["naive"])
@@ -463,6 +477,26 @@ def odometry_table(inputs: list[OdometryInput], repeats: int) -> None:
                 f"{statistics.median(r.cpu_seconds for r in rs) / naive_cpu:.3f}",
                 flush=True,
             )
+        print_lk_floor(naive_steps, builtin_lk, len(inp.frames), naive_cpu / len(inp.frames))
+
+
+def print_lk_floor(
+    naive: list[StageClock], builtin: list[StageClock], n_frames: int, naive_cpu_s: float
+) -> None:
+    """The naive reference's steps and the built-in's optical flow (median CPU ms per frame)
+    against 1/8 of the naive reference: an odometry that tracks its points with pyramidal
+    Lucas–Kanade cannot cost less than that one call."""
+
+    def ms(clocks: list[StageClock], name: str) -> float:
+        return statistics.median(c.cpu[name] for c in clocks) / n_frames * 1e3
+
+    print(
+        f"{'':24s} naive steps, cpu ms: "
+        + ", ".join(f"{k} {ms(naive, k):.2f}" for k in ("corners", "LK", "essential"))
+        + f"; built-in LK {ms(builtin, 'LK'):.2f}"
+        + f"; 1/8 of the naive reference {naive_cpu_s * 1e3 / 8:.2f}",
+        flush=True,
+    )
 
 
 Command = tuple[list[str], str]
