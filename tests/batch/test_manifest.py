@@ -170,6 +170,15 @@ def test_folder_layout(tmp_path: Path) -> None:
         load_drives(tmp_path / "absent.csv")
 
 
+@pytest.mark.parametrize(
+    ("name", "text"), [("m.csv", "drive,frames,calib,boxes\n"), ("m.toml", "drive = []\n")]
+)
+def test_a_manifest_that_lists_no_drive_is_an_error(tmp_path: Path, name: str, text: str) -> None:
+    write(tmp_path / name, text)
+    with pytest.raises(InputFileError, match=rf"{name}: lists no drives"):
+        load_drives(tmp_path / name)
+
+
 @given(st.text(max_size=12))
 def test_drive_names_are_plain_folder_names(name: str) -> None:
     problem = check_drive_name(name)

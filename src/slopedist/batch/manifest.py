@@ -494,7 +494,7 @@ def load_drives(source: str | Path, defaults: DriveDefaults = DriveDefaults()) -
 
     Raises:
         MissingInputError: ``source`` does not exist, or a folder holds no drive.
-        InputFileError: a bad manifest (file, line or entry, field).
+        InputFileError: a bad manifest (file, line or entry, field), or one that lists no drive.
     """
     path = Path(source)
     if path.is_dir():
@@ -509,8 +509,12 @@ def load_drives(source: str | Path, defaults: DriveDefaults = DriveDefaults()) -
     if not path.is_file():
         raise MissingInputError(f"batch source not found: {path} (a manifest or a folder)")
     if path.suffix.lower() == ".toml":
-        return read_toml_manifest(path, defaults)
-    return read_csv_manifest(path, defaults)
+        specs = read_toml_manifest(path, defaults)
+    else:
+        specs = read_csv_manifest(path, defaults)
+    if not specs:
+        raise InputFileError(path, "lists no drives (a manifest needs a row or [[drive]] each)")
+    return specs
 
 
 def spec_summary(spec: DriveSpec, changed_only: bool = False) -> dict[str, Any]:
