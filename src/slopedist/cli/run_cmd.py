@@ -15,17 +15,15 @@ from typing import Any
 
 import click
 
+from slopedist.cli.method_options import check_methods, estimator_options, parse_triple
 from slopedist.cli.options import (
-    check_methods,
     detector_options,
-    estimator_options,
     height_option,
     lookback_option,
     make_detector,
     mount_option,
     optional_calibration_options,
     parse_size,
-    parse_triple,
     vehicle_classes_option,
 )
 from slopedist.cli.run_options import (
