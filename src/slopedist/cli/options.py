@@ -251,13 +251,10 @@ GT_REFERENCES = VEHICLE_REFERENCES
 """The reference points a ground truth can declare (``--gt-reference``)."""
 
 
-def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
-    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
-    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
-    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
-    adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
-    source_options = (
+def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
+    """The click options of :func:`kitti_eval_options`; ``prefix`` starts the help text of
+    ``--rotation``, ``--boxes``, ``--score``, ``--workers`` and ``--generic-class``."""
+    return (
         click.option(
             "--rotation",
             type=click.Choice([r.value for r in RotationSource]),
@@ -307,6 +304,15 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             "undeclared, each method scored at its own point (the published protocol).",
         ),
     )
+
+
+def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
+    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
+    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
+    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
+    adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
+    source_options = _kitti_eval_option_list(prefix)
 
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
