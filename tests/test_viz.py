@@ -74,16 +74,6 @@ def test_line_outside_the_image_is_not_drawn() -> None:
     assert not _is(GREEN, out).any()
 
 
-def test_one_colour_per_method_whatever_its_position() -> None:
-    from slopedist.estimators import available_methods
-
-    colours = [viz.method_colour(m) for m in available_methods()]
-    assert len(set(colours)) == len(colours)  # the built-in methods are told apart
-    assert viz.method_colour("ours") == "tab:pink"
-    assert viz.method_colour("custom-x") == viz.method_colour("custom-x")
-    assert viz.method_colour("custom-x") in viz.OTHER_METHOD_COLOURS
-
-
 @pytest.mark.parametrize("org", [(40, 30), (-8, 6), (125, 66)], ids=["inside", "cut", "corner"])
 def test_outlined_text_is_the_text_in_a_dark_ring_one_pixel_wide(org: tuple[int, int]) -> None:
     """On a white frame: the text's own pixels are as ``cv2.putText`` draws them, every

@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from slopedist import score_tables, viz
+from slopedist import score_tables
 from slopedist.camera import Camera
 from slopedist.datasets.synthetic.scenarios import load_scenario
 from slopedist.datasets.synthetic.sensors import (
@@ -65,6 +65,7 @@ from slopedist.estimators.base import MissingReason
 from slopedist.evaluation import PooledScores, pool_methods
 from slopedist.io.prefetch import usable_cores
 from slopedist.io.tables import write_csv, write_json
+from slopedist.plots import DistanceSeries, TargetTheta, plot_distance_series, plot_theta_series
 from slopedist.tables import Table, format_texts
 
 FloatArray = NDArray[np.float64]
@@ -153,10 +154,10 @@ class ScenarioPlots:
     distance_path: Path
     theta_path: Path
     t_s: FloatArray
-    series: list[viz.DistanceSeries]
+    series: list[DistanceSeries]
     theta_est: FloatArray
     theta_true: FloatArray
-    targets: list[viz.TargetTheta]
+    targets: list[TargetTheta]
 
 
 def plot_inputs(
@@ -181,7 +182,7 @@ def plot_inputs(
                     b[f] = r == MissingReason.BELOW_HORIZON.value
             est[name] = d
             below[name] = b
-        series.append(viz.DistanceSeries(int(tid), truth, est, below))
+        series.append(DistanceSeries(int(tid), truth, est, below))
         # θ that would make eq. 1 exact for this target (exact box, true z), and the paper's
         needed = theta_needed_rad(seq.truth.box[: run.frames, m, 3], truth, cam)
         adj = np.full(run.frames, np.nan)
@@ -191,7 +192,7 @@ def plot_inputs(
             for f, tr, a, y in zip(s.frame, s.track, s.theta_adj, s.delta_y):
                 if tr == tid:
                     adj[f], dy[f] = a, y
-        theta_targets.append(viz.TargetTheta(int(tid), needed, adj, dy))
+        theta_targets.append(TargetTheta(int(tid), needed, adj, dy))
     return ScenarioPlots(
         run.name,
         folder / "distance.png",
@@ -206,10 +207,10 @@ def plot_inputs(
 
 def write_plots(plots: ScenarioPlots) -> list[str]:
     """Write the two plots of one scenario; returns their paths."""
-    viz.plot_distance_series(
+    plot_distance_series(
         plots.distance_path, plots.t_s, plots.series, f"{plots.name}: distance vs truth (KITTI z)"
     )
-    viz.plot_theta_series(
+    plot_theta_series(
         plots.theta_path,
         plots.t_s,
         plots.theta_est,

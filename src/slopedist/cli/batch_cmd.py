@@ -9,14 +9,16 @@ import click
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
 from slopedist.batch.settings import RunSettings, unapplied
-from slopedist.cli.options import (
+from slopedist.cli.method_options import (
     check_methods,
-    height_option,
-    lookback_option,
-    mount_option,
     ours_option,
     parse_ours_options,
     reference_option,
+)
+from slopedist.cli.options import (
+    height_option,
+    lookback_option,
+    mount_option,
     vehicle_classes_option,
 )
 from slopedist.cli.run_options import (

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.options import check_methods, estimator_options, split_list
+from slopedist.cli.method_options import check_methods, estimator_options
+from slopedist.cli.options import split_list
 from slopedist.datasets.synthetic.scenarios import SUITE
 from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_outputs, run_demo
 from slopedist.estimators import EstimatorConfig

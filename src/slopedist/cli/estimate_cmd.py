@@ -8,13 +8,8 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.options import (
-    check_methods,
-    estimator_options,
-    lookback_option,
-    sequence_file_options,
-    vehicle_classes_option,
-)
+from slopedist.cli.method_options import check_methods, estimator_options
+from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.detections.boxes import BoxTable
 from slopedist.estimators import EstimatorConfig, build_estimator

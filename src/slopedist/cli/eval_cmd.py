@@ -7,14 +7,13 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.options import (
+from slopedist.cli.method_options import (
     check_methods,
     estimator_options,
     evaluation_method_options,
-    kitti_eval_options,
     offline_option,
-    split_list,
 )
+from slopedist.cli.options import kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig, with_offline
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking

@@ -1,4 +1,6 @@
-"""Option parsing helpers shared by the commands (degrees at the edge, lists, enums)."""
+"""Option parsing helpers shared by the commands: lists and sizes, the camera's mount, the
+calibration, one sequence given as files, the KITTI evaluation's sources, the detector and the
+vehicle classes (the estimators' options are in :mod:`slopedist.cli.method_options`)."""
 
 from __future__ import annotations
 
@@ -17,12 +19,8 @@ from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_na
 from slopedist.detections.layouts import LogitKind, OutputLayout
 from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import EstimatorConfig, available_methods
 from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
-from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import parse_options
 from slopedist.io.intrinsics import Intrinsics
-from slopedist.learned_peer import PEER_METHOD
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -30,37 +28,6 @@ def split_list(value: str | None) -> list[str] | None:
     if not value:
         return None
     return [v.strip() for v in value.split(",") if v.strip()]
-
-
-def check_methods(names: list[str], evaluation: bool = False) -> list[str]:
-    """Fail with a usage error on an unknown method name (``evaluation``: the evaluation-only
-    rows, such as the learned peer, are known too)."""
-    known = available_methods() + ([PEER_METHOD] if evaluation else [])
-    bad = [n for n in names if n not in known]
-    if bad:
-        raise click.BadParameter(
-            f"unknown method(s) {', '.join(bad)}; choose from {', '.join(known)}",
-            param_hint="--methods/--method",
-        )
-    return names
-
-
-offline_option = click.option(
-    "--offline",
-    is_flag=True,
-    help="Also the offline mode of each method that has one (ours → ours-offline: smoothed "
-    "over the whole drive, for log analysis; reported under its own name, never mixed with "
-    "the causal method).",
-)
-
-
-def evaluation_method_options(
-    config: EstimatorConfig, names: list[str]
-) -> dict[str, dict[str, Any]]:
-    """The constructor options of an evaluation's estimators (of every method when ``names``
-    is empty; the evaluation-only rows have none)."""
-    estimators = [n for n in names if n != PEER_METHOD]
-    return config.method_options(estimators if names else available_methods())
 
 
 height_option = click.option(
@@ -87,164 +54,14 @@ lookback_option = click.option(
     show_default=True,
     help="Look-back of the ego road gradient, seconds.",
 )
-alphas_option = click.option(
-    "--alphas",
-    default="3,5,6",
-    show_default=True,
-    help="paper, imu: angle steps α1,α2,α3 in degrees (eq. 7).",
-)
-thresholds_option = click.option(
-    "--thresholds",
-    default="0,-10,-20",
-    show_default=True,
-    help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
-)
-
-reference_option = click.option(
-    "--reference",
-    type=click.Choice([r.value for r in VEHICLE_REFERENCES]),
-    default=None,
-    help="ours: the point of the vehicle distance_m refers to (default centre; an evaluation "
-    "defaults to its truth's --gt-reference).",
-)
 
 
-ours_option = click.option(
-    "--ours-option",
-    "ours_options",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="ours, ours-selfcal: set one of its options, e.g. odd_object_weight=0 or "
-    "size_learning=true (repeatable; docs/method.md lists them).",
-)
-
-
-def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:
-    """``--ours-option KEY=VALUE`` values as ``(name, value)`` pairs (usage errors name the
-    option)."""
-    try:
-        return parse_options(texts)
-    except ConfigurationError as exc:
-        raise click.BadParameter(str(exc), param_hint="--ours-option") from None
-
-
-def parse_triple(value: str, name: str) -> tuple[float, float, float]:
-    """Parse ``"a,b,c"`` into three floats or fail with a usage error naming ``name``."""
-    parts = split_list(value) or []
-    try:
-        nums = tuple(float(p) for p in parts)
-    except ValueError:
-        raise click.BadParameter(
-            f"'{value}' is not three comma-separated numbers", param_hint=name
-        ) from None
-    if len(nums) != 3:
-        raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
-    return nums[0], nums[1], nums[2]
-
-
-def estimator_config(
-    alphas: str = "3,5,6",
-    thresholds: str = "0,-10,-20",
-    depth_sample: str = DepthSample.CENTRE.value,
-    depth_window: int = 5,
-    depth_scaling: str = DepthScaling.NONE.value,
-    method: str | None = None,
-    reference: str | None = None,
-    ours_options: tuple[tuple[str, Any], ...] = (),
-) -> EstimatorConfig:
-    """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
-    errors name the option)."""
-    a = parse_triple(alphas, "--alphas")
-    t = parse_triple(thresholds, "--thresholds")
-    if not (t[0] > t[1] > t[2]):
-        raise click.BadParameter(
-            "thresholds must decrease (t1 > t2 > t3)", param_hint="--thresholds"
-        )
-    try:
-        config = EstimatorConfig(
-            alphas_deg=a,
-            thresholds_px=t,
-            depth_sample=DepthSample(depth_sample),
-            depth_window_px=depth_window,
-            depth_scaling=DepthScaling(depth_scaling),
-            reference=reference,
-            ours_options=ours_options,
-        )
-        return config if method is None else config.with_method(method)
-    except ConfigurationError as exc:
-        raise click.BadParameter(str(exc), param_hint="--method") from None
-
-
-_DEPTHMAP_OPTIONS = (
-    click.option(
-        "--depth-sample",
-        type=click.Choice([s.value for s in DepthSample]),
-        default=DepthSample.CENTRE.value,
-        show_default=True,
-        help="depthmap: box centre pixel, a window around it, or the box's lower part.",
-    ),
-    click.option(
-        "--depth-window",
-        type=int,
-        default=5,
-        show_default=True,
-        help="depthmap: window side in pixels (odd) for --depth-sample window.",
-    ),
-    click.option(
-        "--depth-scaling",
-        type=click.Choice([s.value for s in DepthScaling]),
-        default=DepthScaling.NONE.value,
-        show_default=True,
-        help="depthmap: per-frame median scaling for scale-less depth (contact = "
-        "flat-ground distances, truth = ground truth; see the README).",
-    ),
-)
-
-
-def _apply(options: tuple[Any, ...], func: Callable[..., Any]) -> Callable[..., Any]:
+def apply_options(options: tuple[Any, ...], func: Callable[..., Any]) -> Callable[..., Any]:
+    """``func`` decorated with each of ``options`` (click options), the first one outermost
+    (as if written above ``func`` in this order)."""
     for option in reversed(options):
         func = option(func)
     return func
-
-
-def estimator_options(
-    depth: bool = False,
-) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """The options of every estimator (``--alphas``, ``--thresholds``; with ``depth`` also
-    the ``--depth-sample/-window/-scaling`` of ``depthmap``), handed to the command as one
-    ``estimator_config`` (:class:`~slopedist.estimators.EstimatorConfig`; the command sets its
-    method with :meth:`~slopedist.estimators.EstimatorConfig.with_method`)."""
-
-    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
-        @functools.wraps(command)
-        def wrapper(
-            *args: Any,
-            alphas: str,
-            thresholds: str,
-            reference: str | None,
-            ours_options: tuple[str, ...],
-            **kwargs: Any,
-        ) -> Any:
-            depth_values = {
-                k: kwargs.pop(k)
-                for k in ("depth_sample", "depth_window", "depth_scaling")
-                if k in kwargs
-            }
-            kwargs["estimator_config"] = estimator_config(
-                alphas,
-                thresholds,
-                **depth_values,
-                reference=reference,
-                ours_options=parse_ours_options(ours_options),
-            )
-            return command(*args, **kwargs)
-
-        options = (alphas_option, thresholds_option, reference_option, ours_option) + (
-            _DEPTHMAP_OPTIONS if depth else ()
-        )
-        return _apply(options, wrapper)
-
-    return decorate
 
 
 CALIBRATION_FLAGS = ("fx", "fy", "cx", "cy")
@@ -332,7 +149,7 @@ def _calibration_decorator(required: bool) -> Callable[[Callable[..., Any]], Cal
             kwargs["image_size"] = size
             return command(*args, **kwargs)
 
-        return _apply(_CALIBRATION_OPTIONS, wrapper)
+        return apply_options(_CALIBRATION_OPTIONS, wrapper)
 
     return decorate
 
@@ -414,7 +231,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
             )
             return command(*args, **kwargs)
 
-        return calibration_options(_apply(_sequence_file_options(required), wrapper))
+        return calibration_options(apply_options(_sequence_file_options(required), wrapper))
 
     return decorate
 
@@ -434,13 +251,10 @@ GT_REFERENCES = VEHICLE_REFERENCES
 """The reference points a ground truth can declare (``--gt-reference``)."""
 
 
-def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
-    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
-    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
-    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
-    adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
-    source_options = (
+def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
+    """The click options of :func:`kitti_eval_options`; ``prefix`` starts the help text of
+    ``--rotation``, ``--boxes``, ``--score``, ``--workers`` and ``--generic-class``."""
+    return (
         click.option(
             "--rotation",
             type=click.Choice([r.value for r in RotationSource]),
@@ -491,6 +305,15 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
         ),
     )
 
+
+def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
+    ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
+    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
+    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
+    adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
+    source_options = _kitti_eval_option_list(prefix)
+
     def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(command)
         def wrapper(
@@ -521,7 +344,7 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             )
             return command(*args, **kwargs)
 
-        return _apply(source_options, wrapper)
+        return apply_options(source_options, wrapper)
 
     return decorate
 

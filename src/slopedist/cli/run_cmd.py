@@ -15,17 +15,15 @@ from typing import Any
 
 import click
 
+from slopedist.cli.method_options import check_methods, estimator_options, parse_triple
 from slopedist.cli.options import (
-    check_methods,
     detector_options,
-    estimator_options,
     height_option,
     lookback_option,
     make_detector,
     mount_option,
     optional_calibration_options,
     parse_size,
-    parse_triple,
     vehicle_classes_option,
 )
 from slopedist.cli.run_options import (
@@ -372,27 +370,63 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         estimator=estimator_config.with_method(method),
         depth=depth_factory(depth_opts),
     )
-    prepared = prepare_run(inputs)
-    source = prepared.source
-    overlay_out = overlay_path(out_dir, overlay_format) if overlay else None
+    outputs = RunOutputs(
+        out_dir, overlay, overlay_format, exports, snapshots, quiet, sequence, vehicle_classes
+    )
     paths = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
-    paths += [vocab, detector_model]
-    mcap_path, tum_path = export_paths(out_dir, exports)
-    shots = [snapshot_path(out_dir, k) for k in snapshots]
-    check_run_outputs(out_dir, [overlay_out, mcap_path, tum_path, *shots], paths)
+    run_to_folder(inputs, outputs, [*paths, vocab, detector_model])
+
+
+@dataclass(frozen=True)
+class RunOutputs:
+    """What ``slopedist run`` writes and how (its output options).
+
+    Attributes:
+        out_dir: output folder (records.csv, frames.csv, run.json, tracks.csv).
+        overlay: also write annotated frames, as ``overlay_format`` (an
+            :class:`~slopedist.run_config.OverlayFormat` value).
+        exports: :class:`~slopedist.run_config.RunExport` values (MCAP, TUM trajectory).
+        snapshots: frame indices whose overlay is also written as a JPEG.
+        quiet: no progress bar.
+        sequence: sequence name written to run.json (None: the frames' folder or video name).
+        vehicle_classes: class names scored as vehicles.
+    """
+
+    out_dir: Path
+    overlay: bool
+    overlay_format: str
+    exports: tuple[str, ...]
+    snapshots: tuple[int, ...]
+    quiet: bool
+    sequence: str | None
+    vehicle_classes: tuple[str, ...]
+
+
+def run_to_folder(
+    inputs: RunInputs, outputs: RunOutputs, input_paths: Sequence[Path | Intrinsics | None]
+) -> None:
+    """Open ``inputs``, check that no output of ``outputs`` is one of ``input_paths`` (the files
+    the run reads), run until the frames end or a signal stops it (:func:`run_until_stopped`)
+    and tell on stderr what it wrote (:func:`summary_text`)."""
+    prepared = prepare_run(inputs)
+    out_dir = outputs.out_dir
+    overlay_out = overlay_path(out_dir, outputs.overlay_format) if outputs.overlay else None
+    mcap_path, tum_path = export_paths(out_dir, outputs.exports)
+    shots = [snapshot_path(out_dir, k) for k in outputs.snapshots]
+    check_run_outputs(out_dir, [overlay_out, mcap_path, tum_path, *shots], input_paths)
     config = RunConfig(
         out_dir,
-        lookback_s,
+        inputs.lookback_s,
         overlay_out,
-        overlay_fps(fps, source),
-        not quiet,
-        sequence,
+        overlay_fps(inputs.fps, prepared.source),
+        not outputs.quiet,
+        outputs.sequence,
         mcap=mcap_path,
         trajectory=tum_path,
         time_origin_ns=prepared.time_origin_ns,
         ego_speed=prepared.ego_speed,
-        vehicle_classes=vehicle_classes,
-        snapshots=snapshots,
+        vehicle_classes=outputs.vehicle_classes,
+        snapshots=outputs.snapshots,
     )
     result = run_until_stopped(lambda: prepared.run(config), config)
     click.echo(summary_text(result, out_dir), err=True)

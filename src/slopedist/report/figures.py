@@ -1,6 +1,6 @@
 """The report's figures: distance against the truth over time for chosen tracks, the error
 against the true distance, and the ego gradient θ over time. Each method has its one colour of
-:func:`slopedist.viz.method_colour`, as in the demo's plots."""
+:func:`slopedist.plots.method_colour`, as in the demo's plots."""
 
 from __future__ import annotations
 
@@ -14,8 +14,7 @@ from numpy.typing import NDArray
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import MissingReason
 from slopedist.evaluation import compact_names
-from slopedist.report.data import ReportData
-from slopedist.viz import (
+from slopedist.plots import (
     BELOW_HORIZON_NOTE,
     DistanceSeries,
     draw_distance_panel,
@@ -23,6 +22,7 @@ from slopedist.viz import (
     new_figure,
     png_bytes,
 )
+from slopedist.report.data import ReportData
 
 ERROR_BIN_M = 5.0
 """Width of the ground-truth distance bins of the error-vs-distance figure, metres."""
@@ -57,7 +57,7 @@ def choose_tracks(data: ReportData, n: int) -> list[tuple[str, int]]:
 def track_series(
     data: ReportData, sequence: str, track: int
 ) -> tuple[NDArray[np.float64], DistanceSeries]:
-    """The records of one track as a :class:`~slopedist.viz.DistanceSeries` on the track's own
+    """The records of one track as a :class:`~slopedist.plots.DistanceSeries` on the track's own
     time axis (seconds; NaN where a method has no estimate).
 
     Raises:
@@ -87,7 +87,7 @@ def track_series(
 
 
 def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure | None:
-    """Distance vs. truth over time for the chosen tracks (:func:`~slopedist.viz.
+    """Distance vs. truth over time for the chosen tracks (:func:`~slopedist.plots.
     draw_distance_panel`, as in the demo's plots)."""
     if not tracks:
         return None

@@ -1,0 +1,205 @@
+"""The options of the distance methods: which methods (``--method(s)``, ``--offline``) and the
+estimators' settings (``--alphas``, ``--thresholds``, ``--reference``, ``--ours-option``, the
+``depthmap`` sampling), handed to a command as one
+:class:`~slopedist.estimators.EstimatorConfig`."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from slopedist.cli.options import apply_options, split_list
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators.base import VEHICLE_REFERENCES
+from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.estimators.ours.config import parse_options
+from slopedist.learned_peer import PEER_METHOD
+
+
+def check_methods(names: list[str], evaluation: bool = False) -> list[str]:
+    """Fail with a usage error on an unknown method name (``evaluation``: the evaluation-only
+    rows, such as the learned peer, are known too)."""
+    known = available_methods() + ([PEER_METHOD] if evaluation else [])
+    bad = [n for n in names if n not in known]
+    if bad:
+        raise click.BadParameter(
+            f"unknown method(s) {', '.join(bad)}; choose from {', '.join(known)}",
+            param_hint="--methods/--method",
+        )
+    return names
+
+
+offline_option = click.option(
+    "--offline",
+    is_flag=True,
+    help="Also the offline mode of each method that has one (ours → ours-offline: smoothed "
+    "over the whole drive, for log analysis; reported under its own name, never mixed with "
+    "the causal method).",
+)
+
+
+def evaluation_method_options(
+    config: EstimatorConfig, names: list[str]
+) -> dict[str, dict[str, Any]]:
+    """The constructor options of an evaluation's estimators (of every method when ``names``
+    is empty; the evaluation-only rows have none)."""
+    estimators = [n for n in names if n != PEER_METHOD]
+    return config.method_options(estimators if names else available_methods())
+
+
+alphas_option = click.option(
+    "--alphas",
+    default="3,5,6",
+    show_default=True,
+    help="paper, imu: angle steps α1,α2,α3 in degrees (eq. 7).",
+)
+thresholds_option = click.option(
+    "--thresholds",
+    default="0,-10,-20",
+    show_default=True,
+    help="paper, imu: Δy thresholds in pixels for α1,α2,α3 (eq. 7).",
+)
+
+reference_option = click.option(
+    "--reference",
+    type=click.Choice([r.value for r in VEHICLE_REFERENCES]),
+    default=None,
+    help="ours: the point of the vehicle distance_m refers to (default centre; an evaluation "
+    "defaults to its truth's --gt-reference).",
+)
+
+
+ours_option = click.option(
+    "--ours-option",
+    "ours_options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="ours, ours-selfcal: set one of its options, e.g. odd_object_weight=0 or "
+    "size_learning=true (repeatable; docs/method.md lists them).",
+)
+
+
+def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:
+    """``--ours-option KEY=VALUE`` values as ``(name, value)`` pairs (usage errors name the
+    option)."""
+    try:
+        return parse_options(texts)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--ours-option") from None
+
+
+def parse_triple(value: str, name: str) -> tuple[float, float, float]:
+    """Parse ``"a,b,c"`` into three floats or fail with a usage error naming ``name``."""
+    parts = split_list(value) or []
+    try:
+        nums = tuple(float(p) for p in parts)
+    except ValueError:
+        raise click.BadParameter(
+            f"'{value}' is not three comma-separated numbers", param_hint=name
+        ) from None
+    if len(nums) != 3:
+        raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
+    return nums[0], nums[1], nums[2]
+
+
+def estimator_config(
+    alphas: str = "3,5,6",
+    thresholds: str = "0,-10,-20",
+    depth_sample: str = DepthSample.CENTRE.value,
+    depth_window: int = 5,
+    depth_scaling: str = DepthScaling.NONE.value,
+    method: str | None = None,
+    reference: str | None = None,
+    ours_options: tuple[tuple[str, Any], ...] = (),
+) -> EstimatorConfig:
+    """The :class:`~slopedist.estimators.EstimatorConfig` of the command-line strings (usage
+    errors name the option)."""
+    a = parse_triple(alphas, "--alphas")
+    t = parse_triple(thresholds, "--thresholds")
+    if not (t[0] > t[1] > t[2]):
+        raise click.BadParameter(
+            "thresholds must decrease (t1 > t2 > t3)", param_hint="--thresholds"
+        )
+    try:
+        config = EstimatorConfig(
+            alphas_deg=a,
+            thresholds_px=t,
+            depth_sample=DepthSample(depth_sample),
+            depth_window_px=depth_window,
+            depth_scaling=DepthScaling(depth_scaling),
+            reference=reference,
+            ours_options=ours_options,
+        )
+        return config if method is None else config.with_method(method)
+    except ConfigurationError as exc:
+        raise click.BadParameter(str(exc), param_hint="--method") from None
+
+
+_DEPTHMAP_OPTIONS = (
+    click.option(
+        "--depth-sample",
+        type=click.Choice([s.value for s in DepthSample]),
+        default=DepthSample.CENTRE.value,
+        show_default=True,
+        help="depthmap: box centre pixel, a window around it, or the box's lower part.",
+    ),
+    click.option(
+        "--depth-window",
+        type=int,
+        default=5,
+        show_default=True,
+        help="depthmap: window side in pixels (odd) for --depth-sample window.",
+    ),
+    click.option(
+        "--depth-scaling",
+        type=click.Choice([s.value for s in DepthScaling]),
+        default=DepthScaling.NONE.value,
+        show_default=True,
+        help="depthmap: per-frame median scaling for scale-less depth (contact = "
+        "flat-ground distances, truth = ground truth; see the README).",
+    ),
+)
+
+
+def estimator_options(
+    depth: bool = False,
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The options of every estimator (``--alphas``, ``--thresholds``; with ``depth`` also
+    the ``--depth-sample/-window/-scaling`` of ``depthmap``), handed to the command as one
+    ``estimator_config`` (:class:`~slopedist.estimators.EstimatorConfig`; the command sets its
+    method with :meth:`~slopedist.estimators.EstimatorConfig.with_method`)."""
+
+    def decorate(command: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(command)
+        def wrapper(
+            *args: Any,
+            alphas: str,
+            thresholds: str,
+            reference: str | None,
+            ours_options: tuple[str, ...],
+            **kwargs: Any,
+        ) -> Any:
+            depth_values = {
+                k: kwargs.pop(k)
+                for k in ("depth_sample", "depth_window", "depth_scaling")
+                if k in kwargs
+            }
+            kwargs["estimator_config"] = estimator_config(
+                alphas,
+                thresholds,
+                **depth_values,
+                reference=reference,
+                ours_options=parse_ours_options(ours_options),
+            )
+            return command(*args, **kwargs)
+
+        options = (alphas_option, thresholds_option, reference_option, ours_option) + (
+            _DEPTHMAP_OPTIONS if depth else ()
+        )
+        return apply_options(options, wrapper)
+
+    return decorate
