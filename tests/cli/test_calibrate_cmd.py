@@ -83,6 +83,17 @@ def test_calibrate_without_boxes_is_a_user_error(
     assert "no boxes" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("name", ["calib", "poses", "boxes"])
+def test_json_that_is_an_input_is_refused(
+    simulated: dict[str, Path], capsys: pytest.CaptureFixture, name: str
+) -> None:
+    """`--json calib.txt` replaced the calibration (any input file) with the estimate."""
+    before = simulated[name].read_text()
+    assert main(["calibrate", *_args(simulated), "--json", str(simulated[name])]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert simulated[name].read_text() == before
+
+
 def test_estimate_with_ours_writes_centre_distances_and_extras(
     simulated: dict[str, Path], tmp_path: Path
 ) -> None:

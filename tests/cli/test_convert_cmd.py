@@ -59,3 +59,17 @@ def test_errors_exit_2_with_file_line_field(tmp_path: Path, capsys: pytest.Captu
     assert main(["convert", str(bad), str(tmp_path / "y"), "--to", "yolo"]) == 2
     assert "image size" in capsys.readouterr().err
     assert main(["convert", str(bad), str(tmp_path / "y"), "--image-size", "12"]) == 2
+
+
+def test_target_that_is_the_source_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`convert boxes.csv boxes.csv --to mot` replaced the CSV (its classes and columns lost)."""
+    src = tmp_path / "boxes.csv"
+    src.write_text(CSV)
+    assert main(["convert", str(src), str(src), "--to", "mot"]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert src.read_text() == CSV
+    (tmp_path / "link.csv").symlink_to(src)
+    assert main(["convert", str(src), str(tmp_path / "link.csv")]) == 2
+    assert src.read_text() == CSV

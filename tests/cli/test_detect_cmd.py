@@ -195,3 +195,16 @@ def test_video_calibration_yaml_detector_overlay_report(
     rows = list(csv.DictReader((report / "table2_time.csv").open()))
     assert float(rows[0]["detection"]) > 0 and float(rows[0]["estimation"]) > 0
     assert float(rows[0]["total"]) == pytest.approx(float(rows[0]["estimation"]), rel=1e-3)
+
+
+def test_detect_output_that_is_an_input_is_refused(
+    tmp_path: Path, frames: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`detect FRAMES --detector m.onnx --out m.onnx` (or --timing) replaced the model."""
+    model = tmp_path / "m.onnx"
+    model.write_bytes(b"model")
+    for option in ("--out", "--timing"):
+        argv = ["detect", str(frames), "--detector", str(model), option, str(model)]
+        assert main(argv) == 2
+        assert "would be overwritten" in capsys.readouterr().err
+    assert model.read_bytes() == b"model"

@@ -124,3 +124,16 @@ def test_an_unknown_method_names_the_learned_peer_among_the_choices(
     args = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "nope"]
     assert main(args) != 0
     assert "learned-peer" in capsys.readouterr().err
+
+
+def test_json_that_is_an_input_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`eval kitti-tracking DATA --json DATA/calib/0000.txt` replaced the calibration."""
+    calib = tmp_path / "calib" / "0000.txt"
+    calib.parent.mkdir()
+    calib.write_text("P2: 721.5 0 609.6 44.9 0 721.5 172.9 0.2 0 0 1 0.003\n")
+    before = calib.read_text()
+    assert main(["eval", "kitti-tracking", str(tmp_path), "--json", str(calib)]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert calib.read_text() == before

@@ -45,3 +45,14 @@ def test_eval_fewer_poses_than_frames(tmp_path: Path, capsys: pytest.CaptureFixt
     code = main(["odometry", "eval", str(tmp_path)])
     assert code == 2
     assert "1 poses for 3 frames" in capsys.readouterr().err
+
+
+def test_eval_json_that_is_an_input_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`odometry eval SEQ --json SEQ/poses.txt` replaced the ground truth with the figures."""
+    poses = tmp_path / "poses.txt"
+    poses.write_text("1 0 0 0 0 1 0 0 0 0 1 0\n")
+    assert main(["odometry", "eval", str(tmp_path), "--json", str(poses)]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert poses.read_text() == "1 0 0 0 0 1 0 0 0 0 1 0\n"

@@ -321,3 +321,19 @@ def test_image_size_completes_the_intrinsics_flags(
     assert "the calibration is for 320×200 px images, not 640×400 px as given" in (
         capsys.readouterr().err
     )
+
+
+def test_a_snapshot_of_a_frame_not_read_is_a_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--snapshot N` beyond the last frame (or of a frame that does not decode) used to write
+    nothing and say nothing."""
+    args = setup(tmp_path, n=3)
+    (Path(args[0]) / "000001.png").write_bytes(b"not a png")
+    argv = ["run", *args, "--method", "flat", "--odometry", "none"]
+    assert main([*argv, "--snapshot", "0", "--snapshot", "1", "--snapshot", "7"]) == 0
+    err = capsys.readouterr().err
+    assert (tmp_path / "out" / "snapshot_000000.jpg").exists()
+    assert "warning: no snapshot of frame 1, 7:" in err
+    assert main([*argv, "--snapshot", "2"]) == 0
+    assert "no snapshot" not in capsys.readouterr().err

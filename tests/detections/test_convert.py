@@ -104,3 +104,16 @@ def test_mot_round_trip_of_any_boxes(tmp_path_factory: pytest.TempPathFactory, r
     back = read_boxes(path, BoxFormat.MOT)
     order = np.argsort(table.frame, kind="stable")
     _assert_same(table.select(order), back)
+
+
+def test_yolo_is_not_written_into_a_folder_of_label_files(tmp_path: Path) -> None:
+    """Writing into a YOLO folder of an earlier conversion kept its files for the frames the new
+    table has no boxes for: reading the folder back mixed two box sets."""
+    table = BoxTable.build([0, 5], [[10, 20, 30, 40], [1, 2, 3, 4]])
+    folder = tmp_path / "labels"
+    write_boxes(table, folder, "yolo", BoxFileOptions(image_size=(100, 50)))
+    with pytest.raises(ConfigurationError, match=r"already holds 2 \.txt files"):
+        write_boxes(
+            table.select([True, False]), folder, "yolo", BoxFileOptions(image_size=(100, 50))
+        )
+    assert sorted(p.name for p in folder.iterdir()) == ["000000.txt", "000005.txt"]

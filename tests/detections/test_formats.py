@@ -112,6 +112,49 @@ def test_coco_errors_name_the_element_and_field(tmp_path: Path, items: list, fie
     assert err.value.field == field
 
 
+_CAR = {"image_id": 0, "category_id": 3, "bbox": [0, 0, 1, 1]}
+
+
+@pytest.mark.parametrize(
+    ("data", "field"),
+    [
+        ([{**_CAR, "image_id": -3}], "[0].image_id"),
+        ([{**_CAR, "image_id": 10**11}], "[0].image_id"),
+        ([{**_CAR, "track_id": -5}], "[0].track_id"),
+        ({"images": [{"id": 0, "frame_id": "abc"}], "annotations": [_CAR]}, "images[0].frame_id"),
+        ({"images": [{"id": 0, "frame_id": None}], "annotations": [_CAR]}, "images[0].frame_id"),
+        ({"images": [{"id": 0, "frame_id": 2.7}], "annotations": [_CAR]}, "images[0].frame_id"),
+        ({"images": [{"id": 0, "frame_id": -7}], "annotations": [_CAR]}, "images[0].frame_id"),
+        ({"images": [{"frame_id": 0}], "annotations": [_CAR]}, "images[0].id"),
+        ({"images": [{"file_name": "a.png", "id": "x"}], "annotations": [_CAR]}, "images[0].id"),
+        (
+            {
+                "images": [{"id": 0, "file_name": "a.png"}],
+                "categories": [{"name": "car"}],
+                "annotations": [_CAR],
+            },
+            "categories[0].id",
+        ),
+        (
+            {
+                "images": [{"id": 0, "file_name": "a.png"}],
+                "categories": [{"id": [3], "name": "car"}],
+                "annotations": [_CAR],
+            },
+            "categories[0].id",
+        ),
+    ],
+)
+def test_coco_frames_ids_and_dataset_fields_are_checked(
+    tmp_path: Path, data: object, field: str
+) -> None:
+    """A frame or track id out of range, or a dataset file's image or category id / frame that
+    is not a whole number, is a named error, not a silently unused box or an internal error."""
+    with pytest.raises(InputFileError) as err:
+        read_coco(_write(tmp_path / "r.json", json.dumps(data)))
+    assert err.value.field == field and "r.json" in str(err.value)
+
+
 def test_coco_bad_json_and_missing_file(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="not valid JSON") as err:
         read_coco(_write(tmp_path / "r.json", "[\n{\n"))

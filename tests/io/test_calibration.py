@@ -105,6 +105,13 @@ def test_ros_equidistant_is_fisheye(tmp_path: Path) -> None:
         ("c.yaml", "camera_matrix: [1, 2\nb: 3\n", 2, None),
         ("c.yaml", "image_width: 5\n", None, None),
         ("calib.txt", "P2: 1 2 3\n", 1, "P2"),
+        ("K.txt", "-700 0 640\n0 650 360\n0 0 1\n", None, "K"),
+        (
+            "c.yaml",
+            "camera_matrix:\n  data: [700, 0, 640, 0, -650, 360, 0, 0, 1]\n",
+            None,
+            "camera_matrix",
+        ),
     ],
 )
 def test_errors_name_file_line_field(
@@ -114,6 +121,25 @@ def test_errors_name_file_line_field(
         read_calibration(_write(tmp_path / name, text))
     assert err.value.line == line and err.value.field == field
     assert name in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "field"),
+    [
+        ("K.txt", "700 0 0\n0 650 0\n640.5 360.25 1\n", "K"),  # transposed (MATLAB)
+        ("K.txt", "1400 0 1281\n0 1300 720.5\n0 0 2\n", "K"),  # not normalised
+        ("c.yaml", ROS_YAML.replace("0.0, 0.0, 1.0]", "640.5, 360.25, 1.0]"), "camera_matrix"),
+        ("info.json", json.dumps({"K": K.T.reshape(-1).tolist()}), "K"),
+    ],
+)
+def test_k_whose_last_row_is_not_0_0_1_is_refused(
+    tmp_path: Path, name: str, text: str, field: str
+) -> None:
+    """A transposed or unnormalised K was read as if its last row were 0 0 1: a principal
+    point of (0, 0) made every distance `ok` and several times too short."""
+    with pytest.raises(InputFileError, match="last row must be 0 0 1") as err:
+        read_calibration(_write(tmp_path / name, text))
+    assert err.value.field == field and name in str(err.value)
 
 
 def test_missing_file(tmp_path: Path) -> None:

@@ -298,6 +298,21 @@ def test_bad_sources_and_files(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 @pytest.mark.kitti
+def test_out_that_is_the_source_or_one_of_its_runs_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`report run/ --out run/` replaced the run's records.csv with the report's."""
+    write_run(tmp_path / "runs" / "a", [_record(0, 10.0, 11.0)], [{"frame": 0}])
+    before = (tmp_path / "runs" / "a" / "records.csv").read_text()
+    for source, out in (("runs/a", "runs/a"), ("runs", "runs"), ("runs", "runs/a")):
+        argv = ["report", str(tmp_path / source), "--out", str(tmp_path / out), "--no-parquet"]
+        assert main(argv) == 2
+        assert "would be overwritten" in capsys.readouterr().err
+    assert (tmp_path / "runs" / "a" / "records.csv").read_text() == before
+    assert not (tmp_path / "runs" / "records.csv").exists()
+    assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "rep")]) == 0
+
+
 def test_depthmap_needs_a_depth_folder_and_unknown_tracks(tmp_path: Path) -> None:
     kitti = shared_data_path("kitti_tracking")
     opts = ReportOptions(eval=KittiEvalConfig(sequences=["0000"], methods=("depthmap",)))

@@ -30,6 +30,7 @@ from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration
 from slopedist.io.frames import open_frames
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import write_json
 from slopedist.mount_calibration import MountAdvice, advise_from_frames, advise_mount
 from slopedist.tables import format_table
@@ -154,6 +155,8 @@ def calibrate(
     Give the drive as --poses and --boxes files, or as FRAMES (image folder or video) with
     --boxes or --detector: the built-in visual odometry then computes the rotations.
     """
+    inputs = [*files.input_files, frames, timestamps, detector_model]
+    check_outputs_spare_inputs([json_out], inputs)
     history = _History(every_s)
     if frames is None:
         if files.poses is None or files.boxes is None or detector_model is not None:

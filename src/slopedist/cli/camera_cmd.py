@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from slopedist.checkerboard import calibrate_checkerboard, write_opencv_yaml
 from slopedist.cli.options import parse_size
 from slopedist.io.frames import open_frames
+from slopedist.io.outputs import check_outputs_spare_inputs
 
 
 def _every(path: Path, step: int) -> Iterator[NDArray[np.uint8]]:
@@ -65,6 +66,7 @@ def calibrate_camera(
     frames: Path, pattern: str, square_m: float, every: int, max_views: int, out: Path
 ) -> None:
     """Calibrate the camera from FRAMES (a video or image folder) showing a checkerboard."""
+    check_outputs_spare_inputs([out], [frames])
     size = parse_size(pattern, "COLUMNSxROWS of inner corners")
     fit = calibrate_checkerboard(_every(frames, every), size or (0, 0), square_m, max_views)
     write_opencv_yaml(fit, out)

@@ -8,6 +8,7 @@ import click
 
 from slopedist.cli.options import parse_size
 from slopedist.detections.convert import WRITABLE, BoxFileOptions, BoxFormat, convert_boxes
+from slopedist.io.outputs import check_outputs_spare_inputs
 
 
 @click.command("convert")
@@ -53,6 +54,7 @@ def convert(
 ) -> None:
     """Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, YOLO
     folder) into TARGET (slopedist CSV by default)."""
+    check_outputs_spare_inputs([target], [source, coco_images])
     options = BoxFileOptions(parse_size(image_size), coco_images, frame_base, min_score)
     n_read, n_left = convert_boxes(source, target, source_format, target_format, options)
     note = f", {n_left} left out (class not in the '{target_format}' class list)" if n_left else ""

@@ -10,6 +10,7 @@ import click
 from slopedist.cli.options import detector_options, make_detector
 from slopedist.detections.video import detect_video
 from slopedist.io.frames import open_frames
+from slopedist.io.outputs import check_outputs_spare_inputs
 
 
 @click.command("detect")
@@ -36,6 +37,7 @@ from slopedist.io.frames import open_frames
 @detector_options()
 def detect(frames: Path, model: Path, out: Path, timing: Path | None, **opts: Any) -> None:
     """Detect vehicles in FRAMES (a video or image folder) with an ONNX model."""
+    check_outputs_spare_inputs([out, timing], [frames, model])
     detector = make_detector(model, **opts)
     summary = detect_video(detector, open_frames(frames), out, timing)
     click.echo(

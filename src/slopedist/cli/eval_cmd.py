@@ -15,6 +15,7 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig, with_offline
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
 from slopedist.score_tables import format_report_tables
@@ -62,6 +63,8 @@ def kitti_tracking(
 ) -> None:
     """Evaluate on KITTI tracking sequences under DATA_DIR (label_02/, calib/, poses)."""
     names = check_methods(split_list(methods) or [], evaluation=True)
+    if json_out is not None and str(json_out) != STDOUT_PATH:  # not onto a label, calib, ...
+        check_outputs_spare_inputs([json_out], sorted(data_dir.glob("*/*.txt")))
     if offline:
         names = with_offline(names)
     cfg = dataclasses.replace(

@@ -14,6 +14,7 @@ from tqdm import tqdm
 from slopedist.cli.options import lookback_option
 from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
 from slopedist.errors import MissingInputError
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import STDOUT_PATH, dumps_json, write_json
 from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 from slopedist.odometry.factory import available_odometry, make_odometry
@@ -50,6 +51,9 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
     rotation error over full look-back windows (10 frames at 10 Hz); ms_per_frame, the time
     inside the odometry per frame after image decoding, with OpenCV limited to one thread.
     """
+    if json_out is not None and str(json_out) != STDOUT_PATH:
+        inputs = [seq_dir / name for name in ("calib.txt", "poses.txt", "times.txt")]
+        check_outputs_spare_inputs([json_out], inputs)
     seq = read_kitti_odometry(seq_dir)
     if seq.ground_truth is None:  # pragma: no cover - read_kitti_odometry requires poses
         raise MissingInputError(f"no ground-truth poses in {seq_dir}")

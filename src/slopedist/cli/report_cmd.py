@@ -16,6 +16,7 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig, with_offline
+from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
     SUMMARY_TABLES,
@@ -26,6 +27,7 @@ from slopedist.report import (
     write_report,
 )
 from slopedist.report.kitti import default_kitti_methods
+from slopedist.report.runs import run_folders
 from slopedist.tables import format_text
 
 
@@ -88,6 +90,8 @@ def report(
     Table 2 (time per frame), and for a batch the pooled fleet tables."""
     names = check_methods(split_list(methods) or [], evaluation=True)
     kind = detect_source(source)
+    # the report's records.csv, tracks.csv... would replace a run's own
+    check_outputs_spare_inputs([], [source, *run_folders(source)], out_dir)
     if offline:
         if kind is not SourceKind.KITTI_TRACKING:
             raise click.UsageError(

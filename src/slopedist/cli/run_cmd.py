@@ -429,7 +429,7 @@ def run_to_folder(
         snapshots=outputs.snapshots,
     )
     result = run_until_stopped(lambda: prepared.run(config), config)
-    click.echo(summary_text(result, out_dir), err=True)
+    click.echo(summary_text(result, out_dir, outputs.snapshots), err=True)
 
 
 def check_run_outputs(
@@ -458,8 +458,10 @@ def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunR
             raise SystemExit(128 + exc.__cause__.signum) from None
 
 
-def summary_text(result: RunResult, out_dir: Path) -> str:
-    """A few lines that tell what a run did and where its output is."""
+def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()) -> str:
+    """A few lines that tell what a run did and where its output is; ``snapshots``: the frames
+    asked for with ``--snapshot`` (those not written, e.g. beyond the last frame or unreadable,
+    get a warning)."""
     states = ", ".join(f"{k} {v}" for k, v in sorted(result.odometry_states.items())) or "none"
     status = ", ".join(f"{k} {v}" for k, v in sorted(result.frame_status.items()))
     lines = [
@@ -501,4 +503,12 @@ def summary_text(result: RunResult, out_dir: Path) -> str:
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")
     lines.extend(f"export: {path}" for path in result.exports)
+    unwritten = sorted(
+        {k for k in snapshots if str(snapshot_path(out_dir, k)) not in result.exports}
+    )
+    if unwritten:
+        lines.append(
+            f"warning: no snapshot of frame {', '.join(map(str, unwritten))}: not a readable "
+            "frame of FRAMES (see frames.csv)"
+        )
     return "\n".join(lines)

@@ -61,15 +61,15 @@ ROTATION_FOLDERS = {RotationSource.ORBSLAM3: "orbslam3_poses", RotationSource.OX
 
 
 def list_sequences(root: str | Path) -> list[str]:
-    """Names (``"0000"``, ...) of the sequences that have both labels and calibration."""
+    """Names (``"0000"``, ...) of the sequences: one per label file. A sequence whose
+    ``calib/`` file is missing is listed, so that :func:`load_sequence` names the file instead of
+    the sequence being left out of an evaluation unsaid."""
     root = Path(root)
     if not (root / "label_02").is_dir():
         raise MissingInputError(
             f"no KITTI tracking data at {root}: expected folders label_02/ and calib/ there"
         )
-    return sorted(
-        p.stem for p in (root / "label_02").glob("*.txt") if (root / "calib" / p.name).is_file()
-    )
+    return sorted(p.stem for p in (root / "label_02").glob("*.txt"))
 
 
 def protocol_mask(

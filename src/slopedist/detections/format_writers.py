@@ -86,11 +86,22 @@ def write_yolo_folder(
     image_size: tuple[int, int],
     class_map: Mapping[int, str] | None = None,
 ) -> int:
-    """One YOLO ``.txt`` per frame in ``folder``; returns the boxes left out."""
+    """One YOLO ``.txt`` per frame in ``folder``; returns the boxes left out.
+
+    Raises:
+        ConfigurationError: ``folder`` already holds ``.txt`` files (the label files of another
+            box set would be mixed with these: frames this table has no boxes for keep theirs).
+    """
     w, h = image_size
     if w <= 0 or h <= 0:
         raise ConfigurationError(f"image size must be positive, got {w}×{h}")
     folder = Path(folder)
+    old = sorted(p.name for p in folder.glob("*.txt")) if folder.is_dir() else []
+    if old:
+        raise ConfigurationError(
+            f"{folder} already holds {len(old)} .txt files ({old[0]}, ...): they would be mixed "
+            "with the new label files; choose a new or empty folder"
+        )
     folder.mkdir(parents=True, exist_ok=True)
     ids, ok = _class_indices(table, COCO_VEHICLES if class_map is None else class_map)
     with_score = bool(np.all(np.isfinite(table.score[ok])))

@@ -25,6 +25,7 @@ Classes not in a map are dropped. Writers for each (for ``slopedist convert``) a
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -36,6 +37,7 @@ from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import _index, _int, _parse, check_pixel_range
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.limits import MAX_INDEX
 from slopedist.textfiles import numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
@@ -120,28 +122,56 @@ def read_coco_image_map(path: str | Path) -> dict[int, int]:
         raise InputFileError(path, "no 'images' list (a COCO dataset file is needed)")
     for key in ("frame_id", "frame_index"):
         if images and all(isinstance(im, dict) and key in im for im in images):
-            return {int(im["id"]): int(im[key]) for im in images}
+            return {
+                _coco_index(path, f"images[{i}].id", im.get("id"), None): _coco_index(
+                    path, f"images[{i}].{key}", im[key], 0
+                )
+                for i, im in enumerate(images)
+            }
     try:
-        ordered = sorted(images, key=lambda im: str(im["file_name"]))
-        return {int(im["id"]): i for i, im in enumerate(ordered)}
-    except (KeyError, TypeError, ValueError):
+        ordered = sorted(range(len(images)), key=lambda i: str(images[i]["file_name"]))
+    except (KeyError, TypeError):
         raise InputFileError(
             path, "every image needs an integer 'id' and a 'file_name'", field="images"
         ) from None
+    return {
+        _coco_index(path, f"images[{i}].id", images[i].get("id"), None): frame
+        for frame, i in enumerate(ordered)
+    }
 
 
-def _coco_class_map(data: Any, class_map: Mapping[int, str] | None) -> Mapping[int, str]:
+def _coco_class_map(
+    path: str | Path, data: Any, class_map: Mapping[int, str] | None
+) -> Mapping[int, str]:
     """The given map, else one from the file's ``categories`` names, else COCO's."""
     if class_map is not None:
         return class_map
     if isinstance(data, dict) and isinstance(data.get("categories"), list):
         by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
         return {
-            int(c["id"]): by_name[str(c["name"]).lower()]
-            for c in data["categories"]
+            _coco_index(path, f"categories[{i}].id", c.get("id"), None): by_name[
+                str(c["name"]).lower()
+            ]
+            for i, c in enumerate(data["categories"])
             if isinstance(c, dict) and str(c.get("name", "")).lower() in by_name
         }
     return COCO_CATEGORIES
+
+
+def _coco_index(path: str | Path, field: str, value: Any, lowest: int | None) -> int:
+    """``value`` as a whole number (JSON ``3`` or ``3.0``, not ``true`` or ``"3"``) in
+    ``lowest..MAX_INDEX`` (any integer when ``lowest`` is None: ids), else an error naming
+    ``field``."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or (isinstance(value, float) and not math.isfinite(value))
+        or value != int(value)
+    ):
+        raise InputFileError(path, f"'{value}' is not an integer", field=field)
+    if lowest is not None and not lowest <= value <= MAX_INDEX:
+        raise InputFileError(path, f"{int(value)} is outside {lowest}..{MAX_INDEX}", field=field)
+    return int(value)
 
 
 def _coco_number(path: str | Path, index: int, item: dict, key: str, kind: type) -> Any:
@@ -173,7 +203,7 @@ def read_coco(
         raise InputFileError(path, "expected a list of detections or an 'annotations' list")
     if image_frames is None and isinstance(data, dict) and "images" in data:
         image_frames = read_coco_image_map(path)
-    cmap = _coco_class_map(data, class_map)
+    cmap = _coco_class_map(path, data, class_map)
     frames, tids, boxes, scores, classes = [], [], [], [], []
     for i, item in enumerate(items):
         if not isinstance(item, dict):
@@ -192,11 +222,12 @@ def read_coco(
                 f"image id {image} is not in the image-id → frame map",
                 field=f"[{i}].image_id",
             )
-        frames.append(image if image_frames is None else image_frames[image])
+        frame = image if image_frames is None else image_frames[image]
+        frames.append(_coco_index(path, f"[{i}].image_id", frame, 0))
         boxes.append(_corners(path, xywh, field=f"[{i}].bbox"))
         scores.append(_coco_number(path, i, item, "score", float) if "score" in item else np.nan)
         tid = item.get("track_id")
-        tids.append(NO_TRACK if tid is None else _coco_number(path, i, item, "track_id", int))
+        tids.append(NO_TRACK if tid is None else _coco_index(path, f"[{i}].track_id", tid, -1))
         classes.append(cmap[category])
     return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 

@@ -132,6 +132,7 @@ def read_k_text(path: Path, text: str) -> Intrinsics:
     if len(values) < 9:
         raise InputFileError(path, f"expected 9 numbers of a 3×3 K, found {len(values)}", field="K")
     K = np.asarray(values[:9]).reshape(3, 3)
+    _checked(path, lambda: Intrinsics(K), "K")
     return _checked(path, lambda: Intrinsics(K, np.asarray(values[9:])), "distortion")
 
 
@@ -200,6 +201,7 @@ def read_filestorage(path: str | Path) -> Intrinsics:
     finally:
         fs.release()
     dist_values = np.zeros(0) if dist is None else dist
+    _checked(path, lambda: Intrinsics(k.reshape(3, 3)), key)
     return _checked(
         path,
         lambda: Intrinsics(k.reshape(3, 3), _trim(dist_values, fisheye), fisheye, size),

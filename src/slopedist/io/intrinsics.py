@@ -36,6 +36,10 @@ UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10
 """Iterations of the undistortion: OpenCV's default (5) leaves pixels of error under strong
 barrel distortion; 50 reach 1e-6 px."""
 
+K_LAST_ROW_TOLERANCE = 1e-6
+"""How far each value of K's last row may be from ``0 0 1`` (float round-off of a written file);
+any other last row (a transposed K has ``cx cy 1``) is refused, never ignored."""
+
 MAX_ROUND_TRIP_PX = 0.01
 """A mapped point must distort back to within this many pixels of the input point."""
 
@@ -67,6 +71,11 @@ class Intrinsics:
             raise ConfigurationError(f"camera matrix must be 3×3 and finite, got {K.tolist()}")
         if K[0, 0] <= 0 or K[1, 1] <= 0:
             raise ConfigurationError(f"focal lengths must be > 0 pixels, got {K[0, 0]}, {K[1, 1]}")
+        if np.any(np.abs(K[2] - (0.0, 0.0, 1.0)) > K_LAST_ROW_TOLERANCE):
+            raise ConfigurationError(
+                f"the camera matrix's last row must be 0 0 1, got {K[2].tolist()} "
+                "(a transposed K, e.g. MATLAB's IntrinsicMatrix?)"
+            )
         counts = (0, 4) if self.fisheye else DISTORTION_COUNTS
         if dist.size not in counts or not np.all(np.isfinite(dist)):
             raise ConfigurationError(
