@@ -25,7 +25,7 @@ def _squared_errors(sim: SimulatedTraffic, **options: object) -> np.ndarray:
         if rows.size:
             frame = FrameInput(k, float(t), 0.0, sim.boxes.select(rows), R_world_cam=np.eye(3))
             out[rows] = est.estimate(frame).distance_m
-    assert np.isfinite(out).all()
+    assert np.isfinite(out).mean() > 0.97  # the rest withheld as too_uncertain
     return (out - sim.z_m) ** 2
 
 
@@ -66,10 +66,9 @@ def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class()
         strict.append(_squared_errors(called_car, odd_object_weight=0.0))
         blind.append(_squared_errors(called_car))
         generic.append(_squared_errors(called_car, generic_classes=("Car",)))
-    rmse = {
-        k: float(np.sqrt(np.mean(np.concatenate(v))))
-        for k, v in {"true": true_cls, "strict": strict, "blind": blind, "generic": generic}.items()
-    }
+    runs = {"true": true_cls, "strict": strict, "blind": blind, "generic": generic}
+    scored = np.all([np.isfinite(np.concatenate(v)) for v in runs.values()], axis=0)
+    rmse = {k: float(np.sqrt(np.mean(np.concatenate(v)[scored]))) for k, v in runs.items()}
     assert rmse["generic"] < 0.8 * rmse["strict"]
     assert rmse["generic"] < rmse["blind"] < 0.95 * rmse["strict"]
     assert rmse["true"] < rmse["generic"]

@@ -68,6 +68,10 @@ class MissingReason(str, Enum):
     CUT_BOTTOM = "cut_bottom"
     """The box is cut by the bottom of the image: a ground-contact distance is an upper bound
     (status ``upper_bound``)."""
+    TOO_UNCERTAIN = "too_uncertain"
+    """The method's own 1σ (``sigma_m``) is more than a set share of the distance (``ours``:
+    option ``max_relative_sigma``): a number no one could act on (a box of a few pixels, cues
+    that contradict each other); the cue columns keep what the box says."""
 
 
 class ReferencePoint(str, Enum):
@@ -175,6 +179,20 @@ class FrameEstimates:
         self.reason[rows] = reason.value
         if status is EstimateStatus.MISSING:
             self.distance_m[rows] = np.nan
+
+    def withhold_uncertain(self, max_relative_sigma: float) -> None:
+        """``ok`` rows whose 1σ ``extra["sigma_m"]`` (same point, metres) exceeds
+        ``max_relative_sigma`` × their distance become ``missing``, reason ``too_uncertain``
+        (a NaN σ is left alone: the method states no σ for that row)."""
+        sigma = self.extra.get("sigma_m")
+        if sigma is None or not len(self):
+            return
+        with np.errstate(invalid="ignore"):
+            vague = (self.status == EstimateStatus.OK.value) & (
+                sigma > max_relative_sigma * np.abs(self.distance_m)
+            )
+        if vague.any():
+            self.set_state(vague, EstimateStatus.MISSING, MissingReason.TOO_UNCERTAIN)
 
     def __len__(self) -> int:
         return int(self.distance_m.shape[0])

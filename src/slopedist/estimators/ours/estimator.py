@@ -263,6 +263,7 @@ class OursEstimator(Estimator):
                 cut = np.zeros((n, 4), dtype=bool)
                 cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+        est.withhold_uncertain(self.config.max_relative_sigma)
         est.extra["distance_centre_m"] = est.distance_m.copy()
         if half_extent is not None:  # the nearest face (or its foot)
             est.distance_m -= half_extent
