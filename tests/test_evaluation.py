@@ -53,10 +53,12 @@ def test_bins_split_by_truth() -> None:
 
 def test_cap_rule() -> None:
     d, ok = cap_estimates(
-        [10.0, 120.0, np.nan, np.nan], ["", "", "below_horizon", "no_rotation"], 80.0
+        [10.0, 120.0, np.nan, np.nan, np.nan],
+        ["", "", "below_horizon", "no_rotation", "near_horizon"],
+        80.0,
     )
-    np.testing.assert_array_equal(d[:3], [10.0, 80.0, 80.0])
-    assert list(ok) == [True, True, True, False]
+    np.testing.assert_array_equal(d[[0, 1, 2, 4]], [10.0, 80.0, 80.0, 80.0])
+    assert list(ok) == [True, True, True, False, True]
 
 
 def test_greedy_matching_best_pair_first() -> None:

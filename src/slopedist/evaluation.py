@@ -85,7 +85,8 @@ def cap_estimates(
     distance_m: ArrayLike, reason: ArrayLike, cap_m: float = 80.0
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Apply the published protocol's cap: estimates above ``cap_m`` become ``cap_m`` and a
-    target below the horizon (``u ≤ v``, reason ``below_horizon``) counts as ``cap_m``.
+    target below the horizon (``u ≤ v``, reason ``below_horizon``) or too near it for eq. 1 to
+    tell its distance (``near_horizon``, hundreds of metres) counts as ``cap_m``.
 
     Returns:
         The capped distances and a mask of the entries that can be scored (other reasons,
@@ -94,8 +95,9 @@ def cap_estimates(
     """
     d = np.asarray(distance_m, dtype=float).copy()
     r = np.asarray(reason, dtype=object)
-    d[(r != "") & (r != MissingReason.BELOW_HORIZON.value)] = np.nan
-    d[r == MissingReason.BELOW_HORIZON.value] = cap_m
+    at_cap = (r == MissingReason.BELOW_HORIZON.value) | (r == MissingReason.NEAR_HORIZON.value)
+    d[(r != "") & ~at_cap] = np.nan
+    d[at_cap] = cap_m
     d = np.minimum(d, cap_m)
     return d, np.isfinite(d)
 

@@ -177,3 +177,18 @@ def test_ok_is_a_promise_for_any_box(boxes: list[list[float]], method: str) -> N
             assert "bottom" in est.cut[i] and est.distance_m[i] > 0
         else:
             assert est.status[i] == "missing" and est.reason[i] and np.isnan(est.distance_m[i])
+
+
+@pytest.mark.parametrize("method", ["flat", "ego", "imu-ego"])
+def test_a_box_bottom_within_two_pixels_of_the_horizon_has_no_ok_distance(method: str) -> None:
+    """Rows 181.5 and 182.5 read 1188/1.5 = 792 m and 1188/2.5 = 475 m: a pixel moves the
+    first by more than half (``near_horizon``, counted at the 80 m cap like ``below_horizon``);
+    the second stays ``ok`` at eq. 1's value. (``paper`` and ``imu`` raise θ by eq. 7 for these
+    boxes, whose centre is above the horizon: their vanishing line is 38 px higher.)"""
+    est = settled(method, [[600.0, 170.0, 620.0, 181.5], [600.0, 170.0, 620.0, 182.5]])
+    assert est.status.tolist() == ["missing", "ok"]
+    assert est.reason.tolist() == ["near_horizon", ""]
+    assert np.isnan(est.distance_m[0])
+    assert est.distance_m[1] == pytest.approx(FH / 2.5)
+    capped, scored = cap_estimates(est.distance_m, est.reason)
+    assert capped.tolist() == [80.0, 80.0] and scored.all()

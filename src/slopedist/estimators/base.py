@@ -44,11 +44,24 @@ class EstimateStatus(str, Enum):
     """No distance (reason says why)."""
 
 
+MIN_CONTACT_GAP_PX = 2.0
+"""The least gap ``u − v`` (pixels) between a box bottom and the vanishing line for which a
+ground-contact distance (eq. 1) is ``ok``. A detector places a box's bottom edge and the
+odometry the vanishing line to about a pixel together; below a 2 px gap that pixel changes
+``d = f·h/(u − v)`` by more than half — the share beyond which ``ours`` withholds a distance
+too (``max_relative_sigma`` 0.5). With KITTI's camera (f·h ≈ 1190 px·m) the gap is 2 px at
+about 600 m, far beyond any detector's range and the evaluation's 80 m cap."""
+
+
 class MissingReason(str, Enum):
     """Why a distance is missing, or (``cut_bottom``) only a bound."""
 
     BELOW_HORIZON = "below_horizon"
     """The box bottom is at or above the vanishing line (u ≤ v): eq. 1 is undefined."""
+    NEAR_HORIZON = "near_horizon"
+    """The box bottom is less than :data:`MIN_CONTACT_GAP_PX` below the vanishing line: eq. 1
+    gives a distance far beyond what the row can tell (a pixel of the row moves it by more
+    than half); evaluations count it at the cap, as ``below_horizon``."""
     NO_ROTATION = "no_rotation"
     """No camera rotation for this frame (odometry not initialised or lost)."""
     NON_FINITE_BOX = "non_finite_box"

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.estimators.base import (
+    MIN_CONTACT_GAP_PX,
     Estimator,
     FrameEstimates,
     FrameInput,
@@ -39,7 +40,9 @@ def ground_contact_estimates(
     boxes: NDArray[np.float64],
     prior_reasons: NDArray[np.object_],
 ) -> FrameEstimates:
-    """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians).
+    """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians);
+    a box bottom less than :data:`~slopedist.estimators.base.MIN_CONTACT_GAP_PX` below the
+    vanishing line is ``missing``, reason ``near_horizon`` (at or above it, ``below_horizon``).
 
     ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ. A box cut by
     the bottom of the image (``camera``'s size) is an ``upper_bound``
@@ -48,9 +51,11 @@ def ground_contact_estimates(
     v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
     delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)
     v = geo.vanishing_line_row(theta_adj_rad, camera.f, camera.c_y)
-    d = geo.ground_contact_distance(camera.f, camera.height_m, geo.box_bottom_row(boxes), v)
+    u = geo.box_bottom_row(boxes)
+    d = geo.ground_contact_distance(camera.f, camera.height_m, u, v)
     reasons = prior_reasons.copy()
     reasons[(reasons == "") & ~np.isfinite(d)] = MissingReason.BELOW_HORIZON.value
+    reasons[(reasons == "") & (u - v < MIN_CONTACT_GAP_PX)] = MissingReason.NEAR_HORIZON.value
     d = np.where(reasons == "", d, np.nan)
     n = boxes.shape[0]
     est = FrameEstimates(
