@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.camera import KITTI_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M, MAX_MOUNT_ANGLE_RAD
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
 from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
@@ -30,18 +30,42 @@ def split_list(value: str | None) -> list[str] | None:
     return [v.strip() for v in value.split(",") if v.strip()]
 
 
+class BoundedFloat(click.ParamType):
+    """A finite number within ``(low, high]`` (``low`` included when ``low_open`` is False),
+    so that an option's bad value is a usage error naming the option, with its unit."""
+
+    name = "float"
+
+    def __init__(self, low: float, high: float, unit: str, low_open: bool = True) -> None:
+        self.low, self.high, self.unit, self.low_open = low, high, unit, low_open
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        number = click.FLOAT.convert(value, param, ctx)
+        above_low = number > self.low if self.low_open else number >= self.low
+        if not (math.isfinite(number) and above_low and number <= self.high):
+            bracket = "(" if self.low_open else "["
+            self.fail(
+                f"{value!r} is not in {bracket}{self.low:g}, {self.high:g}] {self.unit}", param, ctx
+            )
+        return number
+
+
 height_option = click.option(
     "--height",
     "height_m",
-    type=float,
+    type=BoundedFloat(0.0, MAX_CAMERA_HEIGHT_M, "m"),
     default=KITTI_CAMERA_HEIGHT_M,
     show_default=True,
     help="Camera height above the road, metres.",
 )
+
+MAX_MOUNT_ANGLE_DEG = round(math.degrees(MAX_MOUNT_ANGLE_RAD), 9)
+"""The camera's mount-angle bound in degrees, as typed (60, not 59.99999999999999)."""
+
 mount_option = click.option(
     "--mount-angle",
     "mount_angle_deg",
-    type=float,
+    type=BoundedFloat(-MAX_MOUNT_ANGLE_DEG, MAX_MOUNT_ANGLE_DEG, "°", low_open=False),
     default=0.0,
     show_default=True,
     help="Camera mount angle θ0 in the yz plane, degrees (paper eq. 2).",

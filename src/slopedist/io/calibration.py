@@ -70,10 +70,17 @@ def read_calibration(
     that states none (KITTI, K text, the values); it must agree with one that does.
 
     Raises:
-        ConfigurationError: ``image_size`` differs from the calibration's own.
+        ConfigurationError: ``image_size`` differs from the calibration's own, or the mount
+            (height, angle) is out of range.
+        InputFileError: the file's camera is implausible (focal length, principal point).
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     intrinsics = intrinsics.with_image_size(image_size)
+    if not isinstance(path, Intrinsics):
+        try:
+            intrinsics.camera()  # the file's own part: focal length, principal point
+        except ConfigurationError as exc:
+            raise InputFileError(path, str(exc)) from None
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 

@@ -1,0 +1,70 @@
+"""Shared options: the camera's mount is checked where it is typed, naming the option."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner
+from hypothesis import given
+from hypothesis import strategies as st
+
+from slopedist.camera import MAX_CAMERA_HEIGHT_M
+from slopedist.cli import cli
+from slopedist.cli.options import BoundedFloat, height_option, mount_option
+from slopedist.errors import InputFileError
+from slopedist.io.calibration import read_calibration
+
+
+def _echo_mount() -> click.Command:
+    @click.command()
+    @height_option
+    @mount_option
+    def echo(height_m: float, mount_angle_deg: float) -> None:
+        click.echo(f"{height_m} {mount_angle_deg}")
+
+    return echo
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--height", "0"], "'--height': '0' is not in (0, 50] m"),
+        (["--height", "nan"], "'--height': 'nan' is not in (0, 50] m"),
+        (["--height", "1e308"], "'--height'"),
+        (["--height", "-1.2"], "'--height'"),
+        (["--mount-angle", "inf"], "'--mount-angle': 'inf' is not in [-60, 60] °"),
+        (["--mount-angle", "61"], "'--mount-angle'"),
+        (["--height", "tall"], "'--height': 'tall' is not a valid float"),
+    ],
+)
+def test_a_bad_mount_is_a_usage_error_naming_the_option(args: list[str], message: str) -> None:
+    result = CliRunner().invoke(_echo_mount(), args)
+    assert result.exit_code == 2 and message in result.output
+
+
+def test_the_bounds_themselves_are_accepted() -> None:
+    args = ["--height", str(MAX_CAMERA_HEIGHT_M), "--mount-angle", "-60"]
+    result = CliRunner().invoke(_echo_mount(), args)
+    assert result.exit_code == 0 and result.output.split() == ["50.0", "-60.0"]
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_a_bounded_float_keeps_what_is_inside_and_refuses_the_rest(value: float) -> None:
+    kind = BoundedFloat(0.0, 50.0, "m")
+    inside = math.isfinite(value) and 0.0 < value <= 50.0
+    try:
+        assert kind.convert(repr(value), None, None) == value and inside
+    except click.BadParameter:
+        assert not inside
+
+
+def test_an_implausible_focal_length_names_the_calibration_file(tmp_path: Path) -> None:
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 10 0 600 0 0 10 180 0 0 0 1 0\n", encoding="utf-8")
+    with pytest.raises(InputFileError, match=r"calib.txt: camera focal length f = 10 px"):
+        read_calibration(calib)
+    result = CliRunner().invoke(cli, ["estimate", "--calib", str(calib), "--height", "0"])
+    assert result.exit_code == 2 and "'--height'" in result.output
