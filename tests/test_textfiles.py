@@ -183,14 +183,20 @@ def test_an_overlong_line_is_an_error_not_a_memory_hog(tmp_path: Path) -> None:
 
 
 def test_csv_rows_real_lines_and_bad_csv(tmp_path: Path) -> None:
-    path = _write(tmp_path, b'a, b\n1,"x\ny"\n\n2,z,extra\n3\n')
+    path = _write(tmp_path, b'a, b\n1,"x\ny"\n\n2,z, \n3\n')
     rows = CsvRows(path, "t")
     assert rows.header == ["a", "b"]
     assert list(rows) == [
         (3, {"a": "1", "b": "x\ny"}),
-        (5, {"a": "2", "b": "z"}),
+        (5, {"a": "2", "b": "z"}),  # an empty field past the header (a trailing comma)
         (6, {"a": "3", "b": None}),
     ]
+    shifted = _write(tmp_path, b"frame,left,top,right,bottom,class\n0,1,2,3,4,Car,van\n")
+    with pytest.raises(InputFileError, match=r"line 2: row has 7 fields, the header has 6"):
+        read_box_csv(shifted)
+    twice = _write(tmp_path, b"frame,left,top,right,bottom,left\n0,1,2,3,4,5\n")
+    with pytest.raises(InputFileError, match=r"line 1: column\(s\) left named twice"):
+        read_box_csv(twice)
     big = _write(
         tmp_path, b"frame,left,top,right,bottom\n0,1,2,3,4\n0," + b"9" * 1_000_000 + b",2,3,4\n"
     )

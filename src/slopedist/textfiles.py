@@ -153,13 +153,16 @@ class CsvRows:
 
     ``header`` holds the stripped column names; iterating yields ``(line, row)`` where ``line``
     is the physical line the row ends on. With ``strict`` a row of another field count than the
-    header is an error; otherwise missing trailing fields are ``None`` and extra ones dropped.
+    header is an error; otherwise missing trailing fields are ``None``, and empty extra ones
+    (a trailing comma) are dropped while a non-empty one is an error: an unquoted comma inside
+    a value would shift every column after it.
 
     Raises (while reading):
         MissingInputError: no such file.
-        InputFileError: bad UTF-8, an over-long line or field (the ``csv`` module's field size
-            limit), an unterminated quote or a NUL byte, or (``strict``) a row of the wrong
-            width, naming the line.
+        InputFileError: a column named twice in the header; bad UTF-8, an over-long line or
+            field (the ``csv`` module's field size limit), an unterminated quote or a NUL byte,
+            a row with a value beyond the header's columns or (``strict``) of the wrong width,
+            naming the line.
     """
 
     def __init__(self, path: str | Path, what: str, strict: bool = False) -> None:
@@ -170,6 +173,11 @@ class CsvRows:
         self._reader = csv.reader(self._lines)
         first = self._next()
         self.header: list[str] = [h.strip() for h in first] if first is not None else []
+        twice = sorted({h for h in self.header if h and self.header.count(h) > 1})
+        if twice:
+            raise InputFileError(
+                self.path, f"column(s) {', '.join(twice)} named twice in the header", line=1
+            )
 
     def _next(self) -> list[str] | None:
         try:
@@ -184,10 +192,14 @@ class CsvRows:
         while (fields := self._next()) is not None:
             if not any(f.strip() for f in fields):
                 continue
-            if self.strict and len(fields) != len(self.header):
+            wide = len(fields) > len(self.header) and any(
+                f.strip() for f in fields[len(self.header) :]
+            )
+            if wide or (self.strict and len(fields) != len(self.header)):
                 raise InputFileError(
                     self.path,
-                    f"row has {len(fields)} fields, the header has {len(self.header)}",
+                    f"row has {len(fields)} fields, the header has {len(self.header)}"
+                    + (" (an unquoted comma in a value?)" if wide else ""),
                     line=self._reader.line_num,
                 )
             row: dict[str, str | None] = dict.fromkeys(self.header)

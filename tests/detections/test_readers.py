@@ -234,3 +234,27 @@ def test_absurd_box_coordinates_are_errors(tmp_path: Path, value: str) -> None:
     path.write_text(PRCNN_ROW.replace("458.2", value) + "\n")
     with pytest.raises(InputFileError, match=r"line 1, field 'x2'"):
         read_pointrcnn(path)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "field"),
+    [
+        ("b.csv", "frame,left,top,right,bottom,score\n0,1,2,30,40,inf\n", "score"),
+        ("rrc.txt", "0,1,2,30,40,-inf\n", "score"),
+        ("det.txt", "1,-1,1,2,29,38,1e400\n", "conf"),
+    ],
+)
+def test_an_infinite_score_is_refused(tmp_path: Path, name: str, text: str, field: str) -> None:
+    """An infinite score would pass every ``--score`` threshold; an empty one is unknown."""
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    read = read_rrc if name == "rrc.txt" else read_box_file
+    with pytest.raises(InputFileError, match=rf"line \d+, field '{field}': .* a finite number"):
+        read(path)
+
+
+def test_a_coco_score_that_overflows_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "results.json"
+    path.write_text('[{"image_id": 0, "category_id": 3, "bbox": [1, 2, 30, 40], "score": 1e400}]')
+    with pytest.raises(InputFileError, match=r"field '\[0\].score': 'inf' is not a finite number"):
+        read_box_file(path)

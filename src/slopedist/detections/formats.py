@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +35,13 @@ import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.onnx_detector import COCO_VEHICLES
-from slopedist.detections.readers import _index, _int, _parse, check_pixel_range
+from slopedist.detections.readers import (
+    _index,
+    _int,
+    _parse,
+    check_pixel_range,
+    score_value,
+)
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
 from slopedist.limits import MAX_INDEX
 from slopedist.textfiles import numbered_lines, read_json
@@ -73,6 +79,10 @@ def _corner_array(boxes: list[list[float]]) -> np.ndarray:
     return np.asarray(boxes, dtype=float).reshape(-1, 4)
 
 
+MOT_KINDS: dict[str, Callable[[str], Any]] = {"flag": _int, "class": _int, "conf": score_value}
+"""How the MOTChallenge fields other than frame and id are read (the rest as floats)."""
+
+
 def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
     """A MOTChallenge ``det.txt`` or ``gt.txt`` (see the module docstring)."""
     frames, tids, boxes, scores, classes = [], [], [], [], []
@@ -84,7 +94,7 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
             )
         names = MOT_GT_FIELDS if len(tok) == 9 else MOT_DET_FIELDS
         v: dict[str, Any] = {
-            k: _parse(path, lineno, k, t, _int if k in ("flag", "class") else float)
+            k: _parse(path, lineno, k, t, MOT_KINDS.get(k, float))
             for k, t in zip(names, tok)
             if k not in ("frame", "id")
         }
@@ -174,7 +184,9 @@ def _coco_index(path: str | Path, field: str, value: Any, lowest: int | None) ->
     return int(value)
 
 
-def _coco_number(path: str | Path, index: int, item: dict, key: str, kind: type) -> Any:
+def _coco_number(
+    path: str | Path, index: int, item: dict, key: str, kind: Callable[[Any], Any]
+) -> Any:
     value = item.get(key)
     try:
         if isinstance(value, bool) or value is None:
@@ -185,7 +197,7 @@ def _coco_number(path: str | Path, index: int, item: dict, key: str, kind: type)
     except (TypeError, ValueError):
         raise InputFileError(
             path,
-            f"'{value}' is not {'an integer' if kind is int else 'a number'}",
+            f"'{value}' is not {'an integer' if kind is int else 'a finite number'}",
             field=f"[{index}].{key}",
         ) from None
     return number
@@ -225,7 +237,9 @@ def read_coco(
         frame = image if image_frames is None else image_frames[image]
         frames.append(_coco_index(path, f"[{i}].image_id", frame, 0))
         boxes.append(_corners(path, xywh, field=f"[{i}].bbox"))
-        scores.append(_coco_number(path, i, item, "score", float) if "score" in item else np.nan)
+        scores.append(
+            _coco_number(path, i, item, "score", score_value) if "score" in item else np.nan
+        )
         tid = item.get("track_id")
         tids.append(NO_TRACK if tid is None else _coco_index(path, f"[{i}].track_id", tid, -1))
         classes.append(cmap[category])
@@ -270,7 +284,7 @@ def read_yolo_folder(
             c = [
                 _parse(path, lineno, k, t, float) for k, t in zip(("cx", "cy", "w", "h"), tok[1:5])
             ]
-            score = _parse(path, lineno, "conf", tok[5], float) if len(tok) > 5 else np.nan
+            score = _parse(path, lineno, "conf", tok[5], score_value) if len(tok) > 5 else np.nan
             tid = _parse(path, lineno, "track_id", tok[6], _int) if len(tok) > 6 else NO_TRACK
             if cls not in cmap:
                 continue

@@ -19,6 +19,7 @@ Other columns are ignored.
 
 from __future__ import annotations
 
+import math
 import sys
 from array import array
 from collections.abc import Callable, Sequence
@@ -77,11 +78,22 @@ POINTRCNN_FIELDS = (
 )
 
 
+def score_value(tok: str) -> float:
+    """A detection score as written: any finite number (detectors' scores are probabilities or
+    logits), NaN for unknown; ``±inf`` is refused (ValueError): it would pass every
+    ``--score`` threshold."""
+    value = float(tok)
+    if math.isinf(value):
+        raise ValueError(f"{tok} is not a finite score")
+    return value
+
+
 def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[str], Any]) -> Any:
     try:
         value = kind(tok)
     except ValueError:
         kind_name = "an integer" if kind in (int, _int) else "a number"
+        kind_name = "a finite number" if kind is score_value else kind_name
         raise InputFileError(path, f"'{tok}' is not {kind_name}", line=lineno, field=name) from None
     return value
 
@@ -156,7 +168,9 @@ def read_kitti_labels(path: str | Path) -> BoxTable:
         dims.append([_parse(path, lineno, k, f[k], float) for k in ("height", "width", "length")])
         xyz.append([_parse(path, lineno, k, f[k], float) for k in ("x", "y", "z")])
         ry.append(_parse(path, lineno, "rotation_y", f["rotation_y"], float))
-        scores.append(_parse(path, lineno, "score", tok[17], float) if len(tok) == 18 else np.nan)
+        scores.append(
+            _parse(path, lineno, "score", tok[17], score_value) if len(tok) == 18 else np.nan
+        )
     xyz_a = np.asarray(xyz, dtype=float).reshape(-1, 3)
     return BoxTable.build(
         frames,
@@ -184,7 +198,7 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
     for lineno, line in numbered_lines(path, "PointRCNN detection file"):
         f = _comma_fields(path, lineno, line, POINTRCNN_FIELDS)
         frame = _index(path, lineno, "frame", f["frame"])
-        score = _parse(path, lineno, "score", f["score"], float)
+        score = _parse(path, lineno, "score", f["score"], score_value)
         box = _box(path, lineno, ("x1", "y1", "x2", "y2"), [f[k] for k in ("x1", "y1", "x2", "y2")])
         dim = [_parse(path, lineno, k, f[k], float) for k in ("h", "w", "l")]
         z = _parse(path, lineno, "z", f["z"], float)
@@ -219,7 +233,7 @@ def read_rrc(path: str | Path, min_score: float | None = None) -> BoxTable:
         f = _comma_fields(path, lineno, line, RRC_FIELDS)
         frame = _index(path, lineno, "frame", f["frame"])
         box = _box(path, lineno, RRC_FIELDS[1:5], [f[k] for k in RRC_FIELDS[1:5]])
-        score = _parse(path, lineno, "score", f["score"], float)
+        score = _parse(path, lineno, "score", f["score"], score_value)
         if min_score is not None and score < min_score:
             continue
         frames.append(frame)
@@ -282,7 +296,7 @@ def read_box_csv(path: str | Path) -> BoxTable:
         tid = (row.get("track_id") or "").strip()
         tids.append(_index(path, lineno, "track_id", tid, NO_TRACK) if tid else NO_TRACK)
         sc = (row.get("score") or "").strip()
-        scores.append(_parse(path, lineno, "score", sc, float) if sc else np.nan)
+        scores.append(_parse(path, lineno, "score", sc, score_value) if sc else np.nan)
         classes.append(sys.intern((row.get("class") or "").strip() or "Car"))
         if has_truth:
             truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
