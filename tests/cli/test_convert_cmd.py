@@ -73,3 +73,18 @@ def test_target_that_is_the_source_is_refused(
     (tmp_path / "link.csv").symlink_to(src)
     assert main(["convert", str(src), str(tmp_path / "link.csv")]) == 2
     assert src.read_text() == CSV
+
+
+def test_a_json_target_is_coco_and_json_is_coco_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`convert boxes.csv out.json` wrote a CSV into the .json file (the default was CSV)."""
+    src = tmp_path / "boxes.csv"
+    src.write_text(CSV)
+    out = tmp_path / "out.json"
+    assert main(["convert", str(src), str(out)]) == 0
+    assert json.loads(out.read_text())[0]["bbox"] == [100, 200, 200, 60]
+    for fmt, name in (("csv", "x.json"), ("mot", "x.json"), ("coco", "x.csv")):
+        assert main(["convert", str(src), str(tmp_path / name), "--to", fmt]) == 2
+        assert "JSON is COCO's" in capsys.readouterr().err
+        assert not (tmp_path / name).exists()

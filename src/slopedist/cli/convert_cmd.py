@@ -7,7 +7,13 @@ from pathlib import Path
 import click
 
 from slopedist.cli.options import parse_size
-from slopedist.detections.convert import WRITABLE, BoxFileOptions, BoxFormat, convert_boxes
+from slopedist.detections.convert import (
+    WRITABLE,
+    BoxFileOptions,
+    BoxFormat,
+    convert_boxes,
+    target_format_of,
+)
 from slopedist.io.outputs import check_outputs_spare_inputs
 
 
@@ -25,10 +31,10 @@ from slopedist.io.outputs import check_outputs_spare_inputs
 @click.option(
     "--to",
     "target_format",
-    type=click.Choice([f.value for f in WRITABLE]),
-    default=BoxFormat.CSV.value,
+    type=click.Choice([BoxFormat.AUTO.value, *(f.value for f in WRITABLE)]),
+    default=BoxFormat.AUTO.value,
     show_default=True,
-    help="Layout of TARGET (YOLO: a folder).",
+    help="Layout of TARGET (auto: COCO for a .json file, else slopedist CSV; YOLO: a folder).",
 )
 @click.option("--image-size", help="WIDTHxHEIGHT of the frames, pixels (YOLO in or out).")
 @click.option(
@@ -53,9 +59,10 @@ def convert(
     min_score: float | None,
 ) -> None:
     """Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, YOLO
-    folder) into TARGET (slopedist CSV by default)."""
+    folder) into TARGET (in the layout its suffix names, or --to)."""
     check_outputs_spare_inputs([target], [source, coco_images])
     options = BoxFileOptions(parse_size(image_size), coco_images, frame_base, min_score)
-    n_read, n_left = convert_boxes(source, target, source_format, target_format, options)
-    note = f", {n_left} left out (class not in the '{target_format}' class list)" if n_left else ""
+    layout = target_format_of(target, target_format).value
+    n_read, n_left = convert_boxes(source, target, source_format, layout, options)
+    note = f", {n_left} left out (class not in the '{layout}' class list)" if n_left else ""
     click.echo(f"{n_read} boxes from {source} written to {target}{note}", err=True)

@@ -43,6 +43,27 @@ WRITABLE = (BoxFormat.CSV, BoxFormat.MOT, BoxFormat.COCO, BoxFormat.YOLO)
 """Layouts :func:`write_boxes` writes."""
 
 
+def target_format_of(target: str | Path, fmt: BoxFormat | str = BoxFormat.AUTO) -> BoxFormat:
+    """The layout to write ``target`` in: ``fmt`` when given, else COCO for a ``.json`` file
+    and the slopedist CSV for any other.
+
+    Raises:
+        ConfigurationError: ``fmt`` and the suffix disagree about JSON (COCO to a file that is
+            not ``.json``, another layout to ``.json``): the file would not read back as what
+            its name says.
+    """
+    kind, is_json = BoxFormat(fmt), Path(target).suffix.lower() == ".json"
+    if kind is BoxFormat.AUTO:
+        return BoxFormat.COCO if is_json else BoxFormat.CSV
+    if is_json != (kind is BoxFormat.COCO):
+        suffix = Path(target).suffix or "suffix-less"
+        raise ConfigurationError(
+            f"{target}: a {suffix} target for the '{kind.value}' layout; JSON is COCO's: name "
+            "the file after its layout, or leave --to out"
+        )
+    return kind
+
+
 @dataclass(frozen=True)
 class BoxFileOptions:
     """What some layouts need besides the file.
@@ -147,14 +168,13 @@ def convert_boxes(
     source: str | Path,
     target: str | Path,
     source_format: BoxFormat | str = BoxFormat.AUTO,
-    target_format: BoxFormat | str = BoxFormat.CSV,
+    target_format: BoxFormat | str = BoxFormat.AUTO,
     options: BoxFileOptions | None = None,
 ) -> tuple[int, int]:
-    """Read ``source`` and write it to ``target``; returns (boxes read, boxes left out)."""
-    if (
-        BoxFormat(target_format) is BoxFormat.YOLO
-        and (options or BoxFileOptions()).image_size is None
-    ):
+    """Read ``source`` and write it to ``target`` (in ``target_format``, or the layout its
+    suffix names: :func:`target_format_of`); returns (boxes read, boxes left out)."""
+    target_format = target_format_of(target, target_format)
+    if target_format is BoxFormat.YOLO and (options or BoxFileOptions()).image_size is None:
         raise ConfigurationError("YOLO label files are normalised: give the image size")
     table = read_boxes(source, source_format, options)
     return len(table), write_boxes(table, target, target_format, options)
