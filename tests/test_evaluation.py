@@ -24,7 +24,7 @@ from slopedist.evaluation import (
     pool_methods,
     uncertainty_metrics,
 )
-from slopedist.score_tables import uncertainty_table
+from slopedist.score_tables import rmse_table, uncertainty_table
 
 
 def test_metrics_hand_computed() -> None:
@@ -169,3 +169,22 @@ def test_sigma_is_pooled_only_when_every_set_has_one() -> None:
     assert table is not None and [r[0] for r in table.rows] == ["x"]
     assert table.rows[0][1:] == [1, 1.0, 1.0, 1.0, 0.5]
     assert uncertainty_table(pool_methods({"a": {"y": without}}, ["y"])) is None
+
+
+def test_rmse_rows_over_different_targets_mark_no_best() -> None:
+    """`ours` withheld two boxes of sequence b that `flat` scored: its lower RMSE there is over
+    fewer targets, so that row (and the overall one) marks no best, and a note says why."""
+
+    def summary(n: int, rmse: float) -> dict[str, float]:
+        return {"n": n, "rmse": rmse}
+
+    summaries = {
+        "a": {"flat": summary(10, 3.0), "ours": summary(10, 1.0)},
+        "b": {"flat": summary(12, 4.0), "ours": summary(10, 2.0)},
+    }
+    overall = {"flat": summary(22, 3.6), "ours": summary(20, 1.6)}
+    pooled = {"flat": ["a", "b"], "ours": ["a", "b"]}
+    table = rmse_table(PooledScores(["flat", "ours"], ["a", "b"], summaries, overall, pooled))
+    assert [r[:2] for r in table.rows] == [["a", 10], ["b", 12], ["overall", 22]]
+    assert [row[2:] for row in table.bold] == [[False, True], [False, False], [False, False]]
+    assert "different numbers of targets in b, overall" in table.note

@@ -68,13 +68,19 @@ def rmse_table(
 ) -> Table:
     """RMSE (m) per sequence × method, then the ``overall`` row (each method pooled over its
     own sequences) and, when those differ, the ``common`` row; best per row in bold (not on
-    an ``overall`` row pooled over different sequences). ``n`` = most targets scored."""
+    an ``overall`` row pooled over different sequences, nor on a row whose methods scored
+    different numbers of targets: their RMSEs are over different targets, which a note says).
+    ``n`` = most targets scored."""
     methods = scores.methods
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
+    uneven: list[str] = []
 
     def add(label: str, summaries: Mapping[str, Mapping[str, Any]], compare: bool) -> None:
         vals = [float(summaries[m]["rmse"]) for m in methods]
+        if len({int(summaries[m]["n"]) for m in methods}) > 1:
+            uneven.append(label)
+            compare = False
         rows.append([label, _max_n(summaries, methods), *vals])
         bold.append([False, False, *(best_marks(vals) if compare else [False] * len(vals))])
 
@@ -91,6 +97,13 @@ def rmse_table(
         )
     else:
         notes.append("overall: pooled over all targets of " + compact_names(scores.sequences) + ".")
+    if uneven:
+        notes.append(
+            "the methods scored different numbers of targets in "
+            + compact_names(uneven)
+            + " (an upper bound or a withheld distance is not scored): those RMSEs are over "
+            "different targets, none marked best."
+        )
     headers = [row_label, "n", *methods]
     return Table(key, title, headers, rows, bold, "\n".join(notes), {1: "d"})
 
