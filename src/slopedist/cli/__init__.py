@@ -95,7 +95,7 @@ COMMANDS: dict[str, _Lazy] = {
         "convert_cmd",
         "convert",
         "Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, "
-        "YOLO folder) into TARGET (slopedist CSV by default).",
+        "YOLO folder) into TARGET (COCO if .json, else slopedist CSV; or --to).",
     ),
     "camera": _Lazy(
         "camera_cmd",

@@ -59,7 +59,7 @@ def convert(
     min_score: float | None,
 ) -> None:
     """Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, YOLO
-    folder) into TARGET (in the layout its suffix names, or --to)."""
+    folder) into TARGET (COCO if .json, else slopedist CSV; or --to)."""
     check_outputs_spare_inputs([target], [source, coco_images])
     options = BoxFileOptions(parse_size(image_size), coco_images, frame_base, min_score)
     layout = target_format_of(target, target_format).value

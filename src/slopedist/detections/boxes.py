@@ -368,3 +368,17 @@ def concat_boxes(parts: list[BoxTable], like: BoxTable | None = None) -> BoxTabl
         np.concatenate([p.cls for p in parts]),
         {k: np.concatenate([p.extra[k] for p in parts]) for k in keys},
     )
+
+
+FRAME_BOX_COLUMN = "frame_box"
+"""Extra column of a :class:`BoxTable` whose boxes were mapped into an ideal camera (lens
+distortion, ``fx ≠ fy`` taken out: :meth:`slopedist.io.intrinsics.Intrinsics.rectify_table`):
+the boxes as they were, ``(N, 4)`` pixels of the frame."""
+
+
+def frame_pixel_boxes(table: BoxTable) -> NDArray[np.float64]:
+    """``(N, 4)`` boxes of ``table`` in the frame's own pixels: :data:`FRAME_BOX_COLUMN` when
+    they were mapped into an ideal camera, else the boxes themselves. What the image border
+    cuts is judged here: a mapped box's edges move by the lens model, in or out of the image."""
+    original = table.extra.get(FRAME_BOX_COLUMN)
+    return table.boxes if original is None else np.asarray(original, dtype=float)

@@ -28,6 +28,7 @@ from slopedist.detections.boxes import (
     border_cuts,
     box_problems,
     cut_labels,
+    frame_pixel_boxes,
     vehicle_mask,
 )
 from slopedist.errors import ConfigurationError
@@ -288,7 +289,8 @@ def bottom_cut_is_upper_bound(
     """The ground-contact rule: an ``ok`` box cut by the bottom of the image becomes
     ``upper_bound`` with reason ``cut_bottom``, its distance kept (eq. 1 reads the lowest
     visible row, above the true contact row, so ``f·h/(u − v)`` is at least the true
-    distance). Side and top cuts leave the contact row in view: they stay ``ok``."""
+    distance). Side and top cuts leave the contact row in view: they stay ``ok``. ``boxes``:
+    in the frame's own pixels (:func:`~slopedist.detections.boxes.frame_pixel_boxes`)."""
     bottom = border_cuts(boxes, image_size(camera))[:, 3]
     rows = bottom & (est.status == EstimateStatus.OK.value)
     est.set_state(rows, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
@@ -321,7 +323,7 @@ def settle_states(
     bad = problems != ""
     est.distance_m = np.array(est.distance_m, dtype=float)  # the method's arrays stay its own
     est.reason, est.status = est.reason.copy(), est.status.copy()
-    est.cut = cut_labels(border_cuts(boxes.boxes, size))
+    est.cut = cut_labels(border_cuts(frame_pixel_boxes(boxes), size))
     est.cut[bad] = ""
     est.status[bad] = EstimateStatus.MISSING.value
     est.reason[bad] = problems[bad]
@@ -329,7 +331,7 @@ def settle_states(
     other = ~bad & ~vehicle_mask(boxes.cls, vehicle_classes)
     est.set_state(other, EstimateStatus.MISSING, MissingReason.NOT_A_VEHICLE)
     if bottom_cut_bound:
-        bottom_cut_is_upper_bound(est, boxes.boxes, camera)
+        bottom_cut_is_upper_bound(est, frame_pixel_boxes(boxes), camera)
     d = est.distance_m
     with np.errstate(invalid="ignore"):
         unfounded = (est.status != EstimateStatus.MISSING.value) & ~(np.isfinite(d) & (d > 0))

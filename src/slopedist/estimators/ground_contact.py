@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
+from slopedist.detections.boxes import frame_pixel_boxes
 from slopedist.estimators.base import (
     MIN_CONTACT_GAP_PX,
     Estimator,
@@ -39,6 +40,7 @@ def ground_contact_estimates(
     theta_adj_rad: NDArray[np.float64],
     boxes: NDArray[np.float64],
     prior_reasons: NDArray[np.object_],
+    frame_boxes: NDArray[np.float64] | None = None,
 ) -> FrameEstimates:
     """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians);
     a box bottom less than :data:`~slopedist.estimators.base.MIN_CONTACT_GAP_PX` below the
@@ -46,7 +48,9 @@ def ground_contact_estimates(
 
     ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ. A box cut by
     the bottom of the image (``camera``'s size) is an ``upper_bound``
-    (:func:`~slopedist.estimators.base.bottom_cut_is_upper_bound`).
+    (:func:`~slopedist.estimators.base.bottom_cut_is_upper_bound`), judged on ``frame_boxes``,
+    the boxes in the frame's own pixels when ``boxes`` were mapped into an ideal camera
+    (:func:`~slopedist.detections.boxes.frame_pixel_boxes`; None: ``boxes``).
     """
     v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
     delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)
@@ -67,7 +71,7 @@ def ground_contact_estimates(
         reason=reasons,
         reference=np.full(n, ReferencePoint.CONTACT.value, dtype=object),
     )
-    bottom_cut_is_upper_bound(est, boxes, camera)
+    bottom_cut_is_upper_bound(est, boxes if frame_boxes is None else frame_boxes, camera)
     return est
 
 
@@ -87,7 +91,12 @@ class FlatGroundEstimator(Estimator):
         theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
         theta = np.full(len(boxes), theta_rest)
         return ground_contact_estimates(
-            self.camera, theta, theta, boxes, unusable_box_reasons(frame, False, self.camera)
+            self.camera,
+            theta,
+            theta,
+            boxes,
+            unusable_box_reasons(frame, False, self.camera),
+            frame_pixel_boxes(frame.boxes),
         )
 
 
@@ -101,7 +110,12 @@ class EgoGradientEstimator(Estimator):
         boxes = frame.boxes.boxes
         theta = np.full(len(boxes), frame.theta_rad)
         return ground_contact_estimates(
-            self.camera, theta, theta, boxes, unusable_box_reasons(frame, True, self.camera)
+            self.camera,
+            theta,
+            theta,
+            boxes,
+            unusable_box_reasons(frame, True, self.camera),
+            frame_pixel_boxes(frame.boxes),
         )
 
 
@@ -122,5 +136,10 @@ class PaperEstimator(Estimator):
         delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v)
         theta_adj = geo.adjusted_gradient(theta, delta_y, self.adjustment)
         return ground_contact_estimates(
-            self.camera, theta, theta_adj, boxes, unusable_box_reasons(frame, True, self.camera)
+            self.camera,
+            theta,
+            theta_adj,
+            boxes,
+            unusable_box_reasons(frame, True, self.camera),
+            frame_pixel_boxes(frame.boxes),
         )

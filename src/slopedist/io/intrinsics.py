@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
-from slopedist.detections.boxes import BoxTable
+from slopedist.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
 from slopedist.detections.onnx_detector import DetectionTiming, Detector
 from slopedist.errors import ConfigurationError
 
@@ -42,10 +42,6 @@ any other last row (a transposed K has ``cx cy 1``) is refused, never ignored.""
 
 MAX_ROUND_TRIP_PX = 0.01
 """A mapped point must distort back to within this many pixels of the input point."""
-
-FRAME_BOX_COLUMN = "frame_box"
-"""Extra column of a mapped box table: each box as it was in the frame's own pixels ``(N, 4)``
-(what overlays draw on the distorted frames and the odometry masks out of them)."""
 
 
 @dataclass(frozen=True)
@@ -216,10 +212,10 @@ def in_frame_pixels(table: BoxTable) -> BoxTable:
     """``table`` with its boxes in the frame's own pixels: the boxes
     :meth:`Intrinsics.rectify_table` mapped into the ideal camera back as they were (column
     :data:`FRAME_BOX_COLUMN`), else ``table`` itself (its boxes were never mapped)."""
-    original = table.extra.get(FRAME_BOX_COLUMN)
-    if original is None:
+    if FRAME_BOX_COLUMN not in table.extra:
         return table
-    return BoxTable(table.frame, original, table.track_id, table.score, table.cls, table.extra)
+    boxes = frame_pixel_boxes(table)
+    return BoxTable(table.frame, boxes, table.track_id, table.score, table.cls, table.extra)
 
 
 class RectifiedDetector:

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
-from slopedist.detections.boxes import box_problems
+from slopedist.detections.boxes import box_problems, frame_pixel_boxes
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
     EstimateStatus,
@@ -233,7 +233,8 @@ class OursEstimator(Estimator):
         values: dict[str, FloatArray] = {}
         edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            edges = self._border.cut_edges(boxes if all_usable else boxes[good])
+            seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
+            edges = self._border.cut_edges(seen if all_usable else seen[good])
             box_values = self._estimate_boxes(
                 frame, good, all_usable, theta_f, jitter, calib, edges
             )

@@ -1,0 +1,53 @@
+"""The image border cuts boxes in the frame's own pixels, also when a lens model maps them.
+
+Camera f = 720 px, c = (620, 180), image 1240 × 375, radial distortion k1 = ±0.3: the boxes are
+mapped into the ideal camera (:meth:`Intrinsics.rectify_table`), which moves their edges by
+many pixels, in (pincushion) or out (barrel) of the image. Whether an edge is cut is a fact of
+the frame: it must not change with the lens model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slopedist.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
+from slopedist.estimators import make_estimator
+from slopedist.io.intrinsics import Intrinsics
+from slopedist.pipeline import FrameStep
+
+W, H = 1240, 375
+K = np.array([[720.0, 0.0, 620.0], [0.0, 720.0, 180.0], [0.0, 0.0, 1.0]])
+BOXES = [
+    [700.0, 250.0, 900.0, 374.0],  # a near car cut by the bottom of the image
+    [560.0, 300.0, 700.0, 369.0],  # 5 px above the bottom: not cut
+    [600.0, 180.0, 640.0, 215.0],  # a car in the middle of the image
+]
+
+
+def states(method: str, k1: float) -> tuple[list[str], list[str]]:
+    lens = Intrinsics(K, np.array([k1, 0.0, 0.0, 0.0]), image_size=(W, H))
+    table = lens.rectify_table(BoxTable.build(np.zeros(len(BOXES)), BOXES))
+    step = FrameStep(make_estimator(method, lens.camera(1.65)))
+    est = step.estimate(0, 0.0, 0.0, np.eye(3), table)
+    return est.status.tolist(), est.cut.tolist()
+
+
+@pytest.mark.parametrize("method", ["flat", "paper", "ours"])
+@pytest.mark.parametrize("k1", [-0.1, 0.3])
+def test_the_cut_states_do_not_change_with_the_lens(method: str, k1: float) -> None:
+    status, cut = states(method, k1)
+    assert (status, cut) == states(method, 0.0)
+    assert cut == ["bottom", "", ""]
+    assert status[0] == ("ok" if method == "ours" else "upper_bound")  # ours: the width cue
+    assert status[1:] == ["ok", "ok"]
+
+
+def test_frame_pixel_boxes_are_the_boxes_as_given() -> None:
+    lens = Intrinsics(K, np.array([0.3, 0.0, 0.0, 0.0]), image_size=(W, H))
+    given = BoxTable.build(np.zeros(len(BOXES)), BOXES)
+    mapped = lens.rectify_table(given)
+    assert FRAME_BOX_COLUMN in mapped.extra
+    assert not np.allclose(mapped.boxes, given.boxes)
+    np.testing.assert_array_equal(frame_pixel_boxes(mapped), given.boxes)
+    np.testing.assert_array_equal(frame_pixel_boxes(given), given.boxes)
