@@ -153,3 +153,23 @@ def test_real_kitti_calibration(kitti_tracking_dir: Path) -> None:
     path = next(iter(sorted(kitti_tracking_dir.rglob("calib/*.txt"))))
     cal = read_calibration(path)
     assert cal.camera.f == pytest.approx(Camera.from_kitti_calib(path).f)
+
+
+@pytest.mark.parametrize(
+    ("k1", "refused"),
+    [(1e6, True), (1000.0, True), (0.3, False), (-0.1, False), (5.0, False), (-28.0, False)],
+)
+def test_a_lens_model_that_moves_the_image_edge_absurdly_is_refused(
+    tmp_path: Path, k1: float, refused: bool
+) -> None:
+    """k1 = 1000 moves the left edge of a 1242 px image (609.6 px from the principal point)
+    to 66 px from it (0.108×): a coefficient in other units, not a lens. Real radial terms
+    pass; one whose model folds inside the image (k1 = −28) leaves those points to the boxes'
+    ``non_finite_box`` state."""
+    path = tmp_path / "k.txt"
+    path.write_text(f"721.5 0 609.6\n0 721.5 172.9\n0 0 1\n{k1} 0 0 0\n")
+    if refused:
+        with pytest.raises(InputFileError, match=r"k.txt, field 'distortion': .* not a lens"):
+            read_calibration(path)
+    else:
+        assert read_calibration(path).camera.f == 721.5

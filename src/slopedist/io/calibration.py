@@ -72,7 +72,9 @@ def read_calibration(
     Raises:
         ConfigurationError: ``image_size`` differs from the calibration's own, or the mount
             (height, angle) is out of range.
-        InputFileError: the file's camera is implausible (focal length, principal point).
+        InputFileError: the file's camera is implausible (focal length, principal point, a
+            lens model that moves the image's edges by more than
+            :data:`~slopedist.io.intrinsics.MAX_LENS_SCALE`).
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     intrinsics = intrinsics.with_image_size(image_size)
@@ -81,6 +83,9 @@ def read_calibration(
             intrinsics.camera()  # the file's own part: focal length, principal point
         except ConfigurationError as exc:
             raise InputFileError(path, str(exc)) from None
+        _checked(Path(path), lambda: _lens_checked(intrinsics), "distortion")
+    else:
+        intrinsics.check_lens_scale()
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
 
 
@@ -95,6 +100,11 @@ def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     if text.lstrip()[:1] in ("%", "{", "<") or re.search(r"^\s*\w+\s*:", text, re.MULTILINE):
         return read_filestorage(path)
     return read_k_text(path, text)
+
+
+def _lens_checked(intrinsics: Intrinsics) -> Intrinsics:
+    intrinsics.check_lens_scale()
+    return intrinsics
 
 
 def _first_line_count(text: str) -> int:

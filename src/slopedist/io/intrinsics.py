@@ -43,6 +43,13 @@ any other last row (a transposed K has ``cx cy 1``) is refused, never ignored.""
 MAX_ROUND_TRIP_PX = 0.01
 """A mapped point must distort back to within this many pixels of the input point."""
 
+MAX_LENS_SCALE = 8.0
+"""Largest factor by which a (non-fisheye) lens model may move a point of the image's edge
+away from or towards the principal point when mapped into the ideal camera. Real lenses stay
+well within it (strong barrel distortion, k1 = −0.35, moves the edge of a 90° view by less than
+1.5×); a coefficient typed a thousand times too large moves it by orders of magnitude, and the
+boxes with it."""
+
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -112,6 +119,33 @@ class Intrinsics:
                 f"not {width}×{height} px as given"
             )
         return replace(self, image_size=(width, height))
+
+    def check_lens_scale(self) -> None:
+        """Refuse a (non-fisheye) lens model that moves the midpoints of the image's edges by
+        more than :data:`MAX_LENS_SCALE` radially (the image twice the principal point when its
+        size is unknown; points the model cannot map are left to the boxes' own
+        ``non_finite_box`` state).
+
+        Raises:
+            ConfigurationError: naming the point, where it goes and the factor.
+        """
+        if self.fisheye or self.is_ideal:
+            return
+        cx, cy = self.K[0, 2], self.K[1, 2]
+        width, height = self.image_size or (2 * cx + 1, 2 * cy + 1)
+        edges = np.array([[0.0, cy], [width - 1.0, cy], [cx, 0.0], [cx, height - 1.0]])
+        mapped = self.rectify_points(edges)
+        centre = np.array([cx, cy])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.linalg.norm(mapped - centre, axis=1) / np.linalg.norm(edges - centre, axis=1)
+        for point, to, k in zip(edges, mapped, scale):
+            if np.isfinite(k) and not 1 / MAX_LENS_SCALE <= k <= MAX_LENS_SCALE:
+                raise ConfigurationError(
+                    f"the distortion coefficients {self.dist.tolist()} move the image's edge "
+                    f"point ({point[0]:g}, {point[1]:g}) px to ({to[0]:.4g}, {to[1]:.4g}) px, "
+                    f"{k:.3g}× its distance from the principal point: not a lens (a "
+                    "coefficient in other units?)"
+                )
 
     @property
     def ideal_K(self) -> NDArray[np.float64]:
