@@ -70,6 +70,18 @@ def overlay_path(out_dir: Path, fmt: str | OverlayFormat) -> Path:
     return out_dir / ("overlay.mp4" if OverlayFormat(fmt) is OverlayFormat.MP4 else "overlay")
 
 
+def earlier_outputs(out_dir: Path, written: Iterable[str | Path | None]) -> list[Path]:
+    """The optional outputs in ``out_dir`` that a run did not write (``written``: its overlay
+    and exports, as in :class:`RunResult`): an overlay video or folder, ``run.mcap``,
+    ``trajectory.tum`` and snapshot JPEGs left by an earlier run into the same folder, which
+    no longer match its records."""
+    kept = {Path(p) for p in written if p is not None}
+    candidates = [overlay_path(out_dir, f) for f in OverlayFormat]
+    candidates += [out_dir / MCAP_NAME, out_dir / TRAJECTORY_NAME]
+    candidates += sorted(out_dir.glob("snapshot_[0-9]*.jpg"))
+    return [p for p in candidates if p.exists() and p not in kept]
+
+
 def overlay_fps(fps: float | None, source: object) -> float:
     """Frame rate of an MP4 overlay: ``fps`` (``--fps``), else a video's own rate, else 10."""
     return fps or float(getattr(source, "container_fps", 0.0) or 0.0) or 10.0
