@@ -525,7 +525,7 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
-            "in FRAMES and were not used"
+            "in FRAMES (or unreadable, out of time order) and were not used"
         )
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")
