@@ -44,6 +44,13 @@ def _max_n(summaries: Mapping[str, Mapping[str, Any]], methods: list[str]) -> in
     return max((int(summaries[m]["n"]) for m in methods), default=0)
 
 
+def same_targets(summaries: Mapping[str, Mapping[str, Any]], methods: list[str]) -> bool:
+    """Whether the methods that have a result in ``summaries`` were scored against the same
+    number of true targets (``n_gt``): runs over other frames or other boxes of a sequence
+    score other targets, and their errors are not compared."""
+    return len({summaries[m].get("n_gt") for m in methods if not summaries[m].get("missing")}) <= 1
+
+
 def _missing_notes(scores: PooledScores) -> list[str]:
     notes = []
     for m in scores.methods:
@@ -68,14 +75,20 @@ def rmse_table(
 ) -> Table:
     """RMSE (m) per sequence × method, then the ``overall`` row (each method pooled over its
     own sequences) and, when those differ, the ``common`` row; best per row in bold (not on
-    an ``overall`` row pooled over different sequences). ``n`` = most targets scored."""
+    an ``overall`` row pooled over different sequences, nor on a row whose methods were scored
+    against different targets: :func:`same_targets`). ``n`` = most targets scored."""
     methods = scores.methods
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
 
+    apart: list[str] = []
+
     def add(label: str, summaries: Mapping[str, Mapping[str, Any]], compare: bool) -> None:
         vals = [float(summaries[m]["rmse"]) for m in methods]
         rows.append([label, _max_n(summaries, methods), *vals])
+        if compare and not same_targets(summaries, methods):
+            compare = False
+            apart.append(label)
         bold.append([False, False, *(best_marks(vals) if compare else [False] * len(vals))])
 
     for s in scores.sequences:
@@ -91,6 +104,11 @@ def rmse_table(
         )
     else:
         notes.append("overall: pooled over all targets of " + compact_names(scores.sequences) + ".")
+    if apart:
+        notes.append(
+            f"{', '.join(apart)}: the methods were scored against different numbers of true "
+            "targets (runs over other frames or boxes): not compared."
+        )
     headers = [row_label, "n", *methods]
     return Table(key, title, headers, rows, bold, "\n".join(notes), {1: "d"})
 
@@ -105,7 +123,7 @@ def metrics_table(
 ) -> Table:
     """The extended metrics of ``scope`` (``{method: summary}``) per method, with the recall
     when the summaries have one and the time per frame when ``with_time``; best in bold when
-    ``compare`` (the methods were scored on the same targets)."""
+    ``compare`` (the methods ran on the same sequences) and :func:`same_targets`."""
     columns = list(METRIC_COLUMNS)
     if scores.methods and "recall" in scope[scores.methods[0]]:
         columns.append(RECALL_COLUMN)
@@ -116,6 +134,7 @@ def metrics_table(
         for m in scores.methods
     ]
     bold = [[False] * (len(columns) + 1) for _ in rows]
+    compare = compare and same_targets(scope, scores.methods)
     for j, (_, _, larger) in enumerate(columns, start=1):
         if larger is None or not compare:
             continue
@@ -131,7 +150,8 @@ def metrics_table(
 
 
 def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], note: str) -> Table:
-    """RMSE, AbsRel and δ<1.25 per ground-truth distance bin and method; best per bin in bold."""
+    """RMSE, AbsRel and δ<1.25 per ground-truth distance bin and method; best per bin in bold
+    (when the methods were scored against the same targets, :func:`same_targets`)."""
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
     for lo, hi in DISTANCE_BINS_M:
@@ -148,6 +168,10 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
             for m in scores.methods
         ]
         marks = [[False] * 6 for _ in block]
+        if not same_targets(scope, scores.methods):
+            rows += block
+            bold += marks
+            continue
         for j, larger in ((3, False), (4, False), (5, True)):
             for i, b in enumerate(best_marks([r[j] for r in block], larger)):
                 marks[i][j] = b
