@@ -6,7 +6,9 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -20,7 +22,7 @@ from slopedist.detections.writers import write_box_csv
 from slopedist.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
 from slopedist.io import prefetch
-from slopedist.io.frames import open_frames
+from slopedist.io.frames import Frame, FrameSource, FrameStatus, open_frames
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.odometry.base import OdometryResult, OdometryState
 from slopedist.run_config import SNAPSHOT_QUALITY, RunAbortedError, RunConfig
@@ -138,6 +140,52 @@ def test_missing_frame_is_logged_and_the_run_goes_on(tmp_path: Path) -> None:
     rows = read_csv(tmp_path / "out" / "records.csv")
     assert {r["reason"] for r in rows if r["frame"] == "4"} == {"no_rotation"}
     assert {r["status"] for r in rows if r["frame"] == "5"} == {"ok"}
+
+
+class RepeatedStampFrames:
+    """Frames of ``inner`` where frame ``at`` is what a drive log yields for a repeated header
+    stamp: unreadable, at the time of the frame before it."""
+
+    def __init__(self, inner: FrameSource, at: int) -> None:
+        self._inner, self._at = inner, at
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def __iter__(self) -> Iterator[Frame]:
+        last = 0.0
+        for frame in self._inner:
+            if frame.index == self._at:
+                frame = Frame(
+                    frame.index, last, None, FrameStatus.UNREADABLE, frame.source, "repeated"
+                )
+            last = frame.timestamp_s
+            yield frame
+
+
+def test_an_unreadable_frame_out_of_time_order_is_logged_and_the_run_goes_on(
+    tmp_path: Path,
+) -> None:
+    """A log's repeated stamp (or a video's) is an unreadable frame at a time that does not
+    follow the frame before: logged, its boxes not used, the frames after it run."""
+    n = 8
+    frames = RepeatedStampFrames(open_frames(make_frames(tmp_path / "f", n)), 4)
+    result = run_frames(
+        cast(FrameSource, frames),
+        boxes_every_frame(n),
+        ScriptedOdometry(),
+        make_estimator("paper", CAM),
+        RunConfig(tmp_path / "out", progress=False),
+    )
+    assert result.complete and result.frames == n
+    assert result.frame_status == {"ok": n - 1, "unreadable": 1}
+    assert result.boxes_without_frame == 2 and result.records == 2 * (n - 1)
+    log = read_csv(tmp_path / "out" / "frames.csv")
+    assert [r["frame_status"] for r in log][3:6] == ["ok", "unreadable", "ok"]
+    assert log[4]["detail"] == "repeated" and log[4]["boxes"] == "0"
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert {r["frame"] for r in rows} == {str(k) for k in range(n) if k != 4}
+    assert {r["status"] for r in rows if r["frame"] == "7"} == {"ok"}
 
 
 def test_crash_halfway_keeps_the_records_written_before(tmp_path: Path) -> None:

@@ -70,6 +70,18 @@ def overlay_path(out_dir: Path, fmt: str | OverlayFormat) -> Path:
     return out_dir / ("overlay.mp4" if OverlayFormat(fmt) is OverlayFormat.MP4 else "overlay")
 
 
+def earlier_outputs(out_dir: Path, written: Iterable[str | Path | None]) -> list[Path]:
+    """The optional outputs in ``out_dir`` that a run did not write (``written``: its overlay
+    and exports, as in :class:`RunResult`): an overlay video or folder, ``run.mcap``,
+    ``trajectory.tum`` and snapshot JPEGs left by an earlier run into the same folder, which
+    no longer match its records."""
+    kept = {Path(p) for p in written if p is not None}
+    candidates = [overlay_path(out_dir, f) for f in OverlayFormat]
+    candidates += [out_dir / MCAP_NAME, out_dir / TRAJECTORY_NAME]
+    candidates += sorted(out_dir.glob("snapshot_[0-9]*.jpg"))
+    return [p for p in candidates if p.exists() and p not in kept]
+
+
 def overlay_fps(fps: float | None, source: object) -> float:
     """Frame rate of an MP4 overlay: ``fps`` (``--fps``), else a video's own rate, else 10."""
     return fps or float(getattr(source, "container_fps", 0.0) or 0.0) or 10.0
@@ -156,7 +168,8 @@ class RunResult:
         records: per-target rows written; ``estimated``: rows with status ``ok``;
             ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
             of the image); ``not_vehicles``: rows of classes that are not vehicles.
-        boxes_without_frame: boxes whose frame index never came from the frame source.
+        boxes_without_frame: boxes whose frame index never came from the frame source, or
+            came as an unreadable frame whose time does not follow the frame before it.
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
         depth_ms_mean: mean time per depth map (read or inference), milliseconds.

@@ -210,6 +210,9 @@ class _RunLoop:
         self.by_frame = boxes.frame_lookup()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
+        self.last_time_s: float | None = None
+        """Time (s) of the last frame given to the frame step; a frame source's unreadable
+        frame of a stamp that does not increase comes at or before it."""
         self.segment = 0
         self.status_count: Counter[str] = Counter()
         self.odometry_count: Counter[str] = Counter()
@@ -277,14 +280,25 @@ class _RunLoop:
     def process(self, frame: Frame) -> None:
         """One frame: odometry, depth, the frame step, then every output."""
         k = frame.index
-        frame_boxes, detection_ms = self._boxes(frame)
         self.status_count[frame.status.value] += 1
+        late = self._out_of_time(frame)  # logged; its boxes are not used (boxes_without_frame)
+        frame_boxes, detection_ms = (self.no_boxes, math.nan) if late else self._boxes(frame)
         odo = self._odometry(frame, frame_boxes)
         depth_m, depth_ms = self._depth(frame, frame_boxes)
         t0 = time.perf_counter()
-        res = self.step.step(
-            k, frame.timestamp_s, odo.R_world_cam, frame_boxes, frame.image, depth_m, odo.segment
-        )
+        if late:
+            res = FrameResult(math.nan, FrameEstimates.empty())
+        else:
+            res = self.step.step(
+                k,
+                frame.timestamp_s,
+                odo.R_world_cam,
+                frame_boxes,
+                frame.image,
+                depth_m,
+                odo.segment,
+            )
+            self.last_time_s = frame.timestamp_s
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
         if self.held is None:
@@ -318,6 +332,13 @@ class _RunLoop:
         self._paint(frame, frame_boxes, res, odo.state)
         self._export(frame, frame_boxes, res, odo)
         self.result.frames += 1
+
+    def _out_of_time(self, frame: Frame) -> bool:
+        """Whether ``frame`` is an unreadable frame whose time (a repeated or out-of-order log
+        stamp or video timestamp) does not follow the last frame's: the frame step cannot take
+        it, and the run goes on with the next frame."""
+        last = self.last_time_s
+        return frame.image is None and last is not None and not frame.timestamp_s > last
 
     def _boxes(self, frame: Frame) -> tuple[BoxTable, float]:
         """The frame's boxes (from the box file, or the detector on its pixels) and the

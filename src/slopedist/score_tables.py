@@ -44,6 +44,15 @@ def _max_n(summaries: Mapping[str, Mapping[str, Any]], methods: list[str]) -> in
     return max((int(summaries[m]["n"]) for m in methods), default=0)
 
 
+def same_targets(summaries: Mapping[str, Mapping[str, Any]], methods: list[str]) -> bool:
+    """Whether the methods that have a result in ``summaries`` were scored against the same
+    number of true targets (``n_gt``) and scored as many (``n``): runs over other frames or
+    other boxes of a sequence score other targets, and a method that leaves some out (an upper
+    bound, a withheld distance) is scored over fewer; their errors are not compared."""
+    ran = [summaries[m] for m in methods if not summaries[m].get("missing")]
+    return len({(r.get("n_gt"), r.get("n")) for r in ran}) <= 1
+
+
 def _missing_notes(scores: PooledScores) -> list[str]:
     notes = []
     for m in scores.methods:
@@ -68,20 +77,20 @@ def rmse_table(
 ) -> Table:
     """RMSE (m) per sequence × method, then the ``overall`` row (each method pooled over its
     own sequences) and, when those differ, the ``common`` row; best per row in bold (not on
-    an ``overall`` row pooled over different sequences, nor on a row whose methods scored
-    different numbers of targets: their RMSEs are over different targets, which a note says).
-    ``n`` = most targets scored."""
+    an ``overall`` row pooled over different sequences, nor on a row whose methods were scored
+    over different targets: :func:`same_targets`; a note says so). ``n`` = most targets
+    scored."""
     methods = scores.methods
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
-    uneven: list[str] = []
+    apart: list[str] = []
 
     def add(label: str, summaries: Mapping[str, Mapping[str, Any]], compare: bool) -> None:
         vals = [float(summaries[m]["rmse"]) for m in methods]
-        if len({int(summaries[m]["n"]) for m in methods}) > 1:
-            uneven.append(label)
-            compare = False
         rows.append([label, _max_n(summaries, methods), *vals])
+        if compare and not same_targets(summaries, methods):
+            compare = False
+            apart.append(label)
         bold.append([False, False, *(best_marks(vals) if compare else [False] * len(vals))])
 
     for s in scores.sequences:
@@ -97,12 +106,11 @@ def rmse_table(
         )
     else:
         notes.append("overall: pooled over all targets of " + compact_names(scores.sequences) + ".")
-    if uneven:
+    if apart:
         notes.append(
-            "the methods scored different numbers of targets in "
-            + compact_names(uneven)
-            + " (an upper bound or a withheld distance is not scored): those RMSEs are over "
-            "different targets, none marked best."
+            f"{', '.join(apart)}: the methods were scored over different targets (runs over "
+            "other frames or boxes, or an upper bound or a withheld distance not scored): "
+            "not compared."
         )
     headers = [row_label, "n", *methods]
     return Table(key, title, headers, rows, bold, "\n".join(notes), {1: "d"})
@@ -118,7 +126,7 @@ def metrics_table(
 ) -> Table:
     """The extended metrics of ``scope`` (``{method: summary}``) per method, with the recall
     when the summaries have one and the time per frame when ``with_time``; best in bold when
-    ``compare`` (the methods were scored on the same targets)."""
+    ``compare`` (the methods ran on the same sequences) and :func:`same_targets`."""
     columns = list(METRIC_COLUMNS)
     if scores.methods and "recall" in scope[scores.methods[0]]:
         columns.append(RECALL_COLUMN)
@@ -129,6 +137,7 @@ def metrics_table(
         for m in scores.methods
     ]
     bold = [[False] * (len(columns) + 1) for _ in rows]
+    compare = compare and same_targets(scope, scores.methods)
     for j, (_, _, larger) in enumerate(columns, start=1):
         if larger is None or not compare:
             continue
@@ -144,7 +153,8 @@ def metrics_table(
 
 
 def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], note: str) -> Table:
-    """RMSE, AbsRel and δ<1.25 per ground-truth distance bin and method; best per bin in bold."""
+    """RMSE, AbsRel and δ<1.25 per ground-truth distance bin and method; best per bin in bold
+    (when the methods were scored against the same targets, :func:`same_targets`)."""
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
     for lo, hi in DISTANCE_BINS_M:
@@ -161,6 +171,10 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
             for m in scores.methods
         ]
         marks = [[False] * 6 for _ in block]
+        if not same_targets(scope, scores.methods):
+            rows += block
+            bold += marks
+            continue
         for j, larger in ((3, False), (4, False), (5, True)):
             for i, b in enumerate(best_marks([r[j] for r in block], larger)):
                 marks[i][j] = b

@@ -450,3 +450,19 @@ def test_the_embedded_ray_instance_gets_the_usable_cores(monkeypatch: pytest.Mon
         with engine.ray_session(workers, None):
             pass
         assert calls.pop()["num_cpus"] == cpus
+
+
+def test_an_output_folder_holding_a_drive_input_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out`` at the folder of the drives would replace each drive's folder (its frames,
+    calibration and boxes) by the drive's outputs: refused before anything runs."""
+    drives = tmp_path / "drives"
+    simulate("ego_crest", drives / "crest", frames=2)
+    before = sorted(p.name for p in (drives / "crest").iterdir())
+    capsys.readouterr()
+    assert main(["batch", str(drives), "--out", str(drives), "--quiet", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("slopedist: error: the output ") and "of drive 'crest'" in err
+    assert len(err.splitlines()) == 1
+    assert sorted(p.name for p in (drives / "crest").iterdir()) == before

@@ -10,6 +10,7 @@ import pytest
 from slopedist.batch.fleet import (
     SETTINGS_FIELDS,
     fleet_summary,
+    records_dataset,
     settings_rows,
     write_fleet_summary,
     write_partition,
@@ -122,6 +123,16 @@ def test_parquet_partition_round_trip(batch_out: Path) -> None:
     assert table.column("reason").to_pylist()[2] == "below_horizon"
     stamp = path.stat().st_mtime_ns
     assert write_partition(batch_out, "d1", refresh=False).stat().st_mtime_ns == stamp
+
+
+def test_the_records_dataset_keeps_drive_names_that_look_like_numbers(tmp_path: Path) -> None:
+    """Drives ``007`` and ``2011`` read back by their names, not as the numbers 7 and 2011."""
+    pytest.importorskip("pyarrow.parquet", reason="pyarrow is not installed")
+    for name in ("007", "2011", "d1"):
+        drive(tmp_path, name, [(0, 1, "m", 11.0, "ok", "", 10.0)])
+        write_partition(tmp_path, name)
+    table = records_dataset(tmp_path).to_table()
+    assert sorted(table.column("drive").to_pylist()) == ["007", "2011", "d1"]
 
 
 @pytest.mark.parametrize("value", ["1e308", "inf", "-inf"])

@@ -50,6 +50,8 @@ def test_csv_manifest_paths_are_relative_to_the_manifest(tmp_path: Path) -> None
     [
         ("drive,frames,calib\n", 1, "boxes"),
         ("drive,frames,calib,boxes,speed\n", 1, "speed"),
+        # a column named twice: the last cell would win silently
+        ("drive,frames,calib,boxes,method,method\na,f,c,b,flat,paper\n", 1, "method"),
         ("drive,frames,calib,boxes\na,f,c,\n", 2, "boxes"),
         ("drive,frames,calib,boxes,detector\na,f,c,b,d.onnx\n", 2, "boxes"),
         ("drive,frames,calib,boxes,method\na,f,c,b,flat\nb,f,c,b,magic\n", 3, "method"),

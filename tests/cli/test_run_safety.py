@@ -128,6 +128,35 @@ def test_a_rerun_replaces_every_file_of_the_previous_run(tmp_path: Path) -> None
     ]
 
 
+def test_a_rerun_removes_the_overlay_exports_and_snapshots_it_does_not_write(
+    tmp_path: Path,
+) -> None:
+    """An earlier run's overlay, exports and snapshots would no longer match the records: a
+    rerun into the same folder without them removes them, but never an input of its own."""
+    args = make_inputs(tmp_path, 4)
+    out = tmp_path / "out"
+    first = ["--overlay", "--overlay-format", "png", "--export", "tum", "--export", "mcap"]
+    assert (
+        main(["run", *args, "--out", str(out), *first, "--snapshot", "1", "--snapshot", "2"]) == 0
+    )
+    assert {"overlay", "trajectory.tum", "run.mcap", "snapshot_000001.jpg"} <= {
+        p.name for p in out.iterdir()
+    }
+    assert main(["run", *args, "--out", str(out), "--method", "flat", "--snapshot", "2"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "frames.csv",
+        "records.csv",
+        "run.json",
+        "snapshot_000002.jpg",
+        "tracks.csv",
+    ]
+    shutil.copy(tmp_path / "calib.txt", out / "trajectory.tum")  # an input named like an export
+    calib = ["--calib", str(out / "trajectory.tum")]
+    assert main(["run", *args, *calib, "--out", str(out), "--method", "flat"]) == 0
+    assert (out / "trajectory.tum").read_text() == CALIB
+    assert not (out / "snapshot_000002.jpg").exists()
+
+
 def test_outputs_that_would_overwrite_an_input_are_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

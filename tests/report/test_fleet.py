@@ -9,11 +9,13 @@ from pathlib import Path
 
 import pytest
 
+from slopedist.batch.fleet import fleet_summary
 from slopedist.batch.status import STATUS_FIELDS
 from slopedist.cli import main
 from slopedist.errors import InputFileError, MissingInputError
 from slopedist.io.tables import write_csv, write_json
 from slopedist.report import ReportOptions, SourceKind, detect_source, report_data, write_report
+from slopedist.report.fleet import accuracy_tables
 from slopedist.tracks import TRACK_FIELDS
 
 RECORD_FIELDS = ("frame", "timestamp_s", "track_id", "method", "distance_m", "status", "reason")
@@ -140,3 +142,20 @@ def test_a_status_table_without_its_columns(tmp_path: Path) -> None:
     (tmp_path / "status.csv").write_text("name\nc\n")
     with pytest.raises(InputFileError, match=r"status.csv, line 1: missing column 'drive'"):
         report_data(tmp_path, ReportOptions())
+
+
+def test_pooled_rmse_of_methods_on_different_drives_is_not_compared(tmp_path: Path) -> None:
+    """Each method pooled over its own drives scores other targets: no best in bold (as
+    Table 1's overall row); on the same drives the best is bold."""
+    out = tmp_path / "out"
+    drive(out, "a", [(0, 0.0, 1, "flat", 11.0, "ok", "")], [], truth=[10.0], method="flat")
+    drive(out, "b", [(0, 0.0, 1, "paper", 40.0, "ok", "")], [], truth=[30.0], method="paper")
+    (pooled,) = [t for t in accuracy_tables(fleet_summary(out)) if t.key == "fleet_pooled"]
+    assert [r[0] for r in pooled.rows] == ["flat", "paper"]
+    assert not any(any(row) for row in pooled.bold)
+    assert "different drives: not compared" in pooled.note
+    both = [(0, 0.0, 1, "flat", 11.0, "ok", ""), (0, 0.0, 1, "paper", 12.0, "ok", "")]
+    drive(out / "same", "c", both, [], truth=[10.0, 10.0])
+    (pooled,) = [t for t in accuracy_tables(fleet_summary(out / "same")) if t.key == "fleet_pooled"]
+    assert [row[3] for row in pooled.bold] == [True, False]  # flat: RMSE 1 m against 2 m
+    assert "not compared" not in pooled.note

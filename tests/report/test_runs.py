@@ -119,3 +119,23 @@ def test_a_declared_truth_reference_moves_every_method_to_it(tmp_path: Path) -> 
     assert face.overall["ours"]["rmse"] == pytest.approx(1.94)
     assert face.overall["paper"]["rmse"] == pytest.approx(1.94)
     assert "nearest_face" in " ".join(face.notes)
+
+
+def test_methods_scored_against_other_targets_are_not_compared(tmp_path: Path) -> None:
+    """Two runs of one sequence over different frames score different targets: Table 1 and
+    the metrics tables show both but mark no best (flat's one target is not a win)."""
+    from slopedist.score_tables import score_tables
+
+    paper = _run(tmp_path / "runs" / "paper", GOOD)
+    flat = _run(tmp_path / "runs" / "flat", ["0,0.0,3,Car,flat,11.0,ok,,0.1,11.0"])
+    for folder in (paper, flat):
+        (folder / "run.json").write_text('{"sequence": "s"}')
+    data = report_data(tmp_path / "runs", ReportOptions())
+    assert data.sequences == ["s"] and data.overall["flat"]["rmse"] == 0.0
+    table1, metrics, bins = score_tables(data.scores)
+    assert not any(any(row) for row in table1.bold)
+    assert "s, overall: the methods were scored over different targets" in table1.note
+    assert not any(any(row) for row in metrics.bold) and not any(any(row) for row in bins.bold)
+    _run(flat, ["0,0.0,3,Car,flat,11.0,ok,,0.1,11.0", "1,0.1,3,Car,flat,20.0,ok,,0.1,20.0"])
+    table1 = score_tables(report_data(tmp_path / "runs", ReportOptions()).scores)[0]
+    assert table1.bold[0] == [False, False, True, False]  # the same targets: flat is best

@@ -113,3 +113,15 @@ def test_damaged_demo_results_name_the_file(
     (copy / "results.json").write_text(json.dumps({"scenarios": {"same_flat": {"frames": "x"}}}))
     with pytest.raises(InputFileError, match=r"results\.json.*frames is not a number"):
         report_data(copy, ReportOptions())
+
+
+def test_a_scenario_folder_of_an_earlier_demo_is_not_read(
+    demo_report: tuple[Path, Path, str], tmp_path: Path
+) -> None:
+    """A demo into the --out of an earlier one over other scenarios leaves their folders: the
+    report reads the scenarios results.json lists (it failed on the stale one's timing)."""
+    demo, _, _ = demo_report
+    copy = tmp_path / "demo"
+    shutil.copytree(demo, copy)
+    shutil.copytree(copy / "same_flat", copy / "ego_crest")  # left by an earlier demo
+    assert report_data(copy, ReportOptions()).sequences == sorted(SCENARIOS)

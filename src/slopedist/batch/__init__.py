@@ -12,7 +12,12 @@
 from __future__ import annotations
 
 from slopedist.batch.engine import BatchOptions, BatchResult, run_batch
-from slopedist.batch.fleet import FleetSummary, fleet_summary, write_fleet_summary
+from slopedist.batch.fleet import (
+    FleetSummary,
+    fleet_summary,
+    records_dataset,
+    write_fleet_summary,
+)
 from slopedist.batch.manifest import DriveDefaults, DriveSpec, load_drives
 from slopedist.batch.settings import RunSettings
 from slopedist.batch.status import DriveOutcome, DriveStatus
@@ -28,6 +33,7 @@ __all__ = [
     "RunSettings",
     "fleet_summary",
     "load_drives",
+    "records_dataset",
     "run_batch",
     "write_fleet_summary",
 ]

@@ -204,6 +204,7 @@ def plan(
     reserved = [d.name for d in drives if d.name in FLEET_NAMES]
     if reserved:
         raise ConfigurationError(f"drive name '{reserved[0]}' is reserved for a batch output")
+    check_outputs_spare_drive_inputs(drives, out_dir)
     todo, skipped = [], {}
     for spec in drives:
         stamp = input_stamp(spec)
@@ -221,6 +222,30 @@ def plan(
     return todo, skipped
 
 
+def check_outputs_spare_drive_inputs(drives: Sequence[DriveSpec], out_dir: Path) -> None:
+    """Refuse a batch whose outputs would replace an input of one of its drives: a drive's
+    folder ``OUT/<drive>`` (replaced whole when the drive runs, removed when it fails) or a
+    fleet output (``status.csv``, ``fleet/``, ``records.parquet/``) that is, or holds, an
+    input (frames, calibration, boxes, timestamps, depth maps, detector) of any drive, as
+    ``--out`` set to the folder of the drives would.
+
+    Raises:
+        ConfigurationError: names the output, the input and its drive.
+    """
+    outputs = [out_dir / d.name for d in drives] + [out_dir / n for n in sorted(FLEET_NAMES)]
+    resolved = [(o, o.resolve()) for o in outputs]
+    for spec in drives:
+        paths = (spec.frames, spec.calib, spec.boxes, spec.timestamps, spec.depth_dir)
+        for path in (p for p in (*paths, spec.detector) if p is not None):
+            held = path.resolve()
+            for output, folder in resolved:
+                if held == folder or folder in held.parents:
+                    raise ConfigurationError(
+                        f"the output {output} holds the input {path} of drive '{spec.name}': "
+                        "choose another output (--out), the input would be replaced"
+                    )
+
+
 def clean_leftovers(out_dir: Path) -> None:
     """Remove the temporary folders of killed tasks (no task of this output may be running)."""
     for path in out_dir.glob(f"{TMP_PREFIX}*"):
@@ -234,7 +259,8 @@ def run_batch(
 
     Raises:
         OptionalDependencyError: Ray (or, for ``parquet``, pyarrow) is not installed.
-        ConfigurationError: ``workers`` together with a cluster address, a reserved drive name.
+        ConfigurationError: ``workers`` together with a cluster address, a reserved drive name,
+            an output that would replace an input (:func:`check_outputs_spare_drive_inputs`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

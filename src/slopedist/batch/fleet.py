@@ -1,8 +1,9 @@
 """Fleet outputs of a batch: the Parquet dataset of all records and the fleet summary.
 
 - ``OUT/records.parquet/drive=<drive>/part-0.parquet``: every drive's ``records.csv`` as one
-  Hive-partitioned Parquet dataset (read it with ``pyarrow.dataset.dataset(path,
-  partitioning="hive")``; the partition column is ``drive``). Written per drive, atomically;
+  Hive-partitioned Parquet dataset (read it with :func:`records_dataset`, whose partition
+  column ``drive`` is text: inferred, drive ``007`` would read as the number 7). Written per
+  drive, atomically;
   the record columns have fixed types, and a method-specific extra column that is empty in a
   drive is written as float64.
 - :func:`fleet_summary`: per-drive and pooled distance metrics (metres) of every method where
@@ -118,6 +119,21 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     pa.parquet.write_table(table, tmp)
     os.replace(tmp, target)
     return target
+
+
+def records_dataset(out_dir: str | Path) -> Any:
+    """The fleet Parquet dataset of the batch output ``out_dir`` (a ``pyarrow.dataset.Dataset``)
+    with the partition column ``drive`` as text, the drive names of ``status.csv`` (pyarrow's
+    inferred Hive partitioning reads a name such as ``007`` or ``2011`` as a number).
+
+    Raises:
+        OptionalDependencyError: pyarrow is not installed.
+    """
+    pa = import_pyarrow()
+    import pyarrow.dataset as ds
+
+    drive = ds.partitioning(pa.schema([("drive", pa.string())]), flavor="hive")
+    return ds.dataset(Path(out_dir) / DATASET_NAME, format="parquet", partitioning=drive)
 
 
 def remove_partition(out_dir: Path, drive: str) -> None:

@@ -304,6 +304,10 @@ def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> 
     except csv.Error as exc:
         raise InputFileError(path, f"not a valid CSV header ({exc})", line=1) from None
     header = [h.strip() for h in fieldnames]
+    twice = sorted({h for h in header if h and header.count(h) > 1})
+    if twice:  # csv.DictReader would keep the last of the cells silently
+        message = f"column(s) {', '.join(twice)} named twice in the header"
+        raise InputFileError(path, message, line=1, field=twice[0])
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     missing += [] if set(BOX_COLUMNS) & set(header) else ["boxes"]
     if missing:

@@ -8,6 +8,7 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import functools
+import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,7 @@ from slopedist.run_config import (
     RunAbortedError,
     RunConfig,
     RunResult,
+    earlier_outputs,
     export_paths,
     overlay_fps,
     overlay_path,
@@ -430,6 +432,31 @@ def run_to_folder(
     )
     result = run_until_stopped(lambda: prepared.run(config), config)
     click.echo(summary_text(result, out_dir, outputs.snapshots), err=True)
+    remove_earlier_outputs(out_dir, result, input_paths)
+
+
+def remove_earlier_outputs(
+    out_dir: Path, result: RunResult, inputs: Sequence[Path | Intrinsics | None]
+) -> None:
+    """Remove what an earlier run into ``out_dir`` wrote and this one did not (an overlay,
+    exports, snapshots: :func:`~slopedist.run_config.earlier_outputs`), so that the folder
+    holds one run; an input of this run is never removed. Says on stderr what went."""
+    spared = {p.resolve() for p in inputs if isinstance(p, Path)}
+    stale = [
+        p
+        for p in earlier_outputs(out_dir, [result.overlay, *result.exports])
+        if p.resolve() not in spared
+    ]
+    for path in stale:
+        if path.is_dir():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    if stale:
+        names = ", ".join(p.name for p in stale)
+        click.echo(
+            f"removed the outputs of an earlier run that this run did not write: {names}", err=True
+        )
 
 
 def check_run_outputs(
@@ -498,7 +525,7 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
-            "in FRAMES and were not used"
+            "in FRAMES (or unreadable, out of time order) and were not used"
         )
     if result.overlay:
         lines.append(f"overlay: {result.overlay}")

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from slopedist.datasets.synthetic.export import DepthFormat, write_simulation
+from slopedist.datasets.synthetic.export import SIMULATION_NAMES, DepthFormat, write_simulation
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.scenarios import (
     builtin_text,
@@ -43,7 +43,11 @@ from slopedist.errors import ConfigurationError
 @click.option(
     "--frames", "max_frames", type=click.IntRange(min=1), help="Write only the first N frames."
 )
-@click.option("--force", is_flag=True, help="Write into a folder that holds a previous run.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Write into a folder that holds a previous simulation (or files of its names).",
+)
 def simulate(
     scenario: str | None,
     out_dir: Path | None,
@@ -70,9 +74,11 @@ def simulate(
     if out_dir is None:
         raise click.UsageError("give the output folder with --out DIR")
     sc = load_scenario(scenario)
-    if (out_dir / "poses.txt").exists() and not force:
+    held = [name for name in SIMULATION_NAMES if (out_dir / name).exists()]
+    if held and not force:  # a simulation, or a drive's own calib.txt, boxes.csv, frames
         raise ConfigurationError(
-            f"{out_dir} already holds a simulation (poses.txt); choose another --out or add --force"
+            f"{out_dir} already holds {', '.join(held)} (a simulation or other data that "
+            "would be overwritten); choose another --out or add --force"
         )
     path = Path(scenario)
     text = path.read_text(encoding="utf-8") if path.is_file() else builtin_text(sc.name)

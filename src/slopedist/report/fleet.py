@@ -155,10 +155,16 @@ def _metric_cells(row: dict[str, Any]) -> list[Any]:
 
 
 def accuracy_tables(summary: FleetSummary) -> list[Table]:
-    """The fleet's pooled accuracy per method, by true-distance range, and per drive."""
+    """The fleet's pooled accuracy per method, by true-distance range, and per drive; the
+    best pooled RMSE in bold only when every method ran on the same drives."""
     formats = {1: "d", 2: "d", 5: ".3f", 6: ".3f"}
     pooled = [[r["method"], r["drives"], *_metric_cells(r)] for r in summary.pooled]
-    best = best_marks([r[3] for r in pooled])
+    drive_sets = {
+        frozenset(d["drive"] for d in summary.drives if d["method"] == r["method"])
+        for r in summary.pooled
+    }
+    same_drives = len(drive_sets) <= 1  # else each pools other targets: not compared
+    best = best_marks([r[3] for r in pooled]) if same_drives else [False] * len(pooled)
     ranges = [[r["method"], r["range_m"], *_metric_cells(r)] for r in summary.by_range]
     drives = [
         [r["drive"], r["method"], r["records"], r["estimated"], *_metric_cells(r)]
@@ -172,7 +178,8 @@ def accuracy_tables(summary: FleetSummary) -> list[Table]:
             ["method", "drives", *_METRIC_HEADERS],
             pooled,
             [[False, False, False, b, False, False, False] for b in best],
-            f"Every record with a true distance (gt_distance_m) of every drive. {cap}",
+            f"Every record with a true distance (gt_distance_m) of every drive. {cap}"
+            + ("" if same_drives else " The methods ran on different drives: not compared."),
             {**formats, 2: "d"},
         ),
         Table(

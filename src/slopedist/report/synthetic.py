@@ -70,17 +70,23 @@ def _notes(data: ReportData, config: dict[str, Any]) -> list[str]:
 
 
 def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
-    """Read a ``slopedist demo`` output: the per-scenario records (scored against the synthetic
-    truth, ``truth_z_m``), θ from ``<scenario>/frames.csv`` against the true θ, and the times
-    of ``results.json`` (odometry only for methods fed visual-odometry rotations).
+    """Read a ``slopedist demo`` output: the per-scenario records of the scenarios
+    ``results.json`` lists (scored against the synthetic truth, ``truth_z_m``), θ from
+    ``<scenario>/frames.csv`` against the true θ, and the times of ``results.json`` (odometry
+    only for methods fed visual-odometry rotations).
 
     Raises:
-        InputFileError: ``results.json`` is not JSON or lacks a figure.
+        InputFileError: ``results.json`` is not JSON, lacks a figure or lists no scenario
+            folder; a scenario folder without ``records.csv``.
     """
     root = Path(root)
-    data = run_report_data(root, opts)
     path = root / DEMO_RESULTS
     results = _read_results(path)
+    # the scenarios of this demo: a folder left by an earlier demo into the same --out is not
+    folders = [root / name for name in results["scenarios"] if (root / name).is_dir()]
+    if not folders:
+        raise InputFileError(path, "lists no scenario with a folder here")
+    data = run_report_data(root, opts, folders)
     listed = list(results.get("methods") or {})  # the demo's own order of the methods
     data.methods.sort(key=lambda m: listed.index(m) if m in listed else len(listed))
     data.timing = {m: _timing(data, results, path, m) for m in data.methods}

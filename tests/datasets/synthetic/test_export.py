@@ -116,3 +116,22 @@ def test_list(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["simulate", "--list"]) == 0
     out = capsys.readouterr().out
     assert "target_steep_uphill" in out and "ego_sag" in out
+
+
+def test_a_drive_folder_with_files_of_the_same_names_is_not_overwritten(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder of a real drive (its calib.txt, boxes.csv, frames) but no poses.txt: refused,
+    naming what would be overwritten; written with --force."""
+    drive = tmp_path / "drive"
+    (drive / "image_02").mkdir(parents=True)
+    (drive / "calib.txt").write_text("P2: 721 0 609 0 0 721 172 0 0 0 1 0\n")
+    (drive / "boxes.csv").write_text("frame,left,top,right,bottom\n")
+    args = ["simulate", "ego_crest", "--out", str(drive), "--frames", "1", "--depth", "none"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "already holds calib.txt, boxes.csv, image_02" in err and "--force" in err
+    assert (drive / "calib.txt").read_text().startswith("P2: 721 ")
+    assert not list((drive / "image_02").iterdir())
+    assert main([*args, "--force"]) == 0
+    assert (drive / "poses.txt").is_file()

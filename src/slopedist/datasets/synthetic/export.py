@@ -277,6 +277,22 @@ def _info(sc: Scenario, n: int, n_det: int, files: _FrameFiles) -> dict[str, Any
     }
 
 
+SIMULATION_NAMES = (
+    "scenario.toml",
+    "calib.txt",
+    "info.json",
+    "poses.txt",
+    "times.txt",
+    "boxes.csv",
+    "boxes_exact.csv",
+    "truth.csv",
+    "frames.csv",
+    "image_02",
+    "depth",
+)
+"""The files and folders :func:`write_simulation` writes in its output folder."""
+
+
 def write_simulation(
     seq: SyntheticSequence,
     out_dir: str | Path,
