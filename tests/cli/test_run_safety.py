@@ -155,6 +155,11 @@ def test_a_rerun_removes_the_overlay_exports_and_snapshots_it_does_not_write(
     assert main(["run", *args, *calib, "--out", str(out), "--method", "flat"]) == 0
     assert (out / "trajectory.tum").read_text() == CALIB
     assert not (out / "snapshot_000002.jpg").exists()
+    (out / "overlay").mkdir()  # a folder named like the PNG overlay that holds an input
+    shutil.copy(tmp_path / "calib.txt", out / "overlay" / "calib.txt")
+    calib = ["--calib", str(out / "overlay" / "calib.txt")]
+    assert main(["run", *args, *calib, "--out", str(out), "--method", "flat"]) == 0
+    assert (out / "overlay" / "calib.txt").read_text() == CALIB
 
 
 def test_outputs_that_would_overwrite_an_input_are_refused(

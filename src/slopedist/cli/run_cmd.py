@@ -440,12 +440,13 @@ def remove_earlier_outputs(
 ) -> None:
     """Remove what an earlier run into ``out_dir`` wrote and this one did not (an overlay,
     exports, snapshots: :func:`~slopedist.run_config.earlier_outputs`), so that the folder
-    holds one run; an input of this run is never removed. Says on stderr what went."""
-    spared = {p.resolve() for p in inputs if isinstance(p, Path)}
+    holds one run; an input of this run, or a folder holding one, is never removed. Says on
+    stderr what went."""
+    spared = [p.resolve() for p in inputs if isinstance(p, Path)]
     stale = [
         p
         for p in earlier_outputs(out_dir, [result.overlay, *result.exports])
-        if p.resolve() not in spared
+        if not any(s == p.resolve() or s.is_relative_to(p.resolve()) for s in spared)
     ]
     for path in stale:
         if path.is_dir():
