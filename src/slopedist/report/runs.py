@@ -387,7 +387,11 @@ def run_report_data(
     methods = sorted({m for s in reader.sets.values() for m in s})
     if not methods:
         wanted = f" of method(s) {', '.join(opts.methods)}" if opts.methods else ""
-        raise InputFileError(folders[0] / "records.csv", "no records" + wanted)
+        raise InputFileError(
+            folders[0] / "records.csv",
+            f"no records{wanted}: the run(s) had no boxes to estimate, so there is nothing to "
+            "score or plot (frames.csv has the per-frame log)",
+        )
     reader.mark_scored()
     missing = ScoredSet(np.zeros(0), np.zeros(0), 0, info={"missing": NOT_IN_RECORDS})
     per_seq = {s: {m: reader.sets[s].get(m, missing) for m in methods} for s in by_seq}
