@@ -48,6 +48,11 @@ def test_bad_records_name_line_and_field(tmp_path: Path, row: str, match: str) -
         report_data(_run(tmp_path / "r", [*GOOD, row]), ReportOptions())
 
 
+def test_a_run_without_boxes_is_one_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(InputFileError, match=r"records.csv: no records: the run\(s\) had no boxes"):
+        report_data(_run(tmp_path / "r", []), ReportOptions())
+
+
 def test_missing_distance_is_fine_when_not_ok(tmp_path: Path) -> None:
     rows = [*GOOD, "2,0.2,3,Car,paper,,missing,below_horizon,0.1,30.0"]
     assert report_data(_run(tmp_path / "r", rows), ReportOptions()).overall["paper"]["n"] == 3
