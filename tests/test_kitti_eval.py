@@ -10,7 +10,7 @@ import pytest
 
 from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
 from slopedist.errors import MissingInputError
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking, run_kitti_tracking
 
 EXPECTED_POOLED = {"flat": 10.03, "ego": 10.71, "paper": 10.07}
 EXPECTED_SEQUENCES = {
@@ -79,6 +79,15 @@ def test_rrc_camera_detections_are_matched_like_pointrcnn(kitti_tracking_dir: Pa
 def test_unknown_sequence(kitti_tracking_dir: Path) -> None:
     with pytest.raises(MissingInputError, match="9999"):
         evaluate_kitti_tracking(kitti_tracking_dir, KittiEvalConfig(sequences=["9999"]))
+
+
+def test_a_sequence_named_twice_is_run_once(kitti_tracking_dir: Path) -> None:
+    """``--sequences 0001,0001`` ran 0001 twice and listed it twice in the JSON protocol."""
+    seen: list[str] = []
+    cfg = KittiEvalConfig(sequences=["0014", "0001", "0014"], methods=["flat"])
+    result = run_kitti_tracking(kitti_tracking_dir, cfg, on_sequence=seen.append)
+    assert seen == ["0014", "0001"]
+    assert result.config.sequences == ["0014", "0001"]
 
 
 def test_a_generic_detector_class_reaches_ours_only(kitti_tracking_dir: Path) -> None:

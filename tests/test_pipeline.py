@@ -120,6 +120,28 @@ def test_timestamps_going_backwards_are_an_error() -> None:
         step.step(1, 0.0, np.eye(3), empty)
 
 
+@pytest.mark.parametrize("t", [math.nan, math.inf])
+def test_a_timestamp_that_is_not_finite_is_an_error(t: float) -> None:
+    """A NaN timestamp passed the order check (NaN <= t is false), twice in a row."""
+    step = FrameStep(make_estimator("paper", CAMERA))
+    box = BoxTable.build([0], [[500.0, 180.0, 600.0, 250.0]])
+    with pytest.raises(DataMismatchError, match=r"frame 0: timestamp .* is not finite"):
+        step.step(0, t, np.eye(3), box)
+    with pytest.raises(DataMismatchError, match="not finite"):
+        step.estimate(0, t, 0.0, np.eye(3), box)
+
+
+@pytest.mark.parametrize("R", [np.eye(4), np.ones(3), [[1.0, 0.0], [0.0, 1.0]], "eye"])
+def test_a_rotation_that_is_not_3x3_is_an_error(R: object) -> None:
+    """It failed deep in numpy (a bare ValueError from einsum or matmul)."""
+    box = BoxTable.build([0], [[500.0, 180.0, 600.0, 250.0]])
+    for method in ("flat", "paper", "ours"):
+        with pytest.raises(DataMismatchError, match="rotation must be a 3×3 matrix"):
+            FrameStep(make_estimator(method, CAMERA)).step(0, 0.0, R, box)  # type: ignore[arg-type]
+        with pytest.raises(DataMismatchError, match="rotation must be a 3×3 matrix"):
+            FrameStep(make_estimator(method, CAMERA)).estimate(0, 0.0, 0.0, R, box)  # type: ignore[arg-type]
+
+
 def test_flat_runs_without_rotation_ego_does_not() -> None:
     boxes = BoxTable.build([0], [[500, 150, 600, 250]])
     flat = FrameStep(make_estimator("flat", CAMERA)).step(0, 0.0, None, boxes).estimates

@@ -249,15 +249,16 @@ class SequenceRun:
 
 
 def check_run(root: str | Path, cfg: KittiEvalConfig) -> list[str]:
-    """The sequences ``cfg`` names (all under ``root`` when none), after checking that they
-    exist, that there are methods, and that methods needing depth maps have a depth folder.
+    """The sequences ``cfg`` names (all under ``root`` when none; each once, in the order first
+    named), after checking that they exist, that there are methods, and that methods needing
+    depth maps have a depth folder.
 
     Raises:
         MissingInputError: a named sequence is not under ``root``.
         ConfigurationError: no methods, or depth maps needed and ``cfg.depth_dir`` not given.
     """
     available = list_sequences(root)
-    names = list(cfg.sequences) if cfg.sequences else available
+    names = list(dict.fromkeys(cfg.sequences)) if cfg.sequences else available
     unknown = [s for s in names if s not in available]
     if unknown:
         raise MissingInputError(

@@ -144,9 +144,11 @@ class FrameStep:
         """θ of the frame (look-back within odometry ``segment``) and its boxes' estimates.
 
         Raises:
-            DataMismatchError: if ``timestamp_s`` does not increase.
+            DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
+                ``R_world_cam`` is not a ``(3, 3)`` matrix.
         """
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
+        R_world_cam = _rotation(frame_index, R_world_cam)
         theta = self.gradient.update(timestamp_s, R_world_cam, segment)
         est = self.estimate(frame_index, timestamp_s, theta, R_world_cam, boxes, image, depth_m)
         return FrameResult(theta, est)
@@ -166,13 +168,14 @@ class FrameStep:
         rotations (the demo).
 
         Raises:
-            DataMismatchError: if ``timestamp_s`` does not increase.
+            DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
+                ``R_world_cam`` is not a ``(3, 3)`` matrix.
         """
         self._check_time(frame_index, timestamp_s)
+        R = _rotation(frame_index, R_world_cam)
         self._last_timestamp = timestamp_s
         if boxes is None or not len(boxes):
             return FrameEstimates.empty()
-        R = None if R_world_cam is None else np.asarray(R_world_cam, dtype=float)
         est = self.estimator.estimate(
             FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
@@ -190,11 +193,35 @@ class FrameStep:
         )
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
+        if not math.isfinite(timestamp_s):
+            raise DataMismatchError(f"frame {frame_index}: timestamp {timestamp_s} s is not finite")
         if self._last_timestamp is not None and timestamp_s <= self._last_timestamp:
             raise DataMismatchError(
                 f"frame {frame_index}: timestamp {timestamp_s} s does not follow "
                 f"{self._last_timestamp} s"
             )
+
+
+def _rotation(
+    frame_index: int, R_world_cam: NDArray[np.float64] | None
+) -> NDArray[np.float64] | None:
+    """``R_world_cam`` as a float ``(3, 3)`` array (None stays None: no rotation).
+
+    Raises:
+        DataMismatchError: it is not a ``(3, 3)`` matrix of numbers.
+    """
+    if R_world_cam is None:
+        return None
+    try:
+        R = np.asarray(R_world_cam, dtype=float)
+    except (TypeError, ValueError):
+        R = np.empty(0)
+    if R.shape != (3, 3):
+        raise DataMismatchError(
+            f"frame {frame_index}: the camera rotation must be a 3×3 matrix (or None), got "
+            f"shape {np.shape(R_world_cam)}"
+        )
+    return R
 
 
 def stream_track(

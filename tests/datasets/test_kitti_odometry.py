@@ -67,6 +67,27 @@ def test_extra_poses_are_ignored(tmp_path: Path) -> None:
     assert seq.ground_truth is not None and len(seq.ground_truth) == 4
 
 
+def test_a_gap_in_the_numbering_is_a_dropped_frame(tmp_path: Path) -> None:
+    """Frame 000002.png missing: frame 000003.png keeps line 3 of poses.txt and times.txt (it
+    was paired with line 2, and every later frame with the line before its own)."""
+    root = make_sequence(tmp_path / "s", n=5)
+    (root / "times.txt").write_text("0.0\n0.1\n0.2\n0.3\n0.4\n")
+    (root / "image_l" / "000002.png").unlink()
+    seq = read_kitti_odometry(root)
+    assert [p.name for p in seq.image_paths] == [
+        "000000.png",
+        "000001.png",
+        "000003.png",
+        "000004.png",
+    ]
+    assert np.allclose(seq.timestamps_s, [0.0, 0.1, 0.3, 0.4])
+    assert seq.ground_truth is not None
+    assert np.allclose(seq.ground_truth.R_world_cam[2], tv.so3_exp(np.radians([0.3, 6.0, 0.0])))
+    (root / "poses.txt").write_text("\n".join((root / "poses.txt").read_text().split("\n")[:4]))
+    with pytest.raises(DataMismatchError, match="4 poses for 5 frames"):
+        read_kitti_odometry(root)
+
+
 @pytest.mark.parametrize(
     ("change", "error", "message"),
     [

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,6 +18,7 @@ from slopedist.detections.boxes import (
     overlapping_pairs,
     pair_iou,
 )
+from slopedist.errors import DataMismatchError
 
 LABEL = "0 3 Car 0 1 -1.79 296.74 161.75 455.23 292.37 2.0 1.82 4.43 -4.55 1.86 13.41 -2.12"
 DONTCARE = "1 -1 DontCare -1 -1 -10 100 150 200 190 -1 -1 -1 -1000 -1000 -1000 -10"
@@ -296,3 +298,23 @@ def test_overlapping_pairs_by_hand() -> None:
     assert sorted(zip(i.tolist(), j.tolist(), strict=True)) == [(0, 1), (0, 3), (1, 1), (1, 3)]
     empty = overlapping_pairs(np.zeros((0, 4)), b)
     assert empty[0].shape == (0,) and empty[1].shape == (0,)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"frame": [0, 1], "boxes": [[1, 2, 3, 4]]}, "'boxes' has 4 values for 2 boxes"),
+        ({"frame": [0], "boxes": [[1, 2, 3]]}, "'boxes' has 3 values for 1 boxes"),
+        ({"frame": [0, 1], "boxes": [[1, 2, 3, 4]] * 2, "track_id": [1]}, "'track_id' has 1"),
+        ({"frame": [0, 1], "boxes": [[1, 2, 3, 4]] * 2, "score": [0.5] * 3}, "'score' has 3"),
+        ({"frame": [0], "boxes": [[1, 2, 3, 4]], "classes": ["Car", "Van"]}, "'classes' has 2"),
+        ({"frame": [float("nan")], "boxes": [[1, 2, 3, 4]]}, "column 'frame'"),
+        ({"frame": [0], "boxes": [["a", 2, 3, 4]]}, "column 'boxes'"),
+    ],
+)
+def test_build_with_columns_that_do_not_fit_is_a_data_mismatch(
+    kwargs: dict[str, object], message: str
+) -> None:
+    """They failed with numpy's bare ValueError ('cannot reshape array of size 4 ...')."""
+    with pytest.raises(DataMismatchError, match=message):
+        BoxTable.build(**kwargs)  # type: ignore[arg-type]

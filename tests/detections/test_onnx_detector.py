@@ -165,6 +165,28 @@ def test_dynamic_input_size_needs_an_explicit_size(
     _check(OnnxDetector(path, DetectorSettings(input_size=(IN_W, IN_H))).detect(_frame()))
 
 
+@pytest.mark.parametrize("in_shape", [(1, 320, 320, 3), (1, 1, 320, 320), (3, 320, 320)])
+def test_a_model_input_that_is_not_colour_nchw_is_refused(
+    tmp_path: Path, constant_model: Callable[..., Path], in_shape: tuple[int, ...]
+) -> None:
+    """A channels-last, grey or unbatched input failed inside onnxruntime on the first frame
+    (an internal error) instead of naming the model."""
+    path = constant_model(tmp_path / "m.onnx", {"output0": yolov8_tensor()}, in_shape)
+    with pytest.raises(InputFileError, match=r"expected N×3×H×W"):
+        OnnxDetector(path).detect(_frame())
+    with pytest.raises(InputFileError, match=r"expected N×3×H×W"):
+        OnnxDetector(path, DetectorSettings(input_size=(IN_W, IN_H))).detect(_frame())
+
+
+def test_an_input_size_other_than_the_models_fixed_one_is_refused(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
+    path = constant_model(tmp_path / "m.onnx", {"output0": yolov8_tensor()}, (1, 3, IN_H, IN_W))
+    with pytest.raises(ConfigurationError, match="input is 320×320 px, not the given input size"):
+        OnnxDetector(path, DetectorSettings(input_size=(640, 640)))
+    _check(OnnxDetector(path, DetectorSettings(input_size=(IN_W, IN_H))).detect(_frame()))
+
+
 def test_letterbox_and_its_inverse() -> None:
     img = np.zeros((360, 640, 3), np.uint8)
     padded, box = letterbox(img, (320, 320))

@@ -162,6 +162,17 @@ def test_pose_errors_name_the_real_line(tmp_path: Path) -> None:
         read_kitti_poses(path)
 
 
+def test_tum_times_that_do_not_increase_name_the_file_and_line(tmp_path: Path) -> None:
+    """The error said only 'timestamps must increase: frame 1 at 1.0 s follows 1.0 s'."""
+    path = tmp_path / "tum.txt"
+    path.write_text("# t x y z qx qy qz qw\n1.0 0 0 0 0 0 0 1\n\n1.0 0 0 1 0 0 0 1\n")
+    with pytest.raises(InputFileError, match=r"tum.txt, line 4, field 't': time 1 s does not"):
+        read_tum_poses(path)
+    with pytest.raises(InputFileError, match=r"line 4, field 't'"):
+        read_pose_file(path)
+    assert len(read_tum_poses(path, frame_period_s=0.1)) == 2  # its t column is not used
+
+
 def _tum_lines(xyz: np.ndarray, R: np.ndarray) -> str:
     q = Rotation.from_matrix(R).as_quat()
     return "".join(

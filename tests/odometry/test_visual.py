@@ -363,6 +363,18 @@ def test_image_size_and_type_are_checked() -> None:
         far_off.process(np.zeros((H, W), dtype=np.uint8), 0.0)
 
 
+@pytest.mark.parametrize("size", [(1, 1), (600, 1), (1, 40)])
+def test_frames_one_pixel_high_or_wide_are_never_initialised(size: tuple[int, int]) -> None:
+    """They failed inside OpenCV's resize (the half-size copy): an internal error in ``run``."""
+    width, height = size
+    vo = BuiltinVisualOdometry(Camera(700.0, width / 2, height / 2))
+    rng = np.random.default_rng(0)
+    for k in range(3):
+        frame = rng.integers(0, 255, (height, width), dtype=np.uint8)
+        result = vo.process(frame, 0.1 * k)
+        assert result.R_world_cam is None and result.state is OdometryState.NOT_INITIALISED
+
+
 def test_configuration_is_checked() -> None:
     with pytest.raises(ConfigurationError):
         VisualOdometryConfig(min_inliers=3)

@@ -7,7 +7,11 @@ Layout of one sequence folder::
     calib.txt                first line P0 (12 numbers, with or without a ``P0:`` name)
     times.txt                optional: one timestamp in seconds per frame
 
-Without ``times.txt`` frame k has timestamp ``k × 0.1 s`` (KITTI records at 10 Hz).
+When every frame's name is a number (``000020.png``), frame k is the one numbered k after the
+first frame's number, whose pose and timestamp are line k of ``poses.txt`` and ``times.txt``: a
+file missing from the numbering is a dropped frame, not a shift of every later frame against
+its ground truth. Other names are frames 0, 1, ... in name order. Without ``times.txt`` frame k
+has timestamp ``k × 0.1 s`` (KITTI records at 10 Hz).
 """
 
 from __future__ import annotations
@@ -38,7 +42,7 @@ class KittiOdometrySequence:
         root: the sequence folder.
         camera: intrinsics of ``P0``, with the image size of the first frame.
         image_paths: frame files in time order.
-        timestamps_s: ``(N,)`` seconds, increasing.
+        timestamps_s: ``(N,)`` seconds of each file of ``image_paths``, increasing.
         ground_truth: camera-to-world rotations relative to the first frame, or None when the
             folder has no ``poses.txt``.
     """
@@ -90,17 +94,36 @@ def _read_times(path: Path, n: int) -> NDArray[np.float64]:
     return np.asarray(values[:n])
 
 
+def _frame_numbers(paths: tuple[Path, ...]) -> tuple[tuple[Path, ...], NDArray[np.intp]]:
+    """``paths`` in frame order and each one's frame (its line in ``poses.txt`` and
+    ``times.txt``): the number in its name minus the first one's when every name is a number
+    (ASCII digits), else its position in name order."""
+    if not all(p.stem.isascii() and p.stem.isdigit() for p in paths):
+        return paths, np.arange(len(paths))
+    numbered = sorted(paths, key=lambda p: (int(p.stem), p.name))
+    numbers = np.array([int(p.stem) for p in numbered])
+    if np.any(np.diff(numbers) == 0):
+        k = int(np.argmax(np.diff(numbers) == 0))
+        raise InputFileError(
+            numbered[k + 1], f"frame number {numbers[k]} also used by {numbered[k].name}"
+        )
+    return tuple(numbered), numbers - numbers[0]
+
+
 def read_kitti_odometry(
     root: str | Path, frame_period_s: float = KITTI_FRAME_PERIOD_S, require_poses: bool = True
 ) -> KittiOdometrySequence:
     """Open a KITTI-odometry-style sequence folder (see the module docstring for the layout).
 
-    Frames are listed, not decoded; the first frame is decoded to learn the image size.
+    Frames are listed, not decoded; the first frame is decoded to learn the image size. A gap
+    in numbered frame names is a dropped frame: later frames keep their own lines of
+    ``poses.txt`` and ``times.txt``.
 
     Raises:
         MissingInputError: the folder, ``image_l/``, its frames, ``calib.txt`` or (when
             ``require_poses``) ``poses.txt`` is missing.
-        InputFileError: a malformed line in ``calib.txt``, ``poses.txt`` or ``times.txt``.
+        InputFileError: a malformed line in ``calib.txt``, ``poses.txt`` or ``times.txt``, or
+            two frame files with one number (``5.png``, ``005.png``).
         DataMismatchError: fewer poses or timestamps than frames, or a principal point outside
             the frames.
     """
@@ -113,6 +136,8 @@ def read_kitti_odometry(
     paths = tuple(sorted(p for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES))
     if not paths:
         raise MissingInputError(f"no image files (.png, .jpg, ...) in {image_dir}")
+    paths, index = _frame_numbers(paths)
+    n_frames = int(index[-1]) + 1  # lines of poses.txt and times.txt the frames need
     calib_path = root / "calib.txt"
     camera = Camera.from_kitti_calib(calib_path, key="P0")
     first = read_gray_image(paths[0])
@@ -125,18 +150,18 @@ def read_kitti_odometry(
     camera = camera.with_image_size(width, height)
     times_path = root / "times.txt"
     if times_path.is_file():
-        timestamps = _read_times(times_path, len(paths))
+        timestamps = _read_times(times_path, n_frames)[index]
     else:
-        timestamps = np.arange(len(paths), dtype=np.float64) * frame_period_s
+        timestamps = index.astype(np.float64) * frame_period_s
     poses_path = root / "poses.txt"
     ground_truth: RotationTrack | None = None
     if poses_path.is_file():
         track = read_kitti_poses(poses_path)
-        if len(track) < len(paths):
+        if len(track) < n_frames:
             raise DataMismatchError(
-                f"{poses_path} has {len(track)} poses for {len(paths)} frames in {image_dir}"
+                f"{poses_path} has {len(track)} poses for {n_frames} frames in {image_dir}"
             )
-        ground_truth = RotationTrack.from_arrays(timestamps, track.R_world_cam[: len(paths)])
+        ground_truth = RotationTrack.from_arrays(timestamps, track.R_world_cam[index])
     elif require_poses:
         raise MissingInputError(f"ground-truth poses not found: {poses_path}")
     return KittiOdometrySequence(root, camera, paths, timestamps, ground_truth)

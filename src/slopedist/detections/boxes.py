@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.errors import ConfigurationError
+from slopedist.errors import ConfigurationError, DataMismatchError
 
 NO_TRACK = -1
 """Track id used when a box has no track id."""
@@ -216,6 +216,28 @@ def _starts_within(
     return k, order[np.repeat(first, counts) + offset]
 
 
+def _column(
+    name: str, values: ArrayLike, dtype: type[np.generic], shape: tuple[int, ...] | None
+) -> NDArray:
+    """``values`` as a ``dtype`` array of ``shape`` (None: flattened) for :meth:`BoxTable.build`.
+
+    Raises:
+        DataMismatchError: the values do not convert or do not fit the shape.
+    """
+    try:
+        arr = np.asarray(values, dtype=dtype)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise DataMismatchError(f"box table column '{name}': {exc}") from None
+    if shape is None:
+        return arr.reshape(-1)
+    if arr.size != int(np.prod(shape)):
+        raise DataMismatchError(
+            f"box table column '{name}' has {arr.size} values for {shape[0]} boxes"
+            + (f" ({shape[1]} per box)" if len(shape) > 1 else "")
+        )
+    return arr.reshape(shape)
+
+
 @dataclass(frozen=True)
 class BoxTable:
     """2D boxes of one or many frames, as parallel numpy columns of length N.
@@ -247,20 +269,25 @@ class BoxTable:
         classes: ArrayLike | None = None,
         **extra: ArrayLike,
     ) -> BoxTable:
-        """Build a table, filling unknown columns (no track, NaN score, class ``"Car"``)."""
-        fr = np.asarray(frame, dtype=np.int64).reshape(-1)
+        """Build a table, filling unknown columns (no track, NaN score, class ``"Car"``).
+
+        Raises:
+            DataMismatchError: a column that is not one value per frame entry (``boxes``: four)
+                or not numbers (a NaN frame index, a text coordinate).
+        """
+        fr = _column("frame", frame, np.int64, None)
         n = fr.shape[0]
-        bx = np.asarray(boxes, dtype=float).reshape(n, 4)
+        bx = _column("boxes", boxes, np.float64, (n, 4))
         tid = (
             np.full(n, NO_TRACK, np.int64)
             if track_id is None
-            else np.asarray(track_id, dtype=np.int64).reshape(n)
+            else _column("track_id", track_id, np.int64, (n,))
         )
-        sc = np.full(n, np.nan) if score is None else np.asarray(score, dtype=float).reshape(n)
+        sc = np.full(n, np.nan) if score is None else _column("score", score, np.float64, (n,))
         cl = (
             np.full(n, "Car", dtype=object)
             if classes is None
-            else np.asarray(classes, dtype=object).reshape(n)
+            else _column("classes", classes, np.object_, (n,))
         )
         return cls(fr, bx, tid, sc, cl, {k: np.asarray(v) for k, v in extra.items()})
 

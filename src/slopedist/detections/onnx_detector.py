@@ -197,7 +197,8 @@ class OnnxDetector:
         MissingInputError: the model file does not exist.
         InputFileError: onnxruntime cannot load it, its input is not ``N×3×H×W``, or its input
             size is dynamic and ``input_size`` is not given.
-        ConfigurationError: a layout that the outputs cannot have.
+        ConfigurationError: a layout that the outputs cannot have, or an ``input_size``
+            other than the model's fixed one.
     """
 
     def __init__(self, model_path: str | Path, settings: DetectorSettings | None = None) -> None:
@@ -218,6 +219,7 @@ class OnnxDetector:
         self.session = self._load(threads)
         inp = self.session.get_inputs()[0]
         self.input_name = inp.name
+        self._check_input(inp.shape, input_size)
         self.input_size = input_size or self._model_input_size(inp.shape)
         self.output_names = [o.name for o in self.session.get_outputs()]
         requested = OutputLayout(layout)
@@ -246,17 +248,31 @@ class OnnxDetector:
                 self.model_path, f"onnxruntime cannot load the model: {exc}"
             ) from None
 
-    def _model_input_size(self, shape: list[Any]) -> tuple[int, int]:
-        if len(shape) != 4:
+    def _check_input(self, shape: list[Any], input_size: tuple[int, int] | None) -> None:
+        """Refuse a model input that is not ``N×3×H×W`` (channels-last ``N×H×W×3``, grey
+        ``N×1×H×W``) or whose fixed size is not ``input_size`` (``(width, height)``, pixels):
+        onnxruntime would refuse every frame's input."""
+        channels = shape[1] if len(shape) == 4 else None
+        if len(shape) != 4 or (isinstance(channels, int) and channels != 3):
             raise InputFileError(
                 self.model_path, f"model input has shape {shape}; expected N×3×H×W"
             )
+        if input_size is None:
+            return
+        width, height = input_size
+        if any(isinstance(d, int) and d != n for d, n in zip(shape[2:], (height, width))):
+            raise ConfigurationError(
+                f"{self.model_path}: the model's input is {shape[3]}×{shape[2]} px, not the "
+                f"given input size {width}×{height}"
+            )
+
+    def _model_input_size(self, shape: list[Any]) -> tuple[int, int]:
         h, w = shape[2], shape[3]
         if not (isinstance(h, int) and isinstance(w, int) and h > 0 and w > 0):
             raise InputFileError(
                 self.model_path,
                 f"model input size is dynamic ({shape}); give the input size "
-                "(e.g. --detector-size 640x640)",
+                "(e.g. --detector-input-size 640x640)",
             )
         return int(w), int(h)
 

@@ -94,12 +94,15 @@ def read_kitti_poses(
 
 def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``(t column, rotations (N, 3, 3))`` of a TUM-layout file."""
-    data, R = _read_tum(path)
+    data, R, _ = _read_tum(path)
     return data[:, 0], R
 
 
-def _read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``(rows of t x y z qx qy qz qw, rotations (N, 3, 3))`` of a TUM-layout file."""
+def _read_tum(
+    path: str | Path,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """``(rows of t x y z qx qy qz qw, rotations (N, 3, 3), the file line of each row)`` of a
+    TUM-layout file."""
     data, lines = _read_numeric_rows(path, 8, TUM_POSE_FIELDS)
     q = data[:, 4:8]
     norms = np.linalg.norm(q, axis=1)
@@ -113,18 +116,29 @@ def _read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64
         )
     from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
 
-    return data, Rotation.from_quat(q / norms[:, None]).as_matrix()
+    return data, Rotation.from_quat(q / norms[:, None]).as_matrix(), lines
 
 
 def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> RotationTrack:
     """TUM pose file: ``t x y z qx qy qz qw`` per line, camera-to-world.
 
     Timestamps come from the ``t`` column, or are ``index × frame_period_s`` when that is given.
+
+    Raises:
+        InputFileError: a malformed line, or (timestamps from the file) a ``t`` that does not
+            increase, naming its line.
     """
-    t, R = _tum_rotations(path)
+    data, R, lines = _read_tum(path)
     R = R[0].T @ R
     if frame_period_s is not None:
         return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
+    t = data[:, 0]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise InputFileError(
+            path, f"time {t[k]:g} s does not follow {t[k - 1]:g} s", line=int(lines[k]), field="t"
+        )
     return RotationTrack.from_arrays(t, R)
 
 
@@ -144,7 +158,7 @@ def read_pose_file(
         first = next(iter(numbered_lines(path, "pose file")), (0, ""))[1]
         fmt = PoseFormat.TUM if len(first.replace(",", " ").split()) == 8 else PoseFormat.KITTI
         if fmt is PoseFormat.TUM:
-            data, R = _read_tum(path)
+            data, R, _ = _read_tum(path)
             why = vehicle_frame_evidence(data[:, 1:4], R)
             if why:
                 raise InputFileError(

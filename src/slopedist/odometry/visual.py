@@ -69,6 +69,10 @@ from slopedist.odometry.working_size import WorkingSize, check_gray_frame, check
 
 FloatArray = NDArray[np.float64]
 
+MIN_FRAME_PX = 2
+"""Frames (at the working size) narrower or lower than this have no half-size copy to find
+corners in: they are never tracked (``not_initialised``)."""
+
 USAC_MAX_ITERATIONS = 300
 """Iteration cap of OpenCV's USAC essential-matrix search (the fallback of a failed local fit)."""
 
@@ -183,6 +187,8 @@ class BuiltinVisualOdometry:
         t = self._check_timestamp(timestamp_s)
         assert self._work is not None
         boxes = self._work.boxes(check_boxes(mask_boxes))
+        if min(image.shape) < MIN_FRAME_PX:  # every frame has this size: never initialised
+            return OdometryResult(None, OdometryState.NOT_INITIALISED, 0, self._segment)
         if not self._history:
             return self._start(image, t, boxes)
         if t - self._history[-1].timestamp_s > self.config.max_bridge_s:
