@@ -68,3 +68,14 @@ def test_an_implausible_focal_length_names_the_calibration_file(tmp_path: Path) 
         read_calibration(calib)
     result = CliRunner().invoke(cli, ["estimate", "--calib", str(calib), "--height", "0"])
     assert result.exit_code == 2 and "'--height'" in result.output
+
+
+@pytest.mark.parametrize("command", ["estimate", "run", "eval"])
+def test_a_score_threshold_that_is_not_finite_is_a_usage_error(command: str) -> None:
+    """``--score nan`` kept every box (no score compares with NaN), ``inf`` none."""
+    args = {"estimate": ["estimate"], "run": ["run", "x"], "eval": ["eval", "kitti-tracking", "x"]}
+    for bad in ("nan", "inf"):
+        result = CliRunner().invoke(cli, [*args[command], "--score", bad])
+        assert result.exit_code == 2 and f"'--score': '{bad}' is not a finite number" in (
+            result.output
+        )

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.options import parse_size
+from slopedist.cli.options import FINITE_FLOAT, parse_size
 from slopedist.detections.convert import (
     WRITABLE,
     BoxFileOptions,
@@ -47,7 +47,7 @@ from slopedist.io.outputs import check_outputs_spare_inputs
     type=int,
     help="Number of the first frame in MOT (default 1) or YOLO (default 0) files.",
 )
-@click.option("--min-score", type=float, help="Drop boxes scored below this.")
+@click.option("--min-score", type=FINITE_FLOAT, help="Drop boxes scored below this.")
 def convert(
     source: Path,
     target: Path,

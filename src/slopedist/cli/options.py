@@ -31,12 +31,19 @@ def split_list(value: str | None) -> list[str] | None:
 
 
 class BoundedFloat(click.ParamType):
-    """A finite number within ``(low, high]`` (``low`` included when ``low_open`` is False),
-    so that an option's bad value is a usage error naming the option, with its unit."""
+    """A finite number within ``(low, high]`` (``low`` included when ``low_open`` is False; no
+    bounds: any finite number), so that an option's bad value is a usage error naming the
+    option, with its unit."""
 
     name = "float"
 
-    def __init__(self, low: float, high: float, unit: str, low_open: bool = True) -> None:
+    def __init__(
+        self,
+        low: float = -math.inf,
+        high: float = math.inf,
+        unit: str = "",
+        low_open: bool = True,
+    ) -> None:
         self.low, self.high, self.unit, self.low_open = low, high, unit, low_open
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
@@ -44,10 +51,17 @@ class BoundedFloat(click.ParamType):
         above_low = number > self.low if self.low_open else number >= self.low
         if not (math.isfinite(number) and above_low and number <= self.high):
             bracket = "(" if self.low_open else "["
-            self.fail(
-                f"{value!r} is not in {bracket}{self.low:g}, {self.high:g}] {self.unit}", param, ctx
+            where = (
+                f"in {bracket}{self.low:g}, {self.high:g}] {self.unit}".rstrip()
+                if math.isfinite(self.low) or math.isfinite(self.high)
+                else "a finite number"
             )
+            self.fail(f"{value!r} is not {where}", param, ctx)
         return number
+
+
+FINITE_FLOAT = BoundedFloat()
+"""Any finite number (a score threshold: ``nan`` would keep every box)."""
 
 
 height_option = click.option(
@@ -220,7 +234,9 @@ def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
             show_default=True,
             help="Seconds between frames (KITTI and OXTS poses).",
         ),
-        click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE."),
+        click.option(
+            "--score", type=FINITE_FLOAT, default=None, help="Keep boxes with score >= SCORE."
+        ),
         height_option,
         mount_option,
     )
@@ -296,7 +312,7 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--score",
-            type=float,
+            type=FINITE_FLOAT,
             default=None,
             help=f"{prefix}Keep detections with score >= SCORE (PointRCNN, RRC boxes).",
         ),

@@ -18,6 +18,7 @@ import click
 
 from slopedist.cli.method_options import check_methods, estimator_options, parse_triple
 from slopedist.cli.options import (
+    FINITE_FLOAT,
     detector_options,
     height_option,
     lookback_option,
@@ -291,7 +292,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     default=None,
     help="Timestamps file, one per frame (seconds or KITTI date-times); overrides --fps.",
 )
-@click.option("--score", type=float, default=None, help="Keep boxes with score >= SCORE.")
+@click.option("--score", type=FINITE_FLOAT, default=None, help="Keep boxes with score >= SCORE.")
 @click.option(
     "--sequence",
     default=None,
