@@ -158,3 +158,21 @@ def test_ours_own_sigma_is_scored_against_its_errors(kitti_tracking_dir: Path) -
     # near a Gaussian's 68 / 95 % on these two sequences (0.84 / 0.995 today: a little wide)
     assert 0.5 < u["within_1sigma"] < 0.95 and u["within_2sigma"] > 0.85
     assert "uncertainty" not in report["methods"]["flat"]["overall"]
+
+
+def test_detections_after_the_last_labelled_frame_are_not_fed(
+    kitti_tracking_dir: Path, tmp_path: Path
+) -> None:
+    """A label file that ends before the detector's boxes do (a shortened sequence): those
+    detections have no truth to be scored against; the evaluation runs on the labelled
+    frames instead of failing with a frame number and no sequence named."""
+    for folder in ("calib", "orbslam3_poses", "oxts_poses", "rrc_car", "label_02"):
+        (tmp_path / folder).mkdir()
+        source = kitti_tracking_dir / folder / "0003.txt"
+        text = source.read_text()
+        if folder == "label_02":
+            text = "".join(line for line in text.splitlines(True) if int(line.split()[0]) < 40)
+        (tmp_path / folder / "0003.txt").write_text(text)
+    cfg = dataclasses.replace(KittiEvalConfig(), boxes="rrc", min_score=0.5)
+    report = evaluate_kitti_tracking(tmp_path, cfg)
+    assert 0 < report["methods"]["paper"]["overall"]["n"] < 200

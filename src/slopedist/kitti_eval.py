@@ -170,9 +170,12 @@ class KittiEvalConfig:
 
 
 def _boxes_for(seq: KittiTrackingSequence, cfg: KittiEvalConfig, gt: BoxTable) -> BoxTable:
+    """The boxes the methods are fed: the labels, or the detector's boxes of the labelled
+    frames (a detection after the last labelled frame has no truth to be scored against)."""
     if BoxSource(cfg.boxes) is BoxSource.GT:
         return gt
-    return seq.detections(cfg.min_score, BoxSource(cfg.boxes))
+    detections = seq.detections(cfg.min_score, BoxSource(cfg.boxes))
+    return detections.select(detections.frame < seq.n_frames)
 
 
 @dataclass
