@@ -18,6 +18,7 @@ from slopedist.estimators import (
     PaperEstimator,
     available_methods,
     build_estimator,
+    make_estimator,
 )
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.estimators.ours.config import parse_option, settable_options
@@ -121,3 +122,11 @@ def test_parse_ours_option_gives_a_value_or_a_configuration_error(text: str) -> 
     except ConfigurationError:
         return
     assert key in settable_options()
+
+
+@pytest.mark.parametrize("method", ["flat", "ego", "paper", "imu", "imu-ego", "depthmap", "ours"])
+def test_an_option_a_method_does_not_take_is_a_configuration_error(method: str) -> None:
+    """Not a bare TypeError from the constructor: the message names the method and lists
+    what it takes."""
+    with pytest.raises(ConfigurationError, match=rf"unknown option\(s\) for method '{method}'"):
+        make_estimator(method, Camera(721.5, 609.6, 172.9), bogus=1)

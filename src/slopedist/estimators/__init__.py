@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import Enum
@@ -116,8 +117,29 @@ def takes_ours_options(name: str) -> bool:
 
 
 def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
-    """Build the estimator registered as ``name`` for ``camera``."""
-    return ESTIMATORS[_method_name(name)](camera, **options)
+    """Build the estimator registered as ``name`` for ``camera``.
+
+    Raises:
+        ConfigurationError: an unknown method, or an option the method does not take (the
+            message lists the ones it takes).
+    """
+    factory = ESTIMATORS[_method_name(name)]
+    known = _option_names(factory)
+    unknown = sorted(set(options) - known) if known is not None else []
+    if unknown:
+        raise ConfigurationError(
+            f"unknown option(s) for method '{name}': {', '.join(unknown)} "
+            f"(known: {', '.join(sorted(known or ())) or 'none'})"
+        )
+    return factory(camera, **options)
+
+
+def _option_names(factory: Callable[..., Estimator]) -> set[str] | None:
+    """The keyword options ``factory`` takes after the camera (None: any, it checks them)."""
+    params = list(inspect.signature(factory).parameters.values())[1:]  # after the camera
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return None
+    return {p.name for p in params}
 
 
 @dataclass(frozen=True)
