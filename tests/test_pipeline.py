@@ -142,6 +142,17 @@ def test_a_rotation_that_is_not_3x3_is_an_error(R: object) -> None:
             FrameStep(make_estimator(method, CAMERA)).estimate(0, 0.0, 0.0, R, box)  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize("R", [5 * np.eye(3), np.diag([1.0, 1.0, -1.0]), np.ones((3, 3))])
+def test_a_matrix_that_is_not_a_rotation_is_an_error(R: np.ndarray) -> None:
+    """A scaled matrix, a reflection or any 3×3 of numbers passed as the camera rotation; a
+    NaN one still means "no rotation" and a rotation drifted by 1e-6 is taken."""
+    box = BoxTable.build([0], [[500.0, 180.0, 600.0, 250.0]])
+    with pytest.raises(DataMismatchError, match="not a rotation matrix"):
+        FrameStep(make_estimator("paper", CAMERA)).step(0, 0.0, R, box)
+    FrameStep(make_estimator("paper", CAMERA)).step(0, 0.0, np.full((3, 3), np.nan), box)
+    FrameStep(make_estimator("paper", CAMERA)).step(0, 0.0, np.eye(3) * (1 + 1e-6), box)
+
+
 def test_flat_runs_without_rotation_ego_does_not() -> None:
     boxes = BoxTable.build([0], [[500, 150, 600, 250]])
     flat = FrameStep(make_estimator("flat", CAMERA)).step(0, 0.0, None, boxes).estimates

@@ -208,7 +208,9 @@ def _rotation(
     """``R_world_cam`` as a float ``(3, 3)`` array (None stays None: no rotation).
 
     Raises:
-        DataMismatchError: it is not a ``(3, 3)`` matrix of numbers.
+        DataMismatchError: it is not a ``(3, 3)`` matrix of numbers, or a finite one that is
+            not a rotation (``RᵀR`` off the identity by more than 1e-3, as pose files are
+            checked, or a reflection).
     """
     if R_world_cam is None:
         return None
@@ -220,6 +222,10 @@ def _rotation(
         raise DataMismatchError(
             f"frame {frame_index}: the camera rotation must be a 3×3 matrix (or None), got "
             f"shape {np.shape(R_world_cam)}"
+        )
+    if np.isfinite(R).all() and (np.abs(R.T @ R - np.eye(3)).max() > 1e-3 or np.linalg.det(R) < 0):
+        raise DataMismatchError(
+            f"frame {frame_index}: the camera rotation is not a rotation matrix: {R.tolist()}"
         )
     return R
 
