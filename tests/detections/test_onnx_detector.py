@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from slopedist.detections.layouts import Candidates, LogitKind, OutputLayout, guess_layout
+from slopedist.detections.layouts import (
+    Candidates,
+    LogitKind,
+    OutputLayout,
+    decode_end_to_end,
+    guess_layout,
+)
 from slopedist.detections.onnx_detector import (
     DetectionTiming,
     DetectorSettings,
@@ -270,3 +277,14 @@ def test_preprocess_equals_letterbox_then_blob(
         ref = cv2.dnn.blobFromImage(padded, scale, swapRB=not bgr)
         assert box == ref_box
         np.testing.assert_allclose(blob, ref, rtol=1e-6)
+
+
+def test_an_end_to_end_row_without_a_finite_class_is_dropped() -> None:
+    """Its class cast to an integer was garbage (and numpy warned about the cast on stderr)."""
+    out = np.array(
+        [[[10, 20, 50, 60, 0.9, 2], [1, 2, 3, 4, 0.8, np.nan], [5, 6, 7, 8, 0.7, np.inf]]]
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        found = decode_end_to_end(out)
+    assert found.class_ids.tolist() == [2] and found.scores.tolist() == [0.9]

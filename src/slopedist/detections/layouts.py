@@ -136,14 +136,15 @@ def decode_yolov5(output: NDArray, min_score: float = 0.0) -> Candidates:
 
 
 def decode_end_to_end(output: NDArray, min_score: float = 0.0) -> Candidates:
-    """``[1, N, 6]``: ``x1, y1, x2, y2, score, class`` with NMS already done (YOLOv10)."""
+    """``[1, N, 6]``: ``x1, y1, x2, y2, score, class`` with NMS already done (YOLOv10); a row
+    whose class is not a finite number names no class and is dropped."""
     arr = _squeeze_batch(output, OutputLayout.END_TO_END)
     if arr.shape[1] != 6:
         raise DataMismatchError(
             f"end-to-end output needs 6 columns (x1, y1, x2, y2, score, class), "
             f"got shape {np.shape(output)}"
         )
-    arr = arr[arr[:, 4] >= min_score]
+    arr = arr[(arr[:, 4] >= min_score) & np.isfinite(arr[:, 5])]
     return Candidates(
         arr[:, :4].astype(np.float64), arr[:, 4].astype(np.float64), arr[:, 5].astype(np.int64)
     )
