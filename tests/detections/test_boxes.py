@@ -310,6 +310,8 @@ def test_overlapping_pairs_by_hand() -> None:
         ({"frame": [0], "boxes": [[1, 2, 3, 4]], "classes": ["Car", "Van"]}, "'classes' has 2"),
         ({"frame": [float("nan")], "boxes": [[1, 2, 3, 4]]}, "column 'frame'"),
         ({"frame": [0], "boxes": [["a", 2, 3, 4]]}, "column 'boxes'"),
+        ({"frame": [0.5], "boxes": [[1, 2, 3, 4]]}, "'frame': values that are not whole"),
+        ({"frame": [0], "boxes": [[1, 2, 3, 4]], "track_id": [2.5]}, "'track_id': values"),
     ],
 )
 def test_build_with_columns_that_do_not_fit_is_a_data_mismatch(

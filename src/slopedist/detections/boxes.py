@@ -226,6 +226,10 @@ def _column(
     """
     try:
         arr = np.asarray(values, dtype=dtype)
+        if np.issubdtype(dtype, np.integer):  # whole numbers only: 0.5 is no frame index
+            exact = np.asarray(values, dtype=np.float64)
+            if not np.array_equal(exact.reshape(-1), arr.reshape(-1).astype(np.float64)):
+                raise ValueError("values that are not whole numbers")
     except (TypeError, ValueError, OverflowError) as exc:
         raise DataMismatchError(f"box table column '{name}': {exc}") from None
     if shape is None:
