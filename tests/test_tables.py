@@ -26,6 +26,13 @@ def test_best_marks_within_tolerance_and_direction() -> None:
     assert best_marks([math.nan, "x"]) == [False, False]
 
 
+def test_best_marks_needs_two_values_to_compare() -> None:
+    # one method's time or RMSE (the others not measured) is no "best": no bold
+    assert best_marks([9.8]) == [False]
+    assert best_marks([math.nan, 3.4, "-"]) == [False, False, False]
+    assert best_marks([math.nan, 3.4, 5.0]) == [False, True, False]
+
+
 TABLE = Table(
     "t1",
     "Title <1>",

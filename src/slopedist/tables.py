@@ -60,11 +60,13 @@ class Table:
 
 
 def best_marks(values: Sequence[Any], larger_is_better: bool = False) -> list[bool]:
-    """Which of ``values`` are the best finite float (within :data:`BEST_TOLERANCE`)."""
+    """Which of ``values`` are the best finite float (within :data:`BEST_TOLERANCE`); none
+    when fewer than two are finite floats (nothing was compared: one method's only value in
+    bold would read as a win)."""
     arr = np.array(
         [v if isinstance(v, float) and math.isfinite(v) else np.nan for v in values], dtype=float
     )
-    if not np.isfinite(arr).any():
+    if np.count_nonzero(np.isfinite(arr)) < 2:
         return [False] * len(values)
     best = np.nanmax(arr) if larger_is_better else np.nanmin(arr)
     return [bool(np.isfinite(a) and abs(a - best) < BEST_TOLERANCE) for a in arr]

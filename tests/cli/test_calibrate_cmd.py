@@ -13,8 +13,11 @@ import pytest
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.cli import main
+from slopedist.cli.calibrate_cmd import advice_text
 from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.estimators.ours import EXTRA_COLUMNS
+from slopedist.estimators.ours.selfcal import Calibration
+from slopedist.mount_calibration import judge_mount
 
 F, CX, CY = 721.5, 609.6, 172.9
 
@@ -250,3 +253,19 @@ def test_calibrate_frames_checks_the_calibrations_image_size_against_the_frames(
     assert main(["calibrate", frames, "--calib", str(calib), "--boxes", str(boxes)]) == 2
     err = capsys.readouterr().err
     assert "1280" in err and "1242" in err and "Traceback" not in err
+
+
+def test_advice_text_says_which_sigma_parts_were_not_measured() -> None:
+    # one frame of two vehicles: one stretch saw targets and the jackknife needs three
+    # vehicles; their zeros are no evidence of a small error and are not printed as 0.00°
+    def cal(n_obs: int, n_tracks: int) -> Calibration:
+        return Calibration(0.01, 0.005, 1.6, 0.1, 0.0, n_obs, n_tracks)
+
+    empty = cal(0, 0)
+    advice = judge_mount(cal(6, 2), [cal(6, 2), empty, empty], cal(0, 0))
+    parts = next(line for line in advice_text(advice).splitlines() if "1σ parts" in line)
+    assert "spread of 3 stretches not measured (targets in 1 of them)" in parts
+    assert "leave-one-vehicle-out not measured (2 vehicles)" in parts
+    assert "fit 0.29°, 0.100 m" in parts and "0.00°" not in parts
+    whole = judge_mount(cal(600, 20), [cal(200, 8), cal(200, 8), cal(200, 8)], cal(0, 0))
+    assert "not measured" not in advice_text(whole)

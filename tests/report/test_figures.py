@@ -11,7 +11,7 @@ import pytest
 
 from slopedist.errors import ConfigurationError
 from slopedist.report import ReportOptions, report_data
-from slopedist.report.figures import figure_tracks, track_series
+from slopedist.report.figures import choose_tracks, figure_tracks, track_series
 from tests.report.test_report import _record, write_run
 
 
@@ -32,3 +32,23 @@ def test_track_series_aligns_methods_on_the_track_times(tmp_path: Path) -> None:
     assert figure is not None and figure.png.startswith(b"\x89PNG")
     with pytest.raises(ConfigurationError, match="track 4 of sequence seq"):
         track_series(data, "seq", 4)
+
+
+def test_chosen_track_has_something_to_draw_in_a_run_without_truth(tmp_path: Path) -> None:
+    # track 0: the longest, but every record an upper bound (no distance in the report) and no
+    # truth column; its panel would be empty. Track 5 has estimates in two frames.
+    bounds = [
+        {
+            **_record(k, 5.0, math.nan),
+            "track_id": 0,
+            "status": "upper_bound",
+            "reason": "cut_bottom",
+        }
+        for k in range(3)
+    ]
+    ok = [{**_record(k, 20.0 + k, math.nan), "track_id": 5} for k in range(2)]
+    for row in (*bounds, *ok):
+        del row["gt_distance_m"]
+    write_run(tmp_path / "seq", [*bounds, *ok], [{"frame": 0, "estimation_ms": 1.0}], extra=())
+    data = report_data(tmp_path / "seq", ReportOptions())
+    assert choose_tracks(data, 4) == [("seq", 5)]

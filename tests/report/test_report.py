@@ -399,3 +399,17 @@ def test_the_learned_peer_row_in_the_kitti_report(tmp_path: Path) -> None:
     written = write_report(data, tmp_path / "o", parquet=False)
     assert PEER_METHOD in (tmp_path / "o" / "report.md").read_text()
     assert written.files
+
+
+@pytest.mark.kitti
+def test_kitti_report_has_the_oxts_theta_truth_without_an_imu_method(
+    kitti_tracking_dir: Path,
+) -> None:
+    # no method is fed OXTS, yet the sequence has them: θ is still compared with them (the
+    # caption said "no IMU truth in this source")
+    cfg = KittiEvalConfig(sequences=["0001"], methods=("flat", "paper"))
+    data = report_data(kitti_tracking_dir, ReportOptions(eval=cfg))
+    assert data.truth_source == "oxts"
+    theta = next(t for t in report_tables(data) if t.key == "theta_agreement")
+    assert [(r[0], r[1]) for r in theta.rows] == [("0001", "orbslam3")]
+    assert theta.rows[0][3] < 0.1  # ORB-SLAM3 agrees with OXTS to < 0.1° RMS

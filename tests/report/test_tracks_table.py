@@ -59,6 +59,19 @@ def test_track_table_lists_the_closest_tracks_first(tmp_path: Path) -> None:
     assert math.isnan(table.rows[2][6])
 
 
+def test_track_table_title_says_how_the_tracks_were_chosen(tmp_path: Path) -> None:
+    # track 2 is the closest (7.5 m) but has no TTC, so it is listed last and, with more
+    # tracks than rows, left out: the title must not call the rows "the closest"
+    run_folder(
+        tmp_path / "run",
+        {1: [20.0, 19.0, 18.0], 2: [9.0, 8.0, 7.5]},
+        {1: [5.0, 1.5, 3.0], 2: [math.nan] * 3},
+    )
+    data = run_report_data(tmp_path / "run", ReportOptions())
+    (table,) = [t for t in report_tables(data) if t.key == "tracks"]
+    assert table.title == "Tracks: 2 of 2, smallest TTC first, then smallest distance"
+
+
 def test_a_bad_tracks_cell_names_file_line_and_field(tmp_path: Path) -> None:
     run_folder(tmp_path / "run", {1: [20.0]}, {1: [5.0]})
     path = tmp_path / "run" / TRACKS_NAME

@@ -32,7 +32,7 @@ from slopedist.estimators.ours import Calibration
 from slopedist.io.frames import open_frames
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import write_json
-from slopedist.mount_calibration import MountAdvice, advise_from_frames, advise_mount
+from slopedist.mount_calibration import MountAdvice, MountSigma, advise_from_frames, advise_mount
 from slopedist.tables import format_table
 
 HISTORY_KEYS = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
@@ -74,20 +74,36 @@ def _row(t: float, c: Calibration) -> list[Any]:
     ]
 
 
+def _sigma_part(name: str, sigma: MountSigma, unmeasured: str | None) -> str:
+    """``"name 0.24°, 0.075 m"`` (θ0 in degrees, h in metres), or why the part was not
+    measured (its zeros are no evidence of a small error)."""
+    if unmeasured is not None:
+        return f"{name} not measured ({unmeasured})"
+    return f"{name} {math.degrees(sigma.mount_angle_rad):.2f}°, {sigma.height_m:.3f} m"
+
+
 def advice_text(advice: MountAdvice) -> str:
     """The final estimate, its uncertainty and what to do (several lines)."""
     e, s = advice.estimate, advice.sigma
     deg = math.degrees
+    n_seen = sum(c.n_observations > 0 for c in advice.segments)
+    spread = _sigma_part(
+        f"spread of {len(advice.segments)} stretches",
+        advice.spread,
+        f"targets in {n_seen} of them" if n_seen < 2 else None,
+    )
+    vehicles = _sigma_part(
+        "leave-one-vehicle-out",
+        advice.vehicles,
+        f"{e.n_tracks} vehicle{'s' * (e.n_tracks != 1)}" if e.n_tracks < 3 else None,
+    )
     lines = [
         f"mount angle θ0 = {deg(e.mount_angle_rad):.2f}° ± {deg(s.mount_angle_rad):.2f}°, camera "
         f"height h = {e.height_m:.3f} m ± {s.height_m:.3f} m (1σ; from {e.n_observations} "
         f"targets of {e.n_tracks} vehicles; configured {deg(advice.prior.mount_angle_rad):g}°, "
         f"{advice.prior.height_m:g} m)",
-        f"1σ parts: fit {deg(advice.fit.mount_angle_rad):.2f}°, {advice.fit.height_m:.3f} m; "
-        f"spread of {len(advice.segments)} stretches {deg(advice.spread.mount_angle_rad):.2f}°, "
-        f"{advice.spread.height_m:.3f} m; leave-one-vehicle-out "
-        f"{deg(advice.vehicles.mount_angle_rad):.2f}°, {advice.vehicles.height_m:.3f} m; model "
-        f"floor {deg(advice.floor.mount_angle_rad):.2f}°, {advice.floor.height_m:.3f} m",
+        f"1σ parts: {_sigma_part('fit', advice.fit, None)}; {spread}; {vehicles}; "
+        f"{_sigma_part('model floor', advice.floor, None)}",
         f"box shapes: {advice.estimate.n_shape_outliers} of {advice.estimate.n_shape_checked} "
         "targets unlike their class (left out)",
         *advice.reasons,

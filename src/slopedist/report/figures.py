@@ -38,13 +38,17 @@ class Figure:
 
 
 def choose_tracks(data: ReportData, n: int) -> list[tuple[str, int]]:
-    """The longest track (most frames with truth) of each of the ``n`` sequences whose longest
-    tracks are longest."""
+    """The longest track (most records with a truth or an estimate, i.e. something to draw)
+    of each of the ``n`` sequences whose longest tracks are longest; a track with neither (a
+    run without truth whose every record is an upper bound or missing) is never chosen."""
     seq = np.asarray(data.records.data["sequence"], dtype=object)
     tid = data.records.array("track_id", int)
+    drawn = np.isfinite(data.records.array("gt_distance_m")) | np.isfinite(
+        data.records.array("distance_m")
+    )
     best: dict[str, tuple[int, int]] = {}
     for s in data.sequences:
-        sel = (seq == s) & (tid >= 0)
+        sel = (seq == s) & (tid >= 0) & drawn
         if not sel.any():
             continue
         ids, counts = np.unique(tid[sel], return_counts=True)

@@ -9,12 +9,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
+from slopedist.datasets.kitti_tracking import BoxSource, RotationSource, load_sequence
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, available_methods, causal_methods
-from slopedist.kitti_eval import KittiEvaluation, SequenceRun, run_kitti_tracking
+from slopedist.kitti_eval import (
+    KittiEvalConfig,
+    KittiEvaluation,
+    SequenceRun,
+    run_kitti_tracking,
+)
 from slopedist.learned_peer import PEER_METHOD, PEER_PROTOCOL
+from slopedist.pipeline import ego_gradients
 from slopedist.report.data import (
     RECORD_COLUMNS,
     THETA_COLUMNS,
@@ -75,6 +82,16 @@ def _add_theta(theta: Columns, name: str, run: SequenceRun) -> None:
                 source=source,
                 theta_deg=math.degrees(v),
             )
+
+
+def _oxts_theta(root: Path, name: str, cfg: KittiEvalConfig) -> NDArray[np.float64] | None:
+    """The ego gradient θ per frame (radians) from sequence ``name``'s OXTS poses, the report's
+    θ truth when no method was fed them (None: the sequence has no OXTS file)."""
+    seq = load_sequence(root, name, cfg.height_m, cfg.mount_angle_rad)
+    if not seq.has_rotations(RotationSource.OXTS):
+        return None
+    track = seq.rotations(RotationSource.OXTS)
+    return ego_gradients(track, seq.camera.mount_angle_rad, cfg.lookback_s)[: seq.n_frames]
 
 
 def _timing(evaluation: KittiEvaluation, method: str) -> dict[str, float]:
@@ -141,11 +158,15 @@ def kitti_report_data(
     evaluation = run_kitti_tracking(root, replace(cfg, methods=tuple(methods)), on_sequence)
     records = Columns(RECORD_COLUMNS)
     theta = Columns(THETA_COLUMNS)
+    oxts = RotationSource.OXTS.value
     for name, run in evaluation.runs.items():
+        if oxts not in run.theta_rad:  # the θ truth, also when no method was fed OXTS
+            truth = _oxts_theta(root, name, cfg)
+            if truth is not None:
+                run.theta_rad[oxts] = truth
         _add_records(records, name, run, methods)
         _add_theta(theta, name, run)
     protocol = evaluation.config.protocol()
-    oxts = RotationSource.OXTS.value
     return ReportData(
         title=opts.title,
         source=root,

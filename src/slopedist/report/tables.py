@@ -123,7 +123,7 @@ def tracks_table(data: ReportData) -> Table | None:
     shown = rows[:TRACK_TABLE_ROWS]
     return Table(
         "tracks",
-        f"Tracks: the {len(shown)} closest of {len(rows)}",
+        f"Tracks: {len(shown)} of {len(rows)}, smallest TTC first, then smallest distance",
         [
             "sequence",
             "method",
