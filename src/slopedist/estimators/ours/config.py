@@ -100,6 +100,11 @@ class OursConfig:
             of the gap between the size cues and the ground contact (3, the usual outlier
             test, as ``occlusion_gate_sigma``; not fitted): beyond it the measurement's
             variance covers both cues (record column ``cue_gap_sigma``).
+        noise_time_s: the time over which each track measures the frame-to-frame noise its
+            measurements show (the running mean of its filter's normalised innovations;
+            :func:`~slopedist.estimators.ours.frame_cues._noise_scale`), which widens the σ
+            of its speed and time to collision, seconds (1: the ego gradient's look-back;
+            None: the nominal noise throughout).
         max_relative_sigma: a box whose 1σ (``sigma_m``) exceeds this share of its distance is
             ``missing``, reason ``too_uncertain``, not ``ok`` (0.5: a 1σ interval of ±50 % is
             no distance to act on; a round bound, not fitted: no scored box of the 13 KITTI
@@ -165,6 +170,7 @@ class OursConfig:
     occlusion_gate_sigma: float = 3.0
     consistency_gate_sigma: float = 3.0
     max_relative_sigma: float = 0.5
+    noise_time_s: float | None = 1.0
     reference: str = "centre"
     size_learning: bool = False
     size_evidence_time_s: float | None = None
@@ -197,13 +203,14 @@ class OursConfig:
                 raise ConfigurationError(
                     f"ours option {name} must be a finite number > 0, got {value!r}"
                 )
-        tau = self.size_evidence_time_s
-        if tau is not None and not (
-            isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0
-        ):
-            raise ConfigurationError(
-                f"ours option size_evidence_time_s must be a finite number > 0, got {tau!r}"
-            )
+        for name in ("size_evidence_time_s", "noise_time_s"):
+            tau = getattr(self, name)
+            if tau is not None and not (
+                isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0
+            ):
+                raise ConfigurationError(
+                    f"ours option {name} must be a finite number > 0, got {tau!r}"
+                )
         rare = (self.atypical_height_weight, self.odd_object_weight)
         if not (all(0.0 <= w < 1.0 for w in rare) and sum(rare) < 1.0):
             raise ConfigurationError(

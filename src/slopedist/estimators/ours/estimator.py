@@ -504,6 +504,7 @@ class OursEstimator(Estimator):
                 match.turned_boxes_px if match.box_motion else None,
                 size_rows,
                 odd_evidence,
+                distance.noise_scale,
             )
         )
 

@@ -194,12 +194,15 @@ class DistanceFilterResult(NamedTuple):
         predicted_rows: ``(5, n)`` the rows predicted for this frame from each continued
             track's last update (NaN where a track starts), when the estimator keeps them
             (offline smoothing), else None.
+        noise_scale: ``(n,)`` each track's measurement-noise scale after this frame (1 where
+            a track starts), or None when it is not estimated.
     """
 
     filter_rows: FloatArray
     rows: IntArray
     continued: BoolArray
     predicted_rows: FloatArray | None = None
+    noise_scale: FloatArray | None = None
 
 
 class TargetGradient(NamedTuple):

@@ -54,7 +54,11 @@ ROW_ODD = 30
 """The track's evidence that its size is not its class's: the odd-object mode's log-likelihood
 ratio summed over its frames, each weighed by ``min(1, dt/τ)``, 0 for a new track
 (:mod:`~slopedist.estimators.ours.odd_objects`)."""
-ROW_LOG_W = 31
+ROW_NOISE = 31
+"""The track's measurement-noise scale: a running mean of its distance filter's normalised
+innovation squared against the nominal frame-to-frame noise, 1 for a new track
+(:func:`~slopedist.estimators.ours.frame_cues.filter_distance`)."""
+ROW_LOG_W = 32
 """First row of the log belief over the heading hypotheses (K rows)."""
 
 
@@ -111,6 +115,7 @@ class TrackArrays:
         st[ROW_SIZE.start] = 0.0
         st[ROW_SIZE.start + 1] = np.nan
         st[ROW_ODD] = 0.0
+        st[ROW_NOISE] = 1.0
         st[ROW_LOG_W:] = log_w.T
         return cls(uid, ext_id, st)
 
@@ -218,6 +223,8 @@ class TrackUpdate(NamedTuple):
             learned (tracks keep the class prior).
         odd_evidence: ``(n,)`` the odd-object evidence (:data:`ROW_ODD`), or None when this
             frame has none (tracks keep theirs; a new track starts from 0).
+        noise_scale: ``(n,)`` the measurement-noise scale (:data:`ROW_NOISE`), or None when it
+            is not estimated (tracks keep theirs; a new track starts from 1).
     """
 
     rows: IntArray
@@ -233,6 +240,7 @@ class TrackUpdate(NamedTuple):
     turned_boxes_px: FloatArray | None
     size_rows: FloatArray | None = None
     odd_evidence: FloatArray | None = None
+    noise_scale: FloatArray | None = None
 
 
 def write_continued(
@@ -273,6 +281,9 @@ def write_continued(
     if update.odd_evidence is not None:
         odd = update.odd_evidence
         S[ROW_ODD] = odd if continued is None else odd[continued]
+    if update.noise_scale is not None:
+        scale = update.noise_scale
+        S[ROW_NOISE] = scale if continued is None else scale[continued]
     tracks.state[:, r] = S
 
 
