@@ -314,3 +314,13 @@ def test_scenario_folder_accepts_plain_names(tmp_path: Path) -> None:
     from slopedist.demo import scenario_folder
 
     assert scenario_folder(tmp_path, "my_hill-2.v1") == tmp_path / "my_hill-2.v1"
+
+
+def test_the_targets_counted_at_the_cap_include_the_near_horizon_ones() -> None:
+    scores = demo_scenario.MethodScores(
+        distance=[math.nan, math.nan, 10.0, math.nan],
+        reason=["below_horizon", "near_horizon", "", "no_rotation"],
+        truth=[50.0, 60.0, 10.0, 20.0],
+    )
+    m = scores.metrics()
+    assert (m["n"], m["below_horizon"], m["unscored"]) == (3, 2, 1)

@@ -61,8 +61,7 @@ from slopedist.demo_scenario import (
 )
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import causal_methods
-from slopedist.estimators.base import MissingReason
-from slopedist.evaluation import PooledScores, pool_methods
+from slopedist.evaluation import AT_CAP_REASONS, PooledScores, pool_methods
 from slopedist.io.prefetch import usable_cores
 from slopedist.io.tables import write_csv, write_json
 from slopedist.plots import DistanceSeries, TargetTheta, plot_distance_series, plot_theta_series
@@ -179,7 +178,7 @@ def plot_inputs(
             for f, tr, dist, r in zip(s.frame, s.track, s.distance, s.reason):
                 if tr == tid:
                     d[f] = dist
-                    b[f] = r == MissingReason.BELOW_HORIZON.value
+                    b[f] = r in AT_CAP_REASONS
             est[name] = d
             below[name] = b
         series.append(DistanceSeries(int(tid), truth, est, below))
@@ -352,12 +351,12 @@ def rmse_table(result: DemoResult, scores: PooledScores) -> Table:
 
 
 def missing_table(result: DemoResult) -> Table:
-    """Targets at or above the vanishing line (scored as 80 m) per scenario × method."""
+    """Targets at or near the vanishing line (scored as 80 m) per scenario × method."""
     methods = result.methods
     rows: list[list[Any]] = [
         [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs
     ]
-    title = f"Targets at or above the vanishing line (counted as {CAP_M:g} m)"
+    title = f"Targets at or near the vanishing line (counted as {CAP_M:g} m)"
     return Table("below_horizon", title, ["scenario", *methods], rows)
 
 

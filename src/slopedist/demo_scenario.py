@@ -34,9 +34,15 @@ from slopedist.estimators import (
     EstimatorConfig,
     build_estimator,
 )
-from slopedist.estimators.base import FrameEstimates, MissingReason
+from slopedist.estimators.base import FrameEstimates
 from slopedist.estimators.imu import IMU_ROTATION_SOURCE
-from slopedist.evaluation import ScoredSet, cap_estimates, distance_metrics, reported_sigma
+from slopedist.evaluation import (
+    AT_CAP_REASONS,
+    ScoredSet,
+    cap_estimates,
+    distance_metrics,
+    reported_sigma,
+)
 from slopedist.io.overlay import GifWriter, OverlayWriter, open_overlay_video
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
@@ -196,13 +202,14 @@ class MethodScores:
         )
 
     def metrics(self) -> dict[str, Any]:
-        """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m,
+        """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m
+        (at or near the vanishing line: :data:`~slopedist.evaluation.AT_CAP_REASONS`),
         ``unscored`` (other missing reasons)."""
         d = np.asarray(self.distance, dtype=float)
         reason = np.asarray(self.reason, dtype=object)
         capped, ok = cap_estimates(d, reason, CAP_M)
         out: dict[str, Any] = dict(distance_metrics(capped[ok], np.asarray(self.truth)[ok]))
-        out["below_horizon"] = int(np.sum(reason == MissingReason.BELOW_HORIZON.value))
+        out["below_horizon"] = int(np.count_nonzero(np.isin(reason, AT_CAP_REASONS)))
         out["unscored"] = int(np.sum(~ok))
         return out
 

@@ -81,6 +81,11 @@ def binned_metrics(
     }
 
 
+AT_CAP_REASONS = (MissingReason.BELOW_HORIZON.value, MissingReason.NEAR_HORIZON.value)
+"""The missing reasons a target is counted at the cap for (:func:`cap_estimates`): its box
+bottom at or above the vanishing line, or too near it for eq. 1."""
+
+
 def cap_estimates(
     distance_m: ArrayLike, reason: ArrayLike, cap_m: float = 80.0
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -95,7 +100,7 @@ def cap_estimates(
     """
     d = np.asarray(distance_m, dtype=float).copy()
     r = np.asarray(reason, dtype=object)
-    at_cap = (r == MissingReason.BELOW_HORIZON.value) | (r == MissingReason.NEAR_HORIZON.value)
+    at_cap = np.isin(r, AT_CAP_REASONS)
     d[(r != "") & ~at_cap] = np.nan
     d[at_cap] = cap_m
     d = np.minimum(d, cap_m)

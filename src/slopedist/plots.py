@@ -60,7 +60,7 @@ class DistanceSeries:
         truth: ``(F,)`` true distance (NaN where the target is not in view).
         estimates: ``{method: (F,)}`` estimated distance (NaN where missing or not detected).
         below_horizon: ``{method: (F,) bool}`` frames where the box bottom was at or above the
-            method's vanishing line (eq. 1 undefined).
+            method's vanishing line (eq. 1 undefined) or too near it (counted at the cap).
     """
 
     track_id: int
@@ -128,7 +128,7 @@ def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSerie
     ax.grid(alpha=0.3)
 
 
-BELOW_HORIZON_NOTE = "▼ = box bottom at or above the vanishing line"
+BELOW_HORIZON_NOTE = "▼ = box bottom at or near the vanishing line"
 """What the triangles of :func:`draw_distance_panel` mean (for an axis label or caption)."""
 
 

@@ -51,3 +51,19 @@ def test_frame_pixel_boxes_are_the_boxes_as_given() -> None:
     assert not np.allclose(mapped.boxes, given.boxes)
     np.testing.assert_array_equal(frame_pixel_boxes(mapped), given.boxes)
     np.testing.assert_array_equal(frame_pixel_boxes(given), given.boxes)
+
+
+@pytest.mark.parametrize("method", ["flat", "paper", "ours"])
+def test_a_box_in_the_frame_is_in_the_image_whatever_the_lens(method: str) -> None:
+    # barrel distortion maps boxes at the side edges of the frame beyond the ideal camera's
+    # image; they were 'missing, outside_image'. A box beyond the frame stays outside.
+    edge_boxes = [[1205.0, 300.0, 1238.0, 330.0], [0.0, 300.0, 30.0, 330.0]]
+    beyond = [[1250.0, 300.0, 1290.0, 330.0]]
+    for k1 in (0.0, -0.1, 0.3):
+        lens = Intrinsics(K, np.array([k1, 0.0, 0.0, 0.0]), image_size=(W, H))
+        table = lens.rectify_table(BoxTable.build(np.zeros(3), edge_boxes + beyond))
+        step = FrameStep(make_estimator(method, lens.camera(1.65)))
+        est = step.estimate(0, 0.0, 0.0, np.eye(3), table)
+        assert est.reason[2] == "outside_image", k1
+        assert "outside_image" not in est.reason[:2].tolist(), k1
+        assert est.cut[:2].tolist() == ["right", "left"], k1

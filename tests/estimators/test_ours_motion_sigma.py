@@ -19,20 +19,27 @@ from slopedist.estimators.base import FrameInput
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 
 
-def _run(box_noise_px: float, **options: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Distances, speed errors and speed σ over two seeds."""
+def _run(
+    box_noise_px: float, method: str = "ours", **options: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distances, speed errors and speed σ over two seeds (``ours-offline``: its smoothed ones)."""
     dist, err, sd = [], [], []
     for seed in range(2):
         sim = simulate_traffic(CAM, 10, 150, seed=seed, box_noise_px=box_noise_px)
-        est = make_estimator("ours", CAM, **options)
+        est = make_estimator(method, CAM, **options)
+        frames, results = [], []
         for k, t in enumerate(sim.timestamps_s):
             rows = np.flatnonzero(sim.boxes.frame == k)
             if rows.size:
                 frame = FrameInput(k, float(t), 0.0, sim.boxes.select(rows), R_world_cam=np.eye(3))
-                r = est.estimate(frame)
-                dist.append(r.distance_m)
-                err.append(r.extra["speed_mps"] - sim.speed_mps[rows])
-                sd.append(r.extra["speed_sigma_mps"])
+                frames.append(rows)
+                results.append(est.estimate(frame))
+        if est.offline:
+            results = est.finish()
+        for rows, r in zip(frames, results, strict=True):
+            dist.append(r.distance_m)
+            err.append(r.extra["speed_mps"] - sim.speed_mps[rows])
+            sd.append(r.extra["speed_sigma_mps"])
     return np.concatenate(dist), np.concatenate(err), np.concatenate(sd)
 
 
@@ -46,6 +53,18 @@ def test_the_speed_sigma_covers_the_errors_of_boxes_noisier_than_assumed() -> No
     assert (z_nominal < 1).mean() < 0.35 and np.sqrt(np.mean(z_nominal**2)) > 3
     assert (z < 1).mean() > 0.7 and np.sqrt(np.mean(z**2)) < 1.6
     assert (s >= s_nominal)[ok].all()  # only ever wider
+
+
+def test_the_offline_speed_sigma_follows_the_track_noise_too() -> None:
+    """``ours-offline`` replaces the speed and its σ by the smoothed ones: those σ are widened
+    by the same noise scale (they were the nominal ones, 28 % of the errors within 1σ)."""
+    d_nominal, _, s_nominal = _run(2.0, "ours-offline", noise_time_s=None)
+    d, e, s = _run(2.0, "ours-offline")
+    np.testing.assert_array_equal(d, d_nominal)
+    ok = np.isfinite(e) & np.isfinite(s)
+    assert (np.abs(e[ok]) / s_nominal[ok] < 1).mean() < 0.35
+    assert (np.abs(e[ok]) / s[ok] < 1).mean() > 0.7
+    assert (s >= s_nominal)[ok].all()
 
 
 def test_the_noise_time_is_checked() -> None:

@@ -52,3 +52,12 @@ def test_chosen_track_has_something_to_draw_in_a_run_without_truth(tmp_path: Pat
     write_run(tmp_path / "seq", [*bounds, *ok], [{"frame": 0, "estimation_ms": 1.0}], extra=())
     data = report_data(tmp_path / "seq", ReportOptions())
     assert choose_tracks(data, 4) == [("seq", 5)]
+
+
+def test_a_near_horizon_record_is_marked_as_counted_at_the_cap(tmp_path: Path) -> None:
+    # near_horizon is scored at the 80 m cap like below_horizon; the figure marks both
+    rows = [_record(0, 10.0, 11.0), _record(1, "", 30.0, "near_horizon")]
+    write_run(tmp_path / "seq", rows, [{"frame": 0, "estimation_ms": 1.0}])
+    _, series = track_series(report_data(tmp_path / "seq", ReportOptions()), "seq", 3)
+    np.testing.assert_allclose(series.estimates["paper"], [10.0, 80.0])
+    assert series.below_horizon["paper"].tolist() == [False, True]

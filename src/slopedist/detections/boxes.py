@@ -413,3 +413,18 @@ def frame_pixel_boxes(table: BoxTable) -> NDArray[np.float64]:
     cuts is judged here: a mapped box's edges move by the lens model, in or out of the image."""
     original = table.extra.get(FRAME_BOX_COLUMN)
     return table.boxes if original is None else np.asarray(original, dtype=float)
+
+
+def table_box_problems(
+    table: BoxTable, image_size: tuple[int, int] | None = None
+) -> NDArray[np.object_]:
+    """:func:`box_problems` of ``table``'s boxes, with ``outside_image`` judged in the frame's
+    own pixels (:func:`frame_pixel_boxes`): a box the frame shows is in the image even when a
+    lens model maps it beyond the ideal camera's edges (barrel distortion moves them out)."""
+    reasons = box_problems(table.boxes, image_size)
+    if image_size is None or FRAME_BOX_COLUMN not in table.extra:
+        return reasons
+    outside = box_problems(frame_pixel_boxes(table), image_size) == "outside_image"
+    reasons[reasons == "outside_image"] = ""
+    reasons[(reasons == "") & outside] = "outside_image"
+    return reasons

@@ -26,9 +26,9 @@ from slopedist.detections.boxes import (
     DEFAULT_VEHICLE_CLASSES,
     BoxTable,
     border_cuts,
-    box_problems,
     cut_labels,
     frame_pixel_boxes,
+    table_box_problems,
     vehicle_mask,
 )
 from slopedist.errors import ConfigurationError
@@ -277,7 +277,7 @@ def unusable_box_reasons(
     """Per-box reason that rules out an estimate before any method runs (bad box, a box
     outside ``camera``'s image when its size is known, no rotation)."""
     size = image_size(camera) if camera is not None else None
-    reasons = box_problems(frame.boxes.boxes, size)
+    reasons = table_box_problems(frame.boxes, size)
     if needs_rotation and not np.isfinite(frame.theta_rad):
         reasons[reasons == ""] = MissingReason.NO_ROTATION.value
     return reasons
@@ -319,7 +319,7 @@ def settle_states(
       (``ok`` is a promise).
     """
     size = image_size(camera)
-    problems = box_problems(boxes.boxes, size)
+    problems = table_box_problems(boxes, size)
     bad = problems != ""
     est.distance_m = np.array(est.distance_m, dtype=float)  # the method's arrays stay its own
     est.reason, est.status = est.reason.copy(), est.status.copy()

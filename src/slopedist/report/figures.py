@@ -12,8 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.errors import ConfigurationError
-from slopedist.estimators.base import MissingReason
-from slopedist.evaluation import compact_names
+from slopedist.evaluation import AT_CAP_REASONS, compact_names
 from slopedist.plots import (
     BELOW_HORIZON_NOTE,
     DistanceSeries,
@@ -74,7 +73,7 @@ def track_series(
     t = rec.array("timestamp_s")[sel]
     meth = rec.array("method", object)[sel]
     d = rec.array("distance_m")[sel]
-    below = rec.array("reason", object)[sel] == MissingReason.BELOW_HORIZON.value
+    below = np.isin(rec.array("reason", object)[sel], AT_CAP_REASONS)
     t_s = np.unique(t)
     at = np.searchsorted(t_s, t)
     truth = np.full(len(t_s), np.nan)

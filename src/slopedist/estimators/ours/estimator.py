@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.camera import Camera
-from slopedist.detections.boxes import box_problems, frame_pixel_boxes
+from slopedist.detections.boxes import frame_pixel_boxes, table_box_problems
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
     EstimateStatus,
@@ -219,7 +219,7 @@ class OursEstimator(Estimator):
             good = np.arange(n)
             reasons = object_column("", n)
         else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
-            reasons = box_problems(boxes, self._border.known_size)
+            reasons = table_box_problems(frame.boxes, self._border.known_size)
             good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()

@@ -115,6 +115,7 @@ class _TargetLog:
     updated: FloatArray
     elapsed_s: FloatArray
     extra_log_var: FloatArray
+    noise_scale: FloatArray
 
 
 class _SmoothingPass(OursEstimator):
@@ -166,11 +167,13 @@ class _SmoothingPass(OursEstimator):
             distance.filter_rows.copy(),
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
+            np.ones(n) if distance.noise_scale is None else distance.noise_scale,
         )
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
         """``estimates`` (this pass's, one per frame) with each track's distance, σ, speed and
-        time to collision replaced by the smoothed ones where the row is ``ok``."""
+        time to collision replaced by the smoothed ones where the row is ``ok`` (the σ of the
+        speed and time to collision widened by the track's noise scale, as ``ours`` does)."""
         logs = [log for log in self.log if log is not None]
         if not logs:
             return estimates
@@ -189,6 +192,8 @@ class _SmoothingPass(OursEstimator):
         extra = np.concatenate([log.extra_log_var for log in logs])
         dist, sigma = kf.distance_moments_rows(smooth, extra)
         speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(smooth)
+        widen = np.sqrt(np.maximum(np.concatenate([log.noise_scale for log in logs]), 1.0))
+        speed_sd, ttc_sd = speed_sd * widen, ttc_sd * widen  # the noise the track shows, as ours
         out = [_copy(e) for e in estimates]
         k = 0
         for f, log in enumerate(self.log):
