@@ -104,6 +104,17 @@ def test_few_similar_views_warn() -> None:
     assert "only 4 views" in text and "too similar" in text
 
 
+def test_views_found_and_views_fitted_are_told_apart() -> None:
+    """``max_views`` below the views found: the fit says how many were found and how many it
+    fitted, and the warning names the cap, not too few views with the board."""
+    images = [render(r, t) for r, t in _poses(20)]
+    fit = calibrate_checkerboard(images, PATTERN, SQUARE_M, max_views=5)
+    assert fit.n_found >= 12 and fit.n_views == 5
+    text = " ".join(fit.warnings)
+    assert f"only 5 of the {fit.n_found} views fitted" in text
+    assert "with the board found" not in text
+
+
 def test_errors() -> None:
     blank = np.full((H, W), 128, np.uint8)
     with pytest.raises(DataMismatchError, match="found in 0 of 2 frames"):

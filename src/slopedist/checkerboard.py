@@ -55,6 +55,8 @@ class CheckerboardFit:
         coverage: fraction of the image inside the convex hull of all corners.
         warnings: reasons the fit may be unreliable (empty = none).
         corners: the used views' corners, each ``(cols·rows, 2)`` pixels.
+        n_found: frames with the board found (``n_views`` of them are used, at most
+            ``max_views``).
     """
 
     intrinsics: Intrinsics
@@ -65,6 +67,7 @@ class CheckerboardFit:
     coverage: float
     warnings: tuple[str, ...]
     corners: tuple[NDArray[np.float32], ...] = ()
+    n_found: int = 0
 
 
 def board_points(pattern: tuple[int, int], square_m: float) -> NDArray[np.float32]:
@@ -96,10 +99,16 @@ def _coverage(corners: list[NDArray], size: tuple[int, int]) -> float:
     return float(cv2.contourArea(hull) / (size[0] * size[1]))
 
 
-def _warnings(n_views: int, spread: float, coverage: float, rms: float) -> tuple[str, ...]:
+def _warnings(
+    n_views: int, n_found: int, spread: float, coverage: float, rms: float
+) -> tuple[str, ...]:
     out = []
-    if n_views < MIN_GOOD_VIEWS:
-        out.append(f"only {n_views} views with the board found; use ≥ {MIN_GOOD_VIEWS}")
+    if n_found < MIN_GOOD_VIEWS:
+        out.append(f"only {n_found} views with the board found; use ≥ {MIN_GOOD_VIEWS}")
+    elif n_views < MIN_GOOD_VIEWS:
+        out.append(
+            f"only {n_views} of the {n_found} views fitted; use --max-views ≥ {MIN_GOOD_VIEWS}"
+        )
     if spread < MIN_TILT_SPREAD_DEG:
         out.append(
             f"views too similar: the board's tilt varies by {spread:.1f}° "
@@ -166,8 +175,9 @@ def calibrate_checkerboard(
         len(views),
         spread,
         coverage,
-        _warnings(len(views), spread, coverage, float(rms)),
+        _warnings(len(views), len(found), spread, coverage, float(rms)),
         tuple(views),
+        len(found),
     )
 
 

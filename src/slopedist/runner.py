@@ -303,12 +303,12 @@ class _RunLoop:
         self.times["estimation"].add(estimation_ms)
         if self.held is None:
             n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
-        else:  # offline: the records come from the pass over the whole drive (finish)
+            speed = self._speed_at(frame.timestamp_s)
+            self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
+        else:  # offline: the records and tracks come from the pass over the drive (finish)
             if len(frame_boxes):
                 self.held.append((frame_boxes, frame.timestamp_s))
             n_est = int(np.sum(res.estimates.status == EstimateStatus.OK.value))
-        speed = self.config.ego_speed(frame.timestamp_s) if self.config.ego_speed else math.nan
-        self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         with self.files.writing(FRAMES_NAME):
             self.frame_log.write_row(
                 {
@@ -401,9 +401,15 @@ class _RunLoop:
         return n_est
 
     def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:
-        """An offline method's records of every frame seen, from its pass over the drive."""
+        """An offline method's records of every frame seen, from its pass over the drive,
+        and its track summaries from the same estimates."""
         for (frame_boxes, timestamp_s), est in zip(held, self.step.finish(), strict=True):
             self._write_records(frame_boxes, timestamp_s, est)
+            self.tracks.add(timestamp_s, frame_boxes, est, self._speed_at(timestamp_s))
+
+    def _speed_at(self, timestamp_s: float) -> float:
+        """The ego speed (m/s) at a frame time (s), NaN when unknown."""
+        return self.config.ego_speed(timestamp_s) if self.config.ego_speed else math.nan
 
     def _paint(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, state: str) -> None:
         """The frame's overlay: to the overlay video or folder, and as a snapshot JPEG when

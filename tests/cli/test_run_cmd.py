@@ -286,6 +286,20 @@ def test_offline_run_writes_the_offline_records_at_the_end(tmp_path: Path) -> No
     assert [r["estimated"] for r in frame_log(tmp_path)] == ["1"] * 6
 
 
+def test_offline_tracks_summarise_the_offline_records(tmp_path: Path) -> None:
+    """``tracks.csv`` of an offline run is the summary of its records (the offline pass), not
+    of the causal pass the frames were shown with."""
+    args = setup(tmp_path, n=6)
+    assert main(["run", *args, "--offline", "--odometry", "none"]) == 0
+    rows = [r for r in records(tmp_path) if r["status"] == "ok"]
+    with (tmp_path / "out" / "tracks.csv").open() as fh:
+        (track,) = list(csv.DictReader(fh))
+    assert int(track["frames"]) == len(rows)
+    assert float(track["min_distance_m"]) == min(float(r["distance_m"]) for r in rows)
+    ttcs = [float(r["ttc_s"]) for r in rows if r["ttc_s"] and float(r["ttc_s"]) > 0]
+    assert (float(track["min_ttc_s"]) if track["min_ttc_s"] else None) == min(ttcs, default=None)
+
+
 def test_offline_needs_a_method_with_an_offline_mode(tmp_path: Path) -> None:
     assert main(["run", *setup(tmp_path), "--method", "paper", "--offline"]) != 0
 

@@ -118,6 +118,16 @@ def advice_text(advice: MountAdvice) -> str:
     return "\n".join(lines)
 
 
+def final_dict(advice: MountAdvice) -> dict[str, Any]:
+    """The final estimate as the text gives it (degrees and metres): the whole drive's θ0 and
+    h with the total 1σ (``advice.sigma``), not the fit's alone."""
+    return {
+        **advice.as_dict()["estimate"],
+        "mount_angle_sigma_deg": math.degrees(advice.sigma.mount_angle_rad),
+        "height_sigma_m": advice.sigma.height_m,
+    }
+
+
 @click.command("calibrate")
 @click.argument("frames", required=False, type=click.Path(path_type=Path))
 @drive_file_options
@@ -212,7 +222,7 @@ def calibrate(
         write_json(
             json_out,
             {
-                "final": advice.as_dict()["estimate"],
+                "final": final_dict(advice),
                 "advice": advice.as_dict(),
                 "history": [dict(zip(HISTORY_KEYS, r)) for r in rows],
             },

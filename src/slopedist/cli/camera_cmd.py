@@ -72,9 +72,10 @@ def calibrate_camera(
     write_opencv_yaml(fit, out)
     K = fit.intrinsics.K
     click.echo(
-        f"board found in {len(fit.corners)} views of {fit.n_frames} frames; RMS reprojection "
-        f"error {fit.rms_px:.3f} px\nfx {K[0, 0]:.2f}  fy {K[1, 1]:.2f}  cx {K[0, 2]:.2f}  "
-        f"cy {K[1, 2]:.2f}  distortion {np.array2string(fit.intrinsics.dist, precision=5)}\n"
+        f"board found in {fit.n_found} of {fit.n_frames} frames, {fit.n_views} views fitted; "
+        f"RMS reprojection error {fit.rms_px:.3f} px\nfx {K[0, 0]:.2f}  fy {K[1, 1]:.2f}  "
+        f"cx {K[0, 2]:.2f}  cy {K[1, 2]:.2f}  "
+        f"distortion {np.array2string(fit.intrinsics.dist, precision=5)}\n"
         f"written to {out}"
     )
     for warning in fit.warnings:
