@@ -45,6 +45,15 @@ def test_csv_manifest_paths_are_relative_to_the_manifest(tmp_path: Path) -> None
     assert a.origin.endswith("drives.csv:2")
 
 
+def test_a_score_threshold_may_be_zero_or_a_negative_logit(tmp_path: Path) -> None:
+    manifest = write(
+        tmp_path / "drives.csv",
+        "drive,frames,calib,boxes,score\na,a.mp4,c.txt,b.csv,0\nb,a.mp4,c.txt,b.csv,-1.5\n",
+    )
+    a, b = read_csv_manifest(manifest)
+    assert (a.score, b.score) == (0.0, -1.5)
+
+
 @pytest.mark.parametrize(
     ("text", "line", "field"),
     [

@@ -217,13 +217,12 @@ def spec_from_row(
     odometry = cells.get("odometry") or defaults.odometry
     if odometry not in ODOMETRY_CHOICES:
         raise where("odometry", f"'{odometry}' is not one of {', '.join(ODOMETRY_CHOICES)}")
+    signed = ("mount_angle", "score")  # any finite number (a score may be a logit: 0, < 0)
     nums = {
-        k: _positive(cells[k], where, k) if k != "mount_angle" else _number(cells[k], where, k)
+        k: _number(cells[k], where, k) if k in signed else _positive(cells[k], where, k)
         for k in ("fps", "score", "height", "mount_angle", "lookback")
         if cells.get(k)
     }
-    if "score" in nums:
-        nums["score"] = _number(cells["score"], where, "score")
     if bool(cells.get("boxes")) == bool(cells.get("detector")):
         which = "both" if cells.get("boxes") else "neither"
         raise where("boxes", f"give a box file or a detector (exactly one; {which} given)")
