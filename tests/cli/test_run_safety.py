@@ -286,3 +286,18 @@ def test_run_knows_the_image_size_and_estimate_takes_it(
     assert (row["status"], row["cut"]) == ("ok", "")
     assert main([*est, "--image-size", "1242"]) == 2
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
+
+
+def test_an_offline_runs_export_says_it_shows_the_causal_pass(tmp_path: Path) -> None:
+    """`run --offline --export mcap`: the MCAP shows the frames as they came (the causal pass),
+    while records.csv holds ours-offline; its frames said 'ours-offline' all the same."""
+    pytest.importorskip("mcap")
+    from slopedist.export_mcap import FRAME_TOPIC, read_mcap_export
+
+    args = make_inputs(tmp_path, 4)
+    args[args.index("--method") + 1] = "ours"
+    out = tmp_path / "out"
+    assert main(["run", *args, "--offline", "--export", "mcap", "--out", str(out)]) == 0
+    frames = read_mcap_export(out / "run.mcap")[FRAME_TOPIC]
+    assert {f["method"] for _, f in frames} == {"ours-offline (causal pass)"}
+    assert {r["method"] for r in read_rows(out / "records.csv")} == {"ours-offline"}
