@@ -183,3 +183,16 @@ def rotation_angle_rad(R: ArrayLike) -> FloatArray:
     return np.asarray(
         np.arctan2(np.linalg.norm(axial, axis=-1), np.trace(R, axis1=-2, axis2=-1) - 1.0)
     )
+
+
+ROTATION_TOLERANCE = 1e-3
+"""How far ``RᵀR`` of a rotation read from a file or given by a caller may be from the identity
+(any entry): rounding in written poses, never a scaled or sheared matrix."""
+
+
+def not_rotations(R: ArrayLike, tol: float = ROTATION_TOLERANCE) -> NDArray[np.bool_]:
+    """Which of the matrices ``(..., 3, 3)`` are not rotations: ``RᵀR`` off the identity by
+    more than ``tol`` in some entry, or a reflection (``det R < 0``)."""
+    R = np.asarray(R, dtype=float)
+    err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
+    return np.asarray((err > tol) | (np.linalg.det(R) < 0))

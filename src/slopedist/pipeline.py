@@ -148,9 +148,9 @@ class FrameStep:
                 ``R_world_cam`` is not a ``(3, 3)`` matrix.
         """
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
-        R_world_cam = _rotation(frame_index, R_world_cam)
-        theta = self.gradient.update(timestamp_s, R_world_cam, segment)
-        est = self.estimate(frame_index, timestamp_s, theta, R_world_cam, boxes, image, depth_m)
+        R = _rotation(frame_index, R_world_cam)
+        theta = self.gradient.update(timestamp_s, R, segment)
+        est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
         return FrameResult(theta, est)
 
     def estimate(
@@ -173,6 +173,19 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
+        return self._estimate(frame_index, timestamp_s, theta_rad, R, boxes, image, depth_m)
+
+    def _estimate(
+        self,
+        frame_index: int,
+        timestamp_s: float,
+        theta_rad: float,
+        R: NDArray[np.float64] | None,
+        boxes: BoxTable | None,
+        image: NDArray[np.uint8] | None,
+        depth_m: NDArray[np.float32] | None,
+    ) -> FrameEstimates:
+        """:meth:`estimate` of a frame whose time and rotation ``R`` were checked."""
         self._last_timestamp = timestamp_s
         if boxes is None or not len(boxes):
             return FrameEstimates.empty()
@@ -209,8 +222,8 @@ def _rotation(
 
     Raises:
         DataMismatchError: it is not a ``(3, 3)`` matrix of numbers, or a finite one that is
-            not a rotation (``RᵀR`` off the identity by more than 1e-3, as pose files are
-            checked, or a reflection).
+            not a rotation (:func:`~slopedist.geometry.not_rotations`, as pose files are
+            checked).
     """
     if R_world_cam is None:
         return None
@@ -223,7 +236,7 @@ def _rotation(
             f"frame {frame_index}: the camera rotation must be a 3×3 matrix (or None), got "
             f"shape {np.shape(R_world_cam)}"
         )
-    if np.isfinite(R).all() and (np.abs(R.T @ R - np.eye(3)).max() > 1e-3 or np.linalg.det(R) < 0):
+    if np.isfinite(R).all() and geo.not_rotations(R):
         raise DataMismatchError(
             f"frame {frame_index}: the camera rotation is not a rotation matrix: {R.tolist()}"
         )

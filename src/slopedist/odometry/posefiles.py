@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import read_kitti_calib
 from slopedist.errors import InputFileError
+from slopedist.geometry import not_rotations
 from slopedist.odometry.base import RotationTrack
 from slopedist.textfiles import numbered_lines
 
@@ -66,9 +67,7 @@ TUM_POSE_FIELDS = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
 
 
 def _check_rotations(path: str | Path, R: NDArray[np.float64], lines: NDArray[np.int64]) -> None:
-    err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(R)
-    bad = np.flatnonzero((err > 1e-3) | (det < 0))
+    bad = np.flatnonzero(not_rotations(R))
     if bad.size:
         raise InputFileError(
             path,
