@@ -375,12 +375,12 @@ def filter_distance(
         if every
         else (measurement.mean[old], measurement.var[old], measurement.var_white[old])
     )
-    dev = m_old - pred[0]
+    updated, nis = kf.cv_update_rows(pred, m_old, w_old)
     scale = None
     if cfg.noise_time_s is not None:  # the frame-to-frame noise this track shows
         prior_scale = match.continued_state[ROW_NOISE]
-        scale = _noise_scale(prior_scale, dev, pred[2], w_old, match.elapsed_s, cfg.noise_time_s)
-    updated, _ = kf.cv_update_rows(pred, m_old, w_old)
+        scale = _noise_scale(prior_scale, nis, match.elapsed_s, cfg.noise_time_s)
+    dev = m_old - pred[0]
     same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
     predicted = None
     if keep_predicted:
@@ -403,24 +403,19 @@ def filter_distance(
 
 
 def _noise_scale(
-    prior_scale: FloatArray,
-    dev: FloatArray,
-    pred_var: FloatArray,
-    white_var: FloatArray,
-    elapsed_s: FloatArray,
-    time_s: float,
+    prior_scale: FloatArray, nis: FloatArray, elapsed_s: FloatArray, time_s: float
 ) -> FloatArray:
     """A track's measurement-noise scale: how many times the frame-to-frame (white) variance
-    ``white_var`` its filter is told its measurements actually jump.
+    its filter is told its measurements actually jump.
 
-    The normalised square of an innovation ``dev`` (log distance), ``dev²/(P_pred + R)``, has
+    The normalised innovation squared of the filter's update, ``nis = ν²/(P_pred + R)``
+    (:func:`~slopedist.estimators.ours.filter.cv_update_rows`, ν in log distance), has
     mean 1 when the noise model is right and about ``k`` when the noise is ``k`` times larger
     (a detector's box that grows and shrinks, cues that switch). Its running mean over about
     ``time_s`` seconds (weight ``min(1, dt/time_s)`` per update), started at 1, is the scale.
     The filter itself keeps the nominal noise (a filter told the larger noise lags approaching
     vehicles: on KITTI it cost 1–2 % of RMSE); the scale widens the σ of the speed and the
     time to collision it reports (:func:`box_estimates`), which the jumps make uncertain."""
-    nis = dev * dev / (pred_var + white_var)
     weight = np.minimum(elapsed_s * (1.0 / time_s), ONE)
     return prior_scale + weight * (nis - prior_scale)
 
