@@ -40,7 +40,7 @@ def ground_contact_estimates(
     theta_adj_rad: NDArray[np.float64],
     boxes: NDArray[np.float64],
     prior_reasons: NDArray[np.object_],
-    frame_boxes: NDArray[np.float64] | None = None,
+    frame_boxes: NDArray[np.float64],
 ) -> FrameEstimates:
     """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians);
     a box bottom less than :data:`~slopedist.estimators.base.MIN_CONTACT_GAP_PX` below the
@@ -49,8 +49,8 @@ def ground_contact_estimates(
     ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ. A box cut by
     the bottom of the image (``camera``'s size) is an ``upper_bound``
     (:func:`~slopedist.estimators.base.bottom_cut_is_upper_bound`), judged on ``frame_boxes``,
-    the boxes in the frame's own pixels when ``boxes`` were mapped into an ideal camera
-    (:func:`~slopedist.detections.boxes.frame_pixel_boxes`; None: ``boxes``).
+    the boxes in the frame's own pixels (``boxes`` themselves unless a lens model mapped them:
+    :func:`~slopedist.detections.boxes.frame_pixel_boxes`).
     """
     v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
     delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)
@@ -71,7 +71,7 @@ def ground_contact_estimates(
         reason=reasons,
         reference=np.full(n, ReferencePoint.CONTACT.value, dtype=object),
     )
-    bottom_cut_is_upper_bound(est, boxes if frame_boxes is None else frame_boxes, camera)
+    bottom_cut_is_upper_bound(est, frame_boxes, camera)
     return est
 
 
