@@ -24,6 +24,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -39,6 +40,8 @@ DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "D", "d", "distCoeffs", "
 WIDTH_KEYS = ("image_width", "width")
 HEIGHT_KEYS = ("image_height", "height")
 FISHEYE_MODELS = ("equidistant", "fisheye", "kannala_brandt")
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -78,12 +81,9 @@ def read_calibration(
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     intrinsics = intrinsics.with_image_size(image_size)
-    if not isinstance(path, Intrinsics):
-        try:
-            intrinsics.camera()  # the file's own part: focal length, principal point
-        except ConfigurationError as exc:
-            raise InputFileError(path, str(exc)) from None
-        _checked(Path(path), lambda: _lens_checked(intrinsics), "distortion")
+    if not isinstance(path, Intrinsics):  # the file's own part of the camera, named as such
+        _checked(Path(path), intrinsics.camera, None)  # focal length, principal point
+        _checked(Path(path), intrinsics.check_lens_scale, "distortion")
     else:
         intrinsics.check_lens_scale()
     return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
@@ -102,11 +102,6 @@ def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     return read_k_text(path, text)
 
 
-def _lens_checked(intrinsics: Intrinsics) -> Intrinsics:
-    intrinsics.check_lens_scale()
-    return intrinsics
-
-
 def _first_line_count(text: str) -> int:
     for line in text.splitlines():
         if line.strip() and not line.lstrip().startswith("#"):
@@ -114,7 +109,7 @@ def _first_line_count(text: str) -> int:
     return 0
 
 
-def _checked(path: Path, build: Callable[[], Intrinsics], field: str | None) -> Intrinsics:
+def _checked(path: Path, build: Callable[[], T], field: str | None) -> T:
     """``build()``, with a configuration error turned into one naming the file and field."""
     try:
         return build()
