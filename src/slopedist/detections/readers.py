@@ -92,8 +92,9 @@ def _parse(path: str | Path, lineno: int, name: str, tok: str, kind: Callable[[s
     try:
         value = kind(tok)
     except ValueError:
-        kind_name = "an integer" if kind in (int, _int) else "a number"
-        kind_name = "a finite number" if kind is score_value else kind_name
+        kind_name = {int: "an integer", _int: "an integer", score_value: "a finite number"}.get(
+            kind, "a number"
+        )
         raise InputFileError(path, f"'{tok}' is not {kind_name}", line=lineno, field=name) from None
     return value
 
