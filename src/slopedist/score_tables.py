@@ -157,6 +157,7 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
     (when the methods were scored against the same targets, :func:`same_targets`)."""
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
+    compare = same_targets(scope, scores.methods)
     for lo, hi in DISTANCE_BINS_M:
         label = bin_label(lo, hi)
         block = [
@@ -171,13 +172,9 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
             for m in scores.methods
         ]
         marks = [[False] * 6 for _ in block]
-        if not same_targets(scope, scores.methods):
-            rows += block
-            bold += marks
-            continue
         for j, larger in ((3, False), (4, False), (5, True)):
             for i, b in enumerate(best_marks([r[j] for r in block], larger)):
-                marks[i][j] = b
+                marks[i][j] = b and compare
         rows += block
         bold += marks
     return Table(
