@@ -16,7 +16,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -148,6 +148,11 @@ def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not a JSON number")
 
 
+def repeated_names(names: Sequence[str]) -> list[str]:
+    """The non-empty names that occur more than once in ``names`` (a CSV header), sorted."""
+    return sorted({n for n in names if n and names.count(n) > 1})
+
+
 class CsvRows:
     """Rows of a CSV file with a header, as ``{column: text}`` dicts, with real line numbers.
 
@@ -173,7 +178,7 @@ class CsvRows:
         self._reader = csv.reader(self._lines)
         first = self._next()
         self.header: list[str] = [h.strip() for h in first] if first is not None else []
-        twice = sorted({h for h in self.header if h and self.header.count(h) > 1})
+        twice = repeated_names(self.header)
         if twice:
             raise InputFileError(
                 self.path, f"column(s) {', '.join(twice)} named twice in the header", line=1

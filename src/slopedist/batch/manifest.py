@@ -55,7 +55,7 @@ from slopedist.estimators import DEFAULT_METHOD, available_methods
 from slopedist.io.rosbag import is_log_path
 from slopedist.odometry.base import LOOKBACK_S
 from slopedist.run_setup import ODOMETRY_CHOICES
-from slopedist.textfiles import decoded_lines, read_text
+from slopedist.textfiles import decoded_lines, read_text, repeated_names
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -303,7 +303,7 @@ def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> 
     except csv.Error as exc:
         raise InputFileError(path, f"not a valid CSV header ({exc})", line=1) from None
     header = [h.strip() for h in fieldnames]
-    twice = sorted({h for h in header if h and header.count(h) > 1})
+    twice = repeated_names(header)
     if twice:  # csv.DictReader would keep the last of the cells silently
         message = f"column(s) {', '.join(twice)} named twice in the header"
         raise InputFileError(path, message, line=1, field=twice[0])
