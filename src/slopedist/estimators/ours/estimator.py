@@ -255,19 +255,23 @@ class OursEstimator(Estimator):
             status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
             cut=object_column("", n),
         )
-        half_extent = None
-        if self._reference is not ReferencePoint.CENTRE:  # before the border cuts settle
-            half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        # centre to nearest face, before the border cuts settle
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and edges is not None:
             cut = edges
             if not all_usable:
                 cut = np.zeros((n, 4), dtype=bool)
                 cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+            bounded = est.status == EstimateStatus.UPPER_BOUND.value
+            if any_true(bounded):  # the nearest face of a bound is a bound (the same cue)
+                face = est.extra["distance_nearest_face_m"]
+                face[bounded] = est.distance_m[bounded] - half_extent[bounded]
         est.withhold_uncertain(self.config.max_relative_sigma)
         est.extra["distance_centre_m"] = est.distance_m.copy()
-        if half_extent is not None:  # the nearest face (or its foot)
+        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
             est.distance_m -= half_extent
+        est.withhold_distances()  # a withheld distance is in no column
         return est
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
