@@ -214,7 +214,8 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high)
+        seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
+        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high, seen)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
@@ -233,7 +234,6 @@ class OursEstimator(Estimator):
         values: dict[str, FloatArray] = {}
         edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
             edges = self._border.cut_edges(seen if all_usable else seen[good])
             box_values = self._estimate_boxes(
                 frame, good, all_usable, theta_f, jitter, calib, edges
