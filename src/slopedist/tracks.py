@@ -2,8 +2,9 @@
 soon it could have been hit.
 
 Accumulated frame by frame in constant memory per track (:class:`TrackSummaries`), written at
-the end of a run. Only estimates with a distance count (status ``ok``); boxes without a track id
-are not summarised.
+the end of a run. The distances and TTCs are those of ``ok`` estimates; the ``upper_bound``
+ones (a box cut by the image, e.g. a truck right in front) count apart, as bounds; ``missing``
+ones not at all. Boxes without a track id are not summarised.
 
 Columns (:data:`TRACK_FIELDS`): ``track_id``; ``first_s`` / ``last_s``: first and last frame
 time with a distance, seconds; ``frames``: frames with a distance; ``min_distance_m`` and the
@@ -11,8 +12,12 @@ time it happened ``min_distance_s``; ``min_ttc_s``: smallest positive time-to-co
 (seconds; empty when the method gives none, e.g. every method but ``ours``); ``mean_headway_s``:
 mean of distance over ego speed (seconds) over the frames where the ego speed is known and above
 :data:`MIN_EGO_SPEED_MPS` (empty without an ego speed); ``ttc_events``: how many times the TTC
-fell below the threshold (an event starts when it goes from at or above to below); and
-``first_event_s``, the time of the first.
+fell confidently below the threshold (:func:`confidently_below`; an event starts when a frame
+confidently below follows one that was not); ``first_event_s``, the time of the first;
+``bound_frames``: frames with only an upper bound; ``min_distance_bound_m``: the least of those
+bounds (the track came at most this close in those frames), at ``min_distance_bound_s``. A track
+seen only as upper bounds has a row: ``frames`` 0, the distance, time and TTC columns empty,
+the bound columns filled.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ import numpy as np
 
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import InputFileError
-from slopedist.estimators.base import FrameEstimates
+from slopedist.estimators.base import EstimateStatus, FrameEstimates
 from slopedist.io.tables import write_csv
 from slopedist.limits import MAX_RECORD_MAGNITUDE
 from slopedist.textfiles import CsvRows, number_cell
@@ -51,14 +56,32 @@ TRACK_FIELDS = (
     "mean_headway_s",
     "ttc_events",
     "first_event_s",
+    "bound_frames",
+    "min_distance_bound_m",
+    "min_distance_bound_s",
 )
 """Columns of ``tracks.csv``."""
+
+BOUND_FIELDS = ("bound_frames", "min_distance_bound_m", "min_distance_bound_s")
+"""The columns of the ``upper_bound`` estimates (appended; an older ``tracks.csv`` has none)."""
+
+
+def confidently_below(ttc_s: float, ttc_sigma_s: float, threshold_s: float) -> bool:
+    """Whether a positive time-to-collision ``ttc_s`` is below ``threshold_s`` at one σ: the
+    TTC one ``ttc_sigma_s`` later still is (about 84 % sure for a Gaussian error). A TTC
+    without a finite σ is not confident; seconds."""
+    return (
+        math.isfinite(ttc_s)
+        and math.isfinite(ttc_sigma_s)
+        and ttc_s > 0
+        and ttc_s + max(ttc_sigma_s, 0.0) < threshold_s
+    )
 
 
 @dataclass
 class _Track:
-    first_s: float
-    last_s: float
+    first_s: float = math.nan
+    last_s: float = math.nan
     frames: int = 0
     min_distance_m: float = math.inf
     min_distance_s: float = math.nan
@@ -68,8 +91,13 @@ class _Track:
     events: int = 0
     first_event_s: float = math.nan
     below: bool = False
+    bound_frames: int = 0
+    min_bound_m: float = math.inf
+    min_bound_s: float = math.nan
 
     def add(self, t_s: float, distance_m: float, ttc_s: float, ego_speed_mps: float) -> None:
+        if not self.frames:
+            self.first_s = t_s
         self.last_s = t_s
         self.frames += 1
         if distance_m < self.min_distance_m:
@@ -79,6 +107,11 @@ class _Track:
             self.headway_count += 1
         if math.isfinite(ttc_s) and ttc_s > 0:
             self.min_ttc_s = min(self.min_ttc_s, ttc_s)
+
+    def add_bound(self, t_s: float, bound_m: float) -> None:
+        self.bound_frames += 1
+        if bound_m < self.min_bound_m:
+            self.min_bound_m, self.min_bound_s = bound_m, t_s
 
     def ttc_state(self, t_s: float, below: bool) -> None:
         if below and not self.below:
@@ -93,7 +126,7 @@ class _Track:
             "first_s": self.first_s,
             "last_s": self.last_s,
             "frames": self.frames,
-            "min_distance_m": self.min_distance_m,
+            "min_distance_m": self.min_distance_m if self.frames else math.nan,
             "min_distance_s": self.min_distance_s,
             "min_ttc_s": self.min_ttc_s if math.isfinite(self.min_ttc_s) else math.nan,
             "mean_headway_s": (
@@ -101,6 +134,9 @@ class _Track:
             ),
             "ttc_events": self.events,
             "first_event_s": self.first_event_s,
+            "bound_frames": self.bound_frames,
+            "min_distance_bound_m": self.min_bound_m if self.bound_frames else math.nan,
+            "min_distance_bound_s": self.min_bound_s,
         }
 
 
@@ -122,17 +158,27 @@ class TrackSummaries:
         estimates: FrameEstimates,
         ego_speed_mps: float = math.nan,
     ) -> None:
-        """One frame's estimates (``ego_speed_mps``: the ego vehicle's speed, m/s, if known)."""
-        ttc = estimates.extra.get("ttc_s", np.full(len(boxes), np.nan))
-        for i in range(len(boxes)):
+        """One frame's estimates (``ego_speed_mps``: the ego vehicle's speed, m/s, if known).
+        A method without a ``ttc_sigma_s`` column states its TTC as exact (σ 0)."""
+        n = len(boxes)
+        ttc = estimates.extra.get("ttc_s", np.full(n, np.nan))
+        ttc_sigma = estimates.extra.get("ttc_sigma_s", np.zeros(n))
+        for i in range(n):
             tid = int(boxes.track_id[i])
             z = float(estimates.distance_m[i])
-            if tid < 0 or estimates.reason[i] != "" or not math.isfinite(z):
+            status = estimates.status[i]
+            if tid < 0 or not math.isfinite(z):
                 continue
-            track = self.tracks.setdefault(tid, _Track(timestamp_s, timestamp_s))
+            if status == EstimateStatus.UPPER_BOUND.value:
+                self.tracks.setdefault(tid, _Track()).add_bound(timestamp_s, z)
+                continue
+            if status != EstimateStatus.OK.value:
+                continue
+            track = self.tracks.setdefault(tid, _Track())
             t_i = float(ttc[i])
             track.add(timestamp_s, z, t_i, ego_speed_mps)
-            track.ttc_state(timestamp_s, math.isfinite(t_i) and 0 < t_i < self.ttc_threshold_s)
+            below = confidently_below(t_i, float(ttc_sigma[i]), self.ttc_threshold_s)
+            track.ttc_state(timestamp_s, below)
 
     def rows(self) -> list[dict[str, Any]]:
         """One row per track (:data:`TRACK_FIELDS`), by track id."""
@@ -144,7 +190,8 @@ class TrackSummaries:
 
 
 def read_tracks(path: Path) -> list[dict[str, float]]:
-    """The rows of a run's ``tracks.csv`` as numbers (NaN where empty); no file = no tracks.
+    """The rows of a run's ``tracks.csv`` as numbers (NaN where empty or, for the
+    :data:`BOUND_FIELDS` of an older file, absent); no file = no tracks.
 
     Raises:
         InputFileError: bad UTF-8, a broken row, a missing column, or a cell that is not a
@@ -154,10 +201,13 @@ def read_tracks(path: Path) -> list[dict[str, float]]:
     if not path.is_file():
         return []
     table = CsvRows(path, "track summary", strict=True)
-    absent = [c for c in TRACK_FIELDS if c not in table.header]
+    absent = [c for c in TRACK_FIELDS if c not in table.header and c not in BOUND_FIELDS]
     if absent:
         raise InputFileError(path, f"missing column(s) {', '.join(absent)}", line=1)
     return [
-        {k: number_cell(row[k], path, line, k, bound=MAX_RECORD_MAGNITUDE) for k in TRACK_FIELDS}
+        {
+            k: number_cell(row.get(k), path, line, k, bound=MAX_RECORD_MAGNITUDE)
+            for k in TRACK_FIELDS
+        }
         for line, row in table
     ]

@@ -82,12 +82,29 @@ def test_a_run_without_tracks_or_times(tmp_path: Path) -> None:
 
 def test_a_bad_track_cell_names_file_line_and_field(tmp_path: Path) -> None:
     path = tmp_path / "tracks.csv"
-    path.write_text(",".join(TRACK_FIELDS) + "\n1,0,1,2,3,4,oops,,0,\n")
+    path.write_text(",".join(TRACK_FIELDS) + "\n1,0,1,2,3,4,oops,,0,,,,\n")
     with pytest.raises(InputFileError, match=r"tracks.csv, line 2, field 'min_ttc_s'"):
         read_tracks(path)
     path.write_text("track_id,first_s\n1,0\n")
     with pytest.raises(InputFileError, match="missing column"):
         read_tracks(path)
-    path.write_text(",".join(TRACK_FIELDS) + "\n1,0,1,2,3,4,inf,,0,\n")
+    path.write_text(",".join(TRACK_FIELDS) + "\n1,0,1,2,3,4,inf,,0,,,,\n")
     with pytest.raises(InputFileError, match=r"line 2, field 'min_ttc_s'.*corrupt record"):
         read_tracks(path)
+
+
+def test_a_track_seen_only_as_upper_bounds_is_not_a_track_with_a_distance(
+    tmp_path: Path,
+) -> None:
+    d = run_folder(
+        tmp_path,
+        "d",
+        "ours",
+        [
+            (1, 0, 9, 90, 12.0, 4.0, 6.0, nan, 0, nan, 0, nan, nan),
+            (2, nan, nan, 0, nan, nan, nan, nan, 0, nan, 5, 4.0, 3.0),  # a truck, cut
+        ],
+        [0.0, 10.0],
+    )
+    (row,), _ = fleet_safety([d])
+    assert (row["tracks"], row["min_distance_m"]) == (1, 12.0)

@@ -13,6 +13,7 @@ import pytest
 
 from slopedist.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
 from slopedist.estimators import make_estimator
+from slopedist.estimators.base import FrameInput
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.pipeline import FrameStep
 
@@ -67,3 +68,19 @@ def test_a_box_in_the_frame_is_in_the_image_whatever_the_lens(method: str) -> No
         assert est.reason[2] == "outside_image", k1
         assert "outside_image" not in est.reason[:2].tolist(), k1
         assert est.cut[:2].tolist() == ["right", "left"], k1
+
+
+@pytest.mark.parametrize("k1", [0.0, -0.1, 0.3])
+def test_ours_uses_no_box_beyond_the_frame_whatever_the_lens(k1: float) -> None:
+    # a pincushion lens (k1 = 0.3) maps boxes beyond the frame's right edge into the ideal
+    # camera's image: the fast path took them as usable (and cut: their right edge), fed them
+    # to the tracker and gave them a distance; the frame's pixels say they are outside
+    beyond = [[1250.0, 300.0, 1290.0, 330.0], [1245.0, 200.0, 1300.0, 240.0]]
+    lens = Intrinsics(K, np.array([k1, 0.0, 0.0, 0.0]), image_size=(W, H))
+    table = lens.rectify_table(BoxTable.build(np.zeros(3), [BOXES[2], *beyond], [1, 2, 3]))
+    estimator = make_estimator("ours", lens.camera(1.65))
+    est = estimator.estimate(FrameInput(0, 0.0, 0.0, table))
+    assert est.reason.tolist() == ["", "outside_image", "outside_image"]
+    assert est.status.tolist() == ["ok", "missing", "missing"]
+    assert np.isnan(est.distance_m[1:]).all()
+    assert len(estimator.tracks) == 1  # only the box in the frame started a track

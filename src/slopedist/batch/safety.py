@@ -81,7 +81,7 @@ def safety_values(
     headways = [t["mean_headway_s"] for t in tracks]
     return {
         "duration_s": duration_s,
-        "tracks": len(tracks),
+        "tracks": sum(t["frames"] > 0 for t in tracks),  # not those seen only as bounds
         "min_distance_m": _finite_min(t["min_distance_m"] for t in tracks),
         "min_ttc_s": _finite_min(t["min_ttc_s"] for t in tracks),
         "ttc_tracks": sum(t["ttc_events"] > 0 for t in tracks),

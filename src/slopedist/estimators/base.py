@@ -88,6 +88,16 @@ class MissingReason(str, Enum):
     that contradict each other); the cue columns keep what the box says."""
 
 
+DISTANCE_COLUMNS = ("distance_centre_m", "distance_nearest_face_m")
+"""Extra columns that restate a row's distance at another point of the vehicle (``ours``):
+withheld (NaN) wherever ``distance_m`` is (a ``missing`` row), so that a consumer who selects
+one of them reads no distance the method withheld; an ``upper_bound`` row's are bounds too."""
+
+UNCERTAINTY_COLUMN = "sigma_m"
+"""The extra column of a method's own 1σ (metres): kept in a ``missing`` row only when it is
+the reason (``too_uncertain``), NaN in the other ``missing`` rows."""
+
+
 class ReferencePoint(str, Enum):
     """Which point of the target a distance refers to."""
 
@@ -193,6 +203,25 @@ class FrameEstimates:
         self.reason[rows] = reason.value
         if status is EstimateStatus.MISSING:
             self.distance_m[rows] = np.nan
+
+    def withhold_distances(self) -> None:
+        """Empty the :data:`DISTANCE_COLUMNS` of every ``missing`` row (as its ``distance_m``)
+        and its :data:`UNCERTAINTY_COLUMN` unless the reason is ``too_uncertain`` (then the σ
+        says why). The changed columns are copies: arrays the method keeps stay its own."""
+        missing = self.status == EstimateStatus.MISSING.value
+        if not missing.any():
+            return
+        self.distance_m[missing] = np.nan
+        extra = dict(self.extra)
+        for name in DISTANCE_COLUMNS:
+            if name in extra:
+                extra[name] = np.array(extra[name], dtype=float)
+                extra[name][missing] = np.nan
+        if UNCERTAINTY_COLUMN in extra:
+            sigma = np.array(extra[UNCERTAINTY_COLUMN], dtype=float)
+            sigma[missing & (self.reason != MissingReason.TOO_UNCERTAIN.value)] = np.nan
+            extra[UNCERTAINTY_COLUMN] = sigma
+        self.extra = extra
 
     def withhold_uncertain(self, max_relative_sigma: float) -> None:
         """``ok`` rows whose 1σ ``extra["sigma_m"]`` (same point, metres) exceeds
@@ -316,7 +345,8 @@ def settle_states(
     - with ``bottom_cut_bound`` (a method that does not handle border cuts itself), an
       ``ok`` box cut by the bottom of the image becomes ``upper_bound``, reason ``cut_bottom``;
     - an ``ok`` or ``upper_bound`` row without a finite positive distance is ``missing``
-      (``ok`` is a promise).
+      (``ok`` is a promise);
+    - a ``missing`` row has no distance in any column (:meth:`FrameEstimates.withhold_distances`).
     """
     size = image_size(camera)
     problems = table_box_problems(boxes, size)
@@ -338,4 +368,5 @@ def settle_states(
     est.status[unfounded] = EstimateStatus.MISSING.value
     est.reason[unfounded & (est.reason == "")] = MissingReason.INVALID_DISTANCE.value
     d[unfounded | (est.status == EstimateStatus.MISSING.value)] = np.nan
+    est.withhold_distances()
     return est

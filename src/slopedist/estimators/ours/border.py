@@ -92,14 +92,25 @@ def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArr
     return low, high
 
 
-def boxes_all_usable(boxes: FloatArray, low: FloatArray, high: FloatArray) -> bool:
+def boxes_all_usable(
+    boxes: FloatArray, low: FloatArray, high: FloatArray, seen: FloatArray | None = None
+) -> bool:
     """Whether every box ``(n, 4)`` is certainly usable (finite, at least
     :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
     ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
-    :func:`~slopedist.detections.boxes.box_problems` decides box by box."""
+    :func:`~slopedist.detections.boxes.table_box_problems` decides box by box.
+
+    ``seen``: the same boxes in the frame's own pixels when a lens model mapped ``boxes``
+    (:func:`~slopedist.detections.boxes.frame_pixel_boxes`), None (or ``boxes`` itself) when
+    not. The image border is judged there, as the slow path judges ``outside_image``: a
+    pincushion lens maps a box beyond the frame's edge into the ideal camera's image, which
+    must not make it usable."""
     size = boxes[:, 2:] - boxes[:, :2]
     inside = (boxes > low) & (boxes < high)  # False for NaN
-    return all_true(size >= MIN_BOX_SIZE_PX) and all_true(inside)
+    usable = all_true(size >= MIN_BOX_SIZE_PX) and all_true(inside)
+    if usable and seen is not None and seen is not boxes:
+        usable = all_true((seen > low) & (seen < high))
+    return usable
 
 
 def settle_border_cuts(

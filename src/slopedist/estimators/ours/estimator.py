@@ -214,7 +214,8 @@ class OursEstimator(Estimator):
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
         n = boxes.shape[0]
-        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high)
+        seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
+        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high, seen)
         if all_usable:
             good = np.arange(n)
             reasons = object_column("", n)
@@ -233,7 +234,6 @@ class OursEstimator(Estimator):
         values: dict[str, FloatArray] = {}
         edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
             edges = self._border.cut_edges(seen if all_usable else seen[good])
             box_values = self._estimate_boxes(
                 frame, good, all_usable, theta_f, jitter, calib, edges
@@ -255,19 +255,23 @@ class OursEstimator(Estimator):
             status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
             cut=object_column("", n),
         )
-        half_extent = None
-        if self._reference is not ReferencePoint.CENTRE:  # before the border cuts settle
-            half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
+        # centre to nearest face, before the border cuts settle
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and edges is not None:
             cut = edges
             if not all_usable:
                 cut = np.zeros((n, 4), dtype=bool)
                 cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+            bounded = est.status == EstimateStatus.UPPER_BOUND.value
+            if any_true(bounded):  # the nearest face of a bound is a bound (the same cue)
+                face = est.extra["distance_nearest_face_m"]
+                face[bounded] = est.distance_m[bounded] - half_extent[bounded]
         est.withhold_uncertain(self.config.max_relative_sigma)
         est.extra["distance_centre_m"] = est.distance_m.copy()
-        if half_extent is not None:  # the nearest face (or its foot)
+        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
             est.distance_m -= half_extent
+        est.withhold_distances()  # a withheld distance is in no column
         return est
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
