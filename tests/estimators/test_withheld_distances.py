@@ -79,3 +79,22 @@ def test_the_offline_pass_withholds_as_the_causal_one() -> None:
         assert est.status.tolist() == ["ok", "missing", "missing"]
         assert_withheld(est, 1)
         assert_withheld(est, 2)
+
+
+def test_speed_and_ttc_are_given_in_ok_rows_only() -> None:
+    """Two frames 0.1 s apart, every box 2 % larger in the second (closing in): the ok car
+    has a speed and a time to collision, the bound and the too-uncertain box none."""
+    step = frame_step()
+    boxes = np.array([CAR_20M, CUT, FEW_PIXELS])
+    ids = np.arange(3)
+    for k, grow in enumerate((1.0, 1.02)):
+        centre = (boxes[:, [0, 1]] + boxes[:, [2, 3]]) / 2
+        half = (boxes[:, [2, 3]] - boxes[:, [0, 1]]) / 2 * grow
+        table = BoxTable.build(
+            np.full(3, k), np.hstack([centre - half, centre + half]), ids, classes=["Car"] * 3
+        )
+        est = step.estimate(k, 0.1 * k, 0.0, np.eye(3), table)
+    assert est.status.tolist() == ["ok", "upper_bound", "missing"]
+    for name in ("speed_mps", "speed_sigma_mps", "ttc_s", "ttc_sigma_s"):
+        assert np.isfinite(est.extra[name][0]), name
+        assert np.isnan(est.extra[name][1:]).all(), name

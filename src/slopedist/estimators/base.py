@@ -93,6 +93,11 @@ DISTANCE_COLUMNS = ("distance_centre_m", "distance_nearest_face_m")
 withheld (NaN) wherever ``distance_m`` is (a ``missing`` row), so that a consumer who selects
 one of them reads no distance the method withheld; an ``upper_bound`` row's are bounds too."""
 
+MOTION_COLUMNS = ("speed_mps", "speed_sigma_mps", "ttc_s", "ttc_sigma_s")
+"""Extra columns of a row's relative speed and time to collision with their 1σ: empty in every
+row that is not ``ok`` (a speed or a time to collision of a withheld distance or of a bound is
+none to act on)."""
+
 UNCERTAINTY_COLUMN = "sigma_m"
 """The extra column of a method's own 1σ (metres): kept in a ``missing`` row only when it is
 the reason (``too_uncertain``), NaN in the other ``missing`` rows."""
@@ -207,16 +212,19 @@ class FrameEstimates:
     def withhold_distances(self) -> None:
         """Empty the :data:`DISTANCE_COLUMNS` of every ``missing`` row (as its ``distance_m``)
         and its :data:`UNCERTAINTY_COLUMN` unless the reason is ``too_uncertain`` (then the σ
-        says why). The changed columns are copies: arrays the method keeps stay its own."""
+        says why), and the :data:`MOTION_COLUMNS` of every row that is not ``ok``. The changed
+        columns are copies: arrays the method keeps stay its own."""
         missing = self.status == EstimateStatus.MISSING.value
-        if not missing.any():
+        not_ok = self.status != EstimateStatus.OK.value
+        if not not_ok.any():
             return
         self.distance_m[missing] = np.nan
         extra = dict(self.extra)
-        for name in DISTANCE_COLUMNS:
-            if name in extra:
-                extra[name] = np.array(extra[name], dtype=float)
-                extra[name][missing] = np.nan
+        for names, rows in ((DISTANCE_COLUMNS, missing), (MOTION_COLUMNS, not_ok)):
+            for name in names:
+                if name in extra:
+                    extra[name] = np.array(extra[name], dtype=float)
+                    extra[name][rows] = np.nan
         if UNCERTAINTY_COLUMN in extra:
             sigma = np.array(extra[UNCERTAINTY_COLUMN], dtype=float)
             sigma[missing & (self.reason != MissingReason.TOO_UNCERTAIN.value)] = np.nan
