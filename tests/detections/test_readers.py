@@ -23,12 +23,12 @@ from slopedist.detections import (
 from slopedist.errors import InputFileError, MissingInputError
 
 coord = st.floats(-2000, 4000, allow_nan=False, allow_infinity=False)
+size = st.floats(2, 500, allow_nan=False)
+# left, top, right, bottom: a file of mostly inverted or all-normalised boxes is refused whole
+corners = st.tuples(coord, coord, size, size).map(lambda b: (b[0], b[1], b[0] + b[2], b[1] + b[3]))
 row = st.tuples(
     st.integers(0, 10_000),
-    coord,
-    coord,
-    coord,
-    coord,
+    corners,
     st.integers(-1, 500),
     st.floats(0, 100, allow_nan=False),
     st.sampled_from(["Car", "Van", "Truck"]),
@@ -41,11 +41,11 @@ TMP = settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_
 def test_csv_round_trip(tmp_path: Path, rows: list[tuple]) -> None:
     path = tmp_path / "boxes.csv"
     lines = ["frame,left,top,right,bottom,track_id,score,class"]
-    lines += [f"{f},{a!r},{b!r},{c!r},{d!r},{t},{s!r},{k}" for f, a, b, c, d, t, s, k in rows]
+    lines += [f"{f},{a!r},{b!r},{c!r},{d!r},{t},{s!r},{k}" for f, (a, b, c, d), t, s, k in rows]
     path.write_text("\n".join(lines) + "\n")
     table = read_box_csv(path)
     assert len(table) == len(rows)
-    for i, (f, a, b, c, d, t, s, k) in enumerate(rows):
+    for i, (f, (a, b, c, d), t, s, k) in enumerate(rows):
         assert table.frame[i] == f and table.track_id[i] == t and table.cls[i] == k
         assert list(table.boxes[i]) == [a, b, c, d] and table.score[i] == s
 
@@ -107,6 +107,26 @@ def test_csv_bad_ground_truth_names_line_and_field(tmp_path: Path, bad: str) -> 
     path.write_text(f"frame,left,top,right,bottom,gt_distance_m\n0,1,2,3,4,5\n1,1,2,3,4,{bad}\n")
     with pytest.raises(InputFileError, match=r"line 3, field 'gt_distance_m'"):
         read_box_csv(path)
+
+
+def test_csv_of_normalised_boxes_is_refused_naming_the_first_line(tmp_path: Path) -> None:
+    # boxes 0..1 of the image, not pixels: every one would be a sub-pixel box at the top-left
+    path = tmp_path / "boxes.csv"
+    path.write_text(
+        "frame,left,top,right,bottom\n0,nan,2,3,4\n0,0.46,0.48,0.52,0.64\n1,0.1,0.5,0.2,0.6\n"
+    )
+    with pytest.raises(InputFileError, match=r"line 3, field 'left'.*normalised"):
+        read_box_file(path)
+
+
+def test_csv_of_xywh_boxes_is_refused_naming_the_first_inverted_one(tmp_path: Path) -> None:
+    # x, y, width, height read as left, top, right, bottom: most boxes are inverted, and the
+    # near car's (300, 150, +400, +200) would pass with its bottom at 200 instead of 350
+    path = tmp_path / "boxes.csv"
+    rows = ["0,571,179,75,62", "0,527,176,39,25", "0,300,150,400,200", "1,570,180,75,62"]
+    path.write_text("frame,left,top,right,bottom\n" + "\n".join(rows) + "\n")
+    with pytest.raises(InputFileError, match=r"line 2, field 'right': 3 of 4 boxes .* width"):
+        read_box_file(path)
 
 
 def test_csv_nan_box_is_read_then_rejected_per_box(tmp_path: Path) -> None:

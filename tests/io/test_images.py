@@ -94,6 +94,43 @@ def test_header_size_matches_opencv(tmp_path: Path, w: int, h: int, ext: str) ->
     assert image_size_problem(path, max_pixels=w * h - 1) != "" or w * h == 1
 
 
+def _with_exif_orientation(jpeg: bytes, orientation: int, order: str = "<") -> bytes:
+    """``jpeg`` with an EXIF APP1 segment saying ``orientation`` (as a phone writes it)."""
+    tiff = (b"II" if order == "<" else b"MM") + struct.pack(order + "HI", 42, 8)
+    tiff += struct.pack(order + "H", 1) + struct.pack(order + "HHIH2x", 0x0112, 3, 1, orientation)
+    tiff += struct.pack(order + "I", 0)
+    payload = b"Exif\x00\x00" + tiff
+    return jpeg[:2] + b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload + jpeg[2:]
+
+
+@pytest.mark.parametrize(("orientation", "order"), [(1, "<"), (3, ">"), (6, "<"), (8, ">")])
+def test_jpeg_header_size_follows_the_exif_orientation_as_opencv(
+    tmp_path: Path, orientation: int, order: str
+) -> None:
+    # a phone's portrait JPEG is stored 40×24 and shown (and decoded by OpenCV) 24×40: its
+    # header size must be the decoded one, or the frames' size (calibration check, border
+    # cuts of every box) disagrees with the pixels
+    ok, jpeg = cv2.imencode(".jpg", np.zeros((24, 40, 3), np.uint8))
+    assert ok
+    path = tmp_path / "phone.jpg"
+    path.write_bytes(_with_exif_orientation(jpeg.tobytes(), orientation, order))
+    decoded = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    assert header_image_size(path) == (decoded.shape[1], decoded.shape[0])
+    assert header_image_size(path) == ((24, 40) if orientation >= 5 else (40, 24))
+    frames = open_frames(tmp_path)
+    assert frames.frame_size() == (decoded.shape[1], decoded.shape[0])
+    assert all(f.status is FrameStatus.OK for f in frames)
+
+
+@settings(max_examples=100, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.binary(max_size=64))
+def test_exif_parser_never_fails_on_junk(tmp_path: Path, data: bytes) -> None:
+    path = tmp_path / "junk.jpg"
+    payload = b"Exif\x00\x00" + data
+    path.write_bytes(b"\xff\xd8\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload)
+    assert header_image_size(path) is None  # no frame header after it
+
+
 def test_damaged_headers(tmp_path: Path) -> None:
     path = tmp_path / "x.png"
     cv2.imwrite(str(path), np.zeros((10, 10), np.uint8))

@@ -66,6 +66,41 @@ def test_non_increasing_given_time_is_unreadable(tmp_path: Path) -> None:
     assert "does not increase" in frames[1].detail
 
 
+def write_rotated(path: Path, degrees: int) -> Path:
+    """A 64×48 MPEG-4 video whose display matrix turns it by ``degrees`` (as a phone writes)."""
+    import av
+
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("mpeg4", rate=10)
+        stream.width, stream.height, stream.pix_fmt = W, H, "yuv420p"
+        stream.set_display_rotation(degrees)
+        image = np.zeros((H, W, 3), np.uint8)
+        image[: H // 2, : W // 2] = 255  # a white top-left quarter shows the orientation
+        for _ in range(3):
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    return path
+
+
+@pytest.mark.parametrize("degrees", [90, 180, 270])
+def test_rotation_metadata_is_applied_as_opencv_and_players_do(
+    tmp_path: Path, degrees: int
+) -> None:
+    # a phone video or an upside-down dashcam: the boxes of a detector that saw the frames
+    # upright (OpenCV turns them) must meet the same pixels here, with or without PyAV
+    path = write_rotated(tmp_path / f"rot{degrees}.mp4", degrees)
+    pyav, opencv = PyAVVideoSource(path), VideoSource(path, 10.0)
+    assert pyav.frame_size() == opencv.frame_size()
+    first = next(iter(pyav))
+    reference = next(iter(opencv))
+    assert first.image is not None and reference.image is not None
+    assert first.image.shape == reference.image.shape
+    assert np.abs(first.image.astype(int) - reference.image).mean() < 3
+    assert all(f.ok for f in pyav)
+
+
 def test_bad_files(tmp_path: Path) -> None:
     with pytest.raises(MissingInputError):
         PyAVVideoSource(tmp_path / "none.mp4")

@@ -14,7 +14,9 @@ the calibration belongs to (origin top-left); ``track_id`` is an int (-1 or empt
 (camera z, as KITTI's label z), > 0; empty = unknown. When present it is kept as the box column
 ``gt_distance_m`` (NaN where unknown): ``slopedist run`` copies it into ``records.csv`` so that
 ``slopedist report`` can score the run, and the depthmap method's ``truth`` scaling reads it.
-Other columns are ignored.
+Other columns are ignored. A file whose boxes all lie within 0..1 (normalised coordinates), or
+whose boxes are mostly inverted (``x, y, width, height`` columns read as ``right, bottom``), is
+refused as a whole (:func:`check_box_columns`): its few boxes that look valid would be wrong.
 """
 
 from __future__ import annotations
@@ -288,10 +290,11 @@ def read_box_csv(path: str | Path) -> BoxTable:
             line=1,
         )
     has_truth = CSV_TRUTH_COLUMN in rows.header
-    frames, tids = array("q"), array("q")
+    frames, tids, lines = array("q"), array("q"), array("q")
     boxes, scores, truth = array("d"), array("d"), array("d")
     classes: list[str] = []
     for lineno, row in rows:
+        lines.append(lineno)
         frames.append(_index(path, lineno, "frame", (row["frame"] or "").strip()))
         boxes.extend(_box(path, lineno, BOX_SIDES, [(row[k] or "").strip() for k in BOX_SIDES]))
         tid = (row.get("track_id") or "").strip()
@@ -302,14 +305,47 @@ def read_box_csv(path: str | Path) -> BoxTable:
         if has_truth:
             truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
     extra = {CSV_TRUTH_COLUMN: np.array(truth, dtype=float)} if has_truth else {}
+    box_array = np.array(boxes, dtype=float).reshape(-1, 4)
+    check_box_columns(path, box_array, np.array(lines, dtype=np.int64))
     return BoxTable.build(
         np.array(frames, dtype=np.int64),
-        np.array(boxes, dtype=float).reshape(-1, 4),
+        box_array,
         np.array(tids, dtype=np.int64),
         np.array(scores, dtype=float),
         np.asarray(classes, dtype=object),
         **extra,
     )
+
+
+def check_box_columns(
+    path: str | Path, boxes: NDArray[np.float64], lines: NDArray[np.int64]
+) -> None:
+    """Fail when a box file's ``(N, 4)`` boxes (left, top, right, bottom; read from ``lines``)
+    cannot be pixel corners: every box within 0..1 (normalised coordinates, which would be
+    sub-pixel boxes at the top-left corner), or more than half of them, and at least two,
+    inverted (``x, y, width, height`` columns: the boxes that are not inverted would be
+    read with a wrong right and bottom, at a wrong distance)."""
+    finite = np.isfinite(boxes).all(axis=1)
+    b, at = boxes[finite], lines[finite]
+    if len(b) and bool(((b >= 0.0) & (b <= 1.0)).all()):
+        raise InputFileError(
+            path,
+            "every box lies within 0..1: normalised coordinates? Boxes are pixels of the "
+            "image (origin top-left): multiply x by the image width and y by its height",
+            line=int(at[0]),
+            field="left",
+        )
+    inverted = (b[:, 2] < b[:, 0]) | (b[:, 3] < b[:, 1])
+    if inverted.sum() >= 2 and inverted.sum() > len(b) / 2:
+        k = int(np.flatnonzero(inverted)[0])
+        side = "right" if b[k, 2] < b[k, 0] else "bottom"
+        raise InputFileError(
+            path,
+            f"{int(inverted.sum())} of {len(b)} boxes have right < left or bottom < top: are "
+            "the columns x, y, width, height? They must be left, top, right, bottom (pixels)",
+            line=int(at[k]),
+            field=side,
+        )
 
 
 def _truth_distance(path: Path, lineno: int, value: str | None) -> float:

@@ -33,6 +33,8 @@ _JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 """JPEG start-of-frame markers (DHT C4, JPG C8 and DAC CC share the range but are not frames)."""
 _JPEG_STANDALONE = frozenset({0x01, *range(0xD0, 0xD8)})
 _MAX_JPEG_SEGMENTS = 10_000
+_EXIF_ORIENTATION_TAG = 0x0112
+"""EXIF orientation: 5..8 turn the image by a quarter, which ``cv2.imread`` applies."""
 
 
 def _png_size(fh: BinaryIO) -> tuple[int, int] | None:
@@ -43,7 +45,30 @@ def _png_size(fh: BinaryIO) -> tuple[int, int] | None:
     return int(width), int(height)
 
 
+def _exif_orientation(segment: bytes) -> int:
+    """The EXIF orientation (1..8; 1 = upright) of a JPEG APP1 segment's payload, 1 when it is
+    not EXIF or is malformed."""
+    if segment[:6] != b"Exif\x00\x00":
+        return 1
+    tiff = segment[6:]
+    order = {b"II": "<", b"MM": ">"}.get(tiff[:2])
+    if order is None or len(tiff) < 8:
+        return 1
+    ifd = struct.unpack(order + "I", tiff[4:8])[0]
+    if ifd + 2 > len(tiff):
+        return 1
+    for i in range(struct.unpack(order + "H", tiff[ifd : ifd + 2])[0]):
+        entry = tiff[ifd + 2 + 12 * i : ifd + 14 + 12 * i]
+        if len(entry) < 12:
+            return 1
+        if struct.unpack(order + "H", entry[:2])[0] == _EXIF_ORIENTATION_TAG:
+            value = int(struct.unpack(order + "H", entry[8:10])[0])
+            return value if 1 <= value <= 8 else 1
+    return 1
+
+
 def _jpeg_size(fh: BinaryIO) -> tuple[int, int] | None:
+    orientation = 1
     for _ in range(_MAX_JPEG_SEGMENTS):
         byte = fh.read(1)
         if byte != b"\xff":
@@ -65,14 +90,20 @@ def _jpeg_size(fh: BinaryIO) -> tuple[int, int] | None:
             if len(sof) < 5:
                 return None
             height, width = struct.unpack(">HH", sof[1:5])
+            if orientation >= 5:  # turned by a quarter: OpenCV decodes it height × width
+                return int(height), int(width)
             return int(width), int(height)
+        if m == 0xE1 and orientation == 1:
+            orientation = _exif_orientation(fh.read(max(0, length - 2)))
+            continue
         fh.seek(length - 2, 1)
     return None
 
 
 def header_image_size(path: str | Path) -> tuple[int, int] | None:
-    """``(width, height)`` in pixels from a PNG or JPEG header, without decoding; None when the
-    file is neither or its header is cut short."""
+    """``(width, height)`` in pixels from a PNG or JPEG header, without decoding, as
+    ``cv2.imread`` gives the image (a JPEG's EXIF orientation turning it by a quarter swaps the
+    two); None when the file is neither or its header is cut short."""
     with Path(path).open("rb") as fh:
         magic = fh.read(8)
         if magic == PNG_SIGNATURE:

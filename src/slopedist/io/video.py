@@ -8,8 +8,10 @@ installed and falls back to OpenCV's :class:`~slopedist.io.frames.VideoSource` (
 otherwise.
 
 Convention: images BGR ``H×W×3`` uint8; frames numbered 0, 1, ... in presentation order;
-timestamps float64 seconds. A frame without a pts takes the previous one's plus one nominal
-period; a pts that does not increase gives a frame of status ``unreadable`` (as in a log, see
+timestamps float64 seconds. A frame is turned as its display matrix says (a phone's or an
+upside-down dashcam's rotation metadata), as players and OpenCV show it and as a detector run
+on it saw it. A frame without a pts takes the previous one's plus one nominal period; a pts
+that does not increase gives a frame of status ``unreadable`` (as in a log, see
 :mod:`slopedist.io.rosbag`).
 """
 
@@ -75,9 +77,16 @@ class PyAVVideoSource:
         return self.frame_count
 
     def frame_size(self) -> tuple[int, int]:
+        import av
+
         with self._open() as container:
             stream = container.streams.video[0]
-            return int(stream.codec_context.width), int(stream.codec_context.height)
+            size = int(stream.codec_context.width), int(stream.codec_context.height)
+            try:
+                first = next(container.decode(stream))
+            except (StopIteration, av.FFmpegError):
+                return size
+            return _displayed_size(first)
 
     def __iter__(self) -> Iterator[Frame]:
         import av
@@ -112,7 +121,7 @@ class PyAVVideoSource:
                 if self.timestamps_s is not None:
                     t = self._given(k)
                 status, detail, image = self._check(vf, t, last, size)
-                size = size or (int(vf.width), int(vf.height))
+                size = size or _displayed_size(vf)
                 if status is FrameStatus.OK:
                     last = t
                 yield Frame(k, t, image, status, name, detail)
@@ -130,14 +139,30 @@ class PyAVVideoSource:
     def _check(
         vf: Any, t: float, last: float | None, size: tuple[int, int] | None
     ) -> tuple[FrameStatus, str, NDArray[np.uint8] | None]:
-        this = (int(vf.width), int(vf.height))
+        this = _displayed_size(vf)
         if last is not None and not t > last:
             why = f"presentation time {t:.6f} s does not increase (the frame before: {last:.6f} s)"
             return FrameStatus.UNREADABLE, why, None
         if size is not None and this != size:
             why = f"image is {this[0]}×{this[1]} px, the first frame was {size[0]}×{size[1]} px"
             return FrameStatus.SIZE_CHANGED, why, None
-        return FrameStatus.OK, "", np.asarray(vf.to_ndarray(format="bgr24"), dtype=np.uint8)
+        image = np.asarray(vf.to_ndarray(format="bgr24"), dtype=np.uint8)
+        turns = _quarter_turns(vf)
+        if turns:
+            image = np.ascontiguousarray(np.rot90(image, turns))
+        return FrameStatus.OK, "", image
+
+
+def _quarter_turns(vf: Any) -> int:
+    """Counter-clockwise quarter turns (0..3) that show frame ``vf`` upright: its display
+    matrix's rotation (PyAV's ``VideoFrame.rotation``, degrees; 0 where PyAV lacks it)."""
+    return round(float(getattr(vf, "rotation", 0) or 0) / 90.0) % 4
+
+
+def _displayed_size(vf: Any) -> tuple[int, int]:
+    """``(width, height)`` of frame ``vf`` as shown, after its rotation."""
+    w, h = int(vf.width), int(vf.height)
+    return (h, w) if _quarter_turns(vf) % 2 else (w, h)
 
 
 def open_video(
