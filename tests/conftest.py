@@ -67,10 +67,14 @@ def kitti_raw_lead_dir() -> Path:
 
 
 def _constant_onnx_model(
-    path: Path, outputs: Mapping[str, Any], in_shape: tuple[Any, ...] = (1, 3, 320, 320)
+    path: Path,
+    outputs: Mapping[str, Any],
+    in_shape: tuple[Any, ...] = (1, 3, 320, 320),
+    metadata: Mapping[str, str] | None = None,
 ) -> Path:
     """Save an ONNX model whose outputs are the given constant arrays (float32) and whose one
-    input, ``images`` of shape ``in_shape``, is ignored: a detector emitting known tensors."""
+    input, ``images`` of shape ``in_shape``, is ignored: a detector emitting known tensors
+    (``metadata``: the model's custom metadata, e.g. ultralytics' ``names``)."""
     import numpy as np
 
     onnx = pytest.importorskip("onnx", reason="the 'onnx' package (test extra) builds models")
@@ -92,6 +96,8 @@ def _constant_onnx_model(
     )
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
     model.ir_version = 8
+    if metadata:
+        helper.set_model_props(model, dict(metadata))
     onnx.checker.check_model(model)
     onnx.save(model, str(path))
     return path

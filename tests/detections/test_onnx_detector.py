@@ -225,8 +225,28 @@ def test_guess_layout_from_shapes() -> None:
     assert guess_layout([[1, 25200, 6]]) is OutputLayout.YOLOV5  # one-class YOLOv5
     assert guess_layout([[1, 5, 8400]]) is OutputLayout.YOLOV8  # one-class YOLOv8
     assert guess_layout([[1, 300, 4], [1, 300, 80]]) is OutputLayout.DETR
+    # candidates first: 4 + classes columns is a YOLOv8, 5 + classes a YOLOv5
+    assert guess_layout([[1, 8400, 84]]) is OutputLayout.YOLOV8  # COCO's 80, no names
+    assert guess_layout([[1, 8400, 12]], n_classes=8) is OutputLayout.YOLOV8
+    assert guess_layout([[1, 25200, 13]], n_classes=8) is OutputLayout.YOLOV5
+    assert guess_layout([[1, 25200, 12]]) is OutputLayout.YOLOV5
     with pytest.raises(ConfigurationError, match="cannot tell"):
         guess_layout([[1, "a", "b"]])
+
+
+def test_a_yolov8_exported_candidates_first_is_read_by_its_class_names(
+    tmp_path: Path, constant_model: Callable[..., Path]
+) -> None:
+    """``[1, N, 4 + C]`` with the model's ``names`` metadata (as ultralytics writes it): read
+    as YOLOv8 (it was taken for a YOLOv5 of C − 1 classes, objectness from class 0)."""
+    names = str({k: f"class{k}" for k in range(N_CLASSES)})
+    outputs = {"output0": yolov8_tensor().transpose(0, 2, 1)}
+    path = constant_model(tmp_path / "v8t.onnx", outputs, metadata={"names": names})
+    det = OnnxDetector(path, DetectorSettings(score_threshold=0.25, iou_threshold=0.5))
+    assert det.layout is OutputLayout.YOLOV8
+    _check(det.detect(_frame(), frame=3), frame=3)
+    unnamed = constant_model(tmp_path / "v8t_unnamed.onnx", outputs)
+    assert OnnxDetector(unnamed).layout is OutputLayout.YOLOV5  # 12 = 5 + 7 classes: as before
 
 
 def test_errors_missing_model_and_bad_thresholds(tmp_path: Path) -> None:

@@ -106,12 +106,16 @@ def _best_class(scores: NDArray) -> tuple[FloatArray, NDArray[np.int64]]:
 
 
 def decode_yolov8(output: NDArray, min_score: float = 0.0) -> Candidates:
-    """``[1, 4 + C, N]``: centre-size boxes then class scores (YOLOv8/YOLO11).
+    """``[1, 4 + C, N]``: centre-size boxes then class scores (YOLOv8/YOLO11); also read
+    candidates-first, ``[1, N, 4 + C]`` (more rows than columns: there are more candidates
+    than classes).
 
     Candidates whose best class score is below ``min_score`` are dropped before the class search
     (the same result, less work on 8400 × 80 outputs).
     """
     arr = _squeeze_batch(output, OutputLayout.YOLOV8)
+    if arr.shape[0] > arr.shape[1]:
+        arr = arr.T
     if arr.shape[0] < 5:
         raise DataMismatchError(
             f"YOLOv8 output needs ≥ 5 rows (4 box + classes), got shape {np.shape(output)}"
@@ -194,12 +198,22 @@ def decode_detr_fused(output: NDArray, input_size: tuple[int, int]) -> Candidate
     return Candidates(_centre_to_corners(arr[:, :4] * np.array([w, h, w, h], float)), best, cls)
 
 
-def guess_layout(shapes: Sequence[Sequence[int | str | None]]) -> OutputLayout:
-    """The layout of a model from its output shapes (symbolic dimensions as str or None).
+COCO_CLASS_COUNT = 80
+"""Classes of the COCO-trained detectors: a ``[1, N, 84]`` output without class names is a
+transposed YOLOv8 (4 + 80), not a YOLOv5 of 79 classes."""
+
+
+def guess_layout(
+    shapes: Sequence[Sequence[int | str | None]], n_classes: int | None = None
+) -> OutputLayout:
+    """The layout of a model from its output shapes (symbolic dimensions as str or None) and,
+    when the model names them (ultralytics' ``names`` metadata), its number of classes.
 
     Two outputs, one ending in 4 → DETR; one output ``[1, a, 6]`` with ``a`` ≤
     :data:`MAX_END_TO_END_DETECTIONS` → end-to-end; one output
-    ``[1, a, b]`` with ``a < b`` (classes × candidates) → YOLOv8, with ``a > b`` → YOLOv5.
+    ``[1, a, b]`` with ``a < b`` (classes × candidates) → YOLOv8, with ``a > b`` → YOLOv5,
+    unless ``b`` is 4 + the classes (``n_classes``, else :data:`COCO_CLASS_COUNT`): a YOLOv8
+    exported candidates-first, which :func:`decode_yolov8` reads too.
     """
     dims = [[d if isinstance(d, int) else None for d in s] for s in shapes]
     if len(dims) >= 2 and any(len(s) >= 2 and s[-1] == 4 for s in dims[:2]):
@@ -209,7 +223,9 @@ def guess_layout(shapes: Sequence[Sequence[int | str | None]]) -> OutputLayout:
         if b == 6 and (a is None or a <= MAX_END_TO_END_DETECTIONS):
             return OutputLayout.END_TO_END  # [1, 25200, 6] is a one-class YOLOv5
         if a is not None and b is not None and a != b:
-            return OutputLayout.YOLOV8 if a < b else OutputLayout.YOLOV5
+            if a < b or b == 4 + (COCO_CLASS_COUNT if n_classes is None else n_classes):
+                return OutputLayout.YOLOV8
+            return OutputLayout.YOLOV5
         if a is not None and b is None:
             return OutputLayout.YOLOV8  # [1, 84, N] with a dynamic number of candidates
         if b is not None and a is None:

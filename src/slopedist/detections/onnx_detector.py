@@ -16,6 +16,7 @@ Nothing is downloaded: the user exports their own weights (see ``docs/detectors.
 
 from __future__ import annotations
 
+import ast
 import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -224,13 +225,23 @@ class OnnxDetector:
         self.output_names = [o.name for o in self.session.get_outputs()]
         requested = OutputLayout(layout)
         self.layout = (
-            guess_layout([o.shape for o in self.session.get_outputs()])
+            guess_layout([o.shape for o in self.session.get_outputs()], self._named_class_count())
             if requested is OutputLayout.AUTO
             else requested
         )
         self.last_timing = DetectionTiming()
         self._buffer: NDArray[np.float32] | None = None
         self._buffer_box: Letterbox | None = None
+
+    def _named_class_count(self) -> int | None:
+        """How many classes the model names in its metadata (ultralytics' ``names``, a dict
+        or list literal), or None."""
+        try:
+            names = self.session.get_modelmeta().custom_metadata_map.get("names")
+            parsed = ast.literal_eval(names) if isinstance(names, str) else None
+        except (ValueError, SyntaxError, AttributeError, MemoryError, RecursionError):
+            return None
+        return len(parsed) if isinstance(parsed, (dict, list)) and parsed else None
 
     def _load(self, threads: int | None) -> Any:
         ort = import_optional("onnxruntime", "onnx", "running an ONNX detector")
