@@ -79,3 +79,47 @@ def test_a_score_threshold_that_is_not_finite_is_a_usage_error(command: str) -> 
         assert result.exit_code == 2 and f"'--score': '{bad}' is not a finite number" in (
             result.output
         )
+
+
+_COMMANDS = {
+    "run": ["run", "x"],
+    "estimate": ["estimate"],
+    "calibrate": ["calibrate"],
+    "batch": ["batch", "x"],
+    "eval": ["eval", "kitti-tracking", "x"],
+    "odometry": ["odometry", "eval", "x"],
+    "camera": ["camera", "calibrate", "."],
+    "detect": ["detect", "."],
+}
+
+
+@pytest.mark.parametrize(
+    ("command", "option", "message"),
+    [
+        *(
+            (c, "--lookback", "a finite number > 0 s")
+            for c in _COMMANDS
+            if c not in ("camera", "detect")
+        ),
+        ("estimate", "--frame-period", "in (0, 1000] s"),
+        ("calibrate", "--frame-period", "in (0, 1000] s"),
+        ("run", "--fps", "in [0.001, 100000] frames/s"),
+        ("calibrate", "--fps", "in [0.001, 100000] frames/s"),
+        ("calibrate", "--every", "a finite number > 0 s"),
+        ("camera", "--square", "a finite number > 0 m"),
+        ("run", "--depth-scale", "a finite number > 0"),
+    ],
+)
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf", "0", "-1", "1e-320"])
+def test_a_number_option_refuses_what_is_meaningless_naming_the_option(
+    command: str, option: str, message: str, bad: str
+) -> None:
+    """``FloatRange(min=0, min_open=True)`` let ``nan`` and ``inf`` through (``--lookback nan``
+    failed later without naming the option; ``--fps 1e-320`` stopped the run at frame 1 with an
+    infinite timestamp)."""
+    result = CliRunner().invoke(cli, [*_COMMANDS[command], option, bad])
+    if bad == "1e-320" and option != "--fps":  # a tiny duration or size is harmless
+        assert f"'{option}'" not in result.output
+        return
+    assert result.exit_code == 2, result.output
+    assert f"Invalid value for '{option}': '{bad}' is not {message}" in result.output

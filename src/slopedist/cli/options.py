@@ -50,18 +50,39 @@ class BoundedFloat(click.ParamType):
         number = click.FLOAT.convert(value, param, ctx)
         above_low = number > self.low if self.low_open else number >= self.low
         if not (math.isfinite(number) and above_low and number <= self.high):
-            bracket = "(" if self.low_open else "["
-            where = (
-                f"in {bracket}{self.low:g}, {self.high:g}] {self.unit}".rstrip()
-                if math.isfinite(self.low) or math.isfinite(self.high)
-                else "a finite number"
-            )
-            self.fail(f"{value!r} is not {where}", param, ctx)
+            self.fail(f"{value!r} is not {self.description()}", param, ctx)
         return number
+
+    def description(self) -> str:
+        """What the option takes: ``in (0, 50] m``, ``a finite number > 0 s``, ``a finite
+        number``."""
+        if math.isfinite(self.high):
+            bracket = "(" if self.low_open else "["
+            return f"in {bracket}{self.low:g}, {self.high:g}] {self.unit}".rstrip()
+        if math.isfinite(self.low):
+            op = ">" if self.low_open else ">="
+            return f"a finite number {op} {self.low:g} {self.unit}".rstrip()
+        return "a finite number"
 
 
 FINITE_FLOAT = BoundedFloat()
 """Any finite number (a score threshold: ``nan`` would keep every box)."""
+
+POSITIVE_FLOAT = BoundedFloat(0.0)
+"""A finite number > 0 (a factor, a size: ``nan``, ``inf``, 0 or a negative one is refused)."""
+
+SECONDS = BoundedFloat(0.0, unit="s")
+"""A finite duration > 0, seconds (``--lookback``, ``--every``)."""
+
+MIN_FPS, MAX_FPS = 1e-3, 1e5
+"""The frame rates a ``--fps`` may give, frames per second (one frame per 1000 s to 100 kHz):
+beyond them the frames' timestamps overflow or are not a camera's."""
+
+FPS = BoundedFloat(MIN_FPS, MAX_FPS, "frames/s", low_open=False)
+"""``--fps``: frames per second in :data:`MIN_FPS`..:data:`MAX_FPS`."""
+
+FRAME_PERIOD = BoundedFloat(0.0, 1 / MIN_FPS, "s")
+"""``--frame-period``: seconds between frames, up to one frame per 1000 s."""
 
 
 height_option = click.option(
@@ -87,7 +108,7 @@ mount_option = click.option(
 lookback_option = click.option(
     "--lookback",
     "lookback_s",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=SECONDS,
     default=1.0,
     show_default=True,
     help="Look-back of the ego road gradient, seconds.",
@@ -229,7 +250,7 @@ def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--frame-period",
-            type=click.FloatRange(min=0, min_open=True),
+            type=FRAME_PERIOD,
             default=0.1,
             show_default=True,
             help="Seconds between frames (KITTI and OXTS poses).",
