@@ -123,3 +123,25 @@ def test_a_number_option_refuses_what_is_meaningless_naming_the_option(
         return
     assert result.exit_code == 2, result.output
     assert f"Invalid value for '{option}': '{bad}' is not {message}" in result.output
+
+
+@pytest.mark.parametrize("prefix", ["detect", "run"])
+@pytest.mark.parametrize(
+    ("option", "bad", "message"),
+    [
+        *(("pixel-scale", bad, "a finite number > 0") for bad in ("nan", "inf", "0", "-1")),
+        *(("score", bad, "in [0, 1]") for bad in ("nan", "inf", "-0.1")),
+        *(("iou", bad, "in (0, 1]") for bad in ("nan", "0", "1.5")),
+        ("threads", "0", "0 is not in the range x>=1"),
+    ],
+)
+def test_a_meaningless_detector_option_is_a_usage_error(
+    prefix: str, option: str, bad: str, message: str
+) -> None:
+    """``--detector-pixel-scale nan`` (or 0, or negative) fed the network garbage and silently
+    gave no detections; ``--detector-score nan`` passed ``FloatRange(0, 1)``."""
+    name = f"--{option}" if prefix == "detect" else f"--detector-{option}"
+    args = ["detect", ".", name, bad] if prefix == "detect" else ["run", "x", name, bad]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2, result.output
+    assert f"Invalid value for '{name}'" in result.output and message in result.output

@@ -446,7 +446,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "score",
         "detector_score",
         {
-            "type": click.FloatRange(0, 1),
+            "type": BoundedFloat(0.0, 1.0, low_open=False),
             "default": 0.25,
             "show_default": True,
             "help": "Minimum detector score.",
@@ -456,7 +456,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "iou",
         "detector_iou",
         {
-            "type": click.FloatRange(0, 1, min_open=True),
+            "type": BoundedFloat(0.0, 1.0),
             "default": 0.45,
             "show_default": True,
             "help": "NMS IoU threshold (per class).",
@@ -491,7 +491,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "pixel-scale",
         "detector_pixel_scale",
         {
-            "type": float,
+            "type": POSITIVE_FLOAT,
             "default": 1 / 255,
             "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
         },
@@ -517,7 +517,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     (
         "threads",
         "detector_threads",
-        {"type": int, "help": "onnxruntime threads [default: its own]."},
+        {"type": click.IntRange(min=1), "help": "onnxruntime threads [default: its own]."},
     ),
 )
 """``(option name without prefix, parameter, click keywords)`` of each detector option."""
