@@ -198,3 +198,15 @@ def test_an_image_size_the_calibration_cannot_belong_to_is_refused(
     kind = InputFileError if size == (300, 200) else DataMismatchError
     with pytest.raises(kind, match=message):
         read_calibration(path, image_size=size)
+
+
+@pytest.mark.parametrize("key", ["R0_rect", "R_rect"])
+def test_a_kitti_file_without_its_p_lines_says_so(tmp_path: Path, key: str) -> None:
+    """A KITTI calib file lacking its ``P2:`` line (only ``R0_rect``, ``Tr_velo_to_cam``) was read
+    as YAML: "not a readable YAML/JSON/XML file: Incorrect indentation"."""
+    path = _write(
+        tmp_path / "calib.txt",
+        f"{key}: 1 0 0 0 1 0 0 0 1\nTr_velo_to_cam: 0 -1 0 0 0 0 -1 0 1 0 0 0\n",
+    )
+    with pytest.raises(InputFileError, match=rf"calib.txt: no 'P2:' line \(found: {key}, Tr_velo"):
+        read_calibration(path)

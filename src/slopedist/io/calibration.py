@@ -105,11 +105,18 @@ def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     text = read_text(path, "calibration file")
     if path.suffix.lower() in (".yaml", ".yml", ".json", ".xml"):
         return read_filestorage(path)
-    if re.search(r"^\s*P\d\s*:", text, re.MULTILINE) or _first_line_count(text) == 12:
+    if _KITTI_LINE.search(text) or _first_line_count(text) == 12:
         return _from_kitti(path, kitti_key)
     if text.lstrip()[:1] in ("%", "{", "<") or re.search(r"^\s*\w+\s*:", text, re.MULTILINE):
         return read_filestorage(path)
     return read_k_text(path, text)
+
+
+_KITTI_LINE = re.compile(
+    r"^\s*(P\d|R0?_rect|Tr_velo_(to_)?cam|Tr_imu_(to_)?velo)\s*:", re.MULTILINE
+)
+"""A line of a KITTI calib file (a file with ``R0_rect:`` but no ``P2:`` is one that lacks its
+``P2:`` line, not a YAML file)."""
 
 
 def _first_line_count(text: str) -> int:
