@@ -103,3 +103,13 @@ def test_yolo_out_refuses_an_image_size_the_boxes_do_not_fit(
     assert "1 boxes have their centre outside the 100×100 px image, e.g. frame 3" in err
     assert not (tmp_path / "yolo").exists()
     assert main([*args, "--image-size", "1242x375"]) == 0
+
+
+@pytest.mark.parametrize("base", ["-5", "2000000000"])
+def test_a_frame_base_beyond_the_frame_indices_is_a_usage_error(tmp_path: Path, base: str) -> None:
+    """``--to mot --frame-base -5`` wrote frame -5, which no reader (this one included) takes."""
+    source = tmp_path / "boxes.csv"
+    source.write_text("frame,left,top,right,bottom\n0,10,10,20,20\n")
+    target = tmp_path / "det.txt"
+    assert main(["convert", str(source), str(target), "--to", "mot", "--frame-base", base]) == 2
+    assert not target.exists()

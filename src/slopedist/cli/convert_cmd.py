@@ -15,6 +15,7 @@ from slopedist.detections.convert import (
     target_format_of,
 )
 from slopedist.io.outputs import check_outputs_spare_inputs
+from slopedist.limits import MAX_INDEX
 
 
 @click.command("convert")
@@ -44,7 +45,7 @@ from slopedist.io.outputs import check_outputs_spare_inputs
 )
 @click.option(
     "--frame-base",
-    type=int,
+    type=click.IntRange(0, MAX_INDEX),
     help="Number of the first frame in MOT (default 1) or YOLO (default 0) files.",
 )
 @click.option("--min-score", type=FINITE_FLOAT, help="Drop boxes scored below this.")
