@@ -145,3 +145,20 @@ def test_a_meaningless_detector_option_is_a_usage_error(
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 2, result.output
     assert f"Invalid value for '{name}'" in result.output and message in result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["camera", "calibrate", ".", "--pattern", "9", "--out", "cam.yaml"], "--pattern"),
+        (["convert", ".", "out.csv", "--image-size", "wide"], "--image-size"),
+        (["detect", ".", "--detector", "m.onnx", "--input-size", "big"], "--input-size"),
+    ],
+)
+def test_a_malformed_size_names_its_option(tmp_path: Path, args: list[str], option: str) -> None:
+    """``--pattern 9`` said "Invalid value: expected COLUMNSxROWS of inner corners", naming no
+    option (so did ``convert --image-size`` and the detector's input size)."""
+    (tmp_path / "m.onnx").write_bytes(b"")
+    args = [str(tmp_path / a) if a == "m.onnx" else a for a in args]
+    result = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert result.exit_code == 2 and f"Invalid value for {option}: expected" in result.output

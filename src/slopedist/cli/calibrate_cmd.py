@@ -201,7 +201,9 @@ def calibrate(
                 "FRAMES gives the rotations (built-in odometry): leave out --poses"
             )
         detector = (
-            None if detector_model is None else make_detector(detector_model, **detector_opts)
+            None
+            if detector_model is None
+            else make_detector(detector_model, "detector-", **detector_opts)
         )
         source = open_frames(frames, fps, timestamps)
         if files.image_size is None:  # the frames' size for the border test, as in `run`

@@ -67,7 +67,7 @@ def calibrate_camera(
 ) -> None:
     """Calibrate the camera from FRAMES (a video or image folder) showing a checkerboard."""
     check_outputs_spare_inputs([out], [frames])
-    size = parse_size(pattern, "COLUMNSxROWS of inner corners")
+    size = parse_size(pattern, "COLUMNSxROWS of inner corners", "--pattern")
     fit = calibrate_checkerboard(_every(frames, every), size or (0, 0), square_m, max_views)
     write_opencv_yaml(fit, out)
     K = fit.intrinsics.K

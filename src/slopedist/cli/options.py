@@ -410,16 +410,19 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
     return decorate
 
 
-def parse_size(value: str | None, what: str = "WIDTHxHEIGHT in pixels") -> tuple[int, int] | None:
-    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None."""
+def parse_size(
+    value: str | None, what: str = "WIDTHxHEIGHT in pixels", option: str | None = None
+) -> tuple[int, int] | None:
+    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None; a usage error
+    names ``option`` (``--pattern``) when ``what`` does not."""
     if not value:
         return None
     try:
         a, b = (int(v) for v in value.lower().split("x"))
     except ValueError:
-        raise click.BadParameter(f"expected {what}, got '{value}'") from None
+        raise click.BadParameter(f"expected {what}, got '{value}'", param_hint=option) from None
     if a <= 0 or b <= 0:
-        raise click.BadParameter(f"expected {what} (positive), got '{value}'")
+        raise click.BadParameter(f"expected {what} (positive), got '{value}'", param_hint=option)
     return a, b
 
 
@@ -535,14 +538,15 @@ def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callabl
     return decorate
 
 
-def make_detector(model: Path, **opts: Any) -> OnnxDetector:
-    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`."""
+def make_detector(model: Path, prefix: str = "", **opts: Any) -> OnnxDetector:
+    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`
+    (named with ``prefix`` in a usage error)."""
     settings = DetectorSettings(
         score_threshold=opts["detector_score"],
         iou_threshold=opts["detector_iou"],
         class_map=parse_class_map(opts["detector_classes"]),
         layout=opts["detector_layout"],
-        input_size=parse_size(opts["detector_input_size"]),
+        input_size=parse_size(opts["detector_input_size"], option=f"--{prefix}input-size"),
         bgr_input=opts["detector_bgr"],
         pixel_scale=opts["detector_pixel_scale"],
         pad_centre=not opts["detector_pad_top_left"],

@@ -363,7 +363,9 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         image_size=image_size,
         boxes=boxes_path,
         score=score,
-        detector=functools.partial(make_detector, model, **detector_opts) if model else None,
+        detector=functools.partial(make_detector, model, "detector-", **detector_opts)
+        if model
+        else None,
         fps=fps,
         timestamps=timestamps,
         topics=LogTopicNames(image_topic, rotation_topic, speed_topic),
