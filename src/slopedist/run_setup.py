@@ -226,7 +226,18 @@ class PreparedRun:
 
     def run(self, config: RunConfig, frames: FrameSource | None = None) -> RunResult:
         """:func:`~slopedist.runner.run_frames` on these inputs into ``config`` (``frames``
-        replaces the source, e.g. a wrapped one)."""
+        replaces the source, e.g. a wrapped one).
+
+        Raises:
+            ConfigurationError: a TUM trajectory asked for without a rotation source (it would
+                be a file with no pose), before anything is written.
+        """
+        if config.trajectory is not None and self.odometry is None:
+            raise ConfigurationError(
+                "--export tum writes the rotations of the visual odometry or of a drive log's "
+                "--rotation-topic, and this run has none (--odometry none): use --odometry "
+                "builtin, or leave out --export tum"
+            )
         return run_frames(
             frames or self.source,
             self.boxes,

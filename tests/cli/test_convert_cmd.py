@@ -88,3 +88,28 @@ def test_a_json_target_is_coco_and_json_is_coco_alone(
         assert main(["convert", str(src), str(tmp_path / name), "--to", fmt]) == 2
         assert "JSON is COCO's" in capsys.readouterr().err
         assert not (tmp_path / name).exists()
+
+
+def test_yolo_out_refuses_an_image_size_the_boxes_do_not_fit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--image-size 100x100`` for boxes of a 1242×375 image wrote YOLO files with centres at
+    3.8 image widths, silently."""
+    source = tmp_path / "boxes.csv"
+    source.write_text("frame,left,top,right,bottom\n0,10,10,20,20\n3,600,150,700,250\n")
+    args = ["convert", str(source), str(tmp_path / "yolo"), "--to", "yolo"]
+    assert main([*args, "--image-size", "100x100"]) == 2
+    err = capsys.readouterr().err
+    assert "1 boxes have their centre outside the 100×100 px image, e.g. frame 3" in err
+    assert not (tmp_path / "yolo").exists()
+    assert main([*args, "--image-size", "1242x375"]) == 0
+
+
+@pytest.mark.parametrize("base", ["-5", "2000000000"])
+def test_a_frame_base_beyond_the_frame_indices_is_a_usage_error(tmp_path: Path, base: str) -> None:
+    """``--to mot --frame-base -5`` wrote frame -5, which no reader (this one included) takes."""
+    source = tmp_path / "boxes.csv"
+    source.write_text("frame,left,top,right,bottom\n0,10,10,20,20\n")
+    target = tmp_path / "det.txt"
+    assert main(["convert", str(source), str(target), "--to", "mot", "--frame-base", base]) == 2
+    assert not target.exists()

@@ -79,3 +79,86 @@ def test_a_score_threshold_that_is_not_finite_is_a_usage_error(command: str) -> 
         assert result.exit_code == 2 and f"'--score': '{bad}' is not a finite number" in (
             result.output
         )
+
+
+_COMMANDS = {
+    "run": ["run", "x"],
+    "estimate": ["estimate"],
+    "calibrate": ["calibrate"],
+    "batch": ["batch", "x"],
+    "eval": ["eval", "kitti-tracking", "x"],
+    "odometry": ["odometry", "eval", "x"],
+    "camera": ["camera", "calibrate", "."],
+    "detect": ["detect", "."],
+}
+
+
+@pytest.mark.parametrize(
+    ("command", "option", "message"),
+    [
+        *(
+            (c, "--lookback", "a finite number > 0 s")
+            for c in _COMMANDS
+            if c not in ("camera", "detect")
+        ),
+        ("estimate", "--frame-period", "in (0, 1000] s"),
+        ("calibrate", "--frame-period", "in (0, 1000] s"),
+        ("run", "--fps", "in [0.001, 100000] frames/s"),
+        ("calibrate", "--fps", "in [0.001, 100000] frames/s"),
+        ("calibrate", "--every", "a finite number > 0 s"),
+        ("camera", "--square", "a finite number > 0 m"),
+        ("run", "--depth-scale", "a finite number > 0"),
+    ],
+)
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf", "0", "-1", "1e-320"])
+def test_a_number_option_refuses_what_is_meaningless_naming_the_option(
+    command: str, option: str, message: str, bad: str
+) -> None:
+    """``FloatRange(min=0, min_open=True)`` let ``nan`` and ``inf`` through (``--lookback nan``
+    failed later without naming the option; ``--fps 1e-320`` stopped the run at frame 1 with an
+    infinite timestamp)."""
+    result = CliRunner().invoke(cli, [*_COMMANDS[command], option, bad])
+    if bad == "1e-320" and option != "--fps":  # a tiny duration or size is harmless
+        assert f"'{option}'" not in result.output
+        return
+    assert result.exit_code == 2, result.output
+    assert f"Invalid value for '{option}': '{bad}' is not {message}" in result.output
+
+
+@pytest.mark.parametrize("prefix", ["detect", "run"])
+@pytest.mark.parametrize(
+    ("option", "bad", "message"),
+    [
+        *(("pixel-scale", bad, "a finite number > 0") for bad in ("nan", "inf", "0", "-1")),
+        *(("score", bad, "in [0, 1]") for bad in ("nan", "inf", "-0.1")),
+        *(("iou", bad, "in (0, 1]") for bad in ("nan", "0", "1.5")),
+        ("threads", "0", "0 is not in the range x>=1"),
+    ],
+)
+def test_a_meaningless_detector_option_is_a_usage_error(
+    prefix: str, option: str, bad: str, message: str
+) -> None:
+    """``--detector-pixel-scale nan`` (or 0, or negative) fed the network garbage and silently
+    gave no detections; ``--detector-score nan`` passed ``FloatRange(0, 1)``."""
+    name = f"--{option}" if prefix == "detect" else f"--detector-{option}"
+    args = ["detect", ".", name, bad] if prefix == "detect" else ["run", "x", name, bad]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2, result.output
+    assert f"Invalid value for '{name}'" in result.output and message in result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["camera", "calibrate", ".", "--pattern", "9", "--out", "cam.yaml"], "--pattern"),
+        (["convert", ".", "out.csv", "--image-size", "wide"], "--image-size"),
+        (["detect", ".", "--detector", "m.onnx", "--input-size", "big"], "--input-size"),
+    ],
+)
+def test_a_malformed_size_names_its_option(tmp_path: Path, args: list[str], option: str) -> None:
+    """``--pattern 9`` said "Invalid value: expected COLUMNSxROWS of inner corners", naming no
+    option (so did ``convert --image-size`` and the detector's input size)."""
+    (tmp_path / "m.onnx").write_bytes(b"")
+    args = [str(tmp_path / a) if a == "m.onnx" else a for a in args]
+    result = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert result.exit_code == 2 and f"Invalid value for {option}: expected" in result.output

@@ -351,3 +351,16 @@ def test_a_snapshot_of_a_frame_not_read_is_a_warning(
     assert "warning: no snapshot of frame 1, 7:" in err
     assert main([*argv, "--snapshot", "2"]) == 0
     assert "no snapshot" not in capsys.readouterr().err
+
+
+def test_a_tum_export_without_rotations_is_refused_before_anything_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--export tum --odometry none`` wrote a trajectory.tum with a header and no pose, and
+    said nothing."""
+    run = ["run", *setup(tmp_path), "--method", "flat", "--odometry", "none"]
+    assert main([*run, "--export", "tum"]) == 2
+    assert "--export tum writes the rotations" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    assert main([*run, "--export", "mcap"]) == 0  # the MCAP export has frames to show
+    assert (tmp_path / "out" / "run.mcap").is_file()

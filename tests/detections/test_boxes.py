@@ -4,6 +4,7 @@ that finds overlapping pairs against testing every pair; box checks against the 
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -310,8 +311,11 @@ def test_overlapping_pairs_by_hand() -> None:
         ({"frame": [0], "boxes": [[1, 2, 3, 4]], "classes": ["Car", "Van"]}, "'classes' has 2"),
         ({"frame": [float("nan")], "boxes": [[1, 2, 3, 4]]}, "column 'frame'"),
         ({"frame": [0], "boxes": [["a", 2, 3, 4]]}, "column 'boxes'"),
-        ({"frame": [0.5], "boxes": [[1, 2, 3, 4]]}, "'frame': values that are not whole"),
-        ({"frame": [0], "boxes": [[1, 2, 3, 4]], "track_id": [2.5]}, "'track_id': values"),
+        ({"frame": [0.5], "boxes": [[1, 2, 3, 4]]}, "'frame': 0.5 \\(entry 0\\) is not a whole"),
+        (
+            {"frame": [0], "boxes": [[1, 2, 3, 4]], "track_id": [2.5]},
+            "'track_id': 2.5 \\(entry 0\\)",
+        ),
     ],
 )
 def test_build_with_columns_that_do_not_fit_is_a_data_mismatch(
@@ -320,3 +324,18 @@ def test_build_with_columns_that_do_not_fit_is_a_data_mismatch(
     """They failed with numpy's bare ValueError ('cannot reshape array of size 4 ...')."""
     with pytest.raises(DataMismatchError, match=message):
         BoxTable.build(**kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 1e300, 2.0**63])
+def test_a_frame_array_that_is_not_whole_numbers_fails_cleanly_without_a_warning(
+    bad: float,
+) -> None:
+    """A NaN in a float frame array printed numpy's "RuntimeWarning: invalid value encountered
+    in cast" before the error."""
+    frame = np.array([0.0, 1.0, bad])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataMismatchError, match=r"'frame': \S+ \(entry 2\) is not a whole"):
+            BoxTable.build(frame, np.zeros((3, 4)))
+        with pytest.raises(DataMismatchError, match=r"'track_id': \S+ \(entry 2\)"):
+            BoxTable.build(np.arange(3), np.zeros((3, 4)), track_id=frame)

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.calibration import read_calibration, read_intrinsics
 
 K = np.array([[700.0, 0.0, 640.5], [0.0, 650.0, 360.25], [0.0, 0.0, 1.0]])
@@ -173,3 +173,40 @@ def test_a_lens_model_that_moves_the_image_edge_absurdly_is_refused(
             read_calibration(path)
     else:
         assert read_calibration(path).camera.f == 721.5
+
+
+@pytest.mark.parametrize(
+    ("size", "message"),
+    [
+        ((300, 200), r"k.txt: camera principal point c_x = 609.6 px is outside 0..300 px"),
+        ((5000, 5000), r"k.txt with --image-size 5000x5000: .* c_x = 609.6 px is far from"),
+        ((1242, 1000), r"k.txt with --image-size 1242x1000: .* c_y = 172.9 px is far from"),
+        ((1242, 375), None),
+    ],
+)
+def test_an_image_size_the_calibration_cannot_belong_to_is_refused(
+    tmp_path: Path, size: tuple[int, int], message: str | None
+) -> None:
+    """A KITTI or K-text calibration (no size of its own) with ``--image-size 5000x5000``: the
+    principal point (609.6, 172.9) px is inside the image but nowhere near its centre, so the
+    size is not the calibrated images' (the border test would flag no cut box); the frames of
+    ``run`` were checked by this rule, a typed size was not."""
+    path = _write(tmp_path / "k.txt", "721.5 0 609.6\n0 721.5 172.9\n0 0 1\n")
+    if message is None:
+        assert read_calibration(path, image_size=size).camera.image_width == size[0]
+        return
+    kind = InputFileError if size == (300, 200) else DataMismatchError
+    with pytest.raises(kind, match=message):
+        read_calibration(path, image_size=size)
+
+
+@pytest.mark.parametrize("key", ["R0_rect", "R_rect"])
+def test_a_kitti_file_without_its_p_lines_says_so(tmp_path: Path, key: str) -> None:
+    """A KITTI calib file lacking its ``P2:`` line (only ``R0_rect``, ``Tr_velo_to_cam``) was read
+    as YAML: "not a readable YAML/JSON/XML file: Incorrect indentation"."""
+    path = _write(
+        tmp_path / "calib.txt",
+        f"{key}: 1 0 0 0 1 0 0 0 1\nTr_velo_to_cam: 0 -1 0 0 0 0 -1 0 1 0 0 0\n",
+    )
+    with pytest.raises(InputFileError, match=rf"calib.txt: no 'P2:' line \(found: {key}, Tr_velo"):
+        read_calibration(path)

@@ -360,3 +360,48 @@ def test_imu_without_orientation_is_refused(tmp_path: Path) -> None:
         writer.write(conn, 1_000_000_000, store.serialize_cdr(msg, msg.__msgtype__))
     with pytest.raises(InputFileError, match=r"field '/imu'.*no orientation"):
         read_orientations(tmp_path / "imu", "/imu")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("d", [1e6, 0.0, 0.0, 0.0, 0.0], "not a lens"),
+        ("k", [10.0, 0.0, 31.5, 0.0, 10.0, 24.25, 0.0, 0.0, 1.0], "focal length f = 10 px"),
+        ("k", [80.0, 0.0, 500.0, 0.0, 80.0, 24.25, 0.0, 0.0, 1.0], "principal point c_x"),
+    ],
+)
+def test_an_implausible_camera_info_names_the_log_and_topic(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    field: str,
+    value: list[float],
+    message: str,
+) -> None:
+    """A camera_info whose lens model moves the image's edge 50× (or whose focal length or
+    principal point is implausible) failed with the calibration file's message but no file:
+    the log was not named."""
+    import dataclasses
+
+    from slopedist.io import rosbag_write
+
+    written = rosbag_write._Messages.camera_info
+
+    def camera_info(self: object, *args: object) -> object:
+        msg = written(self, *args)  # type: ignore[arg-type]
+        changed = {field: np.asarray(value)}
+        if field == "k":  # P too: a camera without distortion is read from P
+            changed["p"] = np.hstack([np.reshape(value, (3, 3)), np.zeros((3, 1))]).reshape(-1)
+        return dataclasses.replace(msg, **changed)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(rosbag_write._Messages, "camera_info", camera_info)
+    path = write(tmp_path, LogFormat.ROS2_MCAP, ImageEncoding.RAW, [0, PERIOD_NS])
+    where = rf"{path.name}, field '{TOPICS.camera_info}': not a usable CameraInfo: .*{message}"
+    with pytest.raises(InputFileError, match=where):
+        read_camera_info(path, TOPICS.camera_info)
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,20,40,40\n", encoding="utf-8")
+    args = ["run", str(path), "--image-topic", TOPICS.image, "--boxes", str(boxes)]
+    code = main([*args, "--odometry", "none", "--method", "flat", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and f"{path.name}, field '{TOPICS.camera_info}'" in err and message in err

@@ -21,6 +21,8 @@ import click
 from tqdm import tqdm
 
 from slopedist.cli.options import (
+    FPS,
+    SECONDS,
     detector_options,
     drive_file_options,
     lookback_option,
@@ -139,7 +141,7 @@ def final_dict(advice: MountAdvice) -> dict[str, Any]:
 )
 @click.option(
     "--fps",
-    type=click.FloatRange(min=0, min_open=True),
+    type=FPS,
     default=None,
     help="With FRAMES: frames per second [default: 10 for an image folder, the video's rate].",
 )
@@ -152,7 +154,7 @@ def final_dict(advice: MountAdvice) -> dict[str, Any]:
 @click.option(
     "--every",
     "every_s",
-    type=click.FloatRange(min=0, min_open=True),
+    type=SECONDS,
     default=5.0,
     show_default=True,
     help="Print the running estimate every EVERY seconds.",
@@ -199,7 +201,9 @@ def calibrate(
                 "FRAMES gives the rotations (built-in odometry): leave out --poses"
             )
         detector = (
-            None if detector_model is None else make_detector(detector_model, **detector_opts)
+            None
+            if detector_model is None
+            else make_detector(detector_model, "detector-", **detector_opts)
         )
         source = open_frames(frames, fps, timestamps)
         if files.image_size is None:  # the frames' size for the border test, as in `run`

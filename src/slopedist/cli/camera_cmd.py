@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.checkerboard import calibrate_checkerboard, write_opencv_yaml
-from slopedist.cli.options import parse_size
+from slopedist.cli.options import BoundedFloat, parse_size
 from slopedist.io.frames import open_frames
 from slopedist.io.outputs import check_outputs_spare_inputs
 
@@ -37,7 +37,7 @@ def camera_group() -> None:
 @click.option(
     "--square",
     "square_m",
-    type=click.FloatRange(min=0, min_open=True),
+    type=BoundedFloat(0.0, unit="m"),
     default=1.0,
     show_default=True,
     help="Side of one square, metres (does not change the intrinsics).",
@@ -67,7 +67,7 @@ def calibrate_camera(
 ) -> None:
     """Calibrate the camera from FRAMES (a video or image folder) showing a checkerboard."""
     check_outputs_spare_inputs([out], [frames])
-    size = parse_size(pattern, "COLUMNSxROWS of inner corners")
+    size = parse_size(pattern, "COLUMNSxROWS of inner corners", "--pattern")
     fit = calibrate_checkerboard(_every(frames, every), size or (0, 0), square_m, max_views)
     write_opencv_yaml(fit, out)
     K = fit.intrinsics.K

@@ -15,6 +15,7 @@ from slopedist.detections.convert import (
     target_format_of,
 )
 from slopedist.io.outputs import check_outputs_spare_inputs
+from slopedist.limits import MAX_INDEX
 
 
 @click.command("convert")
@@ -44,7 +45,7 @@ from slopedist.io.outputs import check_outputs_spare_inputs
 )
 @click.option(
     "--frame-base",
-    type=int,
+    type=click.IntRange(0, MAX_INDEX),
     help="Number of the first frame in MOT (default 1) or YOLO (default 0) files.",
 )
 @click.option("--min-score", type=FINITE_FLOAT, help="Drop boxes scored below this.")
@@ -61,7 +62,9 @@ def convert(
     """Convert box file SOURCE (slopedist CSV, KITTI, PointRCNN, MOTChallenge, COCO JSON, YOLO
     folder) into TARGET (COCO if .json, else slopedist CSV; or --to)."""
     check_outputs_spare_inputs([target], [source, coco_images])
-    options = BoxFileOptions(parse_size(image_size), coco_images, frame_base, min_score)
+    options = BoxFileOptions(
+        parse_size(image_size, option="--image-size"), coco_images, frame_base, min_score
+    )
     layout = target_format_of(target, target_format).value
     n_read, n_left = convert_boxes(source, target, source_format, layout, options)
     note = f", {n_left} left out (class not in the '{layout}' class list)" if n_left else ""

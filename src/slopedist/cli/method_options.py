@@ -6,6 +6,7 @@ estimators' settings (``--alphas``, ``--thresholds``, ``--reference``, ``--ours-
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -103,6 +104,8 @@ def parse_triple(value: str, name: str) -> tuple[float, float, float]:
         ) from None
     if len(nums) != 3:
         raise click.BadParameter(f"expected three numbers, got {len(nums)}", param_hint=name)
+    if not all(math.isfinite(n) for n in nums):
+        raise click.BadParameter(f"'{value}' is not three finite numbers", param_hint=name)
     return nums[0], nums[1], nums[2]
 
 

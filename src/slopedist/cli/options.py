@@ -50,18 +50,39 @@ class BoundedFloat(click.ParamType):
         number = click.FLOAT.convert(value, param, ctx)
         above_low = number > self.low if self.low_open else number >= self.low
         if not (math.isfinite(number) and above_low and number <= self.high):
-            bracket = "(" if self.low_open else "["
-            where = (
-                f"in {bracket}{self.low:g}, {self.high:g}] {self.unit}".rstrip()
-                if math.isfinite(self.low) or math.isfinite(self.high)
-                else "a finite number"
-            )
-            self.fail(f"{value!r} is not {where}", param, ctx)
+            self.fail(f"{value!r} is not {self.description()}", param, ctx)
         return number
+
+    def description(self) -> str:
+        """What the option takes: ``in (0, 50] m``, ``a finite number > 0 s``, ``a finite
+        number``."""
+        if math.isfinite(self.high):
+            bracket = "(" if self.low_open else "["
+            return f"in {bracket}{self.low:g}, {self.high:g}] {self.unit}".rstrip()
+        if math.isfinite(self.low):
+            op = ">" if self.low_open else ">="
+            return f"a finite number {op} {self.low:g} {self.unit}".rstrip()
+        return "a finite number"
 
 
 FINITE_FLOAT = BoundedFloat()
 """Any finite number (a score threshold: ``nan`` would keep every box)."""
+
+POSITIVE_FLOAT = BoundedFloat(0.0)
+"""A finite number > 0 (a factor, a size: ``nan``, ``inf``, 0 or a negative one is refused)."""
+
+SECONDS = BoundedFloat(0.0, unit="s")
+"""A finite duration > 0, seconds (``--lookback``, ``--every``)."""
+
+MIN_FPS, MAX_FPS = 1e-3, 1e5
+"""The frame rates a ``--fps`` may give, frames per second (one frame per 1000 s to 100 kHz):
+beyond them the frames' timestamps overflow or are not a camera's."""
+
+FPS = BoundedFloat(MIN_FPS, MAX_FPS, "frames/s", low_open=False)
+"""``--fps``: frames per second in :data:`MIN_FPS`..:data:`MAX_FPS`."""
+
+FRAME_PERIOD = BoundedFloat(0.0, 1 / MIN_FPS, "s")
+"""``--frame-period``: seconds between frames, up to one frame per 1000 s."""
 
 
 height_option = click.option(
@@ -87,7 +108,7 @@ mount_option = click.option(
 lookback_option = click.option(
     "--lookback",
     "lookback_s",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=SECONDS,
     default=1.0,
     show_default=True,
     help="Look-back of the ego road gradient, seconds.",
@@ -229,7 +250,7 @@ def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--frame-period",
-            type=click.FloatRange(min=0, min_open=True),
+            type=FRAME_PERIOD,
             default=0.1,
             show_default=True,
             help="Seconds between frames (KITTI and OXTS poses).",
@@ -389,16 +410,19 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
     return decorate
 
 
-def parse_size(value: str | None, what: str = "WIDTHxHEIGHT in pixels") -> tuple[int, int] | None:
-    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None."""
+def parse_size(
+    value: str | None, what: str = "WIDTHxHEIGHT in pixels", option: str | None = None
+) -> tuple[int, int] | None:
+    """``"1280x720"`` → ``(1280, 720)`` (positive integers); None or empty → None; a usage error
+    names ``option`` (``--pattern``) when ``what`` does not."""
     if not value:
         return None
     try:
         a, b = (int(v) for v in value.lower().split("x"))
     except ValueError:
-        raise click.BadParameter(f"expected {what}, got '{value}'") from None
+        raise click.BadParameter(f"expected {what}, got '{value}'", param_hint=option) from None
     if a <= 0 or b <= 0:
-        raise click.BadParameter(f"expected {what} (positive), got '{value}'")
+        raise click.BadParameter(f"expected {what} (positive), got '{value}'", param_hint=option)
     return a, b
 
 
@@ -425,7 +449,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "score",
         "detector_score",
         {
-            "type": click.FloatRange(0, 1),
+            "type": BoundedFloat(0.0, 1.0, low_open=False),
             "default": 0.25,
             "show_default": True,
             "help": "Minimum detector score.",
@@ -435,7 +459,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "iou",
         "detector_iou",
         {
-            "type": click.FloatRange(0, 1, min_open=True),
+            "type": BoundedFloat(0.0, 1.0),
             "default": 0.45,
             "show_default": True,
             "help": "NMS IoU threshold (per class).",
@@ -470,7 +494,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "pixel-scale",
         "detector_pixel_scale",
         {
-            "type": float,
+            "type": POSITIVE_FLOAT,
             "default": 1 / 255,
             "help": "Factor of the 0–255 pixel values [default: 1/255; YOLOX: 1].",
         },
@@ -496,7 +520,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     (
         "threads",
         "detector_threads",
-        {"type": int, "help": "onnxruntime threads [default: its own]."},
+        {"type": click.IntRange(min=1), "help": "onnxruntime threads [default: its own]."},
     ),
 )
 """``(option name without prefix, parameter, click keywords)`` of each detector option."""
@@ -514,14 +538,15 @@ def detector_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callabl
     return decorate
 
 
-def make_detector(model: Path, **opts: Any) -> OnnxDetector:
-    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`."""
+def make_detector(model: Path, prefix: str = "", **opts: Any) -> OnnxDetector:
+    """An :class:`OnnxDetector` from ``model`` and the values of :func:`detector_options`
+    (named with ``prefix`` in a usage error)."""
     settings = DetectorSettings(
         score_threshold=opts["detector_score"],
         iou_threshold=opts["detector_iou"],
         class_map=parse_class_map(opts["detector_classes"]),
         layout=opts["detector_layout"],
-        input_size=parse_size(opts["detector_input_size"]),
+        input_size=parse_size(opts["detector_input_size"], option=f"--{prefix}input-size"),
         bgr_input=opts["detector_bgr"],
         pixel_scale=opts["detector_pixel_scale"],
         pad_centre=not opts["detector_pad_top_left"],

@@ -19,6 +19,8 @@ import click
 from slopedist.cli.method_options import check_methods, estimator_options, parse_triple
 from slopedist.cli.options import (
     FINITE_FLOAT,
+    FPS,
+    POSITIVE_FLOAT,
     detector_options,
     height_option,
     lookback_option,
@@ -174,7 +176,7 @@ _DEPTH_SOURCE_OPTIONS = (
     ),
     click.option(
         "--depth-scale",
-        type=click.FloatRange(min=0, min_open=True),
+        type=POSITIVE_FLOAT,
         default=1.0,
         show_default=True,
         help="ONNX model output scale (see --depth-output).",
@@ -281,7 +283,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 )
 @click.option(
     "--fps",
-    type=click.FloatRange(min=0, min_open=True),
+    type=FPS,
     default=None,
     help="Frames per second for timestamps [default: 10 for an image folder, the "
     "container's rate for a video].",
@@ -361,7 +363,9 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         image_size=image_size,
         boxes=boxes_path,
         score=score,
-        detector=functools.partial(make_detector, model, **detector_opts) if model else None,
+        detector=functools.partial(make_detector, model, "detector-", **detector_opts)
+        if model
+        else None,
         fps=fps,
         timestamps=timestamps,
         topics=LogTopicNames(image_topic, rotation_topic, speed_topic),

@@ -225,11 +225,16 @@ def _column(
         DataMismatchError: the values do not convert or do not fit the shape.
     """
     try:
-        arr = np.asarray(values, dtype=dtype)
+        # a NaN, an infinity or a number beyond int64 casts to garbage (numpy warns: "invalid
+        # value encountered in cast"), which the whole-number check below refuses
+        with np.errstate(invalid="ignore", over="ignore"):
+            arr = np.asarray(values, dtype=dtype)
         if np.issubdtype(dtype, np.integer):  # whole numbers only: 0.5 is no frame index
-            exact = np.asarray(values, dtype=np.float64)
-            if not np.array_equal(exact.reshape(-1), arr.reshape(-1).astype(np.float64)):
-                raise ValueError("values that are not whole numbers")
+            exact = np.asarray(values, dtype=np.float64).reshape(-1)
+            wrong = np.flatnonzero(exact != arr.reshape(-1).astype(np.float64))
+            if wrong.size:
+                k = int(wrong[0])
+                raise ValueError(f"{exact[k]:g} (entry {k}) is not a whole number")
     except (TypeError, ValueError, OverflowError) as exc:
         raise DataMismatchError(f"box table column '{name}': {exc}") from None
     if shape is None:

@@ -90,11 +90,22 @@ def write_yolo_folder(
 
     Raises:
         ConfigurationError: ``folder`` already holds ``.txt`` files (the label files of another
-            box set would be mixed with these: frames this table has no boxes for keep theirs).
+            box set would be mixed with these: frames this table has no boxes for keep theirs),
+            or a box's centre lies outside the ``image_size`` image (YOLO's coordinates are
+            fractions of the image: the size is not the boxes' images).
     """
     w, h = image_size
     if w <= 0 or h <= 0:
         raise ConfigurationError(f"image size must be positive, got {w}×{h}")
+    centres = (table.boxes[:, :2] + table.boxes[:, 2:]) / 2
+    outside = np.flatnonzero(~np.all((centres >= 0) & (centres <= (w, h)), axis=1))
+    if outside.size:
+        i = int(outside[0])
+        raise ConfigurationError(
+            f"{outside.size} boxes have their centre outside the {w}×{h} px image, e.g. frame "
+            f"{int(table.frame[i])}: ({', '.join(f'{v:g}' for v in table.boxes[i])}); is "
+            f"{w}x{h} the size of the boxes' images?"
+        )
     folder = Path(folder)
     old = sorted(p.name for p in folder.glob("*.txt")) if folder.is_dir() else []
     if old:

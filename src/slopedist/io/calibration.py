@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
 from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.io.frames import check_calibration
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
 from slopedist.textfiles import read_text
 
@@ -78,6 +79,9 @@ def read_calibration(
         InputFileError: the file's camera is implausible (focal length, principal point, a
             lens model that moves the image's edges by more than
             :data:`~slopedist.io.intrinsics.MAX_LENS_SCALE`).
+        DataMismatchError: the camera cannot belong to images of ``image_size`` (principal
+            point far from their centre, field of view; the frames' rule,
+            :func:`~slopedist.io.frames.check_calibration`).
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     intrinsics = intrinsics.with_image_size(image_size)
@@ -86,7 +90,13 @@ def read_calibration(
         _checked(Path(path), intrinsics.check_lens_scale, "distortion")
     else:
         intrinsics.check_lens_scale()
-    return CameraCalibration(intrinsics, intrinsics.camera(height_m, mount_angle_rad))
+    camera = intrinsics.camera(height_m, mount_angle_rad)
+    if image_size is not None:
+        where = "the calibration" if isinstance(path, Intrinsics) else str(path)
+        check_calibration(
+            camera, *image_size, f"{where} with --image-size {image_size[0]}x{image_size[1]}"
+        )
+    return CameraCalibration(intrinsics, camera)
 
 
 def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
@@ -95,11 +105,18 @@ def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:
     text = read_text(path, "calibration file")
     if path.suffix.lower() in (".yaml", ".yml", ".json", ".xml"):
         return read_filestorage(path)
-    if re.search(r"^\s*P\d\s*:", text, re.MULTILINE) or _first_line_count(text) == 12:
+    if _KITTI_LINE.search(text) or _first_line_count(text) == 12:
         return _from_kitti(path, kitti_key)
     if text.lstrip()[:1] in ("%", "{", "<") or re.search(r"^\s*\w+\s*:", text, re.MULTILINE):
         return read_filestorage(path)
     return read_k_text(path, text)
+
+
+_KITTI_LINE = re.compile(
+    r"^\s*(P\d|R0?_rect|Tr_velo_(to_)?cam|Tr_imu_(to_)?velo)\s*:", re.MULTILINE
+)
+"""A line of a KITTI calib file (a file with ``R0_rect:`` but no ``P2:`` is one that lacks its
+``P2:`` line, not a YAML file)."""
 
 
 def _first_line_count(text: str) -> int:

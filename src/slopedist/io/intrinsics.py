@@ -120,6 +120,17 @@ class Intrinsics:
             )
         return replace(self, image_size=(width, height))
 
+    def check_camera(self) -> None:
+        """Refuse a camera no lens and sensor make: its ideal camera's focal length or principal
+        point out of range (:class:`~slopedist.camera.Camera`), or a lens model that moves the
+        image's edges absurdly (:meth:`check_lens_scale`).
+
+        Raises:
+            ConfigurationError: naming what is implausible.
+        """
+        self.camera()
+        self.check_lens_scale()
+
     def check_lens_scale(self) -> None:
         """Refuse a (non-fisheye) lens model that moves the midpoints of the image's edges by
         more than :data:`MAX_LENS_SCALE` radially (the image twice the principal point when its

@@ -450,11 +450,12 @@ def camera_info_topic(image_topic: str) -> str:
 
 def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
     """The intrinsics of the first ``sensor_msgs/CameraInfo`` message on ``topic``
-    (:func:`intrinsics_from_info`).
+    (:func:`intrinsics_from_info`), checked as a calibration file's are (focal length,
+    principal point, lens model: :meth:`Intrinsics.check_camera`).
 
     Raises:
         ConfigurationError: no such topic.
-        InputFileError: no message, or no usable calibration in it.
+        InputFileError: no message, or no usable calibration in it (naming the log and topic).
     """
     path = Path(path)
     with open_log(path) as reader:
@@ -469,7 +470,9 @@ def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> I
     if msg is None:
         raise InputFileError(path, f"topic {topic} has no messages")
     try:
-        return intrinsics_from_info(msg, rectified)
+        intrinsics = intrinsics_from_info(msg, rectified)
+        intrinsics.check_camera()
+        return intrinsics
     except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
         raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
 
