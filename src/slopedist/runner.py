@@ -63,7 +63,7 @@ from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import ConfigurationError, SlopedistError
 from slopedist.estimators.base import EstimateStatus, Estimator, FrameEstimates, MissingReason
 from slopedist.export_mcap import McapExportWriter
-from slopedist.io.frames import Frame, FrameSource, check_calibration
+from slopedist.io.frames import Frame, FrameSource, check_box_frames, check_calibration
 from slopedist.io.intrinsics import in_frame_pixels
 from slopedist.io.outputs import (
     OutputFiles,
@@ -140,6 +140,7 @@ def run_frames(
         raise ConfigurationError("give boxes or a detector, not both")
     width, height = frames.frame_size()
     check_calibration(estimator.camera, width, height, str(frames.path))
+    check_box_frames(boxes.frame, frames)
     out = Path(config.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     result = RunResult(

@@ -17,6 +17,7 @@ from slopedist.io.frames import (
     FrameStatus,
     ImageFolderSource,
     VideoSource,
+    check_box_frames,
     check_calibration,
     open_frames,
     read_timestamps,
@@ -199,6 +200,38 @@ def test_calibration_matches_kitti_frames() -> None:
 def test_calibration_of_other_frames_is_refused(size: tuple[int, int], message: str) -> None:
     with pytest.raises(DataMismatchError, match=message):
         check_calibration(KITTI, *size, where="clip.mp4")
+
+
+def test_a_calibration_of_frames_of_another_resolution_is_refused() -> None:
+    """KITTI's calibration scaled by 1.5 (frames 1.5 times as large) on KITTI's frames: c_x
+    is 24 % of the width off the centre (it passed a 25 % bound, and every car was ok 7–24 %
+    too near); a bonnet cropped off the bottom still passes (c_y 20 % off)."""
+    scaled = Camera(721.5377 * 1.5, 609.5593 * 1.5, 172.854 * 1.5)
+    with pytest.raises(DataMismatchError, match=r"c_x = 914\.3 px is far from the centre"):
+        check_calibration(scaled, 1242, 375)
+    check_calibration(Camera(721.5377, 609.5593, 375 / 2 + 0.2 * 375), 1242, 375)
+
+
+@pytest.mark.parametrize(
+    ("files", "box_frames", "refused"),
+    [
+        (range(5), [1, 2, 5], True),  # counted from 1 against files from 0
+        (range(5), [0, 2, 4], False),
+        (range(5), [1, 4], False),  # no box past the last frame: cannot tell
+        (range(1, 6), [1, 5], False),  # files numbered from 1 too
+        (range(5), [6], False),  # not one past: the run warns of boxes without frames
+    ],
+)
+def test_box_frames_counted_from_one_are_refused(
+    tmp_path: Path, files: range, box_frames: list[int], refused: bool
+) -> None:
+    source = ImageFolderSource(make_folder(tmp_path / "f", list(files)))
+    frames = np.array(box_frames, dtype=np.int64)
+    if not refused:
+        check_box_frames(frames, source)
+        return
+    with pytest.raises(DataMismatchError, match=r"frames 1\.\.5 but .* has frames 0\.\.4"):
+        check_box_frames(frames, source)
 
 
 def test_calibration_with_known_size_must_match() -> None:

@@ -48,10 +48,12 @@ from slopedist.textfiles import numbered_lines
 DEFAULT_FPS = 10.0
 """Frame rate assumed for image folders without a timestamps file (KITTI's 10 Hz)."""
 
-MAX_PRINCIPAL_POINT_OFFSET = 0.25
+MAX_PRINCIPAL_POINT_OFFSET = (0.15, 0.25)
 """Largest accepted distance of the principal point from the image centre, as a fraction of the
-image width (for c_x) or height (for c_y); beyond it the calibration is taken to belong to
-other (resized or cropped) frames."""
+image width (for c_x) and of its height (for c_y); beyond it the calibration is taken to belong
+to other (resized or cropped) frames. Lenses put it within a few per cent of the centre; the
+rows are allowed more, for frames cropped at the bottom (the bonnet). A centred calibration of
+frames 1.33 or 1.5 times as large, or 0.67 times, puts c_x 17–25 % of the width off."""
 
 FIELD_OF_VIEW_RANGE_DEG = (3.0, 170.0)
 """Accepted horizontal field of view ``2·atan(width / 2f)``, degrees: outside it the focal
@@ -185,6 +187,26 @@ def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
     return camera.with_image_size(*frames.frame_size())
 
 
+def check_box_frames(box_frames: NDArray[np.int64], frames: FrameSource) -> None:
+    """Fail when the box frame indices ``box_frames`` are those of ``frames`` counted from one
+    more: every box after the first frame and boxes one past the last (frame numbers counted
+    from 1 against files or a video counted from 0). Each box would meet the frame before its
+    own; only an image folder, whose indices are exact, is checked.
+
+    Raises:
+        DataMismatchError: naming both ranges.
+    """
+    if not isinstance(frames, ImageFolderSource) or not len(box_frames):
+        return
+    low, high = int(np.min(box_frames)), int(np.max(box_frames))
+    if low > frames.first and high == frames.last + 1:
+        raise DataMismatchError(
+            f"the boxes refer to frames {low}..{high} but {frames.path} has frames "
+            f"{frames.first}..{frames.last}: are the boxes' frames counted from 1? Number them as "
+            "the frame files are numbered (each box would meet the frame before its own)"
+        )
+
+
 def check_calibration(camera: Camera, width: int, height: int, where: str = "frames") -> None:
     """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
 
@@ -205,13 +227,16 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
             f"{where}: images are {width}×{height} px but the calibration is for "
             f"{camera.image_width}×{camera.image_height} px"
         )
-    for name, c, size in (("c_x", camera.c_x, width), ("c_y", camera.c_y, height)):
+    for name, c, size, offset in (
+        ("c_x", camera.c_x, width, MAX_PRINCIPAL_POINT_OFFSET[0]),
+        ("c_y", camera.c_y, height, MAX_PRINCIPAL_POINT_OFFSET[1]),
+    ):
         if not 0.0 <= c <= size:
             raise DataMismatchError(
                 f"{where}: the calibration's principal point {name} = {c:.1f} px lies outside "
                 f"the {width}×{height} px images; does the calibration belong to these frames?"
             )
-        if abs(c - size / 2) > MAX_PRINCIPAL_POINT_OFFSET * size:
+        if abs(c - size / 2) > offset * size:
             raise DataMismatchError(
                 f"{where}: the calibration's principal point {name} = {c:.1f} px is far from the "
                 f"centre ({size / 2:.1f} px) of the {width}×{height} px images; were the frames "
