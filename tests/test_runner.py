@@ -163,6 +163,43 @@ class RepeatedStampFrames:
             yield frame
 
 
+class StoppingFrames:
+    """A frame source whose stop flag is raised (as by Ctrl-C) once frame ``at`` is given."""
+
+    def __init__(self, inner: FrameSource, config: RunConfig, at: int) -> None:
+        self.inner, self.config, self.at = inner, config, at
+        self.path = inner.path
+
+    def frame_size(self) -> tuple[int, int]:
+        return self.inner.frame_size()
+
+    def expected_frames(self) -> int | None:
+        return self.inner.expected_frames()
+
+    def __iter__(self) -> Iterator[Frame]:
+        for frame in self.inner:
+            if frame.index == self.at:
+                self.config.stop.signum = 2
+            yield frame
+
+
+def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(tmp_path: Path) -> None:
+    n = 8
+    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)  # stops in step
+    frames = StoppingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 2)
+    with pytest.raises(RunAbortedError):
+        run_frames(
+            cast(FrameSource, frames),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("paper", CAM),
+            config,
+        )
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert not summary["complete"] and summary["last_complete_frame"] == 2
+    assert summary["boxes_without_frame"] == 0  # frames 3..7 were never reached
+
+
 def test_an_unreadable_frame_out_of_time_order_is_logged_and_the_run_goes_on(
     tmp_path: Path,
 ) -> None:

@@ -169,7 +169,8 @@ class RunResult:
             ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
             of the image); ``not_vehicles``: rows of classes that are not vehicles.
         boxes_without_frame: boxes whose frame index never came from the frame source, or
-            came as an unreadable frame whose time does not follow the frame before it.
+            came as an unreadable frame whose time does not follow the frame before it (of a
+            run stopped early: of the frames up to the last it completed).
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
         odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
         depth_ms_mean: mean time per depth map (read or inference), milliseconds.

@@ -483,8 +483,11 @@ class _RunLoop:
         result.estimation_ms_mean = self.times["estimation"].mean()
         result.depth_ms_mean = self.times["depth"].mean()
         result.detection_ms_mean = self.times["detection"].mean()
-        result.boxes_without_frame = sum(
-            self.by_frame.count(k) for k in self.by_frame if k not in self.seen_box_frames
+        reached = result.last_complete_frame if not result.complete else None
+        result.boxes_without_frame = sum(  # of a run stopped early: of the frames it reached
+            self.by_frame.count(k)
+            for k in self.by_frame
+            if k not in self.seen_box_frames and (reached is None or k <= reached)
         )
         if self.bar is not None:
             self.bar.close()
