@@ -242,6 +242,15 @@ def test_lookback_reaches_the_builtin_odometry(
     assert seen == {"name": "builtin", "lookback_s": 0.3}
 
 
+def test_a_run_without_odometry_says_so_in_its_summary(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", *setup(tmp_path), "--method", "flat", "--odometry", "none"]) == 0
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "no odometry, estimation" in text and "nan" not in text
+
+
 def test_intrinsics_flags_instead_of_a_calibration_file(tmp_path: Path) -> None:
     args = setup(tmp_path)
     assert main(["run", *args, "--method", "flat", "--odometry", "none"]) == 0

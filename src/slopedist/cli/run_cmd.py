@@ -8,6 +8,7 @@ Depth-map methods (``--method depthmap``) take their depth maps from a folder of
 from __future__ import annotations
 
 import functools
+import math
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -502,8 +503,13 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
         f"bounds, method {result.method}) to {out_dir / RECORDS_NAME}",
         f"frames: {result.frames} ({status}); odometry: {states}; per-frame log "
         f"{out_dir / FRAMES_NAME}",
-        f"{result.frames_per_s:.1f} frames/s; odometry {result.odometry_ms_mean:.1f} ms, "
-        f"estimation {result.estimation_ms_mean:.2f} ms per frame",
+        f"{result.frames_per_s:.1f} frames/s; "
+        + (
+            f"odometry {result.odometry_ms_mean:.1f} ms, "
+            if math.isfinite(result.odometry_ms_mean)
+            else "no odometry, "
+        )
+        + f"estimation {result.estimation_ms_mean:.2f} ms per frame",
     ]
     if result.detector:
         lines.append(f"detector ({result.detector}): {result.detection_ms_mean:.1f} ms per frame")
