@@ -41,6 +41,11 @@ def test_good_run_reads(tmp_path: Path) -> None:
         ("2,0.2,3,Car,paper,12.0", r"line 4: row has 6 fields, the header has 10"),
         ("2,0.2,3,Car,paper,12.0,ok,,0.1,12.0,extra", r"line 4: row has 11 fields"),
         ('2,0.2,3,"Car,paper,12.0,ok,,0.1,12.0', r"line 4: row has 4 fields"),
+        ("2,0.2,3,Car,paper,12.0,OK,,0.1,12.0", r"line 4, field 'status': 'OK' is not a record"),
+        ("2,0.2,3,Car,paper,12.0,okay,,0.1,12.0", r"line 4, field 'status'"),
+        ("2,0.2,3,Car,paper,12.0,upper_bound,,0.1,12.0", r"line 4, field 'reason': a record of"),
+        ("2,0.2,3,Car,paper,12.0,missing,,0.1,12.0", r"line 4, field 'reason'"),
+        ("2,0.2,3,Car,paper,12.0,ok,cut_bottom,0.1,12.0", r"line 4, field 'reason'"),
     ],
 )
 def test_bad_records_name_line_and_field(tmp_path: Path, row: str, match: str) -> None:

@@ -27,6 +27,7 @@ from slopedist.evaluation import (
     cap_estimates,
     compact_names,
     pool_methods,
+    record_reason,
     reported_sigma,
 )
 from slopedist.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
@@ -162,11 +163,11 @@ class _RunReader:
             method = row["method"]
             if self.methods and method not in self.methods:
                 continue
+            reason = record_reason(row["status"], row["reason"], path, lineno)
             d = _distance(row, path, lineno)
             if self.reference is not None:
                 d = _at_reference(d, row, path, lineno, self.reference)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
-            reason = row.get("reason", "") or ""
             sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
             by_method.setdefault(method, []).append((d, g, reason, sigma))
             tid = row.get("track_id", "")
