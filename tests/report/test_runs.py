@@ -149,3 +149,27 @@ def test_methods_scored_against_other_targets_are_not_compared(tmp_path: Path) -
     _run(flat, ["0,0.0,3,Car,flat,11.0,ok,,0.1,11.0", "1,0.1,3,Car,flat,20.0,ok,,0.1,20.0"])
     table1 = score_tables(report_data(tmp_path / "runs", ReportOptions()).scores)[0]
     assert table1.bold[0] == [False, False, True, False]  # the same targets: flat is best
+
+
+def test_a_partial_run_is_named_in_the_notes_and_printed(tmp_path: Path) -> None:
+    """A run stopped half way (run.json: complete false) is scored on the frames it finished;
+    the report says so instead of passing its figures off as the whole sequence's."""
+    from click.testing import CliRunner
+
+    from slopedist.cli import cli
+
+    folder = _run(tmp_path / "r", GOOD)
+    (folder / "run.json").write_text(
+        '{"sequence": "s", "complete": false, "last_complete_frame": 1, "error": null}'
+    )
+    data = report_data(folder, ReportOptions())
+    assert (
+        data.warnings and "partial run" in data.warnings[0] and "after frame 1" in data.warnings[0]
+    )
+    assert data.warnings[0] in data.notes
+    result = CliRunner().invoke(cli, ["report", str(folder), "--out", str(tmp_path / "rep")])
+    assert result.exit_code == 0, result.output
+    assert "warning:" in result.output and "partial run" in result.output
+    assert "partial run" in (tmp_path / "rep" / "report.md").read_text()
+    (folder / "run.json").write_text('{"sequence": "s", "complete": true}')
+    assert report_data(folder, ReportOptions()).warnings == []
