@@ -33,6 +33,15 @@ def test_best_marks_needs_two_values_to_compare() -> None:
     assert best_marks([math.nan, 3.4, 5.0]) == [False, True, False]
 
 
+def test_best_marks_none_when_every_value_ties() -> None:
+    """A tie of every method is no win: the recall of one box source (the same for every
+    method), or 0.000 where no method had a scored target, is not marked best."""
+    assert best_marks([0.0, 0.0], larger_is_better=True) == [False, False]
+    assert best_marks([0.945, 0.945, math.nan], larger_is_better=True) == [False] * 3
+    assert best_marks([1.0, 1.004]) == [False, False]
+    assert best_marks([1.0, 1.004, 2.0]) == [True, True, False]
+
+
 TABLE = Table(
     "t1",
     "Title <1>",

@@ -10,13 +10,15 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.detections.boxes import BoxTable, iou_matrix
-from slopedist.estimators.base import MissingReason
+from slopedist.errors import InputFileError
+from slopedist.estimators.base import EstimateStatus, MissingReason
 
 DISTANCE_BINS_M: tuple[tuple[float, float], ...] = (
     (0.0, 10.0),
@@ -84,6 +86,39 @@ def binned_metrics(
 AT_CAP_REASONS = (MissingReason.BELOW_HORIZON.value, MissingReason.NEAR_HORIZON.value)
 """The missing reasons a target is counted at the cap for (:func:`cap_estimates`): its box
 bottom at or above the vanishing line, or too near it for eq. 1."""
+
+
+RECORD_STATUSES = tuple(s.value for s in EstimateStatus)
+"""The values of a records file's ``status`` column."""
+
+
+def record_reason(status: str | None, reason: str | None, path: Path | str, line: int) -> str:
+    """The ``reason`` of one row of a run's ``records.csv``, checked against its ``status``
+    (scoring goes by the reason, :func:`cap_estimates`, so the two must agree): ``ok`` has no
+    reason, ``upper_bound`` and ``missing`` have one.
+
+    Raises:
+        InputFileError: an unknown status (a hand-edited ``OK``), or a status the reason
+            contradicts (naming file, line and field).
+    """
+    status, reason = (status or "").strip(), (reason or "").strip()
+    if status not in RECORD_STATUSES:
+        raise InputFileError(
+            path,
+            f"'{status}' is not a record status; expected one of {', '.join(RECORD_STATUSES)}",
+            line=line,
+            field="status",
+        )
+    if (status == EstimateStatus.OK.value) != (reason == ""):
+        said = f"reason '{reason}'" if reason else "no reason"
+        raise InputFileError(
+            path,
+            f"a record of status {status} has {said} (an ok record has none, an upper_bound "
+            "or missing record says why)",
+            line=line,
+            field="reason",
+        )
+    return reason
 
 
 def cap_estimates(

@@ -62,14 +62,18 @@ class Table:
 def best_marks(values: Sequence[Any], larger_is_better: bool = False) -> list[bool]:
     """Which of ``values`` are the best finite float (within :data:`BEST_TOLERANCE`); none
     when fewer than two are finite floats (nothing was compared: one method's only value in
-    bold would read as a win)."""
+    bold would read as a win) or when every finite value ties with the best (no method did
+    better than another: the recall of one box source, a metric no method scored)."""
     arr = np.array(
         [v if isinstance(v, float) and math.isfinite(v) else np.nan for v in values], dtype=float
     )
     if np.count_nonzero(np.isfinite(arr)) < 2:
         return [False] * len(values)
     best = np.nanmax(arr) if larger_is_better else np.nanmin(arr)
-    return [bool(np.isfinite(a) and abs(a - best) < BEST_TOLERANCE) for a in arr]
+    marks = [bool(np.isfinite(a) and abs(a - best) < BEST_TOLERANCE) for a in arr]
+    if sum(marks) == np.count_nonzero(np.isfinite(arr)):
+        return [False] * len(values)
+    return marks
 
 
 def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:

@@ -469,3 +469,22 @@ def test_an_output_folder_holding_a_drive_input_is_refused(
     assert err.startswith("slopedist: error: the output ") and "of drive 'crest'" in err
     assert len(err.splitlines()) == 1
     assert sorted(p.name for p in (drives / "crest").iterdir()) == before
+
+
+def test_an_output_folder_inside_a_drive_frame_folder_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out`` inside a drive's image folder: the batch's files would change that drive's
+    input stamp, so it would never be skipped as complete (and the frames folder would fill
+    with outputs). Refused before anything is made."""
+    drives = tmp_path / "drives"
+    simulate("ego_crest", drives / "crest", frames=2)
+    frames = drives / "crest" / "image_02"
+    before = sorted(p.name for p in frames.iterdir())
+    capsys.readouterr()
+    out = frames / "out"
+    assert main(["batch", str(drives), "--out", str(out), "--quiet", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("slopedist: error: the output ") and "of drive 'crest'" in err
+    assert len(err.splitlines()) == 1
+    assert sorted(p.name for p in frames.iterdir()) == before

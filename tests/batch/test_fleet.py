@@ -146,3 +146,19 @@ def test_an_absurd_distance_is_one_error_naming_file_line_and_field(
         fleet_summary(tmp_path)
     message = str(err.value)
     assert "records.csv" in message and "line 3" in message and "distance_m" in message
+
+
+@pytest.mark.parametrize(
+    ("status", "reason", "field"),
+    [("OK", "", "status"), ("upper_bound", "", "reason"), ("missing", "", "reason")],
+)
+def test_a_status_the_reason_contradicts_is_not_scored_but_refused(
+    tmp_path: Path, status: str, reason: str, field: str
+) -> None:
+    """Scoring goes by the reason: a hand-edited status (an upper bound whose reason was
+    blanked) would be scored as an estimate; it is refused, naming the line and field."""
+    drive(
+        tmp_path, "d1", [(0, 1, "m", 11.0, "ok", "", 10.0), (1, 1, "m", 9.0, status, reason, 9.0)]
+    )
+    with pytest.raises(InputFileError, match=rf"records\.csv, line 3, field '{field}'"):
+        fleet_summary(tmp_path)

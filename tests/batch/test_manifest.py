@@ -69,6 +69,9 @@ def test_a_score_threshold_may_be_zero_or_a_negative_logit(tmp_path: Path) -> No
         ("drive,frames,calib,boxes,odometry\na,f,c,b,gps\n", 2, "odometry"),
         ("drive,frames,calib,boxes\n../up,f,c,b\n", 2, "drive"),
         ("drive,frames,calib,boxes\na,f,c,b\n\na,g,c,b\n", 4, "drive"),
+        # one output folder on macOS and Windows: the second would overwrite the first
+        ("drive,frames,calib,boxes\nLead,f,c,b\nlead,g,c,b\n", 3, "drive"),
+        ("drive,frames,calib,boxes\n\u00e4,f,c,b\na\u0308,g,c,b\n", 3, "drive"),
         # calib: required for image folders and videos, optional for a drive log
         ("drive,frames,boxes\na,f,b\n", 2, "calib"),
         ("drive,frames,calib,boxes,image_topic\na,l.bag,,b,/c\nb,v.mp4,,b,\n", 3, "calib"),

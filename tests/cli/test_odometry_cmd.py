@@ -56,3 +56,19 @@ def test_eval_json_that_is_an_input_is_refused(
     assert main(["odometry", "eval", str(tmp_path), "--json", str(poses)]) == 2
     assert "would be overwritten" in capsys.readouterr().err
     assert poses.read_text() == "1 0 0 0 0 1 0 0 0 0 1 0\n"
+
+
+def test_eval_a_frame_of_another_size_names_its_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A frame cropped or from another camera among the others: one error naming that file."""
+    (tmp_path / "image_l").mkdir()
+    for k in range(3):
+        size = (40, 60) if k == 2 else (50, 80)
+        cv2.imwrite(str(tmp_path / "image_l" / f"{k:06d}.png"), np.zeros(size, np.uint8))
+    (tmp_path / "calib.txt").write_text("70 0 40 0 0 70 25 0 0 0 1 0\n")
+    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n" * 3)
+    assert main(["odometry", "eval", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "000002.png: frame size 60×40 px differs from the 80×50 px" in err

@@ -41,6 +41,11 @@ def test_good_run_reads(tmp_path: Path) -> None:
         ("2,0.2,3,Car,paper,12.0", r"line 4: row has 6 fields, the header has 10"),
         ("2,0.2,3,Car,paper,12.0,ok,,0.1,12.0,extra", r"line 4: row has 11 fields"),
         ('2,0.2,3,"Car,paper,12.0,ok,,0.1,12.0', r"line 4: row has 4 fields"),
+        ("2,0.2,3,Car,paper,12.0,OK,,0.1,12.0", r"line 4, field 'status': 'OK' is not a record"),
+        ("2,0.2,3,Car,paper,12.0,okay,,0.1,12.0", r"line 4, field 'status'"),
+        ("2,0.2,3,Car,paper,12.0,upper_bound,,0.1,12.0", r"line 4, field 'reason': a record of"),
+        ("2,0.2,3,Car,paper,12.0,missing,,0.1,12.0", r"line 4, field 'reason'"),
+        ("2,0.2,3,Car,paper,12.0,ok,cut_bottom,0.1,12.0", r"line 4, field 'reason'"),
     ],
 )
 def test_bad_records_name_line_and_field(tmp_path: Path, row: str, match: str) -> None:
@@ -144,3 +149,27 @@ def test_methods_scored_against_other_targets_are_not_compared(tmp_path: Path) -
     _run(flat, ["0,0.0,3,Car,flat,11.0,ok,,0.1,11.0", "1,0.1,3,Car,flat,20.0,ok,,0.1,20.0"])
     table1 = score_tables(report_data(tmp_path / "runs", ReportOptions()).scores)[0]
     assert table1.bold[0] == [False, False, True, False]  # the same targets: flat is best
+
+
+def test_a_partial_run_is_named_in_the_notes_and_printed(tmp_path: Path) -> None:
+    """A run stopped half way (run.json: complete false) is scored on the frames it finished;
+    the report says so instead of passing its figures off as the whole sequence's."""
+    from click.testing import CliRunner
+
+    from slopedist.cli import cli
+
+    folder = _run(tmp_path / "r", GOOD)
+    (folder / "run.json").write_text(
+        '{"sequence": "s", "complete": false, "last_complete_frame": 1, "error": null}'
+    )
+    data = report_data(folder, ReportOptions())
+    assert (
+        data.warnings and "partial run" in data.warnings[0] and "after frame 1" in data.warnings[0]
+    )
+    assert data.warnings[0] in data.notes
+    result = CliRunner().invoke(cli, ["report", str(folder), "--out", str(tmp_path / "rep")])
+    assert result.exit_code == 0, result.output
+    assert "warning:" in result.output and "partial run" in result.output
+    assert "partial run" in (tmp_path / "rep" / "report.md").read_text()
+    (folder / "run.json").write_text('{"sequence": "s", "complete": true}')
+    assert report_data(folder, ReportOptions()).warnings == []

@@ -227,7 +227,8 @@ def check_outputs_spare_drive_inputs(drives: Sequence[DriveSpec], out_dir: Path)
     folder ``OUT/<drive>`` (replaced whole when the drive runs, removed when it fails) or a
     fleet output (``status.csv``, ``fleet/``, ``records.parquet/``) that is, or holds, an
     input (frames, calibration, boxes, timestamps, depth maps, detector) of any drive, as
-    ``--out`` set to the folder of the drives would.
+    ``--out`` set to the folder of the drives would; and an ``OUT`` inside a drive's frame or
+    depth folder (its files would change that drive's input stamp).
 
     Raises:
         ConfigurationError: names the output, the input and its drive.
@@ -244,6 +245,15 @@ def check_outputs_spare_drive_inputs(drives: Sequence[DriveSpec], out_dir: Path)
                         f"the output {output} holds the input {path} of drive '{spec.name}': "
                         "choose another output (--out), the input would be replaced"
                     )
+    out_resolved = out_dir.resolve()
+    for spec in drives:
+        for folder in (p for p in (spec.frames, spec.depth_dir) if p is not None and p.is_dir()):
+            if folder.resolve() in (out_resolved, *out_resolved.parents):
+                raise ConfigurationError(
+                    f"the output {out_dir} lies in the input folder {folder} of drive "
+                    f"'{spec.name}': the batch's files would change the drive's inputs (and "
+                    "it would run again on every resume); choose an output outside it (--out)"
+                )
 
 
 def clean_leftovers(out_dir: Path) -> None:
@@ -263,6 +273,7 @@ def run_batch(
             an output that would replace an input (:func:`check_outputs_spare_drive_inputs`).
     """
     out = Path(out_dir)
+    check_outputs_spare_drive_inputs(drives, out)  # before OUT is made, perhaps in an input
     out.mkdir(parents=True, exist_ok=True)
     if options.parquet:
         from slopedist.batch.fleet import import_pyarrow

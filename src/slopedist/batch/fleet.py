@@ -32,7 +32,13 @@ from slopedist.batch.settings import SETTING_COLUMNS, settings_cell
 from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.errors import OptionalDependencyError
-from slopedist.evaluation import DISTANCE_BINS_M, bin_label, cap_estimates, distance_metrics
+from slopedist.evaluation import (
+    DISTANCE_BINS_M,
+    bin_label,
+    cap_estimates,
+    distance_metrics,
+    record_reason,
+)
 from slopedist.io.tables import write_csv
 from slopedist.limits import MAX_RECORD_MAGNITUDE
 from slopedist.run_config import RECORDS_NAME, SUMMARY_NAME
@@ -180,7 +186,7 @@ def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
         acc = out.setdefault(row.get("method") or "", {"d": [], "g": [], "r": []})
         for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
             acc[key].append(number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE))
-        acc["r"].append(row.get("reason") or "")
+        acc["r"].append(record_reason(row.get("status"), row.get("reason"), path, line))
     return out
 
 

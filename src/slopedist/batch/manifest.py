@@ -36,6 +36,7 @@ from __future__ import annotations
 import csv
 import math
 import sys
+import unicodedata
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -288,11 +289,21 @@ def check_log_cells(
 
 
 def _check_unique(specs: list[DriveSpec], where: Callable[[int, str], InputFileError]) -> None:
-    seen: dict[str, int] = {}
+    """Each drive's output folder ``OUT/<drive>`` must be its own on any file system: names
+    equal but for letter case or Unicode normal form (``Lead``, ``lead``) are one folder on
+    macOS and Windows, where the second drive would overwrite the first."""
+    seen: dict[str, str] = {}
     for i, spec in enumerate(specs):
-        if spec.name in seen:
-            raise where(i, f"drive '{spec.name}' is listed twice ({spec.origin} and earlier)")
-        seen[spec.name] = i
+        key = unicodedata.normalize("NFC", spec.name).casefold()
+        if key in seen:
+            first = seen[key]
+            same = (
+                ""
+                if first == spec.name
+                else f" as '{first}' (one output folder on macOS and Windows)"
+            )
+            raise where(i, f"drive '{spec.name}' is listed twice{same} ({spec.origin} and earlier)")
+        seen[key] = spec.name
 
 
 def read_csv_manifest(path: Path, defaults: DriveDefaults = DriveDefaults()) -> list[DriveSpec]:

@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from slopedist.cli.options import lookback_option
 from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
-from slopedist.errors import MissingInputError
+from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import STDOUT_PATH, dumps_json, write_json
 from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
@@ -60,13 +60,18 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
     # the built-in backend estimates the rotation over exactly this look-back
     options = {"lookback_s": lookback_s} if backend == "builtin" else {}
     odometry = make_odometry(backend, seq.camera, **options)
+    frames = _Frames(seq)
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # the figure is "on one core"
     try:
         with tqdm(
             total=len(seq), unit="frame", desc=seq.root.name, disable=None, leave=False
         ) as bar:
-            run = run_odometry(odometry, _frames(seq), on_result=lambda k, r: bar.update())
+            run = run_odometry(odometry, frames, on_result=lambda k, r: bar.update())
+    except DataMismatchError as err:  # a frame of another size: name its file
+        if frames.current is None:
+            raise
+        raise InputFileError(frames.current, str(err)) from None
     finally:
         cv2.setNumThreads(threads)
     figures = OdometryEvaluation.from_run(run, seq.ground_truth, lookback_s).as_dict()
@@ -77,7 +82,15 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
         click.echo(f"wrote {json_out}", err=True)
 
 
-def _frames(seq: KittiOdometrySequence) -> Iterator[tuple[float, NDArray[np.uint8]]]:
-    """``(timestamp, image)`` pairs of a sequence, decoded one at a time."""
-    for _, t, image in seq.frames():
-        yield t, image
+class _Frames:
+    """``(timestamp, image)`` pairs of a sequence, decoded one at a time; ``current`` is the
+    file of the frame last given (for an error about that frame)."""
+
+    def __init__(self, seq: KittiOdometrySequence) -> None:
+        self.seq = seq
+        self.current: Path | None = None
+
+    def __iter__(self) -> Iterator[tuple[float, NDArray[np.uint8]]]:
+        for k, t, image in self.seq.frames():
+            self.current = self.seq.image_paths[k]
+            yield t, image

@@ -116,6 +116,8 @@ def report(
     for t in written.tables:
         if t.key in SUMMARY_TABLES:
             click.echo(format_text(t) + "\n")
+    for warning in data.warnings:
+        click.echo(f"warning: {warning}", err=True)
     if kind in (SourceKind.RUN, SourceKind.FLEET) and not data.has_truth:
         click.echo("no ground truth in the records: Table 1 is not available", err=True)
     click.echo(

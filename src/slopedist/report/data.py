@@ -112,6 +112,8 @@ class ReportData:
         theta: per-frame ego gradients of each rotation source (:data:`THETA_COLUMNS`).
         protocol: the JSON block that says how the numbers were made.
         notes: lines shown under the title.
+        warnings: what a reader of the printed tables must know (a partial run), also in
+            ``notes``; the command prints them.
         truth_source: name of the rotation source taken as θ truth (``"oxts"``), if any.
         has_truth: whether the records carry a ground-truth distance.
         tracks: per-track summaries of run outputs (:data:`TRACK_COLUMNS`), or None.
@@ -130,6 +132,7 @@ class ReportData:
     theta: Columns
     protocol: dict[str, Any]
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
     truth_source: str | None = None
     has_truth: bool = True
     tracks: Columns | None = None

@@ -27,6 +27,7 @@ from slopedist.evaluation import (
     cap_estimates,
     compact_names,
     pool_methods,
+    record_reason,
     reported_sigma,
 )
 from slopedist.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
@@ -118,18 +119,43 @@ def read_csv(
     return header, rows, lines
 
 
+def _run_summary(folder: Path) -> dict[str, Any]:
+    """A run folder's ``run.json`` (empty when it has none).
+
+    Raises:
+        InputFileError: not valid JSON or not a JSON object.
+    """
+    summary = folder / "run.json"
+    if not summary.is_file():
+        return {}
+    data = read_json(summary, "run summary")
+    if not isinstance(data, dict):
+        raise InputFileError(summary, "not a JSON object")
+    return data
+
+
 def run_sequence_name(folder: Path) -> str:
     """Sequence a run folder belongs to: ``run.json``'s ``"sequence"`` when present, else the
     folder name (runs of different methods on one sequence share the name there)."""
-    summary = folder / "run.json"
-    if summary.is_file():
-        data = read_json(summary, "run summary")
-        if not isinstance(data, dict):
-            raise InputFileError(summary, "not a JSON object")
-        value = data.get("sequence")
-        if value:
-            return str(value)
-    return folder.name
+    value = _run_summary(folder).get("sequence")
+    return str(value) if value else folder.name
+
+
+def partial_run(folder: Path) -> str | None:
+    """Words for a run folder whose ``run.json`` says the run did not complete (stopped by a
+    signal or an error after some frames), or None for a complete run (or one without
+    ``run.json``)."""
+    summary = _run_summary(folder)
+    if summary.get("complete") is not False:
+        return None
+    last = summary.get("last_complete_frame")
+    error = summary.get("error")
+    return (
+        f"{folder} is a partial run: its run.json says it stopped "
+        + (f"after frame {last}" if isinstance(last, int) else "before completing a frame")
+        + (f" ({error})" if error else "")
+        + "; its figures cover only the frames it finished"
+    )
 
 
 @dataclass
@@ -162,11 +188,11 @@ class _RunReader:
             method = row["method"]
             if self.methods and method not in self.methods:
                 continue
+            reason = record_reason(row["status"], row["reason"], path, lineno)
             d = _distance(row, path, lineno)
             if self.reference is not None:
                 d = _at_reference(d, row, path, lineno, self.reference)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
-            reason = row.get("reason", "") or ""
             sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
             by_method.setdefault(method, []).append((d, g, reason, sigma))
             tid = row.get("track_id", "")
@@ -384,6 +410,7 @@ def run_report_data(
         methods = reader.read_records(folder, seq)
         reader.read_frame_log(folder, seq, methods, len(by_seq[seq]) > 1)
         reader.read_tracks(folder, seq, methods)
+    partial = [w for w in map(partial_run, folders) if w is not None]
     methods = sorted({m for s in reader.sets.values() for m in s})
     if not methods:
         wanted = f" of method(s) {', '.join(opts.methods)}" if opts.methods else ""
@@ -408,7 +435,8 @@ def run_report_data(
             "folders": [str(f) for f in folders],
             "gt_reference": reader.reference.value if reader.reference else None,
         },
-        notes=_notes(list(by_seq), reader.truth_found, reader.reference),
+        notes=[*_notes(list(by_seq), reader.truth_found, reader.reference), *partial],
+        warnings=partial,
         truth_source="truth" if reader.theta_truth else None,
         has_truth=reader.truth_found,
         tracks=reader.tracks if len(reader.tracks) else None,
