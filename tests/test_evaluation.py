@@ -187,4 +187,7 @@ def test_rmse_rows_over_different_targets_mark_no_best() -> None:
     table = rmse_table(PooledScores(["flat", "ours"], ["a", "b"], summaries, overall, pooled))
     assert [r[:2] for r in table.rows] == [["a", 10], ["b", 12], ["overall", 22]]
     assert [row[2:] for row in table.bold] == [[False, True], [False, False], [False, False]]
-    assert "b, overall: the methods were scored over different targets" in table.note
+    assert (
+        "b (n: flat 12, ours 10), overall (n: flat 22, ours 20): the methods were scored over "
+        "different targets" in table.note
+    )

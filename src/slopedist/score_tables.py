@@ -79,7 +79,7 @@ def rmse_table(
     own sequences) and, when those differ, the ``common`` row; best per row in bold (not on
     an ``overall`` row pooled over different sequences, nor on a row whose methods were scored
     over different targets: :func:`same_targets`; a note says so). ``n`` = most targets
-    scored."""
+    scored (each method's where they differ, in the note)."""
     methods = scores.methods
     rows: list[list[Any]] = []
     bold: list[list[bool]] = []
@@ -90,7 +90,10 @@ def rmse_table(
         rows.append([label, _max_n(summaries, methods), *vals])
         if compare and not same_targets(summaries, methods):
             compare = False
-            apart.append(label)
+            counts = ", ".join(
+                f"{m} {int(summaries[m]['n'])}" for m in methods if not summaries[m].get("missing")
+            )
+            apart.append(f"{label} (n: {counts})")
         bold.append([False, False, *(best_marks(vals) if compare else [False] * len(vals))])
 
     for s in scores.sequences:
