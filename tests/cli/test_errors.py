@@ -72,7 +72,11 @@ def test_usage_errors_help_and_interrupts(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["estimate", "--bogus"]) == 2
-    assert "No such option" in capsys.readouterr().err
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("Usage: slopedist estimate") and "--help" in err[1]
+    assert err[-1].startswith("slopedist: error: No such option")  # the house's last line
+    assert main(["nosuchcommand"]) == 2
+    assert capsys.readouterr().err.splitlines()[-1].startswith("slopedist: error: No such command")
     assert main(["--help"]) == 0 and "Commands:" in capsys.readouterr().out
     assert main(["--version"]) == 0
     _add_command(monkeypatch, KeyboardInterrupt())

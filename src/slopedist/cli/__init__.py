@@ -190,8 +190,13 @@ def _exit_code(exc: BaseException) -> int:
     if isinstance(exc, click.exceptions.Abort | KeyboardInterrupt):
         click.echo("aborted", err=True)
         return EXIT_INTERRUPTED
-    if isinstance(exc, click.ClickException):
-        exc.show()
+    if isinstance(exc, click.ClickException):  # a mistyped command line: its usage first
+        ctx = exc.ctx if isinstance(exc, click.UsageError) else None
+        if ctx is not None:
+            click.echo(ctx.get_usage(), err=True)
+            if ctx.command.get_help_option(ctx) is not None:
+                click.echo(f"Try '{ctx.command_path} --help' for help.", err=True)
+        _error(exc.format_message())
         return EXIT_USER_ERROR
     if isinstance(exc, SlopedistError):
         _error(str(exc))
