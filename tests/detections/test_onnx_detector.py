@@ -258,6 +258,11 @@ def test_errors_missing_model_and_bad_thresholds(tmp_path: Path) -> None:
         OnnxDetector(bad)
     with pytest.raises(ConfigurationError, match="threshold"):
         DetectorSettings(score_threshold=1.5)
+    for scale in (float("nan"), 0.0, -1 / 255, float("inf")):  # no detection, silently
+        with pytest.raises(ConfigurationError, match="pixel_scale"):
+            DetectorSettings(pixel_scale=scale)
+    with pytest.raises(ConfigurationError, match="threads"):
+        DetectorSettings(threads=0)
 
 
 def test_missing_onnxruntime_is_a_clear_error(

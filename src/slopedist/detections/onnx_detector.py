@@ -17,6 +17,7 @@ Nothing is downloaded: the user exports their own weights (see ``docs/detectors.
 from __future__ import annotations
 
 import ast
+import math
 import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -160,7 +161,8 @@ class DetectorSettings:
         threads: onnxruntime intra-op threads (None = its default).
 
     Raises:
-        ConfigurationError: thresholds outside their ranges, or fewer than one detection.
+        ConfigurationError: thresholds outside their ranges, fewer than one detection, a
+            pixel scale that is not a finite positive number or fewer than one thread.
     """
 
     score_threshold: float = 0.25
@@ -183,6 +185,12 @@ class DetectorSettings:
             )
         if self.max_detections < 1:
             raise ConfigurationError(f"max_detections must be ≥ 1, got {self.max_detections}")
+        if not (math.isfinite(self.pixel_scale) and self.pixel_scale > 0.0):
+            raise ConfigurationError(
+                f"pixel_scale must be a finite number > 0, got {self.pixel_scale}"
+            )
+        if self.threads is not None and self.threads < 1:
+            raise ConfigurationError(f"threads must be ≥ 1, got {self.threads}")
 
 
 class OnnxDetector:
