@@ -3,6 +3,7 @@ timestamps, camera and orientations."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
@@ -23,6 +24,7 @@ from slopedist.io.rosbag import (
     log_topics,
     read_camera_info,
     read_orientations,
+    read_speeds,
 )
 from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, LogTopics, write_log
 
@@ -360,6 +362,37 @@ def test_imu_without_orientation_is_refused(tmp_path: Path) -> None:
         writer.write(conn, 1_000_000_000, store.serialize_cdr(msg, msg.__msgtype__))
     with pytest.raises(InputFileError, match=r"field '/imu'.*no orientation"):
         read_orientations(tmp_path / "imu", "/imu")
+
+
+@pytest.mark.parametrize("topic", [TOPICS.imu, TOPICS.odometry])
+def test_a_nan_orientation_or_speed_names_the_message(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], topic: str
+) -> None:
+    """An IMU sample with a NaN quaternion component stopped `run --rotation-topic` with an
+    internal error (scipy's "zero norm quaternions"); a NaN speed gave NaN headways."""
+    images = synthetic_images(4)
+    frames = [
+        LogFrame(
+            k * PERIOD_NS,
+            im,
+            (math.nan, 0.0, 0.0, 1.0) if topic == TOPICS.imu and k == 2 else (0.0, 0.0, 0.0, 1.0),
+            math.inf if topic == TOPICS.odometry and k == 2 else 10.0,
+        )
+        for k, im in enumerate(images)
+    ]
+    path = write_log(tmp_path / "log", frames, CAMERA)
+    read = read_orientations if topic == TOPICS.imu else read_speeds
+    where = rf"field '{topic}': message 2: stamp 1317000000.200000000 s: a NaN or infinite value"
+    with pytest.raises(InputFileError, match=where):
+        read(path, topic)
+    option = "--rotation-topic" if topic == TOPICS.imu else "--speed-topic"
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    argv = ["run", str(path), "--image-topic", TOPICS.image, option, topic, "--boxes", str(boxes)]
+    method = ["--method", "imu"] if topic == TOPICS.imu else ["--method", "flat"]
+    assert main([*argv, *method, "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "message 2" in err and "internal error" not in err
 
 
 @pytest.mark.parametrize(

@@ -535,10 +535,18 @@ def _read_series(
         for conn, _, raw in iter_messages(reader, conns, path):
             msg = deserialize(reader, raw, conn.msgtype, path, topic)
             try:
-                rows.append(values(msg))
-                stamps.append(stamp_ns(msg))
+                row = values(msg)
+                stamp = stamp_ns(msg)
+                if not all(np.isfinite(row)):
+                    values_text = ", ".join(map(str, row))
+                    raise ValueError(
+                        f"stamp {stamp // 10**9}.{stamp % 10**9:09d} s: a NaN or infinite "
+                        f"value ({values_text})"
+                    )
             except (AttributeError, TypeError, ValueError) as exc:
                 raise InputFileError(path, f"message {len(stamps)}: {exc}", field=topic) from None
+            rows.append(row)
+            stamps.append(stamp)
     if not stamps:
         raise InputFileError(path, "no messages", field=topic)
     return np.asarray(stamps, dtype=np.int64), np.asarray(rows, dtype=float)
@@ -553,7 +561,8 @@ def read_orientations(
     Raises:
         ConfigurationError: no such topic or another type.
         InputFileError: no messages, or a message without an orientation (an IMU that reports
-            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention).
+            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention) or with a NaN or
+            infinite component (naming the message's index and stamp).
     """
     return _read_series(path, topic, ORIENTATION_TYPES, _orientation)
 
@@ -567,7 +576,8 @@ def read_speeds(path: str | Path, topic: str) -> tuple[NDArray[np.int64], NDArra
 
     Raises:
         ConfigurationError: no such topic or another type.
-        InputFileError: no messages, or a message without a usable velocity.
+        InputFileError: no messages, or a message without a usable velocity (NaN or infinite
+            components: naming the message's index and stamp).
     """
     stamps, speeds = _read_series(path, topic, SPEED_TYPES, _speed)
     return stamps, speeds[:, 0]
