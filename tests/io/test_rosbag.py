@@ -438,3 +438,43 @@ def test_an_implausible_camera_info_names_the_log_and_topic(
     code = main([*args, "--odometry", "none", "--method", "flat", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 2 and f"{path.name}, field '{TOPICS.camera_info}'" in err and message in err
+
+
+def test_a_camera_info_that_changes_during_the_log_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A camera_info whose focal length changed from the third message on (a zoom, another
+    calibration loaded) was read from its first message only: every frame after the change had
+    its distances `ok` and 40 % off."""
+    from slopedist.io import rosbag_write
+
+    written = rosbag_write._Messages.camera_info
+    zoomed = Camera(112.0, 31.5, 24.25).with_image_size(W, H)
+
+    def camera_info(self: object, header: object, camera: Camera, w: int, h: int) -> object:
+        later = header.stamp.nanosec >= 2 * PERIOD_NS  # type: ignore[attr-defined]
+        return written(self, header, zoomed if later else camera, w, h)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rosbag_write._Messages, "camera_info", camera_info)
+    path = write(
+        tmp_path, LogFormat.ROS2_MCAP, ImageEncoding.RAW, [k * PERIOD_NS for k in range(4)]
+    )
+    where = (
+        rf"field '{TOPICS.camera_info}': message 2 \(stamp 1317000000.200000000 s\) changes the "
+        r"calibration: fx 112, .* the first message has fx 80, "
+    )
+    with pytest.raises(InputFileError, match=where):
+        read_camera_info(path, TOPICS.camera_info)
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    argv = ["run", str(path), "--image-topic", TOPICS.image, "--boxes", str(boxes)]
+    assert (
+        main([*argv, "--method", "flat", "--odometry", "none", "--out", str(tmp_path / "o")]) == 2
+    )
+    assert "changes the calibration" in capsys.readouterr().err
+
+
+def test_repeated_camera_info_messages_read_as_one(tmp_path: Path) -> None:
+    path = write(tmp_path, LogFormat.ROS1, ImageEncoding.RAW, [k * PERIOD_NS for k in range(5)])
+    got = read_camera_info(path, TOPICS.camera_info)
+    assert got.camera(CAMERA.height_m) == CAMERA

@@ -448,33 +448,71 @@ def camera_info_topic(image_topic: str) -> str:
     return "/".join([*parts[:-1], "camera_info"])
 
 
+CAMERA_INFO_RTOL = 1e-6
+"""Relative difference of a ``camera_info`` value (K, distortion) from the first message's
+beyond which the calibration has changed during the log."""
+
+
 def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
-    """The intrinsics of the first ``sensor_msgs/CameraInfo`` message on ``topic``
+    """The intrinsics of the ``sensor_msgs/CameraInfo`` messages on ``topic``
     (:func:`intrinsics_from_info`), checked as a calibration file's are (focal length,
-    principal point, lens model: :meth:`Intrinsics.check_camera`).
+    principal point, lens model: :meth:`Intrinsics.check_camera`). Every message must give the
+    first one's calibration (a run has one calibration).
 
     Raises:
         ConfigurationError: no such topic.
-        InputFileError: no message, or no usable calibration in it (naming the log and topic).
+        InputFileError: no message, no usable calibration in it, or a later message with another
+            calibration (naming the log, topic, message index and stamp).
     """
     path = Path(path)
+    first: Intrinsics | None = None
     with open_log(path) as reader:
         conns = connections_of(reader, topic, (CAMERA_INFO_TYPE,), path)
-        msg = next(
-            (
-                deserialize(reader, raw, c.msgtype, path, topic)
-                for c, _, raw in iter_messages(reader, conns, path)
-            ),
-            None,
-        )
-    if msg is None:
+        for index, (conn, _, raw) in enumerate(iter_messages(reader, conns, path)):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
+            try:
+                intrinsics = intrinsics_from_info(msg, rectified)
+                if first is None:
+                    intrinsics.check_camera()
+            except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
+                where = "" if first is None else f"message {index}: "
+                raise InputFileError(
+                    path, f"{where}not a usable CameraInfo: {exc}", field=topic
+                ) from None
+            if first is None:
+                first = intrinsics
+            elif not _same_calibration(first, intrinsics):
+                stamp = stamp_ns(msg)
+                raise InputFileError(
+                    path,
+                    f"message {index} (stamp {stamp // 10**9}.{stamp % 10**9:09d} s) changes the "
+                    f"calibration: {_calibration_text(intrinsics)}, the first message has "
+                    f"{_calibration_text(first)}; a run has one calibration (split the log, or "
+                    "give the right one with --calib)",
+                    field=topic,
+                )
+    if first is None:
         raise InputFileError(path, f"topic {topic} has no messages")
-    try:
-        intrinsics = intrinsics_from_info(msg, rectified)
-        intrinsics.check_camera()
-        return intrinsics
-    except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
-        raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
+    return first
+
+
+def _same_calibration(a: Intrinsics, b: Intrinsics) -> bool:
+    return (
+        a.image_size == b.image_size
+        and a.fisheye == b.fisheye
+        and a.dist.shape == b.dist.shape
+        and np.allclose(a.K, b.K, rtol=CAMERA_INFO_RTOL, atol=0.0)
+        and np.allclose(a.dist, b.dist, rtol=CAMERA_INFO_RTOL, atol=1e-12)
+    )
+
+
+def _calibration_text(intrinsics: Intrinsics) -> str:
+    K = intrinsics.K
+    size = intrinsics.image_size
+    text = f"fx {K[0, 0]:g}, fy {K[1, 1]:g}, cx {K[0, 2]:g}, cy {K[1, 2]:g}"
+    if intrinsics.dist.size:
+        text += f", distortion {', '.join(f'{d:g}' for d in intrinsics.dist)}"
+    return text + (f", {size[0]}×{size[1]} px" if size is not None else "")
 
 
 def intrinsics_from_info(msg: Any, rectified: bool) -> Intrinsics:
