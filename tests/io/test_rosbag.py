@@ -478,3 +478,29 @@ def test_repeated_camera_info_messages_read_as_one(tmp_path: Path) -> None:
     path = write(tmp_path, LogFormat.ROS1, ImageEncoding.RAW, [k * PERIOD_NS for k in range(5)])
     got = read_camera_info(path, TOPICS.camera_info)
     assert got.camera(CAMERA.height_m) == CAMERA
+
+
+def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS 2 bag folder without metadata.yaml (the recorder writes it on closing) was taken for
+    an image folder ("--image-topic is for drive logs …, not FOLDER"; `log info`: "Expected
+    metadata file"); a truncated MCAP said only "File end magic is invalid"."""
+    stamps = [k * PERIOD_NS for k in range(3)]
+    folder = write(tmp_path, LogFormat.ROS2_SQLITE3, ImageEncoding.RAW, stamps)
+    (folder / "metadata.yaml").unlink()
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    run = ["run", str(folder), "--image-topic", TOPICS.image, "--boxes", str(boxes)]
+    for argv in (["log", "info", str(folder)], [*run, "--out", str(tmp_path / "o"), "--quiet"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "without metadata.yaml" in err and str(folder / "log.db3") in err
+    assert {t.count for t in log_topics(folder / "log.db3")} == {3}  # the storage file reads
+    (tmp_path / "m").mkdir()
+    bag = write(tmp_path / "m", LogFormat.ROS2_MCAP, ImageEncoding.RAW, stamps)
+    mcap = next(bag.glob("*.mcap"))
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    with pytest.raises(InputFileError, match=rf"mcap recover {cut} -o repaired.mcap"):
+        log_topics(cut)

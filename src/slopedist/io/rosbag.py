@@ -76,12 +76,34 @@ _TO_BGR = {
 }
 
 
+ROS2_STORAGE_SUFFIXES = (".mcap", ".db3")
+"""File endings of a ROS 2 bag folder's storage files."""
+
+REPAIR_HINTS = {
+    ".mcap": "a truncated MCAP (its recorder stopped without closing it?) is repaired with: "
+    "mcap recover {path} -o repaired.mcap",
+    ".bag": "a ROS 1 bag without its index (its recorder stopped without closing it?) is "
+    "repaired with: rosbag reindex {path}",
+}
+"""How to repair a log that does not open, by its file ending."""
+
+
 def is_log_path(path: str | Path) -> bool:
     """True for a ``.bag`` / ``.mcap`` / ``.db3`` file or a ROS 2 bag folder (``metadata.yaml``)."""
     path = Path(path)
     if path.is_dir():
         return (path / "metadata.yaml").is_file()
     return path.suffix.lower() in LOG_SUFFIXES
+
+
+def storage_files(folder: Path) -> list[Path]:
+    """The ROS 2 storage files (``.mcap``, ``.db3``; not hidden) in ``folder``: a folder with
+    such files but no ``metadata.yaml`` is a ROS 2 bag its recorder did not close."""
+    return sorted(
+        p
+        for p in folder.iterdir()
+        if p.suffix.lower() in ROS2_STORAGE_SUFFIXES and not p.name.startswith(".")
+    )
 
 
 def _anyreader() -> Any:
@@ -107,12 +129,25 @@ def open_log(path: str | Path) -> Iterator[Any]:
     path = Path(path)
     if not path.exists():
         raise MissingInputError(f"log not found: {path}")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        files = storage_files(path)
+        raise InputFileError(
+            path,
+            "a ROS 2 bag folder without metadata.yaml (its recorder stopped without closing "
+            f"it?): give a storage file itself ({files[0] if files else 'NAME.db3'}), or "
+            f"rebuild metadata.yaml with: ros2 bag reindex {path}",
+        )
     any_reader, typestore = _anyreader()
     try:
         reader = any_reader([path], default_typestore=typestore)
         reader.open()
     except log_errors() as exc:
-        raise InputFileError(path, f"not a readable ROS 1 / ROS 2 log: {exc}") from None
+        hint = REPAIR_HINTS.get(path.suffix.lower(), "").format(path=path)
+        raise InputFileError(
+            path,
+            f"not a readable ROS 1 / ROS 2 log: {str(exc).rstrip('.')}"
+            + (f"; {hint}" if hint else ""),
+        ) from None
     try:
         yield reader
     finally:
