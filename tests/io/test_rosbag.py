@@ -504,3 +504,24 @@ def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
     cut.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
     with pytest.raises(InputFileError, match=rf"mcap recover {cut} -o repaired.mcap"):
         log_topics(cut)
+
+
+def test_a_topic_whose_images_never_decode_says_why(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A camera publishing `yuv422` (usb_cam's default) failed with "no image on T decodes",
+    without the encoding."""
+    import dataclasses
+
+    from slopedist.io import rosbag_write
+
+    written = rosbag_write._Messages.image
+
+    def image(self: object, *args: object) -> object:
+        return dataclasses.replace(written(self, *args), encoding="yuv422")  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rosbag_write._Messages, "image", image)
+    path = write(tmp_path, LogFormat.ROS2_MCAP, ImageEncoding.RAW, [0, PERIOD_NS])
+    source = LogFrameSource(path, TOPICS.image)
+    with pytest.raises(InputFileError, match=r"decodes \(message 0: image encoding 'yuv422' is"):
+        source.frame_size()

@@ -366,12 +366,19 @@ class LogFrameSource:
         return self.message_count
 
     def frame_size(self) -> tuple[int, int]:
+        """``(width, height)`` of the first image that decodes.
+
+        Raises:
+            InputFileError: none decodes (naming why the first one does not).
+        """
+        first_why = ""
         with open_log(self.path) as reader:
-            for _, msg, _ in self._messages(reader):
-                image = decode_image(msg)[0] if msg is not None else None
+            for _, msg, problem in self._messages(reader):
+                image, why = decode_image(msg) if msg is not None else (None, problem)
                 if image is not None:
                     return int(image.shape[1]), int(image.shape[0])
-        raise InputFileError(self.path, f"no image on {self.image_topic} decodes")
+                first_why = first_why or f" (message 0: {why})"
+        raise InputFileError(self.path, f"no image on {self.image_topic} decodes{first_why}")
 
     def seconds(self, t_ns: int) -> float:
         """Log time ``t_ns`` (nanoseconds) → frame time, seconds after the first image."""
