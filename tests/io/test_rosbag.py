@@ -3,6 +3,7 @@ timestamps, camera and orientations."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
@@ -23,6 +24,7 @@ from slopedist.io.rosbag import (
     log_topics,
     read_camera_info,
     read_orientations,
+    read_speeds,
 )
 from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, LogTopics, write_log
 
@@ -362,6 +364,37 @@ def test_imu_without_orientation_is_refused(tmp_path: Path) -> None:
         read_orientations(tmp_path / "imu", "/imu")
 
 
+@pytest.mark.parametrize("topic", [TOPICS.imu, TOPICS.odometry])
+def test_a_nan_orientation_or_speed_names_the_message(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], topic: str
+) -> None:
+    """An IMU sample with a NaN quaternion component stopped `run --rotation-topic` with an
+    internal error (scipy's "zero norm quaternions"); a NaN speed gave NaN headways."""
+    images = synthetic_images(4)
+    frames = [
+        LogFrame(
+            k * PERIOD_NS,
+            im,
+            (math.nan, 0.0, 0.0, 1.0) if topic == TOPICS.imu and k == 2 else (0.0, 0.0, 0.0, 1.0),
+            math.inf if topic == TOPICS.odometry and k == 2 else 10.0,
+        )
+        for k, im in enumerate(images)
+    ]
+    path = write_log(tmp_path / "log", frames, CAMERA)
+    read = read_orientations if topic == TOPICS.imu else read_speeds
+    where = rf"field '{topic}': message 2: stamp 1317000000.200000000 s: a NaN or infinite value"
+    with pytest.raises(InputFileError, match=where):
+        read(path, topic)
+    option = "--rotation-topic" if topic == TOPICS.imu else "--speed-topic"
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    argv = ["run", str(path), "--image-topic", TOPICS.image, option, topic, "--boxes", str(boxes)]
+    method = ["--method", "imu"] if topic == TOPICS.imu else ["--method", "flat"]
+    assert main([*argv, *method, "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "message 2" in err and "internal error" not in err
+
+
 @pytest.mark.parametrize(
     ("field", "value", "message"),
     [
@@ -405,3 +438,90 @@ def test_an_implausible_camera_info_names_the_log_and_topic(
     code = main([*args, "--odometry", "none", "--method", "flat", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 2 and f"{path.name}, field '{TOPICS.camera_info}'" in err and message in err
+
+
+def test_a_camera_info_that_changes_during_the_log_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A camera_info whose focal length changed from the third message on (a zoom, another
+    calibration loaded) was read from its first message only: every frame after the change had
+    its distances `ok` and 40 % off."""
+    from slopedist.io import rosbag_write
+
+    written = rosbag_write._Messages.camera_info
+    zoomed = Camera(112.0, 31.5, 24.25).with_image_size(W, H)
+
+    def camera_info(self: object, header: object, camera: Camera, w: int, h: int) -> object:
+        later = header.stamp.nanosec >= 2 * PERIOD_NS  # type: ignore[attr-defined]
+        return written(self, header, zoomed if later else camera, w, h)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rosbag_write._Messages, "camera_info", camera_info)
+    path = write(
+        tmp_path, LogFormat.ROS2_MCAP, ImageEncoding.RAW, [k * PERIOD_NS for k in range(4)]
+    )
+    where = (
+        rf"field '{TOPICS.camera_info}': message 2 \(stamp 1317000000.200000000 s\) changes the "
+        r"calibration: fx 112, .* the first message has fx 80, "
+    )
+    with pytest.raises(InputFileError, match=where):
+        read_camera_info(path, TOPICS.camera_info)
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    argv = ["run", str(path), "--image-topic", TOPICS.image, "--boxes", str(boxes)]
+    assert (
+        main([*argv, "--method", "flat", "--odometry", "none", "--out", str(tmp_path / "o")]) == 2
+    )
+    assert "changes the calibration" in capsys.readouterr().err
+
+
+def test_repeated_camera_info_messages_read_as_one(tmp_path: Path) -> None:
+    path = write(tmp_path, LogFormat.ROS1, ImageEncoding.RAW, [k * PERIOD_NS for k in range(5)])
+    got = read_camera_info(path, TOPICS.camera_info)
+    assert got.camera(CAMERA.height_m) == CAMERA
+
+
+def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS 2 bag folder without metadata.yaml (the recorder writes it on closing) was taken for
+    an image folder ("--image-topic is for drive logs …, not FOLDER"; `log info`: "Expected
+    metadata file"); a truncated MCAP said only "File end magic is invalid"."""
+    stamps = [k * PERIOD_NS for k in range(3)]
+    folder = write(tmp_path, LogFormat.ROS2_SQLITE3, ImageEncoding.RAW, stamps)
+    (folder / "metadata.yaml").unlink()
+    boxes = tmp_path / "boxes.csv"
+    boxes.write_text("frame,left,top,right,bottom\n0,20,30,40,40\n")
+    run = ["run", str(folder), "--image-topic", TOPICS.image, "--boxes", str(boxes)]
+    for argv in (["log", "info", str(folder)], [*run, "--out", str(tmp_path / "o"), "--quiet"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "without metadata.yaml" in err and str(folder / "log.db3") in err
+    assert {t.count for t in log_topics(folder / "log.db3")} == {3}  # the storage file reads
+    (tmp_path / "m").mkdir()
+    bag = write(tmp_path / "m", LogFormat.ROS2_MCAP, ImageEncoding.RAW, stamps)
+    mcap = next(bag.glob("*.mcap"))
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    with pytest.raises(InputFileError, match=rf"mcap recover {cut} -o repaired.mcap"):
+        log_topics(cut)
+
+
+def test_a_topic_whose_images_never_decode_says_why(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A camera publishing `yuv422` (usb_cam's default) failed with "no image on T decodes",
+    without the encoding."""
+    import dataclasses
+
+    from slopedist.io import rosbag_write
+
+    written = rosbag_write._Messages.image
+
+    def image(self: object, *args: object) -> object:
+        return dataclasses.replace(written(self, *args), encoding="yuv422")  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rosbag_write._Messages, "image", image)
+    path = write(tmp_path, LogFormat.ROS2_MCAP, ImageEncoding.RAW, [0, PERIOD_NS])
+    source = LogFrameSource(path, TOPICS.image)
+    with pytest.raises(InputFileError, match=r"decodes \(message 0: image encoding 'yuv422' is"):
+        source.frame_size()

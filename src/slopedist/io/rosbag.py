@@ -76,12 +76,34 @@ _TO_BGR = {
 }
 
 
+ROS2_STORAGE_SUFFIXES = (".mcap", ".db3")
+"""File endings of a ROS 2 bag folder's storage files."""
+
+REPAIR_HINTS = {
+    ".mcap": "a truncated MCAP (its recorder stopped without closing it?) is repaired with: "
+    "mcap recover {path} -o repaired.mcap",
+    ".bag": "a ROS 1 bag without its index (its recorder stopped without closing it?) is "
+    "repaired with: rosbag reindex {path}",
+}
+"""How to repair a log that does not open, by its file ending."""
+
+
 def is_log_path(path: str | Path) -> bool:
     """True for a ``.bag`` / ``.mcap`` / ``.db3`` file or a ROS 2 bag folder (``metadata.yaml``)."""
     path = Path(path)
     if path.is_dir():
         return (path / "metadata.yaml").is_file()
     return path.suffix.lower() in LOG_SUFFIXES
+
+
+def storage_files(folder: Path) -> list[Path]:
+    """The ROS 2 storage files (``.mcap``, ``.db3``; not hidden) in ``folder``: a folder with
+    such files but no ``metadata.yaml`` is a ROS 2 bag its recorder did not close."""
+    return sorted(
+        p
+        for p in folder.iterdir()
+        if p.suffix.lower() in ROS2_STORAGE_SUFFIXES and not p.name.startswith(".")
+    )
 
 
 def _anyreader() -> Any:
@@ -107,12 +129,25 @@ def open_log(path: str | Path) -> Iterator[Any]:
     path = Path(path)
     if not path.exists():
         raise MissingInputError(f"log not found: {path}")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        files = storage_files(path)
+        raise InputFileError(
+            path,
+            "a ROS 2 bag folder without metadata.yaml (its recorder stopped without closing "
+            f"it?): give a storage file itself ({files[0] if files else 'NAME.db3'}), or "
+            f"rebuild metadata.yaml with: ros2 bag reindex {path}",
+        )
     any_reader, typestore = _anyreader()
     try:
         reader = any_reader([path], default_typestore=typestore)
         reader.open()
     except log_errors() as exc:
-        raise InputFileError(path, f"not a readable ROS 1 / ROS 2 log: {exc}") from None
+        hint = REPAIR_HINTS.get(path.suffix.lower(), "").format(path=path)
+        raise InputFileError(
+            path,
+            f"not a readable ROS 1 / ROS 2 log: {str(exc).rstrip('.')}"
+            + (f"; {hint}" if hint else ""),
+        ) from None
     try:
         yield reader
     finally:
@@ -331,12 +366,19 @@ class LogFrameSource:
         return self.message_count
 
     def frame_size(self) -> tuple[int, int]:
+        """``(width, height)`` of the first image that decodes.
+
+        Raises:
+            InputFileError: none decodes (naming why the first one does not).
+        """
+        first_why = ""
         with open_log(self.path) as reader:
-            for _, msg, _ in self._messages(reader):
-                image = decode_image(msg)[0] if msg is not None else None
+            for _, msg, problem in self._messages(reader):
+                image, why = decode_image(msg) if msg is not None else (None, problem)
                 if image is not None:
                     return int(image.shape[1]), int(image.shape[0])
-        raise InputFileError(self.path, f"no image on {self.image_topic} decodes")
+                first_why = first_why or f" (message 0: {why})"
+        raise InputFileError(self.path, f"no image on {self.image_topic} decodes{first_why}")
 
     def seconds(self, t_ns: int) -> float:
         """Log time ``t_ns`` (nanoseconds) → frame time, seconds after the first image."""
@@ -448,33 +490,71 @@ def camera_info_topic(image_topic: str) -> str:
     return "/".join([*parts[:-1], "camera_info"])
 
 
+CAMERA_INFO_RTOL = 1e-6
+"""Relative difference of a ``camera_info`` value (K, distortion) from the first message's
+beyond which the calibration has changed during the log."""
+
+
 def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
-    """The intrinsics of the first ``sensor_msgs/CameraInfo`` message on ``topic``
+    """The intrinsics of the ``sensor_msgs/CameraInfo`` messages on ``topic``
     (:func:`intrinsics_from_info`), checked as a calibration file's are (focal length,
-    principal point, lens model: :meth:`Intrinsics.check_camera`).
+    principal point, lens model: :meth:`Intrinsics.check_camera`). Every message must give the
+    first one's calibration (a run has one calibration).
 
     Raises:
         ConfigurationError: no such topic.
-        InputFileError: no message, or no usable calibration in it (naming the log and topic).
+        InputFileError: no message, no usable calibration in it, or a later message with another
+            calibration (naming the log, topic, message index and stamp).
     """
     path = Path(path)
+    first: Intrinsics | None = None
     with open_log(path) as reader:
         conns = connections_of(reader, topic, (CAMERA_INFO_TYPE,), path)
-        msg = next(
-            (
-                deserialize(reader, raw, c.msgtype, path, topic)
-                for c, _, raw in iter_messages(reader, conns, path)
-            ),
-            None,
-        )
-    if msg is None:
+        for index, (conn, _, raw) in enumerate(iter_messages(reader, conns, path)):
+            msg = deserialize(reader, raw, conn.msgtype, path, topic)
+            try:
+                intrinsics = intrinsics_from_info(msg, rectified)
+                if first is None:
+                    intrinsics.check_camera()
+            except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
+                where = "" if first is None else f"message {index}: "
+                raise InputFileError(
+                    path, f"{where}not a usable CameraInfo: {exc}", field=topic
+                ) from None
+            if first is None:
+                first = intrinsics
+            elif not _same_calibration(first, intrinsics):
+                stamp = stamp_ns(msg)
+                raise InputFileError(
+                    path,
+                    f"message {index} (stamp {stamp // 10**9}.{stamp % 10**9:09d} s) changes the "
+                    f"calibration: {_calibration_text(intrinsics)}, the first message has "
+                    f"{_calibration_text(first)}; a run has one calibration (split the log, or "
+                    "give the right one with --calib)",
+                    field=topic,
+                )
+    if first is None:
         raise InputFileError(path, f"topic {topic} has no messages")
-    try:
-        intrinsics = intrinsics_from_info(msg, rectified)
-        intrinsics.check_camera()
-        return intrinsics
-    except (AttributeError, TypeError, ValueError, ConfigurationError) as exc:
-        raise InputFileError(path, f"not a usable CameraInfo: {exc}", field=topic) from None
+    return first
+
+
+def _same_calibration(a: Intrinsics, b: Intrinsics) -> bool:
+    return (
+        a.image_size == b.image_size
+        and a.fisheye == b.fisheye
+        and a.dist.shape == b.dist.shape
+        and np.allclose(a.K, b.K, rtol=CAMERA_INFO_RTOL, atol=0.0)
+        and np.allclose(a.dist, b.dist, rtol=CAMERA_INFO_RTOL, atol=1e-12)
+    )
+
+
+def _calibration_text(intrinsics: Intrinsics) -> str:
+    K = intrinsics.K
+    size = intrinsics.image_size
+    text = f"fx {K[0, 0]:g}, fy {K[1, 1]:g}, cx {K[0, 2]:g}, cy {K[1, 2]:g}"
+    if intrinsics.dist.size:
+        text += f", distortion {', '.join(f'{d:g}' for d in intrinsics.dist)}"
+    return text + (f", {size[0]}×{size[1]} px" if size is not None else "")
 
 
 def intrinsics_from_info(msg: Any, rectified: bool) -> Intrinsics:
@@ -535,10 +615,18 @@ def _read_series(
         for conn, _, raw in iter_messages(reader, conns, path):
             msg = deserialize(reader, raw, conn.msgtype, path, topic)
             try:
-                rows.append(values(msg))
-                stamps.append(stamp_ns(msg))
+                row = values(msg)
+                stamp = stamp_ns(msg)
+                if not all(np.isfinite(row)):
+                    values_text = ", ".join(map(str, row))
+                    raise ValueError(
+                        f"stamp {stamp // 10**9}.{stamp % 10**9:09d} s: a NaN or infinite "
+                        f"value ({values_text})"
+                    )
             except (AttributeError, TypeError, ValueError) as exc:
                 raise InputFileError(path, f"message {len(stamps)}: {exc}", field=topic) from None
+            rows.append(row)
+            stamps.append(stamp)
     if not stamps:
         raise InputFileError(path, "no messages", field=topic)
     return np.asarray(stamps, dtype=np.int64), np.asarray(rows, dtype=float)
@@ -553,7 +641,8 @@ def read_orientations(
     Raises:
         ConfigurationError: no such topic or another type.
         InputFileError: no messages, or a message without an orientation (an IMU that reports
-            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention).
+            none: covariance[0] = −1, the ``sensor_msgs/Imu`` convention) or with a NaN or
+            infinite component (naming the message's index and stamp).
     """
     return _read_series(path, topic, ORIENTATION_TYPES, _orientation)
 
@@ -567,7 +656,8 @@ def read_speeds(path: str | Path, topic: str) -> tuple[NDArray[np.int64], NDArra
 
     Raises:
         ConfigurationError: no such topic or another type.
-        InputFileError: no messages, or a message without a usable velocity.
+        InputFileError: no messages, or a message without a usable velocity (NaN or infinite
+            components: naming the message's index and stamp).
     """
     stamps, speeds = _read_series(path, topic, SPEED_TYPES, _speed)
     return stamps, speeds[:, 0]

@@ -25,6 +25,7 @@ from slopedist.io.rosbag import (
     read_camera_info,
     read_orientations,
     read_speeds,
+    storage_files,
 )
 from slopedist.io.video import open_video
 from slopedist.odometry.imu import SpeedTrack, TrackRotationSource, camera_rotations
@@ -51,7 +52,8 @@ def open_source(
         MissingInputError: nothing at ``path`` (from :func:`~slopedist.io.frames.open_frames`).
     """
     path = Path(path)
-    if is_log_path(path):
+    unclosed_bag = image_topic is not None and path.is_dir() and bool(storage_files(path))
+    if is_log_path(path) or unclosed_bag:
         if image_topic is None:
             raise ConfigurationError(
                 f"{path} is a drive log: name its image topic with --image-topic "
