@@ -186,3 +186,39 @@ def test_any_car_on_a_flat_road(z: float, x: float, sample: DepthSample) -> None
     depth = render([(x, z)])
     got = sample_box_depth(depth, car_box(x, z)[None], sample)
     assert got[0] == pytest.approx(z, rel=1e-6)
+
+
+NEAR = [(-3.0, 7.5), (0.0, 9.0), (3.0, 11.0)]
+
+
+def test_metric_depth_maps_not_in_metres_are_refused() -> None:
+    """Millimetre PNGs read as KITTI's metres × 256 are 1000/256 = 3.9 times too far: after
+    five targets 3–12 m ahead the run stops, naming the ratio (it was ok at every distance)."""
+    est = DepthMapEstimator(CAMERA)
+    est.estimate(frame_of(NEAR, render(NEAR) * 1000 / 256, k=0))  # three targets: not yet
+    with pytest.raises(DataMismatchError, match=r"3\.91 times the flat-road distance"):
+        est.estimate(frame_of(NEAR, render(NEAR) * 1000 / 256, k=1))
+
+
+def test_true_metric_depth_passes_the_scale_check_and_it_then_rests() -> None:
+    est = DepthMapEstimator(CAMERA)
+    for k in range(2):
+        out = est.estimate(frame_of(NEAR, render(NEAR), k=k))
+        np.testing.assert_allclose(out.distance_m, [z for _, z in NEAR], rtol=1e-6)
+    out = est.estimate(frame_of(NEAR, 3.0 * render(NEAR), k=2))  # judged once, per sequence
+    np.testing.assert_allclose(out.distance_m, [3 * z for _, z in NEAR], rtol=1e-6)
+    est.reset()  # a new sequence is judged again
+    est.estimate(frame_of(NEAR, 3.0 * render(NEAR), k=0))
+    with pytest.raises(DataMismatchError, match="not metres"):
+        est.estimate(frame_of(NEAR, 3.0 * render(NEAR), k=1))
+
+
+def test_far_targets_and_a_scale_less_model_are_not_judged() -> None:
+    far = [(-3.0, 20.0), (0.0, 30.0), (3.0, 45.0)]
+    est = DepthMapEstimator(CAMERA)
+    for k in range(3):  # beyond 12 m the flat-road distance is no reference on a hill
+        est.estimate(frame_of(far, 3.0 * render(far), k=k))
+    scaled = DepthMapEstimator(CAMERA, scaling="contact")
+    for k in range(3):
+        out = scaled.estimate(frame_of(NEAR, 0.37 * render(NEAR), k=k))
+    np.testing.assert_allclose(out.distance_m, [z for _, z in NEAR], rtol=1e-5)

@@ -30,6 +30,15 @@ Plausibility and cap: a depth below ``min_depth_m`` (default 0.1 m) or above 100
 scaling is reason ``no_depth`` (a 1e-30 network output is not a distance of 0.001 m); above
 ``max_depth_m`` (default 80 m, the KITTI protocol; None = no cap) it is capped.
 
+Scale check (scaling ``none``): metric depth maps must agree with the flat-ground distance of
+eq. 1 where it is reliable — boxes whose contact distance is
+:data:`SCALE_CHECK_RANGE_M` (3–12 m: there a 4° slope between the car and the target moves it
+by at most a factor 2) and whose bottom the image border does not cut. Once
+:data:`SCALE_CHECK_COUNT` such targets of a sequence have a depth, the median ratio of depth to
+contact distance must lie within a factor :data:`SCALE_CHECK_FACTOR` of 1; otherwise the run
+stops with an error (the maps are not in metres: a 16-bit PNG in millimetres read as KITTI's
+metres × 256 is 3.9× too far, and every target would be ``ok`` at that distance).
+
 Border: the depth at the box centre is still a pixel of the vehicle when the box is cut by the
 image border (the visible part is what the box covers), so a cut box keeps status ``ok`` with
 its ``cut`` flag; boxes wholly outside the image or degenerate are ``missing`` before sampling.
@@ -61,6 +70,15 @@ from slopedist.estimators.base import (
 
 DEFAULT_MAX_DEPTH_M = 80.0
 DEFAULT_MIN_DEPTH_M = MIN_PLAUSIBLE_DEPTH_M
+SCALE_CHECK_RANGE_M = (3.0, 12.0)
+"""Flat-ground contact distances (m) at which a metric depth map's scale is checked."""
+
+SCALE_CHECK_COUNT = 5
+"""Targets in that range a sequence needs before its depth maps' scale is judged."""
+
+SCALE_CHECK_FACTOR = 2.5
+"""Largest accepted median ratio (either way) of a metric depth to the contact distance."""
+
 TRUTH_COLUMN = "gt_distance_m"
 """Box column read by the ``truth`` scaling: ground-truth distance per target, metres."""
 
@@ -179,9 +197,43 @@ class DepthMapEstimator(Estimator):
         self.min_depth_m = float(min_depth_m)
         self.truth_column = truth_column
         self._last_scale = math.nan
+        self._check_log_ratios: list[float] | None = []
 
     def reset(self) -> None:
         self._last_scale = math.nan
+        self._check_log_ratios = []
+
+    def _check_metric_scale(self, frame: FrameInput, raw: NDArray[np.float64]) -> None:
+        """The scale check of the module docstring (pooled until judged, then off).
+
+        Raises:
+            DataMismatchError: the depth maps' median ratio to the contact distance is beyond
+                :data:`SCALE_CHECK_FACTOR`.
+        """
+        pool = self._check_log_ratios
+        if pool is None:
+            return
+        contact = self._reference(frame)
+        bottom = frame.boxes.boxes[:, 3]
+        height = self.camera.image_height
+        low, high = SCALE_CHECK_RANGE_M
+        with np.errstate(invalid="ignore"):
+            use = np.isfinite(raw) & (raw > 0) & (contact >= low) & (contact <= high)
+        if height is not None:
+            use &= bottom < height - 1
+        pool.extend(np.log(raw[use] / contact[use]).tolist())
+        if len(pool) < SCALE_CHECK_COUNT:
+            return
+        ratio = math.exp(float(np.median(pool)))
+        self._check_log_ratios = None
+        if not 1.0 / SCALE_CHECK_FACTOR <= ratio <= SCALE_CHECK_FACTOR:
+            raise DataMismatchError(
+                f"frame {frame.frame_index}: the depth maps say {ratio:.2f} times the flat-road "
+                f"distance of the {len(pool)} targets {low:g}–{high:g} m ahead (median): they "
+                "are not metres (a 16-bit PNG must be KITTI's metres × 256; millimetres read "
+                "3.9 times too far), or the camera height is wrong; give metric maps, or a "
+                "scaling (--depth-scaling contact) for a scale-less model"
+            )
 
     def _reference(self, frame: FrameInput) -> NDArray[np.float64]:
         boxes = frame.boxes.boxes
@@ -225,6 +277,8 @@ class DepthMapEstimator(Estimator):
                 metric=self.scaling is DepthScaling.NONE,
             )
         reasons[(reasons == "") & ~np.isfinite(raw)] = MissingReason.NO_DEPTH.value
+        if self.scaling is DepthScaling.NONE and n:
+            self._check_metric_scale(frame, raw)
         scale = 1.0
         if self.scaling is not DepthScaling.NONE and n:
             ref = self._reference(frame)
