@@ -240,6 +240,7 @@ def test_crash_halfway_keeps_the_records_written_before(tmp_path: Path) -> None:
     assert len(read_csv(tmp_path / "out" / "frames.csv")) == 6
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["failed_frame"] == 6 and "boom" in summary["error"]
+    assert summary["frames"] == 6 and summary["frame_status"] == {"ok": 6}  # not the failed one
 
 
 def test_user_error_halfway_names_the_frame_and_the_kept_records(tmp_path: Path) -> None:

@@ -283,7 +283,6 @@ class _RunLoop:
     def process(self, frame: Frame) -> None:
         """One frame: odometry, depth, the frame step, then every output."""
         k = frame.index
-        self.status_count[frame.status.value] += 1
         late = self._out_of_time(frame)  # logged; its boxes are not used (boxes_without_frame)
         frame_boxes, detection_ms = (self.no_boxes, math.nan) if late else self._boxes(frame)
         odo = self._odometry(frame, frame_boxes)
@@ -334,7 +333,8 @@ class _RunLoop:
             )
         self._paint(frame, frame_boxes, res, odo.state)
         self._export(frame, frame_boxes, res, odo)
-        self.result.frames += 1
+        self.result.frames += 1  # a frame that fails part-way is in neither count
+        self.status_count[frame.status.value] += 1
 
     def _out_of_time(self, frame: Frame) -> bool:
         """Whether ``frame`` is an unreadable frame whose time (a repeated or out-of-order log
