@@ -120,6 +120,32 @@ def test_timestamps_going_backwards_are_an_error() -> None:
         step.step(1, 0.0, np.eye(3), empty)
 
 
+@pytest.mark.parametrize("bad", [-3.0, 0.9, math.nan])
+@pytest.mark.parametrize("frame", [5, 9])
+def test_batch_refuses_the_timestamps_a_stream_refuses_in_frames_without_boxes(
+    bad: float, frame: int
+) -> None:
+    """Batch use skipped the frames without boxes, so a time going backwards (or NaN) there
+    passed in batch and stopped the stream: streaming != batch."""
+    t = np.arange(10) * 0.1 + 1.0
+    t[frame] = bad
+    box = np.array([[500.0, 180.0, 600.0, 250.0]])
+    boxes = BoxTable.build(
+        [0, 2, 7][: 3 if frame == 5 else 2], np.repeat(box, 3 if frame == 5 else 2, axis=0)
+    )
+    for track in (
+        None,
+        RotationTrack.from_arrays(np.arange(10) * 0.1, np.tile(np.eye(3), (10, 1, 1))),
+    ):
+        with pytest.raises(DataMismatchError, match=rf"frame {frame}: timestamp"):
+            estimate_sequence(make_estimator("flat", CAMERA), boxes, t, track)
+    step = FrameStep(make_estimator("flat", CAMERA))
+    by_frame = boxes.frame_index()
+    with pytest.raises(DataMismatchError, match=rf"frame {frame}: timestamp"):
+        for k in range(10):
+            step.step(k, float(t[k]), np.eye(3), by_frame.get(k))
+
+
 @pytest.mark.parametrize("t", [math.nan, math.inf])
 def test_a_timestamp_that_is_not_finite_is_an_error(t: float) -> None:
     """A NaN timestamp passed the order check (NaN <= t is false), twice in a row."""

@@ -205,6 +205,17 @@ class FrameStep:
             not self.estimator.handles_border_cuts,
         )
 
+    def skip(self, frame_index: int, timestamp_s: float) -> None:
+        """Take a frame that :meth:`estimate` is not called for (no boxes, θ computed
+        elsewhere): its timestamp is checked and kept, as :meth:`step` checks and keeps every
+        frame's, so that a batch loop refuses the same timestamps as a streaming one.
+
+        Raises:
+            DataMismatchError: if ``timestamp_s`` is not finite or does not increase.
+        """
+        self._check_time(frame_index, timestamp_s)
+        self._last_timestamp = timestamp_s
+
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
         if not math.isfinite(timestamp_s):
             raise DataMismatchError(f"frame {frame_index}: timestamp {timestamp_s} s is not finite")
@@ -330,6 +341,11 @@ def estimate_sequence(
         depth: depth map (metres) of a frame index, called for the frames with boxes when the
             estimator ``needs_depth`` (e.g. :meth:`slopedist.depth.DepthSource.depth`).
         vehicle_classes: class names scored as vehicles (others: ``not_a_vehicle``).
+
+    Raises:
+        DataMismatchError: a timestamp (of any frame, with boxes or not) that is not finite
+            or does not increase, as :meth:`FrameStep.step` refuses it; boxes of a frame
+            beyond ``timestamps_s``; fewer rotations than frames.
     """
     if track is not None and len(track) < len(timestamps_s):
         raise DataMismatchError(
@@ -343,17 +359,23 @@ def estimate_sequence(
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     step.reset()
     box_parts, est_parts = [], []
+    done = 0  # frames taken so far: those without boxes are checked as a stream checks them
     for k, frame_boxes in boxes.by_frame():
         if not 0 <= k < len(timestamps_s):
             raise DataMismatchError(
                 f"boxes refer to frame {k}, but the sequence has frames 0..{len(timestamps_s) - 1}"
             )
+        for j in range(done, k):
+            step.skip(j, float(timestamps_s[j]))
+        done = k + 1
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         R = track.R_world_cam[k] if track is not None and track.valid[k] else None
         est_parts.append(
             step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
         )
         box_parts.append(frame_boxes)
+    for j in range(done, len(timestamps_s)):
+        step.skip(j, float(timestamps_s[j]))
     if estimator.offline:  # the whole drive seen: the offline pass revises every frame
         est_parts = step.finish()
     return SequenceEstimates(
