@@ -34,6 +34,19 @@ from slopedist.estimators.base import (
 from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
 
+MAX_EGO_GRADIENT_RAD = math.radians(30.0)
+"""The largest ego gradient θ (its change over the look-back, radians) a road can give: the
+steepest public roads climb about 20° (35 %), and eq. 4 measures the change of the camera's
+pitch over one second. A larger θ is an odometry glitch (a rotation that jumps), not a road:
+its vanishing line would put every target a few metres ahead. :class:`FrameStep` treats such a
+frame as one without a rotation (``no_rotation`` for the methods that need one)."""
+
+
+def usable_gradient(theta_rad: float) -> float:
+    """``theta_rad`` when it is a road's gradient (finite, within
+    :data:`MAX_EGO_GRADIENT_RAD`), else NaN: no rotation to go by."""
+    return theta_rad if abs(theta_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
+
 
 class EgoGradientTracker:
     """Ego road gradient θ (eq. 2–4) from a stream of rotations, keeping only the look-back.
@@ -141,7 +154,8 @@ class FrameStep:
         depth_m: NDArray[np.float32] | None = None,
         segment: int = 0,
     ) -> FrameResult:
-        """θ of the frame (look-back within odometry ``segment``) and its boxes' estimates.
+        """θ of the frame (look-back within odometry ``segment``; NaN beyond
+        :data:`MAX_EGO_GRADIENT_RAD`) and its boxes' estimates.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -149,7 +163,7 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
-        theta = self.gradient.update(timestamp_s, R, segment)
+        theta = usable_gradient(self.gradient.update(timestamp_s, R, segment))
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
         return FrameResult(theta, est)
 
@@ -163,7 +177,8 @@ class FrameStep:
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
     ) -> FrameEstimates:
-        """The estimates of a frame whose θ (radians) was computed elsewhere: vectorised over a
+        """The estimates of a frame whose θ (radians; taken as NaN beyond
+        :data:`MAX_EGO_GRADIENT_RAD`) was computed elsewhere: vectorised over a
         whole track (:func:`estimate_sequence`) or shared by several methods fed the same
         rotations (the demo).
 
@@ -173,7 +188,8 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
-        return self._estimate(frame_index, timestamp_s, theta_rad, R, boxes, image, depth_m)
+        theta = usable_gradient(theta_rad)
+        return self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
 
     def _estimate(
         self,
