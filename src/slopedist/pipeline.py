@@ -34,6 +34,19 @@ from slopedist.estimators.base import (
 from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
 
+MAX_EGO_GRADIENT_RAD = math.radians(30.0)
+"""The largest ego gradient θ (its change over the look-back, radians) a road can give: the
+steepest public roads climb about 20° (35 %), and eq. 4 measures the change of the camera's
+pitch over one second. A larger θ is an odometry glitch (a rotation that jumps), not a road:
+its vanishing line would put every target a few metres ahead. :class:`FrameStep` treats such a
+frame as one without a rotation (``no_rotation`` for the methods that need one)."""
+
+
+def usable_gradient(theta_rad: float) -> float:
+    """``theta_rad`` when it is a road's gradient (finite, within
+    :data:`MAX_EGO_GRADIENT_RAD`), else NaN: no rotation to go by."""
+    return theta_rad if abs(theta_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
+
 
 class EgoGradientTracker:
     """Ego road gradient θ (eq. 2–4) from a stream of rotations, keeping only the look-back.
@@ -141,7 +154,8 @@ class FrameStep:
         depth_m: NDArray[np.float32] | None = None,
         segment: int = 0,
     ) -> FrameResult:
-        """θ of the frame (look-back within odometry ``segment``) and its boxes' estimates.
+        """θ of the frame (look-back within odometry ``segment``; NaN beyond
+        :data:`MAX_EGO_GRADIENT_RAD`) and its boxes' estimates.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -149,7 +163,7 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
-        theta = self.gradient.update(timestamp_s, R, segment)
+        theta = usable_gradient(self.gradient.update(timestamp_s, R, segment))
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
         return FrameResult(theta, est)
 
@@ -163,7 +177,8 @@ class FrameStep:
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
     ) -> FrameEstimates:
-        """The estimates of a frame whose θ (radians) was computed elsewhere: vectorised over a
+        """The estimates of a frame whose θ (radians; taken as NaN beyond
+        :data:`MAX_EGO_GRADIENT_RAD`) was computed elsewhere: vectorised over a
         whole track (:func:`estimate_sequence`) or shared by several methods fed the same
         rotations (the demo).
 
@@ -173,7 +188,8 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
-        return self._estimate(frame_index, timestamp_s, theta_rad, R, boxes, image, depth_m)
+        theta = usable_gradient(theta_rad)
+        return self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
 
     def _estimate(
         self,
@@ -204,6 +220,17 @@ class FrameStep:
             self.vehicle_classes,
             not self.estimator.handles_border_cuts,
         )
+
+    def skip(self, frame_index: int, timestamp_s: float) -> None:
+        """Take a frame that :meth:`estimate` is not called for (no boxes, θ computed
+        elsewhere): its timestamp is checked and kept, as :meth:`step` checks and keeps every
+        frame's, so that a batch loop refuses the same timestamps as a streaming one.
+
+        Raises:
+            DataMismatchError: if ``timestamp_s`` is not finite or does not increase.
+        """
+        self._check_time(frame_index, timestamp_s)
+        self._last_timestamp = timestamp_s
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
         if not math.isfinite(timestamp_s):
@@ -330,6 +357,11 @@ def estimate_sequence(
         depth: depth map (metres) of a frame index, called for the frames with boxes when the
             estimator ``needs_depth`` (e.g. :meth:`slopedist.depth.DepthSource.depth`).
         vehicle_classes: class names scored as vehicles (others: ``not_a_vehicle``).
+
+    Raises:
+        DataMismatchError: a timestamp (of any frame, with boxes or not) that is not finite
+            or does not increase, as :meth:`FrameStep.step` refuses it; boxes of a frame
+            beyond ``timestamps_s``; fewer rotations than frames.
     """
     if track is not None and len(track) < len(timestamps_s):
         raise DataMismatchError(
@@ -343,17 +375,23 @@ def estimate_sequence(
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     step.reset()
     box_parts, est_parts = [], []
+    done = 0  # frames taken so far: those without boxes are checked as a stream checks them
     for k, frame_boxes in boxes.by_frame():
         if not 0 <= k < len(timestamps_s):
             raise DataMismatchError(
                 f"boxes refer to frame {k}, but the sequence has frames 0..{len(timestamps_s) - 1}"
             )
+        for j in range(done, k):
+            step.skip(j, float(timestamps_s[j]))
+        done = k + 1
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         R = track.R_world_cam[k] if track is not None and track.valid[k] else None
         est_parts.append(
             step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
         )
         box_parts.append(frame_boxes)
+    for j in range(done, len(timestamps_s)):
+        step.skip(j, float(timestamps_s[j]))
     if estimator.offline:  # the whole drive seen: the offline pass revises every frame
         est_parts = step.finish()
     return SequenceEstimates(

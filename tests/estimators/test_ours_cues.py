@@ -333,3 +333,17 @@ def test_hidden_sides_flags_the_sides_on_a_nearer_box() -> None:
     top_on = [700.0, 200.0, 740.0, 230.0]  # its top edge inside the near box, bottom below
     _, height_cut = occlusion.hidden_sides(np.array([top_on, [690.0, 150.0, 760.0, 235.0]]))
     assert height_cut.tolist() == [True, False]
+
+
+def test_a_box_bottom_exactly_on_the_horizon_gives_nan_without_a_warning() -> None:
+    """A bottom row exactly on the vanishing line divided by a zero gap: NaN as intended, but
+    with numpy's "divide by zero" RuntimeWarning on every such frame (an error under
+    ``python -W error``)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cue = cues.ground_contact_log_cue(
+            np.array([CY, CY + 20.0, CY - 3.0]), CY, F, H_CAM, 2.0, 1.0, 0.0
+        )
+    assert np.isnan(cue.mean[[0, 2]]).all() and np.isfinite(cue.mean[1])

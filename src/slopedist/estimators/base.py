@@ -64,7 +64,8 @@ class MissingReason(str, Enum):
     gives a distance far beyond what the row can tell (a pixel of the row moves it by more
     than half); evaluations count it at the cap, as ``below_horizon``."""
     NO_ROTATION = "no_rotation"
-    """No camera rotation for this frame (odometry not initialised or lost)."""
+    """No camera rotation for this frame (odometry not initialised or lost), or one whose ego
+    gradient no road gives (:data:`slopedist.pipeline.MAX_EGO_GRADIENT_RAD`: a glitch)."""
     NON_FINITE_BOX = "non_finite_box"
     INVERTED_BOX = "inverted_box"
     NO_DEPTH = "no_depth"

@@ -423,9 +423,9 @@ def ground_contact_log_cue(
     gap = bottom - np.asarray(v, dtype=float)
     fh = f * np.asarray(cam_height_m, dtype=float)
     bad = gap <= ZERO
+    if any_true(bad):  # NaN, which then propagates (and no division by a zero gap)
+        gap = np.where(bad, np.nan, gap)
     zn = fh / gap
-    if any_true(bad):  # NaN, which then propagates
-        zn = np.where(bad, np.nan, zn)
     z = zn + half_extent_m
     gain = zn * zn * (1.0 / fh)
     gain *= gain  # (σ_d/σ_row)², see ground_contact_sigma
