@@ -261,6 +261,17 @@ def test_a_sequence_without_boxes_keeps_the_box_columns() -> None:
     assert len(res.estimates.distance_m) == 0
 
 
+def test_a_camera_pitched_far_down_at_rest_keeps_its_gradient() -> None:
+    """The 30° bound is on θ beyond the camera at rest: a camera mounted 32° down (a truck's
+    close-range camera) at rest has θ = −32°, a road's 0°, not an odometry glitch."""
+    camera = Camera(721.5, 609.6, 172.9, 1.65, math.radians(32.0), 1242, 375)
+    step = FrameStep(make_estimator("paper", camera))
+    boxes = BoxTable.build([0], [[600.0, 200.0, 660.0, 250.0]])
+    for k in range(12):
+        result = step.step(k, 0.1 * k, np.eye(3), boxes)
+    assert result.theta_rad == pytest.approx(-math.radians(32.0))
+
+
 @pytest.mark.parametrize("method", ["ours", "paper"])
 def test_a_rotation_that_jumps_90_degrees_is_no_rotation_not_a_car_2_m_ahead(method: str) -> None:
     """An odometry glitch (the camera pitched 90° for one frame) gave θ = 90°: the vanishing

@@ -35,17 +35,18 @@ from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
 
 MAX_EGO_GRADIENT_RAD = math.radians(30.0)
-"""The largest ego gradient θ (its change over the look-back, radians) a road can give: the
-steepest public roads climb about 20° (35 %), and eq. 4 measures the change of the camera's
-pitch over one second. A larger θ is an odometry glitch (a rotation that jumps), not a road:
-its vanishing line would put every target a few metres ahead. :class:`FrameStep` treats such a
-frame as one without a rotation (``no_rotation`` for the methods that need one)."""
+"""The largest ego gradient θ a road can give, radians, beyond the θ of the camera at rest (its
+mount angle's): the steepest public roads climb about 20° (35 %), and eq. 4 measures the change
+of the camera's pitch over one second. A larger θ is an odometry glitch (a rotation that
+jumps), not a road: its vanishing line would put every target a few metres ahead.
+:class:`FrameStep` treats such a frame as one without a rotation (``no_rotation`` for the
+methods that need one)."""
 
 
-def usable_gradient(theta_rad: float) -> float:
-    """``theta_rad`` when it is a road's gradient (finite, within
-    :data:`MAX_EGO_GRADIENT_RAD`), else NaN: no rotation to go by."""
-    return theta_rad if abs(theta_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
+def usable_gradient(theta_rad: float, theta_rest_rad: float = 0.0) -> float:
+    """``theta_rad`` when it is a road's gradient (finite, within :data:`MAX_EGO_GRADIENT_RAD`
+    of ``theta_rest_rad``, the θ of the camera at rest), else NaN: no rotation to go by."""
+    return theta_rad if abs(theta_rad - theta_rest_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
 
 
 class EgoGradientTracker:
@@ -124,6 +125,9 @@ class FrameStep:
         self.estimator = estimator
         self.vehicle_classes = tuple(vehicle_classes)
         self.gradient = EgoGradientTracker(estimator.camera.mount_angle_rad, lookback_s)
+        self._theta_rest = float(
+            geo.ego_road_gradient(np.eye(3), np.eye(3), estimator.camera.mount_angle_rad)
+        )
         self._last_timestamp: float | None = None
         self._offline_boxes: list[BoxTable] = []
 
@@ -163,7 +167,7 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
-        theta = usable_gradient(self.gradient.update(timestamp_s, R, segment))
+        theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
         return FrameResult(theta, est)
 
@@ -188,7 +192,7 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
-        theta = usable_gradient(theta_rad)
+        theta = usable_gradient(theta_rad, self._theta_rest)
         return self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
 
     def _estimate(
