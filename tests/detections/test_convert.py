@@ -117,3 +117,31 @@ def test_yolo_is_not_written_into_a_folder_of_label_files(tmp_path: Path) -> Non
             table.select([True, False]), folder, "yolo", BoxFileOptions(image_size=(100, 50))
         )
     assert sorted(p.name for p in folder.iterdir()) == ["000000.txt", "000005.txt"]
+
+
+any_px = st.floats(1.0, 1000.0, allow_nan=False).map(lambda v: round(v, 4))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(any_px, any_px, any_px, any_px, st.floats(0.0, 1.0).map(lambda v: round(v, 9))),
+        min_size=1,
+        max_size=5,
+    ),
+    st.sampled_from([BoxFormat.CSV, BoxFormat.MOT, BoxFormat.COCO, BoxFormat.YOLO]),
+)
+def test_boxes_come_back_as_written_not_rounded_to_6_digits(
+    tmp_path_factory: pytest.TempPathFactory, rows: list, fmt: BoxFormat
+) -> None:
+    """Box corners like 1234.5678 px and scores like 0.123456789 were written with 6
+    significant digits (1234.57, 0.123457): a conversion moved every box by up to 5 mpx."""
+    folder = tmp_path_factory.mktemp("exact")
+    target = folder / ("b.json" if fmt is BoxFormat.COCO else "b")
+    boxes = [[x, y, x + 1 + w, y + 1 + h] for x, y, w, h, _ in rows]
+    table = BoxTable.build([0] * len(rows), boxes, None, [r[4] for r in rows])
+    options = BoxFileOptions(image_size=(2100, 2100))
+    write_boxes(table, target, fmt, options)
+    back = read_boxes(target, fmt, options)
+    np.testing.assert_allclose(back.boxes, table.boxes, rtol=0, atol=2e-9)
+    np.testing.assert_array_equal(back.score, table.score)

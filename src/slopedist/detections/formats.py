@@ -246,6 +246,10 @@ def read_coco(
     return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 
 
+YOLO_PX_DECIMALS = 9
+"""Decimals of a pixel the corners of a YOLO box are rounded to (its normalised values are
+fractions of the image size, which binary floats hold inexactly)."""
+
 _TRAILING_NUMBER = re.compile(r"(\d+)$")
 
 
@@ -290,7 +294,10 @@ def read_yolo_folder(
                 continue
             frames.append(frame)
             xywh = [(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h]
-            boxes.append(_corners(path, xywh, line=lineno, field="cx,cy,w,h"))
+            corners = _corners(path, xywh, line=lineno, field="cx,cy,w,h")
+            # to the nanopixel: fractions of the image (1/720) leave ~1e-13 px of rounding,
+            # so that a box write_yolo_folder wrote comes back as it was (200, not 199.99…97)
+            boxes.append([round(v, YOLO_PX_DECIMALS) for v in corners])
             scores.append(score)
             tids.append(tid)
             classes.append(cmap[cls])
