@@ -232,3 +232,26 @@ def test_coco_reader_fails_only_with_a_named_error(
         assert "r.json" in str(exc)
     else:
         assert table.boxes.shape == (len(table), 4)  # non-finite boxes: flagged by estimators
+
+
+def test_coco_file_names_that_are_frame_numbers_give_those_frames(tmp_path: Path) -> None:
+    """A CVAT export of images 9.png, 10.png and 8.png (folders in the names) gave frames 2, 0
+    and 1 (file names sorted as text, renumbered from 0), where `slopedist run` on the image
+    folder numbers them 9, 10 and 8: every box was estimated with another frame's rotation."""
+    from slopedist.detections.formats import read_coco_image_map
+
+    images = [
+        {"id": 1, "file_name": "seq/9.png"},
+        {"id": 2, "file_name": "seq\\000010.png"},
+        {"id": 3, "file_name": "8.jpg"},
+    ]
+    path = tmp_path / "cvat.json"
+    path.write_text(json.dumps({"images": images, "annotations": [], "categories": []}))
+    assert read_coco_image_map(path) == {1: 9, 2: 10, 3: 8}
+    images.append({"id": 4, "file_name": "other/0009.png"})
+    path.write_text(json.dumps({"images": images}))
+    with pytest.raises(InputFileError, match=r"images\[3\].file_name.*frame number 9 also used"):
+        read_coco_image_map(path)
+    images[3]["file_name"] = "seq/b.png"  # not all numbered: the file-name order, as before
+    path.write_text(json.dumps({"images": images}))
+    assert read_coco_image_map(path) == {3: 0, 1: 1, 4: 2, 2: 3}

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Mapping
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -43,6 +43,7 @@ from slopedist.detections.readers import (
     score_value,
 )
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.io.framefiles import frame_number
 from slopedist.limits import MAX_INDEX
 from slopedist.textfiles import numbered_lines, read_json
 
@@ -125,7 +126,9 @@ def _load_json(path: str | Path) -> Any:
 
 def read_coco_image_map(path: str | Path) -> dict[int, int]:
     """Image id → frame from a COCO dataset file's ``images``: their ``frame_id`` (or
-    ``frame_index``) when every image has one, else the order of their ``file_name``."""
+    ``frame_index``) when every image has one; else, when every ``file_name`` is named by a
+    frame number (``seq/000123.png``), that number, as the frames of an image folder are
+    numbered (:mod:`slopedist.io.framefiles`); else the order of their ``file_name``."""
     data = _load_json(path)
     images = data.get("images") if isinstance(data, dict) else None
     if not isinstance(images, list):
@@ -139,15 +142,39 @@ def read_coco_image_map(path: str | Path) -> dict[int, int]:
                 for i, im in enumerate(images)
             }
     try:
-        ordered = sorted(range(len(images)), key=lambda i: str(images[i]["file_name"]))
+        names = [str(im["file_name"]) for im in images]
     except (KeyError, TypeError):
         raise InputFileError(
             path, "every image needs an integer 'id' and a 'file_name'", field="images"
         ) from None
+    numbers = [frame_number(PurePosixPath(n.replace("\\", "/")).stem) for n in names]
+    if images and all(k is not None for k in numbers):
+        return _numbered_image_map(path, images, numbers)
+    ordered = sorted(range(len(images)), key=lambda i: names[i])
     return {
         _coco_index(path, f"images[{i}].id", images[i].get("id"), None): frame
         for frame, i in enumerate(ordered)
     }
+
+
+def _numbered_image_map(
+    path: str | Path, images: list[Any], numbers: list[int | None]
+) -> dict[int, int]:
+    """Image id → the frame number of its ``file_name`` (``seq/000123.png`` → 123), as
+    :func:`~slopedist.io.framefiles.list_frame_files` numbers the files of an image folder."""
+    frames: dict[int, int] = {}
+    by_frame: dict[int, int] = {}
+    for i, (im, k) in enumerate(zip(images, numbers)):
+        frame = _coco_index(path, f"images[{i}].file_name", k, 0)
+        if frame in by_frame:
+            raise InputFileError(
+                path,
+                f"frame number {frame} also used by images[{by_frame[frame]}]",
+                field=f"images[{i}].file_name",
+            )
+        by_frame[frame] = i
+        frames[_coco_index(path, f"images[{i}].id", im.get("id"), None)] = frame
+    return frames
 
 
 def _coco_class_map(
