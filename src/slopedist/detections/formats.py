@@ -17,7 +17,8 @@ bottom`` in pixels, 0-based frame indices) and fails with an
 - **YOLO** folder: one ``<name><frame>.txt`` per frame (the trailing number of the name is the
   frame, minus ``frame_base``), lines ``class cx cy w h [conf [track_id]]`` normalised to the image
   size, which must be given. Class indices are YOLO's (COCO order, car 2, see
-  :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`).
+  :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`), or named by the folder's
+  ``classes.txt`` (labelImg's class list) when it has one.
 
 Classes not in a map are dropped. Writers for each (for ``slopedist convert``) are in
 :mod:`slopedist.detections.format_writers`.
@@ -45,7 +46,7 @@ from slopedist.detections.readers import (
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
 from slopedist.io.framefiles import frame_number
 from slopedist.limits import MAX_INDEX
-from slopedist.textfiles import numbered_lines, read_json
+from slopedist.textfiles import decoded_lines, numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
     1: "Pedestrian",
@@ -184,15 +185,21 @@ def _coco_class_map(
     if class_map is not None:
         return class_map
     if isinstance(data, dict) and isinstance(data.get("categories"), list):
-        by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
-        return {
-            _coco_index(path, f"categories[{i}].id", c.get("id"), None): by_name[
-                str(c["name"]).lower()
-            ]
-            for i, c in enumerate(data["categories"])
-            if isinstance(c, dict) and str(c.get("name", "")).lower() in by_name
-        }
+        return vehicle_classes_by_name(
+            {
+                _coco_index(path, f"categories[{i}].id", c.get("id"), None): str(c["name"])
+                for i, c in enumerate(data["categories"])
+                if isinstance(c, dict) and "name" in c
+            }
+        )
     return COCO_CATEGORIES
+
+
+def vehicle_classes_by_name(names: Mapping[int, str]) -> dict[int, str]:
+    """Class index → slopedist class name of the ``names`` (a file's own class list) that name
+    one of COCO's vehicle classes, in any case (``car`` → ``Car``)."""
+    by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
+    return {k: by_name[v.lower()] for k, v in names.items() if v.lower() in by_name}
 
 
 def _coco_index(path: str | Path, field: str, value: Any, lowest: int | None) -> int:
@@ -273,6 +280,10 @@ def read_coco(
     return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 
 
+YOLO_CLASS_NAMES = "classes.txt"
+"""The class list labelImg and other YOLO label tools write beside the label files: one name
+per line, line k naming class index k."""
+
 YOLO_PX_DECIMALS = 9
 """Decimals of a pixel the corners of a YOLO box are rounded to (its normalised values are
 fractions of the image size, which binary floats hold inexactly)."""
@@ -303,9 +314,13 @@ def read_yolo_folder(
     w, h = image_size
     if w <= 0 or h <= 0:
         raise ConfigurationError(f"image size must be positive, got {w}×{h}")
+    names = folder / YOLO_CLASS_NAMES
+    if class_map is None and names.is_file():
+        listed = [line.strip() for line in decoded_lines(names, "YOLO class list")]
+        class_map = vehicle_classes_by_name(dict(enumerate(listed)))
     cmap = COCO_VEHICLES if class_map is None else class_map
     frames, tids, boxes, scores, classes = [], [], [], [], []
-    for path in sorted(folder.glob("*.txt")):
+    for path in sorted(p for p in folder.glob("*.txt") if p.name != YOLO_CLASS_NAMES):
         frame = _yolo_frame(path, frame_base)
         for lineno, line in numbered_lines(path, "YOLO label file"):
             tok = line.split()
