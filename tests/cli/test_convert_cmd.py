@@ -25,11 +25,19 @@ CSV = (
         ("yolo", "labels", ["--image-size", "1280x720"]),
     ],
 )
-def test_csv_round_trip(tmp_path: Path, fmt: str, name: str, extra: list[str]) -> None:
+def test_csv_round_trip(
+    tmp_path: Path, fmt: str, name: str, extra: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
     src = tmp_path / "boxes.csv"
     src.write_text(CSV)
     mid, back = tmp_path / name, tmp_path / "back.csv"
     assert main(["convert", str(src), str(mid), "--to", fmt, *extra]) == 0
+    unkept = [e for e in capsys.readouterr().err.splitlines() if e.startswith("not kept: ")]
+    assert unkept == (
+        ["not kept: class: MOT det.txt has none; 2 boxes of class Bus, Truck read back as Car"]
+        if fmt == "mot"
+        else []
+    )
     assert main(["convert", str(mid), str(back), "--from", fmt, *extra]) == 0
     lines = back.read_text().splitlines()
     expected = CSV.splitlines()

@@ -117,3 +117,56 @@ def test_yolo_is_not_written_into_a_folder_of_label_files(tmp_path: Path) -> Non
             table.select([True, False]), folder, "yolo", BoxFileOptions(image_size=(100, 50))
         )
     assert sorted(p.name for p in folder.iterdir()) == ["000000.txt", "000005.txt"]
+
+
+any_px = st.floats(1.0, 1000.0, allow_nan=False).map(lambda v: round(v, 4))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(any_px, any_px, any_px, any_px, st.floats(0.0, 1.0).map(lambda v: round(v, 9))),
+        min_size=1,
+        max_size=5,
+    ),
+    st.sampled_from([BoxFormat.CSV, BoxFormat.MOT, BoxFormat.COCO, BoxFormat.YOLO]),
+)
+def test_boxes_come_back_as_written_not_rounded_to_6_digits(
+    tmp_path_factory: pytest.TempPathFactory, rows: list, fmt: BoxFormat
+) -> None:
+    """Box corners like 1234.5678 px and scores like 0.123456789 were written with 6
+    significant digits (1234.57, 0.123457): a conversion moved every box by up to 5 mpx."""
+    folder = tmp_path_factory.mktemp("exact")
+    target = folder / ("b.json" if fmt is BoxFormat.COCO else "b")
+    boxes = [[x, y, x + 1 + w, y + 1 + h] for x, y, w, h, _ in rows]
+    table = BoxTable.build([0] * len(rows), boxes, None, [r[4] for r in rows])
+    options = BoxFileOptions(image_size=(2100, 2100))
+    write_boxes(table, target, fmt, options)
+    back = read_boxes(target, fmt, options)
+    np.testing.assert_allclose(back.boxes, table.boxes, rtol=0, atol=2e-9)
+    np.testing.assert_array_equal(back.score, table.score)
+
+
+def test_conversions_say_what_the_target_does_not_keep(tmp_path: Path) -> None:
+    """csv → mot turned a Truck and a Pedestrian into Cars, unknown scores into -1 and dropped
+    gt_distance_m; csv → yolo dropped every score and track id when one score was unknown;
+    all without a word."""
+    from slopedist.detections.convert import convert_boxes, unkept
+
+    source = tmp_path / "b.csv"
+    source.write_text(
+        "frame,left,top,right,bottom,track_id,score,class,gt_distance_m\n"
+        "0,10,20,110,80,3,0.9,Truck,12.5\n0,200,30,260,90,,,Car,\n"
+        "1,300,100,400,200,-1,0.5,Pedestrian,\n",
+        encoding="utf-8",
+    )
+    table = read_boxes(source)
+    mot = unkept(table, "mot")
+    assert "Pedestrian, Truck read back as Car" in mot[0] and "2 boxes" in mot[0]
+    assert mot[1].startswith("score: 1 unknown") and "gt_distance_m" in mot[2]
+    yolo = unkept(table, "yolo")
+    assert yolo[0].startswith("score: 1 of 2 boxes") and yolo[1].startswith("track_id")
+    assert unkept(table, "coco") == ["column(s) gt_distance_m: not in the 'coco' layout"]
+    assert unkept(table, "csv") == []
+    n_read, n_left, notes = convert_boxes(source, tmp_path / "det.txt", target_format="mot")
+    assert (n_read, n_left, notes) == (3, 0, mot)

@@ -232,3 +232,42 @@ def test_coco_reader_fails_only_with_a_named_error(
         assert "r.json" in str(exc)
     else:
         assert table.boxes.shape == (len(table), 4)  # non-finite boxes: flagged by estimators
+
+
+def test_coco_file_names_that_are_frame_numbers_give_those_frames(tmp_path: Path) -> None:
+    """A CVAT export of images 9.png, 10.png and 8.png (folders in the names) gave frames 2, 0
+    and 1 (file names sorted as text, renumbered from 0), where `slopedist run` on the image
+    folder numbers them 9, 10 and 8: every box was estimated with another frame's rotation."""
+    from slopedist.detections.formats import read_coco_image_map
+
+    images = [
+        {"id": 1, "file_name": "seq/9.png"},
+        {"id": 2, "file_name": "seq\\000010.png"},
+        {"id": 3, "file_name": "8.jpg"},
+    ]
+    path = tmp_path / "cvat.json"
+    path.write_text(json.dumps({"images": images, "annotations": [], "categories": []}))
+    assert read_coco_image_map(path) == {1: 9, 2: 10, 3: 8}
+    images.append({"id": 4, "file_name": "other/0009.png"})
+    path.write_text(json.dumps({"images": images}))
+    with pytest.raises(InputFileError, match=r"images\[3\].file_name.*frame number 9 also used"):
+        read_coco_image_map(path)
+    images[3]["file_name"] = "seq/b.png"  # not all numbered: the file-name order, as before
+    path.write_text(json.dumps({"images": images}))
+    assert read_coco_image_map(path) == {3: 0, 1: 1, 4: 2, 2: 3}
+
+
+def test_yolo_folder_with_a_labelimg_classes_txt(tmp_path: Path) -> None:
+    """labelImg writes classes.txt beside the labels: the folder failed ('YOLO label file name
+    must end with the frame number'), and without it a custom model's class 0 'car' was read as
+    COCO's person and dropped: zero boxes, no word."""
+    (tmp_path / "classes.txt").write_text("car\r\nperson\r\nTruck\r\n", encoding="utf-8")
+    (tmp_path / "img_000001.txt").write_text(
+        "0 0.5 0.5 0.1 0.1\n1 0.2 0.2 0.1 0.1\n2 0.5 0.5 0.2 0.2\n"
+    )
+    (tmp_path / "img_000002.txt").write_text("")
+    table = read_yolo_folder(tmp_path, (1000, 500))
+    assert table.frame.tolist() == [1, 1] and list(table.cls) == ["Car", "Truck"]
+    np.testing.assert_allclose(table.boxes[0], [450, 225, 550, 275])
+    # an explicit class map is used as given
+    assert list(read_yolo_folder(tmp_path, (1000, 500), {1: "Car"}).cls) == ["Car"]

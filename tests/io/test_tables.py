@@ -104,3 +104,12 @@ def test_json_dash_writes_stdout(capsys: pytest.CaptureFixture[str]) -> None:
 )
 def test_dumps_json_always_strict(value: object) -> None:
     json.loads(dumps_json(value), parse_constant=lambda c: pytest.fail(c))
+
+
+def test_exact_cell_keeps_what_6_digits_would_round() -> None:
+    from slopedist.io.tables import exact_cell
+
+    assert exact_cell(1234.5678) == "1234.5678" and exact_cell(0.1234567891) == "0.1234567891"
+    assert exact_cell(100.0) == "100" and exact_cell(0.25) == "0.25"  # as format_cell
+    assert exact_cell(float(np.float32(0.9))) == "0.9"  # a detector's float32 score
+    assert exact_cell(float("nan")) == "" and exact_cell(3) == 3 and exact_cell("Car") == "Car"

@@ -66,6 +66,8 @@ def convert(
         parse_size(image_size, option="--image-size"), coco_images, frame_base, min_score
     )
     layout = target_format_of(target, target_format).value
-    n_read, n_left = convert_boxes(source, target, source_format, layout, options)
+    n_read, n_left, unkept = convert_boxes(source, target, source_format, layout, options)
     note = f", {n_left} left out (class not in the '{layout}' class list)" if n_left else ""
     click.echo(f"{n_read} boxes from {source} written to {target}{note}", err=True)
+    for line in unkept:
+        click.echo(f"not kept: {line}", err=True)

@@ -13,9 +13,17 @@ from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.format_writers import write_coco, write_mot, write_yolo_folder
+import numpy as np
+
+from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.detections.format_writers import (
+    _class_indices,
+    write_coco,
+    write_mot,
+    write_yolo_folder,
+)
 from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
+from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import (
     POINTRCNN_FIELDS,
     read_box_csv,
@@ -164,17 +172,53 @@ def write_boxes(
     )
 
 
+def unkept(table: BoxTable, fmt: BoxFormat | str) -> list[str]:
+    """What writing ``table`` in layout ``fmt`` does not keep, one note per field (empty: the
+    boxes read back as they are; boxes left out for their class are counted by
+    :func:`write_boxes`)."""
+    kind = BoxFormat(fmt)
+    notes = []
+    n = len(table)
+    if kind is BoxFormat.MOT:
+        other = sorted({str(c) for c in table.cls} - {"Car"})
+        if other:
+            k = int(np.count_nonzero(table.cls != "Car"))
+            notes.append(
+                f"class: MOT det.txt has none; {k} boxes of class {', '.join(other)} read back "
+                "as Car"
+            )
+        k = int(np.count_nonzero(~np.isfinite(table.score)))
+        if k:
+            notes.append(f"score: {k} unknown scores written as -1 (MOT's placeholder)")
+    if kind is BoxFormat.YOLO:
+        _, ok = _class_indices(table, COCO_VEHICLES)
+        k = int(np.count_nonzero(~np.isfinite(table.score[ok])))
+        if k:
+            notes.append(f"score: {k} of {int(ok.sum())} boxes have none, so no box's is written")
+            if np.any(table.track_id[ok] != NO_TRACK):
+                notes.append("track_id: written only with scores, so not written")
+    if kind is not BoxFormat.CSV:
+        lost = list(table.extra)
+    else:
+        lost = [k for k, v in table.extra.items() if np.ndim(v) != 1]
+    if lost and n:
+        notes.append(f"column(s) {', '.join(lost)}: not in the '{kind.value}' layout")
+    return notes
+
+
 def convert_boxes(
     source: str | Path,
     target: str | Path,
     source_format: BoxFormat | str = BoxFormat.AUTO,
     target_format: BoxFormat | str = BoxFormat.AUTO,
     options: BoxFileOptions | None = None,
-) -> tuple[int, int]:
+) -> tuple[int, int, list[str]]:
     """Read ``source`` and write it to ``target`` (in ``target_format``, or the layout its
-    suffix names: :func:`target_format_of`); returns (boxes read, boxes left out)."""
+    suffix names: :func:`target_format_of`); returns (boxes read, boxes left out, what the
+    target does not keep: :func:`unkept`)."""
     target_format = target_format_of(target, target_format)
     if target_format is BoxFormat.YOLO and (options or BoxFileOptions()).image_size is None:
         raise ConfigurationError("YOLO label files are normalised: give the image size")
     table = read_boxes(source, source_format, options)
-    return len(table), write_boxes(table, target, target_format, options)
+    notes = unkept(table, target_format)
+    return len(table), write_boxes(table, target, target_format, options), notes

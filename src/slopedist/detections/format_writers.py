@@ -1,8 +1,9 @@
 """Writing boxes as MOTChallenge ``det.txt``, COCO results JSON and YOLO label folders.
 
 The layouts are those :mod:`slopedist.detections.formats` reads back. Numbers are formatted by
-:func:`slopedist.io.tables.format_cell`. A box whose class has no index in the target format
-(e.g. ``DontCare`` in COCO) is left out; each writer returns how many were.
+:func:`slopedist.io.tables.exact_cell` (in full where ``.6g`` would round them: the boxes read
+back as written). A box whose class has no index in the target format (e.g. ``DontCare`` in
+COCO) is left out; each writer returns how many were.
 
 - MOT ``det.txt``: ``frame+frame_base, id, left, top, width, height, conf, -1, -1, -1``; no class;
   an unknown track id or score is written ``-1`` (MOT's placeholder).
@@ -24,7 +25,7 @@ from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.formats import COCO_CATEGORIES
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.errors import ConfigurationError
-from slopedist.io.tables import format_cell, write_json
+from slopedist.io.tables import exact_cell, write_json
 
 EXTRA_NAME_ALIASES = {"Van": "Car"}
 """Classes written as another one when the target format has no index of their own."""
@@ -41,7 +42,7 @@ def _class_indices(table: BoxTable, class_map: Mapping[int, str]) -> tuple[np.nd
 
 
 def _line(values: list[object], sep: str) -> str:
-    return sep.join(str(format_cell(v)) for v in values) + "\n"
+    return sep.join(str(exact_cell(v)) for v in values) + "\n"
 
 
 def write_mot(table: BoxTable, path: str | Path, frame_base: int = 1) -> int:

@@ -17,7 +17,8 @@ bottom`` in pixels, 0-based frame indices) and fails with an
 - **YOLO** folder: one ``<name><frame>.txt`` per frame (the trailing number of the name is the
   frame, minus ``frame_base``), lines ``class cx cy w h [conf [track_id]]`` normalised to the image
   size, which must be given. Class indices are YOLO's (COCO order, car 2, see
-  :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`).
+  :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`), or named by the folder's
+  ``classes.txt`` (labelImg's class list) when it has one.
 
 Classes not in a map are dropped. Writers for each (for ``slopedist convert``) are in
 :mod:`slopedist.detections.format_writers`.
@@ -28,7 +29,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Mapping
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -43,8 +44,9 @@ from slopedist.detections.readers import (
     score_value,
 )
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.io.framefiles import frame_number
 from slopedist.limits import MAX_INDEX
-from slopedist.textfiles import numbered_lines, read_json
+from slopedist.textfiles import decoded_lines, numbered_lines, read_json
 
 MOT_CLASSES: dict[int, str] = {
     1: "Pedestrian",
@@ -125,7 +127,9 @@ def _load_json(path: str | Path) -> Any:
 
 def read_coco_image_map(path: str | Path) -> dict[int, int]:
     """Image id → frame from a COCO dataset file's ``images``: their ``frame_id`` (or
-    ``frame_index``) when every image has one, else the order of their ``file_name``."""
+    ``frame_index``) when every image has one; else, when every ``file_name`` is named by a
+    frame number (``seq/000123.png``), that number, as the frames of an image folder are
+    numbered (:mod:`slopedist.io.framefiles`); else the order of their ``file_name``."""
     data = _load_json(path)
     images = data.get("images") if isinstance(data, dict) else None
     if not isinstance(images, list):
@@ -139,15 +143,39 @@ def read_coco_image_map(path: str | Path) -> dict[int, int]:
                 for i, im in enumerate(images)
             }
     try:
-        ordered = sorted(range(len(images)), key=lambda i: str(images[i]["file_name"]))
+        names = [str(im["file_name"]) for im in images]
     except (KeyError, TypeError):
         raise InputFileError(
             path, "every image needs an integer 'id' and a 'file_name'", field="images"
         ) from None
+    numbers = [frame_number(PurePosixPath(n.replace("\\", "/")).stem) for n in names]
+    if images and all(k is not None for k in numbers):
+        return _numbered_image_map(path, images, numbers)
+    ordered = sorted(range(len(images)), key=lambda i: names[i])
     return {
         _coco_index(path, f"images[{i}].id", images[i].get("id"), None): frame
         for frame, i in enumerate(ordered)
     }
+
+
+def _numbered_image_map(
+    path: str | Path, images: list[Any], numbers: list[int | None]
+) -> dict[int, int]:
+    """Image id → the frame number of its ``file_name`` (``seq/000123.png`` → 123), as
+    :func:`~slopedist.io.framefiles.list_frame_files` numbers the files of an image folder."""
+    frames: dict[int, int] = {}
+    by_frame: dict[int, int] = {}
+    for i, (im, k) in enumerate(zip(images, numbers)):
+        frame = _coco_index(path, f"images[{i}].file_name", k, 0)
+        if frame in by_frame:
+            raise InputFileError(
+                path,
+                f"frame number {frame} also used by images[{by_frame[frame]}]",
+                field=f"images[{i}].file_name",
+            )
+        by_frame[frame] = i
+        frames[_coco_index(path, f"images[{i}].id", im.get("id"), None)] = frame
+    return frames
 
 
 def _coco_class_map(
@@ -157,15 +185,21 @@ def _coco_class_map(
     if class_map is not None:
         return class_map
     if isinstance(data, dict) and isinstance(data.get("categories"), list):
-        by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
-        return {
-            _coco_index(path, f"categories[{i}].id", c.get("id"), None): by_name[
-                str(c["name"]).lower()
-            ]
-            for i, c in enumerate(data["categories"])
-            if isinstance(c, dict) and str(c.get("name", "")).lower() in by_name
-        }
+        return vehicle_classes_by_name(
+            {
+                _coco_index(path, f"categories[{i}].id", c.get("id"), None): str(c["name"])
+                for i, c in enumerate(data["categories"])
+                if isinstance(c, dict) and "name" in c
+            }
+        )
     return COCO_CATEGORIES
+
+
+def vehicle_classes_by_name(names: Mapping[int, str]) -> dict[int, str]:
+    """Class index → slopedist class name of the ``names`` (a file's own class list) that name
+    one of COCO's vehicle classes, in any case (``car`` → ``Car``)."""
+    by_name = {v.lower(): v for v in COCO_CATEGORIES.values()}
+    return {k: by_name[v.lower()] for k, v in names.items() if v.lower() in by_name}
 
 
 def _coco_index(path: str | Path, field: str, value: Any, lowest: int | None) -> int:
@@ -246,6 +280,14 @@ def read_coco(
     return BoxTable.build(frames, _corner_array(boxes), tids, scores, classes)
 
 
+YOLO_CLASS_NAMES = "classes.txt"
+"""The class list labelImg and other YOLO label tools write beside the label files: one name
+per line, line k naming class index k."""
+
+YOLO_PX_DECIMALS = 9
+"""Decimals of a pixel the corners of a YOLO box are rounded to (its normalised values are
+fractions of the image size, which binary floats hold inexactly)."""
+
 _TRAILING_NUMBER = re.compile(r"(\d+)$")
 
 
@@ -272,9 +314,13 @@ def read_yolo_folder(
     w, h = image_size
     if w <= 0 or h <= 0:
         raise ConfigurationError(f"image size must be positive, got {w}×{h}")
+    names = folder / YOLO_CLASS_NAMES
+    if class_map is None and names.is_file():
+        listed = [line.strip() for line in decoded_lines(names, "YOLO class list")]
+        class_map = vehicle_classes_by_name(dict(enumerate(listed)))
     cmap = COCO_VEHICLES if class_map is None else class_map
     frames, tids, boxes, scores, classes = [], [], [], [], []
-    for path in sorted(folder.glob("*.txt")):
+    for path in sorted(p for p in folder.glob("*.txt") if p.name != YOLO_CLASS_NAMES):
         frame = _yolo_frame(path, frame_base)
         for lineno, line in numbered_lines(path, "YOLO label file"):
             tok = line.split()
@@ -290,7 +336,10 @@ def read_yolo_folder(
                 continue
             frames.append(frame)
             xywh = [(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h]
-            boxes.append(_corners(path, xywh, line=lineno, field="cx,cy,w,h"))
+            corners = _corners(path, xywh, line=lineno, field="cx,cy,w,h")
+            # to the nanopixel: fractions of the image (1/720) leave ~1e-13 px of rounding,
+            # so that a box write_yolo_folder wrote comes back as it was (200, not 199.99…97)
+            boxes.append([round(v, YOLO_PX_DECIMALS) for v in corners])
             scores.append(score)
             tids.append(tid)
             classes.append(cmap[cls])

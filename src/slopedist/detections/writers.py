@@ -9,7 +9,7 @@ import numpy as np
 
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import CSV_BOX_COLUMNS
-from slopedist.io.tables import CsvStreamWriter
+from slopedist.io.tables import CsvStreamWriter, exact_cell
 
 
 def write_box_csv(boxes: BoxTable, path: str | Path, extra: tuple[str, ...] | None = None) -> Path:
@@ -19,7 +19,8 @@ def write_box_csv(boxes: BoxTable, path: str | Path, extra: tuple[str, ...] | No
     Columns: ``frame,left,top,right,bottom,track_id,score,class`` then the one-dimensional extra
     columns named in ``extra`` (default: all of them, e.g. ``z`` in metres), which readers
     ignore. Rows are in frame order; the cells follow :mod:`slopedist.io.tables` (NaN as an
-    empty field, LF line ends).
+    empty field, LF line ends), numbers in full where ``.6g`` would round them
+    (:func:`~slopedist.io.tables.exact_cell`): the file reads back as the same boxes.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -36,9 +37,9 @@ def box_values(boxes: BoxTable, extra: list[str] | tuple[str, ...] = ()) -> Iter
     for i in range(len(boxes)):
         yield [
             int(boxes.frame[i]),
-            *boxes.boxes[i],
+            *(exact_cell(v) for v in boxes.boxes[i]),
             int(boxes.track_id[i]),
-            boxes.score[i],
+            exact_cell(boxes.score[i]),
             boxes.cls[i],
-            *(boxes.extra[k][i] for k in extra),
+            *(exact_cell(boxes.extra[k][i]) for k in extra),
         ]

@@ -31,6 +31,12 @@ _FRAME_NUMBER = re.compile(r"[0-9]+")
 _log = logging.getLogger(__name__)
 
 
+def frame_number(stem: str) -> int | None:
+    """The frame index a file with this stem has in an image folder that has numbered files
+    (``000123`` → 123), or None when the stem is not a frame number."""
+    return int(stem) if _FRAME_NUMBER.fullmatch(stem) else None
+
+
 @dataclass(frozen=True)
 class FolderFrames:
     """The frames of an image folder (see :func:`list_frame_files`).

@@ -49,6 +49,18 @@ def format_cell(value: Any) -> Any:
     return value
 
 
+def exact_cell(value: Any) -> Any:
+    """:func:`format_cell`, but a float that ``.6g`` would round is written in full (the
+    shortest text that reads back as the same number): for values a file must keep exactly,
+    such as box coordinates. A value that is a float32 (a detector's score, 0.8999999761581421)
+    is written as that float32's shortest text (0.9), which reads back as the same float32."""
+    text = format_cell(value)
+    if isinstance(value, (float, np.floating)) and text and float(text) != float(value):
+        single = np.float32(value)
+        return repr(float(value)) if float(single) != float(value) else str(single)
+    return text
+
+
 def format_row(row: Mapping[str, Any]) -> dict[str, Any]:
     """:func:`format_cell` applied to every value of a record."""
     return {k: format_cell(v) for k, v in row.items()}
