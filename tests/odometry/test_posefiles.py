@@ -208,3 +208,36 @@ def test_auto_format_on_real_oxts_and_orbslam(kitti_tracking_dir: Path) -> None:
     for seq in ("0000", "0004", "0006", "0014"):
         data = np.loadtxt(kitti_tracking_dir / "orbslam3_poses" / f"{seq}.txt").reshape(-1, 3, 4)
         assert vehicle_frame_evidence(data[:, :, 3], data[:, :, :3]) is None
+
+
+def test_kitti_poses_written_as_4x4_matrices_read_as_3x4(tmp_path: Path) -> None:
+    R = Rotation.from_euler("xyz", [[0.1, 0.2, 0.3], [0.15, 0.25, 0.3]]).as_matrix()
+    write_kitti(tmp_path / "p12.txt", R)
+    rows = [
+        [*line.split(), "0", "0", "0", "1"]
+        for line in (tmp_path / "p12.txt").read_text().splitlines()
+    ]
+    (tmp_path / "p16.txt").write_text("".join(" ".join(r) + "\n" for r in rows))
+    expected = read_kitti_poses(tmp_path / "p12.txt")
+    for track in (read_kitti_poses(tmp_path / "p16.txt"), read_pose_file(tmp_path / "p16.txt")):
+        np.testing.assert_array_equal(track.R_world_cam, expected.R_world_cam)
+    rows[1][-1] = "2"
+    (tmp_path / "bad.txt").write_text("".join(" ".join(r) + "\n" for r in rows))
+    with pytest.raises(InputFileError, match=r"line 2, field 'm30..m33': a 4×4 pose's last row"):
+        read_kitti_poses(tmp_path / "bad.txt")
+
+
+def test_tum_timestamps_in_nanoseconds_are_refused(tmp_path: Path) -> None:
+    """They read as seconds 10⁸ apart: the look-back of one second then took the previous
+    frame, whatever the frame rate."""
+    path = tmp_path / "ns.txt"
+    path.write_text(
+        "".join(
+            f"{1_600_000_000_000_000_000 + k * 100_000_000} 0 0 {k} 0 0 0 1\n" for k in range(5)
+        )
+    )
+    with pytest.raises(
+        InputFileError, match=r"ns.txt, line 2, field 't': poses are 1e\+08 s apart"
+    ):
+        read_tum_poses(path)
+    assert len(read_tum_poses(path, frame_period_s=0.1)) == 5  # its t column is not used

@@ -34,13 +34,16 @@ class PoseFormat(str, Enum):
 
 
 def _read_numeric_rows(
-    path: str | Path, n_fields: int, names: list[str]
+    path: str | Path, n_fields: int, names: list[str], also: int | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """``(rows × n_fields numbers, the file line of each row)``."""
+    """``(rows × n_fields numbers, the file line of each row)``; with ``also``, every row may
+    instead have that many numbers (the first row decides; ``names`` covers the longer)."""
     rows: list[list[float]] = []
     lines: list[int] = []
     for lineno, line in numbered_lines(path, "pose file"):
         tokens = line.replace(",", " ").split()
+        if not rows and also is not None and len(tokens) == also:
+            n_fields = also
         if len(tokens) != n_fields:
             raise InputFileError(
                 path, f"expected {n_fields} numbers, found {len(tokens)}", line=lineno
@@ -63,6 +66,12 @@ def _pose_number(path: str | Path, lineno: int, name: str, tok: str) -> float:
 
 
 KITTI_POSE_FIELDS = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in range(4)]
+KITTI_4X4_FIELDS = [*KITTI_POSE_FIELDS, "m30", "m31", "m32", "m33"]
+"""A KITTI pose line written as the whole 4×4 matrix (last row ``0 0 0 1``)."""
+
+MAX_FRAME_INTERVAL_S = 10.0
+"""Largest median time between a pose file's poses, seconds: frames further apart give no
+look-back of a second; timestamps in milli-, micro- or nanoseconds read as seconds do."""
 TUM_POSE_FIELDS = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
 
 
@@ -80,11 +89,22 @@ def _check_rotations(path: str | Path, R: NDArray[np.float64], lines: NDArray[np
 def read_kitti_poses(
     path: str | Path, frame_period_s: float = KITTI_FRAME_PERIOD_S
 ) -> RotationTrack:
-    """KITTI pose file: 12 numbers per line, row-major 3×4 camera-to-world ``[R | t]``.
+    """KITTI pose file: 12 numbers per line, row-major 3×4 camera-to-world ``[R | t]`` (or
+    16, the whole 4×4 with its last row ``0 0 0 1``).
 
     Frame k gets timestamp ``k × frame_period_s``. Rotations are made relative to the first pose.
     """
-    data, lines = _read_numeric_rows(path, 12, KITTI_POSE_FIELDS)
+    data, lines = _read_numeric_rows(path, 12, KITTI_4X4_FIELDS, also=16)
+    if data.shape[1] == 16:  # the whole 4×4: its last row must be 0 0 0 1
+        bad = np.flatnonzero(np.any(np.abs(data[:, 12:] - [0, 0, 0, 1]) > 1e-9, axis=1))
+        if bad.size:
+            raise InputFileError(
+                path,
+                "a 4×4 pose's last row must be 0 0 0 1",
+                line=int(lines[bad[0]]),
+                field="m30..m33",
+            )
+        data = data[:, :12]
     R = data.reshape(-1, 3, 4)[:, :, :3]
     _check_rotations(path, R, lines)
     R = R[0].T @ R
@@ -137,6 +157,14 @@ def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> Rot
         k = int(back[0]) + 1
         raise InputFileError(
             path, f"time {t[k]:g} s does not follow {t[k - 1]:g} s", line=int(lines[k]), field="t"
+        )
+    if len(t) > 1 and (step := float(np.median(np.diff(t)))) > MAX_FRAME_INTERVAL_S:
+        raise InputFileError(
+            path,
+            f"poses are {step:g} s apart (median): timestamps in milliseconds, microseconds "
+            "or nanoseconds? The t column is in seconds",
+            line=int(lines[1]),
+            field="t",
         )
     return RotationTrack.from_arrays(t, R)
 
