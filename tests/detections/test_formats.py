@@ -23,13 +23,14 @@ def _write(path: Path, text: str) -> Path:
 def test_mot_det_txt_is_one_based_and_keeps_scores(tmp_path: Path) -> None:
     path = _write(
         tmp_path / "det.txt",
-        "1,-1,100.5,200,50,40,0.9,-1,-1,-1\n3,-1,10,20,30,40,-2.5,-1,-1,-1\n",
+        "1,-1,100.5,200,50,40,0.9,-1,-1,-1\n3,-1,10,20,30,40,-2.5,-1,-1,-1\n"
+        "4,-1,10,20,30,40,-1,-1,-1,-1\n",
     )
     table = read_mot(path)
-    assert table.frame.tolist() == [0, 2] and table.track_id.tolist() == [-1, -1]
-    np.testing.assert_allclose(table.boxes, [[100.5, 200, 150.5, 240], [10, 20, 40, 60]])
-    np.testing.assert_allclose(table.score, [0.9, -2.5])
-    assert list(table.cls) == ["Car", "Car"]
+    assert table.frame.tolist() == [0, 2, 3] and table.track_id.tolist() == [-1, -1, -1]
+    np.testing.assert_allclose(table.boxes[:2], [[100.5, 200, 150.5, 240], [10, 20, 40, 60]])
+    np.testing.assert_allclose(table.score, [0.9, -2.5, np.nan])  # -1: MOT's "no score"
+    assert list(table.cls) == ["Car", "Car", "Car"]
 
 
 def test_mot_gt_txt_drops_ignored_rows_and_names_classes(tmp_path: Path) -> None:
@@ -67,6 +68,7 @@ def test_coco_results_with_identity_and_given_image_map(tmp_path: Path) -> None:
         {"image_id": 4, "category_id": 3, "bbox": [10, 20, 30, 40], "score": 0.5},
         {"image_id": 5, "category_id": 8, "bbox": [1, 2, 3, 4], "score": 0.7, "track_id": 9},
         {"image_id": 5, "category_id": 1, "bbox": [1, 2, 3, 4], "score": 0.9},  # person
+        {"image_id": 5, "category_id": 3, "bbox": [0, 0, 90, 40], "iscrowd": 1},  # a group
     ]
     path = _write(tmp_path / "res.json", json.dumps(items))
     table = read_coco(path)

@@ -189,7 +189,9 @@ def unkept(table: BoxTable, fmt: BoxFormat | str) -> list[str]:
             )
         k = int(np.count_nonzero(~np.isfinite(table.score)))
         if k:
-            notes.append(f"score: {k} unknown scores written as -1 (MOT's placeholder)")
+            notes.append(
+                f"score: {k} unknown scores written as -1 (MOT's placeholder, read back as unknown)"
+            )
     if kind is BoxFormat.YOLO:
         _, ok = _class_indices(table, COCO_VEHICLES)
         k = int(np.count_nonzero(~np.isfinite(table.score[ok])))

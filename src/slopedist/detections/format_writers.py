@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
-from slopedist.detections.formats import COCO_CATEGORIES
+from slopedist.detections.formats import COCO_CATEGORIES, MOT_UNKNOWN_SCORE
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.errors import ConfigurationError
 from slopedist.io.tables import exact_cell, write_json
@@ -53,7 +53,7 @@ def write_mot(table: BoxTable, path: str | Path, frame_base: int = 1) -> int:
     with path.open("w", encoding="utf-8", newline="") as fh:
         for i in order:
             left, top, right, bottom = table.boxes[i]
-            score = table.score[i] if np.isfinite(table.score[i]) else -1
+            score = table.score[i] if np.isfinite(table.score[i]) else MOT_UNKNOWN_SCORE
             row = [int(table.frame[i]) + frame_base, int(table.track_id[i]), left, top]
             fh.write(_line([*row, right - left, bottom - top, score, -1, -1, -1], ","))
     return 0

@@ -8,12 +8,15 @@ bottom`` in pixels, 0-based frame indices) and fails with an
   height, conf, …`` with 1-based frames (``frame_base``). Nine fields is a ``gt.txt``
   (``…, flag, class, visibility``): rows with flag 0 (to be ignored) are dropped, and the MOT17
   class index is named by :data:`MOT_CLASSES`. Otherwise (7 or 10 fields) it is a ``det.txt``:
-  ``id`` −1 = no track, ``conf`` the score, class ``Car``.
+  ``id`` −1 = no track, ``conf`` the score (−1 = unknown, as the format's writers put it),
+  class ``Car``.
 - **COCO JSON**: a results list ``[{"image_id", "category_id", "bbox": [x, y, w, h], "score"},
   …]`` or a dataset file with ``images``/``annotations``/``categories``. ``image_id`` becomes the
   frame through an image-id → frame map (given, read from a dataset file's ``images`` by
   :func:`read_coco_image_map`, or the identity). ``category_id`` is COCO's (car 3, truck 8) and
-  named by :data:`COCO_CATEGORIES`; an optional ``track_id`` key is kept.
+  named by :data:`COCO_CATEGORIES`; an optional ``track_id`` key is kept. A crowd annotation
+  (``iscrowd`` 1: one box around a group of objects, which COCO's own evaluation ignores) is no
+  vehicle's box and is left out.
 - **YOLO** folder: one ``<name><frame>.txt`` per frame (the trailing number of the name is the
   frame, minus ``frame_base``), lines ``class cx cy w h [conf [track_id]]`` normalised to the image
   size, which must be given. Class indices are YOLO's (COCO order, car 2, see
@@ -63,6 +66,8 @@ COCO_CATEGORIES: dict[int, str] = {3: "Car", 4: "Motorcycle", 6: "Bus", 8: "Truc
 """COCO category id (1-based, with gaps, as in COCO JSON) → slopedist class name."""
 
 MOT_DET_FIELDS = ("frame", "id", "left", "top", "width", "height", "conf")
+MOT_UNKNOWN_SCORE = -1.0
+"""A ``conf`` of −1: no score (how MOTChallenge files, and slopedist's writer, say so)."""
 MOT_GT_FIELDS = (*MOT_DET_FIELDS[:6], "flag", "class", "visibility")
 
 
@@ -113,7 +118,7 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
             scores.append(np.nan)
         else:
             classes.append("Car")
-            scores.append(v["conf"])
+            scores.append(np.nan if v["conf"] == MOT_UNKNOWN_SCORE else v["conf"])
         frames.append(v["frame"] - frame_base)
         tids.append(v["id"] if v["id"] >= 0 else NO_TRACK)
         xywh = [v["left"], v["top"], v["width"], v["height"]]
@@ -260,7 +265,7 @@ def read_coco(
         if not (isinstance(bbox, list) and len(bbox) == 4):
             raise InputFileError(path, "expected [x, y, width, height]", field=f"[{i}].bbox")
         xywh = [_coco_number(path, i, {"bbox": b}, "bbox", float) for b in bbox]
-        if category not in cmap:
+        if category not in cmap or item.get("iscrowd") in (1, True):
             continue
         if image_frames is not None and image not in image_frames:
             raise InputFileError(
