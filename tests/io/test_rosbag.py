@@ -16,15 +16,17 @@ from slopedist.camera import Camera
 from slopedist.cli import main
 from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
 from slopedist.io.frames import FrameStatus, ImageFolderSource
-from slopedist.io.rosbag import (
-    LogFrameSource,
+from slopedist.io.log_topics import (
     camera_info_topic,
-    decode_image,
-    is_log_path,
-    log_topics,
     read_camera_info,
     read_orientations,
     read_speeds,
+)
+from slopedist.io.rosbag import (
+    LogFrameSource,
+    decode_image,
+    is_log_path,
+    log_topics,
 )
 from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, LogTopics, write_log
 
@@ -251,7 +253,7 @@ def camera_info_msg(D: list[float], model: str = "plumb_bob") -> object:
 
 
 def test_camera_info_raw_stream_keeps_the_distortion_rectified_stream_uses_p() -> None:
-    from slopedist.io.rosbag import intrinsics_from_info
+    from slopedist.io.log_topics import intrinsics_from_info
 
     raw = intrinsics_from_info(camera_info_msg([-0.3, 0.1, 0.0, 0.0, 0.0]), rectified=False)
     assert raw.K[0, 0] == 500.0 and raw.K[1, 1] == 498.0

@@ -18,13 +18,15 @@ from slopedist.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.errors import ConfigurationError
 from slopedist.io.calibration import CameraCalibration
 from slopedist.io.frames import FrameSource, open_frames, read_timestamps
-from slopedist.io.rosbag import (
-    LogFrameSource,
+from slopedist.io.log_topics import (
     camera_info_topic,
-    is_log_path,
     read_camera_info,
     read_orientations,
     read_speeds,
+)
+from slopedist.io.rosbag import (
+    LogFrameSource,
+    is_log_path,
     storage_files,
 )
 from slopedist.io.video import open_video
@@ -82,7 +84,7 @@ def log_calibration(
 ) -> CameraCalibration:
     """The calibration of a drive log's image topic, from the ``camera_info`` topic next to it
     (rectified intrinsics for an ``image_rect…`` topic; see
-    :func:`slopedist.io.rosbag.intrinsics_from_info`); the mount in metres and radians.
+    :func:`slopedist.io.log_topics.intrinsics_from_info`); the mount in metres and radians.
 
     Raises:
         ConfigurationError: ``source`` is not a drive log (give a calibration file), or the log
