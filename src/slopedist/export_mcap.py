@@ -12,10 +12,12 @@ Messages are JSON (``jsonschema`` schemas), one set per frame, log time = the fr
 - ``/slopedist/image`` — ``foxglove.CompressedImage`` (JPEG, frame id ``camera``), when images
   are embedded;
 - ``/slopedist/annotations`` — ``foxglove.ImageAnnotations``: each box as a closed line in its
-  track's colour, and its label (``#track distance m`` or ``missing: reason``);
+  track's colour (red without a distance to act on), and its label (``#track distance m``,
+  ``<= bound m (reason)`` for an upper bound, or ``missing: reason``);
 - ``/slopedist/frame`` — ``slopedist.Frame``: frame index, time (s), the image reference (file
   name or ``topic#index`` of the source), frame status, θ (degrees), and every target (track,
-  box in pixels, distance in metres, status, reason) — the numbers, for plots and checks;
+  box in pixels, distance in metres (the bound of an ``upper_bound``), status, reason) — the
+  numbers, for plots and checks;
 - ``/slopedist/gradient`` — ``slopedist.Gradient``: θ (degrees) and the lead distance (m), a
   series for Foxglove's Plot panel.
 
@@ -150,25 +152,42 @@ def _number(x: float) -> float | None:
 
 
 def frame_targets(boxes: BoxTable, estimates: FrameEstimates) -> list[dict[str, Any]]:
-    """One dict per target: track id, box (pixels), distance (m, None if missing), status."""
+    """One dict per target: track id, box (pixels), distance (m, None if missing; the bound of
+    an ``upper_bound`` row), status (``ok``, ``upper_bound`` or ``missing``) and reason."""
     return [
         {
             "track_id": int(boxes.track_id[i]),
             "box": [float(c) for c in boxes.boxes[i]],
             "distance_m": _number(estimates.distance_m[i]),
-            "status": "ok" if estimates.reason[i] == "" else "missing",
+            "status": str(estimates.status[i]),
             "reason": str(estimates.reason[i]),
         }
         for i in range(len(boxes))
     ]
 
 
+def target_label(target: dict[str, Any]) -> str:
+    """A target's label as the overlay writes it: ``#track distance m`` for ``ok``,
+    ``#track <= bound m (reason)`` for an upper bound, ``#track missing: reason`` otherwise
+    (never a number for a distance that is withheld)."""
+    name = f"#{target['track_id']} " if target["track_id"] >= 0 else ""
+    z, status = target["distance_m"], target["status"]
+    if status == "ok" and z is not None:
+        return f"{name}{z:.1f} m"
+    if status == "upper_bound" and z is not None:
+        return f"{name}<= {z:.1f} m ({target['reason']})"
+    return f"{name}missing: {target['reason'] or 'no distance'}"
+
+
 def image_annotations(t_ns: int, targets: list[dict[str, Any]]) -> dict[str, Any]:
-    """``foxglove.ImageAnnotations`` of the targets (boxes as closed lines, labels)."""
+    """``foxglove.ImageAnnotations`` of the targets (boxes as closed lines, labels
+    (:func:`target_label`); a box with a coordinate that is not finite has neither)."""
     points, texts = [], []
     for tg in targets:
+        if not all(math.isfinite(c) for c in tg["box"]):
+            continue  # nowhere to draw it: its reason is in the slopedist.Frame message
         left, top, right, bottom = tg["box"]
-        ok = tg["status"] == "ok"
+        ok = tg["status"] == "ok" and tg["distance_m"] is not None
         colour = _colour(track_colour(tg["track_id"]) if ok else FIG3_MISSING)
         corners = [(left, top), (right, top), (right, bottom), (left, bottom)]
         points.append(
@@ -182,8 +201,7 @@ def image_annotations(t_ns: int, targets: list[dict[str, Any]]) -> dict[str, Any
                 "thickness": 2.0,
             }
         )
-        name = f"#{tg['track_id']} " if tg["track_id"] >= 0 else ""
-        text = f"{name}{tg['distance_m']:.1f} m" if ok else f"{name}missing: {tg['reason']}"
+        text = target_label(tg)
         texts.append(
             {
                 "timestamp": _stamp(t_ns),
