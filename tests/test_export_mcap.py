@@ -123,3 +123,23 @@ def test_upper_bound_and_withheld_rows_are_labelled_as_the_overlay_does(tmp_path
         assert all(math.isfinite(q["x"]) and math.isfinite(q["y"]) for q in p["points"])
     red = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}
     assert [t["text_color"] == red for t in ann["texts"]] == [False, True, True]
+
+
+def test_frame_times_before_zero_are_exported_and_the_file_is_whole(tmp_path: Path) -> None:
+    """Frame times from -1 s (a timestamps file relative to a trigger): the negative log time
+    was a struct.error, and the file could not even be closed (no summary). The first frame is
+    now at log time 0, the bodies keep their times; a time in milliseconds read as seconds is a
+    clean error."""
+    from slopedist.errors import DataMismatchError
+
+    path = tmp_path / "run.mcap"
+    writer = McapExportWriter(path, "ours")
+    empty = BoxTable.build([], np.zeros((0, 4)))
+    for k in range(3):
+        writer.write_frame(k, -1.0 + 0.1 * k, f"{k}", "ok", None, empty, estimates([], []), 0.0)
+    with pytest.raises(DataMismatchError, match=r"frame 3: time 1700000000000\.0 s"):
+        writer.write_frame(3, 1.7e12, "3", "ok", None, empty, estimates([], []), 0.0)
+    writer.close()
+    frames = read_mcap_export(path)[FRAME_TOPIC]
+    assert [t for t, _ in frames] == [0, 100_000_000, 200_000_000]
+    assert [f["timestamp_s"] for _, f in frames] == pytest.approx([-1.0, -0.9, -0.8])

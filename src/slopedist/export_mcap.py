@@ -7,7 +7,8 @@ written by the small pure-Python ``mcap`` package (about 0.3 MB; optional extra 
 where the Rerun SDK is a 170 MB wheel with a file format that changes between versions.
 
 Messages are JSON (``jsonschema`` schemas), one set per frame, log time = the frame's time
-(``start_ns`` + timestamp):
+(``start_ns`` + timestamp; moved so that the first frame is at 0 when its time would be
+negative):
 
 - ``/slopedist/image`` — ``foxglove.CompressedImage`` (JPEG, frame id ``camera``), when images
   are embedded;
@@ -38,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.detections.boxes import BoxTable
-from slopedist.errors import InputFileError, OptionalDependencyError
+from slopedist.errors import DataMismatchError, InputFileError, OptionalDependencyError
 from slopedist.estimators.base import FrameEstimates
 from slopedist.io.tables import json_ready
 from slopedist.viz import FIG3_MISSING, track_colour
@@ -48,6 +49,9 @@ ANNOTATIONS_TOPIC = "/slopedist/annotations"
 FRAME_TOPIC = "/slopedist/frame"
 GRADIENT_TOPIC = "/slopedist/gradient"
 EXPORT_JPEG_QUALITY = 85
+MAX_LOG_TIME_NS = 2**63
+"""Log times of the export lie in ``[0, 2⁶³)`` ns (MCAP's are unsigned 64-bit; Foxglove reads
+them as signed)."""
 
 _TIME = {
     "type": "object",
@@ -253,6 +257,27 @@ class McapExportWriter:
         self._seq = 0
         self.frames = 0
 
+    def _log_time(self, index: int, timestamp_s: float) -> int:
+        """The log time (ns) of a frame time: ``start_ns`` + the time. MCAP log times are
+        unsigned: when the first frame's would be negative (frame times before 0 and no log
+        origin), the origin moves so that the first frame is at 0 (the JSON bodies keep the
+        frame times); a later frame before it (times that do not increase) is put at 0."""
+        ns = timestamp_s * 1e9
+        if not math.isfinite(ns) or abs(ns) >= MAX_LOG_TIME_NS:
+            raise DataMismatchError(
+                f"frame {index}: time {timestamp_s} s is beyond the log times of an MCAP file "
+                f"({MAX_LOG_TIME_NS / 1e9:.3g} s): frame times are seconds"
+            )
+        if self.frames == 0 and self.start_ns + round(ns) < 0:
+            self.start_ns = -round(ns)
+        t_ns = max(self.start_ns + round(ns), 0)
+        if t_ns >= MAX_LOG_TIME_NS:
+            raise DataMismatchError(
+                f"frame {index}: log time {t_ns} ns is beyond those of an MCAP file "
+                f"({MAX_LOG_TIME_NS} ns)"
+            )
+        return t_ns
+
     def _put(self, topic: str, t_ns: int, body: dict[str, Any]) -> None:
         data = json.dumps(json_ready(body), allow_nan=False).encode("utf-8")
         self._writer.add_message(self._channels[topic], t_ns, data, t_ns, self._seq)
@@ -271,8 +296,14 @@ class McapExportWriter:
         lead: int | None = None,
     ) -> None:
         """Write one frame (``image`` None for frames without pixels; ``lead`` the index of the
-        lead vehicle among ``boxes``, if any)."""
-        t_ns = self.start_ns + round(timestamp_s * 1e9)
+        lead vehicle among ``boxes``, if any).
+
+        Raises:
+            DataMismatchError: a frame time that is not finite or lies beyond the log times an
+                MCAP file holds (0 to 2⁶³ ns, 292 years: a time in milliseconds or nanoseconds
+                read as seconds).
+        """
+        t_ns = self._log_time(index, timestamp_s)
         targets = frame_targets(boxes, estimates)
         theta_deg = _number(math.degrees(theta_rad)) if math.isfinite(theta_rad) else None
         if image is not None and self.embed_images:
