@@ -94,3 +94,52 @@ def test_export_schemas_are_named_for_foxglove(tmp_path: Path) -> None:
     assert {"foxglove.CompressedImage", "foxglove.ImageAnnotations"} <= names
     assert {s.encoding for s in summary.schemas.values()} == {"jsonschema"}
     assert {c.message_encoding for c in summary.channels.values()} == {"json"}
+
+
+def test_upper_bound_and_withheld_rows_are_labelled_as_the_overlay_does(tmp_path: Path) -> None:
+    """An upper bound is ``upper_bound`` with ``<=`` (not ``missing`` beside a number), a
+    withheld distance shows no number, and a box with a non-finite corner has no annotation
+    (a null coordinate is not a Foxglove point)."""
+    path = tmp_path / "run.mcap"
+    writer = McapExportWriter(path, "ours")
+    boxes = BoxTable.build(
+        [0] * 4, [[5, 6, 25, 30], [30, 8, 60, 47], [1, 1, 5, 5], [math.nan, 1, 2, 3]], [3, 7, -1, 2]
+    )
+    est = estimates(
+        [10.0, 8.0, math.nan, math.nan], ["", "cut_bottom", "too_uncertain", "non_finite_box"]
+    )
+    est.status = np.array(["ok", "upper_bound", "missing", "missing"], dtype=object)
+    writer.write_frame(0, 0.0, "000000.png", "ok", None, boxes, est, 0.01, lead=0)
+    writer.close()
+    data = read_mcap_export(path)
+    targets = data[FRAME_TOPIC][0][1]["targets"]
+    assert [t["status"] for t in targets] == ["ok", "upper_bound", "missing", "missing"]
+    assert targets[1]["distance_m"] == 8.0
+    ann = data[ANNOTATIONS_TOPIC][0][1]
+    texts = [t["text"] for t in ann["texts"]]
+    assert texts == ["#3 10.0 m", "#7 <= 8.0 m (cut_bottom)", "missing: too_uncertain"]
+    assert len(ann["points"]) == 3
+    for p in ann["points"]:
+        assert all(math.isfinite(q["x"]) and math.isfinite(q["y"]) for q in p["points"])
+    red = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}
+    assert [t["text_color"] == red for t in ann["texts"]] == [False, True, True]
+
+
+def test_frame_times_before_zero_are_exported_and_the_file_is_whole(tmp_path: Path) -> None:
+    """Frame times from -1 s (a timestamps file relative to a trigger): the negative log time
+    was a struct.error, and the file could not even be closed (no summary). The first frame is
+    now at log time 0, the bodies keep their times; a time in milliseconds read as seconds is a
+    clean error."""
+    from slopedist.errors import DataMismatchError
+
+    path = tmp_path / "run.mcap"
+    writer = McapExportWriter(path, "ours")
+    empty = BoxTable.build([], np.zeros((0, 4)))
+    for k in range(3):
+        writer.write_frame(k, -1.0 + 0.1 * k, f"{k}", "ok", None, empty, estimates([], []), 0.0)
+    with pytest.raises(DataMismatchError, match=r"frame 3: time 1700000000000\.0 s"):
+        writer.write_frame(3, 1.7e12, "3", "ok", None, empty, estimates([], []), 0.0)
+    writer.close()
+    frames = read_mcap_export(path)[FRAME_TOPIC]
+    assert [t for t, _ in frames] == [0, 100_000_000, 200_000_000]
+    assert [f["timestamp_s"] for _, f in frames] == pytest.approx([-1.0, -0.9, -0.8])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 from slopedist.tables import (
     Table,
@@ -63,3 +64,19 @@ def test_one_table_three_renderings() -> None:
     assert "<h2>Title &lt;1&gt;</h2>" in page and "<td><b>1.235</b></td>" in page
     assert "a note<br>second line" in page
     assert TABLE.records()[1] == {"sequence": "0001", "n": 2, "flat": TABLE.rows[1][2]}
+
+
+def _gfm_cells(row: str) -> list[str]:
+    """The cells of a GitHub Markdown table row (split on the pipes that are not escaped)."""
+    return [c.strip() for c in re.split(r"(?<!\\)\|", row.strip())[1:-1]]
+
+
+def test_markdown_names_with_pipes_and_tags_keep_their_columns() -> None:
+    """A sequence named ``a|b<i>`` was written as is: GitHub read two cells (every value moved
+    under the next method's column) and an ``<i>`` tag."""
+    table = Table("t", "Title", ["sequence", "flat", "ours"], [["a|b<i>*`", 9.5, 2.25]])
+    md = format_markdown(table).splitlines()
+    header, row = _gfm_cells(md[2]), _gfm_cells(md[4])
+    assert header == ["sequence", "flat", "ours"]
+    assert row == [r"a\|b&lt;i>\*\`", "9.50", "2.25"]
+    assert "δ<1.25" in format_markdown(Table("t", "T", ["δ<1.25"], [[1.0]]))  # not a tag

@@ -115,3 +115,14 @@ def test_a_cut_box_is_its_four_sides_dashed() -> None:
             cv2.line(expected, (col, y), (col, min(y + 8, 55)), (255, 160, 0), 2, cv2.LINE_8)
     assert np.array_equal(image, expected)
     assert viz.dash_spans(10, 10, 8, 5).shape == (0, 2)  # nothing to draw
+
+
+def test_the_lead_vehicle_is_a_target_with_a_distance_to_act_on() -> None:
+    """The lead (its banner shows a plain number) is chosen by status: an ``upper_bound`` or
+    ``missing`` row with an empty reason was taken for the lead, its bound in the banner."""
+    boxes, est = _frame([[140, 120, 180, 160], [150, 110, 170, 130]], 0.0)
+    assert viz.lead_index(CAM, boxes, est) == 0
+    est.status = np.array(["upper_bound", "ok"], dtype=object)  # reasons stay empty
+    assert viz.lead_index(CAM, boxes, est) == 1
+    est.status = np.array(["upper_bound", "missing"], dtype=object)
+    assert viz.lead_index(CAM, boxes, est) is None

@@ -7,15 +7,18 @@ written by the small pure-Python ``mcap`` package (about 0.3 MB; optional extra 
 where the Rerun SDK is a 170 MB wheel with a file format that changes between versions.
 
 Messages are JSON (``jsonschema`` schemas), one set per frame, log time = the frame's time
-(``start_ns`` + timestamp):
+(``start_ns`` + timestamp; moved so that the first frame is at 0 when its time would be
+negative):
 
 - ``/slopedist/image`` — ``foxglove.CompressedImage`` (JPEG, frame id ``camera``), when images
   are embedded;
 - ``/slopedist/annotations`` — ``foxglove.ImageAnnotations``: each box as a closed line in its
-  track's colour, and its label (``#track distance m`` or ``missing: reason``);
+  track's colour (red without a distance to act on), and its label (``#track distance m``,
+  ``<= bound m (reason)`` for an upper bound, or ``missing: reason``);
 - ``/slopedist/frame`` — ``slopedist.Frame``: frame index, time (s), the image reference (file
   name or ``topic#index`` of the source), frame status, θ (degrees), and every target (track,
-  box in pixels, distance in metres, status, reason) — the numbers, for plots and checks;
+  box in pixels, distance in metres (the bound of an ``upper_bound``), status, reason) — the
+  numbers, for plots and checks;
 - ``/slopedist/gradient`` — ``slopedist.Gradient``: θ (degrees) and the lead distance (m), a
   series for Foxglove's Plot panel.
 
@@ -36,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.detections.boxes import BoxTable
-from slopedist.errors import InputFileError, OptionalDependencyError
+from slopedist.errors import DataMismatchError, InputFileError, OptionalDependencyError
 from slopedist.estimators.base import FrameEstimates
 from slopedist.io.tables import json_ready
 from slopedist.viz import FIG3_MISSING, track_colour
@@ -46,6 +49,9 @@ ANNOTATIONS_TOPIC = "/slopedist/annotations"
 FRAME_TOPIC = "/slopedist/frame"
 GRADIENT_TOPIC = "/slopedist/gradient"
 EXPORT_JPEG_QUALITY = 85
+MAX_LOG_TIME_NS = 2**63
+"""Log times of the export lie in ``[0, 2⁶³)`` ns (MCAP's are unsigned 64-bit; Foxglove reads
+them as signed)."""
 
 _TIME = {
     "type": "object",
@@ -150,25 +156,42 @@ def _number(x: float) -> float | None:
 
 
 def frame_targets(boxes: BoxTable, estimates: FrameEstimates) -> list[dict[str, Any]]:
-    """One dict per target: track id, box (pixels), distance (m, None if missing), status."""
+    """One dict per target: track id, box (pixels), distance (m, None if missing; the bound of
+    an ``upper_bound`` row), status (``ok``, ``upper_bound`` or ``missing``) and reason."""
     return [
         {
             "track_id": int(boxes.track_id[i]),
             "box": [float(c) for c in boxes.boxes[i]],
             "distance_m": _number(estimates.distance_m[i]),
-            "status": "ok" if estimates.reason[i] == "" else "missing",
+            "status": str(estimates.status[i]),
             "reason": str(estimates.reason[i]),
         }
         for i in range(len(boxes))
     ]
 
 
+def target_label(target: dict[str, Any]) -> str:
+    """A target's label as the overlay writes it: ``#track distance m`` for ``ok``,
+    ``#track <= bound m (reason)`` for an upper bound, ``#track missing: reason`` otherwise
+    (never a number for a distance that is withheld)."""
+    name = f"#{target['track_id']} " if target["track_id"] >= 0 else ""
+    z, status = target["distance_m"], target["status"]
+    if status == "ok" and z is not None:
+        return f"{name}{z:.1f} m"
+    if status == "upper_bound" and z is not None:
+        return f"{name}<= {z:.1f} m ({target['reason']})"
+    return f"{name}missing: {target['reason'] or 'no distance'}"
+
+
 def image_annotations(t_ns: int, targets: list[dict[str, Any]]) -> dict[str, Any]:
-    """``foxglove.ImageAnnotations`` of the targets (boxes as closed lines, labels)."""
+    """``foxglove.ImageAnnotations`` of the targets (boxes as closed lines, labels
+    (:func:`target_label`); a box with a coordinate that is not finite has neither)."""
     points, texts = [], []
     for tg in targets:
+        if not all(math.isfinite(c) for c in tg["box"]):
+            continue  # nowhere to draw it: its reason is in the slopedist.Frame message
         left, top, right, bottom = tg["box"]
-        ok = tg["status"] == "ok"
+        ok = tg["status"] == "ok" and tg["distance_m"] is not None
         colour = _colour(track_colour(tg["track_id"]) if ok else FIG3_MISSING)
         corners = [(left, top), (right, top), (right, bottom), (left, bottom)]
         points.append(
@@ -182,8 +205,7 @@ def image_annotations(t_ns: int, targets: list[dict[str, Any]]) -> dict[str, Any
                 "thickness": 2.0,
             }
         )
-        name = f"#{tg['track_id']} " if tg["track_id"] >= 0 else ""
-        text = f"{name}{tg['distance_m']:.1f} m" if ok else f"{name}missing: {tg['reason']}"
+        text = target_label(tg)
         texts.append(
             {
                 "timestamp": _stamp(t_ns),
@@ -235,6 +257,27 @@ class McapExportWriter:
         self._seq = 0
         self.frames = 0
 
+    def _log_time(self, index: int, timestamp_s: float) -> int:
+        """The log time (ns) of a frame time: ``start_ns`` + the time. MCAP log times are
+        unsigned: when the first frame's would be negative (frame times before 0 and no log
+        origin), the origin moves so that the first frame is at 0 (the JSON bodies keep the
+        frame times); a later frame before it (times that do not increase) is put at 0."""
+        ns = timestamp_s * 1e9
+        if not math.isfinite(ns) or abs(ns) >= MAX_LOG_TIME_NS:
+            raise DataMismatchError(
+                f"frame {index}: time {timestamp_s} s is beyond the log times of an MCAP file "
+                f"({MAX_LOG_TIME_NS / 1e9:.3g} s): frame times are seconds"
+            )
+        if self.frames == 0 and self.start_ns + round(ns) < 0:
+            self.start_ns = -round(ns)
+        t_ns = max(self.start_ns + round(ns), 0)
+        if t_ns >= MAX_LOG_TIME_NS:
+            raise DataMismatchError(
+                f"frame {index}: log time {t_ns} ns is beyond those of an MCAP file "
+                f"({MAX_LOG_TIME_NS} ns)"
+            )
+        return t_ns
+
     def _put(self, topic: str, t_ns: int, body: dict[str, Any]) -> None:
         data = json.dumps(json_ready(body), allow_nan=False).encode("utf-8")
         self._writer.add_message(self._channels[topic], t_ns, data, t_ns, self._seq)
@@ -253,8 +296,14 @@ class McapExportWriter:
         lead: int | None = None,
     ) -> None:
         """Write one frame (``image`` None for frames without pixels; ``lead`` the index of the
-        lead vehicle among ``boxes``, if any)."""
-        t_ns = self.start_ns + round(timestamp_s * 1e9)
+        lead vehicle among ``boxes``, if any).
+
+        Raises:
+            DataMismatchError: a frame time that is not finite or lies beyond the log times an
+                MCAP file holds (0 to 2⁶³ ns, 292 years: a time in milliseconds or nanoseconds
+                read as seconds).
+        """
+        t_ns = self._log_time(index, timestamp_s)
         targets = frame_targets(boxes, estimates)
         theta_deg = _number(math.degrees(theta_rad)) if math.isfinite(theta_rad) else None
         if image is not None and self.embed_images:

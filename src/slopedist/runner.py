@@ -235,10 +235,10 @@ class _RunLoop:
             self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
             if config.decode_ahead:  # encoded behind the loop, in a thread
                 self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
-        # an offline method's export shows its causal pass, as the frames come: say so
-        shown = f"{self.method} (causal pass)" if self.held is not None else self.method
+        # an offline method's overlay and export show its causal pass, as the frames come: say so
+        self.shown = f"{self.method} (causal pass)" if self.held is not None else self.method
         self.export = (
-            McapExportWriter(partial_path(config.mcap), shown, config.time_origin_ns)
+            McapExportWriter(partial_path(config.mcap), self.shown, config.time_origin_ns)
             if config.mcap
             else None
         )
@@ -438,7 +438,7 @@ class _RunLoop:
             res.estimates,
             theta,
             head,
-            self.method,
+            self.shown,
         )
         if isinstance(self.painter, BackgroundOverlay) and not snapshot:
             self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread

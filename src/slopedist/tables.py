@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -106,17 +107,37 @@ def format_texts(tables: Sequence[Table]) -> str:
     return "\n\n".join(format_text(t) for t in tables)
 
 
+_TAG_START = re.compile(r"<(?=[A-Za-z/!?])")
+"""A ``<`` that Markdown would read as the start of an HTML tag (``δ<1.25`` is not one)."""
+
+
+def markdown_text(text: str) -> str:
+    """``text`` as it reads in Markdown: a ``<`` that would open an HTML tag as ``&lt;`` and a
+    line break as a space."""
+    return " ".join(_TAG_START.sub("&lt;", text).splitlines())
+
+
+def markdown_cell(text: str) -> str:
+    """``text`` as one cell of a Markdown table (:func:`markdown_text`, with ``\\``, ``|``,
+    ``*`` and backticks escaped: a ``|`` in a name would split its row into one more cell and
+    move every value after it under the next column)."""
+    for c in "\\|*`":
+        text = text.replace(c, "\\" + c)
+    return markdown_text(text)
+
+
 def format_markdown(table: Table) -> str:
-    """GitHub Markdown, best values in bold."""
+    """GitHub Markdown, best values in bold; text from the data (names) escaped
+    (:func:`markdown_cell`)."""
 
     def md(i: int, j: int) -> str:
-        c = table.cell(i, j)
+        c = markdown_cell(table.cell(i, j))
         return f"**{c}**" if table.is_bold(i, j) else c
 
     lines = [
-        f"### {table.title}",
+        f"### {markdown_text(table.title)}",
         "",
-        "| " + " | ".join(table.headers) + " |",
+        "| " + " | ".join(markdown_cell(h) for h in table.headers) + " |",
         "|" + "|".join("---:" if j else ":---" for j in range(len(table.headers))) + "|",
     ]
     lines += [
@@ -124,7 +145,7 @@ def format_markdown(table: Table) -> str:
         for i in range(len(table.rows))
     ]
     if table.note:
-        lines += ["", *(f"{n}  " for n in table.note.splitlines())]
+        lines += ["", *(f"{markdown_text(n)}  " for n in table.note.splitlines())]
     return "\n".join(lines)
 
 

@@ -164,12 +164,13 @@ def is_cut(box: NDArray[np.float64], width: int, height: int) -> bool:
 
 
 def lead_index(camera: Camera, boxes: BoxTable, estimates: FrameEstimates) -> int | None:
-    """Index of the lead vehicle: the nearest target with a distance whose bottom centre lies
-    in the ego lane (lateral offset ``(b_x − c_x)/f · z`` within :data:`LANE_HALF_WIDTH_M`)."""
+    """Index of the lead vehicle: the nearest target of status ``ok`` (an upper bound is not a
+    distance to show as one, whatever its reason) whose bottom centre lies in the ego lane
+    (lateral offset ``(b_x − c_x)/f · z`` within :data:`LANE_HALF_WIDTH_M`)."""
     best: int | None = None
     for i in range(len(boxes)):
         z = float(estimates.distance_m[i])
-        if estimates.reason[i] != "" or not math.isfinite(z):
+        if estimates.status[i] != "ok" or not math.isfinite(z):  # only a distance to act on
             continue
         left, _, right, _ = (float(c) for c in boxes.boxes[i])
         lateral_m = ((left + right) / 2 - camera.c_x) / camera.f * z

@@ -301,3 +301,27 @@ def test_an_offline_runs_export_says_it_shows_the_causal_pass(tmp_path: Path) ->
     frames = read_mcap_export(out / "run.mcap")[FRAME_TOPIC]
     assert {f["method"] for _, f in frames} == {"ours-offline (causal pass)"}
     assert {r["method"] for r in read_rows(out / "records.csv")} == {"ours-offline"}
+
+
+def test_an_offline_runs_overlay_says_it_shows_the_causal_pass(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`run --offline --snapshot N`: the overlay's header named 'ours-offline' over the causal
+    pass's distances (records.csv holds other numbers under that name); it says so, as the
+    MCAP export does."""
+    import slopedist.runner as runner
+
+    methods: list[object] = []
+    draw = runner.draw_fig3_overlay
+
+    def spy(*args: object, **kwargs: object) -> np.ndarray:
+        methods.append(args[6] if len(args) > 6 else kwargs.get("method"))
+        return draw(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(runner, "draw_fig3_overlay", spy)
+    args = make_inputs(tmp_path, 3)
+    args[args.index("--method") + 1] = "ours"
+    out = tmp_path / "out"
+    assert main(["run", *args, "--offline", "--snapshot", "1", "--out", str(out)]) == 0
+    assert (out / "snapshot_000001.jpg").is_file()
+    assert methods == ["ours-offline (causal pass)"]

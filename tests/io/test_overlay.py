@@ -163,3 +163,13 @@ def test_killed_overlay_plays_in_a_browser(tmp_path: Path) -> None:
     assert float(seen["duration"]) >= 3.0
     grey = [int(g) for g in seen["grey"].split(",")]
     assert grey == pytest.approx([0, 40, 116], abs=4)  # frames 0, 10, 29
+
+
+def test_frame_times_before_zero_keep_their_spacing(tmp_path: Path) -> None:
+    """Frame times from -1 s: every frame was put one millisecond after the previous one (the
+    whole video played in a blink); the first frame is now at 0 and the spacing is kept."""
+    writer = OverlayWriter(tmp_path / "o.mp4", fps=10.0)
+    for k in range(4):
+        writer.write(k, np.full((48, 64, 3), 50 * k, np.uint8), -1.0 + 0.1 * k)
+    writer.close()
+    assert decoded(tmp_path / "o.mp4")[2] == pytest.approx([0.0, 0.1, 0.2, 0.3])

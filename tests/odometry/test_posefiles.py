@@ -241,3 +241,25 @@ def test_tum_timestamps_in_nanoseconds_are_refused(tmp_path: Path) -> None:
     ):
         read_tum_poses(path)
     assert len(read_tum_poses(path, frame_period_s=0.1)) == 5  # its t column is not used
+
+
+def test_tum_writer_leaves_out_a_pose_that_is_not_one(tmp_path: Path) -> None:
+    """A rotation with NaN (a frame the odometry lost), a null matrix or a NaN time has no
+    line: it was a LinAlgError / ValueError ending the run, or a ``nan`` time written as one."""
+    from slopedist.odometry.posefiles import TUM_HEADER, TumPoseWriter
+
+    writer = TumPoseWriter(tmp_path / "traj.tum")
+    assert writer.write(0.0, np.eye(3))
+    assert not writer.write(0.1, np.full((3, 3), np.nan))
+    assert not writer.write(0.2, np.zeros((3, 3)))
+    assert not writer.write(math.nan, np.eye(3))
+    assert not writer.write(0.3, np.eye(3), np.array([0.0, math.inf, 0.0]))
+    assert writer.write(0.4, np.eye(3))
+    writer.close()
+    assert (writer.poses, writer.skipped) == (2, 4)
+    lines = (tmp_path / "traj.tum").read_text().splitlines()
+    assert lines == [
+        TUM_HEADER,
+        "0.0 0.0 0.0 0.0 0.0 0.0 0.0 1.0",
+        "0.4 0.0 0.0 0.0 0.0 0.0 0.0 1.0",
+    ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -41,3 +42,19 @@ def test_every_csv_has_lf_line_ends_and_the_json_is_strict(tmp_path: Path) -> No
     assert math.isnan(data.timing["paper"]["depth_ms"])
     assert report["timing"]["paper"]["depth_ms"] is None
     assert report["kind"] == "run" and report["overall"]["paper"]["n"] == 1
+
+
+def test_markdown_report_of_a_run_named_with_a_pipe_and_a_tag(tmp_path: Path) -> None:
+    """A run folder named ``s<i>|2``: its Table 1 row keeps its columns (the ``|`` split it,
+    moving the RMSE under the next header) and its name opens no HTML tag in report.md."""
+    rows = [_record(0, 10.0, 11.0), _record(1, 21.0, 20.0)]
+    frames = [{"frame": k, "estimation_ms": 1.0} for k in range(2)]
+    write_run(tmp_path / "s<i>|2", rows, frames)
+    data = report_data(tmp_path / "s<i>|2", ReportOptions())
+    write_report(data, tmp_path / "out", parquet=False)
+    md = (tmp_path / "out" / "report.md").read_text(encoding="utf-8")
+    assert "sequences: s&lt;i>|2." in md  # (a code span shows ``<i>`` as it is)
+    table = md[md.index("| sequence |") :].split("\n\n")[0].splitlines()
+    widths = {len(re.split(r"(?<!\\)\|", line)) for line in table}
+    assert len(widths) == 1, table
+    assert any(line.startswith(r"| s&lt;i>\|2 |") for line in table), table

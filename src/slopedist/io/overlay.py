@@ -83,11 +83,18 @@ class H264Writer:
         stream.codec_context.gop_size = max(round(fps), 1)
         self._stream = stream
         self._last_pts = -1
+        self._offset_s = 0.0
 
     def write(self, image: NDArray[np.uint8], timestamp_s: float) -> None:
         """Encode one BGR frame shown at ``timestamp_s`` seconds (times must increase; a time
-        that does not is moved to one millisecond after the previous frame)."""
+        that does not is moved to one millisecond after the previous frame). Frame times that
+        start before 0 (a timestamps file from -1 s) are moved so that the first frame is at 0:
+        a video's times cannot be negative."""
         import av
+
+        if self._last_pts < 0:  # the first frame
+            self._offset_s = max(-timestamp_s, 0.0)
+        timestamp_s += self._offset_s
 
         # OpenCV's BT.601 conversion: decoders give back the colours within 2 levels (swscale's
         # default conversion is 3-4 levels off)

@@ -299,22 +299,37 @@ class TumPoseWriter:
         self._fh.write(TUM_HEADER + "\n")
         self._fh.flush()
         self.poses = 0
+        self.skipped = 0
 
     def write(
         self,
         timestamp_s: float,
         R_world_cam: NDArray[np.float64],
         t_world_cam: NDArray[np.float64] | None = None,
-    ) -> None:
-        """Append one pose (rotation ``(3, 3)``, translation ``(3,)`` metres or None = 0)."""
+    ) -> bool:
+        """Append one pose (rotation ``(3, 3)``, translation ``(3,)`` metres or None = 0);
+        returns False, writing nothing, for a pose that is not one (a time, rotation or
+        translation with a value that is not finite, or a matrix that is not a rotation): a
+        frame without a rotation has no line (counted in :attr:`skipped`)."""
         from scipy.spatial.transform import Rotation  # here: 0.3 s of imports, rarely needed
 
         t = np.zeros(3) if t_world_cam is None else np.asarray(t_world_cam, dtype=float)
-        q = Rotation.from_matrix(np.asarray(R_world_cam, dtype=float)).as_quat()
+        R = np.asarray(R_world_cam, dtype=float)
+        if not (
+            math.isfinite(float(timestamp_s)) and np.isfinite(R).all() and np.isfinite(t).all()
+        ):
+            self.skipped += 1
+            return False
+        try:
+            q = Rotation.from_matrix(R).as_quat()
+        except (ValueError, np.linalg.LinAlgError):  # a null or left-handed matrix
+            self.skipped += 1
+            return False
         values = [float(timestamp_s), *(float(v) for v in t), *(float(v) for v in q)]
         self._fh.write(" ".join(repr(v) for v in values) + "\n")
         self._fh.flush()
         self.poses += 1
+        return True
 
     def close(self) -> None:
         self._fh.close()

@@ -19,7 +19,7 @@ from slopedist.io.tables import write_csv, write_json
 from slopedist.report.data import ReportData
 from slopedist.report.figures import Figure, report_figures
 from slopedist.report.tables import METRIC_RECORD_FIELDS, metric_records, report_tables
-from slopedist.tables import Table, format_html, format_markdown
+from slopedist.tables import Table, format_html, format_markdown, markdown_text
 
 HTML_SCRIPT = """<script>
 window.addEventListener('load', function () {
@@ -121,12 +121,20 @@ def _intro(data: ReportData) -> list[str]:
 
 def markdown_page(data: ReportData, tables: list[Table], figures: list[Figure]) -> str:
     """``report.md``: the notes, the tables, the figures (as files under ``figures/``)."""
-    md = [f"# {data.title}", "", *[f"- {n}" for n in _intro(data)], ""]
+    md = [f"# {_md(data.title)}", "", *[f"- {_md(n)}" for n in _intro(data)], ""]
     for t in tables:
         md += [format_markdown(t), ""]
     for f in figures:
-        md += [f"![{f.caption}](figures/{f.name})", "", f"*{f.caption}*", ""]
+        alt = _md(f.caption).replace("[", "\\[").replace("]", "\\]")
+        md += [f"![{alt}](figures/{f.name})", "", f"*{_md(f.caption)}*", ""]
     return "\n".join(md)
+
+
+def _md(text: str) -> str:
+    """A line of the report's text in Markdown: outside its code spans (between backticks),
+    names from the data cannot open an HTML tag (:func:`slopedist.tables.markdown_text`)."""
+    parts = text.split("`")
+    return "`".join(p if k % 2 else markdown_text(p) for k, p in enumerate(parts))
 
 
 def html_page(data: ReportData, tables: list[Table], figures: list[Figure]) -> str:
