@@ -168,8 +168,9 @@ def test_killed_overlay_plays_in_a_browser(tmp_path: Path) -> None:
 def test_frame_times_before_zero_keep_their_spacing(tmp_path: Path) -> None:
     """Frame times from -1 s: every frame was put one millisecond after the previous one (the
     whole video played in a blink); the first frame is now at 0 and the spacing is kept."""
-    writer = OverlayWriter(tmp_path / "o.mp4", fps=10.0)
-    for k in range(4):
-        writer.write(k, np.full((48, 64, 3), 50 * k, np.uint8), -1.0 + 0.1 * k)
-    writer.close()
-    assert decoded(tmp_path / "o.mp4")[2] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    for name, start in (("neg.mp4", -1.0), ("unix.mp4", 1_317_000_000.0)):  # and Unix times
+        writer = OverlayWriter(tmp_path / name, fps=10.0)
+        for k in range(4):
+            writer.write(k, np.full((48, 64, 3), 50 * k, np.uint8), start + 0.1 * k)
+        writer.close()
+        assert decoded(tmp_path / name)[2] == pytest.approx([0.0, 0.1, 0.2, 0.3], abs=1e-6)

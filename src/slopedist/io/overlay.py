@@ -87,13 +87,13 @@ class H264Writer:
 
     def write(self, image: NDArray[np.uint8], timestamp_s: float) -> None:
         """Encode one BGR frame shown at ``timestamp_s`` seconds (times must increase; a time
-        that does not is moved to one millisecond after the previous frame). Frame times that
-        start before 0 (a timestamps file from -1 s) are moved so that the first frame is at 0:
-        a video's times cannot be negative."""
+        that does not is moved to one millisecond after the previous frame). The first frame
+        is shown at 0 and the others keep their spacing: a video's times cannot be negative (a
+        timestamps file from -1 s), and one of Unix times would open on decades of nothing."""
         import av
 
         if self._last_pts < 0:  # the first frame
-            self._offset_s = max(-timestamp_s, 0.0)
+            self._offset_s = -timestamp_s
         timestamp_s += self._offset_s
 
         # OpenCV's BT.601 conversion: decoders give back the colours within 2 levels (swscale's
