@@ -211,3 +211,26 @@ def test_every_command_in_the_docs_exists(doc: Path) -> None:
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
 def test_every_relative_link_and_anchor_resolves(doc: Path) -> None:
     assert link_problems(doc) == []
+
+
+def _all_commands(group: click.Group, ctx: click.Context) -> list[click.Command]:
+    found: list[click.Command] = []
+    for name in group.list_commands(ctx):
+        sub = group.get_command(ctx, name)
+        assert sub is not None
+        found.append(sub)
+        if isinstance(sub, click.Group):
+            found += _all_commands(sub, ctx)
+    return found
+
+
+def test_the_docs_a_help_text_names_exist() -> None:
+    ctx = click.Context(cli)
+    commands = _all_commands(cli, ctx)
+    texts = [c.help or "" for c in commands] + [
+        p.help or "" for c in commands for p in c.params if isinstance(p, click.Option)
+    ]
+    named = {m for t in texts for m in re.findall(r"docs/[\w.-]+\.md", t)}
+    assert named  # the help texts do point to the docs
+    assert sorted(n for n in named if not (ROOT / n).exists()) == []
+    assert [t for t in texts if "README" in t] == []  # the README is a front door, not a reference
