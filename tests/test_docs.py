@@ -224,7 +224,7 @@ def _all_commands(group: click.Group, ctx: click.Context) -> list[click.Command]
     return found
 
 
-def test_the_docs_a_help_text_names_exist() -> None:
+def test_every_doc_a_help_text_names_exists() -> None:
     ctx = click.Context(cli)
     commands = _all_commands(cli, ctx)
     texts = [c.help or "" for c in commands] + [
