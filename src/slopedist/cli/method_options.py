@@ -163,7 +163,7 @@ _DEPTHMAP_OPTIONS = (
         default=DepthScaling.NONE.value,
         show_default=True,
         help="depthmap: per-frame median scaling for scale-less depth (contact = "
-        "flat-ground distances, truth = ground truth; see the README).",
+        "flat-ground distances, truth = ground truth; docs/evaluation.md).",
     ),
 )
 
