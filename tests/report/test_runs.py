@@ -173,3 +173,24 @@ def test_a_partial_run_is_named_in_the_notes_and_printed(tmp_path: Path) -> None
     assert "partial run" in (tmp_path / "rep" / "report.md").read_text()
     (folder / "run.json").write_text('{"sequence": "s", "complete": true}')
     assert report_data(folder, ReportOptions()).warnings == []
+
+
+def test_table2_compares_no_totals_when_a_rotation_was_not_timed(tmp_path: Path) -> None:
+    """``paper`` timed its built-in odometry; ``ours`` ran on a pose file (odometry '-'): its
+    smaller total lacks a part, so no total is marked best; ``flat``, which needs no rotation,
+    is compared."""
+    from slopedist.report.tables import table2
+
+    def run(method: str, frames: str) -> None:
+        rows = [r.replace(",paper,", f",{method},") for r in GOOD]
+        folder = _run(tmp_path / "runs" / method, rows, frames)
+        (folder / "run.json").write_text('{"sequence": "s"}')
+
+    run("paper", "frame,odometry_ms,estimation_ms\n0,5.0,1.0\n1,5.0,1.0\n")
+    run("flat", "frame,estimation_ms\n0,0.1\n1,0.1\n")
+    table = table2(report_data(tmp_path / "runs", ReportOptions()))
+    assert [r[0] for r in table.rows] == ["flat", "paper"] and table.bold[0][4]
+    run("ours", "frame,estimation_ms\n0,0.5\n1,0.5\n")
+    table = table2(report_data(tmp_path / "runs", ReportOptions()))
+    assert not any(b[4] for b in table.bold)
+    assert "Totals not compared: ours took rotations from elsewhere" in table.note

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from slopedist.estimators import ESTIMATORS
 from slopedist.report.data import ReportData
 from slopedist.report.fleet import fleet_tables
 from slopedist.score_tables import score_tables
@@ -23,7 +24,9 @@ def table2(data: ReportData) -> Table:
         parts = [t["odometry_ms"], t["estimation_ms"], t["depth_ms"]]
         finite = [p for p in parts if math.isfinite(p)]
         rows.append([m, *parts, float(sum(finite)) if finite else math.nan])
-    bold = [[False, False, False, False, b] for b in best_marks([r[4] for r in rows])]
+    untimed = _untimed_rotations(data, [r[1] for r in rows])
+    totals = best_marks([r[4] for r in rows]) if not untimed else [False] * len(rows)
+    bold = [[False, False, False, False, b] for b in totals]
     headers = ["method", "odometry", "estimation", "depth", "total"]
     detection = [data.timing[m].get("detection_ms", math.nan) for m in data.methods]
     note = (
@@ -31,6 +34,11 @@ def table2(data: ReportData) -> Table:
         "method ran on; '-' = not applicable or not measured. The 2D detector is excluded "
         "(shared by every method)."
     )
+    if untimed:
+        note += (
+            f" Totals not compared: {', '.join(untimed)} took rotations from elsewhere (a pose "
+            "file or an IMU), untimed, while another method's odometry was timed."
+        )
     if any(math.isfinite(d) for d in detection):
         headers.append("detection")
         rows = [[*r, d] for r, d in zip(rows, detection)]
@@ -47,6 +55,19 @@ def table2(data: ReportData) -> Table:
         note,
         {i: ".3f" for i in range(1, len(headers))},
     )
+
+
+def _untimed_rotations(data: ReportData, odometry_ms: list[float]) -> list[str]:
+    """The methods that need a rotation but whose odometry time is not measured, when another
+    method's is: their totals lack a part the others' hold (empty when nothing is timed, or
+    everything that needs a rotation is)."""
+    if not any(math.isfinite(t) for t in odometry_ms):
+        return []
+    return [
+        m
+        for m, t in zip(data.methods, odometry_ms)
+        if not math.isfinite(t) and getattr(ESTIMATORS.get(m), "needs_rotation", False)
+    ]
 
 
 def _theta_rows(data: ReportData, truth_source: str) -> list[list[Any]]:
