@@ -24,7 +24,7 @@ def table2(data: ReportData) -> Table:
         parts = [t["odometry_ms"], t["estimation_ms"], t["depth_ms"]]
         finite = [p for p in parts if math.isfinite(p)]
         rows.append([m, *parts, float(sum(finite)) if finite else math.nan])
-    untimed = _untimed_rotations(data, [r[1] for r in rows])
+    untimed = _untimed_rotations(data, [data.timing[m]["odometry_ms"] for m in data.methods])
     totals = best_marks([r[4] for r in rows]) if not untimed else [False] * len(rows)
     bold = [[False, False, False, False, b] for b in totals]
     headers = ["method", "odometry", "estimation", "depth", "total"]
