@@ -173,6 +173,28 @@ def test_the_records_dataset_has_the_columns_of_every_drive(tmp_path: Path) -> N
     assert table.column("drive").to_pylist() == ["a_paper", "b_ours"]
 
 
+def test_a_method_run_at_another_reference_point_is_pooled_apart(tmp_path: Path) -> None:
+    """``ours`` at its centre and ``ours`` at the nearest face measure different points: the
+    pooled accuracy and safety rows keep them apart (``ours@nearest_face``)."""
+    drive(tmp_path, "centre", [(0, 1, "ours", 11.0, "ok", "", 10.0)])
+    drive(tmp_path, "face", [(0, 1, "ours", 8.0, "ok", "", 10.0)])
+    for name, reference in (("centre", None), ("face", "nearest_face")):
+        options = {"method": "ours", "reference": reference}
+        summary = {"error": None, "method": "ours", "batch_inputs": {}, SETTINGS_KEY: options}
+        write_json(tmp_path / name / "run.json", summary)
+    fleet = fleet_summary(tmp_path)
+    assert [(r["method"], r["drives"], r["rmse"]) for r in fleet.pooled] == [
+        ("ours", 1, 1.0),
+        ("ours@nearest_face", 1, 2.0),
+    ]
+    assert [(r["drive"], r["method"]) for r in fleet.drives] == [
+        ("centre", "ours"),
+        ("face", "ours@nearest_face"),
+    ]
+    assert [r["method"] for r in fleet.safety_pooled] == ["ours", "ours@nearest_face"]
+    assert {r["method"] for r in fleet.by_range} == {"ours", "ours@nearest_face"}
+
+
 @pytest.mark.parametrize("value", ["1e308", "inf", "-inf"])
 def test_an_absurd_distance_is_one_error_naming_file_line_and_field(
     tmp_path: Path, value: str

@@ -28,7 +28,12 @@ from typing import Any
 import numpy as np
 
 from slopedist.batch.drive import completed_stamp
-from slopedist.batch.safety import DRIVE_SAFETY_FIELDS, POOLED_SAFETY_FIELDS, fleet_safety
+from slopedist.batch.safety import (
+    DRIVE_SAFETY_FIELDS,
+    POOLED_SAFETY_FIELDS,
+    fleet_method,
+    fleet_safety,
+)
 from slopedist.batch.settings import SETTING_COLUMNS, settings_cell
 from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
@@ -209,11 +214,15 @@ def batch_drive_folders(out_dir: Path) -> list[Path]:
     )
 
 
-def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
-    """Per method: distances, truths, reasons of ``records.csv`` (NaN where empty)."""
+def _read_pairs(folder: Path) -> dict[str, dict[str, Any]]:
+    """Per method (named by :func:`~slopedist.batch.safety.fleet_method`): distances, truths,
+    reasons of the folder's ``records.csv`` (NaN where empty)."""
+    summary = read_json(folder / SUMMARY_NAME, "run summary")
+    path = folder / RECORDS_NAME
     out: dict[str, dict[str, Any]] = {}
     for line, row in CsvRows(path, "run records"):
-        acc = out.setdefault(row.get("method") or "", {"d": [], "g": [], "r": []})
+        method = fleet_method(summary, row.get("method") or "")
+        acc = out.setdefault(method, {"d": [], "g": [], "r": []})
         for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
             acc[key].append(number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE))
         acc["r"].append(record_reason(row.get("status"), row.get("reason"), path, line))
@@ -232,7 +241,7 @@ def fleet_summary(out_dir: str | Path) -> FleetSummary:
     drives: list[dict[str, Any]] = []
     pooled: dict[str, dict[str, list[np.ndarray]]] = {}
     for folder in folders:
-        for method, acc in _read_pairs(folder / RECORDS_NAME).items():
+        for method, acc in _read_pairs(folder).items():
             d, g = np.asarray(acc["d"], float), np.asarray(acc["g"], float)
             capped, ok = cap_estimates(d, np.asarray(acc["r"], dtype=object))
             ok &= np.isfinite(g) & (g > 0)
