@@ -19,7 +19,7 @@ import pytest
 
 from slopedist.batch import BatchOptions, BatchResult, DriveStatus, load_drives, run_batch
 from slopedist.batch.drive import CRASH_ENV
-from slopedist.batch.engine import import_ray, kept_signal_handlers, output_lock
+from slopedist.batch.engine import LOCK_NAME, import_ray, kept_signal_handlers, output_lock
 from slopedist.batch.safety import SHORT_HEADWAY_S
 from slopedist.cli import main
 from slopedist.errors import ConfigurationError, OptionalDependencyError
@@ -90,7 +90,7 @@ def test_a_corrupt_drive_fails_alone(fleet: Fleet) -> None:
     assert "broken.csv, line 3" in row["error"]
     assert not (fleet.out / "broken").exists()
     assert not fleet.result.all_failed
-    assert not [p for p in fleet.out.iterdir() if p.name.startswith(".")]
+    assert [p.name for p in fleet.out.iterdir() if p.name.startswith(".")] == [LOCK_NAME]
 
 
 def test_a_worker_killed_mid_drive_is_retried(fleet: Fleet) -> None:
