@@ -19,10 +19,10 @@ import pytest
 
 from slopedist.batch import BatchOptions, BatchResult, DriveStatus, load_drives, run_batch
 from slopedist.batch.drive import CRASH_ENV
-from slopedist.batch.engine import import_ray, kept_signal_handlers
+from slopedist.batch.engine import LOCK_NAME, import_ray, kept_signal_handlers, output_lock
 from slopedist.batch.safety import SHORT_HEADWAY_S
 from slopedist.cli import main
-from slopedist.errors import OptionalDependencyError
+from slopedist.errors import ConfigurationError, OptionalDependencyError
 
 from .conftest import real_drive, run_alone, simulate, simulated_log, write_drive_log
 
@@ -90,7 +90,7 @@ def test_a_corrupt_drive_fails_alone(fleet: Fleet) -> None:
     assert "broken.csv, line 3" in row["error"]
     assert not (fleet.out / "broken").exists()
     assert not fleet.result.all_failed
-    assert not [p for p in fleet.out.iterdir() if p.name.startswith(".")]
+    assert [p.name for p in fleet.out.iterdir() if p.name.startswith(".")] == [LOCK_NAME]
 
 
 def test_a_worker_killed_mid_drive_is_retried(fleet: Fleet) -> None:
@@ -488,3 +488,17 @@ def test_an_output_folder_inside_a_drive_frame_folder_is_refused(
     assert err.startswith("slopedist: error: the output ") and "of drive 'crest'" in err
     assert len(err.splitlines()) == 1
     assert sorted(p.name for p in frames.iterdir()) == before
+
+
+def test_a_second_batch_into_a_running_batchs_output_is_refused(tmp_path: Path) -> None:
+    """Two batches into one OUT: the second would remove the first's running drives as
+    leftovers (and a drive failing there deletes its folder); it stops before touching OUT."""
+    out = tmp_path / "out"
+    running = out / ".tmp-d1-12345678"  # a drive of the first batch, running
+    running.mkdir(parents=True)
+    held = r"another slopedist batch \(process \d+\)"
+    with output_lock(out), pytest.raises(ConfigurationError, match=held):
+        run_batch([], out, BatchOptions(progress=False, parquet=False))
+    assert running.is_dir()
+    run_batch([], out, BatchOptions(progress=False, parquet=False))  # once the first has ended
+    assert not running.exists()

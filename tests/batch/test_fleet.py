@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import shutil
 from pathlib import Path
 
 import pytest
@@ -133,6 +134,65 @@ def test_the_records_dataset_keeps_drive_names_that_look_like_numbers(tmp_path: 
         write_partition(tmp_path, name)
     table = records_dataset(tmp_path).to_table()
     assert sorted(table.column("drive").to_pylist()) == ["007", "2011", "d1"]
+
+
+def test_a_kept_partition_is_one_of_the_drive_as_it_is_now(tmp_path: Path) -> None:
+    """A batch killed after a drive ran again but before its partition was rewritten: the next
+    batch skips the drive (its folder is complete) and must not keep the old run's records."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is not installed")
+    drive(tmp_path, "d1", [(0, 1, "paper", 11.0, "ok", "", 10.0)])
+    write_json(tmp_path / "d1" / "run.json", {"error": None, "batch_inputs": {"run": 1}})
+    write_partition(tmp_path, "d1")
+    shutil.rmtree(tmp_path / "d1")  # the drive runs again with another method
+    drive(tmp_path, "d1", [(0, 1, "ours", 12.0, "ok", "", 10.0)])
+    write_json(tmp_path / "d1" / "run.json", {"error": None, "batch_inputs": {"run": 2}})
+    path = write_partition(tmp_path, "d1", refresh=False)
+    assert pq.read_table(path).column("method").to_pylist() == ["ours"]
+    kept = path.stat().st_mtime_ns
+    assert write_partition(tmp_path, "d1", refresh=False).stat().st_mtime_ns == kept
+
+
+def test_the_records_dataset_has_the_columns_of_every_drive(tmp_path: Path) -> None:
+    """A dataset whose first drive has no truth and no ``ours`` columns still reads the truth
+    and the extra columns of the others (pyarrow alone takes the first file's schema)."""
+    pytest.importorskip("pyarrow.parquet", reason="pyarrow is not installed")
+    folder = tmp_path / "a_paper"
+    folder.mkdir()
+    write_csv(folder / "records.csv", [{"frame": 0, "method": "paper", "distance_m": 9.0}])
+    write_json(folder / "run.json", {"error": None, "batch_inputs": {}})
+    write_partition(tmp_path, "a_paper")
+    fields = (*FIELDS, "ttc_s", "track_uid")
+    rows = [dict(zip(fields, (0, 1, "ours", 11.0, "ok", "", 10.0, 2.5, 7)))]
+    drive(tmp_path, "b_ours", [])
+    write_csv(tmp_path / "b_ours" / "records.csv", rows, fields)
+    write_partition(tmp_path, "b_ours")
+    table = records_dataset(tmp_path).to_table().sort_by("drive")
+    assert table.column("gt_distance_m").to_pylist() == [None, 10.0]
+    assert table.column("ttc_s").to_pylist() == [None, 2.5]
+    assert table.column("track_uid").to_pylist() == [None, 7]
+    assert table.column("drive").to_pylist() == ["a_paper", "b_ours"]
+
+
+def test_a_method_run_at_another_reference_point_is_pooled_apart(tmp_path: Path) -> None:
+    """``ours`` at its centre and ``ours`` at the nearest face measure different points: the
+    pooled accuracy and safety rows keep them apart (``ours@nearest_face``)."""
+    drive(tmp_path, "centre", [(0, 1, "ours", 11.0, "ok", "", 10.0)])
+    drive(tmp_path, "face", [(0, 1, "ours", 8.0, "ok", "", 10.0)])
+    for name, reference in (("centre", None), ("face", "nearest_face")):
+        options = {"method": "ours", "reference": reference}
+        summary = {"error": None, "method": "ours", "batch_inputs": {}, SETTINGS_KEY: options}
+        write_json(tmp_path / name / "run.json", summary)
+    fleet = fleet_summary(tmp_path)
+    assert [(r["method"], r["drives"], r["rmse"]) for r in fleet.pooled] == [
+        ("ours", 1, 1.0),
+        ("ours@nearest_face", 1, 2.0),
+    ]
+    assert [(r["drive"], r["method"]) for r in fleet.drives] == [
+        ("centre", "ours"),
+        ("face", "ours@nearest_face"),
+    ]
+    assert [r["method"] for r in fleet.safety_pooled] == ["ours", "ours@nearest_face"]
+    assert {r["method"] for r in fleet.by_range} == {"ours", "ours@nearest_face"}
 
 
 @pytest.mark.parametrize("value", ["1e308", "inf", "-inf"])

@@ -52,6 +52,9 @@ from slopedist.runner import SUMMARY_NAME
 
 T = TypeVar("T")
 
+LOCK_NAME = ".lock"
+"""File in ``OUT`` that a running batch holds (:func:`output_lock`)."""
+
 DEFAULT_MAX_RETRIES = 2
 """Ray retries of a drive whose worker process died (not of a drive that failed on its data)."""
 
@@ -279,6 +282,46 @@ def run_batch(
         from slopedist.batch.fleet import import_pyarrow
 
         import_pyarrow()
+    with output_lock(out):
+        return _run_locked(drives, out, options)
+
+
+@contextmanager
+def output_lock(out: Path) -> Iterator[None]:
+    """Hold ``OUT/.lock`` (an exclusive ``flock``, released when this process ends, however it
+    ends) while a batch writes into ``OUT``: a second batch into the same ``OUT`` would remove
+    the first's running drives as leftovers and delete or replace its outputs.
+
+    Raises:
+        ConfigurationError: another batch holds it.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (not on Windows: no lock there)
+        yield
+        return
+    with (out / LOCK_NAME).open("a+", encoding="utf-8") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            raise ConfigurationError(
+                f"another slopedist batch (process {holder}) is writing into {out}: wait for "
+                "it to end or choose another output (--out)"
+            ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _run_locked(drives: Sequence[DriveSpec], out: Path, options: BatchOptions) -> BatchResult:
+    """:func:`run_batch` once ``OUT`` exists and is this batch's."""
     clean_leftovers(out)
     todo, done = plan(drives, out, options.force)
     start = time.perf_counter()

@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from dataclasses import dataclass
@@ -27,7 +28,12 @@ from typing import Any
 import numpy as np
 
 from slopedist.batch.drive import completed_stamp
-from slopedist.batch.safety import DRIVE_SAFETY_FIELDS, POOLED_SAFETY_FIELDS, fleet_safety
+from slopedist.batch.safety import (
+    DRIVE_SAFETY_FIELDS,
+    POOLED_SAFETY_FIELDS,
+    fleet_method,
+    fleet_safety,
+)
 from slopedist.batch.settings import SETTING_COLUMNS, settings_cell
 from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.detections.readers import CSV_TRUTH_COLUMN
@@ -104,12 +110,29 @@ def partition_path(out_dir: Path, drive: str) -> Path:
     return out_dir / DATASET_NAME / f"drive={drive}"
 
 
+PARTITION_STAMP_KEY = b"slopedist_batch_inputs"
+"""Parquet schema metadata of a partition: the input stamp (JSON) of the run it was made from."""
+
+
+def _partition_stamp(target: Path) -> Any:
+    """The input stamp a partition file was written with (None: no file, none recorded)."""
+    pa = import_pyarrow()
+    try:
+        metadata = pa.parquet.read_schema(target).metadata or {}
+        return json.loads(metadata[PARTITION_STAMP_KEY])
+    except (OSError, KeyError, ValueError, pa.ArrowException):
+        return None
+
+
 def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     """Write ``OUT/<drive>/records.csv`` as the drive's partition of the dataset (atomically:
-    a temporary file renamed); with ``refresh`` False, an existing partition is kept."""
+    a temporary file renamed), stamped with the input stamp of ``OUT/<drive>/run.json``; with
+    ``refresh`` False, an existing partition of the same stamp is kept (one of another run,
+    e.g. left by a batch killed between a drive's run and its partition, is rewritten)."""
     pa = import_pyarrow()
     target = partition_path(out_dir, drive) / "part-0.parquet"
-    if target.is_file() and not refresh:
+    stamp = completed_stamp(out_dir / drive)
+    if not refresh and stamp is not None and _partition_stamp(target) == stamp:
         return target
     types = {c: pa.float64() for c in _FLOAT_COLUMNS}
     types.update({c: pa.int64() for c in _INT_COLUMNS})
@@ -120,6 +143,8 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     for i, column in enumerate(table.schema):  # an extra column empty in this drive: numbers
         if pa.types.is_null(column.type):
             table = table.set_column(i, column.name, table.column(i).cast(pa.float64()))
+    metadata = {PARTITION_STAMP_KEY: json.dumps(stamp, sort_keys=True).encode()}
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(".part-0.parquet.tmp")
     pa.parquet.write_table(table, tmp)
@@ -139,7 +164,17 @@ def records_dataset(out_dir: str | Path) -> Any:
     import pyarrow.dataset as ds
 
     drive = ds.partitioning(pa.schema([("drive", pa.string())]), flavor="hive")
-    return ds.dataset(Path(out_dir) / DATASET_NAME, format="parquet", partitioning=drive)
+    dataset = ds.dataset(Path(out_dir) / DATASET_NAME, format="parquet", partitioning=drive)
+    # every partition's columns (pyarrow takes the first file's schema: a drive without the
+    # truth or another method's extra columns would hide them in all drives)
+    schemas = [f.physical_schema for f in dataset.get_fragments()]
+    if not schemas:
+        return dataset
+    columns = pa.unify_schemas(schemas, promote_options="permissive").remove_metadata()
+    schema = pa.unify_schemas([columns, pa.schema([("drive", pa.string())])])
+    return ds.dataset(
+        Path(out_dir) / DATASET_NAME, format="parquet", partitioning=drive, schema=schema
+    )
 
 
 def remove_partition(out_dir: Path, drive: str) -> None:
@@ -179,11 +214,15 @@ def batch_drive_folders(out_dir: Path) -> list[Path]:
     )
 
 
-def _read_pairs(path: Path) -> dict[str, dict[str, Any]]:
-    """Per method: distances, truths, reasons of ``records.csv`` (NaN where empty)."""
+def _read_pairs(folder: Path) -> dict[str, dict[str, Any]]:
+    """Per method (named by :func:`~slopedist.batch.safety.fleet_method`): distances, truths,
+    reasons of the folder's ``records.csv`` (NaN where empty)."""
+    summary = read_json(folder / SUMMARY_NAME, "run summary")
+    path = folder / RECORDS_NAME
     out: dict[str, dict[str, Any]] = {}
     for line, row in CsvRows(path, "run records"):
-        acc = out.setdefault(row.get("method") or "", {"d": [], "g": [], "r": []})
+        method = fleet_method(summary, row.get("method") or "")
+        acc = out.setdefault(method, {"d": [], "g": [], "r": []})
         for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
             acc[key].append(number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE))
         acc["r"].append(record_reason(row.get("status"), row.get("reason"), path, line))
@@ -202,7 +241,7 @@ def fleet_summary(out_dir: str | Path) -> FleetSummary:
     drives: list[dict[str, Any]] = []
     pooled: dict[str, dict[str, list[np.ndarray]]] = {}
     for folder in folders:
-        for method, acc in _read_pairs(folder / RECORDS_NAME).items():
+        for method, acc in _read_pairs(folder).items():
             d, g = np.asarray(acc["d"], float), np.asarray(acc["g"], float)
             capped, ok = cap_estimates(d, np.asarray(acc["r"], dtype=object))
             ok &= np.isfinite(g) & (g > 0)

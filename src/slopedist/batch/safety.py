@@ -18,6 +18,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.limits import MAX_RECORD_MAGNITUDE
 from slopedist.run_config import FRAMES_NAME, SUMMARY_NAME
 from slopedist.textfiles import CsvRows, number_cell, read_json
@@ -92,10 +93,28 @@ def safety_values(
     }
 
 
+def fleet_method(summary: Any, method: str) -> str:
+    """The name under which a drive's ``method`` appears in the fleet tables: the method, or
+    ``method@reference`` for a drive run at a reference point it was given (its ``run.json``
+    ``batch_drive`` ``reference``, e.g. ``ours@nearest_face``), so that no row pools
+    distances to different points of the vehicles."""
+    options = summary.get(SETTINGS_KEY) if isinstance(summary, dict) else None
+    reference = options.get("reference") if isinstance(options, dict) else None
+    return f"{method}@{reference}" if reference else method
+
+
+def fleet_base_method(name: str) -> str:
+    """The method of a fleet-table name of :func:`fleet_method` (``ours@nearest_face``:
+    ``ours``)."""
+    return name.split("@", 1)[0]
+
+
 def drive_safety(folder: Path, short_headway_s: float = SHORT_HEADWAY_S) -> dict[str, Any]:
-    """The safety row of one complete run folder (its method from ``run.json``)."""
+    """The safety row of one complete run folder (its method from ``run.json``, named by
+    :func:`fleet_method`)."""
     summary = read_json(folder / SUMMARY_NAME, "run summary")
     method = str(summary.get("method") or "") if isinstance(summary, dict) else ""
+    method = fleet_method(summary, method)
     tracks = read_tracks(folder / TRACKS_NAME)
     return {
         "drive": folder.name,

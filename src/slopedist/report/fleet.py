@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from slopedist.batch.fleet import METRICS, FleetSummary, batch_drive_folders, fleet_summary
-from slopedist.batch.safety import SAFETY_FIELDS, SHORT_HEADWAY_S
+from slopedist.batch.safety import SAFETY_FIELDS, SHORT_HEADWAY_S, fleet_base_method
 from slopedist.batch.status import STATUS_NAME, DriveStatus
 from slopedist.errors import InputFileError, MissingInputError
 from slopedist.report.data import ReportData, ReportOptions, SourceKind
@@ -92,7 +92,7 @@ def _keep_methods(summary: FleetSummary, methods: Sequence[str] | None) -> Fleet
     if not methods:
         return summary
     rows = [
-        [r for r in table if r["method"] in methods]
+        [r for r in table if fleet_base_method(r["method"]) in methods]
         for table in (
             summary.drives,
             summary.pooled,
