@@ -99,9 +99,15 @@ def advice_text(advice: MountAdvice) -> str:
         advice.vehicles,
         f"{e.n_tracks} vehicle{'s' * (e.n_tracks != 1)}" if e.n_tracks < 3 else None,
     )
+    told = "the data cannot tell it"
+    mount = (
+        told
+        if "mount_angle" in advice.untold
+        else f"{deg(e.mount_angle_rad):.2f}° ± {deg(s.mount_angle_rad):.2f}°"
+    )
+    height = told if "height" in advice.untold else f"{e.height_m:.3f} m ± {s.height_m:.3f} m"
     lines = [
-        f"mount angle θ0 = {deg(e.mount_angle_rad):.2f}° ± {deg(s.mount_angle_rad):.2f}°, camera "
-        f"height h = {e.height_m:.3f} m ± {s.height_m:.3f} m (1σ; from {e.n_observations} "
+        f"mount angle θ0 = {mount}, camera height h = {height} (1σ; from {e.n_observations} "
         f"targets of {e.n_tracks} vehicles; configured {deg(advice.prior.mount_angle_rad):g}°, "
         f"{advice.prior.height_m:g} m)",
         f"1σ parts: {_sigma_part('fit', advice.fit, None)}; {spread}; {vehicles}; "
@@ -122,12 +128,20 @@ def advice_text(advice: MountAdvice) -> str:
 
 def final_dict(advice: MountAdvice) -> dict[str, Any]:
     """The final estimate as the text gives it (degrees and metres): the whole drive's θ0 and
-    h with the total 1σ (``advice.sigma``), not the fit's alone."""
-    return {
+    h with the total 1σ (``advice.sigma``), not the fit's alone; ``None`` for a parameter the
+    drive cannot tell (``advice.untold``: its estimate rests on the configured value)."""
+    final = {
         **advice.as_dict()["estimate"],
         "mount_angle_sigma_deg": math.degrees(advice.sigma.mount_angle_rad),
         "height_sigma_m": advice.sigma.height_m,
     }
+    for name, keys in (
+        ("mount_angle", ("mount_angle_deg", "mount_angle_sigma_deg")),
+        ("height", ("height_m", "height_sigma_m")),
+    ):
+        if name in advice.untold:
+            final.update(dict.fromkeys(keys))
+    return final
 
 
 @click.command("calibrate")
