@@ -102,6 +102,16 @@ def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
             "list of 2",
         ),
         (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
+        (MINIMAL + "[camera]\nfocal_px = 5\n", "camera.focal_px", 9, "50..20000 px"),
+        (MINIMAL + "[camera]\nfocal_px = 1e5\n", "camera.focal_px", 9, "50..20000 px"),
+        (MINIMAL + "[camera]\ncx_px = -3.0\n", "camera.cx_px", 9, "inside the image"),
+        (
+            MINIMAL + "[camera]\nimage_height = 48\ncy_px = 300.0\n",
+            "camera.cy_px",
+            10,
+            "inside the image",
+        ),
+        (MINIMAL + "[camera]\nheight_m = 80.0\n", "camera.height_m", 9, "(0, 50] m"),
     ],
 )
 def test_mistakes_name_file_line_and_field(

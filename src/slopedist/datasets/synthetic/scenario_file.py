@@ -97,6 +97,7 @@ import re
 import sys
 from typing import Any, NamedTuple
 
+from slopedist.camera import FOCAL_RANGE_PX, MAX_CAMERA_HEIGHT_M
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.road import GradeChange, HorizontalCurve, RoadSpec, SpeedBump
 from slopedist.datasets.synthetic.scenario_reader import (
@@ -177,7 +178,14 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
     rig = r.build(
         "camera",
         CameraRig,
-        height_m=r.number(t, "height_m", "camera", 1.65, positive, "> 0"),
+        height_m=r.number(
+            t,
+            "height_m",
+            "camera",
+            1.65,
+            lambda x: 0 < x <= MAX_CAMERA_HEIGHT_M,
+            f"in (0, {MAX_CAMERA_HEIGHT_M:g}] m",
+        ),
         forward_m=r.number(t, "forward_m", "camera", 0.0),
         mount_angle_rad=math.radians(
             r.number(
@@ -202,9 +210,30 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
         CameraSpec,
         width,
         height,
-        r.number(t, "focal_px", "camera", d.f, positive, "> 0"),
-        r.number(t, "cx_px", "camera", width / 2 if "image_width" in t else d.c_x),
-        r.number(t, "cy_px", "camera", height / 2 if "image_height" in t else d.c_y),
+        r.number(
+            t,
+            "focal_px",
+            "camera",
+            d.f,
+            lambda x: FOCAL_RANGE_PX[0] <= x <= FOCAL_RANGE_PX[1],
+            f"in {FOCAL_RANGE_PX[0]:g}..{FOCAL_RANGE_PX[1]:g} px",
+        ),
+        r.number(
+            t,
+            "cx_px",
+            "camera",
+            width / 2 if "image_width" in t else d.c_x,
+            lambda x: 0 <= x <= width,
+            f"inside the image, 0..{width} px",
+        ),
+        r.number(
+            t,
+            "cy_px",
+            "camera",
+            height / 2 if "image_height" in t else d.c_y,
+            lambda x: 0 <= x <= height,
+            f"inside the image, 0..{height} px",
+        ),
         rig,
     )
 
