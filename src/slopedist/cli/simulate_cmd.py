@@ -98,6 +98,9 @@ def simulate(
         f"wrote {info['frames']} frames of '{sc.name}' to {out_dir} "
         f"(camera height {info['camera_height_m']:g} m)"
     )
+    if not info["detections"]:  # a road without traffic is a valid scene: say what it gives
+        why = "the scenario has no [[target]]" if not sc.targets else "no target was detected"
+        click.echo(f"note: boxes.csv holds no box ({why}); every other file is written")
     camera = f"--height {info['camera_height_m']:g} --mount-angle {info['mount_angle_deg']:g}"
     click.echo(
         f"next: slopedist estimate --calib {out_dir}/calib.txt --poses "

@@ -51,6 +51,14 @@ def test_minimal_file_and_defaults(tmp_path: Path) -> None:
     assert sc.source == str(tmp_path / "s.toml")
 
 
+def test_a_scenario_without_targets_is_an_empty_road(tmp_path: Path) -> None:
+    path = _write(tmp_path, "duration_s = 0.5\n[ego]\nspeed_kmh = 30.0\n")
+    sc = load_scenario(path)
+    assert sc.targets == () and sc.n_frames == 5
+    truth = simulate_truth(sc)
+    assert truth.z_m.shape == (5, 0) and truth.in_view.shape == (5, 0)
+
+
 def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
     text = builtin_text("target_steep_uphill")
     a = load_scenario("target_steep_uphill")
