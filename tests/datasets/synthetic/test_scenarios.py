@@ -110,6 +110,18 @@ def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
             "list of 2",
         ),
         (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
+        (
+            MINIMAL.replace("start_m = 20.0", "start_m = 2.0"),
+            "target[0].start_m",
+            6,
+            "overlaps the ego at t = 0 s",
+        ),
+        (
+            MINIMAL + "[[target]]\nstart_m = 40.0\nspeed_kmh = 10.0\n",
+            "target[1].start_m",
+            9,
+            "overlaps target[0] at t = 1.9 s",
+        ),
         (MINIMAL + "[camera]\nfocal_px = 5\n", "camera.focal_px", 9, "50..20000 px"),
         (MINIMAL + "[camera]\nfocal_px = 1e5\n", "camera.focal_px", 9, "50..20000 px"),
         (MINIMAL + "[camera]\ncx_px = -3.0\n", "camera.cx_px", 9, "inside the image"),

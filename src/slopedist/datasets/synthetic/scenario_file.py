@@ -97,6 +97,8 @@ import re
 import sys
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from slopedist.camera import FOCAL_RANGE_PX, MAX_CAMERA_HEIGHT_M
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.road import GradeChange, HorizontalCurve, RoadSpec, SpeedBump
@@ -424,6 +426,37 @@ def _targets(r: TableReader, data: dict[str, Any], road: _RoadFeatures) -> list[
     return targets
 
 
+def _check_no_overlap(
+    r: TableReader, ego: VehicleSpec, targets: list[VehicleSpec], head: _Header
+) -> None:
+    """Refuse a target whose box overlaps the ego's, or another target's, in plan (along the
+    road and across it) at any frame: the camera would sit inside a car, or two cars would
+    drive through each other."""
+    t = np.arange(round(head.duration_s * head.frame_rate_hz)) / head.frame_rate_hz
+    vehicles = [("the ego", ego), *((f"target[{i}]", v) for i, v in enumerate(targets))]
+    s = [v.start_m + np.asarray(v.travelled_m(t), dtype=float) for _, v in vehicles]
+    first: tuple[int, int, int] | None = None  # (frame, i, j) of the earliest overlap
+    for j in range(1, len(vehicles)):
+        b = vehicles[j][1]
+        for i in range(j):
+            a = vehicles[i][1]
+            if abs(a.lateral_m - b.lateral_m) >= (a.width_m + b.width_m) / 2:
+                continue
+            hit = np.flatnonzero(np.abs(s[i] - s[j]) < (a.length_m + b.length_m) / 2)
+            if hit.size and (first is None or int(hit[0]) < first[0]):
+                first = (int(hit[0]), i, j)
+    if first is not None:
+        k, i, j = first
+        a, b = vehicles[i][1], vehicles[j][1]
+        raise r.fail(
+            f"target[{j - 1}].start_m",
+            f"this target overlaps {vehicles[i][0]} at t = {t[k]:g} s (centres "
+            f"{abs(s[i][k] - s[j][k]):.1f} m apart along the road, "
+            f"{abs(a.lateral_m - b.lateral_m):.1f} m across): "
+            "place it further ahead or behind, or in another lane",
+        )
+
+
 def _road_extent(
     ego: VehicleSpec, targets: list[VehicleSpec], duration_s: float
 ) -> tuple[float, float]:
@@ -472,6 +505,7 @@ def parse_scenario(
     features = _road_features(r, road_t)
     ego = _ego(r, data, features)
     targets = _targets(r, data, features)
+    _check_no_overlap(r, ego, targets, head)
     road = _road(r, road_t, features, _road_extent(ego, targets, head.duration_s))
     noise = _noise(r, data)
     world = _world(r, data)
