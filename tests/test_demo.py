@@ -177,6 +177,17 @@ def test_a_scenario_without_targets_runs_and_the_summary_says_so(tmp_path: Path)
     assert [r.frames for r in result.runs] == [3, 3]
 
 
+@pytest.mark.parametrize("value", ["", ",", " , "])
+def test_an_empty_scenario_list_is_refused(
+    tmp_path: Path, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "d"
+    assert main(["demo", "--out", str(out), "--scenarios", value, "--frames", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "'--scenarios'" in err and "no scenario given" in err and "same_flat" in err
+    assert not out.exists()
+
+
 def test_cli_estimator_options_reach_the_methods(tmp_path: Path) -> None:
     """``--alphas`` configures ``paper`` and ``imu`` in the demo as in every other command."""
     args = ["demo", "--scenarios", "target_steep_uphill", "--frames", "3", "--methods"]
