@@ -154,3 +154,22 @@ def test_a_road_without_targets_writes_every_file_with_no_box(
     assert len(read_box_csv(out / "boxes.csv")) == 0
     info = json.loads((out / "info.json").read_text())
     assert info["targets"] == [] and info["detections"] == 0 and info["frames"] == 3
+
+
+def test_force_never_mixes_old_and_new_frames(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--force over a longer simulation (or another depth format) is refused: the old frames
+    would stay next to the new ones; nothing is deleted."""
+    out = tmp_path / "o"
+    assert main(["simulate", "same_flat", "--out", str(out), "--frames", "3"]) == 0
+    before = sorted(p.name for p in (out / "image_02").iterdir())
+    assert main(["simulate", "same_flat", "--out", str(out), "--frames", "1", "--force"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out / 'image_02'} holds 2 file(s)" in err and "000001.png, 000002.png" in err
+    assert sorted(p.name for p in (out / "image_02").iterdir()) == before
+    assert len((out / "poses.txt").read_text().splitlines()) == 3  # nothing was rewritten
+    args = ["simulate", "same_flat", "--out", str(out), "--frames", "3", "--force"]
+    assert main([*args, "--depth", "npy"]) == 2
+    assert f"{out / 'depth'} holds 3 file(s)" in capsys.readouterr().err
+    assert main(args) == 0  # the same frames again: every file replaced
