@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import ClassVar
 
@@ -155,6 +156,36 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert str(tmp_path / "d" / "summary.txt") in out
     assert main(["demo", "--out", str(tmp_path / "e"), "--methods", "nope"]) == 2
     assert main(["demo", "--out", str(tmp_path / "e"), "--scenarios", "nope.toml"]) == 2
+
+
+def test_a_scenario_without_targets_runs_and_the_summary_says_so(tmp_path: Path) -> None:
+    empty = tmp_path / "empty_road.toml"
+    empty.write_text("duration_s = 0.4\n[ego]\nspeed_kmh = 30.0\n")
+    out = tmp_path / "d"
+    cfg = DemoConfig(
+        out, (str(empty), "same_flat"), ("flat", "paper"), "truth", True, True, 3, False
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no matplotlib warning about an empty legend
+        result = run_demo(cfg, echo=lambda s: None)
+    summary = (out / "summary.txt").read_text()
+    assert "empty_road: no box in any frame" in summary
+    assert "same_flat: no box" not in summary
+    for name in ("records.csv", "frames.csv", "distance.png", "theta.png"):
+        assert (out / "empty_road" / name).is_file(), name
+    assert list(csv.DictReader((out / "empty_road" / "records.csv").open())) == []
+    assert [r.frames for r in result.runs] == [3, 3]
+
+
+@pytest.mark.parametrize("value", ["", ",", " , "])
+def test_an_empty_scenario_list_is_refused(
+    tmp_path: Path, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "d"
+    assert main(["demo", "--out", str(out), "--scenarios", value, "--frames", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "'--scenarios'" in err and "no scenario given" in err and "same_flat" in err
+    assert not out.exists()
 
 
 def test_cli_estimator_options_reach_the_methods(tmp_path: Path) -> None:

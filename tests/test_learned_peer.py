@@ -101,6 +101,27 @@ def test_no_training_pair_is_a_configuration_error() -> None:
         only.model("a")
 
 
+def test_a_sequence_without_a_usable_pair_is_not_a_training_sequence() -> None:
+    """A drive whose matched boxes all lack a usable truth (no labelled vehicle in range) does
+    not count: the other drive then has nothing to train on and its peer row is missing,
+    instead of a fit on zero rows stopping the whole evaluation."""
+    rng = np.random.default_rng(4)
+    good = _car_samples(rng, 60)
+    unusable = PeerSamples(good.features[:5], np.full(5, np.nan))
+    peer = LeaveOneSequenceOut(
+        {
+            "empty": unusable,
+            "none": PeerSamples(good.features[:0], good.distance_m[:0]),
+            "b": good,
+        }
+    )
+    assert unusable.usable == 0 and good.usable == 60
+    assert peer.training_sequences("b") == []
+    assert peer.training_sequences("empty") == ["b"]
+    with pytest.raises(ConfigurationError, match="no other sequence"):
+        peer.model("b")
+
+
 def test_without_scikit_learn_the_error_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "sklearn.ensemble", None)
     rng = np.random.default_rng(2)

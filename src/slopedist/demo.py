@@ -347,7 +347,14 @@ def rmse_table(result: DemoResult, scores: PooledScores) -> Table:
         f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
         f"the vanishing line counts as {CAP_M:g} m"
     )
-    return score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
+    table = score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
+    empty = [r.name for r in result.runs if not any(len(s.truth) for s in r.scores.values())]
+    if empty:  # a road without traffic, or targets never in view
+        table.note += ("\n" if table.note else "") + (
+            f"{', '.join(empty)}: no box in any frame (no target in the scenario or none in "
+            "view): nothing to score, records.csv has no rows."
+        )
+    return table
 
 
 def missing_table(result: DemoResult) -> Table:

@@ -124,6 +124,15 @@ class PeerSamples:
     def __len__(self) -> int:
         return int(self.distance_m.shape[0])
 
+    @property
+    def usable(self) -> int:
+        """Pairs :func:`fit_peer` can learn from (finite features, a finite distance > 0)."""
+        if not len(self):
+            return 0
+        x = np.asarray(self.features, dtype=float).reshape(len(self), -1)
+        y = np.asarray(self.distance_m, dtype=float)
+        return int(np.sum(np.isfinite(x).all(axis=1) & np.isfinite(y) & (y > 0)))
+
 
 class LeaveOneSequenceOut:
     """The peer of each sequence, fitted on the pairs of all the others (fitted on first use,
@@ -145,8 +154,9 @@ class LeaveOneSequenceOut:
         self._models: dict[str, Any] = {}
 
     def training_sequences(self, held_out: str) -> list[str]:
-        """The sequences the model of ``held_out`` is fitted on (every other one with pairs)."""
-        return [s for s, p in self.samples.items() if s != held_out and len(p)]
+        """The sequences the model of ``held_out`` is fitted on (every other one with a usable
+        pair: one whose pairs are all unusable would leave the fit empty)."""
+        return [s for s, p in self.samples.items() if s != held_out and p.usable]
 
     def model(self, held_out: str) -> Any:
         """The model that never saw ``held_out``.

@@ -143,7 +143,10 @@ def plot_distance_series(
     for ax, s in zip(axes, series):
         draw_distance_panel(ax, t_s, s)
         ax.set_ylabel(f"target {s.track_id}: z (m)")
-    axes[0].legend(loc="upper left", ncol=4, fontsize=8)
+    if series:  # no target: an empty panel without a legend
+        axes[0].legend(loc="upper left", ncol=4, fontsize=8)
+    else:
+        axes[0].set_title("no target in this scenario")
     axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
     if title:
         fig.suptitle(title)

@@ -9,7 +9,7 @@ import click
 
 from slopedist.cli.method_options import check_methods, estimator_options
 from slopedist.cli.options import split_list
-from slopedist.datasets.synthetic.scenarios import SUITE
+from slopedist.datasets.synthetic.scenarios import SUITE, builtin_names
 from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_outputs, run_demo
 from slopedist.estimators import EstimatorConfig
 
@@ -72,9 +72,16 @@ def demo(
     names = split_list(methods)
     if names is not None:
         check_methods(names)
+    scenario_names = split_list(scenarios)
+    if not scenario_names:  # "" or ",": not the whole suite by surprise
+        raise click.BadParameter(
+            f"no scenario given; name at least one (built-in: {', '.join(builtin_names())}) "
+            "or leave the option out for the whole suite",
+            param_hint="'--scenarios'",
+        )
     cfg = DemoConfig(
         out_dir,
-        tuple(split_list(scenarios) or SUITE),
+        tuple(scenario_names),
         tuple(names) if names is not None else None,
         odometry,
         not no_video,

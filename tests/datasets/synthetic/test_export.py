@@ -11,6 +11,7 @@ import pytest
 
 from slopedist.camera import Camera
 from slopedist.cli import main
+from slopedist.datasets.synthetic.export import SIMULATION_NAMES
 from slopedist.depth.files import read_kitti_depth_png
 from slopedist.detections.readers import read_box_csv
 from slopedist.odometry.posefiles import read_kitti_poses
@@ -135,3 +136,40 @@ def test_a_drive_folder_with_files_of_the_same_names_is_not_overwritten(
     assert not list((drive / "image_02").iterdir())
     assert main([*args, "--force"]) == 0
     assert (drive / "poses.txt").is_file()
+
+
+def test_a_road_without_targets_writes_every_file_with_no_box(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty_road.toml"
+    empty.write_text("duration_s = 0.3\n[ego]\nspeed_kmh = 30.0\n")
+    out = tmp_path / "o"
+    assert main(["simulate", str(empty), "--out", str(out)]) == 0
+    assert "boxes.csv holds no box (the scenario has no [[target]])" in capsys.readouterr().out
+    assert {p.name for p in out.iterdir()} == set(SIMULATION_NAMES)
+    assert len(list((out / "image_02").iterdir())) == len(list((out / "depth").iterdir())) == 3
+    for name in ("boxes.csv", "boxes_exact.csv", "truth.csv"):
+        assert len(list(csv.DictReader((out / name).open()))) == 0, name
+    assert len(list(csv.DictReader((out / "frames.csv").open()))) == 3
+    assert len(read_box_csv(out / "boxes.csv")) == 0
+    info = json.loads((out / "info.json").read_text())
+    assert info["targets"] == [] and info["detections"] == 0 and info["frames"] == 3
+
+
+def test_force_never_mixes_old_and_new_frames(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--force over a longer simulation (or another depth format) is refused: the old frames
+    would stay next to the new ones; nothing is deleted."""
+    out = tmp_path / "o"
+    assert main(["simulate", "same_flat", "--out", str(out), "--frames", "3"]) == 0
+    before = sorted(p.name for p in (out / "image_02").iterdir())
+    assert main(["simulate", "same_flat", "--out", str(out), "--frames", "1", "--force"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out / 'image_02'} holds 2 file(s)" in err and "000001.png, 000002.png" in err
+    assert sorted(p.name for p in (out / "image_02").iterdir()) == before
+    assert len((out / "poses.txt").read_text().splitlines()) == 3  # nothing was rewritten
+    args = ["simulate", "same_flat", "--out", str(out), "--frames", "3", "--force"]
+    assert main([*args, "--depth", "npy"]) == 2
+    assert f"{out / 'depth'} holds 3 file(s)" in capsys.readouterr().err
+    assert main(args) == 0  # the same frames again: every file replaced

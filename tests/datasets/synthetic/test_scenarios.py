@@ -51,6 +51,14 @@ def test_minimal_file_and_defaults(tmp_path: Path) -> None:
     assert sc.source == str(tmp_path / "s.toml")
 
 
+def test_a_scenario_without_targets_is_an_empty_road(tmp_path: Path) -> None:
+    path = _write(tmp_path, "duration_s = 0.5\n[ego]\nspeed_kmh = 30.0\n")
+    sc = load_scenario(path)
+    assert sc.targets == () and sc.n_frames == 5
+    truth = simulate_truth(sc)
+    assert truth.z_m.shape == (5, 0) and truth.in_view.shape == (5, 0)
+
+
 def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
     text = builtin_text("target_steep_uphill")
     a = load_scenario("target_steep_uphill")
@@ -102,6 +110,28 @@ def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
             "list of 2",
         ),
         (MINIMAL.replace('name = "mine"', 'name = "my hill"'), "name", 2, "letters, digits"),
+        (
+            MINIMAL.replace("start_m = 20.0", "start_m = 2.0"),
+            "target[0].start_m",
+            6,
+            "overlaps the ego at t = 0 s",
+        ),
+        (
+            MINIMAL + "[[target]]\nstart_m = 40.0\nspeed_kmh = 10.0\n",
+            "target[1].start_m",
+            9,
+            "overlaps target[0] at t = 1.9 s",
+        ),
+        (MINIMAL + "[camera]\nfocal_px = 5\n", "camera.focal_px", 9, "50..20000 px"),
+        (MINIMAL + "[camera]\nfocal_px = 1e5\n", "camera.focal_px", 9, "50..20000 px"),
+        (MINIMAL + "[camera]\ncx_px = -3.0\n", "camera.cx_px", 9, "inside the image"),
+        (
+            MINIMAL + "[camera]\nimage_height = 48\ncy_px = 300.0\n",
+            "camera.cy_px",
+            10,
+            "inside the image",
+        ),
+        (MINIMAL + "[camera]\nheight_m = 80.0\n", "camera.height_m", 9, "(0, 50] m"),
     ],
 )
 def test_mistakes_name_file_line_and_field(

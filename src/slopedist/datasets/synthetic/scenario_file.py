@@ -58,7 +58,7 @@ Layout (units are in the names; every table and field is optional unless marked 
     height_m = 1.5
     wheelbase_m = 2.7
 
-    [[target]]                        # one or more, required
+    [[target]]                        # zero or more (none: an empty road, no boxes)
     id = 1                            # track id (default: 1, 2, ...)
     start_m = 25.0                    # required, plan distance of its centre at t = 0
     speed_kmh = 36.0                  # required
@@ -97,6 +97,9 @@ import re
 import sys
 from typing import Any, NamedTuple
 
+import numpy as np
+
+from slopedist.camera import FOCAL_RANGE_PX, MAX_CAMERA_HEIGHT_M
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.road import GradeChange, HorizontalCurve, RoadSpec, SpeedBump
 from slopedist.datasets.synthetic.scenario_reader import (
@@ -177,7 +180,14 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
     rig = r.build(
         "camera",
         CameraRig,
-        height_m=r.number(t, "height_m", "camera", 1.65, positive, "> 0"),
+        height_m=r.number(
+            t,
+            "height_m",
+            "camera",
+            1.65,
+            lambda x: 0 < x <= MAX_CAMERA_HEIGHT_M,
+            f"in (0, {MAX_CAMERA_HEIGHT_M:g}] m",
+        ),
         forward_m=r.number(t, "forward_m", "camera", 0.0),
         mount_angle_rad=math.radians(
             r.number(
@@ -202,9 +212,30 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
         CameraSpec,
         width,
         height,
-        r.number(t, "focal_px", "camera", d.f, positive, "> 0"),
-        r.number(t, "cx_px", "camera", width / 2 if "image_width" in t else d.c_x),
-        r.number(t, "cy_px", "camera", height / 2 if "image_height" in t else d.c_y),
+        r.number(
+            t,
+            "focal_px",
+            "camera",
+            d.f,
+            lambda x: FOCAL_RANGE_PX[0] <= x <= FOCAL_RANGE_PX[1],
+            f"in {FOCAL_RANGE_PX[0]:g}..{FOCAL_RANGE_PX[1]:g} px",
+        ),
+        r.number(
+            t,
+            "cx_px",
+            "camera",
+            width / 2 if "image_width" in t else d.c_x,
+            lambda x: 0 <= x <= width,
+            f"inside the image, 0..{width} px",
+        ),
+        r.number(
+            t,
+            "cy_px",
+            "camera",
+            height / 2 if "image_height" in t else d.c_y,
+            lambda x: 0 <= x <= height,
+            f"inside the image, 0..{height} px",
+        ),
         rig,
     )
 
@@ -387,14 +418,43 @@ def _target(r: TableReader, t: dict[str, Any], i: int, road: _RoadFeatures) -> V
 
 def _targets(r: TableReader, data: dict[str, Any], road: _RoadFeatures) -> list[VehicleSpec]:
     targets_t = r.array_of_tables(data, "target", "", TARGET_KEYS)
-    if not targets_t:
-        raise r.fail("target", "at least one [[target]] is required")
     targets = [_target(r, t, i, road) for i, t in enumerate(targets_t)]
     ids = [t.track_id for t in targets]
     for i, tid in enumerate(ids):
         if tid in ids[:i]:
             raise r.fail(f"target[{i}].id", f"track id {tid} is used twice")
     return targets
+
+
+def _check_no_overlap(
+    r: TableReader, ego: VehicleSpec, targets: list[VehicleSpec], head: _Header
+) -> None:
+    """Refuse a target whose box overlaps the ego's, or another target's, in plan (along the
+    road and across it) at any frame: the camera would sit inside a car, or two cars would
+    drive through each other."""
+    t = np.arange(round(head.duration_s * head.frame_rate_hz)) / head.frame_rate_hz
+    vehicles = [("the ego", ego), *((f"target[{i}]", v) for i, v in enumerate(targets))]
+    s = [v.start_m + np.asarray(v.travelled_m(t), dtype=float) for _, v in vehicles]
+    first: tuple[int, int, int] | None = None  # (frame, i, j) of the earliest overlap
+    for j in range(1, len(vehicles)):
+        b = vehicles[j][1]
+        for i in range(j):
+            a = vehicles[i][1]
+            if abs(a.lateral_m - b.lateral_m) >= (a.width_m + b.width_m) / 2:
+                continue
+            hit = np.flatnonzero(np.abs(s[i] - s[j]) < (a.length_m + b.length_m) / 2)
+            if hit.size and (first is None or int(hit[0]) < first[0]):
+                first = (int(hit[0]), i, j)
+    if first is not None:
+        k, i, j = first
+        a, b = vehicles[i][1], vehicles[j][1]
+        raise r.fail(
+            f"target[{j - 1}].start_m",
+            f"this target overlaps {vehicles[i][0]} at t = {t[k]:g} s (centres "
+            f"{abs(s[i][k] - s[j][k]):.1f} m apart along the road, "
+            f"{abs(a.lateral_m - b.lateral_m):.1f} m across): "
+            "place it further ahead or behind, or in another lane",
+        )
 
 
 def _road_extent(
@@ -445,6 +505,7 @@ def parse_scenario(
     features = _road_features(r, road_t)
     ego = _ego(r, data, features)
     targets = _targets(r, data, features)
+    _check_no_overlap(r, ego, targets, head)
     road = _road(r, road_t, features, _road_extent(ego, targets, head.duration_s))
     noise = _noise(r, data)
     world = _world(r, data)

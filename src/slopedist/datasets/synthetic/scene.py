@@ -73,6 +73,7 @@ class CameraSpec:
             )
         if not (math.isfinite(self.f) and self.f > 0):
             raise ConfigurationError(f"focal length must be > 0 pixels, got {self.f}")
+        self.camera()  # the estimators' checks (focal range, principal point, height) now
 
     def camera(self) -> Camera:
         """The :class:`~slopedist.camera.Camera` an estimator should be given."""
