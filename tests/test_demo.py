@@ -188,6 +188,16 @@ def test_an_empty_scenario_list_is_refused(
     assert not out.exists()
 
 
+@pytest.mark.parametrize("value", ["", ","])
+def test_an_empty_method_list_is_refused(
+    tmp_path: Path, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "d"
+    args = ["demo", "--out", str(out), "--methods", value, "--frames", "1", "--quiet"]
+    assert main(args) == 2  # it ran every method
+    assert "'--methods'" in capsys.readouterr().err and not out.exists()
+
+
 def test_cli_estimator_options_reach_the_methods(tmp_path: Path) -> None:
     """``--alphas`` configures ``paper`` and ``imu`` in the demo as in every other command."""
     args = ["demo", "--scenarios", "target_steep_uphill", "--frames", "3", "--methods"]

@@ -70,6 +70,11 @@ def demo(
 ) -> None:
     """Run every method on the synthetic hills, from rendered pixels, and print the tables."""
     names = split_list(methods)
+    if methods is not None and not names:  # "" or ",": not every method by surprise
+        raise click.BadParameter(
+            "no method given; name at least one or leave the option out for every method",
+            param_hint="'--methods'",
+        )
     if names is not None:
         check_methods(names)
     scenario_names = split_list(scenarios)
