@@ -184,7 +184,7 @@ def test_an_empty_scenario_list_is_refused(
     out = tmp_path / "d"
     assert main(["demo", "--out", str(out), "--scenarios", value, "--frames", "1", "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "'--scenarios'" in err and "no scenario given" in err and "same_flat" in err
+    assert "'--scenarios'" in err and "names nothing" in err and "same_flat" in err
     assert not out.exists()
 
 

@@ -137,3 +137,12 @@ def test_json_that_is_an_input_is_refused(
     assert main(["eval", "kitti-tracking", str(tmp_path), "--json", str(calib)]) == 2
     assert "would be overwritten" in capsys.readouterr().err
     assert calib.read_text() == before
+
+
+@pytest.mark.parametrize("command", [["eval", "kitti-tracking"], ["report"]])
+def test_a_sequence_list_that_names_nothing_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    """``--sequences ","`` ran every sequence (an empty list read as the option left out)."""
+    assert main([*command, str(tmp_path), "--sequences", ","]) == 2
+    assert "'--sequences': names nothing" in capsys.readouterr().err

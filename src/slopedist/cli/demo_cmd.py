@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from slopedist.cli.method_options import check_methods, estimator_options
-from slopedist.cli.options import split_list
+from slopedist.cli.options import given_list
 from slopedist.datasets.synthetic.scenarios import SUITE, builtin_names
 from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_outputs, run_demo
 from slopedist.estimators import EstimatorConfig
@@ -69,21 +69,13 @@ def demo(
     estimator_config: EstimatorConfig,
 ) -> None:
     """Run every method on the synthetic hills, from rendered pixels, and print the tables."""
-    names = split_list(methods)
-    if methods is not None and not names:  # "" or ",": not every method by surprise
-        raise click.BadParameter(
-            "no method given; name at least one or leave the option out for every method",
-            param_hint="'--methods'",
-        )
+    names = given_list(methods, "--methods", "every method")
     if names is not None:
         check_methods(names)
-    scenario_names = split_list(scenarios)
-    if not scenario_names:  # "" or ",": not the whole suite by surprise
-        raise click.BadParameter(
-            f"no scenario given; name at least one (built-in: {', '.join(builtin_names())}) "
-            "or leave the option out for the whole suite",
-            param_hint="'--scenarios'",
-        )
+    scenario_names = given_list(
+        scenarios, "--scenarios", f"the whole suite (built-in: {', '.join(builtin_names())})"
+    )
+    assert scenario_names is not None  # the option has a default
     cfg = DemoConfig(
         out_dir,
         tuple(scenario_names),

@@ -30,6 +30,21 @@ def split_list(value: str | None) -> list[str] | None:
     return [v.strip() for v in value.split(",") if v.strip()]
 
 
+def given_list(value: str | None, option: str, default: str) -> list[str] | None:
+    """:func:`split_list` of an option whose absence means ``default`` (e.g. every sequence):
+    None when it is not given; a value that names nothing (``""``, ``","``) is a usage error
+    naming ``option``, not that default by surprise."""
+    if value is None:
+        return None
+    names = split_list(value)
+    if not names:
+        raise click.BadParameter(
+            f"names nothing; name at least one, or leave the option out for {default}",
+            param_hint=f"'{option}'",
+        )
+    return names
+
+
 class BoundedFloat(click.ParamType):
     """A finite number within ``(low, high]`` (``low`` included when ``low_open`` is False; no
     bounds: any finite number), so that an option's bad value is a usage error naming the

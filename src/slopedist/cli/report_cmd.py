@@ -14,7 +14,7 @@ from slopedist.cli.method_options import (
     evaluation_method_options,
     offline_option,
 )
-from slopedist.cli.options import kitti_eval_options, split_list
+from slopedist.cli.options import given_list, kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig, with_offline
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.kitti_eval import KittiEvalConfig
@@ -101,7 +101,7 @@ def report(
         names = with_offline(names or default_kitti_methods(depth_dir is not None))
     cfg = dataclasses.replace(
         kitti_config,
-        sequences=split_list(sequences),
+        sequences=given_list(sequences, "--sequences", "every sequence"),
         methods=tuple(names),
         method_options=evaluation_method_options(estimator_config, names),
         depth_dir=depth_dir,
