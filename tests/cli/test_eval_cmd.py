@@ -141,8 +141,8 @@ def test_json_that_is_an_input_is_refused(
 
 @pytest.mark.parametrize("command", [["eval", "kitti-tracking"], ["report"]])
 def test_a_sequence_list_that_names_nothing_is_a_usage_error(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+    kitti_tracking_dir: Path, capsys: pytest.CaptureFixture[str], command: list[str]
 ) -> None:
     """``--sequences ","`` ran every sequence (an empty list read as the option left out)."""
-    assert main([*command, str(tmp_path), "--sequences", ","]) == 2
+    assert main([*command, str(kitti_tracking_dir), "--sequences", ","]) == 2
     assert "'--sequences': names nothing" in capsys.readouterr().err
