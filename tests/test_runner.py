@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist import run_setup
+from slopedist import run_setup, runner
 from slopedist.camera import Camera
 from slopedist.cli import main
 from slopedist.detections.boxes import BoxTable
@@ -704,3 +704,46 @@ def test_overlay_and_odometry_mask_use_the_distorted_frames_pixels(tmp_path: Pat
         rows = (original.boxes[i, 1], original.boxes[i, 3])
         assert drawn_share(original.boxes[i, edge], rows) > 0.8
         assert drawn_share(mapped.boxes[i, edge], rows) < 0.2
+
+
+def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An offline method writes its records once the frames have all run; a write that fails
+    then (a full disk) keeps the whole frames before it, closes every output and writes
+    ``run.json`` saying where the records stop, as a causal run does."""
+    n = 8
+    real_open = runner.open_records
+
+    def failing_records(path: Any, fields: Any = None) -> Any:
+        writer = real_open(path, fields)
+        write_rows, calls = writer.write_rows, [0]
+
+        def write(rows: Any) -> int:
+            calls[0] += 1
+            if calls[0] > 3:
+                raise OSError(28, "No space left on device")
+            return write_rows(rows)
+
+        writer.write_rows = write  # type: ignore[method-assign]
+        return writer
+
+    monkeypatch.setattr(runner, "open_records", failing_records)
+    out = tmp_path / "out"
+    with pytest.raises(RunAbortedError, match=r"8 frames.*stop before frame 3.*No space left"):
+        run_frames(
+            open_frames(make_frames(tmp_path / "f", n)),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("ours-offline", CAM),
+            RunConfig(out, progress=False),
+        )
+    assert not list(out.glob("*.partial*"))
+    rows = read_csv(out / "records.csv")
+    assert sorted({int(r["frame"]) for r in rows}) == [0, 1, 2]
+    assert {r["method"] for r in rows} == {"ours-offline"}
+    assert len(read_csv(out / "frames.csv")) == n
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["complete"] is False and "No space left" in summary["error"]
+    assert (summary["last_complete_frame"], summary["failed_frame"]) == (2, 3)
+    assert summary["records"] == len(rows)

@@ -248,6 +248,11 @@ class _RunLoop:
         self.tracks = TrackSummaries()
         self.bar: tqdm | None = None
         self.summary_failed = ""
+        self.offline_failed: SlopedistError | OSError | None = None
+        """Why an offline method's records could not all be written at the end, or None."""
+        self.offline_written = 0
+        """How many of :attr:`held`'s frames have their offline records written."""
+        self.offline_note = ""
         self.start = time.perf_counter()
 
     def run(self, frames: FrameSource) -> RunResult:
@@ -278,6 +283,14 @@ class _RunLoop:
             raise
         self.result.complete = True
         self.finish()
+        if self.offline_failed is not None:  # the frames all ran; their records did not
+            raise RunAbortedError(
+                f"run went through its {self.result.frames} frames (per-frame log "
+                f"{Path(self.config.out_dir) / FRAMES_NAME}), but{self.offline_note[1:]}"
+                f"{self.summary_failed}",
+                self.result.failed_frame,
+                self.records_path,
+            ) from self.offline_failed
         return self.result
 
     def process(self, frame: Frame) -> None:
@@ -409,6 +422,27 @@ class _RunLoop:
         for (frame_boxes, timestamp_s), est in zip(held, self.step.finish(), strict=True):
             self._write_records(frame_boxes, timestamp_s, est)
             self.tracks.add(timestamp_s, frame_boxes, est, self._speed_at(timestamp_s))
+            self.offline_written += 1
+
+    def _offline_records_failed(self, exc: SlopedistError | OSError) -> None:
+        """An offline method's records stopped part-way (a full disk): ``records.csv`` keeps
+        the whole frames before the failing one, and the summary says which those are."""
+        result, held = self.result, self.held or []
+        self.offline_failed = exc
+        result.complete = False
+        failed = int(held[self.offline_written][0].frame[0])
+        result.failed_frame = failed if result.failed_frame is None else result.failed_frame
+        reached = failed - 1 if failed > 0 else None  # the frames before it have all their rows
+        if result.last_complete_frame is None or reached is None:
+            result.last_complete_frame = None
+        else:
+            result.last_complete_frame = min(result.last_complete_frame, reached)
+        if result.error is None:
+            result.error = f"{type(exc).__name__}: {exc}"
+        self.offline_note = (
+            f"; the {self.method} records stop before frame {failed} "
+            f"({exc}): {self.records_path} holds those of the frames before it"
+        )
 
     def _speed_at(self, timestamp_s: float) -> float:
         """The ego speed (m/s) at a frame time (s), NaN when unknown."""
@@ -493,7 +527,10 @@ class _RunLoop:
             self.bar.close()
         files = self.files
         if self.held:
-            self._write_offline_records(self.held)
+            try:
+                self._write_offline_records(self.held)
+            except (SlopedistError, OSError) as exc:  # the other outputs are closed all the same
+                self._offline_records_failed(exc)
         files.close(RECORDS_NAME, lambda: close_records(self.records))
         files.close(FRAMES_NAME, self.frame_log.close)
         files.close(TRACKS_NAME, self._write_tracks)
@@ -524,7 +561,7 @@ class _RunLoop:
         return RunAbortedError(
             f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
             f"before it are in {self.records_path} (per-frame log "
-            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.summary_failed}",
+            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.offline_note}{self.summary_failed}",
             self.result.failed_frame,
             self.records_path,
         )
