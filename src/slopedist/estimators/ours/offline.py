@@ -21,6 +21,7 @@ smoothed filter's uncertainty plus the per-vehicle part the filter cannot averag
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -75,7 +76,9 @@ class OursOfflineEstimator(OursEstimator):
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         est = super().estimate(frame)
-        self._frames.append(frame)
+        # the second pass needs the boxes, times and rotations, not the pixels: a drive's
+        # images (or depth maps) held to its end would not fit in memory
+        self._frames.append(dataclasses.replace(frame, image=None, depth_m=None))
         self._causal.append(est)
         return est
 
