@@ -773,3 +773,30 @@ def test_an_offline_runs_time_per_frame_includes_its_pass_over_the_drive(
     )
     assert result.complete and result.estimation_ms_mean >= 400 / n
     assert result.elapsed_s >= 0.4
+
+
+def test_an_offline_run_stopped_part_way_says_its_records_cover_the_frames_reached(
+    tmp_path: Path,
+) -> None:
+    """A stop (SIGTERM, Ctrl-C) ends an offline run with the records of its pass over the
+    frames it reached, and the message says that they are that (not of the whole drive)."""
+    n = 8
+    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)
+    frames = StoppingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 2)
+    with pytest.raises(
+        RunAbortedError,
+        match=r"The ours-offline records, from its pass over those frames only, of the 3 frames",
+    ):
+        run_frames(
+            cast(FrameSource, frames),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("ours-offline", CAM),
+            config,
+        )
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert [int(r["frame"]) for r in rows] == [0, 0, 1, 1, 2, 2]
+    assert {r["method"] for r in rows} == {"ours-offline"}
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["method"] == "ours-offline" and summary["complete"] is False
+    assert summary["last_complete_frame"] == 2 and summary["records"] == 6

@@ -562,8 +562,13 @@ class _RunLoop:
             where = f"frame {frame.index} ({frame.source})"
         else:
             where = "the first frame" if last is None else f"the end of frame {last}"
+        whose = (  # an offline method's pass went over the frames it reached, not the drive
+            f"{self.method} records, from its pass over those frames only,"
+            if self.held is not None
+            else "records"
+        )
         return RunAbortedError(
-            f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
+            f"run stopped at {where}: {exc}. The {whose} of the {self.result.frames} frames "
             f"before it are in {self.records_path} (per-frame log "
             f"{Path(self.config.out_dir) / FRAMES_NAME}){self.offline_note}{self.summary_failed}",
             self.result.failed_frame,
