@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, cast
@@ -14,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist import run_setup
+from slopedist import run_setup, runner
 from slopedist.camera import Camera
 from slopedist.cli import main
 from slopedist.detections.boxes import BoxTable
@@ -704,3 +705,98 @@ def test_overlay_and_odometry_mask_use_the_distorted_frames_pixels(tmp_path: Pat
         rows = (original.boxes[i, 1], original.boxes[i, 3])
         assert drawn_share(original.boxes[i, edge], rows) > 0.8
         assert drawn_share(mapped.boxes[i, edge], rows) < 0.2
+
+
+def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An offline method writes its records once the frames have all run; a write that fails
+    then (a full disk) keeps the whole frames before it, closes every output and writes
+    ``run.json`` saying where the records stop, as a causal run does."""
+    n = 8
+    real_open = runner.open_records
+
+    def failing_records(path: Any, fields: Any = None) -> Any:
+        writer = real_open(path, fields)
+        write_rows, calls = writer.write_rows, [0]
+
+        def write(rows: Any) -> int:
+            calls[0] += 1
+            if calls[0] > 3:
+                raise OSError(28, "No space left on device")
+            return write_rows(rows)
+
+        writer.write_rows = write  # type: ignore[method-assign]
+        return writer
+
+    monkeypatch.setattr(runner, "open_records", failing_records)
+    out = tmp_path / "out"
+    with pytest.raises(RunAbortedError, match=r"8 frames.*stop before frame 3.*No space left"):
+        run_frames(
+            open_frames(make_frames(tmp_path / "f", n)),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("ours-offline", CAM),
+            RunConfig(out, progress=False),
+        )
+    assert not list(out.glob("*.partial*"))
+    rows = read_csv(out / "records.csv")
+    assert sorted({int(r["frame"]) for r in rows}) == [0, 1, 2]
+    assert {r["method"] for r in rows} == {"ours-offline"}
+    assert len(read_csv(out / "frames.csv")) == n
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["complete"] is False and "No space left" in summary["error"]
+    assert (summary["last_complete_frame"], summary["failed_frame"]) == (2, 3)
+    assert summary["records"] == len(rows)
+
+
+def test_an_offline_runs_time_per_frame_includes_its_pass_over_the_drive(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``estimation_ms_mean`` (Table 2 of ``report``) of an offline method counts the pass
+    over the drive it makes at the end, not only the causal pass the frames were shown with."""
+    n = 4
+    estimator = make_estimator("ours-offline", CAM)
+    finish = estimator.finish
+
+    def slow_finish() -> Any:
+        time.sleep(0.4)
+        return finish()
+
+    monkeypatch.setattr(estimator, "finish", slow_finish)
+    result = run_frames(
+        open_frames(make_frames(tmp_path / "f", n)),
+        boxes_every_frame(n),
+        ScriptedOdometry(),
+        estimator,
+        RunConfig(tmp_path / "out", progress=False),
+    )
+    assert result.complete and result.estimation_ms_mean >= 400 / n
+    assert result.elapsed_s >= 0.4
+
+
+def test_an_offline_run_stopped_part_way_says_its_records_cover_the_frames_reached(
+    tmp_path: Path,
+) -> None:
+    """A stop (SIGTERM, Ctrl-C) ends an offline run with the records of its pass over the
+    frames it reached, and the message says that they are that (not of the whole drive)."""
+    n = 8
+    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)
+    frames = StoppingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 2)
+    with pytest.raises(
+        RunAbortedError,
+        match=r"The ours-offline records, from its pass over those frames only, of the 3 frames",
+    ):
+        run_frames(
+            cast(FrameSource, frames),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("ours-offline", CAM),
+            config,
+        )
+    rows = read_csv(tmp_path / "out" / "records.csv")
+    assert [int(r["frame"]) for r in rows] == [0, 0, 1, 1, 2, 2]
+    assert {r["method"] for r in rows} == {"ours-offline"}
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["method"] == "ours-offline" and summary["complete"] is False
+    assert summary["last_complete_frame"] == 2 and summary["records"] == 6

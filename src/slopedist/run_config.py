@@ -172,7 +172,9 @@ class RunResult:
             came as an unreadable frame whose time does not follow the frame before it (of a
             run stopped early: of the frames up to the last it completed).
         elapsed_s: wall time of the loop; ``frames_per_s``: frames / elapsed_s.
-        odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds.
+        odometry_ms_mean / estimation_ms_mean: mean time per frame, milliseconds (of an
+            offline method, its pass over the drive at the end included, spread over the
+            frames).
         depth_ms_mean: mean time per depth map (read or inference), milliseconds.
         depth_source: what the depth maps came from (e.g. ``"file read: DIR"``), or None.
         detector: the detector's model file when boxes came from a detector, or None.

@@ -248,6 +248,11 @@ class _RunLoop:
         self.tracks = TrackSummaries()
         self.bar: tqdm | None = None
         self.summary_failed = ""
+        self.offline_failed: SlopedistError | OSError | None = None
+        """Why an offline method's records could not all be written at the end, or None."""
+        self.offline_written = 0
+        """How many of :attr:`held`'s frames have their offline records written."""
+        self.offline_note = ""
         self.start = time.perf_counter()
 
     def run(self, frames: FrameSource) -> RunResult:
@@ -278,6 +283,14 @@ class _RunLoop:
             raise
         self.result.complete = True
         self.finish()
+        if self.offline_failed is not None:  # the frames all ran; their records did not
+            raise RunAbortedError(
+                f"run went through its {self.result.frames} frames (per-frame log "
+                f"{Path(self.config.out_dir) / FRAMES_NAME}), but{self.offline_note[1:]}"
+                f"{self.summary_failed}",
+                self.result.failed_frame,
+                self.records_path,
+            ) from self.offline_failed
         return self.result
 
     def process(self, frame: Frame) -> None:
@@ -406,9 +419,33 @@ class _RunLoop:
     def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:
         """An offline method's records of every frame seen, from its pass over the drive,
         and its track summaries from the same estimates."""
-        for (frame_boxes, timestamp_s), est in zip(held, self.step.finish(), strict=True):
+        t0 = time.perf_counter()
+        offline = self.step.finish()
+        self.times["estimation"].total += (time.perf_counter() - t0) * 1e3  # over the frames
+        for (frame_boxes, timestamp_s), est in zip(held, offline, strict=True):
             self._write_records(frame_boxes, timestamp_s, est)
             self.tracks.add(timestamp_s, frame_boxes, est, self._speed_at(timestamp_s))
+            self.offline_written += 1
+
+    def _offline_records_failed(self, exc: SlopedistError | OSError) -> None:
+        """An offline method's records stopped part-way (a full disk): ``records.csv`` keeps
+        the whole frames before the failing one, and the summary says which those are."""
+        result, held = self.result, self.held or []
+        self.offline_failed = exc
+        result.complete = False
+        failed = int(held[self.offline_written][0].frame[0])
+        result.failed_frame = failed if result.failed_frame is None else result.failed_frame
+        reached = failed - 1 if failed > 0 else None  # the frames before it have all their rows
+        if result.last_complete_frame is None or reached is None:
+            result.last_complete_frame = None
+        else:
+            result.last_complete_frame = min(result.last_complete_frame, reached)
+        if result.error is None:
+            result.error = f"{type(exc).__name__}: {exc}"
+        self.offline_note = (
+            f"; the {self.method} records stop before frame {failed} "
+            f"({exc}): {self.records_path} holds those of the frames before it"
+        )
 
     def _speed_at(self, timestamp_s: float) -> float:
         """The ego speed (m/s) at a frame time (s), NaN when unknown."""
@@ -475,14 +512,6 @@ class _RunLoop:
     def finish(self) -> None:
         """Fill in the summary, close every output and write ``run.json``."""
         result = self.result
-        result.elapsed_s = time.perf_counter() - self.start
-        result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
-        result.frame_status = dict(self.status_count)
-        result.odometry_states = dict(self.odometry_count)
-        result.odometry_ms_mean = self.times["odometry"].mean()
-        result.estimation_ms_mean = self.times["estimation"].mean()
-        result.depth_ms_mean = self.times["depth"].mean()
-        result.detection_ms_mean = self.times["detection"].mean()
         reached = result.last_complete_frame if not result.complete else None
         result.boxes_without_frame = sum(  # of a run stopped early: of the frames it reached
             self.by_frame.count(k)
@@ -493,7 +522,19 @@ class _RunLoop:
             self.bar.close()
         files = self.files
         if self.held:
-            self._write_offline_records(self.held)
+            try:
+                self._write_offline_records(self.held)
+            except (SlopedistError, OSError) as exc:  # the other outputs are closed all the same
+                self._offline_records_failed(exc)
+        # (after the offline pass: its time is the method's, spread over the frames)
+        result.elapsed_s = time.perf_counter() - self.start
+        result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan
+        result.frame_status = dict(self.status_count)
+        result.odometry_states = dict(self.odometry_count)
+        result.odometry_ms_mean = self.times["odometry"].mean()
+        result.estimation_ms_mean = self.times["estimation"].mean()
+        result.depth_ms_mean = self.times["depth"].mean()
+        result.detection_ms_mean = self.times["detection"].mean()
         files.close(RECORDS_NAME, lambda: close_records(self.records))
         files.close(FRAMES_NAME, self.frame_log.close)
         files.close(TRACKS_NAME, self._write_tracks)
@@ -521,10 +562,15 @@ class _RunLoop:
             where = f"frame {frame.index} ({frame.source})"
         else:
             where = "the first frame" if last is None else f"the end of frame {last}"
+        whose = (  # an offline method's pass went over the frames it reached, not the drive
+            f"{self.method} records, from its pass over those frames only,"
+            if self.held is not None
+            else "records"
+        )
         return RunAbortedError(
-            f"run stopped at {where}: {exc}. The records of the {self.result.frames} frames "
+            f"run stopped at {where}: {exc}. The {whose} of the {self.result.frames} frames "
             f"before it are in {self.records_path} (per-frame log "
-            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.summary_failed}",
+            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.offline_note}{self.summary_failed}",
             self.result.failed_frame,
             self.records_path,
         )

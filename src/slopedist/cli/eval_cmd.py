@@ -12,9 +12,10 @@ from slopedist.cli.method_options import (
     estimator_options,
     evaluation_method_options,
     offline_option,
+    with_offline_methods,
 )
 from slopedist.cli.options import given_list, kitti_eval_options, split_list
-from slopedist.estimators import EstimatorConfig, with_offline
+from slopedist.estimators import EstimatorConfig
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.tables import STDOUT_PATH, write_json
 from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
@@ -66,7 +67,7 @@ def kitti_tracking(
     if json_out is not None and str(json_out) != STDOUT_PATH:  # not onto a label, calib, ...
         check_outputs_spare_inputs([json_out], sorted(data_dir.glob("*/*.txt")))
     if offline:
-        names = with_offline(names)
+        names = with_offline_methods(names)
     cfg = dataclasses.replace(
         kitti_config,
         sequences=given_list(sequences, "--sequences", "every sequence"),

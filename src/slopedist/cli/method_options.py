@@ -14,7 +14,13 @@ import click
 
 from slopedist.cli.options import apply_options, split_list
 from slopedist.errors import ConfigurationError
-from slopedist.estimators import EstimatorConfig, available_methods
+from slopedist.estimators import (
+    ESTIMATORS,
+    OFFLINE_COUNTERPARTS,
+    EstimatorConfig,
+    available_methods,
+    with_offline,
+)
 from slopedist.estimators.base import VEHICLE_REFERENCES
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.estimators.ours.config import parse_options
@@ -41,6 +47,19 @@ offline_option = click.option(
     "over the whole drive, for log analysis; reported under its own name, never mixed with "
     "the causal method).",
 )
+
+
+def with_offline_methods(names: list[str]) -> list[str]:
+    """``names`` with their offline counterparts (``--offline``: ``ours`` → ``ours,
+    ours-offline``); a usage error when none of them has an offline mode, rather than a run
+    without the offline figures asked for."""
+    out = with_offline(names)
+    if not any(getattr(ESTIMATORS.get(m), "offline", False) for m in out):
+        raise click.UsageError(
+            f"--offline: none of the methods ({', '.join(names)}) has an offline mode; add "
+            f"one to --methods (methods with one: {', '.join(OFFLINE_COUNTERPARTS)})"
+        )
+    return out
 
 
 def evaluation_method_options(

@@ -13,9 +13,10 @@ from slopedist.cli.method_options import (
     estimator_options,
     evaluation_method_options,
     offline_option,
+    with_offline_methods,
 )
 from slopedist.cli.options import given_list, kitti_eval_options, split_list
-from slopedist.estimators import EstimatorConfig, with_offline
+from slopedist.estimators import EstimatorConfig
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.kitti_eval import KittiEvalConfig
 from slopedist.report import (
@@ -98,7 +99,7 @@ def report(
                 "--offline runs the offline methods on a KITTI tracking folder; for run "
                 "outputs, make the runs with `slopedist run --offline` (method ours-offline)"
             )
-        names = with_offline(names or default_kitti_methods(depth_dir is not None))
+        names = with_offline_methods(names or default_kitti_methods(depth_dir is not None))
     cfg = dataclasses.replace(
         kitti_config,
         sequences=given_list(sequences, "--sequences", "every sequence"),

@@ -21,6 +21,7 @@ smoothed filter's uncertainty plus the per-vehicle part the filter cannot averag
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -71,12 +72,19 @@ class OursOfflineEstimator(OursEstimator):
     def reset(self) -> None:
         super().reset()
         self._frames: list[FrameInput] = []
-        self._causal: list[FrameEstimates] = []
+        self._causal: list[FloatArray] = []
+        """Of each frame the pass-1 columns the second pass needs, ``(3, n)``: track uid, size
+        scale, its log σ (the rest of the estimates, some 40 columns, is not kept)."""
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         est = super().estimate(frame)
-        self._frames.append(frame)
-        self._causal.append(est)
+        # the second pass needs the boxes, times and rotations, not the pixels: a drive's
+        # images (or depth maps) held to its end would not fit in memory
+        self._frames.append(dataclasses.replace(frame, image=None, depth_m=None))
+        extra = est.extra
+        self._causal.append(
+            np.stack([extra["track_uid"], extra["size_scale"], extra["size_log_sigma"]])
+        )
         return est
 
     def finish(self) -> list[FrameEstimates]:
@@ -87,17 +95,15 @@ class OursOfflineEstimator(OursEstimator):
         return second.smoothed(estimates)
 
 
-def _final_sizes(
-    frames: list[FrameInput], causal: list[FrameEstimates]
-) -> dict[BoxKey, FloatArray]:
+def _final_sizes(frames: list[FrameInput], causal: list[FloatArray]) -> dict[BoxKey, FloatArray]:
     """Every box's pass-1 track's size belief at its last frame, ``(2,)`` (log scale, its
-    variance), keyed by the box; boxes without one (unusable) are left out."""
+    variance), keyed by the box; boxes without one (unusable) are left out. ``causal``: each
+    frame's pass-1 track uid, size scale and its log σ, ``(3, n)``."""
     final: dict[float, FloatArray] = {}
     rows: list[tuple[BoxKey, float]] = []
-    for frame, est in zip(frames, causal, strict=True):
-        uid = est.extra["track_uid"]
-        log_scale = np.log(est.extra["size_scale"])
-        log_var = est.extra["size_log_sigma"] ** 2
+    for frame, (uid, scale, log_sigma) in zip(frames, causal, strict=True):
+        log_scale = np.log(scale)
+        log_var = log_sigma**2
         keys = _box_keys(frame.timestamp_s, frame.boxes.boxes)
         for i in np.flatnonzero(np.isfinite(uid) & np.isfinite(log_var)).tolist():
             final[float(uid[i])] = np.array([log_scale[i], log_var[i]])
@@ -173,7 +179,9 @@ class _SmoothingPass(OursEstimator):
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
         """``estimates`` (this pass's, one per frame) with each track's distance, σ, speed and
         time to collision replaced by the smoothed ones where the row is ``ok`` (the σ of the
-        speed and time to collision widened by the track's noise scale, as ``ours`` does)."""
+        speed and time to collision widened by the track's noise scale, as ``ours`` does).
+        The list is changed in place (each frame's estimates replaced by a changed copy in turn,
+        so that the drive's estimates are never held twice) and returned."""
         logs = [log for log in self.log if log is not None]
         if not logs:
             return estimates
@@ -194,11 +202,12 @@ class _SmoothingPass(OursEstimator):
         speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(smooth)
         widen = np.sqrt(np.maximum(np.concatenate([log.noise_scale for log in logs]), 1.0))
         speed_sd, ttc_sd = speed_sd * widen, ttc_sd * widen  # the noise the track shows, as ours
-        out = [_copy(e) for e in estimates]
+        out = estimates  # each frame's replaced by its copy in turn: never two of the drive
         k = 0
         for f, log in enumerate(self.log):
             if log is None:
                 continue
+            out[f] = _copy(out[f])
             m = log.uid.size
             part = slice(k, k + m)
             _replace_rows(
