@@ -134,6 +134,21 @@ def play_in_chromium(video: Path, times: list[float], tmp_path: Path) -> dict[st
     return dict(re.findall(r'data-([a-z]+)="([^"]*)"', body.group(0)))
 
 
+def grey_levels_in_chromium(
+    video: Path, times: list[float], tmp_path: Path, expected: list[int]
+) -> tuple[dict[str, str], list[int]]:
+    """:func:`play_in_chromium`, tried up to three times until the grey levels are
+    ``expected`` (±4): right after a seek Chromium may draw the frame before the one sought
+    (a busy machine; one run in about seven here), so one wrong draw is not yet a wrong file;
+    three are. Returns the last findings and grey levels."""
+    for _ in range(3):
+        seen = play_in_chromium(video, times, tmp_path)
+        grey = [int(g) for g in seen.get("grey", "").split(",") if g]
+        if seen.get("state") == "done" and grey == pytest.approx(expected, abs=4):
+            break
+    return seen, grey
+
+
 needs_chromium = pytest.mark.skipif(
     CHROMIUM is None,
     reason="headless Chromium not installed (Debian package 'chromium'; .ci/run installs it)",
@@ -147,22 +162,23 @@ def test_overlay_plays_in_a_browser_video_element(tmp_path: Path) -> None:
     for k, t in enumerate(times):
         writer.write(k, np.full((375, 1242, 3), 30 * k, np.uint8), t)
     writer.close()
-    seen = play_in_chromium(tmp_path / "o.mp4", [0.05, 0.27, 1.05, 2.05], tmp_path)
+    expected = [0, 60, 120, 180]  # frames 0, 2, 4, 6
+    times = [0.05, 0.27, 1.05, 2.05]
+    seen, grey = grey_levels_in_chromium(tmp_path / "o.mp4", times, tmp_path, expected)
     assert seen.get("state") == "done", seen
     assert float(seen["duration"]) == pytest.approx(2.1, abs=0.05)
-    grey = [int(g) for g in seen["grey"].split(",")]
-    assert grey == pytest.approx([0, 60, 120, 180], abs=4)  # frames 0, 2, 4, 6
+    assert grey == pytest.approx(expected, abs=4)
 
 
 @needs_chromium
 def test_killed_overlay_plays_in_a_browser(tmp_path: Path) -> None:
     target = tmp_path / "killed.mp4"
     killed_overlay(target, 35)
-    seen = play_in_chromium(target, [0.05, 1.05, 2.95], tmp_path)
+    expected = [0, 40, 116]  # frames 0, 10, 29
+    seen, grey = grey_levels_in_chromium(target, [0.05, 1.05, 2.95], tmp_path, expected)
     assert seen.get("state") == "done", seen
     assert float(seen["duration"]) >= 3.0
-    grey = [int(g) for g in seen["grey"].split(",")]
-    assert grey == pytest.approx([0, 40, 116], abs=4)  # frames 0, 10, 29
+    assert grey == pytest.approx(expected, abs=4)
 
 
 def test_frame_times_before_zero_keep_their_spacing(tmp_path: Path) -> None:
