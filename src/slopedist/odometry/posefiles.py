@@ -69,6 +69,10 @@ KITTI_POSE_FIELDS = [f"r{i}{j}" if j < 3 else f"t{i}" for i in range(3) for j in
 KITTI_4X4_FIELDS = [*KITTI_POSE_FIELDS, "m30", "m31", "m32", "m33"]
 """A KITTI pose line written as the whole 4×4 matrix (last row ``0 0 0 1``)."""
 
+HOMOGENEOUS_ROW_TOL = 1e-9
+"""Largest difference of a 4×4 pose's last row from ``0 0 0 1``: the row is written exactly by
+every tool (``0`` or ``0.000000e+00``), so any difference beyond rounding is not a pose."""
+
 MAX_FRAME_INTERVAL_S = 10.0
 """Largest median time between a pose file's poses, seconds: frames further apart give no
 look-back of a second; timestamps in milli-, micro- or nanoseconds read as seconds do."""
@@ -96,7 +100,8 @@ def read_kitti_poses(
     """
     data, lines = _read_numeric_rows(path, 12, KITTI_4X4_FIELDS, also=16)
     if data.shape[1] == 16:  # the whole 4×4: its last row must be 0 0 0 1
-        bad = np.flatnonzero(np.any(np.abs(data[:, 12:] - [0, 0, 0, 1]) > 1e-9, axis=1))
+        off = np.abs(data[:, 12:] - [0, 0, 0, 1]) > HOMOGENEOUS_ROW_TOL
+        bad = np.flatnonzero(off.any(axis=1))
         if bad.size:
             raise InputFileError(
                 path,
