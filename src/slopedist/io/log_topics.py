@@ -45,6 +45,10 @@ CAMERA_INFO_RTOL = 1e-6
 """Relative difference of a ``camera_info`` value (K, distortion) from the first message's
 beyond which the calibration has changed during the log."""
 
+CAMERA_INFO_DIST_ATOL = 1e-12
+"""Absolute difference of a distortion coefficient beyond which it has changed: a coefficient
+of 0 has no relative difference, and one written as 0 or 1e-17 is the same lens."""
+
 
 def read_camera_info(path: str | Path, topic: str, rectified: bool = False) -> Intrinsics:
     """The intrinsics of the ``sensor_msgs/CameraInfo`` messages on ``topic``
@@ -95,7 +99,7 @@ def _same_calibration(a: Intrinsics, b: Intrinsics) -> bool:
         and a.fisheye == b.fisheye
         and a.dist.shape == b.dist.shape
         and np.allclose(a.K, b.K, rtol=CAMERA_INFO_RTOL, atol=0.0)
-        and np.allclose(a.dist, b.dist, rtol=CAMERA_INFO_RTOL, atol=1e-12)
+        and np.allclose(a.dist, b.dist, rtol=CAMERA_INFO_RTOL, atol=CAMERA_INFO_DIST_ATOL)
     )
 
 
