@@ -17,10 +17,11 @@ import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
 from slopedist.detections.format_writers import (
-    _class_indices,
+    class_indices,
     write_coco,
     write_mot,
     write_yolo_folder,
+    yolo_optional_columns,
 )
 from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
 from slopedist.detections.onnx_detector import COCO_VEHICLES
@@ -193,12 +194,13 @@ def unkept(table: BoxTable, fmt: BoxFormat | str) -> list[str]:
                 f"score: {k} unknown scores written as -1 (MOT's placeholder, read back as unknown)"
             )
     if kind is BoxFormat.YOLO:
-        _, ok = _class_indices(table, COCO_VEHICLES)
-        k = int(np.count_nonzero(~np.isfinite(table.score[ok])))
-        if k:
+        _, ok = class_indices(table, COCO_VEHICLES)
+        with_score, with_track = yolo_optional_columns(table, ok)
+        if not with_score:
+            k = int(np.count_nonzero(~np.isfinite(table.score[ok])))
             notes.append(f"score: {k} of {int(ok.sum())} boxes have none, so no box's is written")
-            if np.any(table.track_id[ok] != NO_TRACK):
-                notes.append("track_id: written only with scores, so not written")
+        if not with_track and np.any(table.track_id[ok] != NO_TRACK):
+            notes.append("track_id: written only with scores, so not written")
     if kind is not BoxFormat.CSV:
         lost = list(table.extra)
     else:

@@ -31,7 +31,7 @@ EXTRA_NAME_ALIASES = {"Van": "Car"}
 """Classes written as another one when the target format has no index of their own."""
 
 
-def _class_indices(table: BoxTable, class_map: Mapping[int, str]) -> tuple[np.ndarray, np.ndarray]:
+def class_indices(table: BoxTable, class_map: Mapping[int, str]) -> tuple[np.ndarray, np.ndarray]:
     """Per box: the format's class index (−1 = none) and whether it has one."""
     by_name = {name: idx for idx, name in sorted(class_map.items(), reverse=True)}
     ids = np.array(
@@ -39,6 +39,15 @@ def _class_indices(table: BoxTable, class_map: Mapping[int, str]) -> tuple[np.nd
         dtype=np.int64,
     )
     return ids, ids >= 0
+
+
+def yolo_optional_columns(table: BoxTable, kept: np.ndarray) -> tuple[bool, bool]:
+    """Whether a YOLO label folder of the ``kept`` boxes of ``table`` has its optional columns:
+    ``(conf, track_id)``. A column is all or nothing: ``conf`` only when every kept box has a
+    score, ``track_id`` only after ``conf`` and when some kept box has a track."""
+    with_score = bool(np.all(np.isfinite(table.score[kept])))
+    with_track = with_score and bool(np.any(table.track_id[kept] != NO_TRACK))
+    return with_score, with_track
 
 
 def _line(values: list[object], sep: str) -> str:
@@ -63,7 +72,7 @@ def write_coco(
     table: BoxTable, path: str | Path, categories: Mapping[int, str] | None = None
 ) -> int:
     """A COCO results JSON list (``-`` = standard output); returns the boxes left out."""
-    ids, ok = _class_indices(table, COCO_CATEGORIES if categories is None else categories)
+    ids, ok = class_indices(table, COCO_CATEGORIES if categories is None else categories)
     items = []
     for i in np.flatnonzero(ok)[np.argsort(table.frame[ok], kind="stable")]:
         left, top, right, bottom = table.boxes[i]
@@ -115,9 +124,8 @@ def write_yolo_folder(
             "with the new label files; choose a new or empty folder"
         )
     folder.mkdir(parents=True, exist_ok=True)
-    ids, ok = _class_indices(table, COCO_VEHICLES if class_map is None else class_map)
-    with_score = bool(np.all(np.isfinite(table.score[ok])))
-    with_track = with_score and bool(np.any(table.track_id[ok] != NO_TRACK))
+    ids, ok = class_indices(table, COCO_VEHICLES if class_map is None else class_map)
+    with_score, with_track = yolo_optional_columns(table, ok)
     kept = table.select(ok)
     for (frame, boxes), cls in zip(kept.by_frame(), _ids_by_frame(kept, ids[ok])):
         lines = []
