@@ -35,6 +35,16 @@ MAX_MOUNT_ANGLE_RAD = math.radians(60.0)
 """Largest accepted |mount angle θ0|, radians (a road camera looks roughly forward)."""
 
 
+def focal_in_range(f_px: float) -> bool:
+    """Whether a focal length (pixels) lies in :data:`FOCAL_RANGE_PX`."""
+    return FOCAL_RANGE_PX[0] <= f_px <= FOCAL_RANGE_PX[1]
+
+
+def height_in_range(height_m: float) -> bool:
+    """Whether a camera height above the road (metres) is > 0 and ≤ :data:`MAX_CAMERA_HEIGHT_M`."""
+    return 0 < height_m <= MAX_CAMERA_HEIGHT_M
+
+
 @dataclass(frozen=True)
 class Camera:
     """Pinhole intrinsics plus how the camera is mounted on the ego vehicle.
@@ -62,12 +72,12 @@ class Camera:
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise ConfigurationError(f"camera {name} must be finite, got {value}")
-        lo, hi = FOCAL_RANGE_PX
-        if not lo <= self.f <= hi:
+        if not focal_in_range(self.f):
+            lo, hi = FOCAL_RANGE_PX
             raise ConfigurationError(
                 f"camera focal length f = {self.f:g} px is outside the plausible {lo:g}..{hi:g} px"
             )
-        if not 0 < self.height_m <= MAX_CAMERA_HEIGHT_M:
+        if not height_in_range(self.height_m):
             raise ConfigurationError(
                 f"camera height must be > 0 and ≤ {MAX_CAMERA_HEIGHT_M:g} m, got {self.height_m:g}"
             )

@@ -99,7 +99,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from slopedist.camera import FOCAL_RANGE_PX, MAX_CAMERA_HEIGHT_M
+from slopedist.camera import (
+    FOCAL_RANGE_PX,
+    MAX_CAMERA_HEIGHT_M,
+    focal_in_range,
+    height_in_range,
+)
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.road import GradeChange, HorizontalCurve, RoadSpec, SpeedBump
 from slopedist.datasets.synthetic.scenario_reader import (
@@ -185,7 +190,7 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
             "height_m",
             "camera",
             1.65,
-            lambda x: 0 < x <= MAX_CAMERA_HEIGHT_M,
+            height_in_range,
             f"in (0, {MAX_CAMERA_HEIGHT_M:g}] m",
         ),
         forward_m=r.number(t, "forward_m", "camera", 0.0),
@@ -217,26 +222,27 @@ def _camera(r: TableReader, data: dict[str, Any]) -> CameraSpec:
             "focal_px",
             "camera",
             d.f,
-            lambda x: FOCAL_RANGE_PX[0] <= x <= FOCAL_RANGE_PX[1],
+            focal_in_range,
             f"in {FOCAL_RANGE_PX[0]:g}..{FOCAL_RANGE_PX[1]:g} px",
         ),
-        r.number(
-            t,
-            "cx_px",
-            "camera",
-            width / 2 if "image_width" in t else d.c_x,
-            lambda x: 0 <= x <= width,
-            f"inside the image, 0..{width} px",
-        ),
-        r.number(
-            t,
-            "cy_px",
-            "camera",
-            height / 2 if "image_height" in t else d.c_y,
-            lambda x: 0 <= x <= height,
-            f"inside the image, 0..{height} px",
-        ),
+        _principal_point(r, t, "cx_px", width / 2 if "image_width" in t else d.c_x, width),
+        _principal_point(r, t, "cy_px", height / 2 if "image_height" in t else d.c_y, height),
         rig,
+    )
+
+
+def _principal_point(
+    r: TableReader, t: dict[str, Any], key: str, default_px: float, size_px: int
+) -> float:
+    """The ``[camera]`` principal-point coordinate ``key`` (pixels), inside the image's
+    ``size_px`` along its axis."""
+    return r.number(
+        t,
+        key,
+        "camera",
+        default_px,
+        lambda x: 0 <= x <= size_px,
+        f"inside the image, 0..{size_px} px",
     )
 
 
