@@ -222,3 +222,16 @@ def test_far_targets_and_a_scale_less_model_are_not_judged() -> None:
     for k in range(3):
         out = scaled.estimate(frame_of(NEAR, 0.37 * render(NEAR), k=k))
     np.testing.assert_allclose(out.distance_m, [z for _, z in NEAR], rtol=1e-5)
+
+
+def test_boxes_the_bottom_border_cuts_are_not_judged_for_the_scale() -> None:
+    """A box whose bottom lies within the border tolerance of the image's last row is cut
+    (:func:`~slopedist.detections.boxes.border_cuts`): its contact distance is no reference.
+    The scale check judged boxes up to the last row itself, by its own rule."""
+    z = CAMERA.f * CAMERA.height_m / (H - 1.5 - CAMERA.c_y)  # bottom at row 373.5: cut
+    cut = [(-3.0, z), (0.0, z), (3.0, z)]
+    assert all(car_box(x, zz)[3] == pytest.approx(H - 1.5) for x, zz in cut)
+    est = DepthMapEstimator(CAMERA)
+    for k in range(3):
+        out = est.estimate(frame_of(cut, 3.0 * render(cut), k=k))
+    np.testing.assert_allclose(out.distance_m, [3 * z] * 3, rtol=1e-5)

@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.depth.base import MAX_PLAUSIBLE_DEPTH_M, MIN_PLAUSIBLE_DEPTH_M, plausible_depth
+from slopedist.detections.boxes import EDGES, border_cuts
 from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators.base import (
     Estimator,
@@ -65,6 +66,7 @@ from slopedist.estimators.base import (
     FrameInput,
     MissingReason,
     ReferencePoint,
+    image_size,
     unusable_box_reasons,
 )
 
@@ -214,13 +216,12 @@ class DepthMapEstimator(Estimator):
         if pool is None:
             return
         contact = self._reference(frame)
-        bottom = frame.boxes.boxes[:, 3]
-        height = self.camera.image_height
+        cuts = border_cuts(frame.boxes.boxes, image_size(self.camera))
+        cut_bottom = cuts[:, EDGES.index("bottom")]
         low, high = SCALE_CHECK_RANGE_M
         with np.errstate(invalid="ignore"):
             use = np.isfinite(raw) & (raw > 0) & (contact >= low) & (contact <= high)
-        if height is not None:
-            use &= bottom < height - 1
+        use &= ~cut_bottom
         pool.extend(np.log(raw[use] / contact[use]).tolist())
         if len(pool) < SCALE_CHECK_COUNT:
             return
