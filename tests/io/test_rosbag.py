@@ -527,3 +527,15 @@ def test_a_topic_whose_images_never_decode_says_why(
     source = LogFrameSource(path, TOPICS.image)
     with pytest.raises(InputFileError, match=r"decodes \(message 0: image encoding 'yuv422' is"):
         source.frame_size()
+
+
+def test_a_stamp_that_does_not_increase_is_named_to_the_nanosecond() -> None:
+    """Stamps since 1970 printed through a float (``t_ns * 1e-9``) lost their last digits:
+    a repeated stamp 1317000000.123456789 s read 1317000000.123456955 s."""
+    from slopedist.io.rosbag import _Slots
+
+    slots = _Slots(None)
+    slots.place(1_317_000_000_123_456_789)
+    problem = slots.place(1_317_000_000_123_456_789)[2]
+    assert "header stamp 1317000000.123456789 s does not increase" in problem
+    assert problem.endswith("(the frame before has 1317000000.123456789 s)")

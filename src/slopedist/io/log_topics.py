@@ -24,12 +24,8 @@ from slopedist.io.rosbag import (
     iter_messages,
     open_log,
     stamp_ns,
+    stamp_text,
 )
-
-
-def stamp_text(stamp: int) -> str:
-    """A header stamp (ns) as seconds with all nine decimals, as in messages."""
-    return f"{stamp // 10**9}.{stamp % 10**9:09d} s"
 
 
 def camera_info_topic(image_topic: str) -> str:

@@ -272,6 +272,12 @@ def _raw_image(msg: Any) -> tuple[NDArray[np.uint8] | None, str]:
     return np.ascontiguousarray(image), ""
 
 
+def stamp_text(stamp: int) -> str:
+    """A header stamp (ns) as seconds with all nine decimals, as in messages (exact: a float
+    of a stamp since 1970 keeps no nanoseconds)."""
+    return f"{stamp // 10**9}.{stamp % 10**9:09d} s"
+
+
 class _Slots:
     """Frame index of each stamp: slots of the nominal period, gaps and non-increasing stamps."""
 
@@ -299,8 +305,8 @@ class _Slots:
                 self.index,
                 self.index,
                 (
-                    f"header stamp {t_ns * 1e-9:.9f} s does not increase (the frame before has "
-                    f"{self.last_ns * 1e-9:.9f} s)"
+                    f"header stamp {stamp_text(t_ns)} does not increase (the frame before has "
+                    f"{stamp_text(self.last_ns)})"
                 ),
             )
         period = self.period()
