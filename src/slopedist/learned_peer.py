@@ -96,9 +96,16 @@ def regressor_class() -> Any:
     return module.HistGradientBoostingRegressor
 
 
+def usable_pairs(features: FloatArray, distance_m: FloatArray) -> NDArray[np.bool_]:
+    """Per training pair (``features`` rows ``(n, k)``, ``distance_m`` ``(n,)`` metres): whether
+    :func:`fit_peer` learns from it (every feature finite, a finite distance > 0)."""
+    y = np.asarray(distance_m, dtype=float)
+    return np.isfinite(np.asarray(features, dtype=float)).all(axis=1) & np.isfinite(y) & (y > 0)
+
+
 def fit_peer(features: FloatArray, distance_m: FloatArray, seed: int = PEER_SEED) -> Any:
     """A gradient-boosting regressor fitted to ``distance_m`` (metres) from ``features``
-    (:func:`box_features` rows); rows with a non-finite feature or distance are left out.
+    (:func:`box_features` rows); rows :func:`usable_pairs` refuses are left out.
 
     Raises:
         OptionalDependencyError: scikit-learn is not installed.
@@ -106,7 +113,7 @@ def fit_peer(features: FloatArray, distance_m: FloatArray, seed: int = PEER_SEED
     """
     x = np.asarray(features, dtype=float)
     y = np.asarray(distance_m, dtype=float)
-    keep = np.isfinite(x).all(axis=1) & np.isfinite(y) & (y > 0)
+    keep = usable_pairs(x, y)
     if not keep.any():
         raise ConfigurationError("the learned peer has no usable training pair")
     model = regressor_class()(early_stopping=False, random_state=seed)
@@ -130,8 +137,7 @@ class PeerSamples:
         if not len(self):
             return 0
         x = np.asarray(self.features, dtype=float).reshape(len(self), -1)
-        y = np.asarray(self.distance_m, dtype=float)
-        return int(np.sum(np.isfinite(x).all(axis=1) & np.isfinite(y) & (y > 0)))
+        return int(np.sum(usable_pairs(x, self.distance_m)))
 
 
 class LeaveOneSequenceOut:
