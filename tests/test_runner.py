@@ -201,6 +201,35 @@ def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(tmp_path: Pa
     assert summary["boxes_without_frame"] == 0  # frames 3..7 were never reached
 
 
+class FailingFrames(StoppingFrames):
+    """A frame source whose frame ``at`` cannot be read (an error before it is given)."""
+
+    def __iter__(self) -> Iterator[Frame]:
+        for frame in self.inner:
+            if frame.index == self.at:
+                raise InputFileError(self.path, "cannot be read")
+            yield frame
+
+
+def test_a_run_stopped_before_its_first_frame_counts_no_box_without_a_frame(
+    tmp_path: Path,
+) -> None:
+    n = 4
+    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)
+    frames = FailingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 0)
+    with pytest.raises(RunAbortedError):
+        run_frames(
+            cast(FrameSource, frames),
+            boxes_every_frame(n),
+            ScriptedOdometry(),
+            make_estimator("paper", CAM),
+            config,
+        )
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert not summary["complete"] and summary["last_complete_frame"] is None
+    assert summary["boxes_without_frame"] == 0  # no frame was reached
+
+
 def test_an_unreadable_frame_out_of_time_order_is_logged_and_the_run_goes_on(
     tmp_path: Path,
 ) -> None:
