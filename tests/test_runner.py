@@ -184,23 +184,6 @@ class StoppingFrames:
             yield frame
 
 
-def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(tmp_path: Path) -> None:
-    n = 8
-    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)  # stops in step
-    frames = StoppingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 2)
-    with pytest.raises(RunAbortedError):
-        run_frames(
-            cast(FrameSource, frames),
-            boxes_every_frame(n),
-            ScriptedOdometry(),
-            make_estimator("paper", CAM),
-            config,
-        )
-    summary = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert not summary["complete"] and summary["last_complete_frame"] == 2
-    assert summary["boxes_without_frame"] == 0  # frames 3..7 were never reached
-
-
 class FailingFrames(StoppingFrames):
     """A frame source whose frame ``at`` cannot be read (an error before it is given)."""
 
@@ -211,12 +194,16 @@ class FailingFrames(StoppingFrames):
             yield frame
 
 
-def test_a_run_stopped_before_its_first_frame_counts_no_box_without_a_frame(
-    tmp_path: Path,
+@pytest.mark.parametrize(
+    ("source", "at", "last_complete"),
+    [(StoppingFrames, 2, 2), (FailingFrames, 0, None)],  # stopped after frame 2; before frame 0
+)
+def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(
+    tmp_path: Path, source: type[StoppingFrames], at: int, last_complete: int | None
 ) -> None:
-    n = 4
-    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)
-    frames = FailingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 0)
+    n = 8
+    config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)  # stops in step
+    frames = source(open_frames(make_frames(tmp_path / "f", n)), config, at)
     with pytest.raises(RunAbortedError):
         run_frames(
             cast(FrameSource, frames),
@@ -226,8 +213,8 @@ def test_a_run_stopped_before_its_first_frame_counts_no_box_without_a_frame(
             config,
         )
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert not summary["complete"] and summary["last_complete_frame"] is None
-    assert summary["boxes_without_frame"] == 0  # no frame was reached
+    assert not summary["complete"] and summary["last_complete_frame"] == last_complete
+    assert summary["boxes_without_frame"] == 0  # the frames after the last complete one
 
 
 def test_an_unreadable_frame_out_of_time_order_is_logged_and_the_run_goes_on(
