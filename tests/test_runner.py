@@ -184,10 +184,26 @@ class StoppingFrames:
             yield frame
 
 
-def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(tmp_path: Path) -> None:
+class FailingFrames(StoppingFrames):
+    """A frame source whose frame ``at`` cannot be read (an error before it is given)."""
+
+    def __iter__(self) -> Iterator[Frame]:
+        for frame in self.inner:
+            if frame.index == self.at:
+                raise InputFileError(self.path, "cannot be read")
+            yield frame
+
+
+@pytest.mark.parametrize(
+    ("source", "at", "last_complete"),
+    [(StoppingFrames, 2, 2), (FailingFrames, 0, None)],  # stopped after frame 2; before frame 0
+)
+def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(
+    tmp_path: Path, source: type[StoppingFrames], at: int, last_complete: int | None
+) -> None:
     n = 8
     config = RunConfig(tmp_path / "out", progress=False, decode_ahead=0)  # stops in step
-    frames = StoppingFrames(open_frames(make_frames(tmp_path / "f", n)), config, 2)
+    frames = source(open_frames(make_frames(tmp_path / "f", n)), config, at)
     with pytest.raises(RunAbortedError):
         run_frames(
             cast(FrameSource, frames),
@@ -197,8 +213,8 @@ def test_a_stopped_run_counts_no_box_of_the_frames_it_never_reached(tmp_path: Pa
             config,
         )
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert not summary["complete"] and summary["last_complete_frame"] == 2
-    assert summary["boxes_without_frame"] == 0  # frames 3..7 were never reached
+    assert not summary["complete"] and summary["last_complete_frame"] == last_complete
+    assert summary["boxes_without_frame"] == 0  # the frames after the last complete one
 
 
 def test_an_unreadable_frame_out_of_time_order_is_logged_and_the_run_goes_on(

@@ -42,7 +42,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.errors import DataMismatchError, InputFileError, OptionalDependencyError
 from slopedist.estimators.base import FrameEstimates
 from slopedist.io.tables import json_ready
-from slopedist.viz import FIG3_MISSING, track_colour
+from slopedist.viz import FIG3_MISSING, distance_label, track_colour
 
 IMAGE_TOPIC = "/slopedist/image"
 ANNOTATIONS_TOPIC = "/slopedist/annotations"
@@ -171,16 +171,13 @@ def frame_targets(boxes: BoxTable, estimates: FrameEstimates) -> list[dict[str, 
 
 
 def target_label(target: dict[str, Any]) -> str:
-    """A target's label as the overlay writes it: ``#track distance m`` for ``ok``,
-    ``#track <= bound m (reason)`` for an upper bound, ``#track missing: reason`` otherwise
-    (never a number for a distance that is withheld)."""
-    name = f"#{target['track_id']} " if target["track_id"] >= 0 else ""
-    z, status = target["distance_m"], target["status"]
-    if status == "ok" and z is not None:
-        return f"{name}{z:.1f} m"
-    if status == "upper_bound" and z is not None:
-        return f"{name}<= {z:.1f} m ({target['reason']})"
-    return f"{name}missing: {target['reason'] or 'no distance'}"
+    """A target's label as the overlay writes it (:func:`~slopedist.viz.distance_label`): a
+    target without a distance, or of another status than ``ok`` and ``upper_bound``, reads
+    ``#track missing: reason`` (never a number for a distance that is withheld)."""
+    z, status, reason = target["distance_m"], target["status"], target["reason"]
+    if z is None or status not in ("ok", "upper_bound"):
+        z, status, reason = math.nan, "missing", reason or "no distance"
+    return distance_label(target["track_id"], z, status, reason)
 
 
 def image_annotations(t_ns: int, targets: list[dict[str, Any]]) -> dict[str, Any]:

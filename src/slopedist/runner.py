@@ -512,11 +512,10 @@ class _RunLoop:
     def finish(self) -> None:
         """Fill in the summary, close every output and write ``run.json``."""
         result = self.result
-        reached = result.last_complete_frame if not result.complete else None
         result.boxes_without_frame = sum(  # of a run stopped early: of the frames it reached
             self.by_frame.count(k)
             for k in self.by_frame
-            if k not in self.seen_box_frames and (reached is None or k <= reached)
+            if k not in self.seen_box_frames and self._reached(k)
         )
         if self.bar is not None:
             self.bar.close()
@@ -552,6 +551,14 @@ class _RunLoop:
             if result.error is None:
                 raise OutputWriteError(Path(self.config.out_dir) / SUMMARY_NAME, exc) from exc
             self.summary_failed = f"; {SUMMARY_NAME} could not be written: {exc.strerror or exc}"
+
+    def _reached(self, k: int) -> bool:
+        """Whether frame index ``k`` is within the run: any frame of a complete run; of a run
+        stopped early, one up to the last it completed (none when it completed none)."""
+        if self.result.complete:
+            return True
+        last = self.result.last_complete_frame
+        return last is not None and k <= last
 
     def _write_tracks(self) -> None:
         self.tracks.write(self.files.path(TRACKS_NAME))

@@ -193,6 +193,18 @@ def _motion_text(estimates: FrameEstimates, i: int) -> str:
     return "  ".join(parts)
 
 
+def distance_label(track_id: int, distance_m: float, status: str, reason: str) -> str:
+    """A target's label: ``#track distance m`` for status ``ok``, ``#track <= bound m
+    (reason)`` for an ``upper_bound`` (a bound, not a distance to trust), ``#track missing:
+    reason`` otherwise; no ``#track`` without a track id (negative); metres."""
+    name = f"#{track_id} " if track_id >= 0 else ""
+    if status == "ok":
+        return f"{name}{distance_m:.1f} m"
+    if status == "upper_bound":
+        return f"{name}<= {distance_m:.1f} m ({reason})"
+    return f"{name}missing: {reason}"
+
+
 def _label_forms(
     boxes: BoxTable, estimates: FrameEstimates, i: int, cut: bool
 ) -> list[tuple[list[str], float]]:
@@ -204,13 +216,14 @@ def _label_forms(
     dy = float(estimates.delta_y_px[i])
     dy_text = f"dy {dy:+.0f} px" if math.isfinite(dy) else "dy -"
     z = float(estimates.distance_m[i])
-    if estimates.status[i] == "ok":
-        first = short = f"{name}{z:.1f} m"
-    elif estimates.status[i] == "upper_bound":  # a bound, not a distance to trust
-        first = f"{name}<= {z:.1f} m ({estimates.reason[i]})"
+    status = str(estimates.status[i])
+    first = distance_label(tid, z, status, str(estimates.reason[i]))
+    if status == "ok":
+        short = f"{name}{z:.1f} m"
+    elif status == "upper_bound":  # a bound, not a distance to trust
         short = f"{name}<={z:.1f} m"
     else:
-        first, short = f"{name}missing: {estimates.reason[i]}", f"{name}missing"
+        short = f"{name}missing"
     full = [first + ("  cut" if cut else ""), dy_text]
     return [(full, LABEL_SCALE), ([short], LABEL_SCALE), ([short], SMALL_LABEL_SCALE)]
 

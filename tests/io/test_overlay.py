@@ -92,16 +92,17 @@ PAGE = """<!doctype html><html><body data-state="start">
 const v = document.getElementById("v"), b = document.body, c = document.getElementById("c");
 const times = TIMES, seen = [];
 v.addEventListener("error", () => { b.dataset.state = "error"; b.dataset.error = v.error.code; });
-v.addEventListener("loadeddata", () => {
-  b.dataset.duration = v.duration; v.currentTime = times[0];
-});
-v.addEventListener("seeked", () => {
+function seek(t) {  // drawn once the frame sought is shown: "seeked" may come before it is
+  v.requestVideoFrameCallback(draw); v.currentTime = t;
+}
+function draw() {
   c.width = v.videoWidth; c.height = v.videoHeight;
   const g = c.getContext("2d"); g.drawImage(v, 0, 0);
   seen.push(g.getImageData(8, 8, 1, 1).data[0]);
-  if (seen.length < times.length) { v.currentTime = times[seen.length]; return; }
+  if (seen.length < times.length) { seek(times[seen.length]); return; }
   b.dataset.grey = seen.join(","); b.dataset.state = "done";
-});
+}
+v.addEventListener("loadeddata", () => { b.dataset.duration = v.duration; seek(times[0]); });
 let ticks = 0;  // busy ticks let the media thread work while virtual time waits
 function spin() {
   let x = 0; for (let i = 0; i < 3e6; i++) { x += Math.sqrt(i); }
@@ -134,21 +135,6 @@ def play_in_chromium(video: Path, times: list[float], tmp_path: Path) -> dict[st
     return dict(re.findall(r'data-([a-z]+)="([^"]*)"', body.group(0)))
 
 
-def grey_levels_in_chromium(
-    video: Path, times: list[float], tmp_path: Path, expected: list[int]
-) -> tuple[dict[str, str], list[int]]:
-    """:func:`play_in_chromium`, tried up to three times until the grey levels are
-    ``expected`` (±4): right after a seek Chromium may draw the frame before the one sought
-    (a busy machine; one run in about seven here), so one wrong draw is not yet a wrong file;
-    three are. Returns the last findings and grey levels."""
-    for _ in range(3):
-        seen = play_in_chromium(video, times, tmp_path)
-        grey = [int(g) for g in seen.get("grey", "").split(",") if g]
-        if seen.get("state") == "done" and grey == pytest.approx(expected, abs=4):
-            break
-    return seen, grey
-
-
 needs_chromium = pytest.mark.skipif(
     CHROMIUM is None,
     reason="headless Chromium not installed (Debian package 'chromium'; .ci/run installs it)",
@@ -162,23 +148,22 @@ def test_overlay_plays_in_a_browser_video_element(tmp_path: Path) -> None:
     for k, t in enumerate(times):
         writer.write(k, np.full((375, 1242, 3), 30 * k, np.uint8), t)
     writer.close()
-    expected = [0, 60, 120, 180]  # frames 0, 2, 4, 6
-    times = [0.05, 0.27, 1.05, 2.05]
-    seen, grey = grey_levels_in_chromium(tmp_path / "o.mp4", times, tmp_path, expected)
+    seen = play_in_chromium(tmp_path / "o.mp4", [0.05, 0.27, 1.05, 2.05], tmp_path)
     assert seen.get("state") == "done", seen
     assert float(seen["duration"]) == pytest.approx(2.1, abs=0.05)
-    assert grey == pytest.approx(expected, abs=4)
+    grey = [int(g) for g in seen["grey"].split(",")]
+    assert grey == pytest.approx([0, 60, 120, 180], abs=4)  # frames 0, 2, 4, 6
 
 
 @needs_chromium
 def test_killed_overlay_plays_in_a_browser(tmp_path: Path) -> None:
     target = tmp_path / "killed.mp4"
     killed_overlay(target, 35)
-    expected = [0, 40, 116]  # frames 0, 10, 29
-    seen, grey = grey_levels_in_chromium(target, [0.05, 1.05, 2.95], tmp_path, expected)
+    seen = play_in_chromium(target, [0.05, 1.05, 2.95], tmp_path)
     assert seen.get("state") == "done", seen
     assert float(seen["duration"]) >= 3.0
-    assert grey == pytest.approx(expected, abs=4)
+    grey = [int(g) for g in seen["grey"].split(",")]
+    assert grey == pytest.approx([0, 40, 116], abs=4)  # frames 0, 10, 29
 
 
 def test_frame_times_before_zero_keep_their_spacing(tmp_path: Path) -> None:

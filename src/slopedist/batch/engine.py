@@ -207,7 +207,6 @@ def plan(
     reserved = [d.name for d in drives if d.name in FLEET_NAMES]
     if reserved:
         raise ConfigurationError(f"drive name '{reserved[0]}' is reserved for a batch output")
-    check_outputs_spare_drive_inputs(drives, out_dir)
     todo, skipped = [], {}
     for spec in drives:
         stamp = input_stamp(spec)

@@ -7,7 +7,12 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from slopedist.datasets.synthetic.export import SIMULATION_NAMES, DepthFormat, write_simulation
+from slopedist.datasets.synthetic.export import (
+    SIMULATION_NAMES,
+    DepthFormat,
+    refuse_stale_frames,
+    write_simulation,
+)
 from slopedist.datasets.synthetic.noise import BoxNoiseSpec
 from slopedist.datasets.synthetic.scenarios import (
     builtin_text,
@@ -16,29 +21,6 @@ from slopedist.datasets.synthetic.scenarios import (
 )
 from slopedist.datasets.synthetic.sequence import SyntheticSequence
 from slopedist.errors import ConfigurationError
-
-
-def _refuse_stale_frames(out_dir: Path, n: int, images: bool, depth: DepthFormat) -> None:
-    """Refuse an ``image_02`` or ``depth`` folder under ``out_dir`` holding files this
-    simulation of ``n`` frames would not replace (a longer earlier run, another depth format,
-    a drive's own frames): old and new frames would mix. Nothing is deleted."""
-    expected = {
-        "image_02": {f"{k:06d}.png" for k in range(n)} if images else set(),
-        "depth": set()
-        if depth is DepthFormat.NONE
-        else {f"{k:06d}.{depth.value}" for k in range(n)},
-    }
-    for folder, names in expected.items():
-        d = out_dir / folder
-        if not d.is_dir():
-            continue
-        stale = sorted(p.name for p in d.iterdir() if p.name not in names)
-        if stale:
-            shown = ", ".join(stale[:3]) + (", ..." if len(stale) > 3 else "")
-            raise ConfigurationError(
-                f"{d} holds {len(stale)} file(s) this simulation would not replace ({shown}): "
-                "old and new frames would mix; choose another --out or remove them"
-            )
 
 
 @click.command("simulate")
@@ -105,7 +87,7 @@ def simulate(
         )
     seq = SyntheticSequence(sc, BoxNoiseSpec.exact() if exact_boxes else None)
     total = len(seq) if max_frames is None else min(len(seq), max_frames)
-    _refuse_stale_frames(out_dir, total, not no_images, DepthFormat(depth))
+    refuse_stale_frames(out_dir, total, not no_images, DepthFormat(depth))
     path = Path(scenario)
     text = path.read_text(encoding="utf-8") if path.is_file() else builtin_text(sc.name)
     with tqdm(total=total, unit="frame", desc=f"simulate {sc.name}", dynamic_ncols=True) as bar:

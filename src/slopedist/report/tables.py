@@ -24,7 +24,7 @@ def table2(data: ReportData) -> Table:
         parts = [t["odometry_ms"], t["estimation_ms"], t["depth_ms"]]
         finite = [p for p in parts if math.isfinite(p)]
         rows.append([m, *parts, float(sum(finite)) if finite else math.nan])
-    untimed = _untimed_rotations(data, [data.timing[m]["odometry_ms"] for m in data.methods])
+    untimed = _untimed_rotations(data)
     totals = best_marks([r[4] for r in rows]) if not untimed else [False] * len(rows)
     bold = [[False, False, False, False, b] for b in totals]
     headers = ["method", "odometry", "estimation", "depth", "total"]
@@ -57,10 +57,11 @@ def table2(data: ReportData) -> Table:
     )
 
 
-def _untimed_rotations(data: ReportData, odometry_ms: list[float]) -> list[str]:
+def _untimed_rotations(data: ReportData) -> list[str]:
     """The methods that need a rotation but whose odometry time is not measured, when another
     method's is: their totals lack a part the others' hold (empty when nothing is timed, or
     everything that needs a rotation is)."""
+    odometry_ms = [data.timing[m]["odometry_ms"] for m in data.methods]
     if not any(math.isfinite(t) for t in odometry_ms):
         return []
     return [

@@ -87,6 +87,16 @@ FRAME_FIELDS = (
 """Columns of ``frames.csv``; ``theta_true_deg`` is eq. 4 on the true rotations (1 s look-back)."""
 
 
+IMAGE_DIR_NAME, DEPTH_DIR_NAME = "image_02", "depth"
+"""The folders of the rendered frames and of the true depth maps in a simulation's folder."""
+
+
+def frame_file_name(k: int, extension: str) -> str:
+    """File name of frame ``k`` in :data:`IMAGE_DIR_NAME` or :data:`DEPTH_DIR_NAME`
+    (``000007.png``)."""
+    return f"{k:06d}.{extension}"
+
+
 class DepthFormat(str, Enum):
     """How ``slopedist simulate`` stores the true depth maps."""
 
@@ -219,13 +229,13 @@ def _write_frame_files(f: SyntheticFrame, files: _FrameFiles) -> None:
     """The frame's image (PNG) and true depth map (KITTI depth PNG or float32 ``.npy``)."""
     k = f.index
     if files.images:
-        path = files.image_dir / f"{k:06d}.png"
+        path = files.image_dir / frame_file_name(k, "png")
         if not cv2.imwrite(str(path), f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
             raise InputFileError(path, "could not be written as PNG")
     if files.depth is DepthFormat.PNG:
-        write_kitti_depth_png(files.depth_dir / f"{k:06d}.png", f.depth_m)
+        write_kitti_depth_png(files.depth_dir / frame_file_name(k, "png"), f.depth_m)
     elif files.depth is DepthFormat.NPY:
-        np.save(files.depth_dir / f"{k:06d}.npy", f.depth_m)
+        np.save(files.depth_dir / frame_file_name(k, "npy"), f.depth_m)
 
 
 def _write_frame_rows(
@@ -287,10 +297,38 @@ SIMULATION_NAMES = (
     "boxes_exact.csv",
     "truth.csv",
     "frames.csv",
-    "image_02",
-    "depth",
+    IMAGE_DIR_NAME,
+    DEPTH_DIR_NAME,
 )
 """The files and folders :func:`write_simulation` writes in its output folder."""
+
+
+def refuse_stale_frames(out_dir: Path, n: int, images: bool, depth: DepthFormat) -> None:
+    """Refuse an :data:`IMAGE_DIR_NAME` or :data:`DEPTH_DIR_NAME` folder under ``out_dir``
+    holding files a :func:`write_simulation` of ``n`` frames would not replace (a longer
+    earlier run, another depth format, a drive's own frames): old and new frames would mix.
+    Nothing is deleted.
+
+    Raises:
+        ConfigurationError: names the folder, how many such files it holds and up to three.
+    """
+    expected = {
+        IMAGE_DIR_NAME: {frame_file_name(k, "png") for k in range(n)} if images else set(),
+        DEPTH_DIR_NAME: set()
+        if depth is DepthFormat.NONE
+        else {frame_file_name(k, depth.value) for k in range(n)},
+    }
+    for folder, names in expected.items():
+        d = out_dir / folder
+        if not d.is_dir():
+            continue
+        stale = sorted(p.name for p in d.iterdir() if p.name not in names)
+        if stale:
+            shown = ", ".join(stale[:3]) + (", ..." if len(stale) > 3 else "")
+            raise ConfigurationError(
+                f"{d} holds {len(stale)} file(s) this simulation would not replace ({shown}): "
+                "old and new frames would mix; choose another --out or remove them"
+            )
 
 
 def write_simulation(
@@ -311,7 +349,7 @@ def write_simulation(
     if n < 1:
         raise ConfigurationError("nothing to simulate: the frame limit must be ≥ 1")
     _write_sequence_files(seq, out, scenario_text, n)
-    files = _FrameFiles(out / "image_02", out / "depth", images, depth)
+    files = _FrameFiles(out / IMAGE_DIR_NAME, out / DEPTH_DIR_NAME, images, depth)
     if images:
         files.image_dir.mkdir(exist_ok=True)
     if depth is not DepthFormat.NONE:
