@@ -72,3 +72,19 @@ def test_eval_a_frame_of_another_size_names_its_file(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert "000002.png: frame size 60×40 px differs from the 80×50 px" in err
+
+
+def test_eval_json_onto_a_frame_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`odometry eval SEQ --json SEQ/image_l/000001.png` replaced that frame with the figures."""
+    (tmp_path / "image_l").mkdir()
+    for k in range(3):
+        cv2.imwrite(str(tmp_path / "image_l" / f"{k:06d}.png"), np.zeros((50, 80), np.uint8))
+    (tmp_path / "calib.txt").write_text("70 0 40 0 0 70 25 0 0 0 1 0\n")
+    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n" * 3)
+    frame = tmp_path / "image_l" / "000001.png"
+    before = frame.read_bytes()
+    assert main(["odometry", "eval", str(tmp_path), "--json", str(frame)]) == 2
+    assert "would be overwritten" in capsys.readouterr().err
+    assert frame.read_bytes() == before

@@ -51,10 +51,12 @@ def eval_command(seq_dir: Path, backend: str, json_out: Path | None, lookback_s:
     rotation error over full look-back windows (10 frames at 10 Hz); ms_per_frame, the time
     inside the odometry per frame after image decoding, with OpenCV limited to one thread.
     """
+    inputs = [seq_dir / name for name in ("calib.txt", "poses.txt", "times.txt")]
     if json_out is not None and str(json_out) != STDOUT_PATH:
-        inputs = [seq_dir / name for name in ("calib.txt", "poses.txt", "times.txt")]
         check_outputs_spare_inputs([json_out], inputs)
     seq = read_kitti_odometry(seq_dir)
+    if json_out is not None and str(json_out) != STDOUT_PATH:  # nor a frame of image_l/
+        check_outputs_spare_inputs([json_out], seq.image_paths)
     if seq.ground_truth is None:  # pragma: no cover - read_kitti_odometry requires poses
         raise MissingInputError(f"no ground-truth poses in {seq_dir}")
     # the built-in backend estimates the rotation over exactly this look-back
