@@ -81,3 +81,16 @@ def test_outputs_that_are_inputs_are_refused(tmp_path: Path) -> None:
     with pytest.raises(ConfigurationError, match="would be overwritten"):
         check_outputs_spare_inputs([], [tmp_path], tmp_path)
     check_outputs_spare_inputs([tmp_path / "c.csv", None], [tmp_path / "b.csv"], tmp_path / "o")
+
+
+def test_an_output_that_is_a_hard_link_to_an_input_is_refused(tmp_path: Path) -> None:
+    """`slopedist estimate --calib calib.txt ... --out link.txt`, link.txt a hard link of
+    calib.txt: the records replaced the calibration."""
+    calib = tmp_path / "calib.txt"
+    calib.write_text("P2: 1 0 0 0 0 1 0 0 0 0 1 0\n")
+    link = tmp_path / "link.txt"
+    os.link(calib, link)
+    with pytest.raises(ConfigurationError, match=r"link.txt is the input .*calib.txt"):
+        check_outputs_spare_inputs([link], [tmp_path / "poses.txt", calib])
+    (tmp_path / "copy.txt").write_text(calib.read_text())  # the same content is not the file
+    check_outputs_spare_inputs([tmp_path / "copy.txt"], [calib])

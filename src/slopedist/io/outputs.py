@@ -180,8 +180,27 @@ def check_outputs_spare_inputs(
     """
     ins = {Path(p).resolve(): Path(p) for p in inputs if p is not None}
     for o in [*outputs, out_dir]:
-        if o is not None and Path(o).resolve() in ins:
+        if o is None:
+            continue
+        same = ins.get(Path(o).resolve()) or _same_file_among(Path(o), ins.values())
+        if same is not None:
             raise ConfigurationError(
-                f"the output {o} is the input {ins[Path(o).resolve()]}: choose another output "
+                f"the output {o} is the input {same}: choose another output "
                 "(--out), the input would be overwritten"
             )
+
+
+def _same_file_among(output: Path, inputs: Iterable[Path]) -> Path | None:
+    """The input that is the existing file ``output`` under another name (a hard link), if any."""
+    try:
+        out = output.stat()
+    except OSError:  # not there yet: no input to overwrite
+        return None
+    for p in inputs:
+        try:
+            st = p.stat()
+        except OSError:
+            continue
+        if (st.st_dev, st.st_ino) == (out.st_dev, out.st_ino):
+            return p
+    return None
