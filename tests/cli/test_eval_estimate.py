@@ -252,3 +252,17 @@ def test_ours_options_reach_ours_from_the_command_line(
         err = capsys.readouterr().err
         assert "--ours-option" in err and message in err and "Traceback" not in err
         assert not out.exists()
+
+
+def test_estimate_depthmap_without_depth_is_refused(
+    small_sequence: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """estimate takes no depth maps: `--method depthmap` wrote every box as missing, no_depth,
+    with exit code 0."""
+    out = tmp_path / "records.csv"
+    args = ["--poses", str(small_sequence["poses"]), "--boxes", str(small_sequence["boxes"])]
+    args += ["--method", "depthmap", "--out", str(out)]
+    code = main(["estimate", "--calib", str(small_sequence["calib"]), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and "method 'depthmap' needs depth maps" in err and "--depth-dir" in err
+    assert not out.exists()

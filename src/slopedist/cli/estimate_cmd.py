@@ -12,7 +12,8 @@ from slopedist.cli.method_options import check_methods, estimator_options
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.detections.boxes import BoxTable
-from slopedist.estimators import EstimatorConfig, build_estimator
+from slopedist.errors import ConfigurationError
+from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
 
@@ -40,6 +41,12 @@ def estimate(
 
     An offline method (ours-offline) writes its records when the sequence ends."""
     check_methods([method])
+    if getattr(ESTIMATORS.get(method), "needs_depth", False):  # every record would be no_depth
+        raise ConfigurationError(
+            f"method '{method}' needs depth maps, which slopedist estimate does not take: use "
+            "slopedist run FRAMES --depth-dir DIR or --depth-model MODEL.onnx, or slopedist "
+            "eval kitti-tracking --depth-dir DIR"
+        )
     check_outputs_spare_inputs([out], files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
     estimator = build_estimator(estimator_config.with_method(method), seq.camera)
