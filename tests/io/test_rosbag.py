@@ -508,6 +508,20 @@ def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
         log_topics(cut)
 
 
+def test_a_folder_that_is_not_a_log_is_not_called_a_crashed_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`log info FOLDER` on a folder of anything else said "a ROS 2 bag folder without
+    metadata.yaml (its recorder stopped without closing it?) ... ros2 bag reindex"."""
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    (folder / "000000.png").write_bytes(b"not a log")
+    assert main(["log", "info", str(folder)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith(f"slopedist: error: {folder}: not a log")
+    assert "reindex" not in err and "recorder" not in err
+
+
 def test_a_topic_whose_images_never_decode_says_why(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

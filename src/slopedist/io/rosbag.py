@@ -129,6 +129,12 @@ def open_log(path: str | Path) -> Iterator[Any]:
         raise MissingInputError(f"log not found: {path}")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         files = storage_files(path)
+        if not files:
+            raise InputFileError(
+                path,
+                "not a log: a folder with neither a ROS 2 bag's metadata.yaml nor a storage "
+                "file (.db3, .mcap); give a ROS 1 .bag, a .mcap / .db3 file or a ROS 2 bag folder",
+            )
         raise InputFileError(
             path,
             "a ROS 2 bag folder without metadata.yaml (its recorder stopped without closing "
