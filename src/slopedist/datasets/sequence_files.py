@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 
+import numpy as np
+
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.detections.boxes import BoxTable
 from slopedist.detections.readers import read_box_file
@@ -103,8 +105,11 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
         track = read_pose_file(files.poses, PoseFormat(layout.value), files.frame_period_s)
     boxes = calibration.intrinsics.rectify_table(read_box_file(files.boxes, files.min_score))
     if len(boxes) and int(boxes.frame.max()) >= len(track):
+        beyond = int(np.count_nonzero(boxes.frame >= len(track)))
         raise DataMismatchError(
             f"{files.poses}: {len(track)} poses do not cover the boxes of {files.boxes}, which "
-            f"go up to frame {int(boxes.frame.max())}"
+            f"go up to frame {int(boxes.frame.max())}: {beyond} of {len(boxes)} boxes are in "
+            f"frames {len(track)} to {int(boxes.frame.max())}, past the last pose (frame "
+            f"{len(track) - 1})"
         )
     return SequenceInputs(calibration.camera, track, boxes)
