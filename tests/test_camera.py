@@ -119,3 +119,22 @@ def test_second_key_is_an_error(tmp_path: Path) -> None:
         InputFileError, match=r"line 4, field 'P2': second 'P2:' line \(the first is line 1\)"
     ):
         read_kitti_calib(path)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"f": "700"}, "camera f must be a number, got '700'"),
+        ({"f": None}, "camera f must be a number, got None"),
+        ({"mount_angle_rad": "0"}, "camera mount_angle_rad must be a number"),
+        ({"height_m": True}, "camera height_m must be a number, got True"),
+        ({"image_width": True, "image_height": 375}, "image size must be 1..1000000 px, got True"),
+    ],
+)
+def test_values_that_are_not_numbers_are_configuration_errors(
+    kwargs: dict[str, object], message: str
+) -> None:
+    """Text and None failed with math.isfinite's bare TypeError; a bool passed as 1."""
+    values: dict[str, object] = {"f": 700.0, "c_x": 0.5, "c_y": 0.5} | kwargs
+    with pytest.raises(ConfigurationError, match=message):
+        Camera(**values)  # type: ignore[arg-type]

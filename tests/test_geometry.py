@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from slopedist import geometry as geo
+from slopedist.errors import ConfigurationError
 
 
 def rot_x(angle_rad: float) -> np.ndarray:
@@ -148,3 +149,25 @@ def test_rotation_angle_of_exact_turns() -> None:
     assert geo.rotation_angle_rad(np.eye(3)) == 0.0
     stacked = geo.rotation_angle_rad(np.stack([np.eye(3), quarter]))
     assert stacked.shape == (2,) and stacked[1] == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"alphas_rad": (math.nan, 0.1, 0.1)}, "alphas_rad must be three finite numbers"),
+        ({"alphas_rad": (0.1, 0.1)}, "alphas_rad must be three finite numbers"),
+        ({"thresholds_px": ("a", -10.0, -20.0)}, "thresholds_px must be three finite"),
+        ({"thresholds_px": (0.0, 0.0, -20.0)}, "thresholds must decrease"),
+    ],
+)
+def test_gradient_adjustment_checks_its_parameters(kwargs: dict, message: str) -> None:
+    """A NaN step was accepted (NaN distances), two steps failed later with a bare
+    IndexError, thresholds that do not decrease were only refused by EstimatorConfig."""
+    with pytest.raises(ConfigurationError, match=message):
+        geo.GradientAdjustment(**kwargs)
+
+
+def test_gradient_adjustment_from_degrees_refuses_two_thresholds() -> None:
+    """It failed with a bare IndexError."""
+    with pytest.raises(ConfigurationError, match="thresholds_px must be three finite"):
+        geo.GradientAdjustment.from_degrees((3.0, 5.0, 6.0), (0.0, -10.0))  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from slopedist.camera import Camera
 from slopedist.detections import BoxTable
-from slopedist.errors import DataMismatchError
+from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators import available_methods, make_estimator
 from slopedist.odometry import RotationTrack
 from slopedist.pipeline import (
@@ -298,3 +298,61 @@ def test_a_rotation_that_jumps_90_degrees_is_no_rotation_not_a_car_2_m_ahead(met
     assert math.isnan(results[60].theta_rad)
     stream = concat_estimates([r.estimates for r in results if len(r.estimates)])
     np.testing.assert_array_equal(stream.distance_m, batch.distance_m)
+
+
+@pytest.mark.parametrize("lookback", [float("nan"), 0.0, -1.0, math.inf, "1", True])
+def test_a_lookback_that_is_no_duration_is_a_configuration_error(lookback: object) -> None:
+    """A NaN, zero or negative look-back gave θ = 0 or NaN for every frame without a word,
+    in the stream and in batch alike."""
+    track, boxes = synthetic_sequence(10)
+    with pytest.raises(ConfigurationError, match="lookback_s must be a finite number"):
+        FrameStep(make_estimator("paper", CAMERA), lookback_s=lookback)  # type: ignore[arg-type]
+    with pytest.raises(ConfigurationError, match="lookback_s must be a finite number"):
+        estimate_sequence(
+            make_estimator("paper", CAMERA),
+            boxes,
+            track.timestamps_s,
+            track,
+            lookback_s=lookback,  # type: ignore[arg-type]
+        )
+    with pytest.raises(ConfigurationError, match="lookback_s must be a finite number"):
+        ego_gradients(track, lookback_s=lookback)  # type: ignore[arg-type]
+
+
+def test_vehicle_classes_given_as_one_text_is_a_configuration_error() -> None:
+    """``vehicle_classes="Car"`` became ("C", "a", "r"): every Car was ``not_a_vehicle``."""
+    with pytest.raises(ConfigurationError, match=r"vehicle_classes must be a collection.*'Car'"):
+        FrameStep(make_estimator("paper", CAMERA), vehicle_classes="Car")
+    track, boxes = synthetic_sequence(10)
+    with pytest.raises(ConfigurationError, match="vehicle_classes"):
+        estimate_sequence(
+            make_estimator("paper", CAMERA), boxes, track.timestamps_s, track, vehicle_classes="Car"
+        )
+
+
+@pytest.mark.parametrize(
+    ("timestamps", "message"),
+    [
+        (lambda t: t[None], "timestamps_s must be one per frame \\(N,\\), got shape \\(1, 10\\)"),
+        (lambda t: ["x"] * len(t), "timestamps_s: could not convert"),
+    ],
+)
+def test_timestamps_that_are_not_one_per_frame_are_a_data_mismatch(
+    timestamps: object, message: str
+) -> None:
+    """A 2-D array failed with a bare TypeError deep in the loop, text with a ValueError."""
+    track, boxes = synthetic_sequence(10)
+    with pytest.raises(DataMismatchError, match=message):
+        estimate_sequence(
+            make_estimator("paper", CAMERA),
+            boxes,
+            timestamps(track.timestamps_s),  # type: ignore[operator]
+            track,
+        )
+
+
+def test_a_timestamp_that_is_not_a_number_is_a_data_mismatch() -> None:
+    """It failed with math.isfinite's bare TypeError."""
+    step = FrameStep(make_estimator("paper", CAMERA))
+    with pytest.raises(DataMismatchError, match=r"frame 0: timestamp must be a number.*'0\.0'"):
+        step.step(0, "0.0", np.eye(3), None)  # type: ignore[arg-type]

@@ -70,6 +70,10 @@ class Camera:
     def __post_init__(self) -> None:
         for name in ("f", "c_x", "c_y", "height_m", "mount_angle_rad"):
             value = getattr(self, name)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(
+                value, (int, float, np.integer, np.floating)
+            ):
+                raise ConfigurationError(f"camera {name} must be a number, got {value!r}")
             if not math.isfinite(value):
                 raise ConfigurationError(f"camera {name} must be finite, got {value}")
         if not focal_in_range(self.f):
@@ -95,7 +99,9 @@ class Camera:
             ("c_y", self.c_y, self.image_height),
         ):
             if size is not None and not (
-                isinstance(size, (int, np.integer)) and 0 < size <= 1_000_000
+                isinstance(size, (int, np.integer))
+                and not isinstance(size, bool)
+                and 0 < size <= 1_000_000
             ):
                 raise ConfigurationError(f"camera image size must be 1..1000000 px, got {size}")
             high = MAX_PRINCIPAL_POINT_PX if size is None else float(size)

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from slopedist.errors import ConfigurationError
+
 FloatArray = NDArray[np.float64]
 
 D0_CAM = np.array([0.0, 0.0, 1.0])
@@ -123,6 +125,16 @@ class GradientAdjustment:
     )
     thresholds_px: tuple[float, float, float] = (0.0, -10.0, -20.0)
 
+    def __post_init__(self) -> None:
+        """Raises ConfigurationError: not three finite angles and three finite thresholds
+        that decrease (a NaN step gave a NaN distance for every box it applied to)."""
+        for name in ("alphas_rad", "thresholds_px"):
+            values = _three_numbers(name, getattr(self, name))
+            object.__setattr__(self, name, values)
+        t = self.thresholds_px
+        if not (t[0] > t[1] > t[2]):
+            raise ConfigurationError(f"eq. 7 thresholds must decrease (t1 > t2 > t3), got {t}")
+
     @classmethod
     def from_degrees(
         cls,
@@ -130,11 +142,23 @@ class GradientAdjustment:
         thresholds_px: tuple[float, float, float] = (0.0, -10.0, -20.0),
     ) -> GradientAdjustment:
         """Build from angles in degrees (the unit of the paper and the command line)."""
-        a1, a2, a3 = (float(np.radians(a)) for a in alphas_deg)
-        return cls(
-            (a1, a2, a3),
-            (float(thresholds_px[0]), float(thresholds_px[1]), float(thresholds_px[2])),
-        )
+        a1, a2, a3 = np.radians(_three_numbers("alphas_deg", alphas_deg)).tolist()
+        return cls((a1, a2, a3), thresholds_px)
+
+
+def _three_numbers(name: str, values: object) -> tuple[float, float, float]:
+    """``values`` as three finite floats (:class:`GradientAdjustment`).
+
+    Raises:
+        ConfigurationError: anything else.
+    """
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.empty(0)
+    if arr.shape != (3,) or not np.isfinite(arr).all():
+        raise ConfigurationError(f"eq. 7 {name} must be three finite numbers, got {values!r}")
+    return float(arr[0]), float(arr[1]), float(arr[2])
 
 
 def adjusted_gradient(

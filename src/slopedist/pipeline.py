@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from slopedist import geometry as geo
 from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable, concat_boxes
-from slopedist.errors import DataMismatchError
+from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators.base import (
     EstimateStatus,
     Estimator,
@@ -49,6 +49,25 @@ def usable_gradient(theta_rad: float, theta_rest_rad: float = 0.0) -> float:
     return theta_rad if abs(theta_rad - theta_rest_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
 
 
+def check_lookback(lookback_s: float) -> float:
+    """``lookback_s`` as a float, the look-back of the ego gradient (eq. 4), seconds.
+
+    Raises:
+        ConfigurationError: it is not a finite number > 0 (a NaN, 0 or negative look-back
+            gave θ = 0 or NaN for every frame without a word).
+    """
+    if not (
+        isinstance(lookback_s, (int, float, np.integer, np.floating))
+        and not isinstance(lookback_s, bool)
+        and math.isfinite(lookback_s)
+        and lookback_s > 0
+    ):
+        raise ConfigurationError(
+            f"lookback_s must be a finite number of seconds > 0, got {lookback_s!r}"
+        )
+    return float(lookback_s)
+
+
 class EgoGradientTracker:
     """Ego road gradient θ (eq. 2–4) from a stream of rotations, keeping only the look-back.
 
@@ -61,7 +80,7 @@ class EgoGradientTracker:
 
     def __init__(self, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S) -> None:
         self.mount_angle_rad = mount_angle_rad
-        self.lookback_s = lookback_s
+        self.lookback_s = check_lookback(lookback_s)
         self.segment = 0
         self._history: deque[tuple[float, NDArray[np.float64]]] = deque()
 
@@ -123,6 +142,11 @@ class FrameStep:
         vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
     ) -> None:
         self.estimator = estimator
+        if isinstance(vehicle_classes, str):  # tuple("Car") is ("C", "a", "r"): no vehicle at all
+            raise ConfigurationError(
+                f"vehicle_classes must be a collection of class names, got the text "
+                f"{vehicle_classes!r} (write ({vehicle_classes!r},))"
+            )
         self.vehicle_classes = tuple(vehicle_classes)
         self.gradient = EgoGradientTracker(estimator.camera.mount_angle_rad, lookback_s)
         self._theta_rest = float(
@@ -237,6 +261,10 @@ class FrameStep:
         self._last_timestamp = timestamp_s
 
     def _check_time(self, frame_index: int, timestamp_s: float) -> None:
+        if not isinstance(timestamp_s, (int, float, np.integer, np.floating)):
+            raise DataMismatchError(
+                f"frame {frame_index}: timestamp must be a number of seconds, got {timestamp_s!r}"
+            )
         if not math.isfinite(timestamp_s):
             raise DataMismatchError(f"frame {frame_index}: timestamp {timestamp_s} s is not finite")
         if self._last_timestamp is not None and timestamp_s <= self._last_timestamp:
@@ -294,7 +322,12 @@ _NO_BOXES = BoxTable.empty()
 def ego_gradients(
     track: RotationTrack, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S
 ) -> NDArray[np.float64]:
-    """θ (radians) of every frame of ``track`` at once; NaN where the track has no rotation."""
+    """θ (radians) of every frame of ``track`` at once; NaN where the track has no rotation.
+
+    Raises:
+        ConfigurationError: ``lookback_s`` is not a finite number > 0.
+    """
+    lookback_s = check_lookback(lookback_s)
     theta = np.full(len(track), np.nan)
     valid = np.flatnonzero(track.valid)
     if valid.size:
@@ -365,8 +398,20 @@ def estimate_sequence(
     Raises:
         DataMismatchError: a timestamp (of any frame, with boxes or not) that is not finite
             or does not increase, as :meth:`FrameStep.step` refuses it; boxes of a frame
-            beyond ``timestamps_s``; fewer rotations than frames.
+            beyond ``timestamps_s``; fewer rotations than frames; ``timestamps_s`` that are
+            not ``(N,)``.
+        ConfigurationError: a ``lookback_s`` or ``vehicle_classes`` :class:`FrameStep`
+            refuses.
     """
+    step = FrameStep(estimator, lookback_s, vehicle_classes)  # its options checked first
+    try:
+        timestamps_s = np.asarray(timestamps_s, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise DataMismatchError(f"timestamps_s: {exc}") from None
+    if timestamps_s.ndim != 1:
+        raise DataMismatchError(
+            f"timestamps_s must be one per frame (N,), got shape {timestamps_s.shape}"
+        )
     if track is not None and len(track) < len(timestamps_s):
         raise DataMismatchError(
             f"rotations cover {len(track)} frames but the sequence has {len(timestamps_s)}"
@@ -376,7 +421,6 @@ def estimate_sequence(
         if track is not None
         else np.full(len(timestamps_s), np.nan)
     )
-    step = FrameStep(estimator, lookback_s, vehicle_classes)
     step.reset()
     box_parts, est_parts = [], []
     done = 0  # frames taken so far: those without boxes are checked as a stream checks them

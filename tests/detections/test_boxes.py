@@ -339,3 +339,36 @@ def test_a_frame_array_that_is_not_whole_numbers_fails_cleanly_without_a_warning
             BoxTable.build(frame, np.zeros((3, 4)))
         with pytest.raises(DataMismatchError, match=r"'track_id': \S+ \(entry 2\)"):
             BoxTable.build(np.arange(3), np.zeros((3, 4)), track_id=frame)
+
+
+@pytest.mark.parametrize(
+    ("mask", "message"),
+    [
+        ([5], "index 5 is outside a table of 3 boxes"),
+        (np.array([0, -4]), "index -4 is outside a table of 3 boxes"),
+        ([True, False], "mask has 2 values for a table of 3 boxes"),
+        ([0.5], "boolean mask or an array of row indices, got float64"),
+        (np.int64(1), "of shape \\(\\)"),
+    ],
+)
+def test_a_selection_that_does_not_fit_the_table_is_a_data_mismatch(
+    mask: object, message: str
+) -> None:
+    """They failed with numpy's bare IndexError (or, for a scalar, gave a table of single
+    values instead of columns)."""
+    table = BoxTable.build([0, 1, 2], np.zeros((3, 4)))
+    with pytest.raises(DataMismatchError, match=message):
+        table.select(mask)  # type: ignore[arg-type]
+
+
+def test_a_selection_by_valid_indices_or_mask_keeps_working() -> None:
+    table = BoxTable.build([0, 1, 2], np.arange(12.0).reshape(3, 4), z=[1.0, 2.0, 3.0])
+    assert table.select([2, -3]).frame.tolist() == [2, 0]
+    assert table.select([True, False, True]).extra["z"].tolist() == [1.0, 3.0]
+    assert len(table.select([])) == 0
+
+
+def test_an_extra_column_that_is_not_one_value_per_box_is_a_data_mismatch() -> None:
+    """It was accepted, and the table failed later, in a select, with numpy's IndexError."""
+    with pytest.raises(DataMismatchError, match="column 'z' has 1 value\\(s\\) for 2 boxes"):
+        BoxTable.build([0, 1], np.zeros((2, 4)), z=[1.0])

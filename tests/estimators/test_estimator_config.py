@@ -21,7 +21,7 @@ from slopedist.estimators import (
     make_estimator,
 )
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import parse_option, settable_options
+from slopedist.estimators.ours.config import OursConfig, parse_option, settable_options
 from slopedist.estimators.ours.estimator import OursEstimator
 
 CAMERA = Camera(721.5, 609.6, 172.9, 1.65)
@@ -130,3 +130,54 @@ def test_an_option_a_method_does_not_take_is_a_configuration_error(method: str) 
     what it takes."""
     with pytest.raises(ConfigurationError, match=rf"unknown option\(s\) for method '{method}'"):
         make_estimator(method, Camera(721.5, 609.6, 172.9), bogus=1)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"box_sigma_px": "1"}, "box_sigma_px must be a finite number > 0, got '1'"),
+        ({"box_sigma_px": True}, "box_sigma_px must be a finite number > 0, got True"),
+        ({"min_iou": "0.3"}, "min_iou must be in \\[0, 1\\], got '0.3'"),
+        ({"atypical_height_factor": 0.0}, "atypical_height_factor must be a finite number"),
+        ({"atypical_height_factor": -1.0}, "atypical_height_factor must be a finite number"),
+        ({"atypical_height_weight": "0.1"}, "atypical_height_weight and odd_object_weight"),
+        ({"yaw_evidence_weight": 2.0}, "yaw_evidence_weight must be in \\(0, 1\\], got 2.0"),
+        ({"motion_model": "no"}, "motion_model must be true or false, got 'no'"),
+        ({"use_width": 0}, "use_width must be true or false, got 0"),
+        ({"reference": "roof"}, "reference must be one of centre, nearest_face, contact"),
+        ({"generic_classes": "Car"}, "generic_classes must be a collection.*'Car'"),
+    ],
+)
+def test_ours_config_refuses_values_of_the_wrong_kind_or_range(kwargs: dict, message: str) -> None:
+    """They were accepted (a text switch "no" is true, "Car" as generic classes became
+    ("C", "a", "r"), a bool sigma 1 px, a factor 0 a zero height spread; an unknown reference
+    only when an estimator was built) or failed with a bare TypeError (a text min_iou)."""
+    with pytest.raises(ConfigurationError, match=message):
+        OursConfig(**kwargs)
+    with pytest.raises(ConfigurationError, match=message):
+        make_estimator("ours", CAMERA, **kwargs)
+
+
+def test_ours_config_must_be_an_ours_config() -> None:
+    """It failed with a bare AttributeError ('str' object has no attribute ...)."""
+    with pytest.raises(ConfigurationError, match="ours option config must be an OursConfig"):
+        make_estimator("ours", CAMERA, config="fast")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"reference": "roof"}, "reference must be one of"),
+        ({"ours_options": (("box_sigma_px", -1.0),)}, "box_sigma_px must be a finite number"),
+        ({"ours_options": (("speed_of_light", 1.0),)}, "unknown ours option\\(s\\): speed_of"),
+        ({"ours_options": ("box_sigma_px",)}, "ours_options must be \\(name, value\\) pairs"),
+        ({"thresholds_px": (0.0, -10.0)}, "thresholds_px must be three finite numbers"),
+        ({"alphas_deg": (math.nan, 5.0, 6.0)}, "alphas_deg must be three finite numbers"),
+    ],
+)
+def test_estimator_config_checks_its_options_when_made(kwargs: dict, message: str) -> None:
+    """An unknown reference and bad ours options were accepted until an estimator was built
+    from the config; two thresholds failed with a bare IndexError; a NaN step was accepted
+    (NaN distances)."""
+    with pytest.raises(ConfigurationError, match=message):
+        EstimatorConfig(**kwargs)

@@ -13,6 +13,7 @@ import pytest
 
 from slopedist.camera import Camera
 from slopedist.detections.boxes import BoxTable
+from slopedist.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import EstimateStatus
 from slopedist.evaluation import cap_estimates
@@ -192,3 +193,10 @@ def test_a_box_bottom_within_two_pixels_of_the_horizon_has_no_ok_distance(method
     assert est.distance_m[1] == pytest.approx(FH / 2.5)
     capped, scored = cap_estimates(est.distance_m, est.reason)
     assert capped.tolist() == [80.0, 80.0] and scored.all()
+
+
+@pytest.mark.parametrize("method", ["paper", "imu"])
+def test_an_adjustment_that_is_not_one_is_a_configuration_error(method: str) -> None:
+    """``adjustment="x"`` was accepted, to fail later at the first box."""
+    with pytest.raises(ConfigurationError, match=r"adjustment of method .* GradientAdjustment"):
+        make_estimator(method, Camera(721.5, 609.6, 172.9), adjustment="x")

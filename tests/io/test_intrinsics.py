@@ -142,3 +142,24 @@ def test_points_the_model_cannot_invert_are_nan() -> None:
 def test_invalid_intrinsics(K_: np.ndarray, dist: tuple, match: str) -> None:
     with pytest.raises(ConfigurationError, match=match):
         Intrinsics(K_, np.asarray(dist, float))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"K": "abc"}, "camera matrix and distortion must be numbers"),
+        ({"K": [[1.0, 2.0], [3.0]]}, "camera matrix and distortion must be numbers"),
+        ({"dist": "abc"}, "camera matrix and distortion must be numbers"),
+        ({"image_size": (0, -5)}, r"image size must be \(width, height\) in 1..1000000 px"),
+        ({"image_size": (1242, 375, 3)}, r"image size must be \(width, height\)"),
+        ({"image_size": (1242.5, 375)}, r"image size must be \(width, height\)"),
+    ],
+)
+def test_intrinsics_that_are_not_numbers_or_sizes_are_configuration_errors(
+    kwargs: dict[str, object], message: str
+) -> None:
+    """Text K and distortion failed with numpy's bare ValueError; a size of 0 × −5 px or of
+    three values was accepted."""
+    values: dict[str, object] = {"K": [[700.0, 0, 600], [0, 700.0, 180], [0, 0, 1]]} | kwargs
+    with pytest.raises(ConfigurationError, match=message):
+        Intrinsics(**values)  # type: ignore[arg-type]

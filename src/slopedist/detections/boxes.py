@@ -216,6 +216,33 @@ def _starts_within(
     return k, order[np.repeat(first, counts) + offset]
 
 
+def _row_selection(mask: ArrayLike, n: int) -> NDArray:
+    """``mask`` as a boolean mask of ``n`` rows or an array of row indices in ``-n..n-1``
+    (:meth:`BoxTable.select`).
+
+    Raises:
+        DataMismatchError: anything else (numpy's IndexError, or a scalar that would turn the
+            columns into single values).
+    """
+    m = np.asarray(mask)
+    if m.ndim == 1 and m.size == 0:
+        return m.astype(np.intp)
+    if m.ndim != 1 or not (m.dtype == np.bool_ or np.issubdtype(m.dtype, np.integer)):
+        raise DataMismatchError(
+            f"box selection must be a boolean mask or an array of row indices, got "
+            f"{m.dtype} of shape {m.shape}"
+        )
+    if m.dtype == np.bool_:
+        if m.shape[0] != n:
+            raise DataMismatchError(
+                f"box selection mask has {m.shape[0]} values for a table of {n} boxes"
+            )
+    elif m.min() < -n or m.max() >= n:
+        bad = int(m[(m < -n) | (m >= n)][0])
+        raise DataMismatchError(f"box selection index {bad} is outside a table of {n} boxes")
+    return m
+
+
 def _column(
     name: str, values: ArrayLike, dtype: type[np.generic], shape: tuple[int, ...] | None
 ) -> NDArray:
@@ -298,7 +325,14 @@ class BoxTable:
             if classes is None
             else _column("classes", classes, np.object_, (n,))
         )
-        return cls(fr, bx, tid, sc, cl, {k: np.asarray(v) for k, v in extra.items()})
+        columns = {k: np.asarray(v) for k, v in extra.items()}
+        for k, v in columns.items():
+            if v.ndim == 0 or v.shape[0] != n:
+                raise DataMismatchError(
+                    f"box table column '{k}' has {v.shape[0] if v.ndim else 'a single'} "
+                    f"value(s) for {n} boxes"
+                )
+        return cls(fr, bx, tid, sc, cl, columns)
 
     @classmethod
     def empty(cls) -> BoxTable:
@@ -309,8 +343,13 @@ class BoxTable:
         return int(self.frame.shape[0])
 
     def select(self, mask: ArrayLike) -> BoxTable:
-        """Rows where ``mask`` is true (or at the given indices)."""
-        m = np.asarray(mask)
+        """Rows where ``mask`` is true (or at the given indices).
+
+        Raises:
+            DataMismatchError: a boolean mask that is not one value per box, or indices that
+                are not whole numbers within the table (negative ones count from the end).
+        """
+        m = _row_selection(mask, len(self))
         return BoxTable(
             self.frame[m],
             self.boxes[m],

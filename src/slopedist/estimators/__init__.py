@@ -27,6 +27,7 @@ from slopedist.estimators.ground_contact import (
 )
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
+from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.offline import OursOfflineEstimator
 
 
@@ -164,8 +165,10 @@ class EstimatorConfig:
             ``--ours-option``, :func:`~slopedist.estimators.ours.config.parse_option`).
 
     Raises:
-        ConfigurationError: an unknown method, thresholds that do not decrease, an unknown
-            depth sample or scaling.
+        ConfigurationError: an unknown method, eq. 7 steps that are not three finite numbers
+            or thresholds that do not decrease, an unknown depth sample or scaling, ours
+            options or a reference :class:`~slopedist.estimators.ours.config.OursConfig`
+            refuses.
     """
 
     method: str = DEFAULT_METHOD
@@ -179,9 +182,22 @@ class EstimatorConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "method", _method_name(self.method))
-        t = self.thresholds_px
-        if not (t[0] > t[1] > t[2]):
-            raise ConfigurationError(f"eq. 7 thresholds must decrease (t1 > t2 > t3), got {t}")
+        geo.GradientAdjustment.from_degrees(self.alphas_deg, self.thresholds_px)  # the checks
+        try:
+            ours = dict(self.ours_options)
+        except (TypeError, ValueError):
+            raise ConfigurationError(
+                f"ours_options must be (name, value) pairs, got {self.ours_options!r}"
+            ) from None
+        known = {f.name for f in dataclasses.fields(OursConfig)}
+        if set(ours) - known:
+            raise ConfigurationError(
+                f"unknown ours option(s): {', '.join(sorted(set(ours) - known))} "
+                f"(known: {', '.join(sorted(known))})"
+            )
+        if self.reference is not None:
+            ours["reference"] = self.reference
+        OursConfig(**ours)  # the ranges of the ours options and the reference
         try:
             object.__setattr__(self, "depth_sample", DepthSample(self.depth_sample))
             object.__setattr__(self, "depth_scaling", DepthScaling(self.depth_scaling))

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from slopedist import geometry as geo
 from slopedist.camera import Camera
 from slopedist.detections.boxes import frame_pixel_boxes
+from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
     MIN_CONTACT_GAP_PX,
     Estimator,
@@ -127,6 +128,11 @@ class PaperEstimator(Estimator):
 
     def __init__(self, camera: Camera, adjustment: geo.GradientAdjustment | None = None) -> None:
         super().__init__(camera)
+        if adjustment is not None and not isinstance(adjustment, geo.GradientAdjustment):
+            raise ConfigurationError(
+                f"option adjustment of method '{self.name}' must be a GradientAdjustment "
+                f"(e.g. GradientAdjustment.from_degrees), got {adjustment!r}"
+            )
         self.adjustment = adjustment or geo.GradientAdjustment()
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:

@@ -68,8 +68,23 @@ class Intrinsics:
     image_size: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
-        K = np.asarray(self.K, dtype=float)
-        dist = np.asarray(self.dist, dtype=float).reshape(-1)
+        try:
+            K = np.asarray(self.K, dtype=float)
+            dist = np.asarray(self.dist, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise ConfigurationError(
+                f"camera matrix and distortion must be numbers: {exc}"
+            ) from None
+        if self.image_size is not None and not (
+            len(self.image_size) == 2
+            and all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 < v <= 1_000_000
+                for v in self.image_size
+            )
+        ):
+            raise ConfigurationError(
+                f"image size must be (width, height) in 1..1000000 px, got {self.image_size!r}"
+            )
         if K.shape != (3, 3) or not np.all(np.isfinite(K)):
             raise ConfigurationError(f"camera matrix must be 3×3 and finite, got {K.tolist()}")
         if K[0, 0] <= 0 or K[1, 1] <= 0:

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.errors import DataMismatchError
+from slopedist.geometry import not_rotations
 
 LOOKBACK_S = 1.0
 """Default look-back of the ego gradient, seconds (the paper's one second)."""
@@ -56,19 +57,47 @@ class RotationTrack:
     def from_arrays(
         cls, timestamps_s: ArrayLike, R_world_cam: ArrayLike, valid: ArrayLike | None = None
     ) -> RotationTrack:
-        """Validate and build a track (timestamps increasing, rotations ``(N, 3, 3)``)."""
-        t = np.asarray(timestamps_s, dtype=float)
-        R = np.asarray(R_world_cam, dtype=float)
+        """Validate and build a track.
+
+        Raises:
+            DataMismatchError: timestamps that are not ``(N,)`` finite, increasing numbers;
+                rotations that are not ``(N, 3, 3)`` numbers, or a finite one of a valid frame
+                that is not a rotation (:func:`~slopedist.geometry.not_rotations`, as
+                :class:`~slopedist.pipeline.FrameStep` refuses it); ``valid`` that is not
+                ``(N,)``.
+        """
+        try:
+            t = np.asarray(timestamps_s, dtype=float)
+            R = np.asarray(R_world_cam, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise DataMismatchError(f"rotation track: {exc}") from None
+        if t.ndim != 1:
+            raise DataMismatchError(f"timestamps must be one per frame (N,), got shape {t.shape}")
         if R.ndim != 3 or R.shape[1:] != (3, 3) or R.shape[0] != t.shape[0]:
             raise DataMismatchError(
                 f"rotations must be (N, 3, 3) with N = {t.shape[0]} timestamps, got {R.shape}"
             )
+        if not np.isfinite(t).all():
+            k = int(np.argmin(np.isfinite(t)))
+            raise DataMismatchError(f"timestamps must be finite: frame {k} at {t[k]} s")
         if t.size > 1 and np.any(np.diff(t) <= 0):
             k = int(np.argmax(np.diff(t) <= 0)) + 1
             raise DataMismatchError(
                 f"timestamps must increase: frame {k} at {t[k]} s follows {t[k - 1]} s"
             )
         v = np.ones(t.shape, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+        if v.shape != t.shape:
+            raise DataMismatchError(
+                f"valid must be one flag per frame ({t.shape[0]}), got shape {v.shape}"
+            )
+        bad = np.flatnonzero(v & np.isfinite(R).all(axis=(1, 2)))  # the finite rotations
+        if bad.size:
+            bad = bad[not_rotations(R[bad])]
+        if bad.size:
+            k = int(bad[0])
+            raise DataMismatchError(
+                f"frame {k}: the rotation is not a rotation matrix: {R[k].tolist()}"
+            )
         return cls(t, R, v)
 
     def __len__(self) -> int:

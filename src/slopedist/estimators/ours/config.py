@@ -10,12 +10,27 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 
+import numpy as np
+
 from slopedist.errors import ConfigurationError
+from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.fusion import SizeMode
 from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
 from slopedist.textfiles import parse_bool
+
+REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
+"""The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
+vehicle's centre (KITTI's z), its nearest face, or its contact point (the ground under the
+nearest face: the same longitudinal distance as the nearest face)."""
+
+
+def _is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (an int or a float, numpy's too; not a bool)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
 
 
 @dataclass(frozen=True)
@@ -180,6 +195,12 @@ class OursConfig:
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 
     def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if str(f.type) == "bool" and not isinstance(value, (bool, np.bool_)):
+                raise ConfigurationError(
+                    f"ours option {f.name} must be true or false, got {value!r}"
+                )
         for name in (
             "box_sigma_px",
             "theta_sigma_rad",
@@ -197,28 +218,42 @@ class OursConfig:
             "consistency_gate_sigma",
             "odd_object_log_sigma",
             "max_relative_sigma",
+            "atypical_height_factor",
         ):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not (_is_number(value) and math.isfinite(value) and value > 0):
                 raise ConfigurationError(
                     f"ours option {name} must be a finite number > 0, got {value!r}"
                 )
         for name in ("size_evidence_time_s", "noise_time_s"):
             tau = getattr(self, name)
-            if tau is not None and not (
-                isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0
-            ):
+            if tau is not None and not (_is_number(tau) and math.isfinite(tau) and tau > 0):
                 raise ConfigurationError(
                     f"ours option {name} must be a finite number > 0, got {tau!r}"
                 )
+        if self.yaw_evidence_weight > 1:
+            raise ConfigurationError(
+                "ours option yaw_evidence_weight must be in (0, 1], got "
+                f"{self.yaw_evidence_weight!r}"
+            )
         rare = (self.atypical_height_weight, self.odd_object_weight)
-        if not (all(0.0 <= w < 1.0 for w in rare) and sum(rare) < 1.0):
+        if not (all(_is_number(w) and 0.0 <= w < 1.0 for w in rare) and sum(rare) < 1.0):
             raise ConfigurationError(
                 f"ours options atypical_height_weight and odd_object_weight must be in [0, 1) "
                 f"with a sum below 1, got {rare[0]!r} and {rare[1]!r}"
             )
-        if not 0.0 <= self.min_iou <= 1.0:
-            raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou}")
+        if not (_is_number(self.min_iou) and 0.0 <= self.min_iou <= 1.0):
+            raise ConfigurationError(f"ours option min_iou must be in [0, 1], got {self.min_iou!r}")
+        if self.reference not in {r.value for r in REFERENCES}:
+            raise ConfigurationError(
+                f"ours option reference must be one of "
+                f"{', '.join(r.value for r in REFERENCES)}, got {self.reference!r}"
+            )
+        if isinstance(self.generic_classes, str):  # tuple("Car") would be ("C", "a", "r")
+            raise ConfigurationError(
+                f"ours option generic_classes must be a collection of class names, got the "
+                f"text {self.generic_classes!r} (write ({self.generic_classes!r},))"
+            )
 
     @property
     def size_evidence_time(self) -> float:

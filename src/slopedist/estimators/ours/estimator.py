@@ -92,11 +92,6 @@ FloatArray = NDArray[np.float64]
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
-REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
-"""The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
-vehicle's centre (KITTI's z), its nearest face, or its contact point (the ground under the
-nearest face: the same longitudinal distance as the nearest face)."""
-
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
 
@@ -121,6 +116,8 @@ class OursEstimator(Estimator):
 
     def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
         super().__init__(camera)
+        if config is not None and not isinstance(config, OursConfig):
+            raise ConfigurationError(f"ours option config must be an OursConfig, got {config!r}")
         config = config or OursConfig()
         if overrides:
             known = {f.name for f in dataclasses.fields(OursConfig)}
@@ -163,13 +160,7 @@ class OursEstimator(Estimator):
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
-        reference = next((r for r in REFERENCES if r.value == config.reference), None)
-        if reference is None:
-            raise ConfigurationError(
-                f"ours option reference must be one of "
-                f"{', '.join(r.value for r in REFERENCES)}, got {config.reference!r}"
-            )
-        self._reference = reference
+        self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
         self._box_low, self._box_high = usable_box_range(self._border.known_size)
         self.reset()
