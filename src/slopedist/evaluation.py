@@ -83,9 +83,14 @@ def binned_metrics(
     }
 
 
-AT_CAP_REASONS = (MissingReason.BELOW_HORIZON.value, MissingReason.NEAR_HORIZON.value)
+AT_CAP_REASONS = (
+    MissingReason.BELOW_HORIZON.value,
+    MissingReason.NEAR_HORIZON.value,
+    MissingReason.BEYOND_RESOLUTION.value,
+)
 """The missing reasons a target is counted at the cap for (:func:`cap_estimates`): its box
-bottom at or above the vanishing line, or too near it for eq. 1."""
+bottom at or above the vanishing line, or too near it for eq. 1, or a box or distance beyond
+what the image resolves (hundreds of metres: an ``ok`` distance there was capped too)."""
 
 
 RECORD_STATUSES = tuple(s.value for s in EstimateStatus)
@@ -126,7 +131,9 @@ def cap_estimates(
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Apply the published protocol's cap: estimates above ``cap_m`` become ``cap_m`` and a
     target below the horizon (``u ≤ v``, reason ``below_horizon``) or too near it for eq. 1 to
-    tell its distance (``near_horizon``, hundreds of metres) counts as ``cap_m``.
+    tell its distance (``near_horizon``, hundreds of metres), or beyond what the image resolves
+    (``beyond_resolution``: a box under 2 px tall, a distance beyond ``f·h/2``), counts as
+    ``cap_m``.
 
     Returns:
         The capped distances and a mask of the entries that can be scored (other reasons,

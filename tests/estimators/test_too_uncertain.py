@@ -78,8 +78,13 @@ def test_ours_withholds_a_box_of_a_few_pixels_whose_cues_contradict() -> None:
     assert est.reason[0] == "too_uncertain" and np.isnan(est.distance_m[0])
     assert est.extra["sigma_m"][0] > 0.5 * est.extra["distance_size_m"][0]
     assert est.distance_m[1] == pytest.approx(20.0 + 3.88 / 2, rel=0.1)
-    loose = settled([[600.0, 298.5, 601.5, 300.0]], max_relative_sigma=100.0)
-    assert loose.status.tolist() == ["ok"]
+    # without the share, a 2.5 px box whose cues contradict as much is ok; the 1.5 px box is
+    # still withheld, by the resolution rule (under 2 px tall)
+    loose = settled(
+        [[600.0, 297.5, 602.5, 300.0], [600.0, 298.5, 601.5, 300.0]], max_relative_sigma=100.0
+    )
+    assert loose.status.tolist() == ["ok", "missing"]
+    assert loose.reason[1] == "beyond_resolution"
 
 
 def test_the_share_is_checked() -> None:

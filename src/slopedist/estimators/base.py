@@ -45,14 +45,23 @@ class EstimateStatus(str, Enum):
     """No distance (reason says why)."""
 
 
-MIN_CONTACT_GAP_PX = 2.0
-"""The least gap ``u − v`` (pixels) between a box bottom and the vanishing line for which a
-ground-contact distance (eq. 1) is ``ok``. A detector places a box's bottom edge and the
-odometry the vanishing line to about a pixel together; below a 2 px gap that pixel changes
-``d = f·h/(u − v)`` by more than half — the share beyond which ``ours`` withholds a distance
-too (``max_relative_sigma`` 0.5). With KITTI's camera (f·h ≈ 1190 px·m) the gap is 2 px at
-about 600 m, far beyond any detector's range and the evaluation's 80 m cap."""
+ROW_ERROR_PX = 1.0
+"""The error, in image rows, against which a distance's resolution is judged: a detector places
+a box's edges, and the odometry the vanishing line, to about a pixel (half a pixel of
+quantisation each side, plus localisation)."""
 
+MAX_ROW_SHARE = 0.5
+"""The largest share of a distance that a :data:`ROW_ERROR_PX` error may change for the distance
+to be ``ok`` — the same half as ``ours``' ``max_relative_sigma``."""
+
+MIN_RESOLVED_PX = ROW_ERROR_PX / MAX_ROW_SHARE
+"""The least image extent (pixels) that resolves a distance: 2 px. Every monocular distance from
+a box is ``f·L/n`` for some length ``L`` and some ``n`` pixels (eq. 1: the camera height and the
+gap ``u − v`` between the box bottom and the vanishing line; a size cue: a vehicle's height and
+the box height), so a row of error changes it by ``d/n``, more than :data:`MAX_ROW_SHARE` of
+it when ``n`` < 2 px. With KITTI's camera (f·h ≈ 1190 px·m) a 2 px gap is about 600 m, far
+beyond any detector's range and the evaluation's 80 m cap (its label boxes are ≥ ~10 px tall);
+:func:`unresolved_distances` applies it to every method."""
 
 class MissingReason(str, Enum):
     """Why a distance is missing, or (``cut_bottom``) only a bound."""
@@ -60,7 +69,7 @@ class MissingReason(str, Enum):
     BELOW_HORIZON = "below_horizon"
     """The box bottom is at or above the vanishing line (u ≤ v): eq. 1 is undefined."""
     NEAR_HORIZON = "near_horizon"
-    """The box bottom is less than :data:`MIN_CONTACT_GAP_PX` below the vanishing line: eq. 1
+    """The box bottom is less than :data:`MIN_RESOLVED_PX` below the vanishing line: eq. 1
     gives a distance far beyond what the row can tell (a pixel of the row moves it by more
     than half); evaluations count it at the cap, as ``below_horizon``."""
     NO_ROTATION = "no_rotation"
@@ -72,6 +81,12 @@ class MissingReason(str, Enum):
     """A depth map had no valid value at the sampled pixels."""
     NO_SCALE = "no_scale"
     """Median scaling of a scale-less depth map had no reference yet (first frames)."""
+    BEYOND_RESOLUTION = "beyond_resolution"
+    """The image does not resolve the distance (:func:`unresolved_distances`, every method): the
+    box is less than :data:`MIN_RESOLVED_PX` tall, or the distance is so far that a vehicle's
+    ground contact there lies less than :data:`MIN_RESOLVED_PX` below the vanishing line
+    (beyond ``f·h/2``, about 600 m for KITTI's camera) — a row of error would move it by more
+    than half. Far by either token: evaluations count it at the cap, as ``below_horizon``."""
     DEGENERATE_BOX = "degenerate_box"
     """Zero or sub-pixel width or height, or absurd coordinates."""
     OUTSIDE_IMAGE = "outside_image"
@@ -334,6 +349,30 @@ def bottom_cut_is_upper_bound(
     est.set_state(rows, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)
 
 
+def unresolved_distances(
+    distance_m: NDArray[np.float64], boxes: NDArray[np.float64], camera: Camera
+) -> NDArray[np.bool_]:
+    """Which finite positive distances (metres, camera z) the image does not resolve: a row of
+    error (:data:`ROW_ERROR_PX`) would change them by more than :data:`MAX_ROW_SHARE`.
+
+    Either the box ``(left, top, right, bottom)`` (pixels) is less than
+    :data:`MIN_RESOLVED_PX` tall — its own rows are not located, whatever distance a method
+    reads from them — or the distance lies beyond ``f·h / MIN_RESOLVED_PX`` (``camera``'s focal
+    length f in pixels and height h in metres): there a vehicle's ground contact is less than
+    :data:`MIN_RESOLVED_PX` below the vanishing line, and a vehicle about as tall as the camera
+    is high spans as few rows, so no cue of the box resolves the distance. For eq. 1 the second
+    test is the ``near_horizon`` gap rule itself (``f·h/d = u − v``); it holds the other
+    methods (``ours``' size cue, a depth map) to the same bound. NaN or non-positive
+    distances are not flagged (other rules handle them).
+    """
+    d = np.asarray(distance_m, dtype=float)
+    height_px = boxes[:, 3] - boxes[:, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        founded = np.isfinite(d) & (d > 0)
+        gap_px = camera.f * camera.height_m / d
+        return founded & ((gap_px < MIN_RESOLVED_PX) | (height_px < MIN_RESOLVED_PX))
+
+
 def settle_states(
     est: FrameEstimates,
     boxes: BoxTable,
@@ -353,6 +392,9 @@ def settle_states(
       track may still use it, e.g. as an occluder);
     - with ``bottom_cut_bound`` (a method that does not handle border cuts itself), an
       ``ok`` box cut by the bottom of the image becomes ``upper_bound``, reason ``cut_bottom``;
+    - an ``ok`` distance the image does not resolve (:func:`unresolved_distances`: a box
+      under 2 px tall, or a distance beyond ``f·h/2``) is ``missing``, reason
+      ``beyond_resolution``;
     - an ``ok`` or ``upper_bound`` row without a finite positive distance is ``missing``
       (``ok`` is a promise);
     - a ``missing`` row has no distance in any column (:meth:`FrameEstimates.withhold_distances`).
@@ -371,6 +413,10 @@ def settle_states(
     est.set_state(other, EstimateStatus.MISSING, MissingReason.NOT_A_VEHICLE)
     if bottom_cut_bound:
         bottom_cut_is_upper_bound(est, frame_pixel_boxes(boxes), camera)
+    unresolved = (est.status == EstimateStatus.OK.value) & unresolved_distances(
+        est.distance_m, frame_pixel_boxes(boxes), camera
+    )
+    est.set_state(unresolved, EstimateStatus.MISSING, MissingReason.BEYOND_RESOLUTION)
     d = est.distance_m
     with np.errstate(invalid="ignore"):
         unfounded = (est.status != EstimateStatus.MISSING.value) & ~(np.isfinite(d) & (d > 0))

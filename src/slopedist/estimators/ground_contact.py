@@ -24,7 +24,7 @@ from slopedist.camera import Camera
 from slopedist.detections.boxes import frame_pixel_boxes
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import (
-    MIN_CONTACT_GAP_PX,
+    MIN_RESOLVED_PX,
     Estimator,
     FrameEstimates,
     FrameInput,
@@ -44,7 +44,7 @@ def ground_contact_estimates(
     frame_boxes: NDArray[np.float64],
 ) -> FrameEstimates:
     """Eq. 5 then eq. 1 for every box, with the per-box gradient ``theta_adj_rad`` (radians);
-    a box bottom less than :data:`~slopedist.estimators.base.MIN_CONTACT_GAP_PX` below the
+    a box bottom less than :data:`~slopedist.estimators.base.MIN_RESOLVED_PX` below the
     vanishing line is ``missing``, reason ``near_horizon`` (at or above it, ``below_horizon``).
 
     ``Δy`` (eq. 6) is reported against the vanishing line of the unadjusted θ. A box cut by
@@ -60,7 +60,7 @@ def ground_contact_estimates(
     d = geo.ground_contact_distance(camera.f, camera.height_m, u, v)
     reasons = prior_reasons.copy()
     reasons[(reasons == "") & ~np.isfinite(d)] = MissingReason.BELOW_HORIZON.value
-    reasons[(reasons == "") & (u - v < MIN_CONTACT_GAP_PX)] = MissingReason.NEAR_HORIZON.value
+    reasons[(reasons == "") & (u - v < MIN_RESOLVED_PX)] = MissingReason.NEAR_HORIZON.value
     d = np.where(reasons == "", d, np.nan)
     n = boxes.shape[0]
     est = FrameEstimates(
