@@ -358,7 +358,8 @@ def rmse_table(result: DemoResult, scores: PooledScores) -> Table:
 
 
 def missing_table(result: DemoResult) -> Table:
-    """Targets at or near the vanishing line (scored as 80 m) per scenario × method."""
+    """Targets counted at the cap (at or near the vanishing line, or beyond what the image
+    resolves: scored as 80 m) per scenario × method."""
     methods = result.methods
     rows: list[list[Any]] = [
         [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs

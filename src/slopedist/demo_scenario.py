@@ -203,8 +203,8 @@ class MethodScores:
 
     def metrics(self) -> dict[str, Any]:
         """RMSE etc. under the cap protocol; ``n`` scored, ``below_horizon`` counted as 80 m
-        (at or near the vanishing line: :data:`~slopedist.evaluation.AT_CAP_REASONS`),
-        ``unscored`` (other missing reasons)."""
+        (at or near the vanishing line, or unresolved:
+        :data:`~slopedist.evaluation.AT_CAP_REASONS`), ``unscored`` (other missing reasons)."""
         d = np.asarray(self.distance, dtype=float)
         reason = np.asarray(self.reason, dtype=object)
         capped, ok = cap_estimates(d, reason, CAP_M)

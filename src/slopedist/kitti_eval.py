@@ -37,7 +37,7 @@ from slopedist.depth.files import FileDepthSource
 from slopedist.detections.boxes import BoxTable, box_problems
 from slopedist.errors import ConfigurationError, MissingInputError
 from slopedist.estimators import ESTIMATORS, make_estimator
-from slopedist.estimators.base import MissingReason, ReferencePoint, image_size
+from slopedist.estimators.base import MIN_RESOLVED_PX, MissingReason, ReferencePoint, image_size
 from slopedist.estimators.depthmap import TRUTH_COLUMN
 from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.references import own_half_extent_m, to_reference
@@ -153,8 +153,10 @@ class KittiEvalConfig:
             "cap_m": self.cap_m,
             "cap_rule": (
                 f"estimates above {self.cap_m:g} m are set to {self.cap_m:g} m; a target "
-                f"whose box bottom is at or above the vanishing line (u <= v) counts as "
-                f"{self.cap_m:g} m"
+                f"whose box bottom is at or above the vanishing line (u <= v) or less than "
+                f"{MIN_RESOLVED_PX:g} px below it, or whose distance the image does not resolve "
+                f"(a box under {MIN_RESOLVED_PX:g} px tall, a distance beyond f*h/"
+                f"{MIN_RESOLVED_PX:g} px), counts as {self.cap_m:g} m"
             ),
             "overall": (
                 "pooled over all targets of the sequences each method ran on "

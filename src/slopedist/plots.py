@@ -60,7 +60,8 @@ class DistanceSeries:
         truth: ``(F,)`` true distance (NaN where the target is not in view).
         estimates: ``{method: (F,)}`` estimated distance (NaN where missing or not detected).
         below_horizon: ``{method: (F,) bool}`` frames where the box bottom was at or above the
-            method's vanishing line (eq. 1 undefined) or too near it (counted at the cap).
+            method's vanishing line (eq. 1 undefined), too near it, or whose distance the image
+            does not resolve (``beyond_resolution``): the frames counted at the cap.
     """
 
     track_id: int
@@ -128,7 +129,7 @@ def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSerie
     ax.grid(alpha=0.3)
 
 
-BELOW_HORIZON_NOTE = "▼ = box bottom at or near the vanishing line"
+BELOW_HORIZON_NOTE = "▼ = counted at the cap: box at or near the vanishing line, or unresolved"
 """What the triangles of :func:`draw_distance_panel` mean (for an axis label or caption)."""
 
 

@@ -266,3 +266,27 @@ def test_estimate_depthmap_without_depth_is_refused(
     err = capsys.readouterr().err
     assert code == 2 and "method 'depthmap' needs depth maps" in err and "--depth-dir" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("method", ["flat", "ego", "paper", "ours", "ours-offline"])
+def test_estimate_gives_no_ok_distance_to_a_one_pixel_box(
+    small_sequence: dict[str, Path], tmp_path: Path, method: str
+) -> None:
+    """A 1 px box 4 rows below the horizon (eq. 1: 1190/4 ≈ 300 m; ``ours``' size cue over
+    1000 m) is ``missing``, ``beyond_resolution``; a 40 px car beside it keeps its distance."""
+    boxes = tmp_path / "tiny.csv"
+    boxes.write_text(
+        "frame,left,top,right,bottom,track_id\n"
+        + "".join(f"{k},300,175.9,301,176.9,1\n{k},500,150,560,190,2\n" for k in range(5))
+    )
+    out = tmp_path / "records.csv"
+    args = ["estimate", "--calib", str(small_sequence["calib"]), "--poses"]
+    args += [str(small_sequence["poses"]), "--boxes", str(boxes), "--method", method]
+    assert main([*args, "--image-size", "1242x375", "--out", str(out)]) == 0
+    rows = list(csv.DictReader(out.open()))
+    tiny = [r for r in rows if r["track_id"] == "1"]
+    car = [r for r in rows if r["track_id"] == "2"]
+    assert {(r["status"], r["reason"], r["distance_m"]) for r in tiny} == {
+        ("missing", "beyond_resolution", "")
+    }
+    assert all(r["status"] == "ok" and float(r["distance_m"]) < 100 for r in car)

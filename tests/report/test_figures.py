@@ -54,9 +54,11 @@ def test_chosen_track_has_something_to_draw_in_a_run_without_truth(tmp_path: Pat
     assert choose_tracks(data, 4) == [("seq", 5)]
 
 
-def test_a_near_horizon_record_is_marked_as_counted_at_the_cap(tmp_path: Path) -> None:
-    # near_horizon is scored at the 80 m cap like below_horizon; the figure marks both
-    rows = [_record(0, 10.0, 11.0), _record(1, "", 30.0, "near_horizon")]
+@pytest.mark.parametrize("reason", ["near_horizon", "beyond_resolution"])
+def test_a_near_horizon_record_is_marked_as_counted_at_the_cap(tmp_path: Path, reason: str) -> None:
+    # near_horizon and beyond_resolution are scored at the 80 m cap like below_horizon; the
+    # figure marks them all
+    rows = [_record(0, 10.0, 11.0), _record(1, "", 30.0, reason)]
     write_run(tmp_path / "seq", rows, [{"frame": 0, "estimation_ms": 1.0}])
     _, series = track_series(report_data(tmp_path / "seq", ReportOptions()), "seq", 3)
     np.testing.assert_allclose(series.estimates["paper"], [10.0, 80.0])

@@ -63,6 +63,7 @@ it when ``n`` < 2 px. With KITTI's camera (f·h ≈ 1190 px·m) a 2 px gap is ab
 beyond any detector's range and the evaluation's 80 m cap (its label boxes are ≥ ~10 px tall);
 :func:`unresolved_distances` applies it to every method."""
 
+
 class MissingReason(str, Enum):
     """Why a distance is missing, or (``cut_bottom``) only a bound."""
 
