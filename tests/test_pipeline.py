@@ -135,7 +135,7 @@ def test_batch_refuses_the_timestamps_a_stream_refuses_in_frames_without_boxes(
     )
     for track in (
         None,
-        RotationTrack.from_arrays(np.arange(10) * 0.1, np.tile(np.eye(3), (10, 1, 1))),
+        RotationTrack.from_arrays(np.arange(10) * 0.1 + 1.0, np.tile(np.eye(3), (10, 1, 1))),
     ):
         with pytest.raises(DataMismatchError, match=rf"frame {frame}: timestamp"):
             estimate_sequence(make_estimator("flat", CAMERA), boxes, t, track)
@@ -356,3 +356,30 @@ def test_a_timestamp_that_is_not_a_number_is_a_data_mismatch() -> None:
     step = FrameStep(make_estimator("paper", CAMERA))
     with pytest.raises(DataMismatchError, match=r"frame 0: timestamp must be a number.*'0\.0'"):
         step.step(0, "0.0", np.eye(3), None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("rotation_times", "frame"),
+    [
+        (np.arange(10) * 0.1 + 0.3, 0),  # an offset of 3 frames
+        (np.arange(10) * 0.05, 2),  # poses at 20 Hz for frames at 10 Hz
+    ],
+)
+def test_rotations_of_other_times_than_their_frames_are_a_data_mismatch(
+    rotation_times: np.ndarray, frame: int
+) -> None:
+    """They were paired by index and silently gave the θ of other frames."""
+    track, boxes = synthetic_sequence(10)
+    moved = RotationTrack.from_arrays(rotation_times, track.R_world_cam, track.valid)
+    message = rf"frame {frame}: its rotation is of time .* but the frame is at .* half the frame"
+    with pytest.raises(DataMismatchError, match=message):
+        estimate_sequence(make_estimator("paper", CAMERA), boxes, track.timestamps_s, moved)
+
+
+def test_rotation_times_within_half_a_frame_period_are_accepted() -> None:
+    """Clocks of camera and pose source a few ms apart (jitter up to 0.049 s at 10 Hz)."""
+    track, boxes = synthetic_sequence(10)
+    jitter = np.array([0.0, 0.049, -0.049, 0.02, 0.0, -0.01, 0.049, 0.0, 0.03, -0.049])
+    near = RotationTrack.from_arrays(track.timestamps_s + jitter, track.R_world_cam, track.valid)
+    result = estimate_sequence(make_estimator("paper", CAMERA), boxes, track.timestamps_s, near)
+    assert len(result.boxes) == len(boxes)

@@ -374,6 +374,36 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
     )
 
 
+def check_track_times(track: RotationTrack, timestamps_s: NDArray[np.float64]) -> None:
+    """Refuse rotations that are not of the frames they are paired with: rotation k's own
+    time more than half a frame period (the median step of ``timestamps_s``, seconds; the
+    track's when there is one frame) from frame k's (a pose file at another rate or offset).
+
+    Frame times that are not finite and increasing are left to :class:`FrameStep`, which
+    names the frame.
+
+    Raises:
+        DataMismatchError: naming the first such frame and both times.
+    """
+    n = len(timestamps_s)
+    t, t_rot = timestamps_s, track.timestamps_s[:n]
+    if n == 0 or not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        return
+    steps = np.diff(t) if n > 1 else np.diff(track.timestamps_s)
+    if not steps.size:
+        return
+    half_period_s = 0.5 * float(np.median(steps))
+    off = np.abs(t_rot - t) > half_period_s + TIME_EPS_S
+    if off.any():
+        k = int(np.argmax(off))
+        raise DataMismatchError(
+            f"frame {k}: its rotation is of time {t_rot[k]:.6g} s but the frame is at "
+            f"{t[k]:.6g} s ({abs(t_rot[k] - t[k]):.3g} s apart, more than half the frame period "
+            f"of {2 * half_period_s:.3g} s): the rotations are not of these frames (poses at "
+            "another rate, or with an offset?)"
+        )
+
+
 def estimate_sequence(
     estimator: Estimator,
     boxes: BoxTable,
@@ -399,7 +429,8 @@ def estimate_sequence(
         DataMismatchError: a timestamp (of any frame, with boxes or not) that is not finite
             or does not increase, as :meth:`FrameStep.step` refuses it; boxes of a frame
             beyond ``timestamps_s``; fewer rotations than frames; ``timestamps_s`` that are
-            not ``(N,)``.
+            not ``(N,)``; a rotation whose own time is more than half a frame period from its
+            frame's (:func:`check_track_times`).
         ConfigurationError: a ``lookback_s`` or ``vehicle_classes`` :class:`FrameStep`
             refuses.
     """
@@ -416,6 +447,8 @@ def estimate_sequence(
         raise DataMismatchError(
             f"rotations cover {len(track)} frames but the sequence has {len(timestamps_s)}"
         )
+    if track is not None:
+        check_track_times(track, timestamps_s)
     theta = (
         ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s)
         if track is not None

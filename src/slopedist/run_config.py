@@ -168,6 +168,9 @@ class RunResult:
         records: per-target rows written; ``estimated``: rows with status ``ok``;
             ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
             of the image); ``not_vehicles``: rows of classes that are not vehicles.
+        dropped_boxes: rows of the box file its reader left out, ``{reason: rows}``
+            (:class:`~slopedist.detections.dropped.DroppedBoxes`; e.g. COCO categories that are
+            not vehicles); empty when none were.
         boxes_without_frame: boxes whose frame index never came from the frame source, or
             came as an unreadable frame whose time does not follow the frame before it (of a
             run stopped early: of the frames up to the last it completed).
@@ -199,6 +202,7 @@ class RunResult:
     estimated: int = 0
     upper_bounds: int = 0
     not_vehicles: int = 0
+    dropped_boxes: dict[str, int] = field(default_factory=dict)
     boxes_without_frame: int = 0
     elapsed_s: float = 0.0
     frames_per_s: float = 0.0

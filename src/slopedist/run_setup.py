@@ -19,6 +19,7 @@ from pathlib import Path
 from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.depth import DepthSource, FileDepthSource
 from slopedist.detections.boxes import BoxTable
+from slopedist.detections.dropped import DroppedBoxes
 from slopedist.detections.onnx_detector import Detector
 from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
@@ -223,6 +224,7 @@ class PreparedRun:
     odometry: RotationOdometry | None
     ego_speed: SpeedTrack | None
     time_origin_ns: int
+    dropped_boxes: DroppedBoxes = field(default_factory=DroppedBoxes)
 
     def run(self, config: RunConfig, frames: FrameSource | None = None) -> RunResult:
         """:func:`~slopedist.runner.run_frames` on these inputs into ``config`` (``frames``
@@ -246,13 +248,17 @@ class PreparedRun:
             config,
             self.depth,
             self.detector,
+            self.dropped_boxes.reasons,
         )
 
 
-def boxes_or_detector(inputs: RunInputs) -> tuple[BoxTable, Detector | None]:
-    """The box file's boxes, or no boxes and the detector (exactly one must be given)."""
+def boxes_or_detector(
+    inputs: RunInputs, dropped: DroppedBoxes | None = None
+) -> tuple[BoxTable, Detector | None]:
+    """The box file's boxes (the rows its reader left out counted in ``dropped``), or no boxes
+    and the detector (exactly one must be given)."""
     if inputs.boxes is not None and inputs.detector is None:
-        return read_box_file(inputs.boxes, inputs.score), None
+        return read_box_file(inputs.boxes, inputs.score, dropped), None
     if inputs.detector is not None and inputs.boxes is None:
         return BoxTable.empty(), inputs.detector()
     raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
@@ -273,7 +279,8 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
         source, inputs.calib, inputs.height_m, mount_rad, inputs.image_size
     )
     camera = with_frame_size(calibration.camera, source)
-    boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs))
+    dropped = DroppedBoxes()
+    boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs, dropped))
     estimator = build_estimator(inputs.estimator, camera)
     check_runnable(estimator, inputs.depth is not None, boxes, topics.rotation is not None)
     depth = inputs.depth(source) if inputs.depth is not None else None
@@ -289,4 +296,5 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
         odometry,
         ego_speed=log_speed(source, topics.speed) if topics.speed else None,
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
+        dropped_boxes=dropped,
     )

@@ -48,6 +48,7 @@ import functools
 import math
 import time
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -109,6 +110,7 @@ def run_frames(
     config: RunConfig,
     depth: DepthSource | None = None,
     detector: Detector | None = None,
+    dropped_boxes: Mapping[str, int] | None = None,
 ) -> RunResult:
     """Run the whole pipeline on ``frames``, writing as it goes (see the module docstring).
 
@@ -127,6 +129,8 @@ def run_frames(
             with boxes; a frame without a map gives its targets the reason ``no_depth``).
         detector: finds the boxes of every readable frame instead of ``boxes`` (which must then
             be empty); its boxes have no track ids (the estimator associates them).
+        dropped_boxes: rows the box file's reader left out, ``{reason: rows}``, for
+            ``run.json`` (:class:`~slopedist.detections.dropped.DroppedBoxes`).
 
     Raises:
         ConfigurationError: a depth-map method without ``depth``, or ``depth`` for a method
@@ -149,6 +153,7 @@ def run_frames(
         sequence=config.sequence if config.sequence else default_sequence_name(frames.path),
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
+        dropped_boxes=dict(dropped_boxes or {}),
         depth_source=describe_depth(depth) if depth is not None else None,
         exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
         detector=str(getattr(detector, "model_path", type(detector).__name__))

@@ -325,3 +325,33 @@ def test_an_offline_runs_overlay_says_it_shows_the_causal_pass(
     assert main(["run", *args, "--offline", "--snapshot", "1", "--out", str(out)]) == 0
     assert (out / "snapshot_000001.jpg").is_file()
     assert methods == ["ours-offline (causal pass)"]
+
+
+def test_run_counts_the_box_rows_its_reader_left_out(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A COCO file whose person and crowd annotations were dropped without a word: run.json
+    counts them by reason and one warning line names the file."""
+    args = make_inputs(tmp_path, 3)
+    items = [
+        {"image_id": 0, "category_id": 3, "bbox": [100, 110, 50, 40]},
+        {"image_id": 1, "category_id": 1, "bbox": [100, 110, 50, 40]},
+        {"image_id": 2, "category_id": 1, "bbox": [100, 110, 50, 40]},
+        {"image_id": 2, "category_id": 3, "bbox": [0, 100, 300, 80], "iscrowd": 1},
+    ]
+    coco = tmp_path / "boxes.json"
+    coco.write_text(json.dumps(items))
+    args[args.index("--boxes") + 1] = str(coco)
+    out = tmp_path / "out"
+    with caplog.at_level("WARNING", logger="slopedist.detections.dropped"):
+        assert main(["run", *args, "--out", str(out), "--odometry", "none"]) == 0
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["dropped_boxes"] == {
+        "category_id 1 (not a vehicle class)": 2,
+        "crowd annotations (iscrowd 1)": 1,
+    }
+    assert summary["records"] == 1
+    assert [r.getMessage() for r in caplog.records] == [
+        f"warning: {coco}: dropped 3 of 4 box rows (75 %): 2 category_id 1 (not a vehicle "
+        "class), 1 crowd annotations (iscrowd 1)"
+    ]

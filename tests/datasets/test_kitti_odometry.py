@@ -88,6 +88,40 @@ def test_a_gap_in_the_numbering_is_a_dropped_frame(tmp_path: Path) -> None:
         read_kitti_odometry(root)
 
 
+def test_a_missing_first_frame_keeps_the_numbering(tmp_path: Path) -> None:
+    """000000.png missing: 000001.png is line 1 of poses.txt and times.txt (it was paired with
+    line 0, every later frame with the line before its own)."""
+    root = make_sequence(tmp_path / "s", n=5)
+    (root / "times.txt").write_text("0.0\n0.1\n0.2\n0.3\n0.4\n")
+    (root / "image_l" / "000000.png").unlink()
+    seq = read_kitti_odometry(root)
+    assert np.allclose(seq.timestamps_s, [0.1, 0.2, 0.3, 0.4])
+    assert seq.ground_truth is not None
+    for k in range(4):
+        expected = tv.so3_exp(np.radians([0.1 * (k + 1), 2.0 * (k + 1), 0.0]))
+        assert np.allclose(seq.ground_truth.R_world_cam[k], expected, atol=1e-8)
+    (root / "times.txt").unlink()
+    assert np.allclose(read_kitti_odometry(root).timestamps_s, [0.1, 0.2, 0.3, 0.4])
+
+
+@pytest.mark.parametrize("name", ["poses.txt", "times.txt"])
+def test_frames_numbered_from_above_0_need_lines_up_to_their_numbers(
+    tmp_path: Path, name: str
+) -> None:
+    """Frames 000002–000004 with three poses (or times): line k is frame k, so the file is short
+    (not read as starting at 000002.png), and the error says which reading was not taken."""
+    root = make_sequence(tmp_path / "s", n=5)
+    (root / "times.txt").write_text("0.0\n0.1\n0.2\n0.3\n0.4\n")
+    for k in (0, 1):
+        (root / "image_l" / f"{k:06d}.png").unlink()
+    lines = (root / name).read_text().splitlines()[:3]
+    (root / name).write_text("\n".join(lines) + "\n")
+    what = "poses" if name == "poses.txt" else "timestamps"
+    message = f"has 3 {what} for 5 frames .* numbered 000002.png to 000004.png .* frame numbered k"
+    with pytest.raises(DataMismatchError, match=message):
+        read_kitti_odometry(root)
+
+
 @pytest.mark.parametrize(
     ("change", "error", "message"),
     [

@@ -7,11 +7,11 @@ Layout of one sequence folder::
     calib.txt                first line P0 (12 numbers, with or without a ``P0:`` name)
     times.txt                optional: one timestamp in seconds per frame
 
-When every frame's name is a number (``000020.png``), frame k is the one numbered k after the
-first frame's number, whose pose and timestamp are line k of ``poses.txt`` and ``times.txt``: a
-file missing from the numbering is a dropped frame, not a shift of every later frame against
-its ground truth. Other names are frames 0, 1, ... in name order. Without ``times.txt`` frame k
-has timestamp ``k × 0.1 s`` (KITTI records at 10 Hz).
+When every frame's name is a number (``000020.png``), the number is the frame: its pose and
+timestamp are line 20 of ``poses.txt`` and ``times.txt`` (KITTI's numbering, line 0 = frame
+``000000``), so a file missing from the numbering, the first one included, is a dropped frame,
+not a shift of every later frame against its ground truth. Other names are frames 0, 1, ... in
+name order. Without ``times.txt`` frame k has timestamp ``k × 0.1 s`` (KITTI records at 10 Hz).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ def read_gray_image(path: str | Path) -> NDArray[np.uint8]:
     return np.asarray(image, dtype=np.uint8)
 
 
-def _read_times(path: Path, n: int) -> NDArray[np.float64]:
+def _read_times(path: Path) -> NDArray[np.float64]:
     values: list[float] = []
     for lineno, line in numbered_lines(path, "times file", comment=None):
         try:
@@ -89,15 +89,13 @@ def _read_times(path: Path, n: int) -> NDArray[np.float64]:
                 path, f"time {value} s does not follow {values[-1]} s", line=lineno, field="time"
             )
         values.append(value)
-    if len(values) < n:
-        raise DataMismatchError(f"{path} has {len(values)} timestamps for {n} frames")
-    return np.asarray(values[:n])
+    return np.asarray(values)
 
 
 def _frame_numbers(paths: tuple[Path, ...]) -> tuple[tuple[Path, ...], NDArray[np.intp]]:
     """``paths`` in frame order and each one's frame (its line in ``poses.txt`` and
-    ``times.txt``): the number in its name minus the first one's when every name is a number
-    (ASCII digits), else its position in name order."""
+    ``times.txt``): the number in its name when every name is a number (ASCII digits), else its
+    position in name order."""
     if not all(p.stem.isascii() and p.stem.isdigit() for p in paths):
         return paths, np.arange(len(paths))
     numbered = sorted(paths, key=lambda p: (int(p.stem), p.name))
@@ -107,7 +105,24 @@ def _frame_numbers(paths: tuple[Path, ...]) -> tuple[tuple[Path, ...], NDArray[n
         raise InputFileError(
             numbered[k + 1], f"frame number {numbers[k]} also used by {numbered[k].name}"
         )
-    return tuple(numbered), numbers - numbers[0]
+    return tuple(numbered), numbers
+
+
+def _too_few_lines(
+    path: Path, lines: int, what: str, paths: tuple[Path, ...], index: NDArray[np.intp]
+) -> str:
+    """The error for a ``poses.txt`` or ``times.txt`` with fewer lines than the frames need;
+    when the frames are numbered from above 0 and the lines would cover them counted from the
+    first file, say that this reading is not taken (line k is the frame numbered k)."""
+    first, last = int(index[0]), int(index[-1])
+    message = f"{path} has {lines} {what} for {last + 1} frames in {paths[0].parent}"
+    if first > 0 and lines >= last - first + 1:
+        message += (
+            f": the frames are numbered {paths[0].name} to {paths[-1].name} and line k is the "
+            f"frame numbered k (line 0 = frame 0); if line 0 is {paths[0].name}, number the "
+            "frames from 0"
+        )
+    return message
 
 
 def read_kitti_odometry(
@@ -115,9 +130,9 @@ def read_kitti_odometry(
 ) -> KittiOdometrySequence:
     """Open a KITTI-odometry-style sequence folder (see the module docstring for the layout).
 
-    Frames are listed, not decoded; the first frame is decoded to learn the image size. A gap
-    in numbered frame names is a dropped frame: later frames keep their own lines of
-    ``poses.txt`` and ``times.txt``.
+    Frames are listed, not decoded; the first frame is decoded to learn the image size. A
+    numbered frame file is paired with the line of its number in ``poses.txt`` and
+    ``times.txt``: a gap in the numbering, also before the first file, is dropped frames.
 
     Raises:
         MissingInputError: the folder, ``image_l/``, its frames, ``calib.txt`` or (when
@@ -150,7 +165,12 @@ def read_kitti_odometry(
     camera = camera.with_image_size(width, height)
     times_path = root / "times.txt"
     if times_path.is_file():
-        timestamps = _read_times(times_path, n_frames)[index]
+        times = _read_times(times_path)
+        if len(times) < n_frames:
+            raise DataMismatchError(
+                _too_few_lines(times_path, len(times), "timestamps", paths, index)
+            )
+        timestamps = times[index]
     else:
         timestamps = index.astype(np.float64) * frame_period_s
     poses_path = root / "poses.txt"
@@ -158,9 +178,7 @@ def read_kitti_odometry(
     if poses_path.is_file():
         track = read_kitti_poses(poses_path)
         if len(track) < n_frames:
-            raise DataMismatchError(
-                f"{poses_path} has {len(track)} poses for {n_frames} frames in {image_dir}"
-            )
+            raise DataMismatchError(_too_few_lines(poses_path, len(track), "poses", paths, index))
         ground_truth = RotationTrack.from_arrays(timestamps, track.R_world_cam[index])
     elif require_poses:
         raise MissingInputError(f"ground-truth poses not found: {poses_path}")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.detections.dropped import DroppedBoxes
 from slopedist.detections.format_writers import (
     class_indices,
     write_coco,
@@ -126,24 +127,32 @@ def read_boxes(
     fmt: BoxFormat | str = BoxFormat.AUTO,
     options: BoxFileOptions | None = None,
     class_map: Mapping[int, str] | None = None,
+    dropped: DroppedBoxes | None = None,
 ) -> BoxTable:
-    """Boxes of a file or folder in layout ``fmt`` (AUTO: :func:`sniff_format`)."""
+    """Boxes of a file or folder in layout ``fmt`` (AUTO: :func:`sniff_format`).
+
+    The rows the reader left out (not those below ``min_score``) are counted in ``dropped``
+    (a new one per file) and, when there are any, logged as one warning
+    (:meth:`~slopedist.detections.dropped.DroppedBoxes.warn`).
+    """
     opt = options or BoxFileOptions()
     kind = BoxFormat(fmt)
     kind = sniff_format(path) if kind is BoxFormat.AUTO else kind
+    tally = DroppedBoxes() if dropped is None else dropped
     if kind is BoxFormat.YOLO:
-        table = read_yolo_folder(path, _yolo_size(opt), class_map, opt.frame_base or 0)
+        table = read_yolo_folder(path, _yolo_size(opt), class_map, opt.frame_base or 0, tally)
     elif kind is BoxFormat.COCO:
         frames = None if opt.coco_images is None else read_coco_image_map(opt.coco_images)
-        table = read_coco(path, frames, class_map)
+        table = read_coco(path, frames, class_map, tally)
     elif kind is BoxFormat.MOT:
-        table = read_mot(path, 1 if opt.frame_base is None else opt.frame_base)
+        table = read_mot(path, 1 if opt.frame_base is None else opt.frame_base, tally)
     elif kind is BoxFormat.POINTRCNN:
         table = read_pointrcnn(path)
     elif kind is BoxFormat.KITTI:
         table = read_kitti_labels(path)
     else:
         table = read_box_csv(path)
+    tally.warn(path, len(table))
     if opt.min_score is not None:
         table = table.select(~(table.score < opt.min_score))
     return table

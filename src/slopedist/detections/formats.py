@@ -23,8 +23,9 @@ bottom`` in pixels, 0-based frame indices) and fails with an
   :data:`~slopedist.detections.onnx_detector.COCO_VEHICLES`), or named by the folder's
   ``classes.txt`` (labelImg's class list) when it has one.
 
-Classes not in a map are dropped. Writers for each (for ``slopedist convert``) are in
-:mod:`slopedist.detections.format_writers`.
+Classes not in a map are dropped; every reader counts the rows it drops, by reason, in the
+:class:`~slopedist.detections.dropped.DroppedBoxes` it is given. Writers for each (for
+``slopedist convert``) are in :mod:`slopedist.detections.format_writers`.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.detections.dropped import DroppedBoxes
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import (
     _index,
@@ -90,8 +92,12 @@ MOT_KINDS: dict[str, Callable[[str], Any]] = {"flag": _int, "class": _int, "conf
 """How the MOTChallenge fields other than frame and id are read (the rest as floats)."""
 
 
-def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
-    """A MOTChallenge ``det.txt`` or ``gt.txt`` (see the module docstring)."""
+def read_mot(
+    path: str | Path, frame_base: int = 1, dropped: DroppedBoxes | None = None
+) -> BoxTable:
+    """A MOTChallenge ``det.txt`` or ``gt.txt`` (see the module docstring); the rows left out
+    are counted in ``dropped``."""
+    dropped = DroppedBoxes() if dropped is None else dropped
     frames, tids, boxes, scores, classes = [], [], [], [], []
     for lineno, line in numbered_lines(path, "MOTChallenge file"):
         tok = [t.strip() for t in line.split(",")]
@@ -113,6 +119,11 @@ def read_mot(path: str | Path, frame_base: int = 1) -> BoxTable:
             )
         if len(tok) == 9:
             if v["flag"] == 0 or v["class"] not in MOT_CLASSES:
+                dropped.add(
+                    "flag 0 (to be ignored)"
+                    if v["flag"] == 0
+                    else f"class {v['class']} (not a MOT17 object class)"
+                )
                 continue
             classes.append(MOT_CLASSES[v["class"]])
             scores.append(np.nan)
@@ -246,8 +257,11 @@ def read_coco(
     path: str | Path,
     image_frames: Mapping[int, int] | None = None,
     class_map: Mapping[int, str] | None = None,
+    dropped: DroppedBoxes | None = None,
 ) -> BoxTable:
-    """A COCO results list or dataset file (see the module docstring)."""
+    """A COCO results list or dataset file (see the module docstring); the annotations left
+    out are counted in ``dropped``."""
+    dropped = DroppedBoxes() if dropped is None else dropped
     data = _load_json(path)
     items = data.get("annotations") if isinstance(data, dict) else data
     if not isinstance(items, list):
@@ -265,7 +279,11 @@ def read_coco(
         if not (isinstance(bbox, list) and len(bbox) == 4):
             raise InputFileError(path, "expected [x, y, width, height]", field=f"[{i}].bbox")
         xywh = [_coco_number(path, i, {"bbox": b}, "bbox", float) for b in bbox]
-        if category not in cmap or item.get("iscrowd") in (1, True):
+        if category not in cmap:
+            dropped.add(f"category_id {category} (not a vehicle class)")
+            continue
+        if item.get("iscrowd") in (1, True):
+            dropped.add("crowd annotations (iscrowd 1)")
             continue
         if image_frames is not None and image not in image_frames:
             raise InputFileError(
@@ -311,8 +329,11 @@ def read_yolo_folder(
     image_size: tuple[int, int],
     class_map: Mapping[int, str] | None = None,
     frame_base: int = 0,
+    dropped: DroppedBoxes | None = None,
 ) -> BoxTable:
-    """A folder of YOLO ``.txt`` label files of images ``image_size = (width, height)`` pixels."""
+    """A folder of YOLO ``.txt`` label files of images ``image_size = (width, height)`` pixels;
+    the labels left out are counted in ``dropped``."""
+    dropped = DroppedBoxes() if dropped is None else dropped
     folder = Path(folder)
     if not folder.is_dir():
         raise MissingInputError(f"YOLO label folder not found: {folder}")
@@ -338,6 +359,7 @@ def read_yolo_folder(
             score = _parse(path, lineno, "conf", tok[5], score_value) if len(tok) > 5 else np.nan
             tid = _parse(path, lineno, "track_id", tok[6], _int) if len(tok) > 6 else NO_TRACK
             if cls not in cmap:
+                dropped.add(f"class {cls} (not a vehicle class)")
                 continue
             frames.append(frame)
             xywh = [(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h]

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.detections.boxes import NO_TRACK, BoxTable
+from slopedist.detections.dropped import DroppedBoxes
 from slopedist.errors import InputFileError
 from slopedist.limits import MAX_ABS_PIXEL, MAX_INDEX
 from slopedist.textfiles import CsvRows, numbered_lines
@@ -365,16 +366,19 @@ def _truth_distance(path: Path, lineno: int, value: str | None) -> float:
     return d
 
 
-def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
+def read_box_file(
+    path: str | Path, min_score: float | None = None, dropped: DroppedBoxes | None = None
+) -> BoxTable:
     """Read boxes from a file of any supported layout, chosen by its content.
 
     A first line with a ``frame`` header is the slopedist CSV; 15 comma-separated fields is
     PointRCNN; 17–18 space-separated fields is a KITTI label file; other layouts (MOTChallenge,
-    COCO JSON) are read by :func:`slopedist.detections.convert.read_boxes`.
+    COCO JSON) are read by :func:`slopedist.detections.convert.read_boxes`, which counts the
+    rows it leaves out in ``dropped`` and logs them as one warning.
     """
     path = Path(path)
     if path.suffix.lower() == ".json":
-        return _read_other_layout(path, min_score)
+        return _read_other_layout(path, min_score, dropped)
     first = next(iter(numbered_lines(path, "box file")), (0, ""))[1]
     if first.replace(" ", "").lower().startswith("frame,"):
         table = read_box_csv(path)
@@ -385,11 +389,13 @@ def read_box_file(path: str | Path, min_score: float | None = None) -> BoxTable:
         return read_pointrcnn(path, min_score)
     if len(first.split()) in (17, 18):
         return read_kitti_labels(path)
-    return _read_other_layout(path, min_score)
+    return _read_other_layout(path, min_score, dropped)
 
 
-def _read_other_layout(path: Path, min_score: float | None) -> BoxTable:
+def _read_other_layout(
+    path: Path, min_score: float | None, dropped: DroppedBoxes | None
+) -> BoxTable:
     """MOTChallenge or COCO JSON boxes (:mod:`slopedist.detections.formats`)."""
     from slopedist.detections.convert import BoxFileOptions, read_boxes  # imports this module
 
-    return read_boxes(path, options=BoxFileOptions(min_score=min_score))
+    return read_boxes(path, options=BoxFileOptions(min_score=min_score), dropped=dropped)

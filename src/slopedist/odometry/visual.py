@@ -14,7 +14,8 @@ rotations (whose errors add up over the ten steps of a second), each frame's rot
    image.
 2. Rotation: the correspondences between the look-back frame ``L`` and the current frame ``t``
    (tracks alive in both) give the relative pose by iteratively reweighted least squares started
-   from the constant-angular-velocity prediction (:mod:`slopedist.odometry.twoview`): a
+   from the constant-angular-velocity prediction (:mod:`~slopedist.odometry.visual_fit` on
+   :mod:`slopedist.odometry.twoview`): a
    rotation-only model when there is no parallax (standing car, only far points), else the
    5-degree-of-freedom essential matrix on the Sampson distance. OpenCV's USAC essential-matrix
    solver is the fallback when the local fit does not explain most tracks.
@@ -65,6 +66,7 @@ from slopedist.odometry.masks import (
 )
 from slopedist.odometry.point_map import PointNormaliser
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig
+from slopedist.odometry.visual_fit import TwoViewFitting
 from slopedist.odometry.working_size import WorkingSize, check_gray_frame, check_principal_point
 
 FloatArray = NDArray[np.float64]
@@ -72,12 +74,6 @@ FloatArray = NDArray[np.float64]
 MIN_FRAME_PX = 2
 """Frames (at the working size) narrower or lower than this have no half-size copy to find
 corners in: they are never tracked (``not_initialised``)."""
-
-USAC_MAX_ITERATIONS = 300
-"""Iteration cap of OpenCV's USAC essential-matrix search (the fallback of a failed local fit)."""
-
-MAX_WARM_START_DEG = 15.0
-"""A previous translation direction warm-starts a fit only within this angle of the chord."""
 
 
 @dataclass(frozen=True)
@@ -94,7 +90,7 @@ _Estimate = tuple[FloatArray, tv.TwoViewFit, NDArray[np.int64], _FrameRecord]
 """A rotation estimate: ``R_world_cam``, the fit, the track ids fitted, the reference frame."""
 
 
-class BuiltinVisualOdometry:
+class BuiltinVisualOdometry(TwoViewFitting):
     """Rotation-only visual odometry from grey frames (see the module docstring).
 
     Example::
@@ -218,10 +214,6 @@ class BuiltinVisualOdometry:
         """Fix the full and working frame sizes and the working camera's intrinsics."""
         self._work = WorkingSize.choose(self.camera, width, height, self.config.max_width_px)
         self._f = self._work.camera.f
-
-    def _full(self, uv: NDArray[np.float32]) -> NDArray[np.float32]:
-        """Working-frame pixels ``(N, 2)`` as full-frame pixels (the normaliser's)."""
-        return uv if self._work is None else self._work.to_full(uv)
 
     def _check_timestamp(self, timestamp_s: float) -> float:
         t = float(timestamp_s)
@@ -481,83 +473,6 @@ class BuiltinVisualOdometry:
             if fit is not None:
                 return ref.R_world_cam @ fit.R.T, fit, common, ref
         return None
-
-    def _fit(
-        self,
-        uv_ref: NDArray[np.float32],
-        uv_cur: NDArray[np.float32],
-        R_init: FloatArray,
-        kind: str = "direct",
-    ) -> tv.TwoViewFit | None:
-        """Relative pose reference → current (``X_cur = R X_ref + t``) or None if unreliable.
-
-        ``kind`` ("direct" or "f2f") selects which earlier translation warm-starts the fit.
-        """
-        c = self.config
-        f = self._f
-        x1, x2 = self.normalise(self._full(uv_ref)), self.normalise(self._full(uv_cur))
-        n = len(x1)
-        rot = tv.fit_rotation_only(x1, x2, f, c.inlier_threshold_px, R_init=R_init)
-        if rot.n_inliers >= max(c.min_inliers, c.min_inlier_ratio * n) and (
-            float(np.median(rot.residuals_px)) < c.static_parallax_px
-        ):
-            self.last_fit = FitInfo(0.0, n, rot.n_inliers, "rotation", False)
-            return rot
-        fit = self._refine(x1, x2, R_init, self._t_last.get(kind))
-        usac = False
-        if fit.n_inliers < c.min_inlier_ratio * n:  # poor prediction: start from the rotation
-            other = self._refine(x1, x2, rot.R)
-            fit = other if other.n_inliers > fit.n_inliers else fit
-        if fit.n_inliers < c.min_inlier_ratio * n and self._usac_budget > 0:
-            self._usac_budget -= 1  # at most one global search per frame (bounded time)
-            global_fit = self._fit_usac(uv_ref, uv_cur, x1, x2)
-            if global_fit is not None and global_fit.n_inliers > fit.n_inliers:
-                fit = global_fit
-            usac = True
-        self.last_fit = FitInfo(0.0, n, fit.n_inliers, "essential", usac)
-        if fit.n_inliers < max(c.min_inliers, c.min_inlier_ratio * n):
-            return None
-        self._t_last[kind] = fit.t
-        return fit
-
-    def _fit_usac(
-        self,
-        uv_ref: NDArray[np.float32],
-        uv_cur: NDArray[np.float32],
-        x1: FloatArray,
-        x2: FloatArray,
-    ) -> tv.TwoViewFit | None:
-        """Global fallback: USAC essential matrix + cheirality, then the local refinement."""
-        c = self.config
-        uv_ref, uv_cur = (self.normalise.pixels(self._full(uv)) for uv in (uv_ref, uv_cur))
-        threshold = c.inlier_threshold_px * (self.camera.f / self._f)  # full-frame pixels
-        K = self.normalise.K
-        E, mask = cv2.findEssentialMat(
-            uv_ref, uv_cur, K, cv2.USAC_DEFAULT, 0.999, threshold, USAC_MAX_ITERATIONS
-        )
-        if E is None or E.shape != (3, 3):
-            return None
-        _, R, _, _ = cv2.recoverPose(E, uv_ref, uv_cur, K, mask=mask)
-        return self._refine(x1, x2, np.asarray(R, dtype=np.float64))
-
-    def _refine(
-        self, x1: FloatArray, x2: FloatArray, R_init: FloatArray, t_last: FloatArray | None = None
-    ) -> tv.TwoViewFit:
-        """Essential-matrix refinement from ``R_init``.
-
-        The translation starts along the chord of the car's arc (the heading turned by half the
-        rotation), or from ``t_last`` (the previous fit of this kind) when that agrees with the
-        chord within ``MAX_WARM_START_DEG``.
-        """
-        c = self.config
-        t_init = tv.so3_exp(0.5 * tv.so3_log(R_init)) @ self._heading
-        if t_last is not None and abs(float(t_last @ t_init)) > math.cos(
-            math.radians(MAX_WARM_START_DEG)
-        ):
-            t_init = t_last if t_last @ t_init > 0 else -t_last
-        return tv.fit_relative_pose(
-            x1, x2, self._f, R_init, t_init, threshold_px=c.inlier_threshold_px
-        )
 
     # ------------------------------------------------------------------ bookkeeping
     def _commit(
