@@ -45,3 +45,25 @@ def type_rows(
     log_weight = np.full(n, NOT_THIS_TYPE_LOG_WEIGHT)
     log_weight[0] = 0.0
     return [prior_row(prior)] * n, log_weight
+
+
+def type_log_var(prior: DimensionPrior, mixture: TypeMixture) -> float:
+    """Variance of a vehicle's log size about ``prior`` that a generic class adds to it: the
+    second moment of the mixture's types about the class prior, minus the prior's own spread
+    (≥ 0), on the isotropic scale √(H·W) the size cues measure (the log of the geometric mean
+    of height and width; each type's spread ``(σH/H)² + (σW/W)² + 2ρ(σH/H)(σW/W)``, over 4).
+
+    With the published mixture (:data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`)
+    about the ``Car`` prior it is 0.019 (a log σ of 0.14): 9 % vans 29 % bigger, 3 % trucks and
+    buses 80 % bigger."""
+
+    def log_scale(p: DimensionPrior) -> tuple[float, float]:
+        s_h, s_w = p.height_sigma_m / p.height_m, p.width_sigma_m / p.width_m
+        var = 0.25 * (s_h * s_h + s_w * s_w + 2.0 * p.corr_hw * s_h * s_w)
+        return 0.5 * float(np.log(p.height_m * p.width_m)), var
+
+    own_mean, own_var = log_scale(prior)
+    weight = np.array([w for _, _, w in mixture], dtype=float)
+    moments = np.array([log_scale(p) for _, p, _ in mixture])
+    second = np.sum(weight * ((moments[:, 0] - own_mean) ** 2 + moments[:, 1])) / weight.sum()
+    return max(float(second) - own_var, 0.0)
