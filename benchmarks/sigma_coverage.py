@@ -11,20 +11,23 @@ by truth distance (0–20, 20–40, 40+ m), on
   frames, four seeds): all cars; 60 % cars, 25 % vans, 15 % trucks with their true classes;
   the same called ``Car`` (class-blind), read as ``Car`` and with ``generic_classes``.
 
-``kitti_raw_lead`` (LiDAR truth, the nearest face) needs its visual odometry run over the
-images; its coverage is printed by ``python benchmarks/kitti_raw_lead.py --ours-options
-'{"reference": "nearest_face"}'`` (the "within 1σ" table).
+- ``kitti_raw_lead`` (LiDAR truth, the clusters' nearest face, not cut by the border, z ≤ 40 m)
+  from the output folder of ``python benchmarks/kitti_raw_lead.py --out DIR --ours-options
+  '{"reference": "nearest_face"}'`` (it runs the visual odometry over the images; here its
+  ``lidar_boxes.csv`` and ``ours/records.csv`` are read): ``--raw-lead-out DIR``.
 
 Usage::
 
     python benchmarks/sigma_coverage.py [--data /work/shared/data/kitti_tracking]
         [--sources gt,pointrcnn,rrc,synthetic] [--methods ours,ours-offline]
-        [--ours-options '{"generic_classes": ["Car"]}']
+        [--ours-options '{"generic_classes": ["Car"], "generic_sigma_only": true}']
+        [--raw-lead-out bench_out/kitti_raw_lead ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import sys
 from collections.abc import Iterator
@@ -32,7 +35,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from kitti_raw_lead import read_estimates, read_sigmas
 from numpy.typing import NDArray
+from ours_detector_boxes import ROTATION, scenes
 
 from slopedist.camera import Camera
 from slopedist.datasets.kitti_tracking import BoxSource
@@ -41,9 +46,6 @@ from slopedist.estimators import make_estimator
 from slopedist.evaluation import cap_estimates
 from slopedist.odometry.base import RotationTrack
 from slopedist.pipeline import estimate_sequence
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ours_detector_boxes import ROTATION, scenes  # noqa: E402
 
 DEFAULT_DATA = Path("/work/shared/data/kitti_tracking")
 BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, np.inf))
@@ -107,12 +109,34 @@ def synthetic_rows(
     return concat(parts)
 
 
+def raw_lead_rows(out: Path, method: str, max_z_m: float = 40.0) -> Rows:
+    """The ok rows of ``method`` in a ``benchmarks/kitti_raw_lead.py`` output folder ``out``
+    against its LiDAR truth (the nearest face; boxes not cut by the border, z ≤ ``max_z_m``)."""
+    records = out / method / "records.csv"
+    estimates, sigmas = read_estimates(records), read_sigmas(records)
+    with records.open(newline="") as fh:
+        ok = {
+            (int(r["frame"]), int(r["track_id"])) for r in csv.DictReader(fh) if r["status"] == "ok"
+        }
+    err, sigma, z = [], [], []
+    with (out / "lidar_boxes.csv").open(newline="") as fh:
+        for row in csv.DictReader(fh):
+            key, truth = (int(row["frame"]), int(row["track_id"])), float(row["z"])
+            if int(row["truncated"]) == 0 and truth <= max_z_m and key in ok:
+                err.append(estimates[key] - truth)
+                sigma.append(sigmas[key])
+                z.append(truth)
+    return np.array(err), np.array(sigma), np.array(z)
+
+
 def concat(parts: list[Rows]) -> Rows:
     e, s, z = (np.concatenate([p[i] for p in parts]) for i in range(3))
     return e, s, z
 
 
-def coverage(err: NDArray[np.float64], sigma: NDArray[np.float64]) -> tuple[int, float, float, float]:
+def coverage(
+    err: NDArray[np.float64], sigma: NDArray[np.float64]
+) -> tuple[int, float, float, float]:
     """n, share within 1σ, within 2σ, median |error|/σ."""
     if not err.size:
         return 0, np.nan, np.nan, np.nan
@@ -144,27 +168,36 @@ def header() -> str:
 def runs(args: argparse.Namespace) -> Iterator[tuple[str, Rows]]:
     """(label, rows) of every source × method asked for."""
     sources = args.sources.split(",")
+    for out in args.raw_lead_out:
+        yield f"kitti_raw_lead {out.name} / ours", raw_lead_rows(out, "ours")
     for method in args.methods.split(","):
         for name in ("gt", "pointrcnn", "rrc"):
             if name in sources:
-                yield f"kitti {name} / {method}", kitti_rows(
-                    args.data, BoxSource(name), method, args.ours_options
+                yield (
+                    f"kitti {name} / {method}",
+                    kitti_rows(args.data, BoxSource(name), method, args.ours_options),
                 )
         if "synthetic" in sources:
             opts = args.ours_options
             generic = {**opts, "generic_classes": ("Car",)}
             yield f"synthetic cars / {method}", synthetic_rows(method, opts, None, True)
-            yield f"synthetic true classes / {method}", synthetic_rows(
-                method, opts, MIXED_TRAFFIC, True
+            yield (
+                f"synthetic true classes / {method}",
+                synthetic_rows(method, opts, MIXED_TRAFFIC, True),
             )
-            yield f"synthetic class-blind / {method}", synthetic_rows(
-                method, opts, MIXED_TRAFFIC, False
+            yield (
+                f"synthetic class-blind / {method}",
+                synthetic_rows(method, opts, MIXED_TRAFFIC, False),
             )
-            yield f"synthetic class-blind generic / {method}", synthetic_rows(
-                method, generic, MIXED_TRAFFIC, False
+            yield (
+                f"synthetic class-blind generic / {method}",
+                synthetic_rows(method, generic, MIXED_TRAFFIC, False),
             )
-            yield f"synthetic class-blind generic σ / {method}", synthetic_rows(
-                method, {**generic, "generic_sigma_only": True}, MIXED_TRAFFIC, False
+            yield (
+                f"synthetic class-blind generic σ / {method}",
+                synthetic_rows(
+                    method, {**generic, "generic_sigma_only": True}, MIXED_TRAFFIC, False
+                ),
             )
 
 
@@ -174,6 +207,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sources", default="gt,pointrcnn,rrc,synthetic")
     parser.add_argument("--methods", default="ours,ours-offline")
     parser.add_argument("--ours-options", type=json.loads, default={})
+    parser.add_argument(
+        "--raw-lead-out",
+        type=Path,
+        nargs="*",
+        default=[],
+        help="output folders of benchmarks/kitti_raw_lead.py to score (its ours records)",
+    )
     args = parser.parse_args(argv)
     if any(s in args.sources for s in ("gt", "pointrcnn", "rrc")) and not args.data.is_dir():
         print(f"KITTI tracking data not found at {args.data}", file=sys.stderr)

@@ -14,6 +14,7 @@ from slopedist.estimators.ours.priors import CLASS_PRIORS, VEHICLE_TYPE_MIXTURE,
 from slopedist.estimators.ours.vehicle_types import (
     NOT_THIS_TYPE_LOG_WEIGHT,
     type_log_var,
+    type_moments,
     type_rows,
 )
 
@@ -86,10 +87,13 @@ def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class()
 
 def test_the_type_mixture_adds_the_published_vans_and_trucks_to_a_cars_size_spread() -> None:
     car = CLASS_PRIORS["Car"]
-    assert type_log_var(car, VEHICLE_TYPE_MIXTURE) == pytest.approx(0.0189, abs=5e-4)
-    assert type_log_var(car, (("car", car, 1.0),)) == 0.0
-    only_vans = (("van", CLASS_PRIORS["Van"], 1.0),)
-    assert np.sqrt(type_log_var(car, only_vans)) > 0.25  # a van is ~29 % bigger than a car
+    moments = type_moments(car, VEHICLE_TYPE_MIXTURE)
+    assert moments[0].tolist() == [0.0, 0.0, pytest.approx(np.log(28742 / 32836))]
+    assert np.exp(moments[1:3, 0]) == pytest.approx([1.29, 1.80], abs=0.01)  # vans, trucks
+    assert type_log_var(moments) == pytest.approx(0.0189, abs=5e-4)  # prior weights
+    told_a_car = np.array([0.0, -50.0, -50.0, -50.0])  # the cues say: a car
+    assert type_log_var(moments, told_a_car) == pytest.approx(0.0, abs=1e-12)
+    assert type_log_var(moments, np.array([-50.0, 0.0, -50.0, -50.0])) > 0.25**2  # a van
 
 
 def test_sigma_covers_vans_and_trucks_called_car_when_read_generic_for_sigma_only() -> None:

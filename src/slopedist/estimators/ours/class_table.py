@@ -19,7 +19,12 @@ from slopedist.estimators.ours.priors import (
     prior_row,
     resolve_prior,
 )
-from slopedist.estimators.ours.vehicle_types import TypeMixture, type_log_var, type_rows
+from slopedist.estimators.ours.vehicle_types import (
+    NOT_THIS_TYPE_LOG_WEIGHT,
+    TypeMixture,
+    type_moments,
+    type_rows,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -74,9 +79,9 @@ class TargetClasses(NamedTuple):
         type_log_weight: ``(n, T)`` log prior weight of each vehicle type when a target's
             class is generic (then :attr:`hypotheses` are ``(n, T·K)``, type-major:
             :mod:`~slopedist.estimators.ours.vehicle_types`), else None.
-        type_log_var: ``(n,)`` the variance of the log size a class read as generic for σ
-            only adds (:func:`~slopedist.estimators.ours.vehicle_types.type_log_var`; 0 for
-            the others), or None when no target's class is.
+        type_moments: ``(n, T, 3)`` the vehicle types of a class read as generic for σ only
+            (:func:`~slopedist.estimators.ours.vehicle_types.type_moments`; a class as given:
+            one type, itself), or None when no target's class is.
     """
 
     height_m: FloatArray
@@ -85,7 +90,7 @@ class TargetClasses(NamedTuple):
     hypotheses: HypothesisConstants
     generic: NDArray[np.bool_]
     type_log_weight: FloatArray | None
-    type_log_var: FloatArray | None = None
+    type_moments: FloatArray | None = None
 
 
 class ClassTable:
@@ -98,8 +103,8 @@ class ClassTable:
             detector's one class): their targets are read under ``type_mixture``.
         type_mixture: ``(name, prior, weight)`` per vehicle type.
         spread_classes: class names read as generic for the σ only: their hypotheses are
-            their own class's, and :attr:`TargetClasses.type_log_var` carries what
-            ``type_mixture`` adds to their size's variance.
+            their own class's, and :attr:`TargetClasses.type_moments` carries
+            ``type_mixture``'s types against their prior.
         n_modes: the size modes (:class:`~slopedist.estimators.ours.fusion.SizeMode`) a
             specific class's hypotheses are repeated over: its planes are ``(n, n_modes·K)``,
             so that the cues of every mode are computed as arrays of one shape (a generic
@@ -117,7 +122,7 @@ class ClassTable:
     ) -> None:
         self._priors = priors
         self._spread_names = frozenset(spread_classes)
-        self._type_vars: list[float] = []
+        self._type_moments: list[FloatArray] = []
         self._n_modes = n_modes
         self._yaw = yaw_rad
         self._generic_names = frozenset(generic_classes)
@@ -155,8 +160,8 @@ class ClassTable:
             planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
         else:
             planes, type_log_weight = self._planes[:, rows], None
-        type_var = self._type_var[rows] if self._spread_names else None
-        if type_var is not None and not type_var.any():
+        type_var = self._spread[rows] if self._spread_names else None
+        if type_var is not None and not self._is_spread[rows].any():
             type_var = None
         for a in (scalars, generic, planes, type_log_weight, type_var):
             if a is not None:
@@ -190,8 +195,12 @@ class ClassTable:
         generic = name in self._generic_names
         rows, log_weight = type_rows(prior, self._mixture, generic)
         self._generic_rows.append(generic)
-        spread = name in self._spread_names
-        self._type_vars.append(type_log_var(prior, self._mixture) if spread else 0.0)
+        if name in self._spread_names:
+            self._type_moments.append(type_moments(prior, self._mixture))
+        else:  # one type (itself), the others of no weight
+            own = np.zeros((len(self._mixture), 3))
+            own[1:, 2] = NOT_THIS_TYPE_LOG_WEIGHT
+            self._type_moments.append(own)
         self._type_rows.extend(rows)
         self._type_weights.append(log_weight)
 
@@ -205,7 +214,9 @@ class ClassTable:
         if self._n_modes > 1:
             self._planes = np.tile(self._planes, self._n_modes)
         self._generic = np.array(self._generic_rows, dtype=bool)
-        self._type_var = np.array(self._type_vars, dtype=float)
+        if self._spread_names:
+            self._spread = np.asarray(self._type_moments, dtype=float)
+            self._is_spread = np.array([n in self._spread_names for n in self._index], bool)
         if self._generic_names:
             n_types = len(self._mixture)
             by_type = np.asarray(self._type_rows, dtype=float).reshape(-1, n_types, 7)

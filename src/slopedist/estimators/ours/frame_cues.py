@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.estimators.ours import cues, fusion
+from slopedist.estimators.ours import cues, fusion, vehicle_types
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
@@ -459,25 +459,6 @@ def target_gradient(
     return TargetGradient(g_mean, g_var, a_other, alpha, alpha_var, delta_y, z_size)
 
 
-def type_sigma_log_var(targets: FrameTargets, fused: FusedCues) -> FloatArray | None:
-    """``(n,)`` the variance of the fused log distance that a class read as generic for σ only
-    adds (None when no target's class is): the vehicle-type mixture's spread of the log size
-    (``classes.type_log_var``) times the square of the size cues' share ``w`` in the fused
-    distance, ``w = var_ground/(var_size + var_ground)`` (1 without a ground contact): a
-    vehicle ``b`` bigger in log than its class moves the size cues by ``−b`` and the fusion by
-    ``−w·b``, every frame of its track alike, so the filter cannot average it."""
-    type_var = targets.classes.type_log_var
-    if type_var is None:
-        return None
-    share = np.ones_like(type_var)
-    ground = fused.ground
-    if ground is not None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            w = ground.var / (fused.size.var + ground.var)
-        share = np.where(np.isfinite(w), w, share)
-    return share * share * type_var
-
-
 def box_estimates(
     cam: Camera,
     yaw_grid_rad: FloatArray,
@@ -496,7 +477,7 @@ def box_estimates(
     meas = fused.measurement
     persistent = meas.var - meas.var_white
     dist, sigma = kf.distance_moments_rows(filt, persistent)
-    sigma_only = type_sigma_log_var(targets, fused)
+    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
     if sigma_only is not None:  # the distance stays the class's own: its σ only widens
         sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
