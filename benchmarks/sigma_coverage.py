@@ -89,10 +89,16 @@ def kitti_rows(data: Path, source: BoxSource, method: str, options: dict[str, An
 
 
 def synthetic_rows(
-    method: str, options: dict[str, Any], types: dict[str, float] | None, labelled: bool
+    method: str,
+    options: dict[str, Any],
+    types: dict[str, float] | None,
+    labelled: bool,
+    quantity: str = "distance",
 ) -> Rows:
     """``method`` on synthetic flat-road traffic (four seeds); ``types`` the vehicle mix (None:
-    all cars), ``labelled``: boxes carry the true class (else every box ``Car``)."""
+    all cars), ``labelled``: boxes carry the true class (else every box ``Car``).
+    ``quantity``: ``distance`` (``sigma_m``), ``speed`` (``speed_sigma_mps``, m/s) or ``ttc``
+    (``ttc_sigma_s``, s, approaching vehicles); the third array is always the true distance."""
     parts = []
     for seed in SIM_SEEDS:
         kw: dict[str, Any] = {"seed": seed, "box_noise_px": 0.5}
@@ -105,7 +111,21 @@ def synthetic_rows(
         result = estimate_sequence(
             estimator, sim.boxes, sim.timestamps_s, track, vehicle_classes=set(sim.boxes.cls)
         )
-        parts.append(scored_rows(result, np.asarray(sim.z_m, dtype=float), np.arange(len(sim.z_m))))
+        z = np.asarray(sim.z_m, dtype=float)
+        if quantity == "distance":
+            parts.append(scored_rows(result, z, np.arange(len(z))))
+            continue
+        ok = np.asarray(result.estimates.status, dtype=object) == "ok"
+        extra = result.estimates.extra
+        if quantity == "speed":
+            value, sigma, truth = extra["speed_mps"], extra["speed_sigma_mps"], sim.speed_mps
+        else:
+            with np.errstate(divide="ignore"):
+                truth = np.where(sim.speed_mps < 0, -z / sim.speed_mps, np.nan)
+            value, sigma = extra["ttc_s"], extra["ttc_sigma_s"]
+        err = np.asarray(value, dtype=float) - truth
+        ok &= np.isfinite(err) & np.isfinite(np.asarray(sigma, dtype=float))
+        parts.append((err[ok], np.asarray(sigma, dtype=float)[ok], z[ok]))
     return concat(parts)
 
 
@@ -193,6 +213,11 @@ def runs(args: argparse.Namespace) -> Iterator[tuple[str, Rows]]:
                 f"synthetic class-blind generic / {method}",
                 synthetic_rows(method, generic, MIXED_TRAFFIC, False),
             )
+            for quantity in ("speed", "ttc"):
+                yield (
+                    f"synthetic true classes {quantity} / {method}",
+                    synthetic_rows(method, opts, MIXED_TRAFFIC, True, quantity),
+                )
             yield (
                 f"synthetic class-blind generic σ / {method}",
                 synthetic_rows(
