@@ -17,6 +17,8 @@ from slopedist.estimators.ours.vehicle_types import (
     type_moments,
     type_rows,
 )
+from slopedist.odometry.base import RotationTrack
+from slopedist.pipeline import estimate_sequence
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 ODD_TRAFFIC = {"Car": 0.6, "Van": 0.25, "Truck": 0.15}
@@ -118,3 +120,20 @@ def test_sigma_covers_vans_and_trucks_called_car_when_read_generic_for_sigma_onl
     assert np.mean(err[ok] <= old[ok]) < 0.55  # the old σ: too narrow
     assert 0.55 <= np.mean(err[ok] <= new[ok]) <= 0.80
     assert np.mean(err[ok] <= 2 * new[ok]) > np.mean(err[ok] <= 2 * old[ok]) + 0.05
+
+
+def test_ours_offline_widens_only_its_sigma_for_a_generic_class_read_for_sigma_only() -> None:
+    sim = simulate_traffic(CAM, 6, 60, seed=1, box_noise_px=0.5, vehicle_types=ODD_TRAFFIC)
+    n = len(sim.timestamps_s)
+    track = RotationTrack(sim.timestamps_s, np.repeat(np.eye(3)[None], n, 0), np.ones(n, bool))
+    runs = [
+        estimate_sequence(
+            make_estimator("ours-offline", CAM, **opts), sim.boxes, sim.timestamps_s, track
+        )
+        for opts in ({}, {"generic_classes": ("Car",), "generic_sigma_only": True})
+    ]
+    plain, wide = (r.estimates for r in runs)
+    np.testing.assert_array_equal(wide.distance_m, plain.distance_m)
+    ok = np.isfinite(plain.distance_m)
+    assert np.all(wide.extra["sigma_m"][ok] >= plain.extra["sigma_m"][ok])
+    assert np.mean(wide.extra["sigma_m"][ok] > 1.05 * plain.extra["sigma_m"][ok]) > 0.3
