@@ -160,10 +160,10 @@ class ClassTable:
             planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
         else:
             planes, type_log_weight = self._planes[:, rows], None
-        type_var = self._spread[rows] if self._spread_names else None
-        if type_var is not None and not self._is_spread[rows].any():
-            type_var = None
-        for a in (scalars, generic, planes, type_log_weight, type_var):
+        moments = self._spread[rows] if self._spread_names else None
+        if moments is not None and not self._is_spread[rows].any():
+            moments = None
+        for a in (scalars, generic, planes, type_log_weight, moments):
             if a is not None:
                 a.flags.writeable = False
         return TargetClasses(
@@ -173,7 +173,7 @@ class ClassTable:
             HypothesisConstants(*planes),
             generic,
             type_log_weight,
-            type_var,
+            moments,
         )
 
     def _row_indices(self, classes: tuple[object, ...]) -> NDArray[np.intp]:

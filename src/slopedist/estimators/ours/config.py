@@ -149,10 +149,11 @@ class OursConfig:
             ``atypical_height_weight`` are then not used in that frame).
         generic_sigma_only: read ``generic_classes`` as generic for the σ only: their
             distances are those of the class as given (as without ``generic_classes``), and
-            their ``sigma_m`` adds the per-vehicle size spread of ``type_mixture``
-            (:func:`~slopedist.estimators.ours.vehicle_types.type_log_var`) in the share the
-            size cues have in the fused distance (a class-blind detector's vans and trucks are
-            a size error the track cannot average).
+            their ``sigma_m`` adds the size error of the types of ``type_mixture`` they may
+            be, weighed by the cue gap, in the share the size cues have in the fused distance
+            (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`; a class-blind
+            detector's vans and trucks are a size error the track cannot average). Without
+            ``generic_classes`` it does nothing.
         type_mixture: vehicle types ``(name, prior, weight)`` behind a generic class
             (default the published frequencies of
             :data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`).

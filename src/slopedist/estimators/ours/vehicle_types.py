@@ -95,7 +95,7 @@ def type_log_var(moments: FloatArray, log_weight: FloatArray | None = None) -> F
 def sigma_log_var(moments: FloatArray | None, fused: FusedCues) -> FloatArray | None:
     """``(n,)`` the variance of the fused log distance that a class read as generic for σ only
     adds, from the targets' :func:`type_moments` ``(n, T, 3)`` (None when no target's class
-    is read so: then None).
+    is read so).
 
     A vehicle ``c`` bigger in log than its class prior moves the size cues by ``−c`` and the
     fusion by ``−w·c``, ``w = var_ground/(var_size + var_ground)`` the size cues' share (1
@@ -117,7 +117,7 @@ def sigma_log_var(moments: FloatArray | None, fused: FusedCues) -> FloatArray | 
         known = np.isfinite(w)
         share = np.where(known, w, share)
         gap = np.where(known, ground.mean - fused.size.mean, 0.0)[:, None]
-        var = np.where(known, total, np.inf)[:, None] + moments[..., 1]
+        var = np.where(known, total, 1.0)[:, None] + moments[..., 1]
         log_weight = log_weight - 0.5 * ((gap - moments[..., 0]) ** 2 / var + np.log(var))
         log_weight = np.where(known[:, None], log_weight, moments[..., 2])
     return share * share * type_log_var(moments, log_weight)
