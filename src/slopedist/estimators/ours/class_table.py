@@ -19,7 +19,12 @@ from slopedist.estimators.ours.priors import (
     prior_row,
     resolve_prior,
 )
-from slopedist.estimators.ours.vehicle_types import TypeMixture, type_rows
+from slopedist.estimators.ours.vehicle_types import (
+    NOT_THIS_TYPE_LOG_WEIGHT,
+    TypeMixture,
+    type_moments,
+    type_rows,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -74,6 +79,9 @@ class TargetClasses(NamedTuple):
         type_log_weight: ``(n, T)`` log prior weight of each vehicle type when a target's
             class is generic (then :attr:`hypotheses` are ``(n, T·K)``, type-major:
             :mod:`~slopedist.estimators.ours.vehicle_types`), else None.
+        type_moments: ``(n, T, 3)`` the vehicle types of a class read as generic for σ only
+            (:func:`~slopedist.estimators.ours.vehicle_types.type_moments`; a class as given:
+            one type, itself), or None when no target's class is.
     """
 
     height_m: FloatArray
@@ -82,6 +90,7 @@ class TargetClasses(NamedTuple):
     hypotheses: HypothesisConstants
     generic: NDArray[np.bool_]
     type_log_weight: FloatArray | None
+    type_moments: FloatArray | None = None
 
 
 class ClassTable:
@@ -93,6 +102,9 @@ class ClassTable:
         generic_classes: class names that do not name the vehicle type (a class-blind
             detector's one class): their targets are read under ``type_mixture``.
         type_mixture: ``(name, prior, weight)`` per vehicle type.
+        spread_classes: class names read as generic for the σ only: their hypotheses are
+            their own class's, and :attr:`TargetClasses.type_moments` carries
+            ``type_mixture``'s types against their prior.
         n_modes: the size modes (:class:`~slopedist.estimators.ours.fusion.SizeMode`) a
             specific class's hypotheses are repeated over: its planes are ``(n, n_modes·K)``,
             so that the cues of every mode are computed as arrays of one shape (a generic
@@ -106,8 +118,11 @@ class ClassTable:
         generic_classes: tuple[str, ...] = (),
         type_mixture: TypeMixture = VEHICLE_TYPE_MIXTURE,
         n_modes: int = 1,
+        spread_classes: tuple[str, ...] = (),
     ) -> None:
         self._priors = priors
+        self._spread_names = frozenset(spread_classes)
+        self._type_moments: list[FloatArray] = []
         self._n_modes = n_modes
         self._yaw = yaw_rad
         self._generic_names = frozenset(generic_classes)
@@ -145,7 +160,10 @@ class ClassTable:
             planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
         else:
             planes, type_log_weight = self._planes[:, rows], None
-        for a in (scalars, generic, planes, type_log_weight):
+        moments = self._spread[rows] if self._spread_names else None
+        if moments is not None and not self._is_spread[rows].any():
+            moments = None
+        for a in (scalars, generic, planes, type_log_weight, moments):
             if a is not None:
                 a.flags.writeable = False
         return TargetClasses(
@@ -155,6 +173,7 @@ class ClassTable:
             HypothesisConstants(*planes),
             generic,
             type_log_weight,
+            moments,
         )
 
     def _row_indices(self, classes: tuple[object, ...]) -> NDArray[np.intp]:
@@ -176,6 +195,12 @@ class ClassTable:
         generic = name in self._generic_names
         rows, log_weight = type_rows(prior, self._mixture, generic)
         self._generic_rows.append(generic)
+        if name in self._spread_names:
+            self._type_moments.append(type_moments(prior, self._mixture))
+        else:  # one type (itself), the others of no weight
+            own = np.zeros((len(self._mixture), 3))
+            own[1:, 2] = NOT_THIS_TYPE_LOG_WEIGHT
+            self._type_moments.append(own)
         self._type_rows.extend(rows)
         self._type_weights.append(log_weight)
 
@@ -189,6 +214,9 @@ class ClassTable:
         if self._n_modes > 1:
             self._planes = np.tile(self._planes, self._n_modes)
         self._generic = np.array(self._generic_rows, dtype=bool)
+        if self._spread_names:
+            self._spread = np.asarray(self._type_moments, dtype=float)
+            self._is_spread = np.array([n in self._spread_names for n in self._index], bool)
         if self._generic_names:
             n_types = len(self._mixture)
             by_type = np.asarray(self._type_rows, dtype=float).reshape(-1, n_types, 7)

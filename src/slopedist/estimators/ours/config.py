@@ -147,6 +147,13 @@ class OursConfig:
             size cues are read under ``type_mixture``
             (:mod:`~slopedist.estimators.ours.vehicle_types`; the body-style modes of
             ``atypical_height_weight`` are then not used in that frame).
+        generic_sigma_only: read ``generic_classes`` as generic for the σ only: their
+            distances are those of the class as given (as without ``generic_classes``), and
+            their ``sigma_m`` adds the size error of the types of ``type_mixture`` they may
+            be, weighed by the cue gap, in the share the size cues have in the fused distance
+            (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`; a class-blind
+            detector's vans and trucks are a size error the track cannot average). Without
+            ``generic_classes`` it does nothing.
         type_mixture: vehicle types ``(name, prior, weight)`` behind a generic class
             (default the published frequencies of
             :data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`).
@@ -191,6 +198,7 @@ class OursConfig:
     size_evidence_time_s: float | None = None
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
+    generic_sigma_only: bool = False
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 

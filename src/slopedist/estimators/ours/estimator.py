@@ -141,12 +141,14 @@ class OursEstimator(Estimator):
             geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
         )
         self._size_modes = [m for m, _ in config.size_modes]
+        generic = tuple(config.generic_classes)
         self._classes = ClassTable(
             config.priors,
             grid,
-            tuple(config.generic_classes),
+            () if config.generic_sigma_only else generic,
             config.type_mixture,
             len(self._size_modes),
+            generic if config.generic_sigma_only else (),
         )
         self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
         self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
@@ -335,7 +337,7 @@ class OursEstimator(Estimator):
             targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
         )
         if self._keep_predicted:
-            self._keep_frame(match, fused, distance, uid)
+            self._keep_frame(match, fused, distance, uid, targets)
         if cfg.self_calibrate:
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
@@ -352,7 +354,7 @@ class OursEstimator(Estimator):
         return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
 
     def _keep_frame(self, *frame_state: Any) -> None:
-        """Keep a frame's filter states (match, fused cues, distance filters, uids) for an
+        """Keep a frame's filter states (match, fused cues, distance filters, uids, targets) for an
         offline pass (``_keep_predicted``: see :mod:`~slopedist.estimators.ours.offline`)."""
 
     # -- the steps of a frame, in order -----------------------------------------------------

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.estimators.ours import cues, fusion
+from slopedist.estimators.ours import cues, fusion, vehicle_types
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
@@ -475,7 +475,11 @@ def box_estimates(
     f = cam.f
     filt = distance.filter_rows
     meas = fused.measurement
-    dist, sigma = kf.distance_moments_rows(filt, meas.var - meas.var_white)
+    persistent = meas.var - meas.var_white
+    dist, sigma = kf.distance_moments_rows(filt, persistent)
+    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
+    if sigma_only is not None:  # the distance stays the class's own: its σ only widens
+        sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
     if distance.noise_scale is not None:  # the noise the track shows, when it is larger
         widen = np.sqrt(np.maximum(distance.noise_scale, ONE))

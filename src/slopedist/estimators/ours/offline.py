@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import size_learning
+from slopedist.estimators.ours import size_learning, vehicle_types
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.estimator import OursEstimator
 from slopedist.estimators.ours.records import (
@@ -122,6 +122,7 @@ class _TargetLog:
     elapsed_s: FloatArray
     extra_log_var: FloatArray
     noise_scale: FloatArray
+    sigma_log_var: FloatArray | None  # what widens the σ only (vehicle_types.sigma_log_var)
 
 
 class _SmoothingPass(OursEstimator):
@@ -160,6 +161,7 @@ class _SmoothingPass(OursEstimator):
         fused: FusedCues,
         distance: DistanceFilterResult,
         uid: NDArray[np.int64],
+        targets: FrameTargets,
     ) -> None:
         n = uid.shape[0]
         elapsed = np.full(n, np.nan)
@@ -174,6 +176,7 @@ class _SmoothingPass(OursEstimator):
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
             np.ones(n) if distance.noise_scale is None else distance.noise_scale,
+            vehicle_types.sigma_log_var(targets.classes.type_moments, fused),
         )
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
@@ -199,6 +202,12 @@ class _SmoothingPass(OursEstimator):
                 multi[rows] = True
         extra = np.concatenate([log.extra_log_var for log in logs])
         dist, sigma = kf.distance_moments_rows(smooth, extra)
+        if any(log.sigma_log_var is not None for log in logs):  # the distance stays as it is
+            sigma_only = [
+                np.zeros(log.uid.size) if log.sigma_log_var is None else log.sigma_log_var
+                for log in logs
+            ]
+            sigma = kf.distance_moments_rows(smooth, extra + np.concatenate(sigma_only))[1]
         speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(smooth)
         widen = np.sqrt(np.maximum(np.concatenate([log.noise_scale for log in logs]), 1.0))
         speed_sd, ttc_sd = speed_sd * widen, ttc_sd * widen  # the noise the track shows, as ours
