@@ -29,10 +29,18 @@ from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
     FrameInput,
+    MissingReason,
     settle_states,
 )
 from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
-from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
+from slopedist.odometry.base import (
+    LOOKBACK_S,
+    TIME_EPS_S,
+    RotationTrack,
+    check_lookback,
+    lookback_indices,
+)
+from slopedist.odometry.jumps import JumpMarks, JumpVerdict, PitchJumpGuard, track_jumps
 
 MAX_EGO_GRADIENT_RAD = math.radians(30.0)
 """The largest ego gradient θ a road can give, radians, beyond the θ of the camera at rest (its
@@ -49,25 +57,6 @@ def usable_gradient(theta_rad: float, theta_rest_rad: float = 0.0) -> float:
     return theta_rad if abs(theta_rad - theta_rest_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
 
 
-def check_lookback(lookback_s: float) -> float:
-    """``lookback_s`` as a float, the look-back of the ego gradient (eq. 4), seconds.
-
-    Raises:
-        ConfigurationError: it is not a finite number > 0 (a NaN, 0 or negative look-back
-            gave θ = 0 or NaN for every frame without a word).
-    """
-    if not (
-        isinstance(lookback_s, (int, float, np.integer, np.floating))
-        and not isinstance(lookback_s, bool)
-        and math.isfinite(lookback_s)
-        and lookback_s > 0
-    ):
-        raise ConfigurationError(
-            f"lookback_s must be a finite number of seconds > 0, got {lookback_s!r}"
-        )
-    return float(lookback_s)
-
-
 class EgoGradientTracker:
     """Ego road gradient θ (eq. 2–4) from a stream of rotations, keeping only the look-back.
 
@@ -76,12 +65,19 @@ class EgoGradientTracker:
     not kept. A change of odometry segment (:attr:`~slopedist.odometry.base.OdometryResult.
     segment`) forgets the history: θ never looks back across a restart of the odometry. Memory
     is bounded by the number of frames within one look-back interval.
+
+    A rotation whose pitch jumps faster than a car can pitch
+    (:class:`~slopedist.odometry.jumps.PitchJumpGuard`) is a glitch: its θ is NaN, it is not
+    kept, and :attr:`jump` is True until the next frame; a jump that persists is accepted as a
+    new level after the settling time, and the history starts again from it.
     """
 
     def __init__(self, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S) -> None:
         self.mount_angle_rad = mount_angle_rad
         self.lookback_s = check_lookback(lookback_s)
         self.segment = 0
+        self.jump = False
+        self._guard = PitchJumpGuard(mount_angle_rad)
         self._history: deque[tuple[float, NDArray[np.float64]]] = deque()
 
     def __len__(self) -> int:
@@ -91,13 +87,21 @@ class EgoGradientTracker:
         self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None, segment: int = 0
     ) -> float:
         """Add a frame of odometry ``segment`` and return its θ in radians (NaN when
-        ``R_world_cam`` is None)."""
+        ``R_world_cam`` is None or an odometry jump: then :attr:`jump` is True)."""
         if segment != self.segment:
             self._history.clear()
+            self._guard.reset()
             self.segment = segment
         if R_world_cam is None:
+            self.jump = False
             return math.nan
         R = np.asarray(R_world_cam, dtype=float)
+        verdict = self._guard.update(timestamp_s, R)
+        self.jump = verdict is JumpVerdict.JUMP
+        if self.jump:
+            return math.nan
+        if verdict is JumpVerdict.NEW_LEVEL:
+            self._history.clear()
         self._history.append((timestamp_s, R))
         cutoff = timestamp_s - self.lookback_s + TIME_EPS_S
         while len(self._history) > 1 and self._history[1][0] <= cutoff:
@@ -153,7 +157,7 @@ class FrameStep:
             geo.ego_road_gradient(np.eye(3), np.eye(3), estimator.camera.mount_angle_rad)
         )
         self._last_timestamp: float | None = None
-        self._offline_boxes: list[BoxTable] = []
+        self._offline_boxes: list[tuple[BoxTable, bool]] = []
 
     def reset(self) -> None:
         """Start a new sequence."""
@@ -170,7 +174,10 @@ class FrameStep:
             NotImplementedError: the estimator is causal (its per-frame estimates are final).
         """
         est = self.estimator.finish()
-        return [self._settle(e, boxes) for e, boxes in zip(est, self._offline_boxes, strict=True)]
+        return [
+            self._settle(e, boxes, jump)
+            for e, (boxes, jump) in zip(est, self._offline_boxes, strict=True)
+        ]
 
     def step(
         self,
@@ -183,7 +190,8 @@ class FrameStep:
         segment: int = 0,
     ) -> FrameResult:
         """θ of the frame (look-back within odometry ``segment``; NaN beyond
-        :data:`MAX_EGO_GRADIENT_RAD`) and its boxes' estimates.
+        :data:`MAX_EGO_GRADIENT_RAD` or on an odometry jump, :class:`EgoGradientTracker`) and
+        its boxes' estimates.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -192,7 +200,8 @@ class FrameStep:
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
         theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
-        est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
+        jump = self.gradient.jump
+        est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
         return FrameResult(theta, est)
 
     def estimate(
@@ -204,11 +213,13 @@ class FrameStep:
         boxes: BoxTable | None,
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
+        odometry_jump: bool = False,
     ) -> FrameEstimates:
         """The estimates of a frame whose θ (radians; taken as NaN beyond
         :data:`MAX_EGO_GRADIENT_RAD`) was computed elsewhere: vectorised over a
         whole track (:func:`estimate_sequence`) or shared by several methods fed the same
-        rotations (the demo).
+        rotations (the demo). ``odometry_jump``: the frame's rotation is a glitch
+        (:func:`ego_gradients`' marks): it is not used and θ is NaN.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -216,8 +227,10 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
-        theta = usable_gradient(theta_rad, self._theta_rest)
-        return self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
+        theta = math.nan if odometry_jump else usable_gradient(theta_rad, self._theta_rest)
+        return self._estimate(
+            frame_index, timestamp_s, theta, R, boxes, image, depth_m, odometry_jump
+        )
 
     def _estimate(
         self,
@@ -228,26 +241,37 @@ class FrameStep:
         boxes: BoxTable | None,
         image: NDArray[np.uint8] | None,
         depth_m: NDArray[np.float32] | None,
+        jump: bool = False,
     ) -> FrameEstimates:
-        """:meth:`estimate` of a frame whose time and rotation ``R`` were checked."""
+        """:meth:`estimate` of a frame whose time and rotation ``R`` were checked; the
+        rotation of a ``jump`` frame is not passed on (the estimator sees none)."""
         self._last_timestamp = timestamp_s
         if boxes is None or not len(boxes):
             return FrameEstimates.empty()
         est = self.estimator.estimate(
-            FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
+            FrameInput(
+                frame_index, timestamp_s, theta_rad, boxes, image, depth_m, None if jump else R
+            )
         )
         if self.estimator.offline:
-            self._offline_boxes.append(boxes)
-        return self._settle(est, boxes)
+            self._offline_boxes.append((boxes, jump))
+        return self._settle(est, boxes, jump)
 
-    def _settle(self, est: FrameEstimates, boxes: BoxTable) -> FrameEstimates:
-        return settle_states(
+    def _settle(self, est: FrameEstimates, boxes: BoxTable, jump: bool) -> FrameEstimates:
+        """:func:`~slopedist.estimators.base.settle_states`; on an odometry ``jump`` the rows
+        a method left without a rotation say why (``odometry_jump``)."""
+        est = settle_states(
             est,
             boxes,
             self.estimator.camera,
             self.vehicle_classes,
             not self.estimator.handles_border_cuts,
         )
+        if jump:
+            est.reason[est.reason == MissingReason.NO_ROTATION.value] = (
+                MissingReason.ODOMETRY_JUMP.value
+            )
+        return est
 
     def skip(self, frame_index: int, timestamp_s: float) -> None:
         """Take a frame that :meth:`estimate` is not called for (no boxes, θ computed
@@ -320,18 +344,29 @@ _NO_BOXES = BoxTable.empty()
 
 
 def ego_gradients(
-    track: RotationTrack, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S
+    track: RotationTrack,
+    mount_angle_rad: float = 0.0,
+    lookback_s: float = LOOKBACK_S,
+    jumps: JumpMarks | None = None,
 ) -> NDArray[np.float64]:
-    """θ (radians) of every frame of ``track`` at once; NaN where the track has no rotation.
+    """θ (radians) of every frame of ``track`` at once, as :class:`EgoGradientTracker` gives
+    it frame by frame: NaN where the track has no rotation or an odometry jump (``jumps``,
+    :func:`~slopedist.odometry.jumps.track_jumps` when not given), whose frames are no
+    look-back reference; the look-back never crosses an accepted new level.
 
     Raises:
         ConfigurationError: ``lookback_s`` is not a finite number > 0.
     """
     lookback_s = check_lookback(lookback_s)
+    if jumps is None:
+        jumps = track_jumps(track, mount_angle_rad)
     theta = np.full(len(track), np.nan)
-    valid = np.flatnonzero(track.valid)
+    valid = np.flatnonzero(track.valid & ~jumps.jump)
     if valid.size:
-        ref = valid[lookback_indices(track.timestamps_s[valid], lookback_s)]
+        level = jumps.level[valid]  # non-decreasing: the first frame of each level
+        first = np.searchsorted(level, level, side="left")
+        back = lookback_indices(track.timestamps_s[valid], lookback_s)
+        ref = valid[np.maximum(back, first)]
         theta[valid] = geo.ego_road_gradient(
             track.R_world_cam[ref], track.R_world_cam[valid], mount_angle_rad
         )
@@ -416,8 +451,10 @@ def estimate_sequence(
         raise DataMismatchError(
             f"rotations cover {len(track)} frames but the sequence has {len(timestamps_s)}"
         )
+    mount = estimator.camera.mount_angle_rad
+    jumps = track_jumps(track, mount) if track is not None else None
     theta = (
-        ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s)
+        ego_gradients(track, mount, lookback_s, jumps)
         if track is not None
         else np.full(len(timestamps_s), np.nan)
     )
@@ -434,9 +471,9 @@ def estimate_sequence(
         done = k + 1
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
         R = track.R_world_cam[k] if track is not None and track.valid[k] else None
-        est_parts.append(
-            step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
-        )
+        jump = jumps is not None and bool(jumps.jump[k])
+        t_k, theta_k = float(timestamps_s[k]), float(theta[k])
+        est_parts.append(step.estimate(k, t_k, theta_k, R, frame_boxes, None, depth_m, jump))
         box_parts.append(frame_boxes)
     for j in range(done, len(timestamps_s)):
         step.skip(j, float(timestamps_s[j]))

@@ -6,6 +6,7 @@ Convention: rotations are 3×3 camera-to-world matrices relative to the first fr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 from typing import Protocol
@@ -13,7 +14,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.errors import DataMismatchError
+from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.geometry import not_rotations
 
 LOOKBACK_S = 1.0
@@ -21,6 +22,25 @@ LOOKBACK_S = 1.0
 
 TIME_EPS_S = 1e-6
 """Tolerance when comparing timestamps (k × 0.1 s is not exact in binary floating point)."""
+
+
+def check_lookback(lookback_s: float) -> float:
+    """``lookback_s`` as a float, the look-back of the ego gradient (eq. 4), seconds.
+
+    Raises:
+        ConfigurationError: it is not a finite number > 0 (a NaN, 0 or negative look-back
+            gave θ = 0 or NaN for every frame without a word).
+    """
+    if not (
+        isinstance(lookback_s, (int, float, np.integer, np.floating))
+        and not isinstance(lookback_s, bool)
+        and math.isfinite(lookback_s)
+        and lookback_s > 0
+    ):
+        raise ConfigurationError(
+            f"lookback_s must be a finite number of seconds > 0, got {lookback_s!r}"
+        )
+    return float(lookback_s)
 
 
 def lookback_indices(timestamps_s: ArrayLike, lookback_s: float = LOOKBACK_S) -> NDArray[np.intp]:
