@@ -431,3 +431,31 @@ def test_a_pitch_step_that_persists_is_accepted_after_the_settling_time(method: 
     if method == "paper":
         settling = (sim.boxes.frame >= 60) & ~after
         assert set(batch.estimates.reason[settling]) == {"odometry_jump"}
+
+
+def test_a_jump_frame_gives_the_estimator_the_last_trusted_rotation() -> None:
+    """A tracking method compensates the camera's rotation between frames: a glitch frame
+    gives it none since the last trusted frame, not the glitch nor the identity (a camera
+    turned 80° would have turned back 80° for its tracks), in a stream as in a batch."""
+    n = 30
+    yaw = Rotation.from_euler("y", 80, degrees=True).as_matrix()
+    R = np.tile(yaw, (n, 1, 1))
+    R[12] = yaw @ Rotation.from_euler("x", 5, degrees=True).as_matrix()
+    track = RotationTrack.from_arrays(0.1 * np.arange(n), R)
+    boxes = BoxTable.build(list(range(n)), np.tile([600.0, 200.0, 660.0, 250.0], (n, 1)))
+    seen: dict[str, list[np.ndarray]] = {"stream": [], "batch": []}
+    for mode, runs in seen.items():
+        estimator = make_estimator("paper", CAMERA)
+        estimate = estimator.estimate
+
+        def spy(frame, runs=runs, estimate=estimate):
+            runs.append(frame.R_world_cam)
+            return estimate(frame)
+
+        estimator.estimate = spy  # type: ignore[method-assign]
+        if mode == "stream":
+            list(stream_track(FrameStep(estimator), track, boxes))
+        else:
+            estimate_sequence(estimator, boxes, track.timestamps_s, track)
+        np.testing.assert_array_equal(runs[12], yaw)
+        np.testing.assert_array_equal(runs[13], yaw)

@@ -40,7 +40,13 @@ from slopedist.odometry.base import (
     check_lookback,
     lookback_indices,
 )
-from slopedist.odometry.jumps import JumpMarks, JumpVerdict, PitchJumpGuard, track_jumps
+from slopedist.odometry.jumps import (
+    JumpMarks,
+    JumpVerdict,
+    PitchJumpGuard,
+    track_jumps,
+    trusted_rotations,
+)
 
 MAX_EGO_GRADIENT_RAD = math.radians(30.0)
 """The largest ego gradient θ a road can give, radians, beyond the θ of the camera at rest (its
@@ -66,10 +72,9 @@ class EgoGradientTracker:
     segment`) forgets the history: θ never looks back across a restart of the odometry. Memory
     is bounded by the number of frames within one look-back interval.
 
-    A rotation whose pitch jumps faster than a car can pitch
-    (:class:`~slopedist.odometry.jumps.PitchJumpGuard`) is a glitch: its θ is NaN, it is not
-    kept, and :attr:`jump` is True until the next frame; a jump that persists is accepted as a
-    new level after the settling time, and the history starts again from it.
+    A rotation whose pitch jumps faster than a car can pitch (:mod:`slopedist.odometry.jumps`)
+    is a glitch: θ NaN, not kept, :attr:`jump` True (:attr:`trusted_rotation`: the last kept);
+    a jump that persists is accepted as a new level after a settling time: history restarts.
     """
 
     def __init__(self, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S) -> None:
@@ -77,6 +82,7 @@ class EgoGradientTracker:
         self.lookback_s = check_lookback(lookback_s)
         self.segment = 0
         self.jump = False
+        self.trusted_rotation: NDArray[np.float64] | None = None
         self._guard = PitchJumpGuard(mount_angle_rad)
         self._history: deque[tuple[float, NDArray[np.float64]]] = deque()
 
@@ -102,6 +108,7 @@ class EgoGradientTracker:
             return math.nan
         if verdict is JumpVerdict.NEW_LEVEL:
             self._history.clear()
+        self.trusted_rotation = R
         self._history.append((timestamp_s, R))
         cutoff = timestamp_s - self.lookback_s + TIME_EPS_S
         while len(self._history) > 1 and self._history[1][0] <= cutoff:
@@ -201,6 +208,8 @@ class FrameStep:
         R = _rotation(frame_index, R_world_cam)
         theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
         jump = self.gradient.jump
+        if jump:  # the estimator sees no rotation since the last trusted one
+            R = self.gradient.trusted_rotation
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
         return FrameResult(theta, est)
 
@@ -219,7 +228,8 @@ class FrameStep:
         :data:`MAX_EGO_GRADIENT_RAD`) was computed elsewhere: vectorised over a
         whole track (:func:`estimate_sequence`) or shared by several methods fed the same
         rotations (the demo). ``odometry_jump``: the frame's rotation is a glitch
-        (:func:`ego_gradients`' marks): it is not used and θ is NaN.
+        (:func:`ego_gradients`' marks): θ is NaN, and ``R_world_cam`` should be the last trusted
+        one (:func:`~slopedist.odometry.jumps.trusted_rotations`).
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -243,15 +253,12 @@ class FrameStep:
         depth_m: NDArray[np.float32] | None,
         jump: bool = False,
     ) -> FrameEstimates:
-        """:meth:`estimate` of a frame whose time and rotation ``R`` were checked; the
-        rotation of a ``jump`` frame is not passed on (the estimator sees none)."""
+        """:meth:`estimate` of a frame whose time and rotation ``R`` were checked."""
         self._last_timestamp = timestamp_s
         if boxes is None or not len(boxes):
             return FrameEstimates.empty()
         est = self.estimator.estimate(
-            FrameInput(
-                frame_index, timestamp_s, theta_rad, boxes, image, depth_m, None if jump else R
-            )
+            FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
         if self.estimator.offline:
             self._offline_boxes.append((boxes, jump))
@@ -451,13 +458,12 @@ def estimate_sequence(
         raise DataMismatchError(
             f"rotations cover {len(track)} frames but the sequence has {len(timestamps_s)}"
         )
-    mount = estimator.camera.mount_angle_rad
-    jumps = track_jumps(track, mount) if track is not None else None
-    theta = (
-        ego_gradients(track, mount, lookback_s, jumps)
-        if track is not None
-        else np.full(len(timestamps_s), np.nan)
-    )
+    n = len(timestamps_s)
+    theta, valid, jump, rotations = np.full(n, np.nan), np.zeros(n, bool), np.zeros(n, bool), None
+    if track is not None:  # a jump frame's estimator gets the last trusted rotation, as a stream's
+        jumps = track_jumps(track, estimator.camera.mount_angle_rad)
+        theta = ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s, jumps)
+        valid, jump, rotations = track.valid, jumps.jump, trusted_rotations(track, jumps)
     step.reset()
     box_parts, est_parts = [], []
     done = 0  # frames taken so far: those without boxes are checked as a stream checks them
@@ -470,10 +476,9 @@ def estimate_sequence(
             step.skip(j, float(timestamps_s[j]))
         done = k + 1
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
-        R = track.R_world_cam[k] if track is not None and track.valid[k] else None
-        jump = jumps is not None and bool(jumps.jump[k])
-        t_k, theta_k = float(timestamps_s[k]), float(theta[k])
-        est_parts.append(step.estimate(k, t_k, theta_k, R, frame_boxes, None, depth_m, jump))
+        R = rotations[k] if rotations is not None and valid[k] else None
+        t_k, theta_k, jump_k = float(timestamps_s[k]), float(theta[k]), bool(jump[k])
+        est_parts.append(step.estimate(k, t_k, theta_k, R, frame_boxes, None, depth_m, jump_k))
         box_parts.append(frame_boxes)
     for j in range(done, len(timestamps_s)):
         step.skip(j, float(timestamps_s[j]))

@@ -17,6 +17,7 @@ from slopedist.odometry.jumps import (
     PitchJumpGuard,
     camera_pitch,
     track_jumps,
+    trusted_rotations,
 )
 
 
@@ -126,3 +127,11 @@ def test_a_glitch_beyond_the_bound_is_a_jump_at_any_frame_period(
     pitches = [0.0] * before + [sign * (bound + excess)] + [0.0]
     got = verdicts([dt * k for k in range(len(pitches))], pitches)
     assert got == [JumpVerdict.KEPT] * before + [JumpVerdict.JUMP, JumpVerdict.KEPT]
+
+
+def test_trusted_rotations_hold_the_last_trusted_rotation_over_jumps() -> None:
+    R = np.stack([pitched(x, 30.0) for x in (0.0, 0.0, 7.0, 7.0, 0.0)])
+    valid = np.array([True, False, True, True, True])
+    track = RotationTrack.from_arrays(0.1 * np.arange(5), R, valid)
+    held = trusted_rotations(track, track_jumps(track))
+    np.testing.assert_array_equal(held[[0, 2, 3, 4]], R[[0, 0, 0, 4]])

@@ -161,3 +161,14 @@ def track_jumps(track: RotationTrack, mount_angle_rad: float = 0.0) -> JumpMarks
         jump[k] = verdict is JumpVerdict.JUMP
         new_level[k] = verdict is JumpVerdict.NEW_LEVEL
     return JumpMarks(jump, np.cumsum(new_level))
+
+
+def trusted_rotations(track: RotationTrack, marks: JumpMarks) -> NDArray[np.float64]:
+    """``track``'s rotations ``(N, 3, 3)`` with each jump frame's replaced by the last trusted
+    one before it (no rotation since: what an estimator that compensates the camera's rotation
+    is given, as :class:`~slopedist.pipeline.FrameStep` gives it in a stream)."""
+    n = len(track)
+    kept = track.valid & ~marks.jump
+    last = np.maximum.accumulate(np.where(kept, np.arange(n), -1))
+    index = np.where(marks.jump & (last >= 0), last, np.arange(n))
+    return track.R_world_cam[index]
