@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from slopedist.camera import Camera
@@ -459,3 +461,26 @@ def test_a_jump_frame_gives_the_estimator_the_last_trusted_rotation() -> None:
             estimate_sequence(estimator, boxes, track.timestamps_s, track)
         np.testing.assert_array_equal(runs[12], yaw)
         np.testing.assert_array_equal(runs[13], yaw)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    dts=st.lists(st.floats(0.01, 0.4), min_size=2, max_size=50),
+    data=st.data(),
+)
+def test_the_stream_and_the_batch_find_the_same_jumps_and_gradients(dts, data) -> None:
+    """Irregular frame periods, frames without a rotation, glitches of any size (one frame or
+    persisting): θ frame by frame equals θ of the whole track at once."""
+    n = len(dts)
+    pitch = np.cumsum(data.draw(st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n)))
+    sizes = st.sampled_from([0.0, 0.0, 0.0, 6.0, -9.0])  # degrees: none, or a jump
+    glitch = np.array(data.draw(st.lists(sizes, min_size=n, max_size=n)))
+    valid = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n))) | (glitch == 0)
+    R = Rotation.from_euler("YX", np.c_[np.arange(n) * 3.0, pitch + glitch], degrees=True)
+    track = RotationTrack.from_arrays(np.cumsum(dts), R.as_matrix(), valid)
+    tracker = EgoGradientTracker()
+    streamed = [
+        tracker.update(float(track.timestamps_s[k]), R.as_matrix()[k] if valid[k] else None)
+        for k in range(n)
+    ]
+    np.testing.assert_allclose(streamed, ego_gradients(track), equal_nan=True, atol=1e-12)
