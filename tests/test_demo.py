@@ -27,6 +27,7 @@ from slopedist.demo import (
 from slopedist.estimators import ESTIMATORS
 from slopedist.estimators.ground_contact import EgoGradientEstimator
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationTrack
+from slopedist.odometry.jumps import JumpMarks
 from slopedist.pipeline import ego_gradients
 from slopedist.score_tables import uncertainty_table
 
@@ -272,7 +273,8 @@ def test_theta_does_not_look_back_across_an_odometry_restart(
         ]
     )
     np.testing.assert_allclose(run.theta_est, expected, atol=1e-9)
-    across = ego_gradients(RotationTrack.from_arrays(t, R_odo), mount)
+    unguarded = JumpMarks(np.zeros(n, bool), np.zeros(n, np.int64))  # no jump check either
+    across = ego_gradients(RotationTrack.from_arrays(t, R_odo), mount, jumps=unguarded)
     assert np.max(np.abs(across - expected)) > 0.1  # the restart would show if crossed
     # the estimates use that θ, and frames.csv logs it
     rows = list(csv.DictReader((tmp_path / scenario / "records.csv").open()))
@@ -365,3 +367,30 @@ def test_the_targets_counted_at_the_cap_include_the_near_horizon_ones() -> None:
     )
     m = scores.metrics()
     assert (m["n"], m["below_horizon"], m["unscored"]) == (3, 2, 1)
+
+
+class _GlitchingOdometry(_RestartingOdometry):
+    """The true rotations, pitched 5° in frame :data:`GLITCH` alone (an odometry glitch)."""
+
+    def process(self, image_gray, timestamp_s, mask_boxes=None):  # type: ignore[no-untyped-def]
+        k, self._k = self._k, self._k + 1
+        R = self._R[k] @ Rotation.from_euler("x", 5, degrees=True).as_matrix()
+        return OdometryResult(R if k == GLITCH else self._R[k], OdometryState.OK, 100, 0)
+
+
+GLITCH = 8
+
+
+def test_an_odometry_glitch_is_odometry_jump_in_the_demo(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    scenario, n = "ego_crest", 12
+    R_true = SyntheticSequence(load_scenario(scenario)).truth.poses_cam0()[:n, :3, :3]
+    monkeypatch.setattr(demo_scenario, "visual_odometry", lambda camera: _GlitchingOdometry(R_true))
+    cfg = DemoConfig(tmp_path, (scenario,), ("paper",), "visual", False, False, n, False)
+    run = run_demo(cfg, echo=lambda s: None).runs[0]
+    assert math.isnan(run.theta_est[GLITCH]) and np.isfinite(run.theta_est[GLITCH + 1 :]).all()
+    rows = list(csv.DictReader((tmp_path / scenario / "records.csv").open()))
+    glitch = [r for r in rows if int(r["frame"]) == GLITCH]
+    assert glitch and {r["reason"] for r in glitch} == {"odometry_jump"}
+    assert {r["status"] for r in rows if int(r["frame"]) == GLITCH + 1} == {"ok"}

@@ -317,12 +317,9 @@ class ScenarioLoop:
         self.states[res.state.value] = self.states.get(res.state.value, 0) + 1
         t = frame.timestamp_s
         feeds = {
-            "odometry": (
-                res.R_world_cam,
-                self.gradients["odometry"].update(t, res.R_world_cam, res.segment),
-            ),
-            "imu": (self.R_imu[k], self.gradients["imu"].update(t, self.R_imu[k])),
-            "none": (None, math.nan),
+            "odometry": self._feed("odometry", t, res.R_world_cam, res.segment),
+            "imu": self._feed("imu", t, self.R_imu[k]),
+            "none": (None, math.nan, False),
         }
         self.theta_est[k] = feeds["odometry"][1]
         frame_log.write_row(
@@ -339,11 +336,20 @@ class ScenarioLoop:
         if painter is not None and shown is not None:
             painter.write(k, self.overlay(k, frame, shown, res.state.value))
 
+    def _feed(
+        self, name: str, t: float, R: FloatArray | None, segment: int = 0
+    ) -> tuple[FloatArray | None, float, bool]:
+        """A rotation feed's frame: the rotation its methods get (on an odometry jump the last
+        trusted one), θ (radians) and whether the frame is a jump."""
+        tracker = self.gradients[name]
+        theta = tracker.update(t, R, segment)
+        return (tracker.trusted_rotation if tracker.jump else R), theta, tracker.jump
+
     def estimate(
         self,
         k: int,
         frame: SyntheticFrame,
-        feeds: dict[str, tuple[FloatArray | None, float]],
+        feeds: dict[str, tuple[FloatArray | None, float, bool]],
         records: CsvStreamWriter,
     ) -> FrameEstimates | None:
         """Every method's estimates of frame ``k`` (scored and written); returns those of the
@@ -356,11 +362,18 @@ class ScenarioLoop:
             score = self.scores[p.name]
             if score.failed:
                 continue
-            R, theta = feeds[p.rotation]
+            R, theta, jump = feeds[p.rotation]
             t3 = time.perf_counter()
             try:
                 est = self.steps[p.name].estimate(
-                    k, frame.timestamp_s, theta, R, boxes, frame.image, depth if p.depth else None
+                    k,
+                    frame.timestamp_s,
+                    theta,
+                    R,
+                    boxes,
+                    frame.image,
+                    depth if p.depth else None,
+                    jump,
                 )
             except SlopedistError as exc:
                 score.failed = f"frame {k}: {exc}"

@@ -29,10 +29,25 @@ from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
     FrameInput,
+    MissingReason,
     settle_states,
 )
 from slopedist.io.tables import STDOUT_PATH, CsvStreamWriter
-from slopedist.odometry.base import LOOKBACK_S, TIME_EPS_S, RotationTrack, lookback_indices
+from slopedist.odometry.base import (
+    LOOKBACK_S,
+    TIME_EPS_S,
+    RotationTrack,
+    check_lookback,
+    check_track_times,
+    lookback_indices,
+)
+from slopedist.odometry.jumps import (
+    JumpMarks,
+    JumpVerdict,
+    PitchJumpGuard,
+    track_jumps,
+    trusted_rotations,
+)
 
 MAX_EGO_GRADIENT_RAD = math.radians(30.0)
 """The largest ego gradient θ a road can give, radians, beyond the θ of the camera at rest (its
@@ -49,25 +64,6 @@ def usable_gradient(theta_rad: float, theta_rest_rad: float = 0.0) -> float:
     return theta_rad if abs(theta_rad - theta_rest_rad) <= MAX_EGO_GRADIENT_RAD else math.nan
 
 
-def check_lookback(lookback_s: float) -> float:
-    """``lookback_s`` as a float, the look-back of the ego gradient (eq. 4), seconds.
-
-    Raises:
-        ConfigurationError: it is not a finite number > 0 (a NaN, 0 or negative look-back
-            gave θ = 0 or NaN for every frame without a word).
-    """
-    if not (
-        isinstance(lookback_s, (int, float, np.integer, np.floating))
-        and not isinstance(lookback_s, bool)
-        and math.isfinite(lookback_s)
-        and lookback_s > 0
-    ):
-        raise ConfigurationError(
-            f"lookback_s must be a finite number of seconds > 0, got {lookback_s!r}"
-        )
-    return float(lookback_s)
-
-
 class EgoGradientTracker:
     """Ego road gradient θ (eq. 2–4) from a stream of rotations, keeping only the look-back.
 
@@ -76,12 +72,19 @@ class EgoGradientTracker:
     not kept. A change of odometry segment (:attr:`~slopedist.odometry.base.OdometryResult.
     segment`) forgets the history: θ never looks back across a restart of the odometry. Memory
     is bounded by the number of frames within one look-back interval.
+
+    A rotation whose pitch jumps faster than a car can pitch (:mod:`slopedist.odometry.jumps`)
+    is a glitch: θ NaN, not kept, :attr:`jump` True (:attr:`trusted_rotation`: the last kept);
+    a jump that persists is accepted as a new level after a settling time: history restarts.
     """
 
     def __init__(self, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S) -> None:
         self.mount_angle_rad = mount_angle_rad
         self.lookback_s = check_lookback(lookback_s)
         self.segment = 0
+        self.jump = False
+        self.trusted_rotation: NDArray[np.float64] | None = None
+        self._guard = PitchJumpGuard(mount_angle_rad)
         self._history: deque[tuple[float, NDArray[np.float64]]] = deque()
 
     def __len__(self) -> int:
@@ -91,13 +94,22 @@ class EgoGradientTracker:
         self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None, segment: int = 0
     ) -> float:
         """Add a frame of odometry ``segment`` and return its θ in radians (NaN when
-        ``R_world_cam`` is None)."""
+        ``R_world_cam`` is None or an odometry jump: then :attr:`jump` is True)."""
         if segment != self.segment:
             self._history.clear()
+            self._guard.reset()
             self.segment = segment
         if R_world_cam is None:
+            self.jump = False
             return math.nan
         R = np.asarray(R_world_cam, dtype=float)
+        verdict = self._guard.update(timestamp_s, R)
+        self.jump = verdict is JumpVerdict.JUMP
+        if self.jump:
+            return math.nan
+        if verdict is JumpVerdict.NEW_LEVEL:
+            self._history.clear()
+        self.trusted_rotation = R
         self._history.append((timestamp_s, R))
         cutoff = timestamp_s - self.lookback_s + TIME_EPS_S
         while len(self._history) > 1 and self._history[1][0] <= cutoff:
@@ -153,7 +165,7 @@ class FrameStep:
             geo.ego_road_gradient(np.eye(3), np.eye(3), estimator.camera.mount_angle_rad)
         )
         self._last_timestamp: float | None = None
-        self._offline_boxes: list[BoxTable] = []
+        self._offline_boxes: list[tuple[BoxTable, bool]] = []
 
     def reset(self) -> None:
         """Start a new sequence."""
@@ -170,7 +182,10 @@ class FrameStep:
             NotImplementedError: the estimator is causal (its per-frame estimates are final).
         """
         est = self.estimator.finish()
-        return [self._settle(e, boxes) for e, boxes in zip(est, self._offline_boxes, strict=True)]
+        return [
+            self._settle(e, boxes, jump)
+            for e, (boxes, jump) in zip(est, self._offline_boxes, strict=True)
+        ]
 
     def step(
         self,
@@ -183,7 +198,8 @@ class FrameStep:
         segment: int = 0,
     ) -> FrameResult:
         """θ of the frame (look-back within odometry ``segment``; NaN beyond
-        :data:`MAX_EGO_GRADIENT_RAD`) and its boxes' estimates.
+        :data:`MAX_EGO_GRADIENT_RAD` or on an odometry jump, :class:`EgoGradientTracker`) and
+        its boxes' estimates.
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -192,7 +208,10 @@ class FrameStep:
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
         theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
-        est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
+        jump = self.gradient.jump
+        if jump:  # the estimator sees no rotation since the last trusted one
+            R = self.gradient.trusted_rotation
+        est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
         return FrameResult(theta, est)
 
     def estimate(
@@ -204,11 +223,14 @@ class FrameStep:
         boxes: BoxTable | None,
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
+        odometry_jump: bool = False,
     ) -> FrameEstimates:
         """The estimates of a frame whose θ (radians; taken as NaN beyond
         :data:`MAX_EGO_GRADIENT_RAD`) was computed elsewhere: vectorised over a
         whole track (:func:`estimate_sequence`) or shared by several methods fed the same
-        rotations (the demo).
+        rotations (the demo). ``odometry_jump``: the frame's rotation is a glitch
+        (:func:`ego_gradients`' marks): θ is NaN, and ``R_world_cam`` should be the last trusted
+        one (:func:`~slopedist.odometry.jumps.trusted_rotations`).
 
         Raises:
             DataMismatchError: if ``timestamp_s`` is not finite or does not increase, or
@@ -216,8 +238,10 @@ class FrameStep:
         """
         self._check_time(frame_index, timestamp_s)
         R = _rotation(frame_index, R_world_cam)
-        theta = usable_gradient(theta_rad, self._theta_rest)
-        return self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m)
+        theta = math.nan if odometry_jump else usable_gradient(theta_rad, self._theta_rest)
+        return self._estimate(
+            frame_index, timestamp_s, theta, R, boxes, image, depth_m, odometry_jump
+        )
 
     def _estimate(
         self,
@@ -228,6 +252,7 @@ class FrameStep:
         boxes: BoxTable | None,
         image: NDArray[np.uint8] | None,
         depth_m: NDArray[np.float32] | None,
+        jump: bool = False,
     ) -> FrameEstimates:
         """:meth:`estimate` of a frame whose time and rotation ``R`` were checked."""
         self._last_timestamp = timestamp_s
@@ -237,17 +262,24 @@ class FrameStep:
             FrameInput(frame_index, timestamp_s, theta_rad, boxes, image, depth_m, R)
         )
         if self.estimator.offline:
-            self._offline_boxes.append(boxes)
-        return self._settle(est, boxes)
+            self._offline_boxes.append((boxes, jump))
+        return self._settle(est, boxes, jump)
 
-    def _settle(self, est: FrameEstimates, boxes: BoxTable) -> FrameEstimates:
-        return settle_states(
+    def _settle(self, est: FrameEstimates, boxes: BoxTable, jump: bool) -> FrameEstimates:
+        """:func:`~slopedist.estimators.base.settle_states`; on an odometry ``jump`` the rows
+        a method left without a rotation say why (``odometry_jump``)."""
+        est = settle_states(
             est,
             boxes,
             self.estimator.camera,
             self.vehicle_classes,
             not self.estimator.handles_border_cuts,
         )
+        if jump:
+            est.reason[est.reason == MissingReason.NO_ROTATION.value] = (
+                MissingReason.ODOMETRY_JUMP.value
+            )
+        return est
 
     def skip(self, frame_index: int, timestamp_s: float) -> None:
         """Take a frame that :meth:`estimate` is not called for (no boxes, θ computed
@@ -320,18 +352,29 @@ _NO_BOXES = BoxTable.empty()
 
 
 def ego_gradients(
-    track: RotationTrack, mount_angle_rad: float = 0.0, lookback_s: float = LOOKBACK_S
+    track: RotationTrack,
+    mount_angle_rad: float = 0.0,
+    lookback_s: float = LOOKBACK_S,
+    jumps: JumpMarks | None = None,
 ) -> NDArray[np.float64]:
-    """θ (radians) of every frame of ``track`` at once; NaN where the track has no rotation.
+    """θ (radians) of every frame of ``track`` at once, as :class:`EgoGradientTracker` gives
+    it frame by frame: NaN where the track has no rotation or an odometry jump (``jumps``,
+    :func:`~slopedist.odometry.jumps.track_jumps` when not given), whose frames are no
+    look-back reference; the look-back never crosses an accepted new level.
 
     Raises:
         ConfigurationError: ``lookback_s`` is not a finite number > 0.
     """
     lookback_s = check_lookback(lookback_s)
+    if jumps is None:
+        jumps = track_jumps(track, mount_angle_rad)
     theta = np.full(len(track), np.nan)
-    valid = np.flatnonzero(track.valid)
+    valid = np.flatnonzero(track.valid & ~jumps.jump)
     if valid.size:
-        ref = valid[lookback_indices(track.timestamps_s[valid], lookback_s)]
+        level = jumps.level[valid]  # non-decreasing: the first frame of each level
+        first = np.searchsorted(level, level, side="left")
+        back = lookback_indices(track.timestamps_s[valid], lookback_s)
+        ref = valid[np.maximum(back, first)]
         theta[valid] = geo.ego_road_gradient(
             track.R_world_cam[ref], track.R_world_cam[valid], mount_angle_rad
         )
@@ -374,36 +417,6 @@ def concat_estimates(parts: list[FrameEstimates]) -> FrameEstimates:
     )
 
 
-def check_track_times(track: RotationTrack, timestamps_s: NDArray[np.float64]) -> None:
-    """Refuse rotations that are not of the frames they are paired with: rotation k's own
-    time more than half a frame period (the median step of ``timestamps_s``, seconds; the
-    track's when there is one frame) from frame k's (a pose file at another rate or offset).
-
-    Frame times that are not finite and increasing are left to :class:`FrameStep`, which
-    names the frame.
-
-    Raises:
-        DataMismatchError: naming the first such frame and both times.
-    """
-    n = len(timestamps_s)
-    t, t_rot = timestamps_s, track.timestamps_s[:n]
-    if n == 0 or not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
-        return
-    steps = np.diff(t) if n > 1 else np.diff(track.timestamps_s)
-    if not steps.size:
-        return
-    half_period_s = 0.5 * float(np.median(steps))
-    off = np.abs(t_rot - t) > half_period_s + TIME_EPS_S
-    if off.any():
-        k = int(np.argmax(off))
-        raise DataMismatchError(
-            f"frame {k}: its rotation is of time {t_rot[k]:.6g} s but the frame is at "
-            f"{t[k]:.6g} s ({abs(t_rot[k] - t[k]):.3g} s apart, more than half the frame period "
-            f"of {2 * half_period_s:.3g} s): the rotations are not of these frames (poses at "
-            "another rate, or with an offset?)"
-        )
-
-
 def estimate_sequence(
     estimator: Estimator,
     boxes: BoxTable,
@@ -430,7 +443,7 @@ def estimate_sequence(
             or does not increase, as :meth:`FrameStep.step` refuses it; boxes of a frame
             beyond ``timestamps_s``; fewer rotations than frames; ``timestamps_s`` that are
             not ``(N,)``; a rotation whose own time is more than half a frame period from its
-            frame's (:func:`check_track_times`).
+            frame's (:func:`~slopedist.odometry.base.check_track_times`).
         ConfigurationError: a ``lookback_s`` or ``vehicle_classes`` :class:`FrameStep`
             refuses.
     """
@@ -443,17 +456,13 @@ def estimate_sequence(
         raise DataMismatchError(
             f"timestamps_s must be one per frame (N,), got shape {timestamps_s.shape}"
         )
-    if track is not None and len(track) < len(timestamps_s):
-        raise DataMismatchError(
-            f"rotations cover {len(track)} frames but the sequence has {len(timestamps_s)}"
-        )
-    if track is not None:
+    n = len(timestamps_s)
+    theta, valid, jump, rotations = np.full(n, np.nan), np.zeros(n, bool), np.zeros(n, bool), None
+    if track is not None:  # a jump frame's estimator gets the last trusted rotation, as a stream's
         check_track_times(track, timestamps_s)
-    theta = (
-        ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s)
-        if track is not None
-        else np.full(len(timestamps_s), np.nan)
-    )
+        jumps = track_jumps(track, estimator.camera.mount_angle_rad)
+        theta = ego_gradients(track, estimator.camera.mount_angle_rad, lookback_s, jumps)
+        valid, jump, rotations = track.valid, jumps.jump, trusted_rotations(track, jumps)
     step.reset()
     box_parts, est_parts = [], []
     done = 0  # frames taken so far: those without boxes are checked as a stream checks them
@@ -466,10 +475,9 @@ def estimate_sequence(
             step.skip(j, float(timestamps_s[j]))
         done = k + 1
         depth_m = depth(k) if depth is not None and estimator.needs_depth else None
-        R = track.R_world_cam[k] if track is not None and track.valid[k] else None
-        est_parts.append(
-            step.estimate(k, float(timestamps_s[k]), float(theta[k]), R, frame_boxes, None, depth_m)
-        )
+        R = rotations[k] if rotations is not None and valid[k] else None
+        t_k, theta_k, jump_k = float(timestamps_s[k]), float(theta[k]), bool(jump[k])
+        est_parts.append(step.estimate(k, t_k, theta_k, R, frame_boxes, None, depth_m, jump_k))
         box_parts.append(frame_boxes)
     for j in range(done, len(timestamps_s)):
         step.skip(j, float(timestamps_s[j]))

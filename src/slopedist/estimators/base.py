@@ -76,6 +76,10 @@ class MissingReason(str, Enum):
     NO_ROTATION = "no_rotation"
     """No camera rotation for this frame (odometry not initialised or lost), or one whose ego
     gradient no road gives (:data:`slopedist.pipeline.MAX_EGO_GRADIENT_RAD`: a glitch)."""
+    ODOMETRY_JUMP = "odometry_jump"
+    """The frame's camera rotation jumps away from the frames before it faster than a car can
+    pitch (:class:`slopedist.odometry.jumps.PitchJumpGuard`: a visual-odometry or pose-file
+    glitch); its θ is not trusted, as a frame without a rotation (``no_rotation``)."""
     NON_FINITE_BOX = "non_finite_box"
     INVERTED_BOX = "inverted_box"
     NO_DEPTH = "no_depth"

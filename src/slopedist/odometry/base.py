@@ -6,6 +6,7 @@ Convention: rotations are 3×3 camera-to-world matrices relative to the first fr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 from typing import Protocol
@@ -13,7 +14,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.errors import DataMismatchError
+from slopedist.errors import ConfigurationError, DataMismatchError
 from slopedist.geometry import not_rotations
 
 LOOKBACK_S = 1.0
@@ -21,6 +22,25 @@ LOOKBACK_S = 1.0
 
 TIME_EPS_S = 1e-6
 """Tolerance when comparing timestamps (k × 0.1 s is not exact in binary floating point)."""
+
+
+def check_lookback(lookback_s: float) -> float:
+    """``lookback_s`` as a float, the look-back of the ego gradient (eq. 4), seconds.
+
+    Raises:
+        ConfigurationError: it is not a finite number > 0 (a NaN, 0 or negative look-back
+            gave θ = 0 or NaN for every frame without a word).
+    """
+    if not (
+        isinstance(lookback_s, (int, float, np.integer, np.floating))
+        and not isinstance(lookback_s, bool)
+        and math.isfinite(lookback_s)
+        and lookback_s > 0
+    ):
+        raise ConfigurationError(
+            f"lookback_s must be a finite number of seconds > 0, got {lookback_s!r}"
+        )
+    return float(lookback_s)
 
 
 def lookback_indices(timestamps_s: ArrayLike, lookback_s: float = LOOKBACK_S) -> NDArray[np.intp]:
@@ -150,3 +170,36 @@ class RotationOdometry(Protocol):
     ) -> OdometryResult: ...
 
     def reset(self) -> None: ...
+
+
+def check_track_times(track: RotationTrack, timestamps_s: NDArray[np.float64]) -> None:
+    """Refuse rotations that are not of the frames they are paired with: rotation k's own
+    time more than half a frame period (the median step of ``timestamps_s``, seconds; the
+    track's when there is one frame) from frame k's (a pose file at another rate or offset).
+
+    Frame times that are not finite and increasing are left to :class:`FrameStep`, which
+    names the frame.
+
+    Raises:
+        DataMismatchError: fewer rotations than frames; naming the first frame whose rotation
+            is of another time, and both times.
+    """
+    n = len(timestamps_s)
+    if len(track) < n:
+        raise DataMismatchError(f"rotations cover {len(track)} frames but the sequence has {n}")
+    t, t_rot = timestamps_s, track.timestamps_s[:n]
+    if n == 0 or not np.isfinite(t).all() or np.any(np.diff(t) <= 0):
+        return
+    steps = np.diff(t) if n > 1 else np.diff(track.timestamps_s)
+    if not steps.size:
+        return
+    half_period_s = 0.5 * float(np.median(steps))
+    off = np.abs(t_rot - t) > half_period_s + TIME_EPS_S
+    if off.any():
+        k = int(np.argmax(off))
+        raise DataMismatchError(
+            f"frame {k}: its rotation is of time {t_rot[k]:.6g} s but the frame is at "
+            f"{t[k]:.6g} s ({abs(t_rot[k] - t[k]):.3g} s apart, more than half the frame period "
+            f"of {2 * half_period_s:.3g} s): the rotations are not of these frames (poses at "
+            "another rate, or with an offset?)"
+        )
