@@ -174,16 +174,7 @@ def track_features(
     g = f["gc_over_size"]
     near_w = np.nan_to_num((10.0 / np.exp(f["log_size"])) ** 4)
     cx, h = f["centre_x"], f["box_h"]
-    for key in (
-        "track_age_s",
-        "track_count",
-        "track_gc_mean",
-        "track_gc_wmean",
-        "track_gc_weight",
-        "lateral_rate",
-        "height_rate",
-        *FEATURE_GROUPS["offline"],
-    ):
+    for key in (*FEATURE_GROUPS["track"], *FEATURE_GROUPS["offline"]):
         f[key] = np.full(len(g), np.nan)
     for u in np.unique(uid[np.isfinite(uid)]):
         rows = np.flatnonzero(uid == u)
