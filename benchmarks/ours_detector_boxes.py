@@ -149,9 +149,15 @@ def scenes(data: Path, source: BoxSource) -> dict[str, Scene]:
 CUE_COLUMNS = ("distance_size_m", "distance_ground_contact_m", "distance_width_m")
 
 
-def run_ours(scene: Scene, options: dict[str, Any], boxes: BoxTable | None = None) -> Scored:
+def run_ours_boxes(
+    scene: Scene,
+    options: dict[str, Any],
+    boxes: BoxTable | None = None,
+    columns: Sequence[str] = CUE_COLUMNS,
+) -> Scored:
     """``ours`` with ``options`` over a scene's boxes (or ``boxes``, the same rows with other
-    classes), as the evaluation runs it."""
+    classes), as the evaluation runs it: per fed box (matched or not), its capped distance,
+    whether it is scored and its record ``columns`` (NaN where it has no record)."""
     seq = scene.seq
     fed = scene.boxes if boxes is None else boxes
     estimator = make_estimator("ours", seq.camera, **options)
@@ -167,13 +173,20 @@ def run_ours(scene: Scene, options: dict[str, Any], boxes: BoxTable | None = Non
     rows = result.boxes.extra["row"]
     n = len(fed)
 
-    def per_target(values: NDArray[Any], fill: Any) -> NDArray[Any]:
+    def per_box(values: NDArray[Any], fill: Any) -> NDArray[Any]:
         out = np.full(n, fill, dtype=np.asarray(values).dtype)
         out[rows] = values
-        return out[scene.det_rows]
+        return out
 
-    extra = {k: per_target(np.asarray(est.extra[k], dtype=float), np.nan) for k in CUE_COLUMNS}
-    return Scored(per_target(capped, np.nan), per_target(scorable, False), extra)
+    extra = {k: per_box(np.asarray(est.extra[k], dtype=float), np.nan) for k in columns}
+    return Scored(per_box(capped, np.nan), per_box(scorable, False), extra)
+
+
+def run_ours(scene: Scene, options: dict[str, Any], boxes: BoxTable | None = None) -> Scored:
+    """:func:`run_ours_boxes` per matched target (rows ``scene.det_rows``), its cue columns."""
+    r = run_ours_boxes(scene, options, boxes)
+    rows = scene.det_rows
+    return Scored(r.distance_m[rows], r.ok[rows], {k: v[rows] for k, v in r.extra.items()})
 
 
 def rmse(err: NDArray[np.float64]) -> float:
