@@ -394,3 +394,8 @@ def test_an_odometry_glitch_is_odometry_jump_in_the_demo(
     glitch = [r for r in rows if int(r["frame"]) == GLITCH]
     assert glitch and {r["reason"] for r in glitch} == {"odometry_jump"}
     assert {r["status"] for r in rows if int(r["frame"]) == GLITCH + 1} == {"ok"}
+    # the frame log and the summary say the rotation was a jump, not that the odometry was ok
+    log = list(csv.DictReader((tmp_path / scenario / "frames.csv").open()))
+    assert [r["odometry_state"] for r in log].count("odometry_jump") == 1
+    assert log[GLITCH]["odometry_state"] == "odometry_jump"
+    assert run.odometry_states == {"ok": n - 1, "odometry_jump": 1}

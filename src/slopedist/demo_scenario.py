@@ -46,6 +46,7 @@ from slopedist.evaluation import (
 from slopedist.io.overlay import GifWriter, OverlayWriter, open_overlay_video
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.jumps import shown_state
 from slopedist.pipeline import (
     RECORD_FIELDS,
     EgoGradientTracker,
@@ -314,19 +315,20 @@ class ScenarioLoop:
         t2 = time.perf_counter()
         self.render_s += t1 - t0
         self.odometry_s += t2 - t1
-        self.states[res.state.value] = self.states.get(res.state.value, 0) + 1
         t = frame.timestamp_s
         feeds = {
             "odometry": self._feed("odometry", t, res.R_world_cam, res.segment),
             "imu": self._feed("imu", t, self.R_imu[k]),
             "none": (None, math.nan, False),
         }
+        state = shown_state(res.state.value, feeds["odometry"][2])
+        self.states[state] = self.states.get(state, 0) + 1
         self.theta_est[k] = feeds["odometry"][1]
         frame_log.write_row(
             {
                 "frame": k,
                 "timestamp_s": t,
-                "odometry_state": res.state.value,
+                "odometry_state": state,
                 "theta_deg": math.degrees(self.theta_est[k]),
                 "theta_true_deg": math.degrees(self.theta_true[k]),
                 "odometry_ms": 1e3 * (t2 - t1),
@@ -334,7 +336,7 @@ class ScenarioLoop:
         )
         shown = self.estimate(k, frame, feeds, records)
         if painter is not None and shown is not None:
-            painter.write(k, self.overlay(k, frame, shown, res.state.value))
+            painter.write(k, self.overlay(k, frame, shown, state))
 
     def _feed(
         self, name: str, t: float, R: FloatArray | None, segment: int = 0

@@ -120,11 +120,12 @@ class EgoGradientTracker:
 
 @dataclass(frozen=True)
 class FrameResult:
-    """What one frame step gives: the ego gradient θ (radians, NaN without a rotation) and the
-    per-box estimates."""
+    """What one frame step gives: the ego gradient θ (radians, NaN without a rotation), the
+    per-box estimates and whether the frame's rotation was an odometry jump (not trusted)."""
 
     theta_rad: float
     estimates: FrameEstimates
+    odometry_jump: bool = False
 
 
 class FrameStep:
@@ -212,7 +213,7 @@ class FrameStep:
         if jump:  # the estimator sees no rotation since the last trusted one
             R = self.gradient.trusted_rotation
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
-        return FrameResult(theta, est)
+        return FrameResult(theta, est, jump)
 
     def estimate(
         self,

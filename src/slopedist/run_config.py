@@ -105,7 +105,9 @@ FRAME_FIELDS = (
     "detection_ms",
 )
 """Columns of ``frames.csv``. ``odometry_state`` is empty for frames without pixels or without
-odometry; ``theta_deg`` is the ego road gradient (eq. 4) and empty without a rotation;
+odometry, ``odometry_jump`` for a rotation that is an odometry jump
+(:data:`~slopedist.odometry.jumps.JUMP_STATE`); ``theta_deg`` is the ego road gradient (eq. 4)
+and empty without a rotation;
 ``depth_ms`` is empty where no depth map was made; ``detection_ms`` (the detector's pre-processing,
 inference and post-processing) is empty without a detector."""
 
@@ -164,7 +166,8 @@ class RunResult:
         method: estimator name.
         sequence: the sequence the frames belong to (Table 1 row of ``slopedist report``).
         frames: frames seen; ``frame_status``: count per :class:`~slopedist.io.frames.FrameStatus`.
-        odometry_states: count per odometry state (frames with pixels only).
+        odometry_states: count per odometry state (frames with pixels only; a jump frame's
+            is ``odometry_jump``).
         records: per-target rows written; ``estimated``: rows with status ``ok``;
             ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
             of the image); ``not_vehicles``: rows of classes that are not vehicles.

@@ -82,6 +82,7 @@ from slopedist.io.prefetch import (
 )
 from slopedist.io.tables import CsvStreamWriter
 from slopedist.odometry.base import RotationOdometry
+from slopedist.odometry.jumps import shown_state
 from slopedist.odometry.posefiles import TumPoseWriter
 from slopedist.pipeline import FrameResult, FrameStep, close_records, iter_records, open_records
 from slopedist.run_config import (
@@ -321,6 +322,9 @@ class _RunLoop:
             self.last_time_s = frame.timestamp_s
         estimation_ms = (time.perf_counter() - t0) * 1e3
         self.times["estimation"].add(estimation_ms)
+        state = shown_state(odo.state, res.odometry_jump)
+        if odo.state:  # the odometry ran on the frame
+            self.odometry_count[state] += 1
         if self.held is None:
             n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
             speed = self._speed_at(frame.timestamp_s)
@@ -337,7 +341,7 @@ class _RunLoop:
                     "source": frame.source,
                     "frame_status": frame.status.value,
                     "detail": frame.detail,
-                    "odometry_state": odo.state,
+                    "odometry_state": state,
                     "inliers": odo.inliers,
                     "segment": self.segment,
                     "theta_deg": math.degrees(res.theta_rad),
@@ -349,7 +353,7 @@ class _RunLoop:
                     "detection_ms": detection_ms,
                 }
             )
-        self._paint(frame, frame_boxes, res, odo.state)
+        self._paint(frame, frame_boxes, res, state)
         self._export(frame, frame_boxes, res, odo)
         self.result.frames += 1  # a frame that fails part-way is in neither count
         self.status_count[frame.status.value] += 1
@@ -388,7 +392,6 @@ class _RunLoop:
         # working time
         ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
         self.times["odometry"].add(ms)
-        self.odometry_count[res.state.value] += 1
         self.segment = int(getattr(res, "segment", 0))
         return _OdometryOutput(res.R_world_cam, self.segment, res.state.value, int(res.inliers), ms)
 

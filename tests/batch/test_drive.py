@@ -244,3 +244,31 @@ def test_stamps_see_changed_settings(sim: Path) -> None:
         spec, settings=RunSettings(ours_options=(("gate_sigma", 4.0), ("use_width", False)))
     )
     assert input_stamp(same) == input_stamp(swapped)  # the options' order does not count
+
+
+def test_the_rows_a_box_reader_drops_are_a_warning_of_the_batch(
+    sim: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A drive runs in a Ray worker whose log goes nowhere: the reader's warning comes back in
+    the drive's outcome, and the batch prints it with the drive's name."""
+    from slopedist.batch.engine import BatchResult
+    from slopedist.cli.batch_cmd import batch_summary_text
+    from slopedist.detections.boxes import BoxTable, concat_boxes
+    from slopedist.detections.convert import read_boxes
+    from slopedist.detections.format_writers import write_coco
+
+    boxes = read_boxes(sim / "boxes.csv")
+    n = len(boxes)
+    people = BoxTable.build(boxes.frame, boxes.boxes, boxes.track_id, classes=["Pedestrian"] * n)
+    coco = tmp_path / "boxes.json"
+    write_coco(concat_boxes([boxes, people]), coco, {3: "Car", 1: "Pedestrian"})
+    spec = replace(spec_of(sim), boxes=coco)
+    out = tmp_path / "batch"
+    out.mkdir()
+    outcome = process_drive(spec, out, input_stamp(spec))
+    assert outcome.status is DriveStatus.DONE
+    assert len(outcome.warnings) == 1 and f"dropped {n} of {2 * n} box rows" in outcome.warnings[0]
+    text = batch_summary_text(BatchResult(out, [outcome], 1.0))
+    assert f"warning: drive crest: {coco}: dropped {n} of {2 * n} box rows" in text
+    status = (out / "crest" / "run.json").read_text()
+    assert '"dropped_boxes"' in status

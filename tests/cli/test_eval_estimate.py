@@ -290,3 +290,25 @@ def test_estimate_gives_no_ok_distance_to_a_one_pixel_box(
         ("missing", "beyond_resolution", "")
     }
     assert all(r["status"] == "ok" and float(r["distance_m"]) < 100 for r in car)
+
+
+@pytest.mark.parametrize("command", ["estimate", "calibrate"])
+def test_a_tum_pose_file_at_another_rate_than_the_frame_period_given_is_refused(
+    small_sequence: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture, command: str
+) -> None:
+    """TUM poses are timed by their own column: at 20 Hz with frames at 10 Hz
+    (``--frame-period 0.1`` given) every frame took the pose of half its time, silently."""
+    tum = tmp_path / "poses_20hz.tum"
+    tum.write_text("".join(f"{100 + 0.05 * k:.2f} 0 0 {k} 0 0 0 1\n" for k in range(10)))
+    args = [command, "--calib", str(small_sequence["calib"]), "--poses", str(tum)]
+    args += ["--boxes", str(small_sequence["boxes"]), "--image-size", "1242x375"]
+    if command == "estimate":
+        args += ["--out", str(tmp_path / "records.csv")]
+    assert main([*args, "--frame-period", "0.1"]) == 2
+    message = capsys.readouterr().err
+    assert str(tum) in message and "--frame-period 0.1 s" in message
+    assert "frame 2: its rotation is of time 100.1 s" in message
+    assert not (tmp_path / "records.csv").exists()
+    # poses at the frame period given are accepted
+    tum.write_text("".join(f"{100 + 0.1 * k:.2f} 0 0 {k} 0 0 0 1\n" for k in range(10)))
+    assert main([*args, "--frame-period", "0.1"]) == 0

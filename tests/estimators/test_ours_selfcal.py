@@ -152,3 +152,23 @@ def test_selfcal_on_simulated_traffic_finds_every_box_shape_fits_its_class() -> 
     estimate_sequence(est, sim.boxes, sim.timestamps_s, _at_rest(sim.timestamps_s))
     c = est.calibration()
     assert c.n_shape_checked > 500 and c.shape_outlier_share < 0.01
+
+
+def test_selfcal_does_not_learn_from_a_frame_without_a_trusted_rotation() -> None:
+    """An odometry jump (and any frame without θ) leaves ``ours`` at its resting θ with a wide
+    jitter; the self-calibration took that θ as measured and learned the mount from the frame."""
+    from scipy.spatial.transform import Rotation
+
+    sim = simulate_traffic(TRUE, 6, 60, seed=1)
+    clean = _at_rest(sim.timestamps_s)
+    glitch = clean.R_world_cam.copy()
+    jumps = (20, 40)
+    glitch[list(jumps)] = Rotation.from_euler("x", 5, degrees=True).as_matrix()
+    glitched = RotationTrack.from_arrays(sim.timestamps_s, glitch)
+    counts = []
+    for track in (clean, glitched):
+        est = make_estimator("ours-selfcal", TRUE)
+        estimate_sequence(est, sim.boxes, sim.timestamps_s, track)
+        counts.append(est.calibration().n_observations)  # type: ignore[attr-defined]
+    on_jump_frames = int(np.count_nonzero(np.isin(sim.boxes.frame, jumps)))
+    assert counts[0] - on_jump_frames <= counts[1] < counts[0]

@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import functools
 import json
+import logging
 import math
 import os
 import shutil
 import time
 import uuid
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, cast
 
@@ -202,7 +204,8 @@ def process_drive(
     final = out_root / spec.name
     start, cpu_start = time.perf_counter(), time.process_time()
     try:
-        result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
+        with logged_warnings() as warnings:
+            result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
         summary_path = tmp / SUMMARY_NAME
         summary = relocated(json.loads(summary_path.read_text(encoding="utf-8")), tmp, final)
         summary[STAMP_KEY] = stamp
@@ -228,7 +231,33 @@ def process_drive(
         cpu_seconds=time.process_time() - cpu_start,
         attempts=attempt,
         worker_peak_rss_mb=peak_rss_mb(),
+        warnings=tuple(warnings),
     )
+
+
+class _WarningList(logging.Handler):
+    """Keeps the messages of the warnings (and worse) logged to it."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextmanager
+def logged_warnings() -> Iterator[list[str]]:
+    """The messages of the warnings slopedist's loggers log inside the block (a drive's run in
+    a Ray worker, whose own log reaches no one: :data:`~slopedist.batch.engine` starts Ray
+    without ``log_to_driver``), e.g. the rows a box file's reader left out."""
+    handler = _WarningList()
+    logger = logging.getLogger("slopedist")
+    logger.addHandler(handler)
+    try:
+        yield handler.messages
+    finally:
+        logger.removeHandler(handler)
 
 
 def peak_rss_mb() -> float:

@@ -43,7 +43,9 @@ class DriveStatus(str, Enum):
 
 @dataclass
 class DriveOutcome:
-    """The status row of one drive (see :data:`STATUS_FIELDS`); times in seconds."""
+    """The status row of one drive (see :data:`STATUS_FIELDS`); times in seconds. ``warnings``
+    (not in ``status.csv``): the warnings the drive's run logged in its worker, e.g. the rows
+    its box file's reader left out, for the batch to print."""
 
     drive: str
     status: DriveStatus
@@ -54,12 +56,13 @@ class DriveOutcome:
     cpu_seconds: float = float("nan")
     attempts: int = 0
     worker_peak_rss_mb: float = float("nan")
+    warnings: tuple[str, ...] = ()
 
 
 def write_status(out_dir: Path, outcomes: Sequence[DriveOutcome]) -> Path:
     """Write ``OUT/status.csv`` atomically (a temporary file renamed over the old table)."""
     path = out_dir / STATUS_NAME
     tmp = out_dir / f".{STATUS_NAME}.tmp"
-    write_csv(tmp, (o.__dict__ for o in outcomes), STATUS_FIELDS)
+    write_csv(tmp, ({f: getattr(o, f) for f in STATUS_FIELDS} for o in outcomes), STATUS_FIELDS)
     os.replace(tmp, path)
     return path

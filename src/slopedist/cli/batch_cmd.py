@@ -154,11 +154,17 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
 
 
 def batch_summary_text(result: BatchResult) -> str:
-    """A few lines: counts per status, throughput, the failures and where the outputs are."""
+    """A few lines: counts per status, throughput, the drives' warnings (e.g. box rows their
+    reader left out), the failures and where the outputs are."""
     counts = ", ".join(f"{result.count(s)} {s.value}" for s in DriveStatus if result.count(s))
     lines = [
         f"{len(result.outcomes)} drives: {counts}; {result.frames_run} frames in "
         f"{result.elapsed_s:.1f} s ({result.frames_per_s:.1f} frames/s)",
+    ]
+    lines += [
+        f"warning: drive {o.drive}: {w.removeprefix('warning: ')}"
+        for o in result.outcomes
+        for w in o.warnings
     ]
     lines += [
         f"failed: {o.drive}: {o.error}" for o in result.outcomes if o.status is DriveStatus.FAILED

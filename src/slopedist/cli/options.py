@@ -294,6 +294,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
             mount_angle_deg: float,
             **kwargs: Any,
         ) -> Any:
+            period_source = click.get_current_context().get_parameter_source("frame_period")
             kwargs["files"] = SequenceFiles(
                 calib,
                 poses,
@@ -304,6 +305,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
                 height_m,
                 math.radians(mount_angle_deg),
                 image_size,
+                period_source is not click.core.ParameterSource.DEFAULT,
             )
             return command(*args, **kwargs)
 

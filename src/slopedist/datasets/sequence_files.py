@@ -19,7 +19,7 @@ from slopedist.detections.readers import read_box_file
 from slopedist.errors import ConfigurationError, DataMismatchError, MissingInputError
 from slopedist.io.calibration import read_calibration
 from slopedist.io.intrinsics import Intrinsics
-from slopedist.odometry.base import RotationTrack
+from slopedist.odometry.base import RotationTrack, check_track_times
 from slopedist.odometry.posefiles import PoseFormat, read_oxts_rotations, read_pose_file
 
 
@@ -45,6 +45,8 @@ class SequenceFiles:
         boxes: box file (any form :func:`~slopedist.detections.readers.read_box_file` reads;
             None: not given, e.g. a detector finds them).
         frame_period_s: seconds between frames (pose files without timestamps).
+        frame_period_given: ``frame_period_s`` was given by the user: a pose file with its own
+            timestamps (TUM) must then be at that period (:func:`check_pose_times`).
         min_score: keep boxes with score ≥ this (None: all).
         height_m: camera height above the road, metres.
         mount_angle_rad: camera mount angle θ0, radians.
@@ -61,6 +63,7 @@ class SequenceFiles:
     height_m: float = KITTI_CAMERA_HEIGHT_M
     mount_angle_rad: float = 0.0
     image_size: tuple[int, int] | None = None
+    frame_period_given: bool = False
 
     @property
     def input_files(self) -> list[Path]:
@@ -83,7 +86,8 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
 
     Raises:
         MissingInputError: no pose or box file given.
-        DataMismatchError: the poses do not cover the boxes' frames.
+        DataMismatchError: the poses do not cover the boxes' frames, or (``frame_period_given``)
+            their own times are not at the frame period (:func:`check_pose_times`).
     """
     if files.poses is None or files.boxes is None:
         missing = "pose" if files.poses is None else "box"
@@ -103,6 +107,8 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
         track = read_pose_file(files.poses, None, files.frame_period_s)
     else:
         track = read_pose_file(files.poses, PoseFormat(layout.value), files.frame_period_s)
+    if files.frame_period_given:
+        check_pose_times(files.poses, track, files.frame_period_s)
     boxes = calibration.intrinsics.rectify_table(read_box_file(files.boxes, files.min_score))
     if len(boxes) and int(boxes.frame.max()) >= len(track):
         beyond = int(np.count_nonzero(boxes.frame >= len(track)))
@@ -113,3 +119,22 @@ def read_sequence_files(files: SequenceFiles) -> SequenceInputs:
             f"{len(track) - 1})"
         )
     return SequenceInputs(calibration.camera, track, boxes)
+
+
+def check_pose_times(path: Path, track: RotationTrack, frame_period_s: float) -> None:
+    """Refuse a pose file whose own timestamps (TUM; KITTI and OXTS poses are timed by the
+    period itself) are not those of frames ``frame_period_s`` seconds apart from its first:
+    pose k is frame k's, so poses at another rate, or with a gap, would be paired with the
+    wrong frames.
+
+    Raises:
+        DataMismatchError: naming the file, the first pose off its frame's time, and both times.
+    """
+    frames_s = track.timestamps_s[0] + frame_period_s * np.arange(len(track))
+    try:
+        check_track_times(track, frames_s)
+    except DataMismatchError as exc:
+        raise DataMismatchError(
+            f"{path}: the pose times do not follow --frame-period {frame_period_s:g} s "
+            f"(from the first pose's time): {exc}"
+        ) from None

@@ -50,6 +50,17 @@ JUMP_SETTLE_FRAMES = 3
 """The least number of frames that must agree on a new pitch level (at a low frame rate,
 0.5 s may be one or two frames)."""
 
+JUMP_STATE = "odometry_jump"
+"""The odometry state a run's outputs give a frame whose rotation is a jump (``frames.csv``'s
+``odometry_state``, ``run.json``'s ``odometry_states``, the overlay's header), whatever state
+the odometry itself reported (it tracked, so ``ok``): its θ is not trusted."""
+
+
+def shown_state(state: str, jump: bool) -> str:
+    """The odometry ``state`` of a frame as its outputs give it: :data:`JUMP_STATE` when its
+    rotation is a jump."""
+    return JUMP_STATE if jump else state
+
 
 class JumpVerdict(str, Enum):
     """What :class:`PitchJumpGuard` says of one frame's rotation."""

@@ -338,7 +338,7 @@ class OursEstimator(Estimator):
         )
         if self._keep_predicted:
             self._keep_frame(match, fused, distance, uid, targets)
-        if cfg.self_calibrate:
+        if cfg.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
@@ -516,7 +516,9 @@ class OursEstimator(Estimator):
         calib: CalibrationInUse,
     ) -> None:
         """Give the self-calibration the targets of tightly sized classes whose box is not cut
-        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps."""
+        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps (of a
+        frame with a measured θ only: the caller skips one without a rotation or with an
+        odometry jump, whose resting θ is no measurement)."""
         cam, n = self.camera, uid.shape[0]
         classes = targets.classes
         usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
