@@ -114,6 +114,26 @@ def test_gradient_tracker_matches_vectorised_gradients_with_gaps() -> None:
     np.testing.assert_allclose(streamed, ego_gradients(track), equal_nan=True, atol=1e-12)
 
 
+def test_a_nan_rotation_in_a_stream_is_no_rotation_as_in_batch() -> None:
+    """A NaN rotation (FrameStep's "no rotation") was kept in the look-back: θ NaN a second
+    later where batch (``valid`` False) looked past it, and the rotation a jump frame's
+    estimator got when the jump came next."""
+    t = 0.1 * np.arange(16)
+    R = np.stack([Rotation.from_euler("X", 0.02 * k, degrees=True).as_matrix() for k in t])
+    R[2] = np.nan
+    R[3] = Rotation.from_euler("X", 6.0, degrees=True).as_matrix()  # a jump after the NaN
+    track = RotationTrack.from_arrays(t, R, np.isfinite(R).all(axis=(1, 2)))
+    tracker = EgoGradientTracker()
+    streamed = []
+    for k in range(len(t)):
+        streamed.append(tracker.update(float(t[k]), R[k]))
+        if k == 3:
+            assert tracker.jump
+            np.testing.assert_array_equal(tracker.trusted_rotation, R[1])
+    assert np.isfinite(streamed[12])
+    np.testing.assert_allclose(streamed, ego_gradients(track), equal_nan=True, atol=1e-12)
+
+
 def test_timestamps_going_backwards_are_an_error() -> None:
     step = FrameStep(make_estimator("ego", CAMERA))
     empty = BoxTable.empty()

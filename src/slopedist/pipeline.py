@@ -94,12 +94,12 @@ class EgoGradientTracker:
         self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None, segment: int = 0
     ) -> float:
         """Add a frame of odometry ``segment`` and return its θ in radians (NaN when
-        ``R_world_cam`` is None or an odometry jump: then :attr:`jump` is True)."""
+        ``R_world_cam`` is None or not finite, not kept, or an odometry jump: :attr:`jump`)."""
         if segment != self.segment:
             self._history.clear()
             self._guard.reset()
             self.segment = segment
-        if R_world_cam is None:
+        if R_world_cam is None or not np.isfinite(R_world_cam).all():
             self.jump = False
             return math.nan
         R = np.asarray(R_world_cam, dtype=float)

@@ -135,3 +135,16 @@ def test_trusted_rotations_hold_the_last_trusted_rotation_over_jumps() -> None:
     track = RotationTrack.from_arrays(0.1 * np.arange(5), R, valid)
     held = trusted_rotations(track, track_jumps(track))
     np.testing.assert_array_equal(held[[0, 2, 3, 4]], R[[0, 0, 0, 4]])
+
+
+def test_a_frame_back_near_the_trusted_level_after_a_small_glitch_is_kept() -> None:
+    # 3.2° is a jump at 10 Hz (bound 2.5°); the next frame, 0.8° from the trusted level, is
+    # within reach of the glitch too: it is kept, not the start of 0.5 s of jumps
+    got = verdicts([0.1 * k for k in range(8)], [0, 0, 0, 3.2, 0.8, 0.8, 0.5, 0.2])
+    assert got == [JumpVerdict.KEPT] * 3 + [JumpVerdict.JUMP] + [JumpVerdict.KEPT] * 4
+
+
+def test_a_small_step_that_persists_is_still_held_until_it_settles() -> None:
+    # within reach of the trusted level from the second frame on, but nearer to the step
+    got = verdicts([0.1 * k for k in range(12)], [0, 0, 0] + [3.2] * 9)
+    assert got[3:8] == [JumpVerdict.JUMP] * 5 and got[8] is JumpVerdict.NEW_LEVEL

@@ -126,6 +126,17 @@ class PitchJumpGuard:
         dt = max(timestamp_s - level.time_s, 0.0)
         return abs(pitch_rad - level.pitch_rad) <= self.max_rate_rad_s * dt + self.noise_rad
 
+    def _holds_candidate(self, cand: _Level, timestamp_s: float, pitch_rad: float) -> bool:
+        """Whether ``pitch_rad`` continues the jump ``cand``: within its reach, and nearer to
+        it than to the trusted level when within reach of both (a frame back near the trusted
+        level after a jump of a few degrees is kept, not taken for the jump's new level)."""
+        if not self._agrees(cand, timestamp_s, pitch_rad):
+            return False
+        trusted = self._trusted
+        if trusted is None or not self._agrees(trusted, timestamp_s, pitch_rad):
+            return True
+        return abs(pitch_rad - cand.pitch_rad) < abs(pitch_rad - trusted.pitch_rad)
+
     def update(self, timestamp_s: float, R_world_cam: NDArray[np.float64] | None) -> JumpVerdict:
         """The verdict on the frame at ``timestamp_s`` (seconds, increasing); a frame without
         a (finite) rotation is :attr:`JumpVerdict.KEPT` and changes nothing."""
@@ -136,7 +147,7 @@ class PitchJumpGuard:
             return JumpVerdict.KEPT
         here = _Level(timestamp_s, pitch, timestamp_s)
         cand = self._candidate
-        if cand is not None and self._agrees(cand, timestamp_s, pitch):
+        if cand is not None and self._holds_candidate(cand, timestamp_s, pitch):
             self._candidate = here = _Level(timestamp_s, pitch, cand.since_s, cand.frames + 1)
             if here.frames < self.settle_frames or timestamp_s - here.since_s < self.settle_s:
                 return JumpVerdict.JUMP
