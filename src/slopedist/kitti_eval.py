@@ -156,7 +156,7 @@ class KittiEvalConfig:
                 f"whose box bottom is at or above the vanishing line (u <= v) or less than "
                 f"{MIN_RESOLVED_PX:g} px below it, or whose distance the image does not resolve "
                 f"(a box under {MIN_RESOLVED_PX:g} px tall, a distance beyond f*h/"
-                f"{MIN_RESOLVED_PX:g} px), counts as {self.cap_m:g} m"
+                f"{MIN_RESOLVED_PX:g} m, f in px and h in m), counts as {self.cap_m:g} m"
             ),
             "overall": (
                 "pooled over all targets of the sequences each method ran on "

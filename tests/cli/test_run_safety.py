@@ -347,11 +347,11 @@ def test_run_counts_the_box_rows_its_reader_left_out(
         assert main(["run", *args, "--out", str(out), "--odometry", "none"]) == 0
     summary = json.loads((out / "run.json").read_text())
     assert summary["dropped_boxes"] == {
-        "category_id 1 (not a vehicle class)": 2,
+        "category_id 1 (not in the class map)": 2,
         "crowd annotations (iscrowd 1)": 1,
     }
     assert summary["records"] == 1
     assert [r.getMessage() for r in caplog.records] == [
-        f"warning: {coco}: dropped 3 of 4 box rows (75 %): 2 category_id 1 (not a vehicle "
-        "class), 1 crowd annotations (iscrowd 1)"
+        f"warning: {coco}: dropped 3 of 4 box rows (75 %): 2 category_id 1 (not in the class "
+        "map), 1 crowd annotations (iscrowd 1)"
     ]

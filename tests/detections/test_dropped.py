@@ -41,7 +41,7 @@ def test_coco_annotations_left_out_are_counted_by_reason(tmp_path: Path) -> None
     dropped = DroppedBoxes()
     assert len(read_coco(path, dropped=dropped)) == 1
     assert dropped.reasons == {
-        "category_id 1 (not a vehicle class)": 2,
+        "category_id 1 (not in the class map)": 2,
         "crowd annotations (iscrowd 1)": 1,
     }
     assert dropped.count == 3
@@ -52,7 +52,7 @@ def test_yolo_labels_of_classes_not_in_classes_txt_are_counted(tmp_path: Path) -
     (tmp_path / "f_000001.txt").write_text("0 0.5 0.5 0.1 0.1\n1 0.2 0.2 0.1 0.1\n")
     dropped = DroppedBoxes()
     assert len(read_yolo_folder(tmp_path, (100, 100), dropped=dropped)) == 1
-    assert dropped.reasons == {"class 1 (not a vehicle class)": 1}
+    assert dropped.reasons == {"class 1 (not in the class map)": 1}
 
 
 def test_read_boxes_and_read_box_file_warn_once_per_file(
@@ -67,9 +67,9 @@ def test_read_boxes_and_read_box_file_warn_once_per_file(
     with caplog.at_level(logging.WARNING, logger=LOGGER):
         dropped = DroppedBoxes()
         table = read_box_file(path, min_score=None, dropped=dropped)
-    assert len(table) == 7 and dropped.reasons == {"category_id 1 (not a vehicle class)": 3}
+    assert len(table) == 7 and dropped.reasons == {"category_id 1 (not in the class map)": 3}
     assert [r.getMessage() for r in caplog.records] == [
-        f"warning: {path}: dropped 3 of 10 box rows (30 %): 3 category_id 1 (not a vehicle class)"
+        f"warning: {path}: dropped 3 of 10 box rows (30 %): 3 category_id 1 (not in the class map)"
     ]
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger=LOGGER):

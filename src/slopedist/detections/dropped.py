@@ -26,7 +26,7 @@ class DroppedBoxes:
     """Rows of one box file a reader left out.
 
     Attributes:
-        reasons: ``{reason: rows}``, e.g. ``{"category_id 1 (not a vehicle class)": 25}``.
+        reasons: ``{reason: rows}``, e.g. ``{"category_id 1 (not in the class map)": 25}``.
     """
 
     reasons: dict[str, int] = field(default_factory=dict)

@@ -280,7 +280,7 @@ def read_coco(
             raise InputFileError(path, "expected [x, y, width, height]", field=f"[{i}].bbox")
         xywh = [_coco_number(path, i, {"bbox": b}, "bbox", float) for b in bbox]
         if category not in cmap:
-            dropped.add(f"category_id {category} (not a vehicle class)")
+            dropped.add(f"category_id {category} (not in the class map)")
             continue
         if item.get("iscrowd") in (1, True):
             dropped.add("crowd annotations (iscrowd 1)")
@@ -359,7 +359,7 @@ def read_yolo_folder(
             score = _parse(path, lineno, "conf", tok[5], score_value) if len(tok) > 5 else np.nan
             tid = _parse(path, lineno, "track_id", tok[6], _int) if len(tok) > 6 else NO_TRACK
             if cls not in cmap:
-                dropped.add(f"class {cls} (not a vehicle class)")
+                dropped.add(f"class {cls} (not in the class map)")
                 continue
             frames.append(frame)
             xywh = [(c[0] - c[2] / 2) * w, (c[1] - c[3] / 2) * h, c[2] * w, c[3] * h]

@@ -6,7 +6,7 @@ Streets*, crest and sag curves: a rate of vertical curvature K of metres per per
 change), a few degrees per second at most at any speed a curve is designed for; a car body
 pitches a few degrees under hard braking or acceleration, over about half a second (the
 suspension's pitch mode is about 1–1.5 Hz). Together they change the camera's pitch by well
-under :data:`MAX_PITCH_RATE_RAD_S` (20°/s); the 13 KITTI tracking drives stay under 7.5°/s
+under :data:`MAX_PITCH_RATE_RAD_S` (20°/s); the 13 KITTI tracking drives pitch by at most 7.2°/s
 frame to frame, with ORB-SLAM3 or OXTS rotations alike. A rotation whose pitch departs from
 the last trusted one by more than that rate over the time between them, plus the odometry's
 noise (:data:`PITCH_NOISE_RAD`), is an odometry glitch (a visual-odometry or pose-file jump of
