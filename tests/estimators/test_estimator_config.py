@@ -86,6 +86,18 @@ def test_ours_options_reach_ours_and_ours_selfcal() -> None:
     assert cfg.options("paper").keys() == {"adjustment"} and cfg.options("flat") == {}
 
 
+def test_generic_classes_reach_the_methods_built_on_ours() -> None:
+    """``generic_classes`` (``--generic-class``) become option ``generic_classes`` of ``ours``,
+    ``ours-selfcal`` and ``ours-offline``; other methods ignore them; a bare text is refused."""
+    cfg = EstimatorConfig("ours", generic_classes=("car",))
+    for method in ("ours", "ours-selfcal", "ours-offline"):
+        est = build_estimator(cfg.with_method(method), CAMERA)
+        assert isinstance(est, OursEstimator) and est.config.generic_classes == ("car",)
+    assert "generic_classes" not in cfg.options("paper") and cfg.options("flat") == {}
+    with pytest.raises(ConfigurationError, match="collection of class names"):
+        EstimatorConfig("ours", generic_classes="car")  # type: ignore[arg-type]
+
+
 @pytest.mark.parametrize(
     ("text", "expected"),
     [

@@ -57,3 +57,16 @@ def test_the_kept_constants_are_bounded(monkeypatch: pytest.MonkeyPatch) -> None
         want = fresh.gather(np.array(names, dtype=object))
         assert np.array_equal(got.hypotheses.half_extent_m, want.hypotheses.half_extent_m)
         assert len(table._kept) <= 2
+
+
+def test_generic_names_are_compared_without_regard_to_case() -> None:
+    """A generic (or σ-only generic) class name matches a box's class whatever its case and
+    surrounding spaces, as ``--vehicle-classes`` do: a detector's ``car`` is ``--generic-class
+    Car``'s; until then only the exact spelling was generic."""
+    names = np.array(["Car", " CAR ", "Van"], dtype=object)
+    generic = ClassTable(None, yaw_grid(), ("Car",)).gather(names).generic
+    assert generic.tolist() == [True, True, False]
+    spread = ClassTable(None, yaw_grid(), spread_classes=("cAr",)).gather(names)
+    assert spread.type_moments is not None
+    assert not np.array_equal(spread.type_moments[0], spread.type_moments[2])
+    assert np.array_equal(spread.type_moments[0], spread.type_moments[1])

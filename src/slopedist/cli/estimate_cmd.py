@@ -8,7 +8,12 @@ from pathlib import Path
 
 import click
 
-from slopedist.cli.method_options import check_methods, estimator_options
+from slopedist.cli.method_options import (
+    check_methods,
+    estimator_options,
+    generic_class_option,
+    ours_config,
+)
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.detections.boxes import BoxTable
@@ -29,6 +34,7 @@ from slopedist.pipeline import FrameStep, close_records, iter_records, open_reco
 @vehicle_classes_option
 @lookback_option
 @estimator_options()
+@generic_class_option
 def estimate(
     files: SequenceFiles,
     method: str,
@@ -36,11 +42,13 @@ def estimate(
     vehicle_classes: tuple[str, ...],
     lookback_s: float,
     estimator_config: EstimatorConfig,
+    generic_classes: tuple[str, ...],
 ) -> None:
     """Estimate per-target distances for one sequence, streaming frame by frame.
 
     An offline method (ours-offline) writes its records when the sequence ends."""
     check_methods([method])
+    config = ours_config(estimator_config, method, generic_classes, vehicle_classes)
     if getattr(ESTIMATORS.get(method), "needs_depth", False):  # every record would be no_depth
         raise ConfigurationError(
             f"method '{method}' needs depth maps, which slopedist estimate does not take: use "
@@ -49,7 +57,7 @@ def estimate(
         )
     check_outputs_spare_inputs([out], files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
-    estimator = build_estimator(estimator_config.with_method(method), seq.camera)
+    estimator = build_estimator(config, seq.camera)
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     writer = open_records(out)
     n = 0

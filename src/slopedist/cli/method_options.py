@@ -5,6 +5,7 @@ estimators' settings (``--alphas``, ``--thresholds``, ``--reference``, ``--ours-
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -13,12 +14,14 @@ from typing import Any
 import click
 
 from slopedist.cli.options import apply_options, split_list
+from slopedist.detections.boxes import class_key
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import (
     ESTIMATORS,
     OFFLINE_COUNTERPARTS,
     EstimatorConfig,
     available_methods,
+    takes_ours_options,
     with_offline,
 )
 from slopedist.estimators.base import VEHICLE_REFERENCES
@@ -101,6 +104,60 @@ ours_option = click.option(
     help="ours, ours-selfcal: set one of its options, e.g. odd_object_weight=0 or "
     "size_learning=true (repeatable; docs/method.md lists them).",
 )
+
+
+def _generic_class_names(
+    ctx: click.Context, param: click.Parameter, value: tuple[str, ...]
+) -> tuple[str, ...]:
+    names = tuple(v.strip() for v in value)
+    if not all(names):
+        raise click.BadParameter("names no class; give a class name", param_hint="--generic-class")
+    return names
+
+
+generic_class_option = click.option(
+    "--generic-class",
+    "generic_classes",
+    multiple=True,
+    metavar="NAME",
+    callback=_generic_class_names,
+    help="ours, ours-selfcal, ours-offline: a class name the detector gives to any vehicle "
+    "type (a class-blind detector's 'car' for vans, trucks and buses too; case-insensitive): "
+    "ours reads it as a mixture of car/van/truck/bus (with --ours-option "
+    "generic_sigma_only=true in the σ only). Repeatable.",
+)
+
+
+def ours_config(
+    config: EstimatorConfig,
+    method: str,
+    generic_classes: tuple[str, ...],
+    vehicle_classes: tuple[str, ...],
+) -> EstimatorConfig:
+    """``config`` for ``method`` with the ``--generic-class`` names ``generic_classes``; a usage
+    error for a generic class given to a method that is not ``ours`` or built on it, a generic
+    class that is not one of ``vehicle_classes`` (its boxes are not estimated), or
+    ``--ours-option generic_sigma_only=true`` without a generic class (it would do nothing)."""
+    ours = takes_ours_options(method)
+    if generic_classes and not ours:
+        methods = ", ".join(m for m in available_methods() if takes_ours_options(m))
+        raise click.UsageError(
+            f"--generic-class is for methods {methods}; the method is '{method}'"
+        )
+    vehicles = {class_key(c) for c in vehicle_classes}
+    unscored = [c for c in generic_classes if class_key(c) not in vehicles]
+    if unscored:
+        raise click.UsageError(
+            f"--generic-class {unscored[0]}: not one of --vehicle-classes "
+            f"({', '.join(vehicle_classes)}), so its boxes get no distance; add it there"
+        )
+    if ours and not generic_classes and dict(config.ours_options).get("generic_sigma_only"):
+        raise click.UsageError(
+            "--ours-option generic_sigma_only=true applies to generic classes and none is "
+            "given: name the class your detector gives to any vehicle with --generic-class "
+            "NAME (e.g. --generic-class car)"
+        )
+    return dataclasses.replace(config.with_method(method), generic_classes=generic_classes)
 
 
 def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:

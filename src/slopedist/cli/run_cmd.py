@@ -17,7 +17,13 @@ from typing import Any
 
 import click
 
-from slopedist.cli.method_options import check_methods, estimator_options, parse_triple
+from slopedist.cli.method_options import (
+    check_methods,
+    estimator_options,
+    generic_class_option,
+    ours_config,
+    parse_triple,
+)
 from slopedist.cli.options import (
     FINITE_FLOAT,
     FPS,
@@ -310,6 +316,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 @mount_option
 @lookback_option
 @estimator_options(depth=True)
+@generic_class_option
 @detector_options("detector-")
 def run(  # noqa: PLR0913 (a click command: one parameter per option)
     frames: Path,
@@ -339,6 +346,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     mount_angle_deg: float,
     lookback_s: float,
     estimator_config: EstimatorConfig,
+    generic_classes: tuple[str, ...],
     depth_opts: DepthOptions,
     **detector_opts: Any,
 ) -> None:
@@ -375,7 +383,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         odometry=odometry,
         vocab=vocab,
         lookback_s=lookback_s,
-        estimator=estimator_config.with_method(method),
+        estimator=ours_config(estimator_config, method, generic_classes, vehicle_classes),
         depth=depth_factory(depth_opts),
     )
     outputs = RunOutputs(

@@ -129,14 +129,20 @@ def cut_labels(cuts: NDArray[np.bool_]) -> NDArray[np.object_]:
     return _CUT_LABELS[c.dot(_EDGE_BITS)]
 
 
+def class_key(name: object) -> str:
+    """A class name as class names are compared (:func:`vehicle_mask`, the generic classes
+    of ``ours``): case and surrounding spaces ignored."""
+    return str(name).strip().lower()
+
+
 def vehicle_mask(
     classes: ArrayLike, vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES
 ) -> NDArray[np.bool_]:
     """Per box, whether its class name is one of ``vehicle_classes`` (case-insensitive,
     surrounding spaces ignored)."""
-    wanted = {str(c).strip().lower() for c in vehicle_classes}
+    wanted = {class_key(c) for c in vehicle_classes}
     names = np.asarray(classes, dtype=object).reshape(-1)
-    return np.array([str(c).strip().lower() in wanted for c in names], dtype=bool)
+    return np.array([class_key(c) in wanted for c in names], dtype=bool)
 
 
 def iou_matrix(boxes_a: ArrayLike, boxes_b: ArrayLike) -> NDArray[np.float64]:

@@ -163,6 +163,9 @@ class EstimatorConfig:
         ours_options: ``(name, value)`` settings of ``ours`` and ``ours-selfcal``
             (:class:`~slopedist.estimators.ours.config.OursConfig` fields, e.g. from
             ``--ours-option``, :func:`~slopedist.estimators.ours.config.parse_option`).
+        generic_classes: class names ``ours`` reads as generic, a mixture of vehicle types
+            (its option ``generic_classes``; ``--generic-class``): those a class-blind
+            detector gives every vehicle, e.g. ``("car",)``; compared without regard to case.
 
     Raises:
         ConfigurationError: an unknown method, eq. 7 steps that are not three finite numbers
@@ -179,6 +182,7 @@ class EstimatorConfig:
     depth_scaling: DepthScaling = DepthScaling.NONE
     reference: str | None = None
     ours_options: tuple[tuple[str, Any], ...] = ()
+    generic_classes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "method", _method_name(self.method))
@@ -197,6 +201,8 @@ class EstimatorConfig:
             )
         if self.reference is not None:
             ours["reference"] = self.reference
+        if self.generic_classes:
+            ours["generic_classes"] = self.generic_classes
         OursConfig(**ours)  # the ranges of the ours options and the reference
         try:
             object.__setattr__(self, "depth_sample", DepthSample(self.depth_sample))
@@ -225,6 +231,8 @@ class EstimatorConfig:
             }
         if takes_ours_options(method or self.method):
             ours = dict(self.ours_options)
+            if self.generic_classes:
+                ours["generic_classes"] = tuple(self.generic_classes)
             return ours if self.reference is None else ours | {"reference": self.reference}
         return {}
 

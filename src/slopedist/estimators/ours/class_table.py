@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.detections.boxes import class_key
 from slopedist.estimators.ours import cues
 from slopedist.estimators.ours.priors import (
     VEHICLE_TYPE_MIXTURE,
@@ -100,7 +101,9 @@ class ClassTable:
         priors: class → dimension prior (None = the built-in table).
         yaw_rad: ``(K,)`` the heading hypotheses.
         generic_classes: class names that do not name the vehicle type (a class-blind
-            detector's one class): their targets are read under ``type_mixture``.
+            detector's one class): their targets are read under ``type_mixture``. Names are
+            compared without regard to case or surrounding spaces, as the vehicle classes
+            are (:func:`~slopedist.detections.boxes.vehicle_mask`).
         type_mixture: ``(name, prior, weight)`` per vehicle type.
         spread_classes: class names read as generic for the σ only: their hypotheses are
             their own class's, and :attr:`TargetClasses.type_moments` carries
@@ -121,11 +124,11 @@ class ClassTable:
         spread_classes: tuple[str, ...] = (),
     ) -> None:
         self._priors = priors
-        self._spread_names = frozenset(spread_classes)
+        self._spread_names = frozenset(class_key(c) for c in spread_classes)
         self._type_moments: list[FloatArray] = []
         self._n_modes = n_modes
         self._yaw = yaw_rad
-        self._generic_names = frozenset(generic_classes)
+        self._generic_names = frozenset(class_key(c) for c in generic_classes)
         self._mixture = type_mixture
         self._index: dict[object, int] = {}
         self._rows: list[tuple[float, ...]] = []
@@ -192,10 +195,10 @@ class ClassTable:
         """A new class name's prior and its vehicle types."""
         prior = resolve_prior(name, self._priors)
         self._rows.append(prior_row(prior))
-        generic = name in self._generic_names
+        generic = class_key(name) in self._generic_names
         rows, log_weight = type_rows(prior, self._mixture, generic)
         self._generic_rows.append(generic)
-        if name in self._spread_names:
+        if class_key(name) in self._spread_names:
             self._type_moments.append(type_moments(prior, self._mixture))
         else:  # one type (itself), the others of no weight
             own = np.zeros((len(self._mixture), 3))
@@ -216,7 +219,9 @@ class ClassTable:
         self._generic = np.array(self._generic_rows, dtype=bool)
         if self._spread_names:
             self._spread = np.asarray(self._type_moments, dtype=float)
-            self._is_spread = np.array([n in self._spread_names for n in self._index], bool)
+            self._is_spread = np.array(
+                [class_key(n) in self._spread_names for n in self._index], bool
+            )
         if self._generic_names:
             n_types = len(self._mixture)
             by_type = np.asarray(self._type_rows, dtype=float).reshape(-1, n_types, 7)
