@@ -342,9 +342,9 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
     ray_instance: Any, tmp_path: Path
 ) -> None:
     """``slopedist batch`` with per-drive ``reference`` and ``ours_options`` cells and
-    batch-wide values: each drive's records are those of ``slopedist run`` with its options,
-    ``fleet/settings.csv`` lists them, and a second batch runs again exactly the drive whose
-    setting changed (the others are skipped)."""
+    batch-wide values (also ``--generic-class``): each drive's records are those of
+    ``slopedist run`` with its options, ``fleet/settings.csv`` lists them, and a second batch
+    runs again exactly the drive whose setting changed (the others are skipped)."""
     sim = simulate("same_downhill", tmp_path / "sim")
     files = "sim/image_02,sim/calib.txt,sim/boxes.csv,sim/times.txt"
     header = "drive,frames,calib,boxes,timestamps,method,reference,ours_options"
@@ -357,9 +357,10 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
     manifest.write_text("\n".join([header, *rows]) + "\n")
     out = tmp_path / "out"
     batch_args = ["batch", str(manifest), "--out", str(out), "--quiet", "--no-parquet"]
-    batch_wide = ["--reference", "contact", "--ours-option", "use_width=false"]
+    generic = ["--generic-class", "Car"]
+    batch_wide = ["--reference", "contact", "--ours-option", "use_width=false", *generic]
     assert main([*batch_args, *batch_wide]) == 0
-    face = ["--reference", "nearest_face", "--ours-option", "odd_object_weight=0"]
+    face = ["--reference", "nearest_face", "--ours-option", "odd_object_weight=0", *generic]
     expected = {
         "face": ("ours", *face, "--ours-option", "size_learning=true"),
         "batchwide": ("ours", *batch_wide),
@@ -393,6 +394,10 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
         "",
     )
     assert settings["paper"]["reference"] == ""  # the batch-wide reference is ours's only
+    assert (settings["batchwide"]["generic_classes"], settings["paper"]["generic_classes"]) == (
+        "Car",
+        "",
+    )
 
     manifest.write_text(manifest.read_text().replace("nearest_face", "centre"))
     assert main([*batch_args, *batch_wide]) == 0
@@ -400,9 +405,8 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
     assert status == {"face": "done", "batchwide": "skipped", "paper": "skipped"}
     centre = {r["reference"] for r in read_rows(out / "face" / "records.csv") if r["distance_m"]}
     assert centre == {"centre"}
-    assert (
-        main([*batch_args, "--reference", "nearest_face", "--ours-option", "use_width=false"]) == 0
-    )
+    again = ["--reference", "nearest_face", "--ours-option", "use_width=false", *generic]
+    assert main([*batch_args, *again]) == 0
     status = {r["drive"]: r["status"] for r in read_rows(out / "status.csv")}
     assert status == {"face": "skipped", "batchwide": "done", "paper": "skipped"}
 

@@ -264,6 +264,32 @@ def test_run_settings_columns_and_batch_wide_values(tmp_path: Path) -> None:
     assert "reference" not in spec_summary(c, changed_only=True)
 
 
+def test_generic_classes_column_and_batch_wide_value(tmp_path: Path) -> None:
+    """A ``generic_classes`` cell (``--generic-class``) reaches the drive's ``ours``; an empty
+    one takes the batch-wide classes, which a ``paper`` drive does not take; a batch-wide
+    ``generic_sigma_only=true`` is refused on a drive left without a generic class."""
+    batch = RunSettings(generic_classes=("Car",))
+    manifest = write(
+        tmp_path / "drives.csv",
+        SETTINGS_HEADER
+        + "\n"
+        + settings_row("a", "ours", generic_classes="car ;", ours_options="generic_sigma_only=1")
+        + settings_row("b", "ours-selfcal")
+        + settings_row("c", "paper"),
+    )
+    a, b, c = read_csv_manifest(manifest, DriveDefaults(settings=batch))
+    assert a.settings.estimator(a.method).options()["generic_classes"] == ("car",)
+    assert a.settings.ours_options == (("generic_sigma_only", True),)
+    assert b.settings.estimator(b.method).options()["generic_classes"] == ("Car",)
+    assert c.settings == RunSettings()
+    assert spec_summary(a)["generic_classes"] == ["car"]
+    sigma_only = RunSettings(ours_options=(("generic_sigma_only", True),))
+    text = SETTINGS_HEADER + "\n" + settings_row("a", "ours")
+    with pytest.raises(InputFileError, match="--generic-class NAME") as err:
+        read_csv_manifest(write(tmp_path / "d.csv", text), DriveDefaults(settings=sigma_only))
+    assert err.value.field == "ours_options"
+
+
 @pytest.mark.parametrize(
     ("cells", "field", "message"),
     [
@@ -285,6 +311,9 @@ def test_run_settings_columns_and_batch_wide_values(tmp_path: Path) -> None:
         ({"overlay": "true", "overlay_format": "gif"}, "overlay_format", "mp4, png"),
         ({"overlay_format": "png"}, "overlay_format", "drives with an overlay"),
         ({"export": "mcap;bag"}, "export", "'bag' is not one of mcap, tum"),
+        ({"generic_classes": " ; "}, "generic_classes", "names no class"),
+        ({"generic_classes": "Tram"}, "generic_classes", "'Tram' is not one of the vehicle"),
+        ({"ours_options": "generic_sigma_only=true"}, "ours_options", "column generic_classes"),
     ],
 )
 def test_run_settings_cell_errors_name_line_and_field(
@@ -303,6 +332,7 @@ def test_run_settings_cell_errors_name_line_and_field(
         ("paper", {"ours_options": "use_width=false"}, "ours_options", "is for methods ours,"),
         ("flat", {"reference": "contact"}, "reference", "this drive's method is 'flat'"),
         ("paper", {"offline": "true"}, "offline", "method 'paper' has no offline mode"),
+        ("paper", {"generic_classes": "car"}, "generic_classes", "is for methods ours,"),
     ],
 )
 def test_run_settings_for_a_method_that_does_not_take_them(

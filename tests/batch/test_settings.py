@@ -82,6 +82,7 @@ def test_settings_cells_read_back_as_the_same_settings() -> None:
         overlay=True,
         overlay_format="png",
         export=("tum", "mcap"),
+        generic_classes=("car",),
     )
     cells = {k: settings_cell(v) for k, v in settings_json(settings.__dict__).items()}
     assert cells["ours_options"] == "gate_sigma=4.5;size_evidence_time_s=none;use_width=false"
@@ -102,3 +103,6 @@ def test_batch_wide_values_no_drive_takes_are_warned_about() -> None:
     assert [w.split()[0] for w in warnings] == ["--reference", "--ours-option", "--offline"]
     assert all(w.endswith("(methods: flat, paper)") for w in warnings)
     assert unapplied(RunSettings(), ["paper"]) == []
+    generic = RunSettings(generic_classes=("car",))
+    assert unapplied(generic, ["ours-offline"]) == []
+    assert unapplied(generic, ["paper"])[0].startswith("--generic-class applies to no drive")

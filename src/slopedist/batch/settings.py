@@ -1,6 +1,6 @@
 """The ``slopedist run`` settings of a batch drive beyond its inputs and camera: the reference
-point of ``distance_m``, the options of ``ours``, the vehicle classes, the offline mode, the
-overlay and the exports (:class:`RunSettings`).
+point of ``distance_m``, the options of ``ours`` and its generic classes, the vehicle classes,
+the offline mode, the overlay and the exports (:class:`RunSettings`).
 
 Each is a manifest column (:data:`SETTING_COLUMNS`, CSV and TOML) and a batch-wide option of
 ``slopedist batch`` (the ``slopedist run`` option of the same name); an empty cell takes the
@@ -11,10 +11,13 @@ batch-wide options as a whole). The cells are parsed by the parsers of ``slopedi
 items separates them with ``;`` (:data:`LIST_SEPARATOR`): ``odd_object_weight=0;size_learning=
 true``, ``Car;Van;Truck``, ``mcap;tum`` (a comma would need quoting in a CSV file).
 
-A batch-wide value applies to the drives whose method takes it (``reference`` and
-``ours_options``: ``ours``, ``ours-selfcal``, ``ours-offline``; ``offline``: the methods with an
-offline mode), so one batch can compare ``ours`` with ``paper``; a cell for a method that does
-not take it is an error, as is an ``overlay_format`` cell of a drive without an overlay.
+A batch-wide value applies to the drives whose method takes it (``reference``,
+``ours_options`` and ``generic_classes``: ``ours``, ``ours-selfcal``, ``ours-offline``;
+``offline``: the methods with an offline mode), so one batch can compare ``ours`` with
+``paper``; a cell for a method that does not take it is an error, as is an ``overlay_format``
+cell of a drive without an overlay, a generic class that is not one of the drive's vehicle
+classes, and an ``ours`` drive with ``generic_sigma_only=true`` but no generic class (as for
+``slopedist run``).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, class_key, vehicle_class_names
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import (
     EstimatorConfig,
@@ -42,6 +45,7 @@ LIST_SEPARATOR = OPTION_SEPARATOR
 SETTING_COLUMNS = (
     "reference",
     "ours_options",
+    "generic_classes",
     "vehicle_classes",
     "offline",
     "overlay",
@@ -62,6 +66,8 @@ class RunSettings:
         reference: the point of the vehicle ``distance_m`` refers to (``centre``,
             ``nearest_face``, ``contact``; ``--reference``), None for the method's own.
         ours_options: ``(key, value)`` options of ``ours`` (``--ours-option``), sorted by key.
+        generic_classes: class names ``ours`` reads as a mixture of vehicle types
+            (``--generic-class``; a class-blind detector's class).
         vehicle_classes: class names scored as vehicles (``--vehicle-classes``).
         offline: run the method's offline mode (``--offline``: ``ours`` → ``ours-offline``).
         overlay: also write annotated frames (``--overlay``), as ``overlay_format``
@@ -77,6 +83,7 @@ class RunSettings:
     overlay: bool = False
     overlay_format: str = OverlayFormat.MP4.value
     export: tuple[str, ...] = ()
+    generic_classes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ours_options", tuple(sorted(self.ours_options)))
@@ -92,6 +99,7 @@ class RunSettings:
             method=self.run_method(method),
             reference=self.reference,
             ours_options=self.ours_options,
+            generic_classes=self.generic_classes,
         )
 
     def changed(self) -> dict[str, Any]:
@@ -140,9 +148,17 @@ def _flag(text: str) -> bool:
         raise ConfigurationError(f"'{text.strip()}' is not true or false") from None
 
 
+def _class_names(text: str) -> tuple[str, ...]:
+    names = tuple(_items(text))
+    if not names:
+        raise ConfigurationError("names no class")
+    return names
+
+
 CELL_PARSERS: dict[str, Callable[[str], Any]] = {
     "reference": lambda text: parse_reference(text).value,
     "ours_options": parse_option_list,
+    "generic_classes": _class_names,
     "vehicle_classes": lambda text: vehicle_class_names(_items(text)),
     "offline": _flag,
     "overlay": _flag,
@@ -152,8 +168,12 @@ CELL_PARSERS: dict[str, Callable[[str], Any]] = {
 """How each cell of :data:`SETTING_COLUMNS` is read (raising ConfigurationError)."""
 
 
+OURS_COLUMNS = ("reference", "ours_options", "generic_classes")
+"""The setting columns of the methods built on ``ours`` (:func:`ours_methods`)."""
+
+
 def ours_methods() -> list[str]:
-    """The methods that take ``reference`` and ``ours_options``."""
+    """The methods that take ``reference``, ``ours_options`` and ``generic_classes``."""
     return [m for m in available_methods() if takes_ours_options(m)]
 
 
@@ -183,7 +203,7 @@ def drive_settings(
             except ConfigurationError as exc:
                 raise where(column, str(exc)) from None
     ours = takes_ours_options(method)
-    for column in ("reference", "ours_options"):
+    for column in OURS_COLUMNS:
         if column in given and not ours:
             raise where(
                 column,
@@ -195,6 +215,7 @@ def drive_settings(
     settings: dict[str, Any] = {
         "reference": batch.reference if ours else None,
         "ours_options": batch.ours_options if ours else (),
+        "generic_classes": batch.generic_classes if ours else (),
         "vehicle_classes": batch.vehicle_classes,
         "offline": batch.offline and problem is None,
         "overlay": batch.overlay,
@@ -203,7 +224,31 @@ def drive_settings(
     } | given
     if "overlay_format" in given and not settings["overlay"]:
         raise where("overlay_format", "is for drives with an overlay (overlay = true)")
+    mistake = _generic_problem(settings)
+    if mistake:
+        raise where(*mistake)
     return RunSettings(**settings)
+
+
+def _generic_problem(settings: Mapping[str, Any]) -> tuple[str, str] | None:
+    """``(column, message)`` for generic classes that are not vehicle classes (their boxes
+    get no distance), or for ``generic_sigma_only=true`` without a generic class (it would do
+    nothing); None when neither."""
+    vehicles = {class_key(c) for c in settings["vehicle_classes"]}
+    unscored = [c for c in settings["generic_classes"] if class_key(c) not in vehicles]
+    if unscored:
+        return "generic_classes", (
+            f"'{unscored[0]}' is not one of the vehicle classes "
+            f"({LIST_SEPARATOR.join(settings['vehicle_classes'])}), so its boxes get no "
+            "distance; add it to vehicle_classes"
+        )
+    if dict(settings["ours_options"]).get("generic_sigma_only") and not settings["generic_classes"]:
+        return "ours_options", (
+            "generic_sigma_only=true applies to generic classes and this drive has none: name "
+            "the class the detector gives to any vehicle in column generic_classes (or "
+            "--generic-class NAME)"
+        )
+    return None
 
 
 def settings_json(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -235,7 +280,8 @@ def settings_cell(value: Any) -> Any:
 
 
 def unapplied(batch: RunSettings, drive_methods: Iterable[str]) -> list[str]:
-    """Warnings for batch-wide ``reference``, ``ours_options`` and ``offline`` values that no
+    """Warnings for batch-wide ``reference``, ``ours_options``, ``generic_classes`` and
+    ``offline`` values that no
     drive takes (none of the drives' methods ``drive_methods`` is one they apply to), so that
     a batch of ``paper`` drives given ``--offline`` says it ran them causally."""
     methods = list(drive_methods)
@@ -244,6 +290,7 @@ def unapplied(batch: RunSettings, drive_methods: Iterable[str]) -> list[str]:
     given = {
         "--reference": batch.reference is not None and not ours,
         "--ours-option": bool(batch.ours_options) and not ours,
+        "--generic-class": bool(batch.generic_classes) and not ours,
         "--offline": batch.offline and not offline,
     }
     return [

@@ -11,6 +11,7 @@ from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
 from slopedist.batch.settings import RunSettings, unapplied
 from slopedist.cli.method_options import (
     check_methods,
+    generic_class_option,
     ours_option,
     parse_ours_options,
     reference_option,
@@ -79,6 +80,7 @@ from slopedist.run_setup import ODOMETRY_CHOICES
 @lookback_option
 @reference_option
 @ours_option
+@generic_class_option
 @vehicle_classes_option
 @run_offline_option
 @overlay_option
@@ -102,6 +104,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     lookback_s: float,
     reference: str | None,
     ours_options: tuple[str, ...],
+    generic_classes: tuple[str, ...],
     vehicle_classes: tuple[str, ...],
     offline: bool,
     overlay: bool,
@@ -115,9 +118,9 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     use its camera_info instead), boxes and optionally method, the log's image_topic,
     rotation_topic and speed_topic and other `run` options (paths relative to the manifest;
     list cells such as ours_options separate their items with ';'). The options here are the
-    values of the drives that leave a cell empty (--reference, --ours-option and --offline
-    apply to the drives whose method takes them; --image-topic to drive logs). Complete
-    drives with unchanged inputs and settings are skipped; a failed drive is recorded in
+    values of the drives that leave a cell empty (--reference, --ours-option, --generic-class
+    and --offline apply to the drives whose method takes them; --image-topic to drive logs).
+    Complete drives with unchanged inputs and settings are skipped; a failed drive is recorded in
     OUT/status.csv and does not stop the others. Exit code 1 when every drive failed, or at a
     failure with --fail-fast. Needs Ray: pip install 'slopedist[batch]'.
     """
@@ -131,6 +134,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
         overlay,
         overlay_format,
         exports,
+        generic_classes,
     )
     defaults = DriveDefaults(
         method, odometry, height_m, mount_angle_deg, lookback_s, settings, image_topic
