@@ -117,6 +117,8 @@ def test_parse_ours_option(text: str, expected: tuple) -> None:
     [
         ("bogus=1", "choose from .*odd_object_weight"),
         ("priors=x", "not an ours option settable here"),
+        ("generic_classes=car", "use --generic-class NAME"),
+        ("reference=contact", "use --reference"),
         ("box_sigma_px=inf", "'inf' is not a float"),
         ("min_iou=1.5", r"min_iou must be in \[0, 1\]"),
         ("=3", "is not KEY=VALUE"),

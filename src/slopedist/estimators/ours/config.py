@@ -143,7 +143,9 @@ class OursConfig:
         priors: class → dimension prior (None = the built-in table).
         generic_classes: class names that do not name the vehicle type, e.g. ``("Car",)`` for
             a class-blind detector that calls vans, trucks and buses ``Car`` (PointRCNN's and
-            RRC's boxes; ``slopedist eval kitti-tracking`` sets it for detector boxes): their
+            RRC's boxes; ``slopedist eval kitti-tracking --generic-class`` sets it for detector
+            boxes, ``slopedist run/estimate --generic-class NAME`` to NAME; compared without
+            regard to case): their
             size cues are read under ``type_mixture``
             (:mod:`~slopedist.estimators.ours.vehicle_types`; the body-style modes of
             ``atypical_height_weight`` are then not used in that frame).
@@ -316,6 +318,14 @@ annotation); fields of other kinds (priors, mixtures, nested settings, and ``ref
 ``generic_classes``, which have options of their own) are not set this way."""
 
 
+OWN_OPTIONS = {
+    "reference": "--reference (a batch manifest: column reference)",
+    "generic_classes": "--generic-class NAME, repeatable (a batch manifest: column "
+    "generic_classes)",
+}
+"""The fields that have an option of their own, with it (named when ``KEY=VALUE`` gives one)."""
+
+
 def settable_options() -> list[str]:
     """The :class:`OursConfig` fields :func:`parse_option` sets (sorted)."""
     return sorted(f.name for f in fields(OursConfig) if str(f.type) in _OPTION_PARSERS)
@@ -335,6 +345,8 @@ def parse_option(text: str) -> tuple[str, bool | float | None]:
         raise ConfigurationError(f"'{text}' is not KEY=VALUE")
     kinds = {f.name: str(f.type) for f in fields(OursConfig)}
     parser = _OPTION_PARSERS.get(kinds.get(key, ""))
+    if key in OWN_OPTIONS:
+        raise ConfigurationError(f"'{key}' is not set as KEY=VALUE: use {OWN_OPTIONS[key]}")
     if parser is None:
         raise ConfigurationError(
             f"'{key}' is not an ours option settable here; choose from "
