@@ -43,14 +43,8 @@ def test_a_generic_class_reaches_ours(van_called_car: list[str], tmp_path: Path)
     name is compared without regard to case, as ``--vehicle-classes`` are."""
     given = _last_row(van_called_car, tmp_path / "given.csv")
     mixture = _last_row(van_called_car, tmp_path / "mixture.csv", "--generic-class", "CAR")
-    sigma_only = _last_row(
-        van_called_car,
-        tmp_path / "sigma.csv",
-        "--generic-class",
-        "Car",
-        "--ours-option",
-        "generic_sigma_only=true",
-    )
+    flags = ("--generic-class", "Car", "--ours-option", "generic_sigma_only=true")
+    sigma_only = _last_row(van_called_car, tmp_path / "sigma.csv", *flags)
     assert float(mixture["distance_m"]) != pytest.approx(float(given["distance_m"]), rel=1e-3)
     assert float(mixture["sigma_m"]) > float(given["sigma_m"])
     assert sigma_only["distance_m"] == given["distance_m"]
