@@ -550,6 +550,13 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
     )
     if result.not_vehicles:
         lines.append(not_vehicles_line(result))
+    missing = result.frame_status.get("missing", 0)
+    if 2 * missing > result.frames:
+        lines.append(
+            f"warning: {missing} of the {result.frames} frames are missing (gaps in the files' "
+            "numbers; a file's number is its frame index): if they are named by time, number "
+            "them 0, 1, 2, …"
+        )
     if result.boxes_without_frame:
         lines.append(
             f"warning: {result.boxes_without_frame} boxes refer to frames that are not "
