@@ -31,6 +31,7 @@ from slopedist.cli.options import (
     parse_size,
     vehicle_classes_option,
 )
+from slopedist.cli.record_summary import not_vehicles_line
 from slopedist.cli.run_options import (
     export_option,
     image_topic_option,
@@ -492,25 +493,6 @@ def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunR
             raise SystemExit(128 + exc.__cause__.signum) from None
 
 
-def not_vehicles_line(result: RunResult, shown: int = 5) -> str:
-    """The summary line of the boxes of non-vehicle classes, naming the ``shown`` most frequent
-    classes (a class meant as a vehicle, e.g. a detector's id ``2``, is seen at once); a
-    warning when no box got a distance."""
-    ranked = sorted(result.not_vehicle_classes.items(), key=lambda kv: (-kv[1], kv[0]))
-    names = ", ".join(f"'{name}' ({n})" for name, n in ranked[:shown])
-    more = f" and {len(ranked) - shown} more" if len(ranked) > shown else ""
-    if result.estimated + result.upper_bounds == 0:
-        return (
-            f"warning: no box got a distance; {result.not_vehicles} of {result.records} are of "
-            f"a class that is not a vehicle: {names}{more} (missing, reason not_a_vehicle); name "
-            "the vehicle classes with --vehicle-classes"
-        )
-    return (
-        f"{result.not_vehicles} boxes are not of a vehicle class ({names}{more}; missing, "
-        "reason not_a_vehicle; see --vehicle-classes)"
-    )
-
-
 def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()) -> str:
     """A few lines that tell what a run did and where its output is; ``snapshots``: the frames
     asked for with ``--snapshot`` (those not written, e.g. beyond the last frame or unreadable,
@@ -549,7 +531,13 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
         )
     )
     if result.not_vehicles:
-        lines.append(not_vehicles_line(result))
+        lines.append(
+            not_vehicles_line(
+                result.not_vehicle_classes,
+                result.records,
+                result.estimated + result.upper_bounds,
+            )
+        )
     missing = result.frame_status.get("missing", 0)
     if 2 * missing > result.frames:
         lines.append(
