@@ -14,6 +14,11 @@ MAX_FRAME_GAP = 1_000
 """Most consecutive frame numbers an image folder may lack between two of its files (100 s at
 10 Hz); a larger gap is a stray file, e.g. ``9999999999.png`` among ``0..100``."""
 
+MAX_FRAME_INTERVAL_S = 10.0
+"""Largest median time between consecutive frames (a timestamps file) or poses (a pose file),
+seconds: a car moves 100+ m in it, so frames that far apart share no view and give no look-back
+of a second; timestamps in milli-, micro- or nanoseconds read as seconds do (33 s at 30 Hz)."""
+
 MAX_ABS_PIXEL = 1e6
 """Largest magnitude of a box coordinate, pixels; beyond it a value is not a pixel of any
 camera image."""

@@ -170,7 +170,9 @@ class RunResult:
             is ``odometry_jump``).
         records: per-target rows written; ``estimated``: rows with status ``ok``;
             ``upper_bounds``: rows with status ``upper_bound`` (e.g. boxes cut by the bottom
-            of the image); ``not_vehicles``: rows of classes that are not vehicles.
+            of the image); ``not_vehicles``: rows of classes that are not vehicles;
+            ``not_vehicle_classes``: those rows per class name (a detector's class id ``2``
+            or a name such as ``vehicle`` that ``--vehicle-classes`` lacks shows here).
         dropped_boxes: rows of the box file its reader left out, ``{reason: rows}``
             (:class:`~slopedist.detections.dropped.DroppedBoxes`; e.g. COCO categories that are
             not vehicles); empty when none were.
@@ -205,6 +207,7 @@ class RunResult:
     estimated: int = 0
     upper_bounds: int = 0
     not_vehicles: int = 0
+    not_vehicle_classes: dict[str, int] = field(default_factory=dict)
     dropped_boxes: dict[str, int] = field(default_factory=dict)
     boxes_without_frame: int = 0
     elapsed_s: float = 0.0

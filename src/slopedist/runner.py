@@ -421,7 +421,11 @@ class _RunLoop:
         self.result.records += len(rows)
         self.result.estimated += n_est
         self.result.upper_bounds += int(np.sum(est.status == EstimateStatus.UPPER_BOUND.value))
-        self.result.not_vehicles += int(np.sum(est.reason == MissingReason.NOT_A_VEHICLE.value))
+        not_vehicle = est.reason == MissingReason.NOT_A_VEHICLE.value
+        self.result.not_vehicles += int(np.sum(not_vehicle))
+        counts = self.result.not_vehicle_classes
+        for name in frame_boxes.cls[not_vehicle]:
+            counts[name] = counts.get(name, 0) + 1
         return n_est
 
     def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:

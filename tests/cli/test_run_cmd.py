@@ -373,3 +373,15 @@ def test_a_tum_export_without_rotations_is_refused_before_anything_is_written(
     assert not (tmp_path / "out").exists()
     assert main([*run, "--export", "mcap"]) == 0  # the MCAP export has frames to show
     assert (tmp_path / "out" / "run.mcap").is_file()
+
+
+def test_summary_warns_when_most_frames_are_missing() -> None:
+    # a folder named by milliseconds (00000000.png, 00000067.png, ...): 66 "missing" frames
+    # between two images, and the summary only counted them
+    from slopedist.cli.run_cmd import summary_text
+    from slopedist.run_config import RunResult
+
+    result = RunResult("out", "ours", frames=12, frame_status={"ok": 2, "missing": 10})
+    assert "warning: 10 of the 12 frames are missing" in summary_text(result, Path("out"))
+    result = RunResult("out", "ours", frames=12, frame_status={"ok": 7, "missing": 5})
+    assert "frames are missing" not in summary_text(result, Path("out"))

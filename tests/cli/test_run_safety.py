@@ -274,7 +274,16 @@ def test_run_knows_the_image_size_and_estimate_takes_it(
     assert float(rows[0]["distance_m"]) == pytest.approx(500 * 1.65 / (H - 1 - 100))
     summary = json.loads((out / "run.json").read_text())
     assert (summary["estimated"], summary["upper_bounds"], summary["not_vehicles"]) == (1, 1, 1)
-    capsys.readouterr()
+    assert summary["not_vehicle_classes"] == {"Pedestrian": 1}
+    printed = capsys.readouterr()
+    assert "not of a vehicle class ('Pedestrian' (1); " in printed.out + printed.err
+    # no box of a vehicle class (a detector's class names): a warning naming the classes
+    flat = ["--out", str(out), "--odometry", "none", "--method", "flat"]
+    assert main(["run", *args, *flat, "--vehicle-classes", "Van"]) == 0
+    printed = capsys.readouterr()
+    text = printed.out + printed.err
+    assert "warning: no box got a distance; 3 of 4 are of a class that is not a vehicle: " in text
+    assert "'Car' (2), 'Pedestrian' (1) (missing" in text
 
     est = _estimate_args(tmp_path)
     (tmp_path / "b.csv").write_text("frame,left,top,right,bottom\n0,500,180,600,374\n")

@@ -73,6 +73,14 @@ def test_read_box_file_reads_mot_and_coco(tmp_path: Path) -> None:
         read_box_file(bad)
 
 
+def test_a_header_of_other_column_names_is_named_not_read_as_mot(tmp_path: Path) -> None:
+    # seven columns: it was read as MOTChallenge, "line 1, field 'left': 'y1' is not a number"
+    path = tmp_path / "mine.csv"
+    path.write_text("frame_id,x1,y1,x2,y2,conf,label\n0,1,2,30,40,0.9,car\n")
+    with pytest.raises(InputFileError, match=r"line 1: the header 'frame_id,x1.*frame,left,top"):
+        read_box_file(path)
+
+
 def test_yolo_needs_an_image_size_and_kitti_is_not_writable(tmp_path: Path) -> None:
     with pytest.raises(ConfigurationError, match="image size"):
         write_boxes(_table(), tmp_path / "y", BoxFormat.YOLO)

@@ -73,6 +73,9 @@ def test_csv_optional_columns_and_header_error(tmp_path: Path) -> None:
     path.write_text("frame,x1,y1\n0,1,2\n")
     with pytest.raises(InputFileError, match="header lacks column"):
         read_box_csv(path)
+    path.write_text("Frame,Left,top,right,bottom\n0,1,2,3,4\n")  # named, in another case
+    with pytest.raises(InputFileError, match="lower case: 'Frame' is 'frame', 'Left' is 'left'\\)"):
+        read_box_csv(path)
 
 
 @TMP

@@ -161,6 +161,17 @@ def test_timestamps_going_backwards_name_the_line(tmp_path: Path) -> None:
         read_timestamps(path)
 
 
+def test_timestamps_in_milliseconds_are_refused_naming_the_unit(tmp_path: Path) -> None:
+    # 15 Hz in milliseconds read as seconds: every frame 67 s after the last, a gap of the
+    # odometry each time, and the run said "odometry: ok"
+    path = tmp_path / "t.txt"
+    path.write_text("".join(f"{round(k * 1000 / 15)}\n" for k in range(30)))
+    with pytest.raises(InputFileError, match=r"t\.txt, field 'timestamp'.*67 s apart.*millisec"):
+        read_timestamps(path)
+    path.write_text("".join(f"{1.7e9 + k / 15!r}\n" for k in range(30)))  # Unix seconds: fine
+    assert np.diff(read_timestamps(path)) == pytest.approx(1 / 15, abs=1e-6)
+
+
 def test_too_few_timestamps(tmp_path: Path) -> None:
     ts = tmp_path / "t.txt"
     ts.write_text("0\n0.1\n")

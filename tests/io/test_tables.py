@@ -113,3 +113,15 @@ def test_exact_cell_keeps_what_6_digits_would_round() -> None:
     assert exact_cell(100.0) == "100" and exact_cell(0.25) == "0.25"  # as format_cell
     assert exact_cell(float(np.float32(0.9))) == "0.9"  # a detector's float32 score
     assert exact_cell(float("nan")) == "" and exact_cell(3) == 3 and exact_cell("Car") == "Car"
+
+
+def test_times_of_the_drive_keep_their_microseconds(tmp_path: Path) -> None:
+    # .6g wrote every Unix-epoch timestamp of a drive as 1.7e+09
+    path = write_csv(
+        tmp_path / "t.csv",
+        [{"timestamp_s": 1700000000.0666667, "first_s": 3.8, "distance_m": 12.3456789}],
+    )
+    assert path.read_text().splitlines()[1] == "1700000000.066667,3.8,12.3457"
+    stream = io.StringIO()
+    CsvStreamWriter(stream).write_row({"timestamp_s": 0.0, "last_s": float("nan")})
+    assert stream.getvalue().splitlines()[1] == "0,"

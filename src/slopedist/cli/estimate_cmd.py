@@ -15,6 +15,7 @@ from slopedist.cli.method_options import (
     ours_config,
 )
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
+from slopedist.cli.record_summary import RecordTally
 from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError
@@ -60,7 +61,7 @@ def estimate(
     estimator = build_estimator(config, seq.camera)
     step = FrameStep(estimator, lookback_s, vehicle_classes)
     writer = open_records(out)
-    n = 0
+    tally = RecordTally()
     held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
     try:
         for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
@@ -68,18 +69,18 @@ def estimate(
                 if len(frame_boxes):
                     held.append((frame_boxes, t))
                 continue
-            n += writer.write_rows(iter_records(frame_boxes, t, result.estimates, method))
+            writer.write_rows(tally.count(iter_records(frame_boxes, t, result.estimates, method)))
         if held:
             for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
-                n += writer.write_rows(iter_records(frame_boxes, t, est, method))
+                writer.write_rows(tally.count(iter_records(frame_boxes, t, est, method)))
         close_records(writer)
     except BrokenPipeError:
         if out is not None:
             raise
         quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
         return
-    if out:
-        click.echo(f"wrote {n} records to {out}", err=True)
+    for line in tally.lines(out):
+        click.echo(line, err=True)
 
 
 def quiet_closed_stdout() -> None:

@@ -37,6 +37,7 @@ from slopedist.cli.options import (
     parse_size,
     vehicle_classes_option,
 )
+from slopedist.cli.record_summary import not_vehicles_line
 from slopedist.cli.run_options import (
     export_option,
     image_topic_option,
@@ -539,8 +540,18 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
     )
     if result.not_vehicles:
         lines.append(
-            f"{result.not_vehicles} boxes are not of a vehicle class (missing, reason "
-            "not_a_vehicle; see --vehicle-classes)"
+            not_vehicles_line(
+                result.not_vehicle_classes,
+                result.records,
+                result.estimated + result.upper_bounds,
+            )
+        )
+    missing = result.frame_status.get("missing", 0)
+    if 2 * missing > result.frames:
+        lines.append(
+            f"warning: {missing} of the {result.frames} frames are missing (gaps in the files' "
+            "numbers; a file's number is its frame index): if they are named by time, number "
+            "them 0, 1, 2, …"
         )
     if result.boxes_without_frame:
         lines.append(

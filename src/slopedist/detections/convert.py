@@ -27,6 +27,7 @@ from slopedist.detections.format_writers import (
 from slopedist.detections.formats import read_coco, read_coco_image_map, read_mot, read_yolo_folder
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import (
+    CSV_BOX_COLUMNS,
     POINTRCNN_FIELDS,
     read_box_csv,
     read_kitti_labels,
@@ -108,6 +109,14 @@ def sniff_format(path: str | Path) -> BoxFormat:
     commas = len(first.split(","))
     if first.replace(" ", "").lower().startswith("frame,"):
         return BoxFormat.CSV
+    if commas > 1 and not _is_number(first.split(",")[0]):
+        raise InputFileError(
+            path,
+            f"the header '{first[:120]}' is not a box file's: the slopedist CSV needs the "
+            f"columns {','.join(CSV_BOX_COLUMNS)} (the first five required; rename yours, "
+            "frame first), and MOTChallenge and PointRCNN files have no header",
+            line=1,
+        )
     if commas == len(POINTRCNN_FIELDS):
         return BoxFormat.POINTRCNN
     if commas in (7, 9, 10):
@@ -120,6 +129,14 @@ def sniff_format(path: str | Path) -> BoxFormat:
         "bottom' header, PointRCNN, KITTI labels, MOTChallenge, COCO JSON or a YOLO folder)",
         line=1,
     )
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def read_boxes(

@@ -287,7 +287,8 @@ def read_box_csv(path: str | Path) -> BoxTable:
     if missing:
         raise InputFileError(
             path,
-            f"header lacks column(s) {', '.join(missing)}; expected {','.join(CSV_BOX_COLUMNS)}",
+            f"header lacks column(s) {', '.join(missing)}; expected {','.join(CSV_BOX_COLUMNS)}"
+            + _case_hint(rows.header),
             line=1,
         )
     has_truth = CSV_TRUTH_COLUMN in rows.header
@@ -316,6 +317,17 @@ def read_box_csv(path: str | Path) -> BoxTable:
         np.asarray(classes, dtype=object),
         **extra,
     )
+
+
+def _case_hint(header: list[str]) -> str:
+    """A hint naming the header's columns that differ from the box CSV's only in case."""
+    known = {c.lower(): c for c in CSV_BOX_COLUMNS}
+    near = [
+        f"'{h}' is '{known[h.lower()]}'"
+        for h in header
+        if h.lower() in known and h not in known.values()
+    ]
+    return f" (column names are lower case: {', '.join(near)})" if near else ""
 
 
 def check_box_columns(

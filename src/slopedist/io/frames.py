@@ -42,7 +42,7 @@ from slopedist.errors import (
 )
 from slopedist.io.framefiles import list_frame_files
 from slopedist.io.images import header_image_size, image_size_problem, read_colour
-from slopedist.limits import DEFAULT_MAX_PIXELS
+from slopedist.limits import DEFAULT_MAX_PIXELS, MAX_FRAME_INTERVAL_S
 from slopedist.textfiles import numbered_lines
 
 DEFAULT_FPS = 10.0
@@ -121,12 +121,13 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
 
     A line is either a number of seconds or a KITTI raw date-time
     (``2011-09-26 13:02:25.964389445``; turned into seconds after the first line). Lines starting
-    with ``#`` are ignored. Timestamps must increase strictly.
+    with ``#`` are ignored. Timestamps must increase strictly, and consecutive ones be at most
+    ``MAX_FRAME_INTERVAL_S`` apart at the median (else they are not seconds).
 
     Raises:
         MissingInputError: no such file.
-        InputFileError: a line that is neither form, or a timestamp that does not increase
-            (naming the line).
+        InputFileError: a line that is neither form, a timestamp that does not increase
+            (naming the line), or a median step over ``MAX_FRAME_INTERVAL_S``.
     """
     path = Path(path)
     values: list[float] = []
@@ -157,7 +158,26 @@ def read_timestamps(path: str | Path) -> NDArray[np.float64]:
         prev_line = lineno
     if not values:
         raise InputFileError(path, "no timestamps in file")
-    return np.asarray(values, dtype=float)
+    times = np.asarray(values, dtype=float)
+    _check_frame_period(path, times)
+    return times
+
+
+def _check_frame_period(path: Path, times_s: NDArray[np.float64]) -> None:
+    """Refuse timestamps whose median step exceeds ``MAX_FRAME_INTERVAL_S`` (seconds): a file
+    in milliseconds or microseconds, read as seconds, would make every frame a gap in the drive
+    (no odometry, no speed) while the run still reported it as ok."""
+    if len(times_s) < 2:
+        return
+    step = float(np.median(np.diff(times_s)))
+    if step > MAX_FRAME_INTERVAL_S:
+        raise InputFileError(
+            path,
+            f"consecutive timestamps are {step:g} s apart (median), frames more than "
+            f"{MAX_FRAME_INTERVAL_S:g} s apart are not a video: timestamps in milliseconds, "
+            "microseconds or nanoseconds? The file is in seconds",
+            field="timestamp",
+        )
 
 
 def _parse_time(text: str, t0: datetime | None) -> float | datetime | None:

@@ -3,7 +3,8 @@
 One place for the rules every output file follows:
 
 - numbers in CSV cells: integers as integers, floats with 6 significant digits (``.6g``), NaN and
-  ±inf as an empty field, booleans as ``0``/``1``;
+  ±inf as an empty field, booleans as ``0``/``1``; the times of a drive (``TIME_COLUMNS``) to the
+  microsecond, so that Unix-epoch timestamps keep their fraction;
 - CSV files: UTF-8, LF line ends, a header row, flushed after every :meth:`CsvStreamWriter.
   write_rows` call (one frame), so a killed run leaves whole rows;
 - JSON: strict (RFC 8259): NaN and ±inf become ``null``, numpy scalars and arrays become numbers
@@ -61,9 +62,31 @@ def exact_cell(value: Any) -> Any:
     return text
 
 
+TIME_COLUMNS = frozenset(
+    ("timestamp_s", "first_s", "last_s", "min_distance_s", "first_event_s", "min_distance_bound_s")
+)
+"""Columns holding a time of the drive (seconds, often since the Unix epoch): written by
+:func:`format_time_cell`, since ``.6g`` writes 1700000000.067 as 1.7e+09 and every frame of a
+drive would get the same time."""
+
+
+def format_time_cell(value: Any) -> Any:
+    """A time in seconds to the microsecond, trailing zeros dropped (``1700000000.066667``,
+    ``3.8``); a value that is not a float as :func:`format_cell` writes it."""
+    if not isinstance(value, (float, np.floating)) or not math.isfinite(value):
+        return format_cell(value)
+    text = f"{float(value):.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def _cell(key: str, value: Any) -> Any:
+    """The CSV cell of column ``key``: :func:`format_time_cell` for ``TIME_COLUMNS``."""
+    return format_time_cell(value) if key in TIME_COLUMNS else format_cell(value)
+
+
 def format_row(row: Mapping[str, Any]) -> dict[str, Any]:
-    """:func:`format_cell` applied to every value of a record."""
-    return {k: format_cell(v) for k, v in row.items()}
+    """:func:`format_cell` applied to every value of a record (times: :func:`format_time_cell`)."""
+    return {k: _cell(k, v) for k, v in row.items()}
 
 
 class CsvStreamWriter:
@@ -104,7 +127,8 @@ class CsvStreamWriter:
         return None if self._writer is None else list(self._fields)
 
     def write_rows(self, rows: Iterable[Mapping[str, Any]]) -> int:
-        """Write ``rows`` (formatted with :func:`format_cell`), then flush; returns the count."""
+        """Write ``rows`` (formatted with :func:`format_cell`, times with
+        :func:`format_time_cell`), then flush; returns the count."""
         n = 0
         for row in rows:
             if self._writer is None:
@@ -114,7 +138,7 @@ class CsvStreamWriter:
                 names = ", ".join(repr(k) for k in extra)
                 raise ValueError(f"dict contains fields not in fieldnames: {names}")
             # a missing key is None, an empty cell (format_cell)
-            self._writer.writerow([format_cell(row.get(k)) for k in self._fields])
+            self._writer.writerow([_cell(k, row.get(k)) for k in self._fields])
             n += 1
         self._stream.flush()
         return n

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from slopedist.camera import read_kitti_calib
 from slopedist.errors import InputFileError
 from slopedist.geometry import not_rotations
+from slopedist.limits import MAX_FRAME_INTERVAL_S
 from slopedist.odometry.base import RotationTrack
 from slopedist.textfiles import numbered_lines
 
@@ -73,9 +74,6 @@ HOMOGENEOUS_ROW_TOL = 1e-9
 """Largest difference of a 4×4 pose's last row from ``0 0 0 1``: the row is written exactly by
 every tool (``0`` or ``0.000000e+00``), so any difference beyond rounding is not a pose."""
 
-MAX_FRAME_INTERVAL_S = 10.0
-"""Largest median time between a pose file's poses, seconds: frames further apart give no
-look-back of a second; timestamps in milli-, micro- or nanoseconds read as seconds do."""
 TUM_POSE_FIELDS = ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
 
 
