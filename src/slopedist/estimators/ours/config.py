@@ -156,6 +156,10 @@ class OursConfig:
             (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`; a class-blind
             detector's vans and trucks are a size error the track cannot average). Without
             ``generic_classes`` it does nothing.
+        road_bend_sigma: ``sigma_m`` adds the height cue's error from the camera height above
+            the target's road, which a road bending between the ego and the target (the foot of
+            a hill) changes by ``Z_n·(tan α − tan α̂)``
+            (:mod:`~slopedist.estimators.ours.road_bend`); the distances stay as they are.
         type_mixture: vehicle types ``(name, prior, weight)`` behind a generic class
             (default the published frequencies of
             :data:`~slopedist.estimators.ours.priors.VEHICLE_TYPE_MIXTURE`).
@@ -201,6 +205,7 @@ class OursConfig:
     priors: dict[str, DimensionPrior] | None = None
     generic_classes: tuple[str, ...] = ()
     generic_sigma_only: bool = False
+    road_bend_sigma: bool = True
     type_mixture: tuple[tuple[str, DimensionPrior, float], ...] = VEHICLE_TYPE_MIXTURE
     selfcal: SelfCalConfig = field(default_factory=SelfCalConfig)
 

@@ -318,6 +318,7 @@ class OursEstimator(Estimator):
             self._odd_check.prior(log_prior, odd),
             self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
             cfg.consistency_gate_sigma,
+            frame_cues.camera_height_lever(cam, targets, calib) if cfg.road_bend_sigma else None,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
@@ -342,7 +343,16 @@ class OursEstimator(Estimator):
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
-            cam, self._yaw, targets, fused, distance, gradient, uid, theta_rad, calib
+            cam,
+            self._yaw,
+            targets,
+            fused,
+            distance,
+            gradient,
+            uid,
+            theta_rad,
+            calib,
+            cfg.gradient_sigma_rad,
         )
         if size_rows is not None:
             out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.estimators.ours import cues, fusion, vehicle_types
+from slopedist.estimators.ours import cues, fusion, road_bend, vehicle_types
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
@@ -90,6 +90,15 @@ def size_cues(
         nan = np.full(hyp.half_extent_m.shape, np.nan)
         width = SizeCue(nan, nan, nan, nan)
     return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
+
+
+def camera_height_lever(cam: Camera, targets: FrameTargets, calib: CalibrationInUse) -> FloatArray:
+    """The height cue's ``∂ℓ/∂h`` (1/m) per (target, hypothesis)
+    (:func:`~slopedist.estimators.ours.road_bend.height_cue_camera_lever`)."""
+    hyp = targets.classes.hypotheses
+    return road_bend.height_cue_camera_lever(
+        targets.bottom_px - targets.top_px, cam.f, calib.height_m, hyp.height_m, hyp.half_extent_m
+    )
 
 
 def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
@@ -219,6 +228,7 @@ def fuse_hypotheses(
     log_prior: FloatArray,
     size_modes: ModeSpreads,
     gate_sigma: float = 3.0,
+    height_lever: FloatArray | None = None,
 ) -> FusedCues:
     """Fuse the cues per hypothesis (headings × size modes: a class mixes typical vehicles
     and, less often, ones of atypical height and odd objects of no class's size; or, when a
@@ -232,7 +242,9 @@ def fuse_hypotheses(
     widens the class's size spreads (:class:`~slopedist.estimators.ours.fusion.ModeSpreads`
     of the targets' hypotheses: of a single mode when their class is generic);
     ``gate_sigma``: the cue consistency check's threshold
-    (:func:`~slopedist.estimators.ours.fusion.check_consistency`).
+    (:func:`~slopedist.estimators.ours.fusion.check_consistency`); ``height_lever``: the
+    height cue's ``∂ℓ/∂h`` per hypothesis (:func:`camera_height_lever`) for the fused
+    ``camera_lever`` (None: not computed).
     """
     hyp = targets.classes.hypotheses
     type_weight = targets.classes.type_log_weight
@@ -240,6 +252,10 @@ def fuse_hypotheses(
     spreads = size_modes.spreads(hyp.log_sigma_height, hyp.log_sigma_width)
     size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
     fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
+    lever = None
+    if height_lever is not None:
+        corr = hyp.corr_height_width
+        lever = road_bend.fused_camera_lever(size, spreads, corr, size_cue, ground, height_lever)
     for bound, bound_var, rows_cut in size.bounds:
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent, width_mean = hyp.half_extent_m, size.width.mean
@@ -250,7 +266,7 @@ def fuse_hypotheses(
             ground = LogCue(
                 ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
             )
-    return _collapse(
+    collapsed = _collapse(
         width_mean,
         size_cue,
         fused,
@@ -262,6 +278,10 @@ def fuse_hypotheses(
         gate=gate_sigma,
         odd_mode=size_modes.odd,
     )
+    if lever is None:
+        return collapsed
+    weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)[1]
+    return collapsed._replace(camera_lever=np.add.reduce(weights * lever, axis=1))
 
 
 def _collapse(
@@ -469,15 +489,29 @@ def box_estimates(
     uid: NDArray[np.int64],
     theta_rad: float,
     calib: CalibrationInUse,
+    gradient_sigma_rad: float = 0.0,
 ) -> BoxEstimates:
     """The outputs: the filtered centre distance with its σ and motion, the target gradient,
-    the most likely heading (of the grid ``yaw_grid_rad``) and the two cues' own distances."""
+    the most likely heading (of the grid ``yaw_grid_rad``) and the two cues' own distances.
+    With ``fused.camera_lever``, σ adds the camera height above the target's road
+    (:func:`~slopedist.estimators.ours.road_bend.road_bend_log_var`, prior spread
+    ``gradient_sigma_rad``)."""
     f = cam.f
     filt = distance.filter_rows
     meas = fused.measurement
     persistent = meas.var - meas.var_white
     dist, sigma = kf.distance_moments_rows(filt, persistent)
     sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
+    if fused.camera_lever is not None:
+        bend = road_bend.road_bend_log_var(
+            fused.camera_lever,
+            dist,
+            fused.half_extent_m,
+            gradient.track_mean_rad,
+            gradient.track_var_rad2 + gradient.obs_var_other_rad2,
+            gradient_sigma_rad,
+        )
+        sigma_only = bend if sigma_only is None else sigma_only + bend
     if sigma_only is not None:  # the distance stays the class's own: its σ only widens
         sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)

@@ -87,14 +87,9 @@ def fuse_size_cues(
     length): the generalised least-squares estimate of ℓ. A non-finite width cue leaves the
     height cue alone.
     """
-    y_h, r_h_white, r_h_other, c_h = height.mean, height.var_white, height.var_other, height.lever
-    y_w, r_w_white, r_w_other, c_w = width.mean, width.var_white, width.var_other, width.lever
-    yh, yw = np.asarray(y_h, dtype=float), np.asarray(y_w, dtype=float)
-    sh = c_h * np.asarray(sigma_log_h)
-    sw = c_w * np.asarray(sigma_log_w)
-    C11 = sh * sh + r_h_white + r_h_other
-    C22 = sw * sw + r_w_white + r_w_other
-    C12 = corr_hw * sh * sw
+    r_h_white, r_w_white = height.var_white, width.var_white
+    yh, yw = np.asarray(height.mean, dtype=float), np.asarray(width.mean, dtype=float)
+    C11, C22, C12 = _size_covariance(height, width, sigma_log_h, sigma_log_w, corr_hw)
     # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
     den = C11 + C22 - C12 - C12
     inv_den = ONE / den
@@ -114,6 +109,35 @@ def fuse_size_cues(
         np.where(both, white, np.broadcast_to(r_h_white, np.shape(yh))),
         np.where(both, loglik, 0.0),
     )
+
+
+def _size_covariance(
+    height: SizeCue,
+    width: SizeCue,
+    sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float,
+    corr_hw: FloatArray | float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The covariance ``(C11, C22, C12)`` of the height and width cues' errors under the class
+    size prior (:func:`fuse_size_cues`)."""
+    sh = height.lever * np.asarray(sigma_log_h)
+    sw = width.lever * np.asarray(sigma_log_w)
+    C11 = sh * sh + height.var_white + height.var_other
+    C22 = sw * sw + width.var_white + width.var_other
+    return C11, C22, corr_hw * sh * sw
+
+
+def size_cue_weights(
+    height: SizeCue,
+    width: SizeCue,
+    sigma_log_h: FloatArray | float,
+    sigma_log_w: FloatArray | float,
+    corr_hw: FloatArray | float,
+) -> FloatArray:
+    """The height cue's weight ``a_h`` in :func:`fuse_size_cues` (the width's is ``1 − a_h``;
+    NaN where the width cue is missing, i.e. the height cue alone)."""
+    C11, C22, C12 = _size_covariance(height, width, sigma_log_h, sigma_log_w, corr_hw)
+    return np.asarray((C22 - C12) / (C11 + C22 - C12 - C12))
 
 
 _HALF_LOG_2PI = const(0.5 * float(np.log(2.0 * np.pi)))

@@ -169,6 +169,9 @@ class FusedCues(NamedTuple):
             it).
         odd_size_prob: ``(n,)`` posterior probability of the odd-object size mode (0 without
             it): the target's size is not its class's.
+        camera_lever: ``(n,)`` ``∂ℓ/∂h'`` of ``measurement`` (1/m), the camera height above
+            the target's road through the height cue, mixed over the hypotheses (None: not
+            computed; :mod:`~slopedist.estimators.ours.road_bend`).
     """
 
     measurement: LogCue
@@ -181,6 +184,7 @@ class FusedCues(NamedTuple):
     cue_gap_sigma: FloatArray
     ground: LogCue | None = None
     odd_size_prob: FloatArray | None = None
+    camera_lever: FloatArray | None = None
 
 
 class DistanceFilterResult(NamedTuple):

@@ -1,0 +1,82 @@
+"""σ of the height cue's camera height above the target's road (``road_bend_sigma``).
+
+The height cue (:func:`~slopedist.estimators.ours.cues.height_cue`) sees the roof of a vehicle
+whose roof is below the camera: how much of it depends on the camera's height ``h'`` above the
+*target's* road plane, which the cue takes as ``h``, the height over the ego's road. That holds
+when the target's road is the chord from the road under the camera to the target's contact point,
+whose gradient relative to the ego's is the target gradient ``α̂`` the estimator measures from the
+box's offset below the horizon (:func:`~slopedist.estimators.ours.cues.target_gradient`). A road
+that bends in between (the foot of a hill, a crest) gives the target its own gradient ``α``:
+``h' − h = Z_n·(tan α − tan α̂)`` (``Z_n`` the distance to the contact point). Under the gradient
+prior ``α ~ N(0, σ_g²)`` the ground contact already uses, ``α − α̂`` has the second moment
+``α̂² + var(α̂) + σ_g²``: small on a planar road, as large as the target's measured climb on a
+hill. The variance this adds to the fused log distance is
+``(w·a_h·∂ℓ_h/∂h)²·Z_n²·(α̂² + var(α̂) + σ_g²)`` (``a_h`` the height cue's share of the size
+fusion, ``w`` the size cues' share of the fused distance); it widens ``sigma_m`` only, the
+distance stays the fusion's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, size_cue_weights
+from slopedist.estimators.ours.records import SizeCues
+
+FloatArray = NDArray[np.float64]
+
+
+def height_cue_camera_lever(
+    box_height_px: FloatArray,
+    f: float,
+    cam_height_m: float,
+    height_m: FloatArray,
+    half_extent_m: FloatArray,
+) -> FloatArray:
+    """``∂ℓ_h/∂h`` (1/m): the height cue's log distance per metre of camera height, per
+    (target, hypothesis); ``2e/(S·Z)`` with :func:`~slopedist.estimators.ours.cues.height_cue`'s
+    ``S`` and ``Z`` where the roof is below the camera, 0 where it is above (the box then spans
+    the near face only)."""
+    H, e = height_m, half_extent_m
+    d = box_height_px * (1.0 / f)
+    S = np.sqrt(H * H + (4.0 * d) * (d * e * e + e * (2.0 * cam_height_m - H)))
+    Z = (H + S) * (0.5 / d)
+    lever = (2.0 * e) / (S * Z)
+    return np.asarray(np.where(H < cam_height_m, lever, ZERO))
+
+
+def fused_camera_lever(
+    size: SizeCues,
+    spreads: tuple[FloatArray, FloatArray],
+    corr_hw: FloatArray,
+    size_cue: LogCue,
+    ground: LogCue | None,
+    height_lever: FloatArray,
+) -> FloatArray:
+    """``∂ℓ/∂h'`` of the fused log distance per hypothesis: the height cue's lever times its
+    share of the size fusion and the size cues' share of the fused distance (1 without a finite
+    ground contact)."""
+    a_h = size_cue_weights(size.height, size.width, *spreads, corr_hw)
+    lever = np.where(np.isfinite(a_h), a_h, ONE) * height_lever
+    if ground is None:
+        return np.asarray(lever)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = ground.var / (size_cue.var + ground.var)
+    return np.asarray(np.where(np.isfinite(w), w, ONE) * lever)
+
+
+def road_bend_log_var(
+    lever: FloatArray,
+    distance_m: FloatArray,
+    half_extent_m: FloatArray,
+    gradient_rad: FloatArray,
+    gradient_var_rad2: FloatArray,
+    gradient_sigma_rad: float,
+) -> FloatArray:
+    """``(n,)`` variance (log distance²) of the camera height above the target's road: ``lever``
+    (``∂ℓ/∂h'``, 1/m) times ``Z_n·σ(α − α̂)`` with ``Z_n`` the centre distance less the half
+    extent (m) and the target gradient ``α̂`` with its variance (rad, rad²)."""
+    near = np.maximum(distance_m - half_extent_m, ZERO)
+    spread2 = gradient_rad * gradient_rad + gradient_var_rad2 + gradient_sigma_rad**2
+    return np.asarray((lever * near) ** 2 * spread2)
