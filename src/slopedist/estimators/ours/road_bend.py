@@ -43,7 +43,7 @@ def height_cue_camera_lever(
     S = np.sqrt(H * H + (4.0 * d) * (d * e * e + e * (2.0 * cam_height_m - H)))
     Z = (H + S) * (0.5 / d)
     lever = (2.0 * e) / (S * Z)
-    return np.asarray(np.where(H < cam_height_m, lever, ZERO))
+    return np.asarray(np.where(cam_height_m > H, lever, ZERO))
 
 
 def fused_camera_lever(
