@@ -266,7 +266,7 @@ def fuse_hypotheses(
             ground = LogCue(
                 ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
             )
-    collapsed = _collapse(
+    return _collapse(
         width_mean,
         size_cue,
         fused,
@@ -277,11 +277,8 @@ def fuse_hypotheses(
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
         odd_mode=size_modes.odd,
+        lever=lever,
     )
-    if lever is None:
-        return collapsed
-    weights = fusion.collapse_hypotheses(fused, log_prior + fused.loglik)[1]
-    return collapsed._replace(camera_lever=np.add.reduce(weights * lever, axis=1))
 
 
 def _collapse(
@@ -295,13 +292,14 @@ def _collapse(
     most_likely_mode: bool = False,
     gate: float = 3.0,
     odd_mode: int | None = None,
+    lever: FloatArray | None = None,
 ) -> FusedCues:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
     posterior weights (``extent``: the half depth extent, m, ``ground``: the ground contact and
     ``width_mean``: the width cue's ℓ, each per hypothesis or, when the same in every mode, per
     heading ``(n, K)``;
     ``odd_mode``: the index of the odd-object mode, whose posterior weight is reported, if
-    there is one).
+    there is one; ``lever``: ``∂ℓ/∂h'`` per hypothesis, mixed into ``camera_lever``).
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -341,6 +339,7 @@ def _collapse(
         gap,
         ground_mix,
         np.add.reduce(by_mode[:, odd_mode], axis=1) if odd_mode is not None else np.zeros(n),
+        None if lever is None else np.add.reduce(weights * lever, axis=1),
     )
 
 
