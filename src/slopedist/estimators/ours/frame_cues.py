@@ -266,7 +266,7 @@ def fuse_hypotheses(
             ground = LogCue(
                 ground.mean[:, :k], ground.var[:, :k], ground.var_white[:, :k], ground.loglik[:, :k]
             )
-    return _collapse(
+    collapsed, weights = _collapse(
         width_mean,
         size_cue,
         fused,
@@ -277,8 +277,10 @@ def fuse_hypotheses(
         most_likely_mode=type_weight is not None,
         gate=gate_sigma,
         odd_mode=size_modes.odd,
-        lever=lever,
     )
+    if lever is None:
+        return collapsed
+    return collapsed._replace(camera_lever=np.add.reduce(weights * lever, axis=1))
 
 
 def _collapse(
@@ -292,14 +294,13 @@ def _collapse(
     most_likely_mode: bool = False,
     gate: float = 3.0,
     odd_mode: int | None = None,
-    lever: FloatArray | None = None,
-) -> FusedCues:
+) -> tuple[FusedCues, FloatArray]:
     """Collapse the fused cues ``(n, modes·K)`` (mode-major) over the hypotheses by their
     posterior weights (``extent``: the half depth extent, m, ``ground``: the ground contact and
     ``width_mean``: the width cue's ℓ, each per hypothesis or, when the same in every mode, per
     heading ``(n, K)``;
     ``odd_mode``: the index of the odd-object mode, whose posterior weight is reported, if
-    there is one; ``lever``: ``∂ℓ/∂h'`` per hypothesis, mixed into ``camera_lever``).
+    there is one); also returns the posterior weights ``(n, modes·K)``.
 
     With ``most_likely_mode`` (vehicle types), the mean is the most probable mode's (its
     headings collapsed) and the other modes only widen the variance: a type the cues cannot
@@ -339,8 +340,7 @@ def _collapse(
         gap,
         ground_mix,
         np.add.reduce(by_mode[:, odd_mode], axis=1) if odd_mode is not None else np.zeros(n),
-        None if lever is None else np.add.reduce(weights * lever, axis=1),
-    )
+    ), weights
 
 
 def contact_gradient_prior(
