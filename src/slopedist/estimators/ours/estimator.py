@@ -338,7 +338,7 @@ class OursEstimator(Estimator):
             targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
         )
         if self._keep_predicted:
-            self._keep_frame(match, fused, distance, uid, targets)
+            self._keep_frame(match, fused, distance, uid, targets, gradient)
         if cfg.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
@@ -364,8 +364,9 @@ class OursEstimator(Estimator):
         return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
 
     def _keep_frame(self, *frame_state: Any) -> None:
-        """Keep a frame's filter states (match, fused cues, distance filters, uids, targets) for an
-        offline pass (``_keep_predicted``: see :mod:`~slopedist.estimators.ours.offline`)."""
+        """Keep a frame's filter states (match, fused cues, distance filters, uids, targets, target
+        gradients) for an offline pass (``_keep_predicted``: see
+        :mod:`~slopedist.estimators.ours.offline`)."""
 
     # -- the steps of a frame, in order -----------------------------------------------------
 

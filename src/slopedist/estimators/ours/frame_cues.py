@@ -500,17 +500,7 @@ def box_estimates(
     meas = fused.measurement
     persistent = meas.var - meas.var_white
     dist, sigma = kf.distance_moments_rows(filt, persistent)
-    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
-    if fused.camera_lever is not None:
-        bend = road_bend.road_bend_log_var(
-            fused.camera_lever,
-            dist,
-            fused.half_extent_m,
-            gradient.track_mean_rad,
-            gradient.track_var_rad2 + gradient.obs_var_other_rad2,
-            gradient_sigma_rad,
-        )
-        sigma_only = bend if sigma_only is None else sigma_only + bend
+    sigma_only = sigma_only_log_var(targets, fused, gradient, gradient_sigma_rad)
     if sigma_only is not None:  # the distance stays the class's own: its σ only widens
         sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
@@ -543,6 +533,28 @@ def box_estimates(
         track_uid=uid.astype(float),
         odd_size_prob=fused.odd_size_prob,
     )
+
+
+def sigma_only_log_var(
+    targets: FrameTargets, fused: FusedCues, gradient: TargetGradient, gradient_sigma_rad: float
+) -> FloatArray | None:
+    """``(n,)`` what widens σ only (log distance²; None: nothing): a generic class's size types
+    (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`) and, with
+    ``fused.camera_lever``, the camera height above the target's road
+    (:func:`~slopedist.estimators.ours.road_bend.road_bend_log_var`, at the frame's measured
+    distance, prior spread ``gradient_sigma_rad``)."""
+    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
+    if fused.camera_lever is None:
+        return sigma_only
+    bend = road_bend.road_bend_log_var(
+        fused.camera_lever,
+        np.exp(fused.measurement.mean),
+        fused.half_extent_m,
+        gradient.track_mean_rad,
+        gradient.track_var_rad2 + gradient.obs_var_other_rad2,
+        gradient_sigma_rad,
+    )
+    return bend if sigma_only is None else sigma_only + bend
 
 
 def _motion_outputs(

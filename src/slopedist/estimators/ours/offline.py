@@ -31,13 +31,14 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import size_learning, vehicle_types
+from slopedist.estimators.ours import frame_cues, size_learning
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.estimator import OursEstimator
 from slopedist.estimators.ours.records import (
     DistanceFilterResult,
     FrameTargets,
     FusedCues,
+    TargetGradient,
     TrackMatch,
 )
 
@@ -122,7 +123,7 @@ class _TargetLog:
     elapsed_s: FloatArray
     extra_log_var: FloatArray
     noise_scale: FloatArray
-    sigma_log_var: FloatArray | None  # what widens the σ only (vehicle_types.sigma_log_var)
+    sigma_log_var: FloatArray | None  # what widens the σ only (frame_cues.sigma_only_log_var)
 
 
 class _SmoothingPass(OursEstimator):
@@ -162,6 +163,7 @@ class _SmoothingPass(OursEstimator):
         distance: DistanceFilterResult,
         uid: NDArray[np.int64],
         targets: FrameTargets,
+        gradient: TargetGradient,
     ) -> None:
         n = uid.shape[0]
         elapsed = np.full(n, np.nan)
@@ -176,7 +178,7 @@ class _SmoothingPass(OursEstimator):
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
             np.ones(n) if distance.noise_scale is None else distance.noise_scale,
-            vehicle_types.sigma_log_var(targets.classes.type_moments, fused),
+            frame_cues.sigma_only_log_var(targets, fused, gradient, self.config.gradient_sigma_rad),
         )
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
