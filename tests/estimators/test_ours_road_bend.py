@@ -18,7 +18,6 @@ import pytest
 
 from slopedist.cli import main
 from slopedist.estimators.ours import cues
-from slopedist.estimators.ours.road_bend import height_cue_camera_lever
 
 HILL = """
 name = "truck_hill"
@@ -99,14 +98,17 @@ def test_sigma_covers_the_size_cue_error_at_the_foot_of_a_hill(hill: Path, tmp_p
 
 
 def test_the_lever_is_the_height_cues_derivative_in_the_camera_height() -> None:
-    f, H, e, Z = 1400.0, np.array([[1.5, 1.5]]), np.array([[2.2, 1.0]]), 30.0
+    f, H, e = 1400.0, np.array([[1.5, 1.5]]), np.array([[2.2, 1.0]])
+    var0 = np.zeros((1, 2))
     for h in (2.5, 1.65):
-        box = cues.project_box(f, 960.0, 540.0, h, 0.0, Z, 0.0, [1.5, 1.8, 2 * e[0, 0]])
+        box = cues.project_box(f, 960.0, 540.0, h, 0.0, 30.0, 0.0, [1.5, 1.8, 2 * e[0, 0]])
         D = np.array([[box[3] - box[1]]])
         step = 1e-4
         lo = np.log(cues.height_cue(0.0, D, f, h - step, H, e)[0])
         hi = np.log(cues.height_cue(0.0, D, f, h + step, H, e)[0])
-        lever = height_cue_camera_lever(D, f, h, H, e)
-        np.testing.assert_allclose(lever, (hi - lo) / (2 * step), rtol=1e-5)
-    roof_above = height_cue_camera_lever(np.array([[50.0]]), f, 1.65, np.array([[2.9]]), e[:, :1])
-    np.testing.assert_array_equal(roof_above, 0.0)
+        cue = cues.height_cue_log(D, f, h, 0.5, 0.0, H, e, var0)
+        np.testing.assert_allclose(cue.camera_lever, (hi - lo) / (2 * step), rtol=1e-5)
+    tall = np.array([[2.9, 1.5]])  # a roof above the camera: the box is the near face alone
+    cue = cues.height_cue_log(np.array([[50.0]]), f, 1.65, 0.5, 0.0, tall, e, var0, tall > 1.65)
+    assert cue.camera_lever is not None
+    assert cue.camera_lever[0, 0] == 0.0 and cue.camera_lever[0, 1] > 0.0

@@ -156,12 +156,15 @@ class SizeCue(NamedTuple):
         var_white: variance of ℓ from the box edges' pixel noise (independent per frame).
         var_other: other per-vehicle variance of ℓ (the footprint's depth, the camera height;
             for the width cue, the length's share of the size prior).
+        camera_lever: ``∂ℓ/∂h`` (1/m), the cue's change per metre of camera height above the
+            target's road (the height cue's; None for a cue that does not depend on it).
     """
 
     mean: FloatArray
     lever: FloatArray
     var_white: FloatArray
     var_other: FloatArray
+    camera_lever: FloatArray | None = None
 
 
 def height_cue_log(
@@ -206,6 +209,7 @@ def height_cue_log(
     white = (rel_D * rel_D) * (2.0 * (sigma_px / f) ** 2)
     de = (_TWO * d) * e + tw
     other = (de * de * half_extent_var_m2 + ee * (2.0 * cam_height_sigma_m) ** 2) * (sz * sz)
+    camera = (_TWO * e) * sz  # ∂ℓ/∂h = (∂Z/∂h)/Z
     if roof_above is not None and any_true(roof_above):
         Zt = H / d + e
         inv_Zt = ONE / Zt
@@ -215,7 +219,8 @@ def height_cue_log(
         np.copyto(lever, H / d * inv_Zt, where=roof_above)
         np.copyto(white, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), where=roof_above)
         np.copyto(other, half_extent_var_m2 * inv_Zt * inv_Zt, where=roof_above)
-    return SizeCue(np.log(Z), lever, white, other)
+        np.copyto(camera, ZERO, where=roof_above)  # the box spans the near face alone
+    return SizeCue(np.log(Z), lever, white, other, camera)
 
 
 def _width_terms(

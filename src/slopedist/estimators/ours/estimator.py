@@ -318,7 +318,7 @@ class OursEstimator(Estimator):
             self._odd_check.prior(log_prior, odd),
             self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
             cfg.consistency_gate_sigma,
-            frame_cues.camera_height_lever(cam, targets, calib) if cfg.road_bend_sigma else None,
+            size.height.camera_lever if cfg.road_bend_sigma else None,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)

@@ -92,15 +92,6 @@ def size_cues(
     return _border_cut_size_cues(cfg, targets, SizeCues(height, width, []))
 
 
-def camera_height_lever(cam: Camera, targets: FrameTargets, calib: CalibrationInUse) -> FloatArray:
-    """The height cue's ``∂ℓ/∂h`` (1/m) per (target, hypothesis)
-    (:func:`~slopedist.estimators.ours.road_bend.height_cue_camera_lever`)."""
-    hyp = targets.classes.hypotheses
-    return road_bend.height_cue_camera_lever(
-        targets.bottom_px - targets.top_px, cam.f, calib.height_m, hyp.height_m, hyp.half_extent_m
-    )
-
-
 def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
     """How far each target's box shape is from its class's: the gap between its height and
     width cues at the heading that explains it best, in σ of the class prior (``(n,)``; NaN
@@ -141,11 +132,9 @@ def _cut_by_border(
     if cfg.censor_border_cuts:
         bounds.append(UpperBound(cue.mean, _total_var(cue, log_sigma), rows))
     inflation = cfg.truncation_factor**2
-    return SizeCue(
-        cue.mean,
-        cue.lever,
-        np.where(rows, cue.var_white * inflation, cue.var_white),
-        np.where(rows, cue.var_other * inflation, cue.var_other)
+    return cue._replace(
+        var_white=np.where(rows, cue.var_white * inflation, cue.var_white),
+        var_other=np.where(rows, cue.var_other * inflation, cue.var_other)
         if inflate_other
         else cue.var_other,
     )
@@ -211,13 +200,13 @@ def occlusion_adjusted(
             height.mean, _total_var(height, hyp.log_sigma_height), ground.mean, ground.var, gate
         )
         extra = occlusion_log_var(excess, cut_h[:, None])
-        height = SizeCue(height.mean, height.lever, height.var_white, height.var_other + extra)
+        height = height._replace(var_other=height.var_other + extra)
     if cfg.use_width and any_true(cut_w):
         excess = unexplained_excess(
             width.mean, _total_var(width, hyp.log_sigma_width), ground.mean, ground.var, gate
         )
         extra = occlusion_log_var(excess, cut_w[:, None])
-        width = SizeCue(width.mean, width.lever, width.var_white, width.var_other + extra)
+        width = width._replace(var_other=width.var_other + extra)
     return SizeCues(height, width, bounds, cut_w | cut_h)
 
 
@@ -243,7 +232,7 @@ def fuse_hypotheses(
     of the targets' hypotheses: of a single mode when their class is generic);
     ``gate_sigma``: the cue consistency check's threshold
     (:func:`~slopedist.estimators.ours.fusion.check_consistency`); ``height_lever``: the
-    height cue's ``∂ℓ/∂h`` per hypothesis (:func:`camera_height_lever`) for the fused
+    height cue's ``∂ℓ/∂h`` per hypothesis (its ``SizeCue.camera_lever``) for the fused
     ``camera_lever`` (None: not computed).
     """
     hyp = targets.classes.hypotheses

@@ -21,29 +21,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, size_cue_weights
+from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, any_true, size_cue_weights
 from slopedist.estimators.ours.records import SizeCues
 
 FloatArray = NDArray[np.float64]
-
-
-def height_cue_camera_lever(
-    box_height_px: FloatArray,
-    f: float,
-    cam_height_m: float,
-    height_m: FloatArray,
-    half_extent_m: FloatArray,
-) -> FloatArray:
-    """``∂ℓ_h/∂h`` (1/m): the height cue's log distance per metre of camera height, per
-    (target, hypothesis); ``2e/(S·Z)`` with :func:`~slopedist.estimators.ours.cues.height_cue`'s
-    ``S`` and ``Z`` where the roof is below the camera, 0 where it is above (the box then spans
-    the near face only)."""
-    H, e = height_m, half_extent_m
-    d = box_height_px * (1.0 / f)
-    S = np.sqrt(H * H + (4.0 * d) * (d * e * e + e * (2.0 * cam_height_m - H)))
-    Z = (H + S) * (0.5 / d)
-    lever = (2.0 * e) / (S * Z)
-    return np.asarray(np.where(cam_height_m > H, lever, ZERO))
 
 
 def fused_camera_lever(
@@ -57,13 +38,17 @@ def fused_camera_lever(
     """``∂ℓ/∂h'`` of the fused log distance per hypothesis: the height cue's lever times its
     share of the size fusion and the size cues' share of the fused distance (1 without a finite
     ground contact)."""
-    a_h = size_cue_weights(size.height, size.width, *spreads, corr_hw)
-    lever = np.where(np.isfinite(a_h), a_h, ONE) * height_lever
+    lever = size_cue_weights(size.height, size.width, *spreads, corr_hw) * height_lever
+    no_width = np.isnan(lever)  # the height cue alone
+    if any_true(no_width):
+        lever = np.where(no_width, height_lever, lever)
     if ground is None:
         return np.asarray(lever)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        w = ground.var / (size_cue.var + ground.var)
-    return np.asarray(np.where(np.isfinite(w), w, ONE) * lever)
+    w = ONE / (ONE + size_cue.var / ground.var)  # 1 where the ground contact's variance is inf
+    no_ground = np.isnan(w)
+    if any_true(no_ground):
+        w = np.where(no_ground, ONE, w)
+    return np.asarray(w * lever)
 
 
 def road_bend_log_var(
