@@ -128,15 +128,12 @@ def _size_covariance(
 
 
 def size_cue_weights(
-    height: SizeCue,
-    width: SizeCue,
-    sigma_log_h: FloatArray | float,
-    sigma_log_w: FloatArray | float,
-    corr_hw: FloatArray | float,
+    cues: tuple[SizeCue, SizeCue], spreads: tuple[FloatArray, FloatArray], corr_hw: FloatArray
 ) -> FloatArray:
-    """The height cue's weight ``a_h`` in :func:`fuse_size_cues` (the width's is ``1 − a_h``;
-    NaN where the width cue is missing, i.e. the height cue alone)."""
-    C11, C22, C12 = _size_covariance(height, width, sigma_log_h, sigma_log_w, corr_hw)
+    """The height cue's weight ``a_h`` in :func:`fuse_size_cues` of the ``(height, width)``
+    cues under the class spreads ``(sigma_log_h, sigma_log_w)`` (the width's weight is
+    ``1 − a_h``; NaN where the width cue is missing, i.e. the height cue alone)."""
+    C11, C22, C12 = _size_covariance(*cues, *spreads, corr_hw)
     return np.asarray((C22 - C12) / (C11 + C22 - C12 - C12))
 
 

@@ -38,7 +38,7 @@ def fused_camera_lever(
     """``∂ℓ/∂h'`` of the fused log distance per hypothesis: the height cue's lever times its
     share of the size fusion and the size cues' share of the fused distance (1 without a finite
     ground contact)."""
-    lever = size_cue_weights(size.height, size.width, *spreads, corr_hw) * height_lever
+    lever = size_cue_weights((size.height, size.width), spreads, corr_hw) * height_lever
     no_width = np.isnan(lever)  # the height cue alone
     if any_true(no_width):
         lever = np.where(no_width, height_lever, lever)
