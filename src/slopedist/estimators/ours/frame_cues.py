@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.camera import Camera
-from slopedist.estimators.ours import cues, fusion, road_bend, vehicle_types
+from slopedist.estimators.ours import cues, fusion, road_bend
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.cues import SizeCue
@@ -241,10 +241,8 @@ def fuse_hypotheses(
     spreads = size_modes.spreads(hyp.log_sigma_height, hyp.log_sigma_width)
     size_cue = fusion.fuse_size_cues(size.height, size.width, *spreads, hyp.corr_height_width)
     fused = size_cue if ground is None else fusion.fuse_log_cues(size_cue, ground)
-    lever = None
-    if height_lever is not None:
-        corr = hyp.corr_height_width
-        lever = road_bend.fused_camera_lever(size, spreads, corr, size_cue, ground, height_lever)
+    corr = hyp.corr_height_width
+    lever = road_bend.fused_camera_lever(size, spreads, corr, size_cue, ground, height_lever)
     for bound, bound_var, rows_cut in size.bounds:
         fused = fusion.censor_upper(fused, bound, bound_var, rows_cut)
     extent, width_mean = hyp.half_extent_m, size.width.mean
@@ -489,7 +487,7 @@ def box_estimates(
     meas = fused.measurement
     persistent = meas.var - meas.var_white
     dist, sigma = kf.distance_moments_rows(filt, persistent)
-    sigma_only = sigma_only_log_var(targets, fused, gradient, gradient_sigma_rad)
+    sigma_only = road_bend.sigma_only_log_var(targets, fused, gradient, gradient_sigma_rad)
     if sigma_only is not None:  # the distance stays the class's own: its σ only widens
         sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
@@ -522,28 +520,6 @@ def box_estimates(
         track_uid=uid.astype(float),
         odd_size_prob=fused.odd_size_prob,
     )
-
-
-def sigma_only_log_var(
-    targets: FrameTargets, fused: FusedCues, gradient: TargetGradient, gradient_sigma_rad: float
-) -> FloatArray | None:
-    """``(n,)`` what widens σ only (log distance²; None: nothing): a generic class's size types
-    (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`) and, with
-    ``fused.camera_lever``, the camera height above the target's road
-    (:func:`~slopedist.estimators.ours.road_bend.road_bend_log_var`, at the frame's measured
-    distance, prior spread ``gradient_sigma_rad``)."""
-    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
-    if fused.camera_lever is None:
-        return sigma_only
-    bend = road_bend.road_bend_log_var(
-        fused.camera_lever,
-        np.exp(fused.measurement.mean),
-        fused.half_extent_m,
-        gradient.track_mean_rad,
-        gradient.track_var_rad2 + gradient.obs_var_other_rad2,
-        gradient_sigma_rad,
-    )
-    return bend if sigma_only is None else sigma_only + bend
 
 
 def _motion_outputs(

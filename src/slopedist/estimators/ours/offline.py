@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from slopedist.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import frame_cues, size_learning
+from slopedist.estimators.ours import road_bend, size_learning
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.estimator import OursEstimator
 from slopedist.estimators.ours.records import (
@@ -123,7 +123,7 @@ class _TargetLog:
     elapsed_s: FloatArray
     extra_log_var: FloatArray
     noise_scale: FloatArray
-    sigma_log_var: FloatArray | None  # what widens the σ only (frame_cues.sigma_only_log_var)
+    sigma_log_var: FloatArray | None  # what widens the σ only (road_bend.sigma_only_log_var)
 
 
 class _SmoothingPass(OursEstimator):
@@ -178,7 +178,7 @@ class _SmoothingPass(OursEstimator):
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
             np.ones(n) if distance.noise_scale is None else distance.noise_scale,
-            frame_cues.sigma_only_log_var(targets, fused, gradient, self.config.gradient_sigma_rad),
+            road_bend.sigma_only_log_var(targets, fused, gradient, self.config.gradient_sigma_rad),
         )
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:

@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.estimators.ours import vehicle_types
 from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, any_true, size_cue_weights
-from slopedist.estimators.ours.records import SizeCues
+from slopedist.estimators.ours.records import FrameTargets, FusedCues, SizeCues, TargetGradient
 
 FloatArray = NDArray[np.float64]
 
@@ -33,11 +34,13 @@ def fused_camera_lever(
     corr_hw: FloatArray,
     size_cue: LogCue,
     ground: LogCue | None,
-    height_lever: FloatArray,
-) -> FloatArray:
+    height_lever: FloatArray | None,
+) -> FloatArray | None:
     """``∂ℓ/∂h'`` of the fused log distance per hypothesis: the height cue's lever times its
     share of the size fusion and the size cues' share of the fused distance (1 without a finite
-    ground contact)."""
+    ground contact); None without ``height_lever``."""
+    if height_lever is None:
+        return None
     lever = size_cue_weights((size.height, size.width), spreads, corr_hw) * height_lever
     no_width = np.isnan(lever)  # the height cue alone
     if any_true(no_width):
@@ -65,3 +68,25 @@ def road_bend_log_var(
     near = np.maximum(distance_m - half_extent_m, ZERO)
     spread2 = gradient_rad * gradient_rad + gradient_var_rad2 + gradient_sigma_rad**2
     return np.asarray((lever * near) ** 2 * spread2)
+
+
+def sigma_only_log_var(
+    targets: FrameTargets, fused: FusedCues, gradient: TargetGradient, gradient_sigma_rad: float
+) -> FloatArray | None:
+    """``(n,)`` what widens σ only (log distance²; None: nothing): a generic class's size types
+    (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`) and, with
+    ``fused.camera_lever``, the camera height above the target's road
+    (:func:`road_bend_log_var`, at the frame's measured
+    distance, prior spread ``gradient_sigma_rad``)."""
+    sigma_only = vehicle_types.sigma_log_var(targets.classes.type_moments, fused)
+    if fused.camera_lever is None:
+        return sigma_only
+    bend = road_bend_log_var(
+        fused.camera_lever,
+        np.exp(fused.measurement.mean),
+        fused.half_extent_m,
+        gradient.track_mean_rad,
+        gradient.track_var_rad2 + gradient.obs_var_other_rad2,
+        gradient_sigma_rad,
+    )
+    return bend if sigma_only is None else sigma_only + bend
