@@ -81,6 +81,22 @@ def test_a_header_of_other_column_names_is_named_not_read_as_mot(tmp_path: Path)
         read_box_file(path)
 
 
+def test_a_box_csv_with_its_columns_in_another_order_is_read(tmp_path: Path) -> None:
+    # read_box_csv finds the columns by name; the sniffer refused a header not starting 'frame,'
+    path = tmp_path / "reordered.csv"
+    path.write_text("track_id,class,frame,left,top,right,bottom\n3,Car,0,1,2,30,40\n")
+    table = read_box_file(path)
+    assert table.frame.tolist() == [0] and table.track_id.tolist() == [3]
+    assert table.boxes.tolist() == [[1.0, 2.0, 30.0, 40.0]]
+
+
+def test_a_foreign_header_after_comment_lines_is_named_at_its_line(tmp_path: Path) -> None:
+    path = tmp_path / "mine.csv"
+    path.write_text("# exported by my detector\n\nframe_id,x1,y1,x2,y2\n0,1,2,30,40\n")
+    with pytest.raises(InputFileError, match=r"line 3: the header 'frame_id"):
+        read_box_file(path)
+
+
 def test_yolo_needs_an_image_size_and_kitti_is_not_writable(tmp_path: Path) -> None:
     with pytest.raises(ConfigurationError, match="image size"):
         write_boxes(_table(), tmp_path / "y", BoxFormat.YOLO)

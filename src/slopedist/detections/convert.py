@@ -28,6 +28,7 @@ from slopedist.detections.formats import read_coco, read_coco_image_map, read_mo
 from slopedist.detections.onnx_detector import COCO_VEHICLES
 from slopedist.detections.readers import (
     CSV_BOX_COLUMNS,
+    CSV_REQUIRED,
     POINTRCNN_FIELDS,
     read_box_csv,
     read_kitti_labels,
@@ -105,17 +106,17 @@ def sniff_format(path: str | Path) -> BoxFormat:
         return BoxFormat.YOLO
     if path.suffix.lower() == ".json":
         return BoxFormat.COCO
-    first = next(iter(numbered_lines(path, "box file")), (0, ""))[1]
+    lineno, first = next(iter(numbered_lines(path, "box file")), (1, ""))
     commas = len(first.split(","))
-    if first.replace(" ", "").lower().startswith("frame,"):
+    if _is_csv_header(first):
         return BoxFormat.CSV
     if commas > 1 and not _is_number(first.split(",")[0]):
         raise InputFileError(
             path,
             f"the header '{first[:120]}' is not a box file's: the slopedist CSV needs the "
-            f"columns {','.join(CSV_BOX_COLUMNS)} (the first five required; rename yours, "
-            "frame first), and MOTChallenge and PointRCNN files have no header",
-            line=1,
+            f"columns {','.join(CSV_BOX_COLUMNS)} (the first five required, in any order; rename "
+            "yours), and MOTChallenge and PointRCNN files have no header",
+            line=lineno,
         )
     if commas == len(POINTRCNN_FIELDS):
         return BoxFormat.POINTRCNN
@@ -129,6 +130,14 @@ def sniff_format(path: str | Path) -> BoxFormat:
         "bottom' header, PointRCNN, KITTI labels, MOTChallenge, COCO JSON or a YOLO folder)",
         line=1,
     )
+
+
+def _is_csv_header(line: str) -> bool:
+    """Whether ``line`` is the slopedist CSV's header: ``frame`` first, or the required columns
+    in any order (:func:`~slopedist.detections.readers.read_box_csv` finds them by name; the
+    names compared without regard to case, whose difference it then names)."""
+    names = [name.strip().lower() for name in line.split(",")]
+    return names[0] == "frame" or set(CSV_REQUIRED) <= set(names)
 
 
 def _is_number(text: str) -> bool:
