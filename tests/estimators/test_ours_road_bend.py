@@ -3,8 +3,8 @@
 A camera high above the road (2.5 m, a truck's) sees the roof of the car ahead; how much of it
 depends on its height above the *target's* road, which the foot of a hill between them raises
 (the box grows about 15 % taller, the size cue says 10 % too near while the ground contact is
-too uncertain to help). Before ``road_bend_sigma`` that error was in no variance: 0.79 of the
-rows within 2σ. The distances do not change.
+too uncertain to help). Before ``road_bend_sigma`` that error was in no variance: 0.83 of the
+rows within 2σ (0.95 with it). The distances do not change.
 """
 
 from __future__ import annotations
