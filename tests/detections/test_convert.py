@@ -88,6 +88,8 @@ def test_a_box_csv_with_its_columns_in_another_order_is_read(tmp_path: Path) -> 
     table = read_box_file(path)
     assert table.frame.tolist() == [0] and table.track_id.tolist() == [3]
     assert table.boxes.tolist() == [[1.0, 2.0, 30.0, 40.0]]
+    path.write_text('"frame","left","top","right","bottom"\n0,1,2,30,40\n')  # a quoting writer
+    assert read_box_file(path).boxes.tolist() == [[1.0, 2.0, 30.0, 40.0]]
 
 
 def test_a_foreign_header_after_comment_lines_is_named_at_its_line(tmp_path: Path) -> None:

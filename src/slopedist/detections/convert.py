@@ -135,8 +135,8 @@ def sniff_format(path: str | Path) -> BoxFormat:
 def _is_csv_header(line: str) -> bool:
     """Whether ``line`` is the slopedist CSV's header: ``frame`` first, or the required columns
     in any order (:func:`~slopedist.detections.readers.read_box_csv` finds them by name; the
-    names compared without regard to case, whose difference it then names)."""
-    names = [name.strip().lower() for name in line.split(",")]
+    names compared without regard to case, whose difference it then names, and to quotes)."""
+    names = [name.strip().strip('"').strip().lower() for name in line.split(",")]
     return names[0] == "frame" or set(CSV_REQUIRED) <= set(names)
 
 
