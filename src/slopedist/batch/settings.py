@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, class_key, vehicle_class_names
+from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.errors import ConfigurationError, InputFileError
 from slopedist.estimators import (
     EstimatorConfig,
@@ -35,7 +35,12 @@ from slopedist.estimators import (
     takes_ours_options,
 )
 from slopedist.estimators.base import parse_reference
-from slopedist.estimators.ours.config import OPTION_SEPARATOR, parse_option_list
+from slopedist.estimators.ours.config import (
+    OPTION_SEPARATOR,
+    idle_sigma_only,
+    parse_option_list,
+    unscored_generic_class,
+)
 from slopedist.run_config import OverlayFormat, RunExport
 from slopedist.textfiles import parse_bool
 
@@ -234,15 +239,14 @@ def _generic_problem(settings: Mapping[str, Any]) -> tuple[str, str] | None:
     """``(column, message)`` for generic classes that are not vehicle classes (their boxes
     get no distance), or for ``generic_sigma_only=true`` without a generic class (it would do
     nothing); None when neither."""
-    vehicles = {class_key(c) for c in settings["vehicle_classes"]}
-    unscored = [c for c in settings["generic_classes"] if class_key(c) not in vehicles]
-    if unscored:
+    unscored = unscored_generic_class(settings["generic_classes"], settings["vehicle_classes"])
+    if unscored is not None:
         return "generic_classes", (
-            f"'{unscored[0]}' is not one of the vehicle classes "
+            f"'{unscored}' is not one of the vehicle classes "
             f"({LIST_SEPARATOR.join(settings['vehicle_classes'])}), so its boxes get no "
             "distance; add it to vehicle_classes"
         )
-    if dict(settings["ours_options"]).get("generic_sigma_only") and not settings["generic_classes"]:
+    if idle_sigma_only(settings["ours_options"], settings["generic_classes"]):
         return "ours_options", (
             "generic_sigma_only=true applies to generic classes and this drive has none: name "
             "the class the detector gives to any vehicle in column generic_classes (or "

@@ -14,7 +14,6 @@ from typing import Any
 import click
 
 from slopedist.cli.options import apply_options, split_list
-from slopedist.detections.boxes import class_key
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import (
     ESTIMATORS,
@@ -26,7 +25,7 @@ from slopedist.estimators import (
 )
 from slopedist.estimators.base import VEHICLE_REFERENCES
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import parse_options
+from slopedist.estimators.ours.config import idle_sigma_only, parse_options, unscored_generic_class
 from slopedist.learned_peer import PEER_METHOD
 
 
@@ -144,14 +143,13 @@ def ours_config(
         raise click.UsageError(
             f"--generic-class is for methods {methods}; the method is '{method}'"
         )
-    vehicles = {class_key(c) for c in vehicle_classes}
-    unscored = [c for c in generic_classes if class_key(c) not in vehicles]
-    if unscored:
+    unscored = unscored_generic_class(generic_classes, vehicle_classes)
+    if unscored is not None:
         raise click.UsageError(
-            f"--generic-class {unscored[0]}: not one of --vehicle-classes "
+            f"--generic-class {unscored}: not one of --vehicle-classes "
             f"({', '.join(vehicle_classes)}), so its boxes get no distance; add it there"
         )
-    if ours and not generic_classes and dict(config.ours_options).get("generic_sigma_only"):
+    if ours and idle_sigma_only(config.ours_options, generic_classes):
         raise click.UsageError(
             "--ours-option generic_sigma_only=true applies to generic classes and none is "
             "given: name the class your detector gives to any vehicle with --generic-class "

@@ -9,9 +9,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 
+from slopedist.detections.boxes import class_key
 from slopedist.errors import ConfigurationError
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours import filter as kf
@@ -329,6 +331,23 @@ OWN_OPTIONS = {
     "generic_classes)",
 }
 """The fields that have an option of their own, with it (named when ``KEY=VALUE`` gives one)."""
+
+
+def unscored_generic_class(
+    generic_classes: Iterable[str], vehicle_classes: Iterable[str]
+) -> str | None:
+    """The first of ``generic_classes`` that is not one of ``vehicle_classes`` (compared as
+    :func:`~slopedist.detections.boxes.class_key`: its boxes get no distance), None when all are."""
+    vehicles = {class_key(c) for c in vehicle_classes}
+    return next((c for c in generic_classes if class_key(c) not in vehicles), None)
+
+
+def idle_sigma_only(
+    ours_options: Iterable[tuple[str, Any]], generic_classes: Iterable[str]
+) -> bool:
+    """Whether ``ours_options`` set ``generic_sigma_only`` true with no generic class to apply
+    it to (it would do nothing)."""
+    return bool(dict(ours_options).get("generic_sigma_only")) and not tuple(generic_classes)
 
 
 def settable_options() -> list[str]:
