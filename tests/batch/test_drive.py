@@ -272,3 +272,26 @@ def test_the_rows_a_box_reader_drops_are_a_warning_of_the_batch(
     assert f"warning: drive crest: {coco}: dropped {n} of {2 * n} box rows" in text
     status = (out / "crest" / "run.json").read_text()
     assert '"dropped_boxes"' in status
+
+
+def test_a_failed_drive_keeps_the_warnings_its_run_logged(
+    sim: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The rows a reader left out may be why a drive failed: its outcome keeps them (they were
+    kept only for a drive that finished)."""
+    import logging
+
+    from slopedist.batch import drive
+    from slopedist.errors import InputFileError
+
+    def warn_then_fail(*args: object) -> None:
+        logging.getLogger("slopedist.detections").warning("boxes.json: dropped 9 of 10 box rows")
+        raise InputFileError("boxes.json", "no box left")
+
+    monkeypatch.setattr(drive, "run_single_drive", warn_then_fail)
+    out = tmp_path / "batch"
+    out.mkdir()
+    spec = spec_of(sim)
+    outcome = process_drive(spec, out, input_stamp(spec))
+    assert outcome.status is DriveStatus.FAILED and "no box left" in outcome.error
+    assert outcome.warnings == ("boxes.json: dropped 9 of 10 box rows",)

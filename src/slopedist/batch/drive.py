@@ -203,8 +203,9 @@ def process_drive(
     tmp = out_root / f"{TMP_PREFIX}{spec.name}-{uuid.uuid4().hex[:8]}"
     final = out_root / spec.name
     start, cpu_start = time.perf_counter(), time.process_time()
+    warnings: list[str] = []  # kept for a failed drive too: a dropped-rows line may explain it
     try:
-        with logged_warnings() as warnings:
+        with logged_warnings(warnings):
             result = run_single_drive(spec, tmp, _crash_after(spec.name, attempt, crash_hook))
         summary_path = tmp / SUMMARY_NAME
         summary = relocated(json.loads(summary_path.read_text(encoding="utf-8")), tmp, final)
@@ -221,6 +222,7 @@ def process_drive(
             error=error_text(exc),
             seconds=time.perf_counter() - start,
             attempts=attempt,
+            warnings=tuple(warnings),
         )
     return DriveOutcome(
         spec.name,
@@ -236,22 +238,23 @@ def process_drive(
 
 
 class _WarningList(logging.Handler):
-    """Keeps the messages of the warnings (and worse) logged to it."""
+    """Keeps the messages of the warnings (and worse) logged to it in ``messages``."""
 
-    def __init__(self) -> None:
+    def __init__(self, messages: list[str]) -> None:
         super().__init__(logging.WARNING)
-        self.messages: list[str] = []
+        self.messages = messages
 
     def emit(self, record: logging.LogRecord) -> None:
         self.messages.append(record.getMessage())
 
 
 @contextmanager
-def logged_warnings() -> Iterator[list[str]]:
+def logged_warnings(messages: list[str] | None = None) -> Iterator[list[str]]:
     """The messages of the warnings slopedist's loggers log inside the block (a drive's run in
     a Ray worker, whose own log reaches no one: :data:`~slopedist.batch.engine` starts Ray
-    without ``log_to_driver``), e.g. the rows a box file's reader left out."""
-    handler = _WarningList()
+    without ``log_to_driver``), e.g. the rows a box file's reader left out; appended to
+    ``messages`` (None: a new list), which the block also gets, and kept when it raises."""
+    handler = _WarningList([] if messages is None else messages)
     logger = logging.getLogger("slopedist")
     logger.addHandler(handler)
     try:
