@@ -30,6 +30,10 @@ def test_no_distance_at_all_is_a_warning_naming_the_most_frequent_classes() -> N
     line = not_vehicles_line(classes, records=40, with_distance=0)
     assert line.startswith("warning: no box got a distance; 28 of 40 are of a class that is not")
     assert "'c7' (7), 'c6' (6), 'c5' (5), 'c4' (4), 'c3' (3) and 2 more" in line
+    # 12 rows of vehicle classes got no distance either: --vehicle-classes is not their fix
+    assert line.endswith("; the reasons of the other 12 rows say what they lacked")
+    line = not_vehicles_line({"2": 40}, records=40, with_distance=0)
+    assert line.endswith("; name the vehicle classes with --vehicle-classes")
 
 
 def test_estimate_warns_when_every_box_is_of_another_class(

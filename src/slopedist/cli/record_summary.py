@@ -15,16 +15,21 @@ def not_vehicles_line(
     """The summary line of the ``classes`` (``{name: rows}``) of boxes that are not vehicles,
     naming the ``shown`` most frequent (a class meant as a vehicle, e.g. a detector's id ``2``,
     is seen at once); a warning when none of the ``records`` rows got a distance
-    (``with_distance``: rows ``ok`` or ``upper_bound``)."""
+    (``with_distance``: rows ``ok`` or ``upper_bound``), whose advice is ``--vehicle-classes``
+    only when every row is of such a class (rows of vehicle classes lacked something else)."""
     ranked = sorted(classes.items(), key=lambda kv: (-kv[1], kv[0]))
     names = ", ".join(f"'{name}' ({n})" for name, n in ranked[:shown])
     more = f" and {len(ranked) - shown} more" if len(ranked) > shown else ""
     total = sum(classes.values())
     if with_distance == 0:
+        advice = (
+            "name the vehicle classes with --vehicle-classes"
+            if total >= records
+            else f"the reasons of the other {records - total} rows say what they lacked"
+        )
         return (
             f"warning: no box got a distance; {total} of {records} are of a class that is not a "
-            f"vehicle: {names}{more} (missing, reason not_a_vehicle); name the vehicle classes "
-            "with --vehicle-classes"
+            f"vehicle: {names}{more} (missing, reason not_a_vehicle); {advice}"
         )
     return (
         f"{total} boxes are not of a vehicle class ({names}{more}; missing, reason "
