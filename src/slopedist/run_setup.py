@@ -25,6 +25,7 @@ from slopedist.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
+from slopedist.estimators.ours.selfcal import self_calibrates, warn_if_uncalibrated
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.frames import FrameSource, with_frame_size
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
@@ -240,7 +241,7 @@ class PreparedRun:
                 "--rotation-topic, and this run has none (--odometry none): use --odometry "
                 "builtin, or leave out --export tum"
             )
-        return run_frames(
+        result = run_frames(
             frames or self.source,
             self.boxes,
             self.odometry,
@@ -250,6 +251,8 @@ class PreparedRun:
             self.detector,
             self.dropped_boxes.reasons,
         )
+        warn_if_uncalibrated(self.estimator)
+        return result
 
 
 def boxes_or_detector(
@@ -286,6 +289,12 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
     depth = inputs.depth(source) if inputs.depth is not None else None
     visual = (camera, inputs.lookback_s, calibration.point_map)
     odometry = rotation_source(source, topics.rotation, inputs.odometry, inputs.vocab, visual)
+    if odometry is None and self_calibrates(estimator):
+        raise ConfigurationError(
+            f"method '{estimator.name}' calibrates the mount angle and height from frames with a "
+            "measured rotation, and --odometry none gives none: use --odometry builtin (or a "
+            "drive log's --rotation-topic), or --method ours"
+        )
     return PreparedRun(
         source,
         calibration,

@@ -6,6 +6,7 @@ import csv
 import json
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from slopedist.cli import main
 from slopedist.cli.calibrate_cmd import advice_text
 from slopedist.datasets.synthetic.traffic import simulate_traffic
 from slopedist.estimators.ours import EXTRA_COLUMNS
-from slopedist.estimators.ours.selfcal import Calibration
+from slopedist.estimators.ours.selfcal import Calibration, uncalibrated_warning
 from slopedist.mount_calibration import judge_mount
 
 F, CX, CY = 721.5, 609.6, 172.9
@@ -285,3 +286,22 @@ def test_advice_text_says_which_sigma_parts_were_not_measured() -> None:
     assert "fit 0.29°, 0.100 m" in parts and "0.00°" not in parts
     whole = judge_mount(cal(600, 20), [cal(200, 8), cal(200, 8), cal(200, 8)], cal(0, 0))
     assert "not measured" not in advice_text(whole)
+
+
+def test_estimate_is_quiet_when_selfcal_calibrated(
+    simulated: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`estimate --method ours-selfcal` warns only when it never calibrated."""
+    out = tmp_path / "records.csv"
+    assert main(["estimate", *_args(simulated), "--method", "ours-selfcal", "--out", str(out)]) == 0
+    assert "did not self-calibrate" not in capsys.readouterr().err
+
+
+def test_uncalibrated_warning_names_the_cause() -> None:
+    """No frame with θ, or frames with θ but no usable target: the calib_* columns are the
+    configured values, and the warning says which."""
+    cal = Calibration(0.0, 0.02, 1.65, 0.2, 0.0, 0, 0)
+    assert "no frame had a measured rotation" in str(uncalibrated_warning("ours-selfcal", cal))
+    seen = uncalibrated_warning("ours-selfcal", replace(cal, n_frames=7))
+    assert "none of the 7 frames with a measured rotation had a usable target" in str(seen)
+    assert uncalibrated_warning("ours-selfcal", replace(cal, n_observations=3)) is None

@@ -385,3 +385,20 @@ def test_summary_warns_when_most_frames_are_missing() -> None:
     assert "warning: 10 of the 12 frames are missing" in summary_text(result, Path("out"))
     result = RunResult("out", "ours", frames=12, frame_status={"ok": 7, "missing": 5})
     assert "frames are missing" not in summary_text(result, Path("out"))
+
+
+def test_selfcal_without_rotations(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """ours-selfcal calibrates from frames with a measured θ only: --odometry none is refused
+    up front, and a run whose odometry never gave a rotation (featureless frames) says at the
+    end that it did not calibrate (the calib_* columns were silently the configured values)."""
+    args = setup(tmp_path)
+    assert main(["run", *args, "--method", "ours-selfcal", "--odometry", "none"]) == 2
+    err = capsys.readouterr().err
+    assert "--odometry none gives none" in err and "Traceback" not in err
+    assert main(["run", *args, "--method", "ours-selfcal"]) == 0
+    assert "ours-selfcal did not self-calibrate: no frame had a measured rotation" in caplog.text
+    caplog.clear()
+    assert main(["run", *args, "--method", "ours"]) == 0
+    assert "self-calibrate" not in caplog.text

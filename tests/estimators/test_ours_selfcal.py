@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -62,7 +63,7 @@ def test_selfcalibrator_ignores_unusable_targets_and_rejects_bad_config() -> Non
         np.zeros(2),
         np.array([10.0, 0.5]),
     )  # NaN row; 0.5 m is closer than min_near
-    assert cal.calibration() == before
+    assert cal.calibration() == replace(before, n_frames=1)  # a frame seen, nothing used
     with pytest.raises(ConfigurationError):
         SelfCalConfig(height_sigma_m=0.0)
 

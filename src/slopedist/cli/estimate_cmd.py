@@ -20,6 +20,7 @@ from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
 from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
+from slopedist.estimators.ours.selfcal import estimator_calibration_warning
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
 
@@ -81,6 +82,9 @@ def estimate(
         return
     for line in tally.lines(out):
         click.echo(line, err=True)
+    uncalibrated = estimator_calibration_warning(estimator)
+    if uncalibrated is not None:
+        click.echo(uncalibrated, err=True)
 
 
 def quiet_closed_stdout() -> None:

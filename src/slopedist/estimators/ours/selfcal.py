@@ -30,6 +30,7 @@ not describe its boxes.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -37,6 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.errors import ConfigurationError
+
+_log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
@@ -102,6 +105,7 @@ class Calibration:
         n_shape_checked: targets whose box shape was checked against their class (those
             with both size cues, before the shape test).
         n_shape_outliers: of those, the ones left out for a shape their class does not give.
+        n_frames: frames given to it (those with a measured ego gradient θ only).
     """
 
     mount_angle_rad: float
@@ -113,6 +117,7 @@ class Calibration:
     n_tracks: int
     n_shape_checked: int = 0
     n_shape_outliers: int = 0
+    n_frames: int = 0
 
     @property
     def shape_outlier_share(self) -> float:
@@ -154,6 +159,7 @@ class SelfCalibrator:
         self._info_tracks = np.zeros((2, 2))
         self._vec_tracks = np.zeros(2)
         self._n_obs = 0
+        self._n_frames = 0
         self._n_shape_checked = 0
         self._n_shape_outliers = 0
         self._p = self._prior_mean.copy()
@@ -186,6 +192,7 @@ class SelfCalibrator:
             len(self._row_of),
             self._n_shape_checked,
             self._n_shape_outliers,
+            self._n_frames,
         )
 
     def track_jackknife(self) -> FloatArray:
@@ -231,6 +238,7 @@ class SelfCalibrator:
                 not checked); beyond ``shape_gate_sigma`` the target is left out and counted.
         """
         c = self.config
+        self._n_frames += 1
         ok = (
             np.isfinite(bottom_px)
             & np.isfinite(horizon_px)
@@ -344,3 +352,43 @@ def _inv2(M: FloatArray) -> FloatArray:
     out[..., 1, 0] = -c / det
     out[..., 1, 1] = a / det
     return out
+
+
+def self_calibrates(estimator: object) -> bool:
+    """Whether ``estimator`` calibrates θ0 and h online (``ours-selfcal``: ``self_calibrate``)."""
+    return bool(getattr(getattr(estimator, "config", None), "self_calibrate", False))
+
+
+def uncalibrated_warning(name: str, calibration: Calibration) -> str | None:
+    """The warning for a self-calibrating method ``name`` that never calibrated (None when it
+    did): no frame had a measured rotation (θ), or none of theirs had a usable target; its
+    records' ``calib_*`` columns then stay at the configured mount angle and height."""
+    if calibration.n_observations:
+        return None
+    why = (
+        "no frame had a measured rotation (θ; see the odometry states)"
+        if calibration.n_frames == 0
+        else f"none of the {calibration.n_frames} frames with a measured rotation had a usable "
+        "target (a vehicle of a tightly sized class, near enough, not cut by the border)"
+    )
+    return (
+        f"warning: {name} did not self-calibrate: {why}; the records' calib_* columns are the "
+        "configured mount angle and height"
+    )
+
+
+def estimator_calibration_warning(estimator: object) -> str | None:
+    """:func:`uncalibrated_warning` of ``estimator`` when it self-calibrates (at the end of a
+    run or of an ``estimate``); None for any other method or one that calibrated."""
+    calibration = getattr(estimator, "calibration", None)
+    if not self_calibrates(estimator) or calibration is None:
+        return None
+    return uncalibrated_warning(str(getattr(estimator, "name", "ours-selfcal")), calibration())
+
+
+def warn_if_uncalibrated(estimator: object) -> None:
+    """Log :func:`estimator_calibration_warning` (a run's warnings go to the log, which
+    ``batch`` keeps per drive)."""
+    message = estimator_calibration_warning(estimator)
+    if message is not None:
+        _log.warning("%s", message)
