@@ -11,6 +11,7 @@ nothing else, so a drive of a batch gives the records of ``slopedist run`` with 
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from slopedist.errors import ConfigurationError
 from slopedist.estimators import Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.estimators.ours.selfcal import self_calibrates, warn_if_uncalibrated
+from slopedist.frame_steps import SteppedFrames, long_step_warning
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.frames import FrameSource, with_frame_size
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
@@ -36,6 +38,8 @@ from slopedist.odometry.imu import SpeedTrack
 from slopedist.odometry.point_map import PointMap
 from slopedist.run_config import RunConfig, RunResult
 from slopedist.runner import run_frames
+
+_log = logging.getLogger(__name__)
 
 ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
 """Rotation sources on the frames (``--odometry``; ``none`` = no rotations, for methods that do
@@ -226,6 +230,7 @@ class PreparedRun:
     ego_speed: SpeedTrack | None
     time_origin_ns: int
     dropped_boxes: DroppedBoxes = field(default_factory=DroppedBoxes)
+    lookback_s: float = LOOKBACK_S
 
     def run(self, config: RunConfig, frames: FrameSource | None = None) -> RunResult:
         """:func:`~slopedist.runner.run_frames` on these inputs into ``config`` (``frames``
@@ -241,8 +246,9 @@ class PreparedRun:
                 "--rotation-topic, and this run has none (--odometry none): use --odometry "
                 "builtin, or leave out --export tum"
             )
+        stepped = SteppedFrames(frames or self.source)
         result = run_frames(
-            frames or self.source,
+            stepped,
             self.boxes,
             self.odometry,
             self.estimator,
@@ -252,6 +258,9 @@ class PreparedRun:
             self.dropped_boxes.reasons,
         )
         warn_if_uncalibrated(self.estimator)
+        long_steps = long_step_warning(stepped.steps_s, self.lookback_s)
+        if long_steps is not None and self.odometry is not None:  # θ from those rotations
+            _log.warning("%s", long_steps)
         return result
 
 
@@ -306,4 +315,5 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
         ego_speed=log_speed(source, topics.speed) if topics.speed else None,
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
         dropped_boxes=dropped,
+        lookback_s=inputs.lookback_s,
     )

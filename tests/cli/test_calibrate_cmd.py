@@ -305,3 +305,16 @@ def test_uncalibrated_warning_names_the_cause() -> None:
     seen = uncalibrated_warning("ours-selfcal", replace(cal, n_frames=7))
     assert "none of the 7 frames with a measured rotation had a usable target" in str(seen)
     assert uncalibrated_warning("ours-selfcal", replace(cal, n_observations=3)) is None
+
+
+def test_estimate_warns_of_frames_further_apart_than_the_lookback(
+    simulated: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--frame-period 3`: every θ looks back one 3 s step, not the 1 s look-back; said once."""
+    out = tmp_path / "records.csv"
+    args = ["estimate", *_args(simulated), "--method", "paper", "--out", str(out)]
+    assert main([*args, "--frame-period", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "a median 3 s apart, longer than the 1 s look-back" in err and "--lookback" in err
+    assert main(args) == 0
+    assert "look-back" not in capsys.readouterr().err

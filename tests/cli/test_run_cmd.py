@@ -402,3 +402,26 @@ def test_selfcal_without_rotations(
     caplog.clear()
     assert main(["run", *args, "--method", "ours"]) == 0
     assert "self-calibrate" not in caplog.text
+
+
+def test_frames_further_apart_than_the_lookback(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A timelapse (frames 3 s apart) looks back one frame step, not the 1 s look-back: the run
+    says so once; frames 0.1 s apart, or no rotations at all (--odometry none), say nothing."""
+    args = setup(tmp_path)
+    stamps = tmp_path / "stamps.txt"
+    stamps.write_text("".join(f"{3.0 * k}\n" for k in range(4)))
+    assert main(["run", *args, "--method", "ours", "--timestamps", str(stamps)]) == 0
+    assert "a median 3 s apart, longer than the 1 s look-back" in caplog.text
+    assert caplog.text.count("look-back of the ego gradient") == 1
+    caplog.clear()
+    assert (
+        main(["run", *args, "--method", "ours", "--timestamps", str(stamps), "--lookback", "4"])
+        == 0
+    )
+    assert "look-back of the ego gradient" not in caplog.text
+    opts = ["--timestamps", str(stamps), "--odometry", "none"]
+    assert main(["run", *args, "--method", "flat", *opts]) == 0
+    assert main(["run", *args, "--method", "ours"]) == 0
+    assert "look-back of the ego gradient" not in caplog.text

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import click
+import numpy as np
 
 from slopedist.cli.method_options import (
     check_methods,
@@ -21,6 +22,7 @@ from slopedist.detections.boxes import BoxTable
 from slopedist.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
 from slopedist.estimators.ours.selfcal import estimator_calibration_warning
+from slopedist.frame_steps import long_step_warning
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
 
@@ -82,9 +84,13 @@ def estimate(
         return
     for line in tally.lines(out):
         click.echo(line, err=True)
-    uncalibrated = estimator_calibration_warning(estimator)
-    if uncalibrated is not None:
-        click.echo(uncalibrated, err=True)
+    notes = (
+        long_step_warning(np.diff(seq.track.timestamps_s), lookback_s),
+        estimator_calibration_warning(estimator),
+    )
+    for note in notes:
+        if note is not None:
+            click.echo(note, err=True)
 
 
 def quiet_closed_stdout() -> None:
