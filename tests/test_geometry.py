@@ -171,3 +171,10 @@ def test_gradient_adjustment_from_degrees_refuses_two_thresholds() -> None:
     """It failed with a bare IndexError."""
     with pytest.raises(ConfigurationError, match="thresholds_px must be three finite"):
         geo.GradientAdjustment.from_degrees((3.0, 5.0, 6.0), (0.0, -10.0))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("mount_angle_rad", [0.0, 0.02, -0.035])
+def test_rest_gradient_is_minus_the_mount_angle(mount_angle_rad: float) -> None:
+    """By hand: n0 = [0, −cos θ0, −sin θ0], d0 = [0, 0, 1], so n0ᵀd0 = −sin θ0 and
+    θ = π/2 − arccos(−sin θ0) = −θ0."""
+    assert geo.rest_gradient(mount_angle_rad) == pytest.approx(-mount_angle_rad, abs=1e-12)

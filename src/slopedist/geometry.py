@@ -73,6 +73,13 @@ def ego_road_gradient(
     return np.pi / 2 - np.arccos(cos_angle)
 
 
+def rest_gradient(mount_angle_rad: ArrayLike = 0.0) -> FloatArray:
+    """θ of a camera at rest (no rotation over the look-back), radians: eq. 4 with
+    ``ΔR_prev = ΔR_curr = I``, the θ that the mount angle θ0 alone gives (its vanishing line is
+    the flat-ground horizon)."""
+    return ego_road_gradient(np.eye(3), np.eye(3), mount_angle_rad)
+
+
 def vanishing_line_row(theta_rad: ArrayLike, f: ArrayLike, c_y: ArrayLike) -> FloatArray:
     """Row of the vanishing line, eq. 5: ``v = c_y − f·tan θ`` (pixels)."""
     return np.asarray(c_y, dtype=float) - np.asarray(f, dtype=float) * np.tan(theta_rad)

@@ -162,9 +162,7 @@ class FrameStep:
             )
         self.vehicle_classes = tuple(vehicle_classes)
         self.gradient = EgoGradientTracker(estimator.camera.mount_angle_rad, lookback_s)
-        self._theta_rest = float(
-            geo.ego_road_gradient(np.eye(3), np.eye(3), estimator.camera.mount_angle_rad)
-        )
+        self._theta_rest = float(geo.rest_gradient(estimator.camera.mount_angle_rad))
         self._last_timestamp: float | None = None
         self._offline_boxes: list[tuple[BoxTable, bool]] = []
 

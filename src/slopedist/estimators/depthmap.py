@@ -245,7 +245,7 @@ class DepthMapEstimator(Estimator):
                     f"'{self.truth_column}' (metres) in the boxes of frame {frame.frame_index}"
                 )
             return np.asarray(frame.boxes.extra[self.truth_column], dtype=float)
-        theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
+        theta_rest = geo.rest_gradient(self.camera.mount_angle_rad)
         v = geo.vanishing_line_row(theta_rest, self.camera.f, self.camera.c_y)
         return geo.ground_contact_distance(
             self.camera.f, self.camera.height_m, geo.box_bottom_row(boxes), v

@@ -89,7 +89,7 @@ class FlatGroundEstimator(Estimator):
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         boxes = frame.boxes.boxes
-        theta_rest = geo.ego_road_gradient(np.eye(3), np.eye(3), self.camera.mount_angle_rad)
+        theta_rest = geo.rest_gradient(self.camera.mount_angle_rad)
         theta = np.full(len(boxes), theta_rest)
         return ground_contact_estimates(
             self.camera,

@@ -137,9 +137,7 @@ class OursEstimator(Estimator):
         self.selfcal = SelfCalibrator(
             camera.f, camera.mount_angle_rad, camera.height_m, config.selfcal
         )
-        self._theta_rest = float(
-            geo.ego_road_gradient(np.eye(3), np.eye(3), camera.mount_angle_rad)
-        )
+        self._theta_rest = float(geo.rest_gradient(camera.mount_angle_rad))
         self._size_modes = [m for m, _ in config.size_modes]
         generic = tuple(config.generic_classes)
         self._classes = ClassTable(
