@@ -409,7 +409,8 @@ def settle_states(
     bad = problems != ""
     est.distance_m = np.array(est.distance_m, dtype=float)  # the method's arrays stay its own
     est.reason, est.status = est.reason.copy(), est.status.copy()
-    est.cut = cut_labels(border_cuts(frame_pixel_boxes(boxes), size))
+    pixel_boxes = frame_pixel_boxes(boxes)
+    est.cut = cut_labels(border_cuts(pixel_boxes, size))
     est.cut[bad] = ""
     est.status[bad] = EstimateStatus.MISSING.value
     est.reason[bad] = problems[bad]
@@ -417,9 +418,9 @@ def settle_states(
     other = ~bad & ~vehicle_mask(boxes.cls, vehicle_classes)
     est.set_state(other, EstimateStatus.MISSING, MissingReason.NOT_A_VEHICLE)
     if bottom_cut_bound:
-        bottom_cut_is_upper_bound(est, frame_pixel_boxes(boxes), camera)
+        bottom_cut_is_upper_bound(est, pixel_boxes, camera)
     unresolved = (est.status == EstimateStatus.OK.value) & unresolved_distances(
-        est.distance_m, frame_pixel_boxes(boxes), camera
+        est.distance_m, pixel_boxes, camera
     )
     est.set_state(unresolved, EstimateStatus.MISSING, MissingReason.BEYOND_RESOLUTION)
     d = est.distance_m
