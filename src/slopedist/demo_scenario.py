@@ -345,7 +345,7 @@ class ScenarioLoop:
         trusted one), θ (radians) and whether the frame is a jump."""
         tracker = self.gradients[name]
         theta = tracker.update(t, R, segment)
-        return (tracker.trusted_rotation if tracker.jump else R), theta, tracker.jump
+        return tracker.given_rotation(R), theta, tracker.jump
 
     def estimate(
         self,

@@ -117,6 +117,10 @@ class EgoGradientTracker:
         R_prev = self._history[0][1]
         return float(geo.ego_road_gradient(R_prev, R, self.mount_angle_rad))
 
+    def given_rotation(self, R: NDArray[np.float64] | None) -> NDArray[np.float64] | None:
+        """The rotation the last frame's estimators get: ``R``, or on a jump the last trusted."""
+        return self.trusted_rotation if self.jump else R
+
 
 @dataclass(frozen=True)
 class FrameResult:
@@ -207,9 +211,7 @@ class FrameStep:
         self._check_time(frame_index, timestamp_s)  # before the look-back takes the frame
         R = _rotation(frame_index, R_world_cam)
         theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
-        jump = self.gradient.jump
-        if jump:  # the estimator sees no rotation since the last trusted one
-            R = self.gradient.trusted_rotation
+        R, jump = self.gradient.given_rotation(R), self.gradient.jump  # on a jump: none since
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
         return FrameResult(theta, est, jump)
 
