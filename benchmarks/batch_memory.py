@@ -37,9 +37,9 @@ from run_memory import DEFAULT_DATA, kitti_raw_source, looped_boxes, ping_pong
 
 from slopedist.batch import BatchOptions, load_drives, run_batch
 from slopedist.batch.drive import TMP_PREFIX
-from slopedist.detections.writers import write_box_csv
+from slopedist.io.detections.writers import write_box_csv
 from slopedist.io.outputs import partial_path
-from slopedist.run_config import FRAMES_NAME
+from slopedist.streaming.config import FRAMES_NAME
 
 REPO = Path(__file__).resolve().parents[1]
 

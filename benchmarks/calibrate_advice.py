@@ -4,15 +4,18 @@ On every shared KITTI tracking sequence (no images there: ORB-SLAM3 rotations st
 built-in odometry) and for two box sources (the ground-truth label file as a user would pass it,
 and PointRCNN detections with score ≥ 2), this script:
 
-1. self-calibrates the mount with :func:`slopedist.mount_calibration.advise_mount`, starting from
+1. self-calibrates the mount with :func:`slopedist.streaming.mount_calibration.advise_mount`,
+starting from
    a configured mount (the *prior*);
 2. replaces the model floor by a **leave-one-sequence-out** floor: the error against the known
    KITTI mount (h = 1.65 m, θ0 = 0°, the protocol's) that the fit, segment spread and vehicle
    jackknife do not explain, i.e. the F with ``mean(e² / (max(fit, spread, vehicles)² + F²)) =
-   1`` (:func:`~slopedist.mount_calibration.calibrated_floor`), over the *other* sequences (both
+   1`` (:func:`~slopedist.streaming.mount_calibration.calibrated_floor`), over the *other*
+   sequences (both
    box sources, prior = the known mount), so no sequence's own truth decides its advice;
 3. evaluates ``paper`` and ``ours`` (the KITTI protocol, the same box source) with the prior and
-   with the advice (:func:`~slopedist.mount_calibration.advised_mount`) for each advice threshold
+   with the advice (:func:`~slopedist.streaming.mount_calibration.advised_mount`) for each advice
+   threshold
    ``z`` of :data:`Z_GRID`;
 4. chooses the threshold **leave one sequence out**: for each sequence, the smallest ``z`` with
    which following the advice worsens no ``paper`` or ``ours`` RMSE by more than 2 % on the
@@ -24,8 +27,8 @@ stay harmless) and two wrong mounts (1.45 m, +1°; 1.85 m, −1°: advice should
 ``ours`` hardly depends on the mount: on several runs its RMSE with the *true* mount is more than
 2 % above that with the wrong one, so on those runs any advice towards the truth fails the 2 %
 check; only a high threshold keeps it. The floor printed as "all sequences" is
-:data:`slopedist.mount_calibration.MODEL_FLOOR`'s source and the threshold chosen on all
-sequences :data:`~slopedist.mount_calibration.ADVISE_Z`'s.
+:data:`slopedist.streaming.mount_calibration.MODEL_FLOOR`'s source and the threshold chosen on all
+sequences :data:`~slopedist.streaming.mount_calibration.ADVISE_Z`'s.
 
 Usage::
 
@@ -46,12 +49,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M
-from slopedist.datasets.kitti_tracking import BoxSource, list_sequences
-from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.io.tables import write_json
-from slopedist.kitti_eval import KittiEvalConfig, run_kitti_tracking
-from slopedist.mount_calibration import (
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.evaluation.kitti import KittiEvalConfig, run_kitti_tracking
+from slopedist.io.formatting import write_json
+from slopedist.io.kitti.tracking import BoxSource, list_sequences
+from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.streaming.mount_calibration import (
     MountAdvice,
     MountSigma,
     advise_mount,

@@ -28,7 +28,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from slopedist.detections.onnx_detector import DetectorSettings, OnnxDetector  # noqa: E402
+from slopedist.io.detections.onnx_detector import DetectorSettings, OnnxDetector  # noqa: E402
 
 
 def yolov8_output(rng: np.random.Generator, n: int = 8400, classes: int = 80) -> np.ndarray:

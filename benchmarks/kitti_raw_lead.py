@@ -3,7 +3,7 @@
 What it does, as a new user would with ``slopedist run``:
 
 1. LiDAR ground truth: vehicle boxes and their distances from the Velodyne scans
-   (:func:`slopedist.datasets.kitti_raw.lidar_vehicle_boxes`; distance = longitudinal z of the
+   (:func:`slopedist.io.kitti.raw.lidar_vehicle_boxes`; distance = longitudinal z of the
    cluster's nearest face), written to ``OUT/lidar_boxes.csv`` (slopedist box CSV + ``z``).
 2. For each method (flat, ego, paper, and ours / ours-selfcal when registered): the streaming run of
    ``slopedist run FRAMES --calib calib.txt --boxes OUT/lidar_boxes.csv --method M`` with the
@@ -34,18 +34,18 @@ import numpy as np
 from numpy.typing import NDArray
 from orbslam3_vs_builtin import c_stdout_to_stderr
 
-from slopedist.datasets.kitti_raw import KittiRawDrive
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.writers import write_box_csv
 from slopedist.estimators import available_methods, make_estimator
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
-from slopedist.evaluation import uncertainty_metrics
+from slopedist.evaluation.metrics import uncertainty_metrics
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.writers import write_box_csv
 from slopedist.io.frames import open_frames
+from slopedist.io.kitti.raw import KittiRawDrive
 from slopedist.odometry.base import OdometryResult, RotationOdometry
-from slopedist.run_config import RECORDS_NAME, RunConfig, RunningMean
-from slopedist.run_setup import build_odometry
-from slopedist.runner import run_frames
+from slopedist.streaming.config import RECORDS_NAME, RunConfig, RunningMean
+from slopedist.streaming.loop import run_frames
+from slopedist.streaming.setup import build_odometry
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
@@ -142,7 +142,7 @@ def print_uncertainty(
     common: NDArray[np.bool_],
 ) -> None:
     """How well each method's own σ covers its errors on the common boxes
-    (:func:`slopedist.evaluation.uncertainty_metrics`; methods without a σ are left out)."""
+    (:func:`slopedist.evaluation.metrics.uncertainty_metrics`; methods without a σ are left out)."""
     lines = []
     for m, err in errors.items():
         u = uncertainty_metrics(err[common], np.zeros(int(common.sum())), sigmas[m][common])

@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from slopedist.camera import Camera
+from slopedist.core.camera import Camera
 from slopedist.io.frames import FrameSource, ImageFolderSource
 from slopedist.io.rosbag import LogFrameSource
 from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, LogTopics, write_log

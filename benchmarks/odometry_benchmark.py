@@ -35,7 +35,7 @@ import numpy as np
 from memory import peak_rss_mb, rss_mb  # benchmarks/memory.py, beside this script
 from numpy.typing import NDArray
 
-from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
+from slopedist.io.kitti.odometry import KittiOdometrySequence, read_kitti_odometry
 from slopedist.odometry.accuracy import (
     OdometryEvaluation,
     OdometryRun,

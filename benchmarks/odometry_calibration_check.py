@@ -59,8 +59,8 @@ from numpy.typing import NDArray
 from odometry_benchmark import DEFAULT_DATA, sequence_folders  # beside this script
 from scipy.spatial.transform import Rotation, Slerp
 
-from slopedist.camera import Camera
-from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
+from slopedist.core.camera import Camera
+from slopedist.io.kitti.odometry import KittiOdometrySequence, read_kitti_odometry
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.accuracy import run_odometry
 from slopedist.odometry.visual import BuiltinVisualOdometry

@@ -34,12 +34,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.errors import SlopedistError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import SlopedistError
 from slopedist.odometry.orb_vocabulary import images_in, train_from_images
 from slopedist.odometry.posefiles import read_kitti_poses
-from slopedist.run_setup import build_odometry
+from slopedist.streaming.setup import build_odometry
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_odometry"

@@ -53,23 +53,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.datasets.kitti_tracking import (
+from slopedist.estimators import make_estimator
+from slopedist.estimators.ours import DimensionPrior
+from slopedist.evaluation.kitti import KittiEvalConfig, evaluate_kitti_tracking, learned_peer
+from slopedist.evaluation.learned_peer import PEER_METHOD, box_features
+from slopedist.evaluation.metrics import cap_estimates, match_by_frame
+from slopedist.evaluation.table import format_table
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.kitti.tracking import (
     BoxSource,
     list_sequences,
     load_sequence,
     protocol_mask,
 )
-from slopedist.detections.boxes import BoxTable
-from slopedist.estimators import make_estimator
-from slopedist.estimators.ours import DimensionPrior
-from slopedist.evaluation import cap_estimates, match_by_frame
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking, learned_peer
-from slopedist.learned_peer import PEER_METHOD, box_features
-from slopedist.pipeline import estimate_sequence
-from slopedist.tables import format_table
+from slopedist.streaming.step import estimate_sequence
 
 if TYPE_CHECKING:
-    from slopedist.datasets.kitti_tracking import KittiTrackingSequence
+    from slopedist.io.kitti.tracking import KittiTrackingSequence
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 

@@ -62,11 +62,11 @@ from ours_detector_boxes import (
     scenes,
 )
 
-from slopedist.datasets.kitti_tracking import BoxSource
-from slopedist.learned_peer import regressor_class
+from slopedist.evaluation.learned_peer import regressor_class
+from slopedist.evaluation.table import format_table
+from slopedist.io.kitti.tracking import BoxSource
 from slopedist.odometry.base import LOOKBACK_S
-from slopedist.pipeline import ego_gradients
-from slopedist.tables import format_table
+from slopedist.streaming.step import ego_gradients
 
 CAP_M = 80.0
 FIGURES_M = {BoxSource.GT: 2.6, BoxSource.POINTRCNN: 1.7, BoxSource.RRC: 2.1}

@@ -2,7 +2,7 @@
 what each part contributes, how it copes with a wrong calibration, and the synthetic uphill.
 
 Same protocol as ``slopedist eval kitti-tracking`` (the figures come from
-:func:`slopedist.kitti_eval.evaluate_kitti_tracking`, the command's own code): ground truth =
+:func:`slopedist.evaluation.kitti.evaluate_kitti_tracking`, the command's own code): ground truth =
 Car/Van label rows with truncated = 0, occluded ≤ 1, 0 < z ≤ 80 m; estimates capped at 80 m;
 ORB-SLAM3 rotations; pooled RMSE over all 13 sequences. Prints
 
@@ -24,7 +24,7 @@ ORB-SLAM3 rotations; pooled RMSE over all 13 sequences. Prints
    with ``--ours-options '{"occlusion_aware": false}'`` for the row without it.)
 4. A wrong calibration (h ± 10 %, θ0 ± 1°): ``ours`` and ``ours-selfcal`` against the
    correct-calibration figure, shipped defaults.
-5. The synthetic steep-uphill scenario (rendered by :mod:`slopedist.datasets.synthetic`, noisy
+5. The synthetic steep-uphill scenario (rendered by :mod:`slopedist.synthetic`, noisy
    detector boxes, true rotations): RMSE of ``paper`` and ``ours``.
 6. (``--sensitivity``) the a-priori physical parameters halved and doubled.
 7. The three box sources (ground truth; PointRCNN, score ≥ 2; the camera detector RRC, score
@@ -52,23 +52,23 @@ from typing import Any
 
 import numpy as np
 
-from slopedist.datasets.kitti_tracking import (
+from slopedist.estimators import make_estimator
+from slopedist.estimators.ours import CLASS_PRIORS, DimensionPrior, OursConfig
+from slopedist.estimators.ours.filter import ProcessNoise
+from slopedist.estimators.ours.prior_fitting import (
+    LabelFitInputs,
+    fit_parameters,
+    kitti_tracking_fit_inputs,
+)
+from slopedist.evaluation.kitti import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.evaluation.metrics import cap_estimates
+from slopedist.evaluation.table import format_table
+from slopedist.io.kitti.tracking import (
     BoxSource,
     list_sequences,
     load_sequence,
     protocol_mask,
 )
-from slopedist.estimators import make_estimator
-from slopedist.estimators.ours import CLASS_PRIORS, DimensionPrior, OursConfig
-from slopedist.estimators.ours.filter import ProcessNoise
-from slopedist.evaluation import cap_estimates
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
-from slopedist.offline.ours_fitting import (
-    LabelFitInputs,
-    fit_parameters,
-    kitti_tracking_fit_inputs,
-)
-from slopedist.tables import format_table
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 
@@ -448,11 +448,11 @@ def section_calibration(data: Path) -> None:
 
 
 def section_synthetic(scenarios: Sequence[str]) -> None:
-    from slopedist.datasets.synthetic.scenarios import load_scenario
-    from slopedist.datasets.synthetic.sequence import SyntheticSequence
-    from slopedist.detections.boxes import concat_boxes
+    from slopedist.io.detections.boxes import concat_boxes
     from slopedist.odometry.base import RotationTrack
-    from slopedist.pipeline import estimate_sequence
+    from slopedist.streaming.step import estimate_sequence
+    from slopedist.synthetic.scenarios import load_scenario
+    from slopedist.synthetic.sequence import SyntheticSequence
 
     print("5. Synthetic hills (noisy detector boxes, true rotations, 80 m cap): RMSE (m)")
     rows = []
@@ -599,7 +599,7 @@ def main(argv: list[str] | None = None) -> int:
             run()
             sys.stdout.flush()
     if "synthetic" not in skip:
-        from slopedist.datasets.synthetic.scenarios import SUITE
+        from slopedist.synthetic.scenarios import SUITE
 
         names = list(SUITE) if args.synthetic == "all" else args.synthetic.split(",")
         section_synthetic(names)

@@ -7,7 +7,7 @@ not counted (as in the paper's comparison). Two workloads:
 1. KITTI tracking label boxes of every road-user class (Car, Van, Truck, Pedestrian, Cyclist,
    Tram, Misc, Person_sitting — not only the protocol's evaluated ones), ORB-SLAM3 rotations,
    all 13 sequences: the traffic density of real urban scenes.
-2. Simulated traffic (:func:`slopedist.datasets.synthetic.traffic.simulate_traffic`) with a fixed
+2. Simulated traffic (:func:`slopedist.synthetic.traffic.simulate_traffic`) with a fixed
    number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
 3. Scaling: the same traffic at 10, 100 and 1000 vehicles per frame, with track ids and without
    (id-less boxes are associated by IoU), and the per-target cost at 1000 over that at 10. The
@@ -35,18 +35,18 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from slopedist.camera import Camera  # noqa: E402
-from slopedist.datasets.kitti_tracking import (  # noqa: E402
+from slopedist.core.camera import Camera  # noqa: E402
+from slopedist.estimators import make_estimator  # noqa: E402
+from slopedist.estimators.base import FrameInput  # noqa: E402
+from slopedist.evaluation.table import format_table  # noqa: E402
+from slopedist.io.detections.boxes import overlapping_pairs  # noqa: E402
+from slopedist.io.kitti.tracking import (  # noqa: E402
     RotationSource,
     list_sequences,
     load_sequence,
 )
-from slopedist.datasets.synthetic.traffic import simulate_traffic  # noqa: E402
-from slopedist.detections.boxes import overlapping_pairs  # noqa: E402
-from slopedist.estimators import make_estimator  # noqa: E402
-from slopedist.estimators.base import FrameInput  # noqa: E402
-from slopedist.pipeline import ego_gradients  # noqa: E402
-from slopedist.tables import format_table  # noqa: E402
+from slopedist.streaming.step import ego_gradients  # noqa: E402
+from slopedist.synthetic.traffic import simulate_traffic  # noqa: E402
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "kitti_tracking"
 METHODS = ("paper", "ours", "ours-selfcal")

@@ -3,7 +3,8 @@
 ``slopedist run`` (method ``ours``, built-in odometry, ``--overlay``) on the 78 real 1242×375
 frames of ``../shared/data/kitti_raw_lead`` with the vehicle boxes of its LiDAR scans (as
 ``benchmarks/kitti_raw_lead.py`` makes them, about 13 per frame); every call of
-:func:`slopedist.viz.draw_fig3_overlay` is recorded. Then each recorded frame is drawn again
+:func:`slopedist.streaming.drawing.draw_fig3_overlay` is recorded. Then each recorded frame is
+drawn again
 ``--repeat`` times and its labels are checked:
 
 - placed: boxes whose label was drawn, of all boxes, and of the boxes whose estimate is ``ok``
@@ -41,11 +42,11 @@ from unittest import mock
 
 import numpy as np
 
-from slopedist import viz
 from slopedist.cli import main as slopedist_main
-from slopedist.datasets.kitti_raw import KittiRawDrive
-from slopedist.detections.writers import write_box_csv
-from slopedist.labels import LABEL_GAP_PX, Rect, box_rect
+from slopedist.io.detections.writers import write_box_csv
+from slopedist.io.kitti.raw import KittiRawDrive
+from slopedist.streaming import drawing as viz
+from slopedist.streaming.label_placement import LABEL_GAP_PX, Rect, box_rect
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
@@ -66,7 +67,7 @@ def record_overlay_calls(data: Path, work: Path) -> list[tuple[Any, ...]]:
     argv = ["run", str(drive.image_dir), "--calib", str(data / "calib.txt")]
     argv += ["--boxes", str(boxes), "--method", "ours", "--overlay", "--overlay-format", "png"]
     argv += ["--out", str(work / "run"), "--quiet"]
-    with mock.patch("slopedist.runner.draw_fig3_overlay", record):
+    with mock.patch("slopedist.streaming.loop.draw_fig3_overlay", record):
         if slopedist_main(argv) != 0:
             raise SystemExit("slopedist run failed")
     return calls

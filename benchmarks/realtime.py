@@ -69,19 +69,19 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import runner
-from slopedist.camera import Camera
-from slopedist.datasets.kitti_odometry import read_kitti_odometry
-from slopedist.datasets.kitti_raw import KittiRawDrive
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.readers import read_box_file
-from slopedist.detections.writers import write_box_csv
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.readers import read_box_file
+from slopedist.io.detections.writers import write_box_csv
+from slopedist.io.formatting import CsvStreamWriter
 from slopedist.io.frames import Frame, FrameSource, open_frames
-from slopedist.io.tables import CsvStreamWriter
+from slopedist.io.kitti.odometry import read_kitti_odometry
+from slopedist.io.kitti.raw import KittiRawDrive
 from slopedist.odometry.accuracy import OdometryEvaluation, OdometryRun, rotation_errors
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationOdometry
 from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
+from slopedist.streaming import loop as runner
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data"
@@ -219,7 +219,7 @@ class TimedSource:
 
 
 def instrumented(clock: StageClock, stack: ExitStack) -> None:
-    """Time the run's stages by wrapping what ``slopedist.runner`` calls."""
+    """Time the run's stages by wrapping what ``slopedist.streaming.loop`` calls."""
     step = runner.FrameStep.step
     stack.enter_context(
         mock.patch.object(runner.FrameStep, "step", clock.timed("estimation", step))

@@ -1,6 +1,7 @@
 """Bounded memory of a long ``slopedist run``: the full runner over 10 000 frames.
 
-The runner (:func:`slopedist.runner.run_frames`: built-in visual odometry on every frame, the
+The runner (:func:`slopedist.streaming.loop.run_frames`: built-in visual odometry on every frame,
+the
 estimator, ``records.csv`` / ``frames.csv`` written and flushed frame by frame) is fed a short
 real frame folder played forward and backward (0…n−1, n−2…1, 0…, so the motion stays
 continuous) with increasing timestamps (10 Hz), each output frame with the boxes of the source
@@ -8,7 +9,7 @@ frame it shows. Frames are decoded from disk every time, as a real run decodes a
 10 000 files are written.
 
 Source: ``../shared/data/kitti_raw_lead`` (78 real 1242×375 frames with the LiDAR vehicle boxes
-of :func:`slopedist.datasets.kitti_raw.lidar_vehicle_boxes`); without it, a built-in synthetic
+of :func:`slopedist.io.kitti.raw.lidar_vehicle_boxes`); without it, a built-in synthetic
 scenario rendered once to a temporary folder (``--synthetic``).
 
 Prints, at 1 000, 5 000 and 10 000 frames (and at the end): resident set size (RSS, MB), peak
@@ -32,13 +33,13 @@ import cv2
 import numpy as np
 from memory import peak_rss_mb, rss_mb  # benchmarks/memory.py, beside this script
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable, concat_boxes
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
+from slopedist.io.detections.boxes import BoxTable, concat_boxes
 from slopedist.io.frames import Frame, FrameStatus
 from slopedist.odometry import make_odometry
-from slopedist.run_config import RECORDS_NAME, RunConfig
-from slopedist.runner import run_frames
+from slopedist.streaming.config import RECORDS_NAME, RunConfig
+from slopedist.streaming.loop import run_frames
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"
@@ -101,7 +102,7 @@ def looped_boxes(source_boxes: BoxTable, order: list[int]) -> BoxTable:
 
 def kitti_raw_source(data: Path) -> tuple[list[Path], Camera, BoxTable, str]:
     """The lead-car drive: frame files, camera, LiDAR vehicle boxes."""
-    from slopedist.datasets.kitti_raw import KittiRawDrive
+    from slopedist.io.kitti.raw import KittiRawDrive
 
     drive = KittiRawDrive.open(data)
     files = sorted(drive.image_dir.glob("*.png"))
@@ -114,8 +115,8 @@ def synthetic_source(
     scenario: str, n: int, folder: Path
 ) -> tuple[list[Path], Camera, BoxTable, str]:
     """``n`` frames of a built-in synthetic scenario, rendered once into ``folder``."""
-    from slopedist.datasets.synthetic.scenarios import load_scenario
-    from slopedist.datasets.synthetic.sequence import SyntheticSequence
+    from slopedist.synthetic.scenarios import load_scenario
+    from slopedist.synthetic.sequence import SyntheticSequence
 
     seq = SyntheticSequence(load_scenario(scenario))
     files, parts = [], []

@@ -39,13 +39,13 @@ from kitti_raw_lead import read_estimates, read_sigmas
 from numpy.typing import NDArray
 from ours_detector_boxes import ROTATION, scenes
 
-from slopedist.camera import Camera
-from slopedist.datasets.kitti_tracking import BoxSource
-from slopedist.datasets.synthetic.traffic import simulate_traffic
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
-from slopedist.evaluation import cap_estimates
+from slopedist.evaluation.metrics import cap_estimates
+from slopedist.io.kitti.tracking import BoxSource
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import estimate_sequence
+from slopedist.streaming.step import estimate_sequence
+from slopedist.synthetic.traffic import simulate_traffic
 
 DEFAULT_DATA = Path("/work/shared/data/kitti_tracking")
 BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, np.inf))

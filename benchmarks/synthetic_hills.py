@@ -37,16 +37,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.datasets.synthetic.scenarios import SUITE, load_scenario
-from slopedist.datasets.synthetic.sequence import SyntheticSequence
-from slopedist.demo import theta_needed_rad
+from slopedist.core import geometry as geo
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
-from slopedist.evaluation import cap_estimates
+from slopedist.evaluation.metrics import cap_estimates
 from slopedist.odometry.base import RotationTrack, lookback_indices
 from slopedist.odometry.visual import BuiltinVisualOdometry
-from slopedist.pipeline import ego_gradients
+from slopedist.streaming.step import ego_gradients
+from slopedist.synthetic.demo import theta_needed_rad
+from slopedist.synthetic.scenarios import SUITE, load_scenario
+from slopedist.synthetic.sequence import SyntheticSequence
 
 METHODS = ("flat", "ego", "paper")
 SOURCES = ("vo", "true", "inv")

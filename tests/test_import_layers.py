@@ -2,14 +2,13 @@
 
 Layers, low to high (a module's layer is that of its longest matching prefix):
 
-0. ``errors``, ``geometry``, ``limits``, ``textfiles`` — pure equations, the exception hierarchy,
-   the bounds on input and strict text reading;
-1. ``camera``;
-2. ``io``, ``detections``, ``odometry``, ``depth`` — inputs, outputs and rotation sources;
-3. ``estimators``, ``datasets`` — the methods and the data they are tested on;
-4. ``pipeline`` — the one per-frame step;
-5. ``evaluation``, ``kitti_eval``, ``runner``, ``demo``, ``viz``, ``report``, ``offline`` and the
-   other applications of the step;
+0. ``core.errors``, ``core.geometry``, ``core.limits``, ``core.textfiles`` — pure equations, the
+   exception hierarchy, the bounds on input and strict text reading;
+1. ``core.camera``;
+2. ``io``, ``odometry`` — inputs (frames, boxes, depth, logs, KITTI), outputs and rotation sources;
+3. ``estimators``, ``synthetic`` — the methods and the synthetic world they are tested on;
+4. ``streaming.step`` — the one per-frame step;
+5. ``streaming``, ``evaluation``, ``synthetic.demo``, ``batch`` — the applications of the step;
 6. ``cli`` — options in, library calls out; a command module imports no other command module.
 """
 
@@ -24,21 +23,21 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "slopedist"
 
 LAYERS: dict[str, int] = {
     "__main__": 6,
-    "errors": 0,
-    "geometry": 0,
-    "limits": 0,
-    "textfiles": 0,
-    "camera": 1,
+    "core": 0,
+    "core.camera": 1,
     "io": 2,
-    "detections": 2,
     "odometry": 2,
-    "depth": 2,
     "estimators": 3,
-    "datasets": 3,
-    "pipeline": 4,
+    "synthetic": 3,
+    "streaming.step": 4,
+    "streaming": 5,
+    "evaluation": 5,
+    "synthetic.demo": 5,
+    "synthetic.demo_scenario": 5,
+    "batch": 5,
     "cli": 6,
 }
-"""Layer of each top-level module or package of ``slopedist``; anything else is layer 5."""
+"""Layer of each module prefix below ``slopedist`` (the longest matching prefix counts)."""
 
 APPLICATION_LAYER = 5
 
@@ -51,8 +50,12 @@ def module_name(path: Path) -> str:
 
 def layer_of(name: str) -> int:
     """Layer of a dotted module name below ``slopedist`` (the package root itself is layer 0)."""
-    top = name.split(".")[0] if name else ""
-    return LAYERS.get(top, APPLICATION_LAYER if top else 0)
+    parts = name.split(".") if name else []
+    for n in range(len(parts), 0, -1):
+        prefix = ".".join(parts[:n])
+        if prefix in LAYERS:
+            return LAYERS[prefix]
+    return APPLICATION_LAYER if parts else 0
 
 
 def imported_modules(path: Path) -> set[str]:
@@ -100,10 +103,13 @@ def violations() -> list[str]:
 
 
 def test_layer_of_hand_cases() -> None:
-    assert layer_of("geometry") == 0
+    assert layer_of("core.geometry") == 0
+    assert layer_of("core.camera") == 1
     assert layer_of("io.frames") == 2
     assert layer_of("estimators.ours.cues") == 3
-    assert layer_of("report.tables") == APPLICATION_LAYER
+    assert layer_of("streaming.step") == 4
+    assert layer_of("streaming.loop") == APPLICATION_LAYER
+    assert layer_of("evaluation.report.tables") == APPLICATION_LAYER
     assert layer_of("cli.run_cmd") == 6
 
 
@@ -111,10 +117,14 @@ def test_checker_sees_an_upward_import(tmp_path: Path, monkeypatch: pytest.Monke
     pkg = tmp_path / "slopedist"
     (pkg / "io").mkdir(parents=True)
     (pkg / "io" / "__init__.py").write_text("")
-    (pkg / "pipeline.py").write_text("")
-    (pkg / "io" / "bad.py").write_text("from slopedist.pipeline import x\nfrom ..errors import E\n")
+    (pkg / "streaming").mkdir()
+    (pkg / "streaming" / "__init__.py").write_text("")
+    (pkg / "streaming" / "step.py").write_text("")
+    (pkg / "io" / "bad.py").write_text(
+        "from slopedist.streaming.step import x\nfrom ..core import E\n"
+    )
     monkeypatch.setattr(f"{__name__}.SRC", pkg)
-    assert violations() == ["io.bad (layer 2) imports pipeline (4)"]
+    assert violations() == ["io.bad (layer 2) imports streaming.step (4)"]
 
 
 def test_no_import_runs_up_the_layers() -> None:

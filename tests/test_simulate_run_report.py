@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from slopedist.cli import main
-from slopedist.detections.readers import read_box_csv
-from slopedist.errors import MissingInputError
-from slopedist.report import detect_source
+from slopedist.core.errors import MissingInputError
+from slopedist.evaluation.report import detect_source
+from slopedist.io.detections.readers import read_box_csv
 
 FRAMES = 14
 SCENARIO = "ego_crest"

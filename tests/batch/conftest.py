@@ -26,14 +26,14 @@ def simulate(scenario: str, out: Path, frames: int = SIM_FRAMES) -> Path:
 def real_drive(kitti_raw_lead_dir: Path, out: Path, frames: int = 8) -> Path:
     """The first ``frames`` frames of the shared KITTI raw drive with LiDAR boxes whose
     distance is written as ``gt_distance_m`` (folder layout: image_02, calib.txt, boxes.csv)."""
-    from slopedist.datasets.kitti_raw import (
+    from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
+    from slopedist.io.detections.writers import write_box_csv
+    from slopedist.io.kitti.raw import (
         KittiRawDrive,
         lidar_vehicle_boxes,
         link_tracks,
         read_velodyne,
     )
-    from slopedist.detections.readers import CSV_TRUTH_COLUMN
-    from slopedist.detections.writers import write_box_csv
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
     (out / "image_02").mkdir(parents=True)

@@ -253,9 +253,9 @@ def test_the_rows_a_box_reader_drops_are_a_warning_of_the_batch(
     the drive's outcome, and the batch prints it with the drive's name."""
     from slopedist.batch.engine import BatchResult
     from slopedist.cli.batch_cmd import batch_summary_text
-    from slopedist.detections.boxes import BoxTable, concat_boxes
-    from slopedist.detections.convert import read_boxes
-    from slopedist.detections.format_writers import write_coco
+    from slopedist.io.detections.boxes import BoxTable, concat_boxes
+    from slopedist.io.detections.convert import read_boxes
+    from slopedist.io.detections.format_writers import write_coco
 
     boxes = read_boxes(sim / "boxes.csv")
     n = len(boxes)
@@ -282,10 +282,10 @@ def test_a_failed_drive_keeps_the_warnings_its_run_logged(
     import logging
 
     from slopedist.batch import drive
-    from slopedist.errors import InputFileError
+    from slopedist.core.errors import InputFileError
 
     def warn_then_fail(*args: object) -> None:
-        logging.getLogger("slopedist.detections").warning("boxes.json: dropped 9 of 10 box rows")
+        logging.getLogger("slopedist.io.detections").warning("boxes.json: dropped 9 of 10 box rows")
         raise InputFileError("boxes.json", "no box left")
 
     monkeypatch.setattr(drive, "run_single_drive", warn_then_fail)

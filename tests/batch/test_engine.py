@@ -22,7 +22,7 @@ from slopedist.batch.drive import CRASH_ENV
 from slopedist.batch.engine import LOCK_NAME, import_ray, kept_signal_handlers, output_lock
 from slopedist.batch.safety import SHORT_HEADWAY_S
 from slopedist.cli import main
-from slopedist.errors import ConfigurationError, OptionalDependencyError
+from slopedist.core.errors import ConfigurationError, OptionalDependencyError
 
 from .conftest import real_drive, run_alone, simulate, simulated_log, write_drive_log
 
@@ -119,7 +119,7 @@ def test_fleet_dataset_and_summary(fleet: Fleet) -> None:
 
 
 def test_fleet_report_of_the_batch(fleet: Fleet, tmp_path: Path) -> None:
-    from slopedist.report import ReportOptions, SourceKind, report_data, write_report
+    from slopedist.evaluation.report import ReportOptions, SourceKind, report_data, write_report
 
     data = report_data(fleet.out, ReportOptions())
     assert data.kind is SourceKind.FLEET

@@ -17,8 +17,8 @@ from slopedist.batch.fleet import (
     write_partition,
 )
 from slopedist.batch.stamp import SETTINGS_KEY
-from slopedist.errors import InputFileError
-from slopedist.io.tables import write_csv, write_json
+from slopedist.core.errors import InputFileError
+from slopedist.io.formatting import write_csv, write_json
 
 FIELDS = ("frame", "track_id", "method", "distance_m", "status", "reason", "gt_distance_m")
 

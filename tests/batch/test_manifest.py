@@ -19,7 +19,7 @@ from slopedist.batch.manifest import (
     spec_summary,
 )
 from slopedist.batch.settings import SETTING_COLUMNS, RunSettings
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.core.errors import ConfigurationError, InputFileError, MissingInputError
 
 HEADER = "drive,frames,calib,boxes,method,height,mount_angle,timestamps"
 

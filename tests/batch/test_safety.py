@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from slopedist.batch.safety import drive_duration_s, fleet_safety
-from slopedist.errors import InputFileError
-from slopedist.io.tables import write_csv, write_json
-from slopedist.tracks import TRACK_FIELDS, read_tracks
+from slopedist.core.errors import InputFileError
+from slopedist.io.formatting import write_csv, write_json
+from slopedist.streaming.tracks import TRACK_FIELDS, read_tracks
 
 nan = math.nan
 

@@ -16,7 +16,7 @@ from slopedist.batch.settings import (
     settings_json,
     unapplied,
 )
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.ours.config import OursConfig, settable_options
 
 BOOL_OPTIONS = sorted(f.name for f in fields(OursConfig) if str(f.type) == "bool")

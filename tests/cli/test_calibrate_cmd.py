@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.cli import main
 from slopedist.cli.calibrate_cmd import advice_text
-from slopedist.datasets.synthetic.traffic import simulate_traffic
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.estimators.ours import EXTRA_COLUMNS
 from slopedist.estimators.ours.selfcal import Calibration, uncalibrated_warning
-from slopedist.mount_calibration import judge_mount
+from slopedist.streaming.mount_calibration import judge_mount
+from slopedist.synthetic.traffic import simulate_traffic
 
 F, CX, CY = 721.5, 609.6, 172.9
 
@@ -210,8 +210,8 @@ def test_calibrate_from_real_frames_alone(
     have a shape no car gives, and their size cue puts the camera at about 1.2 m (truth ≈
     1.65 m). Configured right or wrong, the advice must never be a height outside the truth ±
     its own σ: here it declines, saying why."""
-    from slopedist.datasets.kitti_raw import KittiRawDrive
-    from slopedist.detections.writers import write_box_csv
+    from slopedist.io.detections.writers import write_box_csv
+    from slopedist.io.kitti.raw import KittiRawDrive
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
     boxes = write_box_csv(drive.lidar_boxes((1242, 375)), tmp_path / "lidar_boxes.csv")

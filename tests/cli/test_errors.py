@@ -13,7 +13,7 @@ import click
 import pytest
 
 from slopedist.cli import DEBUG_ENV, cli, main
-from slopedist.errors import InputFileError
+from slopedist.core.errors import InputFileError
 
 P2 = "721.5 0 609.6 44.9 0 721.5 172.9 0.2 0 0 1 0.003"
 SRC = Path(__file__).resolve().parents[2] / "src"

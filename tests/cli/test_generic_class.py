@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 from slopedist import estimators
-from slopedist.camera import Camera
 from slopedist.cli import main
+from slopedist.core.camera import Camera
 
 P2 = "721.5 0 609.6 44.9 0 721.5 172.9 0.2 0 0 1 0.003"
 

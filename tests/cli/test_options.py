@@ -11,10 +11,10 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from slopedist.camera import MAX_CAMERA_HEIGHT_M
 from slopedist.cli import cli
 from slopedist.cli.options import BoundedFloat, height_option, mount_option
-from slopedist.errors import InputFileError
+from slopedist.core.camera import MAX_CAMERA_HEIGHT_M
+from slopedist.core.errors import InputFileError
 from slopedist.io.calibration import read_calibration
 
 

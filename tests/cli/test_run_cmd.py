@@ -13,12 +13,12 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist import run_setup
-from slopedist.camera import Camera
 from slopedist.cli import main
-from slopedist.depth import write_kitti_depth_png
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.writers import write_box_csv
+from slopedist.core.camera import Camera
+from slopedist.io.depth import write_kitti_depth_png
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.writers import write_box_csv
+from slopedist.streaming import setup as run_setup
 
 W, H = 320, 200
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -110,7 +110,7 @@ def test_depth_folder_of_kitti_pngs(tmp_path: Path, capsys: pytest.CaptureFixtur
 def test_onnx_depth_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("onnx", reason="the 'onnx' package (test extra) builds the model")
     pytest.importorskip("onnxruntime", reason="onnxruntime (extra 'onnx') runs the model")
-    from tests.depth.test_onnx_model import BIAS, WEIGHTS_RGB, build_model
+    from tests.io.depth.test_onnx_model import BIAS, WEIGHTS_RGB, build_model
 
     model = build_model(tmp_path / "tiny.onnx")
     args = setup(tmp_path)
@@ -379,7 +379,7 @@ def test_summary_warns_when_most_frames_are_missing() -> None:
     # a folder named by milliseconds (00000000.png, 00000067.png, ...): 66 "missing" frames
     # between two images, and the summary only counted them
     from slopedist.cli.run_cmd import summary_text
-    from slopedist.run_config import RunResult
+    from slopedist.streaming.config import RunResult
 
     result = RunResult("out", "ours", frames=12, frame_status={"ok": 2, "missing": 10})
     assert "warning: 10 of the 12 frames are missing" in summary_text(result, Path("out"))

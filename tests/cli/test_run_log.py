@@ -16,14 +16,14 @@ from scipy.spatial.transform import Rotation
 pytest.importorskip("rosbags")
 pytest.importorskip("mcap")
 
-from slopedist.camera import Camera
 from slopedist.cli import main
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.writers import write_box_csv
-from slopedist.export_mcap import FRAME_TOPIC, read_mcap_export
+from slopedist.core.camera import Camera
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.writers import write_box_csv
 from slopedist.io.frames import ImageFolderSource
 from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, LogTopics, write_log
 from slopedist.odometry import read_tum_poses
+from slopedist.streaming.mcap_export import FRAME_TOPIC, read_mcap_export
 
 W, H, N = 320, 200, 14
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -193,7 +193,7 @@ def test_log_needs_an_image_topic_and_folders_a_calib(
 def test_real_frames_from_a_log_give_the_folder_records(
     kitti_raw_lead_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from slopedist.datasets.kitti_raw import (
+    from slopedist.io.kitti.raw import (
         KittiRawDrive,
         lidar_vehicle_boxes,
         link_tracks,

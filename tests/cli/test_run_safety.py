@@ -19,8 +19,8 @@ import pytest
 
 import slopedist
 from slopedist.cli import main
-from slopedist.detections.boxes import BoxTable
-from slopedist.detections.writers import write_box_csv
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.writers import write_box_csv
 
 W, H = 320, 200
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -301,7 +301,7 @@ def test_an_offline_runs_export_says_it_shows_the_causal_pass(tmp_path: Path) ->
     """`run --offline --export mcap`: the MCAP shows the frames as they came (the causal pass),
     while records.csv holds ours-offline; its frames said 'ours-offline' all the same."""
     pytest.importorskip("mcap")
-    from slopedist.export_mcap import FRAME_TOPIC, read_mcap_export
+    from slopedist.streaming.mcap_export import FRAME_TOPIC, read_mcap_export
 
     args = make_inputs(tmp_path, 4)
     args[args.index("--method") + 1] = "ours"
@@ -318,7 +318,7 @@ def test_an_offline_runs_overlay_says_it_shows_the_causal_pass(
     """`run --offline --snapshot N`: the overlay's header named 'ours-offline' over the causal
     pass's distances (records.csv holds other numbers under that name); it says so, as the
     MCAP export does."""
-    import slopedist.runner as runner
+    import slopedist.streaming.loop as runner
 
     methods: list[object] = []
     draw = runner.draw_fig3_overlay
@@ -352,7 +352,7 @@ def test_run_counts_the_box_rows_its_reader_left_out(
     coco.write_text(json.dumps(items))
     args[args.index("--boxes") + 1] = str(coco)
     out = tmp_path / "out"
-    with caplog.at_level("WARNING", logger="slopedist.detections.dropped"):
+    with caplog.at_level("WARNING", logger="slopedist.io.detections.dropped"):
         assert main(["run", *args, "--out", str(out), "--odometry", "none"]) == 0
     summary = json.loads((out / "run.json").read_text())
     assert summary["dropped_boxes"] == {

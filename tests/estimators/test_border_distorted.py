@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
+from slopedist.io.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
 from slopedist.io.intrinsics import Intrinsics
-from slopedist.pipeline import FrameStep
+from slopedist.streaming.step import FrameStep
 
 W, H = 1240, 375
 K = np.array([[720.0, 0.0, 620.0], [0.0, 720.0, 180.0], [0.0, 0.0, 1.0]])

@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators import DepthMapEstimator, FrameInput, make_estimator
 from slopedist.estimators.depthmap import DepthSample, sample_box_depth
+from slopedist.io.detections.boxes import BoxTable
 
 W, H = 1240, 375
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(W, H)
@@ -226,7 +226,7 @@ def test_far_targets_and_a_scale_less_model_are_not_judged() -> None:
 
 def test_boxes_the_bottom_border_cuts_are_not_judged_for_the_scale() -> None:
     """A box whose bottom lies within the border tolerance of the image's last row is cut
-    (:func:`~slopedist.detections.boxes.border_cuts`): its contact distance is no reference.
+    (:func:`~slopedist.io.detections.boxes.border_cuts`): its contact distance is no reference.
     The scale check judged boxes up to the last row itself, by its own rule."""
     z = CAMERA.f * CAMERA.height_m / (H - 1.5 - CAMERA.c_y)  # bottom at row 373.5: cut
     cut = [(-3.0, z), (0.0, z), (3.0, z)]

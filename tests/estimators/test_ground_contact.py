@@ -11,13 +11,13 @@ import math
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import EstimateStatus
-from slopedist.evaluation import cap_estimates
-from slopedist.pipeline import FrameStep, iter_records
+from slopedist.evaluation.metrics import cap_estimates
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.streaming.step import FrameStep, iter_records
 
 W, H = 1240, 375
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(W, H)
@@ -128,7 +128,7 @@ def test_the_kitti_raw_lead_car_cut_by_the_bottom_reads_at_least_its_lidar_dista
 ) -> None:
     """The issue's case: a lead car 4.2–4.8 m ahead (LiDAR nearest face) whose box is cut by
     the image bottom read 5.9 m ``ok``; it is now an upper bound, and it is one."""
-    from slopedist.datasets.kitti_raw import KittiRawDrive, lidar_vehicle_boxes, read_velodyne
+    from slopedist.io.kitti.raw import KittiRawDrive, lidar_vehicle_boxes, read_velodyne
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
     camera = drive.calib.camera().with_image_size(1242, 375)

@@ -7,10 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.kitti_tracking import RotationSource
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import (
     EgoGradientEstimator,
     FrameInput,
@@ -19,9 +17,11 @@ from slopedist.estimators import (
     PaperEstimator,
     make_estimator,
 )
-from slopedist.evaluation import compact_names
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
-from slopedist.score_tables import format_report_tables
+from slopedist.evaluation.accuracy_tables import format_report_tables
+from slopedist.evaluation.kitti import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.evaluation.metrics import compact_names
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.kitti.tracking import RotationSource
 
 CAMERA = Camera(720.0, 620.0, 180.0)
 

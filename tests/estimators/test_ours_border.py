@@ -10,12 +10,12 @@ import warnings
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.ours.border import ImageBorder, border_cuts_of
-from slopedist.pipeline import FrameStep
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.streaming.step import FrameStep
 
 W, H = 1240, 375
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(W, H)
@@ -86,7 +86,7 @@ def test_the_kitti_raw_lead_car_cut_by_the_bottom_is_ok_and_near_its_lidar_dista
     """The lead car (in the ego lane, |x| < 1.5 m) closer than ~6 m is cut by the image bottom
     with both sides in view: ``ok`` from its width and its track, its nearest face within 15 %
     of the LiDAR's; every ``upper_bound`` is at least the LiDAR distance."""
-    from slopedist.datasets.kitti_raw import KittiRawDrive, lidar_vehicle_boxes, read_velodyne
+    from slopedist.io.kitti.raw import KittiRawDrive, lidar_vehicle_boxes, read_velodyne
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
     camera = drive.calib.camera().with_image_size(1242, 375)

@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import simulate_traffic
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ReferencePoint, available_methods, make_estimator
 from slopedist.estimators.base import FrameInput
 from slopedist.estimators.ours import EXTRA_COLUMNS, OursEstimator
 from slopedist.estimators.ours.cues import project_box
+from slopedist.io.detections.boxes import BoxTable
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import ego_gradients, estimate_sequence
+from slopedist.streaming.step import ego_gradients, estimate_sequence
+from slopedist.synthetic.traffic import simulate_traffic
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 CAR = np.array([1.53, 1.63, 3.88])
@@ -286,7 +286,7 @@ def test_a_box_cut_by_the_border_bounds_the_distance(x_m: float, z_m: float, sid
 
 
 def test_kitti_sequence_beats_paper(kitti_tracking_dir: Path) -> None:
-    from slopedist.datasets.kitti_tracking import RotationSource, load_sequence, protocol_mask
+    from slopedist.io.kitti.tracking import RotationSource, load_sequence, protocol_mask
 
     seq = load_sequence(kitti_tracking_dir, "0018")
     gt = seq.labels.select(protocol_mask(seq.labels))

@@ -90,9 +90,9 @@ def test_cue_consistency_check_widens_only_cues_that_disagree() -> None:
 def test_fused_is_never_much_worse_than_the_better_single_cue(kitti_tracking_dir) -> None:
     """On two shared sequences with ground-truth boxes, the fused distance against the size
     cue alone and the ground contact alone (all capped at 80 m); the gap is recorded."""
-    from slopedist.datasets.kitti_tracking import RotationSource, load_sequence, protocol_mask
     from slopedist.estimators import make_estimator
-    from slopedist.pipeline import estimate_sequence
+    from slopedist.io.kitti.tracking import RotationSource, load_sequence, protocol_mask
+    from slopedist.streaming.step import estimate_sequence
 
     for name in ("0004", "0018"):
         seq = load_sequence(kitti_tracking_dir, name)

@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import simulate_traffic
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
+from slopedist.synthetic.traffic import simulate_traffic
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 

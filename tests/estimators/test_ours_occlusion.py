@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
+from slopedist.core.camera import Camera
 from slopedist.estimators.base import FrameInput
 from slopedist.estimators.ours import OursEstimator, cues, occlusion
+from slopedist.io.detections.boxes import BoxTable
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 CAR = np.array([1.53, 1.63, 3.88])

@@ -8,9 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import FrameEstimates, FrameInput
 from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.ours.cues import project_box
@@ -22,6 +21,7 @@ from slopedist.estimators.ours.odd_objects import (
     updated_evidence,
     with_evidence,
 )
+from slopedist.io.detections.boxes import BoxTable
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 CAR = np.array([1.53, 1.63, 3.88])

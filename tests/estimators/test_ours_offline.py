@@ -8,10 +8,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import simulate_traffic
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import (
     causal_methods,
     make_estimator,
@@ -19,8 +17,10 @@ from slopedist.estimators import (
     with_offline,
 )
 from slopedist.estimators.ours import filter as kf
+from slopedist.io.detections.boxes import BoxTable
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import FrameStep, estimate_sequence
+from slopedist.streaming.step import FrameStep, estimate_sequence
+from slopedist.synthetic.traffic import simulate_traffic
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 

@@ -8,13 +8,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import simulate_traffic
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.ours import OursEstimator, SelfCalConfig, SelfCalibrator
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import estimate_sequence
+from slopedist.streaming.step import estimate_sequence
+from slopedist.synthetic.traffic import simulate_traffic
 
 TRUE = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 WRONG = TRUE.with_mount(height_m=1.65 * 1.1, mount_angle_rad=math.radians(1.0))

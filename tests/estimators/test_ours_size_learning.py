@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import SimulatedTraffic, simulate_traffic
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
 from slopedist.estimators.ours import OursConfig
@@ -21,7 +20,8 @@ from slopedist.estimators.ours.size_learning import (
     track_size,
 )
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import FrameStep, concat_estimates, estimate_sequence, stream_track
+from slopedist.streaming.step import FrameStep, concat_estimates, estimate_sequence, stream_track
+from slopedist.synthetic.traffic import SimulatedTraffic, simulate_traffic
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.datasets.synthetic.traffic import SimulatedTraffic, simulate_traffic
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
 from slopedist.estimators.ours.class_table import ClassTable
@@ -18,7 +17,8 @@ from slopedist.estimators.ours.vehicle_types import (
     type_rows,
 )
 from slopedist.odometry.base import RotationTrack
-from slopedist.pipeline import estimate_sequence
+from slopedist.streaming.step import estimate_sequence
+from slopedist.synthetic.traffic import SimulatedTraffic, simulate_traffic
 
 CAM = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
 ODD_TRAFFIC = {"Car": 0.6, "Van": 0.25, "Truck": 0.15}

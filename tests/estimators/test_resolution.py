@@ -12,8 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import (
     MAX_ROW_SHARE,
@@ -21,8 +20,9 @@ from slopedist.estimators.base import (
     FrameEstimates,
     unresolved_distances,
 )
-from slopedist.evaluation import cap_estimates
-from slopedist.pipeline import FrameStep
+from slopedist.evaluation.metrics import cap_estimates
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.streaming.step import FrameStep
 
 W, H = 1240, 375
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(W, H)

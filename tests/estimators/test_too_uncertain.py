@@ -10,12 +10,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameEstimates
-from slopedist.pipeline import FrameStep
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.streaming.step import FrameStep
 
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(1240, 375)
 

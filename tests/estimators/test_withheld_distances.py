@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import BoxTable
+from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameEstimates
-from slopedist.pipeline import FrameStep
+from slopedist.io.detections.boxes import BoxTable
+from slopedist.streaming.step import FrameStep
 
 DISTANCE_COLUMNS = ("distance_centre_m", "distance_nearest_face_m")
 CAMERA = Camera(720.0, 620.0, 180.0, height_m=1.65).with_image_size(1240, 375)

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.calibration import read_calibration, read_intrinsics
 
 K = np.array([[700.0, 0.0, 640.5], [0.0, 650.0, 360.25], [0.0, 0.0, 1.0]])
@@ -148,7 +148,7 @@ def test_missing_file(tmp_path: Path) -> None:
 
 
 def test_real_kitti_calibration(kitti_tracking_dir: Path) -> None:
-    from slopedist.camera import Camera
+    from slopedist.core.camera import Camera
 
     path = next(iter(sorted(kitti_tracking_dir.rglob("calib/*.txt"))))
     cal = read_calibration(path)

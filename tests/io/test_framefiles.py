@@ -11,10 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.core.errors import InputFileError, MissingInputError
+from slopedist.core.limits import MAX_FRAME_GAP, MAX_INDEX
 from slopedist.io.framefiles import list_frame_files
 from slopedist.io.frames import FrameStatus, open_frames
-from slopedist.limits import MAX_FRAME_GAP, MAX_INDEX
 
 STRAYS = [
     "0000000004b.png",

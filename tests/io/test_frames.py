@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.camera import Camera
-from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.frames import (
     DEFAULT_FPS,
     FrameStatus,

@@ -13,9 +13,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from slopedist.depth.files import read_kitti_depth_png
-from slopedist.errors import InputFileError
+from slopedist.core.errors import InputFileError
 from slopedist.io import images
+from slopedist.io.depth.files import read_kitti_depth_png
 from slopedist.io.frames import FrameStatus, open_frames
 from slopedist.io.images import (
     header_image_size,

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.detections.boxes import BoxTable, box_problems
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
+from slopedist.io.detections.boxes import BoxTable, box_problems
 from slopedist.io.intrinsics import Intrinsics, in_frame_pixels
 
 K = np.array([[700.0, 0.0, 640.0], [0.0, 650.0, 360.0], [0.0, 0.0, 1.0]])

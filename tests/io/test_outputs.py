@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.io.outputs import (
     OutputFiles,
     OutputWriteError,

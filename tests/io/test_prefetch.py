@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.io.frames import Frame, FrameStatus, open_frames
 from slopedist.io.overlay import OverlayWriter
 from slopedist.io.prefetch import (

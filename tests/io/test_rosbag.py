@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from slopedist.camera import Camera
 from slopedist.cli import main
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, InputFileError, MissingInputError
 from slopedist.io.frames import FrameStatus, ImageFolderSource
 from slopedist.io.log_topics import (
     camera_info_topic,
@@ -286,7 +286,7 @@ def test_camera_info_topic_names() -> None:
 def test_real_frames_read_back_like_the_folder(
     kitti_raw_lead_dir: Path, tmp_path: Path, fmt: LogFormat, enc: ImageEncoding
 ) -> None:
-    from slopedist.datasets.kitti_raw import KittiRawDrive
+    from slopedist.io.kitti.raw import KittiRawDrive
 
     drive = KittiRawDrive.open(kitti_raw_lead_dir)
     folder = [f for f in ImageFolderSource(drive.image_dir) if f.index < 8]
@@ -309,7 +309,7 @@ def test_real_frames_read_back_like_the_folder(
 def test_damaged_logs_give_clean_errors_or_unreadable_frames(
     tmp_path: Path, fmt: LogFormat
 ) -> None:
-    from slopedist.errors import SlopedistError
+    from slopedist.core.errors import SlopedistError
 
     path = write(tmp_path, fmt, ImageEncoding.RAW, [k * PERIOD_NS for k in range(4)])
     storage = path if path.is_file() else next(p for p in path.iterdir() if p.suffix != ".yaml")

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("av")
 
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.core.errors import InputFileError, MissingInputError
 from slopedist.io.frames import FrameStatus, VideoSource
 from slopedist.io.overlay import H264Writer
 from slopedist.io.video import PyAVVideoSource, open_video
@@ -116,8 +116,8 @@ def test_run_on_a_vfr_video_writes_the_true_times_to_frames_csv(
     import csv
 
     from slopedist.cli import main
-    from slopedist.detections.boxes import BoxTable
-    from slopedist.detections.writers import write_box_csv
+    from slopedist.io.detections.boxes import BoxTable
+    from slopedist.io.detections.writers import write_box_csv
 
     video = write_vfr(tmp_path / "dashcam.mp4", VFR_TIMES)
     (tmp_path / "calib.txt").write_text("P2: 60 0 32 0 0 60 24 0 0 0 1 0\n")

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist import geometry as geo
-from slopedist.errors import DataMismatchError
+from slopedist.core import geometry as geo
+from slopedist.core.errors import DataMismatchError
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.accuracy import (
     OdometryEvaluation,

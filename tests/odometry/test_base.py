@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slopedist.errors import DataMismatchError
+from slopedist.core.errors import DataMismatchError
 from slopedist.odometry.base import RotationTrack
 
 EYE2 = np.tile(np.eye(3), (2, 1, 1))

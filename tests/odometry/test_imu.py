@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from slopedist.errors import DataMismatchError
+from slopedist.core.errors import DataMismatchError
 from slopedist.odometry.base import OdometryState
 from slopedist.odometry.imu import MAX_EXTRAPOLATION_S, TrackRotationSource, camera_rotations
 

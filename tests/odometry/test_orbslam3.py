@@ -10,9 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.errors import InputFileError, MissingInputError, OptionalDependencyError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import InputFileError, MissingInputError, OptionalDependencyError
 from slopedist.odometry import make_odometry
 from slopedist.odometry.orb_vocabulary import (
     _k_majority,
@@ -60,7 +60,7 @@ def test_vocabulary_from_argument_or_environment(
 
 def test_unknown_backend_option_is_a_configuration_error() -> None:
     pytest.importorskip("pyorbslam3")
-    from slopedist.errors import ConfigurationError
+    from slopedist.core.errors import ConfigurationError
 
     with pytest.raises(ConfigurationError, match="unknown option"):
         make_odometry("orbslam3", CAM, vocab="x")

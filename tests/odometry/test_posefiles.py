@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from slopedist import geometry as geo
-from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.core import geometry as geo
+from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.odometry import (
     RotationTrack,
     lookback_indices,
@@ -121,7 +121,7 @@ def test_track_rejects_timestamps_going_backwards() -> None:
 
 
 def test_real_oxts_and_orbslam_agree(kitti_tracking_dir: Path) -> None:
-    from slopedist.pipeline import ego_gradients
+    from slopedist.streaming.step import ego_gradients
 
     calib = kitti_tracking_dir / "calib" / "0000.txt"
     oxts = read_oxts_rotations(kitti_tracking_dir / "oxts_poses" / "0000.txt", calib)

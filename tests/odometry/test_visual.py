@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, DataMismatchError
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.base import OdometryResult, OdometryState, lookback_indices
 from slopedist.odometry.factory import make_odometry
@@ -410,7 +410,7 @@ def test_memory_is_bounded(points: Points) -> None:
 def test_real_kitti_frames(
     kitti_odometry_dir: Path, sequence: str, theta_rms_max: float, rel_median_max: float
 ) -> None:
-    from slopedist.datasets.kitti_odometry import read_kitti_odometry
+    from slopedist.io.kitti.odometry import read_kitti_odometry
     from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 
     seq = read_kitti_odometry(kitti_odometry_dir / sequence)
@@ -430,7 +430,7 @@ def _seq06_with(
 ) -> tuple[float, float, int, int]:
     """Run the built-in odometry on seq06 with frame ``k`` replaced by ``edit(k, frame)``:
     (θ RMS error °, relative-rotation median error °, frames ok − frames, segments)."""
-    from slopedist.datasets.kitti_odometry import read_kitti_odometry
+    from slopedist.io.kitti.odometry import read_kitti_odometry
     from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 
     seq = read_kitti_odometry(kitti_odometry_dir / "seq06_000-050")

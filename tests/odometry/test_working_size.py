@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from slopedist.camera import Camera
-from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, DataMismatchError
 from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
 from slopedist.odometry.working_size import WorkingSize
 
@@ -58,7 +58,7 @@ def test_doubled_frames_give_the_rotations_of_the_originals(kitti_odometry_dir: 
     """Real seq06 frames doubled (each pixel a 2×2 block) and tracked at half their width are
     the original frames again (area averaging undoes the doubling): the same rotations and the
     same tracks, in full-frame pixels."""
-    from slopedist.datasets.kitti_odometry import read_kitti_odometry
+    from slopedist.io.kitti.odometry import read_kitti_odometry
 
     seq = read_kitti_odometry(kitti_odometry_dir / "seq06_000-050")
     cam = seq.camera

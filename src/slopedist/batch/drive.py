@@ -1,7 +1,7 @@
 """One drive of a batch: run it into a temporary folder, stamp it, publish it atomically.
 
 :func:`run_single_drive` is the one adapter between the batch engine and the single-drive
-library: it runs :func:`slopedist.run_setup.prepare_run`, the code ``slopedist run`` runs.
+library: it runs :func:`slopedist.streaming.setup.prepare_run`, the code ``slopedist run`` runs.
 :func:`process_drive` is the task the engine runs per drive (in a Ray worker): it never raises
 for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
 
@@ -29,12 +29,12 @@ from typing import Any, cast
 from slopedist.batch.manifest import DriveSpec, spec_summary
 from slopedist.batch.stamp import SETTINGS_KEY, STAMP_KEY
 from slopedist.batch.status import DriveOutcome, DriveStatus
-from slopedist.detections.onnx_detector import OnnxDetector
-from slopedist.errors import SlopedistError
+from slopedist.core.errors import SlopedistError
+from slopedist.io.detections.onnx_detector import OnnxDetector
+from slopedist.io.formatting import write_json
 from slopedist.io.frames import Frame, FrameSource
 from slopedist.io.prefetch import opencv_threads
-from slopedist.io.tables import write_json
-from slopedist.run_config import (
+from slopedist.streaming.config import (
     SUMMARY_NAME,
     RunConfig,
     RunResult,
@@ -42,7 +42,7 @@ from slopedist.run_config import (
     overlay_fps,
     overlay_path,
 )
-from slopedist.run_setup import (
+from slopedist.streaming.setup import (
     LogTopicNames,
     PreparedRun,
     RunInputs,
@@ -58,7 +58,7 @@ CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
 
 
 def drive_inputs(spec: DriveSpec) -> RunInputs:
-    """The :class:`~slopedist.run_setup.RunInputs` of ``slopedist run`` with the options of
+    """The :class:`~slopedist.streaming.setup.RunInputs` of ``slopedist run`` with the options of
     ``spec`` (the detector with its default settings; estimator defaults but the method, its
     offline mode, the reference point and the ``ours`` options of ``spec.settings``)."""
     detector = spec.detector
@@ -82,7 +82,7 @@ def drive_inputs(spec: DriveSpec) -> RunInputs:
 
 def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
     """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options (both
-    through :func:`~slopedist.run_setup.prepare_run`); ``crash_after`` is the test hook of
+    through :func:`~slopedist.streaming.setup.prepare_run`); ``crash_after`` is the test hook of
     :data:`CRASH_ENV`.
 
     Raises:
@@ -101,7 +101,7 @@ def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = N
 
 
 def drive_config(spec: DriveSpec, out_dir: Path, prepared: PreparedRun) -> RunConfig:
-    """The :class:`~slopedist.run_config.RunConfig` of ``slopedist run`` with the options of
+    """The :class:`~slopedist.streaming.config.RunConfig` of ``slopedist run`` with the options of
     ``spec`` (overlay, exports, vehicle classes of ``spec.settings``) into ``out_dir``, with no
     progress bar and frames decoded in the loop (``decode_ahead=0``, see
     :func:`run_single_drive`)."""

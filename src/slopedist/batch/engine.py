@@ -46,9 +46,9 @@ from slopedist.batch.fleet import (
 from slopedist.batch.manifest import DriveSpec
 from slopedist.batch.stamp import input_stamp
 from slopedist.batch.status import STATUS_NAME, DriveOutcome, DriveStatus, write_status
-from slopedist.errors import ConfigurationError, SlopedistError, import_optional
+from slopedist.core.errors import ConfigurationError, SlopedistError, import_optional
 from slopedist.io.prefetch import usable_cores
-from slopedist.runner import SUMMARY_NAME
+from slopedist.streaming.loop import SUMMARY_NAME
 
 T = TypeVar("T")
 

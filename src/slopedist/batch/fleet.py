@@ -8,7 +8,8 @@
   drive is written as float64.
 - :func:`fleet_summary`: per-drive and pooled distance metrics (metres) of every method where
   the records carry the true distance ``gt_distance_m``, and the error by true-distance range
-  (:data:`~slopedist.evaluation.DISTANCE_BINS_M`), scored as ``slopedist report`` scores runs
+  (:data:`~slopedist.evaluation.metrics.DISTANCE_BINS_M`), scored as ``slopedist report`` scores
+  runs
   (estimates capped at 80 m, below-horizon counted at the cap). :func:`write_fleet_summary`
   writes them to ``OUT/fleet/{drives,pooled,range}.csv``; with the per-track safety
   summaries of :mod:`~slopedist.batch.safety` per drive and pooled per method
@@ -36,19 +37,19 @@ from slopedist.batch.safety import (
 )
 from slopedist.batch.settings import SETTING_COLUMNS, settings_cell
 from slopedist.batch.stamp import SETTINGS_KEY
-from slopedist.detections.readers import CSV_TRUTH_COLUMN
-from slopedist.errors import OptionalDependencyError
-from slopedist.evaluation import (
+from slopedist.core.errors import OptionalDependencyError
+from slopedist.core.limits import MAX_RECORD_MAGNITUDE
+from slopedist.core.textfiles import CsvRows, number_cell, read_json
+from slopedist.evaluation.metrics import (
     DISTANCE_BINS_M,
     bin_label,
     cap_estimates,
     distance_metrics,
     record_reason,
 )
-from slopedist.io.tables import write_csv
-from slopedist.limits import MAX_RECORD_MAGNITUDE
-from slopedist.run_config import RECORDS_NAME, SUMMARY_NAME
-from slopedist.textfiles import CsvRows, number_cell, read_json
+from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
+from slopedist.io.formatting import write_csv
+from slopedist.streaming.config import RECORDS_NAME, SUMMARY_NAME
 
 DATASET_NAME = "records.parquet"
 FLEET_DIR = "fleet"
@@ -74,7 +75,7 @@ run settings (:data:`~slopedist.batch.settings.SETTING_COLUMNS`; ``offline`` and
 as 0/1), camera (metres, degrees), look-back (s), box score threshold, frame rate and inputs."""
 
 METRICS = ("n", "rmse", "mae", "abs_rel", "delta_1.25")
-"""Metrics of the fleet tables (see :func:`slopedist.evaluation.distance_metrics`)."""
+"""Metrics of the fleet tables (see :func:`slopedist.evaluation.metrics.distance_metrics`)."""
 
 _FLOAT_COLUMNS = (
     "timestamp_s",

@@ -27,7 +27,7 @@ A folder without a manifest is read as one drive per sub-folder: its frames
 ``calib.txt`` (optional for a log), ``boxes.csv`` and optionally ``times.txt`` (not for a log);
 a log's image topic is the batch-wide one.
 
-Every mistake is an :class:`~slopedist.errors.InputFileError` naming the manifest, the line
+Every mistake is an :class:`~slopedist.core.errors.InputFileError` naming the manifest, the line
 (CSV) or drive entry (TOML) and the field.
 """
 
@@ -50,13 +50,13 @@ from slopedist.batch.settings import (
     item_text,
     settings_json,
 )
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M
-from slopedist.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.core.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.core.textfiles import decoded_lines, read_text, repeated_names
 from slopedist.estimators import DEFAULT_METHOD, available_methods
 from slopedist.io.rosbag import is_log_path
 from slopedist.odometry.base import LOOKBACK_S
-from slopedist.run_setup import ODOMETRY_CHOICES
-from slopedist.textfiles import decoded_lines, read_text, repeated_names
+from slopedist.streaming.setup import ODOMETRY_CHOICES
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,5 +1,5 @@
 """Per-track safety summaries across a fleet: each drive's ``tracks.csv`` (see
-:mod:`slopedist.tracks`) gathered per drive and pooled per method.
+:mod:`slopedist.streaming.tracks`) gathered per drive and pooled per method.
 
 Per drive (and its method): the drive's duration (seconds, first to last frame time of its
 ``frames.csv``), the tracks with a distance, the smallest distance of any track (metres), the
@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from slopedist.batch.stamp import SETTINGS_KEY
-from slopedist.limits import MAX_RECORD_MAGNITUDE
-from slopedist.run_config import FRAMES_NAME, SUMMARY_NAME
-from slopedist.textfiles import CsvRows, number_cell, read_json
-from slopedist.tracks import TRACKS_NAME, read_tracks
+from slopedist.core.limits import MAX_RECORD_MAGNITUDE
+from slopedist.core.textfiles import CsvRows, number_cell, read_json
+from slopedist.streaming.config import FRAMES_NAME, SUMMARY_NAME
+from slopedist.streaming.tracks import TRACKS_NAME, read_tracks
 
 SHORT_HEADWAY_S = 1.0
 """Mean headway time below which a track counts as a short headway, seconds (half the

@@ -26,8 +26,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
-from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.core.errors import ConfigurationError, InputFileError
+from slopedist.core.textfiles import parse_bool
 from slopedist.estimators import (
     EstimatorConfig,
     available_methods,
@@ -41,8 +41,8 @@ from slopedist.estimators.ours.config import (
     parse_option_list,
     unscored_generic_class,
 )
-from slopedist.run_config import OverlayFormat, RunExport
-from slopedist.textfiles import parse_bool
+from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
+from slopedist.streaming.config import OverlayFormat, RunExport
 
 LIST_SEPARATOR = OPTION_SEPARATOR
 """Separator of the items of one manifest cell (``;``)."""
@@ -76,8 +76,8 @@ class RunSettings:
         vehicle_classes: class names scored as vehicles (``--vehicle-classes``).
         offline: run the method's offline mode (``--offline``: ``ours`` → ``ours-offline``).
         overlay: also write annotated frames (``--overlay``), as ``overlay_format``
-            (:class:`~slopedist.run_config.OverlayFormat` value).
-        export: :class:`~slopedist.run_config.RunExport` values (``--export``), in that
+            (:class:`~slopedist.streaming.config.OverlayFormat` value).
+        export: :class:`~slopedist.streaming.config.RunExport` values (``--export``), in that
             enum's order.
     """
 
@@ -118,7 +118,7 @@ class RunSettings:
 
 
 def export_values(exports: tuple[str, ...] | list[str]) -> tuple[str, ...]:
-    """``exports`` as :class:`~slopedist.run_config.RunExport` values, once each, in the
+    """``exports`` as :class:`~slopedist.streaming.config.RunExport` values, once each, in the
     enum's order.
 
     Raises:

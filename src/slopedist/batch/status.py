@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 
-from slopedist.io.tables import write_csv
+from slopedist.io.formatting import write_csv
 
 STATUS_NAME = "status.csv"
 STATUS_FIELDS = (

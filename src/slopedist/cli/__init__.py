@@ -4,7 +4,7 @@ Each command lives in its own module, listed in :data:`COMMANDS` and imported on
 (:class:`LazyGroup`). :func:`main` is the one place errors end: every exception becomes one
 line on stderr, ``slopedist: error: ...``, and an exit code:
 
-- 2 for user errors: :class:`~slopedist.errors.SlopedistError` (bad file, bad option), click's
+- 2 for user errors: :class:`~slopedist.core.errors.SlopedistError` (bad file, bad option), click's
   usage errors, and operating-system errors about files (not found, permission, disk full);
 - 1 for internal errors (a bug): the line names the exception and points to ``--debug``;
 - 130 when interrupted (Ctrl-C).
@@ -25,7 +25,7 @@ from typing import NamedTuple
 import click
 
 from slopedist import __version__
-from slopedist.errors import SlopedistError
+from slopedist.core.errors import SlopedistError
 
 DEBUG_ENV = "SLOPEDIST_DEBUG"
 """Environment variable that, set to ``1``, shows tracebacks (like ``--debug``)."""

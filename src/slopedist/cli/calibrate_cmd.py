@@ -2,7 +2,8 @@
 
 Runs ``ours-selfcal`` over one drive and reports its online self-calibration as it converges,
 then the final estimate with an honest 1σ (the fit, the spread of independent stretches of the
-drive and the model floor; :mod:`slopedist.mount_calibration`) and either the options to pass to
+drive and the model floor; :mod:`slopedist.streaming.mount_calibration`) and either the options to
+pass to
 ``estimate``/``eval``/``run`` or, when the data cannot tell the estimate from the configured
 mount, the advice to keep that. The drive is files (``--poses`` and ``--boxes``, as
 ``estimate``), or FRAMES (an image folder or video): the built-in odometry computes the
@@ -28,14 +29,19 @@ from slopedist.cli.options import (
     lookback_option,
     make_detector,
 )
-from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.errors import ConfigurationError, MissingInputError
+from slopedist.core.errors import ConfigurationError, MissingInputError
 from slopedist.estimators.ours import Calibration
+from slopedist.evaluation.table import format_table
+from slopedist.io.formatting import write_json
 from slopedist.io.frames import open_frames
 from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.io.tables import write_json
-from slopedist.mount_calibration import MountAdvice, MountSigma, advise_from_frames, advise_mount
-from slopedist.tables import format_table
+from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.streaming.mount_calibration import (
+    MountAdvice,
+    MountSigma,
+    advise_from_frames,
+    advise_mount,
+)
 
 HISTORY_KEYS = ("t_s", "theta0_deg", "sigma_deg", "height_m", "sigma_m", "targets", "vehicles")
 

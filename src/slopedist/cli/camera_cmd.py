@@ -9,8 +9,8 @@ import click
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.checkerboard import calibrate_checkerboard, write_opencv_yaml
 from slopedist.cli.options import BoundedFloat, parse_size
+from slopedist.io.checkerboard import calibrate_checkerboard, write_opencv_yaml
 from slopedist.io.frames import open_frames
 from slopedist.io.outputs import check_outputs_spare_inputs
 

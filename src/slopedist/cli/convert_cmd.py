@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 
 from slopedist.cli.options import FINITE_FLOAT, parse_size
-from slopedist.detections.convert import (
+from slopedist.core.limits import MAX_INDEX
+from slopedist.io.detections.convert import (
     WRITABLE,
     BoxFileOptions,
     BoxFormat,
@@ -15,7 +16,6 @@ from slopedist.detections.convert import (
     target_format_of,
 )
 from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.limits import MAX_INDEX
 
 
 @click.command("convert")

@@ -9,9 +9,15 @@ import click
 
 from slopedist.cli.method_options import check_methods, estimator_options
 from slopedist.cli.options import given_list
-from slopedist.datasets.synthetic.scenarios import SUITE, builtin_names
-from slopedist.demo import DEFAULT_OUT, DemoConfig, format_demo_tables, iter_outputs, run_demo
 from slopedist.estimators import EstimatorConfig
+from slopedist.synthetic.demo import (
+    DEFAULT_OUT,
+    DemoConfig,
+    format_demo_tables,
+    iter_outputs,
+    run_demo,
+)
+from slopedist.synthetic.scenarios import SUITE, builtin_names
 
 
 @click.command("demo")

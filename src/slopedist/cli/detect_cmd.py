@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from slopedist.cli.options import detector_options, make_detector
-from slopedist.detections.video import detect_video
+from slopedist.io.detections.video import detect_video
 from slopedist.io.frames import open_frames
 from slopedist.io.outputs import check_outputs_spare_inputs
 

@@ -17,14 +17,20 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.cli.record_summary import RecordTally
-from slopedist.datasets.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.detections.boxes import BoxTable
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
 from slopedist.estimators.ours.selfcal import estimator_calibration_warning
-from slopedist.frame_steps import long_step_warning
+from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.pipeline import FrameStep, close_records, iter_records, open_records, stream_track
+from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.streaming.frame_times import long_step_warning
+from slopedist.streaming.step import (
+    FrameStep,
+    close_records,
+    iter_records,
+    open_records,
+    stream_track,
+)
 
 
 @click.command("estimate")

@@ -16,10 +16,10 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import given_list, kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig
+from slopedist.evaluation.accuracy_tables import format_report_tables
+from slopedist.evaluation.kitti import KittiEvalConfig, evaluate_kitti_tracking
+from slopedist.io.formatting import STDOUT_PATH, write_json
 from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.io.tables import STDOUT_PATH, write_json
-from slopedist.kitti_eval import KittiEvalConfig, evaluate_kitti_tracking
-from slopedist.score_tables import format_report_tables
 
 
 @click.group("eval")

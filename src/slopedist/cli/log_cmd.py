@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
+from slopedist.io.formatting import dumps_json
 from slopedist.io.rosbag import log_topics
-from slopedist.io.tables import dumps_json
 
 
 @click.group("log")

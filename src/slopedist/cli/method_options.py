@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from slopedist.cli.options import apply_options, split_list
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import (
     ESTIMATORS,
     OFFLINE_COUNTERPARTS,
@@ -26,7 +26,7 @@ from slopedist.estimators import (
 from slopedist.estimators.base import VEHICLE_REFERENCES
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
 from slopedist.estimators.ours.config import idle_sigma_only, parse_options, unscored_generic_class
-from slopedist.learned_peer import PEER_METHOD
+from slopedist.evaluation.learned_peer import PEER_METHOD
 
 
 def check_methods(names: list[str], evaluation: bool = False) -> list[str]:

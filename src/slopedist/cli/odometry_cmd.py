@@ -12,10 +12,10 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from slopedist.cli.options import lookback_option
-from slopedist.datasets.kitti_odometry import KittiOdometrySequence, read_kitti_odometry
-from slopedist.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.io.formatting import STDOUT_PATH, dumps_json, write_json
+from slopedist.io.kitti.odometry import KittiOdometrySequence, read_kitti_odometry
 from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.io.tables import STDOUT_PATH, dumps_json, write_json
 from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 from slopedist.odometry.factory import available_odometry, make_odometry
 

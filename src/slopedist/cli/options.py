@@ -12,15 +12,15 @@ from typing import Any
 
 import click
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M, MAX_MOUNT_ANGLE_RAD
-from slopedist.datasets.kitti_tracking import BoxSource, RotationSource
-from slopedist.datasets.sequence_files import PoseFileLayout, SequenceFiles
-from slopedist.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
-from slopedist.detections.layouts import LogitKind, OutputLayout
-from slopedist.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M, MAX_MOUNT_ANGLE_RAD
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
+from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
+from slopedist.io.detections.layouts import LogitKind, OutputLayout
+from slopedist.io.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
 from slopedist.io.intrinsics import Intrinsics
+from slopedist.io.kitti.tracking import BoxSource, RotationSource
+from slopedist.io.sequence_files import PoseFileLayout, SequenceFiles
 
 
 def split_list(value: str | None) -> list[str] | None:
@@ -317,7 +317,7 @@ def _files_decorator(required: bool) -> Callable[[Callable[..., Any]], Callable[
 sequence_file_options = _files_decorator(required=True)
 """``--calib`` (or ``--fx --fy --cx --cy``), ``--poses``, ``--boxes``, ``--pose-format``,
 ``--frame-period``, ``--score``, ``--height``, ``--mount-angle``: one sequence given as files,
-handed to the command as one ``files`` (:class:`~slopedist.datasets.sequence_files.
+handed to the command as one ``files`` (:class:`~slopedist.io.sequence_files.
 SequenceFiles`)."""
 
 drive_file_options = _files_decorator(required=False)
@@ -388,7 +388,8 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
     """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
     ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
     ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
-    command as one ``kitti_config`` (:class:`~slopedist.kitti_eval.KittiEvalConfig`; the command
+    command as one ``kitti_config`` (:class:`~slopedist.evaluation.kitti.KittiEvalConfig`; the
+    command
     adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
     source_options = _kitti_eval_option_list(prefix)
 
@@ -407,7 +408,7 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
             gt_reference: str | None,
             **kwargs: Any,
         ) -> Any:
-            from slopedist.kitti_eval import KittiEvalConfig
+            from slopedist.evaluation.kitti import KittiEvalConfig
 
             kwargs["kitti_config"] = KittiEvalConfig(
                 rotation=RotationSource(rotation),

@@ -17,9 +17,8 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import given_list, kitti_eval_options, split_list
 from slopedist.estimators import EstimatorConfig
-from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.kitti_eval import KittiEvalConfig
-from slopedist.report import (
+from slopedist.evaluation.kitti import KittiEvalConfig
+from slopedist.evaluation.report import (
     SUMMARY_TABLES,
     ReportOptions,
     SourceKind,
@@ -27,9 +26,10 @@ from slopedist.report import (
     report_data,
     write_report,
 )
-from slopedist.report.kitti import default_kitti_methods
-from slopedist.report.runs import run_folders
-from slopedist.tables import format_text
+from slopedist.evaluation.report.kitti import default_kitti_methods
+from slopedist.evaluation.report.runs import run_folders
+from slopedist.evaluation.table import format_text
+from slopedist.io.outputs import check_outputs_spare_inputs
 
 
 def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:

@@ -45,9 +45,9 @@ from slopedist.cli.run_options import (
     overlay_option,
     run_offline_option,
 )
-from slopedist.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
+from slopedist.io.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.outputs import (
     RunStoppedError,
@@ -55,7 +55,7 @@ from slopedist.io.outputs import (
     partial_path,
     stop_on_signals,
 )
-from slopedist.run_config import (
+from slopedist.streaming.config import (
     FRAMES_NAME,
     RECORDS_NAME,
     SUMMARY_NAME,
@@ -68,7 +68,7 @@ from slopedist.run_config import (
     overlay_path,
     snapshot_path,
 )
-from slopedist.run_setup import (
+from slopedist.streaming.setup import (
     ODOMETRY_CHOICES,
     DepthFactory,
     LogTopicNames,
@@ -76,7 +76,7 @@ from slopedist.run_setup import (
     folder_depth_source,
     prepare_run,
 )
-from slopedist.tracks import TRACKS_NAME
+from slopedist.streaming.tracks import TRACKS_NAME
 
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
@@ -401,8 +401,8 @@ class RunOutputs:
     Attributes:
         out_dir: output folder (records.csv, frames.csv, run.json, tracks.csv).
         overlay: also write annotated frames, as ``overlay_format`` (an
-            :class:`~slopedist.run_config.OverlayFormat` value).
-        exports: :class:`~slopedist.run_config.RunExport` values (MCAP, TUM trajectory).
+            :class:`~slopedist.streaming.config.OverlayFormat` value).
+        exports: :class:`~slopedist.streaming.config.RunExport` values (MCAP, TUM trajectory).
         snapshots: frame indices whose overlay is also written as a JPEG.
         quiet: no progress bar.
         sequence: sequence name written to run.json (None: the frames' folder or video name).
@@ -454,7 +454,7 @@ def remove_earlier_outputs(
     out_dir: Path, result: RunResult, inputs: Sequence[Path | Intrinsics | None]
 ) -> None:
     """Remove what an earlier run into ``out_dir`` wrote and this one did not (an overlay,
-    exports, snapshots: :func:`~slopedist.run_config.earlier_outputs`), so that the folder
+    exports, snapshots: :func:`~slopedist.streaming.config.earlier_outputs`), so that the folder
     holds one run; an input of this run, or a folder holding one, is never removed. Says on
     stderr what went."""
     spared = [p.resolve() for p in inputs if isinstance(p, Path)]
@@ -488,7 +488,7 @@ def check_run_outputs(
 
 
 def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
-    """``start()`` (a :func:`~slopedist.runner.run_frames` call with ``config``) with
+    """``start()`` (a :func:`~slopedist.streaming.loop.run_frames` call with ``config``) with
     SIGTERM/SIGINT turned into a stop after the current frame (:attr:`RunConfig.stop`); a
     stopped run exits with code 128 + the signal number."""
     with stop_on_signals(config.stop):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from slopedist.run_config import OverlayFormat, RunExport
+from slopedist.streaming.config import OverlayFormat, RunExport
 
 image_topic_option = click.option(
     "--image-topic",

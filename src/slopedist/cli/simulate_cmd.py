@@ -7,20 +7,20 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from slopedist.datasets.synthetic.export import (
+from slopedist.core.errors import ConfigurationError
+from slopedist.synthetic.export import (
     SIMULATION_NAMES,
     DepthFormat,
     refuse_stale_frames,
     write_simulation,
 )
-from slopedist.datasets.synthetic.noise import BoxNoiseSpec
-from slopedist.datasets.synthetic.scenarios import (
+from slopedist.synthetic.noise import BoxNoiseSpec
+from slopedist.synthetic.scenarios import (
     builtin_text,
     describe_builtins,
     load_scenario,
 )
-from slopedist.datasets.synthetic.sequence import SyntheticSequence
-from slopedist.errors import ConfigurationError
+from slopedist.synthetic.sequence import SyntheticSequence
 
 
 @click.command("simulate")

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Any
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.errors import ConfigurationError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,

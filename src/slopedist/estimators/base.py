@@ -21,8 +21,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import (
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
+from slopedist.io.detections.boxes import (
     DEFAULT_VEHICLE_CLASSES,
     BoxTable,
     border_cuts,
@@ -31,7 +32,6 @@ from slopedist.detections.boxes import (
     table_box_problems,
     vehicle_mask,
 )
-from slopedist.errors import ConfigurationError
 
 
 class EstimateStatus(str, Enum):
@@ -75,7 +75,7 @@ class MissingReason(str, Enum):
     than half); evaluations count it at the cap, as ``below_horizon``."""
     NO_ROTATION = "no_rotation"
     """No camera rotation for this frame (odometry not initialised or lost), or one whose ego
-    gradient no road gives (:data:`slopedist.pipeline.MAX_EGO_GRADIENT_RAD`: a glitch)."""
+    gradient no road gives (:data:`slopedist.streaming.step.MAX_EGO_GRADIENT_RAD`: a glitch)."""
     ODOMETRY_JUMP = "odometry_jump"
     """The frame's camera rotation jumps away from the frames before it faster than a car can
     pitch (:class:`slopedist.odometry.jumps.PitchJumpGuard`: a visual-odometry or pose-file
@@ -198,7 +198,7 @@ class FrameEstimates:
         status: the :class:`EstimateStatus` value per box; when a method leaves it out it is
             ``ok`` where ``reason`` is empty and ``missing`` elsewhere.
         cut: the image edges that cut each box (``""``, ``"bottom"``, ``"left+bottom"``, ...;
-            :func:`slopedist.detections.boxes.cut_labels`), set by :func:`settle_states`.
+            :func:`slopedist.io.detections.boxes.cut_labels`), set by :func:`settle_states`.
     """
 
     theta_rad: NDArray[np.float64]
@@ -348,7 +348,7 @@ def bottom_cut_is_upper_bound(
     ``upper_bound`` with reason ``cut_bottom``, its distance kept (eq. 1 reads the lowest
     visible row, above the true contact row, so ``f·h/(u − v)`` is at least the true
     distance). Side and top cuts leave the contact row in view: they stay ``ok``. ``boxes``:
-    in the frame's own pixels (:func:`~slopedist.detections.boxes.frame_pixel_boxes`)."""
+    in the frame's own pixels (:func:`~slopedist.io.detections.boxes.frame_pixel_boxes`)."""
     bottom = border_cuts(boxes, image_size(camera))[:, 3]
     rows = bottom & (est.status == EstimateStatus.OK.value)
     est.set_state(rows, EstimateStatus.UPPER_BOUND, MissingReason.CUT_BOTTOM)

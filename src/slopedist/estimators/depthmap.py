@@ -11,7 +11,7 @@ Sampling (:class:`DepthSample`):
     ``lower_fraction`` of its rows and the central half of its columns (the vehicle's rear
     and wheels, away from the background seen beside and above it).
     Pixels of value NaN, ±inf or ≤ 0 are "no value", and so are metric depths (scaling
-    ``none``) outside the plausible range [0.1, 1000] m (:func:`slopedist.depth.base.
+    ``none``) outside the plausible range [0.1, 1000] m (:func:`slopedist.io.depth.base.
     plausible_depth`); no valid pixel → reason ``no_depth``, never a clamped number.
 
 Median scaling (:class:`DepthScaling`) for scale-less monocular models, per frame, as in the
@@ -55,11 +55,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.depth.base import MAX_PLAUSIBLE_DEPTH_M, MIN_PLAUSIBLE_DEPTH_M, plausible_depth
-from slopedist.detections.boxes import EDGES, border_cuts
-from slopedist.errors import ConfigurationError, DataMismatchError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
@@ -69,6 +67,8 @@ from slopedist.estimators.base import (
     image_size,
     unusable_box_reasons,
 )
+from slopedist.io.depth.base import MAX_PLAUSIBLE_DEPTH_M, MIN_PLAUSIBLE_DEPTH_M, plausible_depth
+from slopedist.io.detections.boxes import EDGES, border_cuts
 
 DEFAULT_MAX_DEPTH_M = 80.0
 DEFAULT_MIN_DEPTH_M = MIN_PLAUSIBLE_DEPTH_M

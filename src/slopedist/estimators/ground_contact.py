@@ -19,10 +19,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.detections.boxes import frame_pixel_boxes
-from slopedist.errors import ConfigurationError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import (
     MIN_RESOLVED_PX,
     Estimator,
@@ -33,6 +32,7 @@ from slopedist.estimators.base import (
     bottom_cut_is_upper_bound,
     unusable_box_reasons,
 )
+from slopedist.io.detections.boxes import frame_pixel_boxes
 
 
 def ground_contact_estimates(
@@ -51,7 +51,7 @@ def ground_contact_estimates(
     the bottom of the image (``camera``'s size) is an ``upper_bound``
     (:func:`~slopedist.estimators.base.bottom_cut_is_upper_bound`), judged on ``frame_boxes``,
     the boxes in the frame's own pixels (``boxes`` themselves unless a lens model mapped them:
-    :func:`~slopedist.detections.boxes.frame_pixel_boxes`).
+    :func:`~slopedist.io.detections.boxes.frame_pixel_boxes`).
     """
     v_ego = geo.vanishing_line_row(theta_rad, camera.f, camera.c_y)
     delta_y = geo.target_offset_px(geo.box_centre_row(boxes), v_ego)

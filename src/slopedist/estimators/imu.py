@@ -19,7 +19,7 @@ from slopedist.estimators.ground_contact import EgoGradientEstimator, PaperEstim
 
 IMU_ROTATION_SOURCE = "oxts"
 """Value of :attr:`~slopedist.estimators.base.Estimator.rotation_source` of the IMU methods
-(the name of :attr:`slopedist.datasets.kitti_tracking.RotationSource.OXTS`)."""
+(the name of :attr:`slopedist.io.kitti.tracking.RotationSource.OXTS`)."""
 
 
 class ImuEstimator(PaperEstimator):

@@ -1,4 +1,6 @@
-"""Reading user media: frames from image folders and video files."""
+"""Inputs and outputs: frames (image folders, videos, drive logs), calibrations, boxes
+(:mod:`~slopedist.io.detections`), depth maps (:mod:`~slopedist.io.depth`), the KITTI datasets
+(:mod:`~slopedist.io.kitti`), and the crash-safe output files and their formatting."""
 
 from slopedist.io.frames import (
     Frame,

@@ -2,7 +2,7 @@
 
 :func:`read_calibration` reads, chosen by content:
 
-- a KITTI calib file (``P2:``/``P0:`` lines of 12 numbers, as :func:`slopedist.camera.
+- a KITTI calib file (``P2:``/``P0:`` lines of 12 numbers, as :func:`slopedist.core.camera.
   read_kitti_calib`): ``fx = P[0,0]``, ``fy = P[1,1]``, ``cx = P[0,2]``, ``cy = P[1,2]``;
 - a 3×3 K as text (three lines of three numbers, or nine on one line), optionally followed by a
   line of distortion coefficients;
@@ -14,7 +14,8 @@
   (``K``/``D``, ``k``/``d``, ``width``/``height``).
 
 The result is :class:`CameraCalibration`: the :class:`~slopedist.io.intrinsics.Intrinsics` (with
-lens distortion) and the ideal square-pixel :class:`~slopedist.camera.Camera` the estimators use,
+lens distortion) and the ideal square-pixel :class:`~slopedist.core.camera.Camera` the estimators
+use,
 into which boxes are mapped (see :mod:`slopedist.io.intrinsics`).
 """
 
@@ -30,11 +31,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
-from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
+from slopedist.core.errors import ConfigurationError, InputFileError
+from slopedist.core.textfiles import read_text
 from slopedist.io.frames import check_calibration
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
-from slopedist.textfiles import read_text
 
 MATRIX_KEYS = ("camera_matrix", "K", "k", "cameraMatrix", "intrinsic_matrix")
 DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "D", "d", "distCoeffs", "distortion")

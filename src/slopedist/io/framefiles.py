@@ -5,8 +5,9 @@ The rule (also in :mod:`slopedist.io.frames`): image files are ``*.png``, ``*.jp
 (ASCII digits only: ``0000000000.png``, ``000123.jpg``), the numbered files are the frames and
 the number is the frame index; every other image file (``0000000004b.png``, ``-1.png``) is
 skipped and reported, never renumbering the folder. A gap of more than
-:data:`~slopedist.limits.MAX_FRAME_GAP` frame numbers, or a number over
-:data:`~slopedist.limits.MAX_INDEX`, is an error naming the file. When no file name is a number,
+:data:`~slopedist.core.limits.MAX_FRAME_GAP` frame numbers, or a number over
+:data:`~slopedist.core.limits.MAX_INDEX`, is an error naming the file. When no file name is a
+number,
 the frames are numbered 0, 1, ... in sorted name order. Hidden files (macOS ``._0001.png``) are
 always skipped and reported.
 """
@@ -19,8 +20,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from slopedist.errors import InputFileError, MissingInputError
-from slopedist.limits import MAX_FRAME_GAP, MAX_INDEX
+from slopedist.core.errors import InputFileError, MissingInputError
+from slopedist.core.limits import MAX_FRAME_GAP, MAX_INDEX
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 """File name endings an image folder is read from (case-insensitive)."""
@@ -66,8 +67,8 @@ def list_frame_files(folder: str | Path) -> FolderFrames:
     Raises:
         MissingInputError: no such folder, or no frame file in it.
         InputFileError: two files with one frame number (``5.png``, ``005.png``), a number over
-            :data:`~slopedist.limits.MAX_INDEX`, or a gap over
-            :data:`~slopedist.limits.MAX_FRAME_GAP` (naming the file after it).
+            :data:`~slopedist.core.limits.MAX_INDEX`, or a gap over
+            :data:`~slopedist.core.limits.MAX_FRAME_GAP` (naming the file after it).
     """
     folder = Path(folder)
     images = _image_files(folder)

@@ -33,17 +33,17 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.errors import (
+from slopedist.core.camera import Camera
+from slopedist.core.errors import (
     ConfigurationError,
     DataMismatchError,
     InputFileError,
     MissingInputError,
 )
+from slopedist.core.limits import DEFAULT_MAX_PIXELS, MAX_FRAME_INTERVAL_S
+from slopedist.core.textfiles import numbered_lines
 from slopedist.io.framefiles import list_frame_files
 from slopedist.io.images import header_image_size, image_size_problem, read_colour
-from slopedist.limits import DEFAULT_MAX_PIXELS, MAX_FRAME_INTERVAL_S
-from slopedist.textfiles import numbered_lines
 
 DEFAULT_FPS = 10.0
 """Frame rate assumed for image folders without a timestamps file (KITTI's 10 Hz)."""

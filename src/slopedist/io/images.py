@@ -3,7 +3,7 @@
 A 140 KB PNG can claim 30000×30000 pixels and take gigabytes to decode, so every image slopedist
 decodes (frames, depth PNGs, odometry frames) has its width and height read from the file
 header (PNG ``IHDR``, JPEG ``SOFn``) and is refused above ``max_pixels``
-(:data:`~slopedist.limits.DEFAULT_MAX_PIXELS` by default) before any pixel is decoded. Files in
+(:data:`~slopedist.core.limits.DEFAULT_MAX_PIXELS` by default) before any pixel is decoded. Files in
 other formats OpenCV reads (BMP, PGM, TIFF) are bounded by their file length instead (4 bytes
 per pixel), which holds for uncompressed formats only.
 
@@ -24,8 +24,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import InputFileError, MissingInputError
-from slopedist.limits import DEFAULT_MAX_PIXELS
+from slopedist.core.errors import InputFileError, MissingInputError
+from slopedist.core.limits import DEFAULT_MAX_PIXELS
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_SOI = b"\xff\xd8"

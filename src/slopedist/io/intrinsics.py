@@ -1,6 +1,7 @@
 """Camera intrinsics with lens distortion, and the mapping of boxes into an ideal pinhole.
 
-The estimators use a square-pixel pinhole (:class:`~slopedist.camera.Camera`, one focal length).
+The estimators use a square-pixel pinhole (:class:`~slopedist.core.camera.Camera`, one focal
+length).
 :class:`Intrinsics` is turned into the *ideal* camera ``f = fy``, ``(c_x, c_y)`` unchanged, and
 box corners are mapped into it: ``u' = c_x + fy·x_n``, ``v' = c_y + fy·y_n`` where
 ``(x_n, y_n)`` is the undistorted normalised image point (``cv2.undistortPoints`` with ``P`` =
@@ -24,10 +25,10 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M, Camera
-from slopedist.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
-from slopedist.detections.onnx_detector import DetectionTiming, Detector
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
+from slopedist.core.errors import ConfigurationError
+from slopedist.io.detections.boxes import FRAME_BOX_COLUMN, BoxTable, frame_pixel_boxes
+from slopedist.io.detections.onnx_detector import DetectionTiming, Detector
 
 DISTORTION_COUNTS = (0, 4, 5, 8, 12, 14)
 """Lengths OpenCV accepts for (non-fisheye) distortion coefficients."""
@@ -137,7 +138,7 @@ class Intrinsics:
 
     def check_camera(self) -> None:
         """Refuse a camera no lens and sensor make: its ideal camera's focal length or principal
-        point out of range (:class:`~slopedist.camera.Camera`), or a lens model that moves the
+        point out of range (:class:`~slopedist.core.camera.Camera`), or a lens model that moves the
         image's edges absurdly (:meth:`check_lens_scale`).
 
         Raises:
@@ -279,7 +280,7 @@ def in_frame_pixels(table: BoxTable) -> BoxTable:
 
 
 class RectifiedDetector:
-    """A :class:`~slopedist.detections.onnx_detector.Detector` whose boxes are mapped into the
+    """A :class:`~slopedist.io.detections.onnx_detector.Detector` whose boxes are mapped into the
     ideal camera of ``intrinsics`` (:meth:`Intrinsics.rectify_table`); the mapping is counted in
     its post-processing time."""
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.io.calibration import FISHEYE_MODELS, _trim
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.rosbag import (

@@ -21,8 +21,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from slopedist.errors import ConfigurationError, SlopedistError
-from slopedist.io.tables import dumps_json
+from slopedist.core.errors import ConfigurationError, SlopedistError
+from slopedist.io.formatting import dumps_json
 
 PARTIAL_TAG = ".partial"
 """Inserted before the suffix of a file being written (``records.partial.csv``)."""

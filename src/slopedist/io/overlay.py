@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import ConfigurationError, InputFileError
+from slopedist.core.errors import ConfigurationError, InputFileError
 
 MP4_TIME_BASE = Fraction(1, 1000)
 """Time unit of the presentation timestamps of written videos (milliseconds)."""

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.io.frames import Frame, FrameSource
 
 DEFAULT_AHEAD = 4

@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import (
+from slopedist.core.errors import (
     ConfigurationError,
     InputFileError,
     MissingInputError,

@@ -22,8 +22,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.errors import ConfigurationError, InputFileError, OptionalDependencyError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError, InputFileError, OptionalDependencyError
 
 
 class LogFormat(str, Enum):

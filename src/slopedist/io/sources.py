@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from slopedist.camera import KITTI_CAMERA_HEIGHT_M
-from slopedist.errors import ConfigurationError
+from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M
+from slopedist.core.errors import ConfigurationError
 from slopedist.io.calibration import CameraCalibration
 from slopedist.io.frames import FrameSource, open_frames, read_timestamps
 from slopedist.io.log_topics import (

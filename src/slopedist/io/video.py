@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import InputFileError, MissingInputError
+from slopedist.core.errors import InputFileError, MissingInputError
 from slopedist.io.frames import DEFAULT_FPS, Frame, FrameStatus, VideoSource
 
 

@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.errors import DataMismatchError
+from slopedist.core import geometry as geo
+from slopedist.core.errors import DataMismatchError
 from slopedist.odometry.base import (
     LOOKBACK_S,
     TIME_EPS_S,

@@ -14,8 +14,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.errors import ConfigurationError, DataMismatchError
-from slopedist.geometry import not_rotations
+from slopedist.core.errors import ConfigurationError, DataMismatchError
+from slopedist.core.geometry import not_rotations
 
 LOOKBACK_S = 1.0
 """Default look-back of the ego gradient, seconds (the paper's one second)."""
@@ -82,8 +82,8 @@ class RotationTrack:
         Raises:
             DataMismatchError: timestamps that are not ``(N,)`` finite, increasing numbers;
                 rotations that are not ``(N, 3, 3)`` numbers, or a finite one of a valid frame
-                that is not a rotation (:func:`~slopedist.geometry.not_rotations`, as
-                :class:`~slopedist.pipeline.FrameStep` refuses it); ``valid`` that is not
+                that is not a rotation (:func:`~slopedist.core.geometry.not_rotations`, as
+                :class:`~slopedist.streaming.step.FrameStep` refuses it); ``valid`` that is not
                 ``(N,)``.
         """
         try:

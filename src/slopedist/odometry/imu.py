@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
-from slopedist.errors import DataMismatchError, InputFileError
+from slopedist.core.errors import DataMismatchError, InputFileError
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationTrack
 from slopedist.odometry.posefiles import R_CAM_VEHICLE_NOMINAL
 

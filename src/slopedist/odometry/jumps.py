@@ -30,7 +30,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
+from slopedist.core import geometry as geo
 from slopedist.odometry.base import RotationTrack
 
 MAX_PITCH_RATE_RAD_S = math.radians(20.0)
@@ -188,7 +188,7 @@ def track_jumps(track: RotationTrack, mount_angle_rad: float = 0.0) -> JumpMarks
 def trusted_rotations(track: RotationTrack, marks: JumpMarks) -> NDArray[np.float64]:
     """``track``'s rotations ``(N, 3, 3)`` with each jump frame's replaced by the last trusted
     one before it (no rotation since: what an estimator that compensates the camera's rotation
-    is given, as :class:`~slopedist.pipeline.FrameStep` gives it in a stream)."""
+    is given, as :class:`~slopedist.streaming.step.FrameStep` gives it in a stream)."""
     n = len(track)
     kept = track.valid & ~marks.jump
     last = np.maximum.accumulate(np.where(kept, np.arange(n), -1))

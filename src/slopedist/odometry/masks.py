@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.errors import DataMismatchError
+from slopedist.core.errors import DataMismatchError
 
 FloatArray = NDArray[np.float64]
 

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import MissingInputError
+from slopedist.core.errors import MissingInputError
 
 ORB_BYTES = 32
 """Bytes of one ORB descriptor (256 bits)."""

@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.errors import InputFileError, MissingInputError, OptionalDependencyError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import InputFileError, MissingInputError, OptionalDependencyError
 from slopedist.odometry.base import OdometryResult, OdometryState
 
 VOCAB_ENV = "PYORBSLAM3_VOCAB"

@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import read_kitti_calib
-from slopedist.errors import InputFileError
-from slopedist.geometry import not_rotations
-from slopedist.limits import MAX_FRAME_INTERVAL_S
+from slopedist.core.camera import read_kitti_calib
+from slopedist.core.errors import InputFileError
+from slopedist.core.geometry import not_rotations
+from slopedist.core.limits import MAX_FRAME_INTERVAL_S
+from slopedist.core.textfiles import numbered_lines
 from slopedist.odometry.base import RotationTrack
-from slopedist.textfiles import numbered_lines
 
 KITTI_FRAME_PERIOD_S = 0.1
 """KITTI records at 10 Hz."""

@@ -52,8 +52,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.errors import DataMismatchError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import DataMismatchError
 from slopedist.odometry import image_stats
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.affine_refine import refine_affine

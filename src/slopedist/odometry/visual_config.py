@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 from slopedist.odometry.base import LOOKBACK_S
 
 

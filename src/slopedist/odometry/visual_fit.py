@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
+from slopedist.core.camera import Camera
 from slopedist.odometry import twoview as tv
 from slopedist.odometry.point_map import PointNormaliser
 from slopedist.odometry.visual_config import FitInfo, VisualOdometryConfig

@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.errors import DataMismatchError
+from slopedist.core.camera import Camera
+from slopedist.core.errors import DataMismatchError
 
 FloatArray = NDArray[np.float64]
 

@@ -1,7 +1,7 @@
 """Which boxes of ``ours`` are cut by the image border (their vehicle may extend beyond it).
 
 Image coordinates in pixels: columns grow to the right, rows downwards; a box is (left, top,
-right, bottom). The test is :func:`slopedist.detections.boxes.border_cuts`, the one behind the
+right, bottom). The test is :func:`slopedist.io.detections.boxes.border_cuts`, the one behind the
 ``cut`` column of every method, so the cues ``ours`` censors are the edges that column names.
 """
 
@@ -12,14 +12,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
-from slopedist.detections.boxes import (
-    ABSURD_COORDINATE_PX,
-    ABSURD_IMAGE_SIZES,
-    MIN_BOX_SIZE_PX,
-    border_cut_limits,
-    cuts_at,
-)
+from slopedist.core.camera import Camera
 from slopedist.estimators.base import (
     EstimateStatus,
     FrameEstimates,
@@ -28,6 +21,13 @@ from slopedist.estimators.base import (
 )
 from slopedist.estimators.ours.fusion import all_true, any_true
 from slopedist.estimators.ours.records import BorderCuts
+from slopedist.io.detections.boxes import (
+    ABSURD_COORDINATE_PX,
+    ABSURD_IMAGE_SIZES,
+    MIN_BOX_SIZE_PX,
+    border_cut_limits,
+    cuts_at,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -54,7 +54,7 @@ class ImageBorder:
 
     def cut_edges(self, boxes: FloatArray) -> NDArray[np.bool_]:
         """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?
-        (:func:`~slopedist.detections.boxes.border_cuts`, its limits kept while the image size
+        (:func:`~slopedist.io.detections.boxes.border_cuts`, its limits kept while the image size
         stays.)"""
         size = self.known_size or self._seen_size(boxes)
         if self._limits_of is None or self._limits_of[0] != size:
@@ -83,7 +83,7 @@ def border_cuts_of(cut: NDArray[np.bool_]) -> BorderCuts | None:
 def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
     """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
     is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
-    limits of :func:`~slopedist.detections.boxes.box_problems`)."""
+    limits of :func:`~slopedist.io.detections.boxes.box_problems`)."""
     if size is None:
         return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
     w, h = float(size[0]), float(size[1])
@@ -96,12 +96,12 @@ def boxes_all_usable(
     boxes: FloatArray, low: FloatArray, high: FloatArray, seen: FloatArray | None = None
 ) -> bool:
     """Whether every box ``(n, 4)`` is certainly usable (finite, at least
-    :data:`~slopedist.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
+    :data:`~slopedist.io.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
     ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
-    :func:`~slopedist.detections.boxes.table_box_problems` decides box by box.
+    :func:`~slopedist.io.detections.boxes.table_box_problems` decides box by box.
 
     ``seen``: the same boxes in the frame's own pixels when a lens model mapped ``boxes``
-    (:func:`~slopedist.detections.boxes.frame_pixel_boxes`), None (or ``boxes`` itself) when
+    (:func:`~slopedist.io.detections.boxes.frame_pixel_boxes`), None (or ``boxes`` itself) when
     not. The image border is judged there, as the slow path judges ``outside_image``: a
     pincushion lens maps a box beyond the frame's edge into the ideal camera's image, which
     must not make it usable."""
@@ -117,7 +117,7 @@ def settle_border_cuts(
     est: FrameEstimates, cut: NDArray[np.bool_], use_width: bool, use_ground_contact: bool
 ) -> None:
     """The states of the boxes cut by the image border (``cut``: ``(n, 4)`` left, top, right,
-    bottom, the ``cut`` column's test, :func:`~slopedist.detections.boxes.border_cuts`): a box
+    bottom, the ``cut`` column's test, :func:`~slopedist.io.detections.boxes.border_cuts`): a box
     keeps ``ok`` while one of its cues is uncut (the height: neither top nor bottom cut; the
     width: no side cut; the ground contact: no bottom cut); otherwise it is an ``upper_bound``,
     reason ``cut_bottom``, whose distance is the least of the cut contact and width cues (each

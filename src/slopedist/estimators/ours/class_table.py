@@ -12,7 +12,6 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import class_key
 from slopedist.estimators.ours import cues
 from slopedist.estimators.ours.priors import (
     VEHICLE_TYPE_MIXTURE,
@@ -26,6 +25,7 @@ from slopedist.estimators.ours.vehicle_types import (
     type_moments,
     type_rows,
 )
+from slopedist.io.detections.boxes import class_key
 
 FloatArray = NDArray[np.float64]
 
@@ -103,7 +103,7 @@ class ClassTable:
         generic_classes: class names that do not name the vehicle type (a class-blind
             detector's one class): their targets are read under ``type_mixture``. Names are
             compared without regard to case or surrounding spaces, as the vehicle classes
-            are (:func:`~slopedist.detections.boxes.vehicle_mask`).
+            are (:func:`~slopedist.io.detections.boxes.vehicle_mask`).
         type_mixture: ``(name, prior, weight)`` per vehicle type.
         spread_classes: class names read as generic for the σ only: their hypotheses are
             their own class's, and :attr:`TargetClasses.type_moments` carries

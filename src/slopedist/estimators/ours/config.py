@@ -13,14 +13,14 @@ from typing import Any
 
 import numpy as np
 
-from slopedist.detections.boxes import class_key
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
+from slopedist.core.textfiles import parse_bool
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.fusion import SizeMode
 from slopedist.estimators.ours.priors import VEHICLE_TYPE_MIXTURE, DimensionPrior, YawPrior
 from slopedist.estimators.ours.selfcal import SelfCalConfig
-from slopedist.textfiles import parse_bool
+from slopedist.io.detections.boxes import class_key
 
 REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, ReferencePoint.CONTACT)
 """The reference points ``ours`` can report in ``distance_m`` (option ``reference``): the
@@ -41,7 +41,7 @@ class OursConfig:
 
     Defaults are physical priors set without looking at evaluation results, except
     ``yaw_prior`` and ``box_sigma_px``: those are fitted on the labels of the 13 shared KITTI
-    tracking sequences (:func:`~slopedist.offline.ours_fitting.fit_parameters`: the
+    tracking sequences (:func:`~slopedist.estimators.ours.prior_fitting.fit_parameters`: the
     distribution of the labels' headings; the spread of the labels' 2D box edges around their
     3D boxes' projection — never a distance error), and ``benchmarks/ours_kitti.py`` reports the
     figures with each sequence scored under the fit on the other twelve.
@@ -337,7 +337,8 @@ def unscored_generic_class(
     generic_classes: Iterable[str], vehicle_classes: Iterable[str]
 ) -> str | None:
     """The first of ``generic_classes`` that is not one of ``vehicle_classes`` (compared as
-    :func:`~slopedist.detections.boxes.class_key`: its boxes get no distance), None when all are."""
+    :func:`~slopedist.io.detections.boxes.class_key`: its boxes get no distance), None when all
+    are."""
     vehicles = {class_key(c) for c in vehicle_classes}
     return next((c for c in generic_classes if class_key(c) not in vehicles), None)
 

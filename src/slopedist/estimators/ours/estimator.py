@@ -31,10 +31,9 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist import geometry as geo
-from slopedist.camera import Camera
-from slopedist.detections.boxes import frame_pixel_boxes, table_box_problems
-from slopedist.errors import ConfigurationError
+from slopedist.core import geometry as geo
+from slopedist.core.camera import Camera
+from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import (
     EstimateStatus,
     Estimator,
@@ -84,6 +83,7 @@ from slopedist.estimators.ours.tracking import (
     turn_boxes,
     write_continued,
 )
+from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
 __all__ = ["EXTRA_COLUMNS", "OursConfig", "OursEstimator", "OursSelfCalibratingEstimator"]
 

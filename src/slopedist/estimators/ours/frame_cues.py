@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
+from slopedist.core.camera import Camera
 from slopedist.estimators.ours import cues, fusion, road_bend
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours.config import OursConfig

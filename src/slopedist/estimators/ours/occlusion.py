@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.detections.boxes import overlapping_pairs
 from slopedist.estimators.ours.fusion import ZERO, any_true
+from slopedist.io.detections.boxes import overlapping_pairs
 
 FloatArray = NDArray[np.float64]
 

@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.camera import Camera
+from slopedist.core.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import road_bend, size_learning
@@ -59,7 +59,7 @@ class OursOfflineEstimator(OursEstimator):
 
     :meth:`estimate` gives the causal pass's estimates as the frames come; the offline ones
     come from :meth:`finish`, once the drive has ended (pipelines call it:
-    :meth:`~slopedist.pipeline.FrameStep.finish`). Options as :class:`OursEstimator`'s
+    :meth:`~slopedist.streaming.step.FrameStep.finish`). Options as :class:`OursEstimator`'s
     (``size_learning`` is always on here).
     """
 

@@ -10,7 +10,8 @@ that ``slopedist eval kitti-tracking`` scores; ``benchmarks/ours_kitti.py`` chec
 estimator does not depend on that choice by re-running it with priors fitted leave-one-sequence-out.
 
 The heading prior (:class:`YawPrior`) is different: its defaults are fitted
-(:mod:`~slopedist.offline.ours_fitting`) to the headings of the shared sequences' labels, and
+(:mod:`~slopedist.estimators.ours.prior_fitting`) to the headings of the shared sequences' labels,
+and
 ``benchmarks/ours_kitti.py`` reports the figures with each sequence scored under the fit to the
 other twelve (leave one sequence out).
 
@@ -26,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import special
 
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 
 FloatArray = NDArray[np.float64]
 
@@ -186,7 +187,7 @@ class YawPrior:
     else uniform (crossing, turning, parked across).
 
     The defaults are the maximum-likelihood fit
-    (:func:`~slopedist.offline.ours_fitting.fit_yaw_prior`) to the headings of all Car and
+    (:func:`~slopedist.estimators.ours.prior_fitting.fit_yaw_prior`) to the headings of all Car and
     Van labels kept by the evaluation protocol in the 13 shared KITTI tracking sequences;
     ``benchmarks/ours_kitti.py`` scores each sequence with the fit to the other twelve instead
     and prints both. The fit uses the labels' headings only, never a distance error.

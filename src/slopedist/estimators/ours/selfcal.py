@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.errors import ConfigurationError
+from slopedist.core.errors import ConfigurationError
 
 _log = logging.getLogger(__name__)
 

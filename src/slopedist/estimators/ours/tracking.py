@@ -17,8 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
 from slopedist.estimators.ours.fusion import all_true
+from slopedist.io.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -1,1 +1,0 @@
-"""Dataset readers (KITTI tracking, raw, odometry) and synthetic scenes."""

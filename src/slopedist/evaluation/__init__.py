@@ -1,0 +1,1 @@
+"""Evaluation: metrics, the KITTI protocol, accuracy tables, plots and the comparison report."""

@@ -1,0 +1,1 @@
+"""Readers of the KITTI datasets (tracking, raw, odometry)."""
