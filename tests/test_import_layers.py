@@ -129,3 +129,47 @@ def test_checker_sees_an_upward_import(tmp_path: Path, monkeypatch: pytest.Monke
 
 def test_no_import_runs_up_the_layers() -> None:
     assert violations() == []
+
+
+METHOD_PACKAGE = "estimators.ours"
+"""A method's own package: only it and the registry that names each method import from it."""
+
+REGISTRY = "estimators"
+"""The registry (:mod:`slopedist.estimators`): the one module outside a method's package that
+names it (to build it by name and to share its option texts and vehicle priors)."""
+
+
+def method_package_importers(src: Path = SRC) -> list[str]:
+    """Modules outside :data:`METHOD_PACKAGE` and the :data:`REGISTRY` that import from it."""
+    found = []
+    for path in sorted(src.rglob("*.py")):
+        name = module_name(path)
+        if name == REGISTRY or _in_method_package(name):
+            continue
+        targets = sorted(t for t in imported_modules(path) if _in_method_package(t))
+        found += [f"{name} imports {t}" for t in targets]
+    return found
+
+
+def _in_method_package(name: str) -> bool:
+    return name == METHOD_PACKAGE or name.startswith(f"{METHOD_PACKAGE}.")
+
+
+def test_method_check_sees_an_import_of_ours(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pkg = tmp_path / "slopedist"
+    for sub in ("estimators", "estimators/ours", "streaming"):
+        (pkg / sub).mkdir(parents=True)
+        (pkg / sub / "__init__.py").write_text("")
+    (pkg / "estimators" / "ours" / "selfcal.py").write_text("")
+    (pkg / "estimators" / "__init__.py").write_text("from slopedist.estimators.ours import X\n")
+    (pkg / "streaming" / "setup.py").write_text(
+        "from slopedist.estimators.ours.selfcal import self_calibrates\n"
+    )
+    monkeypatch.setattr(f"{__name__}.SRC", pkg)
+    assert method_package_importers(pkg) == ["streaming.setup imports estimators.ours.selfcal"]
+
+
+def test_no_generic_layer_imports_a_method_package() -> None:
+    assert method_package_importers() == []

@@ -8,7 +8,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from tests.streaming.test_loop import CAM, ScriptedOdometry, boxes_every_frame, make_frames, read_csv, rot_x
 
 from slopedist.estimators import make_estimator
 from slopedist.io.frames import open_frames
@@ -16,6 +15,14 @@ from slopedist.odometry.base import OdometryResult
 from slopedist.streaming import loop as runner
 from slopedist.streaming.config import RunConfig
 from slopedist.streaming.loop import run_frames
+from tests.streaming.test_loop import (
+    CAM,
+    ScriptedOdometry,
+    boxes_every_frame,
+    make_frames,
+    read_csv,
+    rot_x,
+)
 
 GLITCH_S = 0.8
 """The time of the frame whose rotation pitches 5° away and back (a one-frame glitch)."""

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError, MissingInputError
-from slopedist.estimators.ours import Calibration
+from slopedist.estimators.base import SelfCalibration as Calibration
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.frames import Frame, FrameStatus
 from slopedist.io.intrinsics import Intrinsics

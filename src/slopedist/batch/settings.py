@@ -7,7 +7,7 @@ Each is a manifest column (:data:`SETTING_COLUMNS`, CSV and TOML) and a batch-wi
 batch-wide value, a non-empty one replaces it (a drive's ``ours_options`` cell replaces the
 batch-wide options as a whole). The cells are parsed by the parsers of ``slopedist run``
 (:func:`~slopedist.estimators.base.parse_reference`,
-:func:`~slopedist.estimators.ours.config.parse_option_list`, ...). A cell that holds several
+:func:`~slopedist.estimators.parse_ours_option_list`, ...). A cell that holds several
 items separates them with ``;`` (:data:`LIST_SEPARATOR`): ``odd_object_weight=0;size_learning=
 true``, ``Car;Van;Truck``, ``mcap;tum`` (a comma would need quoting in a CSV file).
 
@@ -29,22 +29,20 @@ from typing import Any
 from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.textfiles import parse_bool
 from slopedist.estimators import (
+    OURS_OPTION_SEPARATOR,
     EstimatorConfig,
     available_methods,
-    offline_method,
-    takes_ours_options,
-)
-from slopedist.estimators.base import parse_reference
-from slopedist.estimators.ours.config import (
-    OPTION_SEPARATOR,
     idle_sigma_only,
-    parse_option_list,
+    offline_method,
+    parse_ours_option_list,
+    takes_ours_options,
     unscored_generic_class,
 )
+from slopedist.estimators.base import parse_reference
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.streaming.config import OverlayFormat, RunExport
 
-LIST_SEPARATOR = OPTION_SEPARATOR
+LIST_SEPARATOR = OURS_OPTION_SEPARATOR
 """Separator of the items of one manifest cell (``;``)."""
 
 SETTING_COLUMNS = (
@@ -162,7 +160,7 @@ def _class_names(text: str) -> tuple[str, ...]:
 
 CELL_PARSERS: dict[str, Callable[[str], Any]] = {
     "reference": lambda text: parse_reference(text).value,
-    "ours_options": parse_option_list,
+    "ours_options": parse_ours_option_list,
     "generic_classes": _class_names,
     "vehicle_classes": lambda text: vehicle_class_names(_items(text)),
     "offline": _flag,

@@ -30,7 +30,7 @@ from slopedist.cli.options import (
     make_detector,
 )
 from slopedist.core.errors import ConfigurationError, MissingInputError
-from slopedist.estimators.ours import Calibration
+from slopedist.estimators.base import SelfCalibration
 from slopedist.evaluation.table import format_table
 from slopedist.io.formatting import write_json
 from slopedist.io.frames import open_frames
@@ -54,9 +54,9 @@ class _History:
         self.rows: list[list[Any]] = []
         self.t0: float | None = None
         self.next_report = 0.0
-        self.last: tuple[float, Calibration] | None = None
+        self.last: tuple[float, SelfCalibration] | None = None
 
-    def __call__(self, t: float, c: Calibration) -> None:
+    def __call__(self, t: float, c: SelfCalibration) -> None:
         if self.t0 is None:
             self.t0 = t
         if t - self.t0 >= self.next_report:
@@ -70,7 +70,7 @@ class _History:
         return self.rows
 
 
-def _row(t: float, c: Calibration) -> list[Any]:
+def _row(t: float, c: SelfCalibration) -> list[Any]:
     return [
         t,
         math.degrees(c.mount_angle_rad),

@@ -19,7 +19,6 @@ from slopedist.cli.options import lookback_option, sequence_file_options, vehicl
 from slopedist.cli.record_summary import RecordTally
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
-from slopedist.estimators.ours.selfcal import estimator_calibration_warning
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
@@ -92,7 +91,7 @@ def estimate(
         click.echo(line, err=True)
     notes = (
         long_step_warning(np.diff(seq.track.timestamps_s), lookback_s),
-        estimator_calibration_warning(estimator),
+        *estimator.end_warnings(),
     )
     for note in notes:
         if note is not None:

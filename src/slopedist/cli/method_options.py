@@ -20,12 +20,14 @@ from slopedist.estimators import (
     OFFLINE_COUNTERPARTS,
     EstimatorConfig,
     available_methods,
+    idle_sigma_only,
     takes_ours_options,
+    unscored_generic_class,
     with_offline,
 )
+from slopedist.estimators import parse_ours_options as ours_option_pairs
 from slopedist.estimators.base import VEHICLE_REFERENCES
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import idle_sigma_only, parse_options, unscored_generic_class
 from slopedist.evaluation.learned_peer import PEER_METHOD
 
 
@@ -162,7 +164,7 @@ def parse_ours_options(texts: tuple[str, ...]) -> tuple[tuple[str, Any], ...]:
     """``--ours-option KEY=VALUE`` values as ``(name, value)`` pairs (usage errors name the
     option)."""
     try:
-        return parse_options(texts)
+        return ours_option_pairs(texts)
     except ConfigurationError as exc:
         raise click.BadParameter(str(exc), param_hint="--ours-option") from None
 

@@ -1,4 +1,12 @@
-"""Distance estimators behind one small interface, selectable by name."""
+"""Distance estimators behind one small interface, selectable by name.
+
+This module is the registry: the one place outside a method's own package that names it. The
+layers above build a method by name (:func:`make_estimator`, :class:`EstimatorConfig`) and
+ask it what it can do through :class:`~slopedist.estimators.base.Estimator`; what they share
+with ``ours`` (its option texts, the vehicle dimension priors and the box of a 3D vehicle) they
+take from here, never from ``slopedist.estimators.ours``. Internal: the public names are those
+of ``slopedist`` itself.
+"""
 
 from __future__ import annotations
 
@@ -27,8 +35,13 @@ from slopedist.estimators.ground_contact import (
 )
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import OPTION_SEPARATOR as OURS_OPTION_SEPARATOR
+from slopedist.estimators.ours.config import OursConfig, idle_sigma_only, unscored_generic_class
+from slopedist.estimators.ours.config import parse_option_list as parse_ours_option_list
+from slopedist.estimators.ours.config import parse_options as parse_ours_options
+from slopedist.estimators.ours.cues import project_box
 from slopedist.estimators.ours.offline import OursOfflineEstimator
+from slopedist.estimators.ours.priors import CLASS_PRIORS, DimensionPrior, prior_for
 
 
 class Method(str, Enum):
@@ -256,9 +269,12 @@ def build_estimator(config: EstimatorConfig, camera: Camera) -> Estimator:
 
 
 __all__ = [
+    "CLASS_PRIORS",
     "DEFAULT_METHOD",
     "ESTIMATORS",
+    "OURS_OPTION_SEPARATOR",
     "DepthMapEstimator",
+    "DimensionPrior",
     "EgoGradientEstimator",
     "Estimator",
     "EstimatorConfig",
@@ -277,8 +293,14 @@ __all__ = [
     "available_methods",
     "build_estimator",
     "causal_methods",
+    "idle_sigma_only",
     "make_estimator",
     "offline_method",
+    "parse_ours_option_list",
+    "parse_ours_options",
+    "prior_for",
+    "project_box",
     "takes_ours_options",
+    "unscored_generic_class",
     "with_offline",
 ]

@@ -13,6 +13,7 @@ settled for every method by :func:`settle_states`, after the method ran.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
@@ -277,6 +278,43 @@ class FrameEstimates:
         return cls(e, e.copy(), e.copy(), e.copy(), e.copy(), o, o.copy())
 
 
+@dataclass(frozen=True)
+class SelfCalibration:
+    """What a self-calibrating method (``ours-selfcal``) has estimated of the camera's mount.
+
+    Attributes:
+        mount_angle_rad: estimated θ0 (radians, the camera's convention).
+        mount_angle_sigma_rad: its 1σ.
+        height_m: estimated camera height (m).
+        height_sigma_m: its 1σ.
+        horizon_offset_rad: δ, the correction added to the ego gradient θ (θ + δ).
+        n_observations: targets used so far.
+        n_tracks: vehicles (tracks) they came from.
+        n_shape_checked: targets whose box shape was checked against their class (those
+            with both size cues, before the shape test).
+        n_shape_outliers: of those, the ones left out for a shape their class does not give.
+        n_frames: frames given to it (those with a measured ego gradient θ only).
+    """
+
+    mount_angle_rad: float
+    mount_angle_sigma_rad: float
+    height_m: float
+    height_sigma_m: float
+    horizon_offset_rad: float
+    n_observations: int
+    n_tracks: int
+    n_shape_checked: int = 0
+    n_shape_outliers: int = 0
+    n_frames: int = 0
+
+    @property
+    def shape_outlier_share(self) -> float:
+        """Share of the checked targets left out for their shape (NaN when none was checked)."""
+        if self.n_shape_checked == 0:
+            return math.nan
+        return self.n_shape_outliers / self.n_shape_checked
+
+
 class Estimator:
     """Base class of distance estimators.
 
@@ -284,6 +322,12 @@ class Estimator:
     ``needs_rotation`` tells the pipeline whether a frame without a rotation can still be
     estimated; ``needs_depth`` whether a depth map must come with each frame;
     ``rotation_source`` which rotation source the method is defined on, if any.
+
+    What a method can do beyond one frame's estimates it declares here, so that the layers
+    above call it without knowing the method: border handling (:attr:`handles_border_cuts`),
+    an offline pass (:attr:`offline`, :meth:`finish`), a self-calibration of the mount
+    (:attr:`self_calibrates`, :meth:`calibration`, :meth:`calibration_jackknife`) and what
+    the end of a run should tell the user (:meth:`end_warnings`).
     """
 
     name: ClassVar[str] = ""
@@ -319,6 +363,28 @@ class Estimator:
             NotImplementedError: the method is causal.
         """
         raise NotImplementedError(f"method {self.name!r} is causal: it has no offline pass")
+
+    @property
+    def self_calibrates(self) -> bool:
+        """Whether the method estimates the camera's mount angle θ0 and height h from the
+        targets as it goes (it then needs frames with a measured rotation)."""
+        return False
+
+    def calibration(self) -> SelfCalibration | None:
+        """The method's current estimate of the camera's mount (before any data: the
+        configured mount with its prior σ), or None for a method that keeps none."""
+        return None
+
+    def calibration_jackknife(self) -> NDArray[np.float64] | None:
+        """``(2, 2)`` covariance of the mount estimate (δ of θ0 in radians, h in metres) from
+        the spread of its leave-one-vehicle-out estimates, or None for a method that keeps no
+        mount estimate."""
+        return None
+
+    def end_warnings(self) -> list[str]:
+        """What the end of a run (or of an ``estimate``) should tell the user about this
+        method's run, one line each (e.g. a self-calibration that never calibrated)."""
+        return []
 
 
 def image_size(camera: Camera) -> tuple[int, int] | None:

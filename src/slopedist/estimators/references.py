@@ -12,7 +12,7 @@ Along the camera's z axis the contact point and the nearest face are the same di
 contact row is the foot of the nearest face), and so is a visible surface point; the centre
 lies half the vehicle's depth extent farther. That half extent is the method's own where it
 reports one (``ours``: ``distance_centre_m − distance_nearest_face_m``), otherwise half the
-length prior of the box's class (:func:`~slopedist.estimators.ours.priors.prior_for`: a
+length prior of the box's class (:func:`~slopedist.estimators.prior_for`: a
 vehicle seen from behind). Distances in metres.
 """
 
@@ -23,8 +23,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from slopedist.estimators import prior_for
 from slopedist.estimators.base import ReferencePoint
-from slopedist.estimators.ours.priors import prior_for
 
 CENTRE_COLUMN = "distance_centre_m"
 """Extra column of a method that reports the distance to the centre whatever its main one."""

@@ -21,10 +21,9 @@ from numpy.typing import NDArray
 from slopedist.batch.engine import map_tasks
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M
 from slopedist.core.errors import ConfigurationError, MissingInputError
-from slopedist.estimators import ESTIMATORS, make_estimator
+from slopedist.estimators import ESTIMATORS, make_estimator, takes_ours_options
 from slopedist.estimators.base import MIN_RESOLVED_PX, MissingReason, ReferencePoint, image_size
 from slopedist.estimators.depthmap import TRUTH_COLUMN
-from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.references import own_half_extent_m, to_reference
 from slopedist.evaluation.learned_peer import (
     PEER_METHOD,
@@ -95,8 +94,7 @@ class KittiEvalConfig:
     def options_of(self, method: str) -> dict[str, Any]:
         """Constructor options of ``method`` on this evaluation's boxes."""
         options = dict(self.method_options.get(method, {}))
-        factory = ESTIMATORS.get(method)
-        if not (isinstance(factory, type) and issubclass(factory, OursEstimator)):
+        if method not in ESTIMATORS or not takes_ours_options(method):
             return options
         if self.generic_detector_class and BoxSource(self.boxes).is_detector:
             options.setdefault("generic_classes", DETECTOR_CLASSES)

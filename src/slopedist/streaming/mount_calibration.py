@@ -1,7 +1,8 @@
 """Mount calibration (θ0, h) of one drive, with an honest uncertainty and a decision to advise.
 
 ``ours-selfcal`` estimates the camera's mount angle θ0 and height h from the targets of a drive
-(:mod:`slopedist.estimators.ours.selfcal`); its 1σ is that of the fit under its own model. On
+(:meth:`~slopedist.estimators.base.Estimator.calibration`); its 1σ is that of the fit under its
+own model. On
 real drives the model is wrong in ways that stay for a whole drive (the vehicles of one drive are
 taller or smaller than the class priors, the road of one town climbs, a box source draws its
 boxes tighter), so two independent halves of one drive, or two box sources on the same drive,
@@ -11,7 +12,7 @@ disagree by far more than that σ. :func:`advise_mount` therefore reports three 
 - ``spread``: the standard error from the spread of the estimates of ``n_segments`` independent
   stretches of the drive (boxes split by frame), ``std(segments) / √n``;
 - ``vehicles``: the leave-one-vehicle-out jackknife of the whole-drive estimate
-  (:meth:`~slopedist.estimators.ours.selfcal.SelfCalibrator.track_jackknife`): how much it
+  (:meth:`~slopedist.estimators.base.Estimator.calibration_jackknife`): how much it
   rests on vehicles that disagree with the others, beyond what the model's random effects allow;
 - ``floor``: the error that is common to a whole drive and that no single drive can reveal,
   calibrated on the shared KITTI tracking sequences with their known mount (h = 1.65 m, θ0 = 0)
@@ -20,7 +21,7 @@ disagree by far more than that σ. :func:`advise_mount` therefore reports three 
 and the total ``σ = √(max(fit, spread, vehicles)² + floor²)``.
 
 The size cue the self-calibration rests on holds only for boxes whose shape fits their class: a
-drive whose boxes fail the shape test (:class:`~slopedist.estimators.ours.selfcal.SelfCalibrator`)
+drive whose boxes fail the shape test (the self-calibration's shape test)
 far more often than those the floor was measured on — trucks or buildings called ``Car``, boxes
 of parts of vehicles, as LiDAR-cluster boxes are — is declined (:data:`MAX_SHAPE_OUTLIER_SHARE`).
 Too few targets or vehicles decline everything too.
@@ -49,7 +50,8 @@ from scipy.optimize import brentq
 
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError, MissingInputError
-from slopedist.estimators.ours import Calibration, OursSelfCalibratingEstimator, SelfCalibrator
+from slopedist.estimators import Estimator, make_estimator
+from slopedist.estimators.base import SelfCalibration
 from slopedist.io.calibration import read_calibration
 from slopedist.io.detections.boxes import BoxTable, concat_boxes
 from slopedist.io.detections.onnx_detector import Detector
@@ -107,7 +109,7 @@ edge, which moved one parameter alone, left ``paper`` worse on two runs of the b
 
 MAX_SHAPE_OUTLIER_SHARE = 0.06
 """More than this share of the targets with a box shape their class does not give (beyond 3σ,
-:class:`~slopedist.estimators.ours.selfcal.SelfCalConfig` ``shape_gate_sigma``): decline. Twice
+the self-calibration's ``shape_gate_sigma``): decline. Twice
 the largest share on the drives the floor was measured on (2.8 %, KITTI tracking 0000 with
 PointRCNN boxes; ≤ 3 % with RRC's camera detections too); a class prior that fits its boxes gives
 0.3 %. The LiDAR-cluster boxes of ``kitti_raw_lead`` give 12 %."""
@@ -138,16 +140,16 @@ class MountAdvice:
     Attributes:
         estimate: the self-calibration on the whole drive (its σ = the fit's).
         segments: the self-calibrations of the drive's stretches.
-        prior: the configured mount (``Calibration`` of the prior, σ = the prior's).
+        prior: the configured mount (``SelfCalibration`` of the prior, σ = the prior's).
         fit, spread, vehicles, floor: the parts of the uncertainty (module docstring).
         sigma: the total 1σ.
         advise_mount, advise_height: whether each parameter is advised.
         reasons: why a parameter is not advised (empty when both are).
     """
 
-    estimate: Calibration
-    segments: tuple[Calibration, ...]
-    prior: Calibration
+    estimate: SelfCalibration
+    segments: tuple[SelfCalibration, ...]
+    prior: SelfCalibration
     fit: MountSigma
     spread: MountSigma
     vehicles: MountSigma
@@ -207,7 +209,7 @@ class MountAdvice:
         }
 
 
-def calibration_dict(c: Calibration) -> dict[str, Any]:
+def calibration_dict(c: SelfCalibration) -> dict[str, Any]:
     """A self-calibration as JSON-ready numbers (degrees and metres)."""
     return {
         "mount_angle_deg": math.degrees(c.mount_angle_rad),
@@ -226,18 +228,30 @@ def run_self_calibration(
     track: RotationTrack,
     boxes: BoxTable,
     lookback_s: float = LOOKBACK_S,
-    on_frame: Callable[[float, Calibration], None] | None = None,
-) -> SelfCalibrator:
+    on_frame: Callable[[float, SelfCalibration], None] | None = None,
+) -> Estimator:
     """Run ``ours-selfcal`` over a drive (boxes' frame indices index ``track``); the camera's
     mount is the prior. ``on_frame(t_s, calibration)`` is called after every frame. Returns the
-    self-calibrator after the drive (its :meth:`~SelfCalibrator.calibration` and
-    :meth:`~SelfCalibrator.track_jackknife`)."""
-    est = OursSelfCalibratingEstimator(camera)
+    estimator after the drive (its :meth:`~slopedist.estimators.base.Estimator.calibration`
+    and :meth:`~slopedist.estimators.base.Estimator.calibration_jackknife`)."""
+    est = make_estimator(SELF_CALIBRATING_METHOD, camera)
     step = FrameStep(est, lookback_s)
     for _, t, _ in stream_track(step, track, boxes):
         if on_frame is not None:
-            on_frame(t, est.calibration())
-    return est.selfcal
+            on_frame(t, _calibration_of(est))
+    return est
+
+
+SELF_CALIBRATING_METHOD = "ours-selfcal"
+"""The method whose self-calibration gives the mount of a drive."""
+
+
+def _calibration_of(estimator: Estimator) -> SelfCalibration:
+    """The estimator's mount estimate (it self-calibrates, so it has one)."""
+    calibration = estimator.calibration()
+    if calibration is None:
+        raise ConfigurationError(f"method '{estimator.name}' keeps no estimate of the mount")
+    return calibration
 
 
 def drive_from_frames(
@@ -306,7 +320,7 @@ def split_by_frame(boxes: BoxTable, n: int) -> list[BoxTable]:
     ]
 
 
-def spread_sigma(segments: Sequence[Calibration]) -> MountSigma:
+def spread_sigma(segments: Sequence[SelfCalibration]) -> MountSigma:
     """Standard error of the whole-drive estimate from the spread of its stretches'
     estimates (``std / √n``, zero with fewer than two stretches that saw targets)."""
     used = [c for c in segments if c.n_observations > 0]
@@ -347,7 +361,7 @@ def advise_mount(
     lookback_s: float = LOOKBACK_S,
     floor: MountSigma = MODEL_FLOOR,
     n_segments: int = N_SEGMENTS,
-    on_frame: Callable[[float, Calibration], None] | None = None,
+    on_frame: Callable[[float, SelfCalibration], None] | None = None,
 ) -> MountAdvice:
     """Self-calibrate the mount of ``camera`` (its configured mount is the prior) from a drive
     (boxes' frame indices index ``track``) and decide what to advise (module docstring).
@@ -358,20 +372,22 @@ def advise_mount(
     configured mount; ``on_frame`` sees it) gives the point the second pass starts from and
     centres its prior on; the second pass (and its stretches and vehicle jackknife) is the
     estimate (:func:`relinearised`)."""
-    first = run_self_calibration(camera, track, boxes, lookback_s, on_frame).calibration()
+    first = _calibration_of(run_self_calibration(camera, track, boxes, lookback_s, on_frame))
     around = relinearised(camera, first)
     whole = run_self_calibration(around, track, boxes, lookback_s)
-    jackknife = whole.track_jackknife()
+    jackknife = whole.calibration_jackknife()
+    if jackknife is None:
+        raise ConfigurationError(f"method '{whole.name}' keeps no estimate of the mount")
     vehicles = MountSigma(math.sqrt(jackknife[0, 0]), math.sqrt(jackknife[1, 1]))
     segments = [
-        run_self_calibration(around, track, part, lookback_s).calibration()
+        _calibration_of(run_self_calibration(around, track, part, lookback_s))
         for part in split_by_frame(boxes, n_segments)
     ]
-    prior = OursSelfCalibratingEstimator(camera).calibration()
-    return judge_mount(whole.calibration(), segments, prior, floor, vehicles)
+    prior = _calibration_of(make_estimator(SELF_CALIBRATING_METHOD, camera))
+    return judge_mount(_calibration_of(whole), segments, prior, floor, vehicles)
 
 
-def relinearised(camera: Camera, first: Calibration) -> Camera:
+def relinearised(camera: Camera, first: SelfCalibration) -> Camera:
     """``camera`` with the mount of the first pass ``first`` (unchanged when it used no
     target): the second pass of :func:`advise_mount` starts there.
 
@@ -393,9 +409,9 @@ NO_SIGMA = MountSigma(0.0, 0.0)
 
 
 def judge_mount(
-    estimate: Calibration,
-    segments: Sequence[Calibration],
-    prior: Calibration,
+    estimate: SelfCalibration,
+    segments: Sequence[SelfCalibration],
+    prior: SelfCalibration,
     floor: MountSigma = MODEL_FLOOR,
     vehicles: MountSigma = NO_SIGMA,
     advise_z: float = ADVISE_Z,
@@ -460,7 +476,7 @@ def judge_mount(
 UNTOLD_NAMES = {"mount_angle": "θ0", "height": "h"}
 
 
-def untold_by_itself(estimate: Calibration, prior: Calibration) -> tuple[str, ...]:
+def untold_by_itself(estimate: SelfCalibration, prior: SelfCalibration) -> tuple[str, ...]:
     """The parameters whose own fit σ is above ``√MAX_PRIOR_SHARE`` times the prior's (the
     prior holds more than :data:`MAX_PRIOR_SHARE` of their information)."""
     ratios = {
@@ -470,7 +486,7 @@ def untold_by_itself(estimate: Calibration, prior: Calibration) -> tuple[str, ..
     return tuple(name for name, r in ratios.items() if not r**2 <= MAX_PRIOR_SHARE)
 
 
-def untold_parameters(estimate: Calibration, prior: Calibration) -> tuple[str, ...]:
+def untold_parameters(estimate: SelfCalibration, prior: SelfCalibration) -> tuple[str, ...]:
     """The parameters whose estimate rests on the configured value: both when the prior
     (``prior``'s σ) holds more than :data:`MAX_PRIOR_SHARE` of the information of either
     (:func:`untold_by_itself`), none otherwise. θ0 and h are fitted together and their errors
@@ -480,7 +496,7 @@ def untold_parameters(estimate: Calibration, prior: Calibration) -> tuple[str, .
     return tuple(UNTOLD_NAMES) if untold_by_itself(estimate, prior) else ()
 
 
-def refusal(estimate: Calibration) -> str:
+def refusal(estimate: SelfCalibration) -> str:
     """Why the drive of ``estimate`` cannot calibrate the mount at all ('' when it can): too
     few targets or vehicles, or boxes whose shapes their classes do not give."""
     if estimate.n_tracks < MIN_TRACKS or estimate.n_observations < MIN_OBSERVATIONS:
@@ -502,7 +518,7 @@ def refusal(estimate: Calibration) -> str:
 
 
 def advised_mount(
-    estimate: Calibration, prior: Calibration, sigma: MountSigma, agree_z: float = AGREE_Z
+    estimate: SelfCalibration, prior: SelfCalibration, sigma: MountSigma, agree_z: float = AGREE_Z
 ) -> tuple[float, float]:
     """The smallest change of the configured mount (``prior``) that agrees with ``estimate``
     within ``agree_z`` σ in both parameters: each configured value clipped to the estimate's
@@ -527,7 +543,7 @@ def advise_from_frames(
     detector: Detector | None = None,
     lookback_s: float = LOOKBACK_S,
     floor: MountSigma = MODEL_FLOOR,
-    on_frame: Callable[[float, Calibration], None] | None = None,
+    on_frame: Callable[[float, SelfCalibration], None] | None = None,
     on_read: Callable[[Frame], None] | None = None,
 ) -> MountAdvice:
     """:func:`advise_mount` of a drive given as frames: the built-in visual odometry computes

@@ -21,7 +21,6 @@ from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import Estimator, EstimatorConfig, build_estimator
 from slopedist.estimators.depthmap import DepthScaling
-from slopedist.estimators.ours.selfcal import self_calibrates, warn_if_uncalibrated
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.depth import DepthSource, FileDepthSource
 from slopedist.io.detections.boxes import BoxTable
@@ -257,7 +256,8 @@ class PreparedRun:
             self.detector,
             self.dropped_boxes.reasons,
         )
-        warn_if_uncalibrated(self.estimator)
+        for warning in self.estimator.end_warnings():
+            _log.warning("%s", warning)
         long_steps = long_step_warning(stepped.steps_s, self.lookback_s)
         if long_steps is not None and self.odometry is not None:  # θ from those rotations
             _log.warning("%s", long_steps)
@@ -298,7 +298,7 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
     depth = inputs.depth(source) if inputs.depth is not None else None
     visual = (camera, inputs.lookback_s, calibration.point_map)
     odometry = rotation_source(source, topics.rotation, inputs.odometry, inputs.vocab, visual)
-    if odometry is None and self_calibrates(estimator):
+    if odometry is None and estimator.self_calibrates:
         raise ConfigurationError(
             f"method '{estimator.name}' calibrates the mount angle and height from frames with a "
             "measured rotation, and --odometry none gives none: use --odometry builtin (or a "

@@ -19,8 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.camera import Camera
-from slopedist.estimators.ours.cues import project_box
-from slopedist.estimators.ours.priors import CLASS_PRIORS
+from slopedist.estimators import CLASS_PRIORS, project_box
 from slopedist.io.detections.boxes import BoxTable
 
 FloatArray = NDArray[np.float64]

@@ -9,9 +9,9 @@ import re
 from pathlib import Path
 
 import pytest
-from tests.evaluation.report.test_report import _record, write_run
 
 from slopedist.evaluation.report import ReportOptions, report_data, write_report
+from tests.evaluation.report.test_report import _record, write_run
 
 
 def test_every_csv_has_lf_line_ends_and_the_json_is_strict(tmp_path: Path) -> None:

@@ -66,7 +66,12 @@ from slopedist.estimators.ours.records import (
     object_column,
     scatter,
 )
-from slopedist.estimators.ours.selfcal import Calibration, SelfCalibrator
+from slopedist.estimators.ours.selfcal import (
+    Calibration,
+    SelfCalibrator,
+    estimator_calibration_warning,
+    self_calibrates,
+)
 from slopedist.estimators.ours.tracking import (
     ROW_GRAD_VAR,
     ROW_LAST_BOX,
@@ -199,6 +204,20 @@ class OursEstimator(Estimator):
     def calibration(self) -> Calibration:
         """The current self-calibration (the configured one, with its prior σ, before any data)."""
         return self.selfcal.calibration()
+
+    @property
+    def self_calibrates(self) -> bool:
+        """Whether the mount is re-estimated online (option ``self_calibrate``)."""
+        return self_calibrates(self)
+
+    def calibration_jackknife(self) -> FloatArray:
+        """:meth:`~slopedist.estimators.ours.selfcal.SelfCalibrator.track_jackknife`."""
+        return self.selfcal.track_jackknife()
+
+    def end_warnings(self) -> list[str]:
+        """:func:`~slopedist.estimators.ours.selfcal.estimator_calibration_warning`, if any."""
+        warning = estimator_calibration_warning(self)
+        return [] if warning is None else [warning]
 
     # -- one frame -------------------------------------------------------------------------
 

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.errors import ConfigurationError
+from slopedist.estimators.base import SelfCalibration as Calibration
 
 _log = logging.getLogger(__name__)
 
@@ -88,43 +89,6 @@ class SelfCalConfig:
                 raise ConfigurationError(
                     f"self-calibration {name} must be finite and > 0, got {value}"
                 )
-
-
-@dataclass(frozen=True)
-class Calibration:
-    """A self-calibration result.
-
-    Attributes:
-        mount_angle_rad: estimated θ0 (radians, the camera's convention).
-        mount_angle_sigma_rad: its 1σ.
-        height_m: estimated camera height (m).
-        height_sigma_m: its 1σ.
-        horizon_offset_rad: δ, the correction added to the ego gradient θ (θ + δ).
-        n_observations: targets used so far.
-        n_tracks: vehicles (tracks) they came from.
-        n_shape_checked: targets whose box shape was checked against their class (those
-            with both size cues, before the shape test).
-        n_shape_outliers: of those, the ones left out for a shape their class does not give.
-        n_frames: frames given to it (those with a measured ego gradient θ only).
-    """
-
-    mount_angle_rad: float
-    mount_angle_sigma_rad: float
-    height_m: float
-    height_sigma_m: float
-    horizon_offset_rad: float
-    n_observations: int
-    n_tracks: int
-    n_shape_checked: int = 0
-    n_shape_outliers: int = 0
-    n_frames: int = 0
-
-    @property
-    def shape_outlier_share(self) -> float:
-        """Share of the checked targets left out for their shape (NaN when none was checked)."""
-        if self.n_shape_checked == 0:
-            return math.nan
-        return self.n_shape_outliers / self.n_shape_checked
 
 
 class SelfCalibrator:
