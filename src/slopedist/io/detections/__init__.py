@@ -1,7 +1,7 @@
 """2D vehicle boxes: the box table type, readers and writers of box files, adapters for
 detections in memory, and an ONNX detector."""
 
-from slopedist.io.detections.adapters import from_supervision, from_ultralytics
+from slopedist.io.detections.adapters import as_box_table, from_supervision, from_ultralytics
 from slopedist.io.detections.boxes import BoxTable, box_problems, concat_boxes, iou_matrix
 from slopedist.io.detections.convert import BoxFileOptions, BoxFormat, read_boxes, write_boxes
 from slopedist.io.detections.layouts import OutputLayout
@@ -31,6 +31,7 @@ __all__ = [
     "Detector",
     "OnnxDetector",
     "OutputLayout",
+    "as_box_table",
     "box_problems",
     "concat_boxes",
     "detect_frames",
