@@ -1,7 +1,7 @@
 """One drive of a batch: run it into a temporary folder, stamp it, publish it atomically.
 
 :func:`run_single_drive` is the one adapter between the batch engine and the single-drive
-library: it runs :func:`slopedist.streaming.setup.prepare_run`, the code ``slopedist run`` runs.
+library: it runs :func:`slopedist.streaming.setup.run_to_folder`, the code ``slopedist run`` runs.
 :func:`process_drive` is the task the engine runs per drive (in a Ray worker): it never raises
 for a drive's own failure, it returns a failed :class:`~slopedist.batch.status.DriveOutcome`.
 
@@ -34,20 +34,12 @@ from slopedist.io.detections.onnx_detector import OnnxDetector
 from slopedist.io.formatting import write_json
 from slopedist.io.frames import Frame, FrameSource
 from slopedist.io.prefetch import opencv_threads
-from slopedist.streaming.config import (
-    SUMMARY_NAME,
-    RunConfig,
-    RunResult,
-    export_paths,
-    overlay_fps,
-    overlay_path,
-)
+from slopedist.streaming.config import SUMMARY_NAME, RunResult
 from slopedist.streaming.setup import (
     LogTopicNames,
-    PreparedRun,
-    RunInputs,
+    RunOptions,
     folder_depth_source,
-    prepare_run,
+    run_to_folder,
 )
 
 TMP_PREFIX = ".tmp-"
@@ -57,13 +49,17 @@ CRASH_ENV = "SLOPEDIST_BATCH_TEST_CRASH"
 (``os._exit``) after ``N`` frames, as a worker killed mid-drive would."""
 
 
-def drive_inputs(spec: DriveSpec) -> RunInputs:
-    """The :class:`~slopedist.streaming.setup.RunInputs` of ``slopedist run`` with the options of
-    ``spec`` (the detector with its default settings; estimator defaults but the method, its
-    offline mode, the reference point and the ``ours`` options of ``spec.settings``)."""
+def drive_options(spec: DriveSpec, out_dir: Path) -> RunOptions:
+    """The :class:`~slopedist.streaming.setup.RunOptions` of ``slopedist run`` with the options
+    of ``spec`` into ``out_dir`` (the detector with its default settings; estimator defaults but
+    the method, its offline mode, the reference point and the ``ours`` options of
+    ``spec.settings``; its overlay, exports and vehicle classes), with no progress bar and
+    frames decoded in the loop (``decode_ahead=0``, see :func:`run_single_drive`)."""
     detector = spec.detector
-    return RunInputs(
+    settings = spec.settings
+    return RunOptions(
         spec.frames,
+        out_dir,
         spec.calib,
         boxes=spec.boxes,
         score=spec.score,
@@ -75,52 +71,38 @@ def drive_inputs(spec: DriveSpec) -> RunInputs:
         mount_angle_deg=spec.mount_angle_deg,
         odometry=spec.odometry,
         lookback_s=spec.lookback_s,
-        estimator=spec.settings.estimator(spec.method),
+        estimator=settings.estimator(spec.method),
         depth=functools.partial(folder_depth_source, spec.depth_dir) if spec.depth_dir else None,
+        overlay=settings.overlay,
+        overlay_format=settings.overlay_format,
+        exports=tuple(settings.export),
+        progress=False,
+        sequence=spec.sequence or spec.name,
+        vehicle_classes=settings.vehicle_classes,
+        decode_ahead=0,
     )
 
 
 def run_single_drive(spec: DriveSpec, out_dir: Path, crash_after: int | None = None) -> RunResult:
     """Run ``spec`` into ``out_dir`` as ``slopedist run`` does with the same options (both
-    through :func:`~slopedist.streaming.setup.prepare_run`); ``crash_after`` is the test hook of
-    :data:`CRASH_ENV`.
+    through :func:`~slopedist.streaming.setup.run_to_folder`); ``crash_after`` is the test hook
+    of :data:`CRASH_ENV`.
 
     Raises:
         SlopedistError / OSError: bad inputs or options, as ``slopedist run`` raises them.
     """
-    prepared = prepare_run(drive_inputs(spec))
-    frames: FrameSource = prepared.source
+    wrap = None
     if crash_after is not None:
-        frames = cast(FrameSource, _CrashingFrames(prepared.source, crash_after))
-    config = drive_config(spec, out_dir, prepared)
+        wrap = functools.partial(_crashing_frames, after=crash_after)
     # a drive task holds one CPU (num_cpus=1) and decodes in its loop (decode_ahead=0): more
     # OpenCV threads would only compete with the other workers on the node, at a higher CPU
     # cost per frame; a batch scales by running one drive per core
     with opencv_threads(1):
-        return prepared.run(config, frames)
+        return run_to_folder(drive_options(spec, out_dir), wrap_frames=wrap)
 
 
-def drive_config(spec: DriveSpec, out_dir: Path, prepared: PreparedRun) -> RunConfig:
-    """The :class:`~slopedist.streaming.config.RunConfig` of ``slopedist run`` with the options of
-    ``spec`` (overlay, exports, vehicle classes of ``spec.settings``) into ``out_dir``, with no
-    progress bar and frames decoded in the loop (``decode_ahead=0``, see
-    :func:`run_single_drive`)."""
-    settings = spec.settings
-    mcap, trajectory = export_paths(out_dir, settings.export)
-    return RunConfig(
-        out_dir,
-        spec.lookback_s,
-        overlay_path(out_dir, settings.overlay_format) if settings.overlay else None,
-        overlay_fps(spec.fps, prepared.source),
-        progress=False,
-        sequence=spec.sequence or spec.name,
-        mcap=mcap,
-        trajectory=trajectory,
-        time_origin_ns=prepared.time_origin_ns,
-        ego_speed=prepared.ego_speed,
-        vehicle_classes=settings.vehicle_classes,
-        decode_ahead=0,
-    )
+def _crashing_frames(inner: FrameSource, after: int) -> FrameSource:
+    return cast(FrameSource, _CrashingFrames(inner, after))
 
 
 class _CrashingFrames:

@@ -56,7 +56,7 @@ from slopedist.core.textfiles import decoded_lines, read_text, repeated_names
 from slopedist.estimators import DEFAULT_METHOD, available_methods
 from slopedist.io.rosbag import is_log_path
 from slopedist.odometry.base import LOOKBACK_S
-from slopedist.streaming.setup import ODOMETRY_CHOICES
+from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 
 if sys.version_info >= (3, 11):
     import tomllib

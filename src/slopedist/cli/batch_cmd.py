@@ -30,7 +30,7 @@ from slopedist.cli.run_options import (
     run_offline_option,
 )
 from slopedist.estimators import DEFAULT_METHOD
-from slopedist.streaming.setup import ODOMETRY_CHOICES
+from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 
 
 @click.command("batch")

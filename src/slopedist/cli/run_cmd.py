@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import math
-import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,34 +48,22 @@ from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
 from slopedist.io.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.io.intrinsics import Intrinsics
-from slopedist.io.outputs import (
-    RunStoppedError,
-    check_outputs_spare_inputs,
-    partial_path,
-    stop_on_signals,
-)
+from slopedist.io.outputs import RunStoppedError, StopFlag, stop_on_signals
 from slopedist.streaming.config import (
     FRAMES_NAME,
     RECORDS_NAME,
-    SUMMARY_NAME,
     RunAbortedError,
-    RunConfig,
     RunResult,
-    earlier_outputs,
-    export_paths,
-    overlay_fps,
-    overlay_path,
     snapshot_path,
 )
+from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 from slopedist.streaming.setup import (
-    ODOMETRY_CHOICES,
     DepthFactory,
     LogTopicNames,
-    RunInputs,
+    RunOptions,
     folder_depth_source,
-    prepare_run,
+    run_to_folder,
 )
-from slopedist.streaming.tracks import TRACKS_NAME
 
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
@@ -367,8 +354,10 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     if offline:
         method = offline_method(method)
     model = detector_model
-    inputs = RunInputs(
+    read = (depth_opts.folder, depth_opts.model, detector_model)
+    options = RunOptions(
         frames,
+        out_dir,
         calib,
         image_size=image_size,
         boxes=boxes_path,
@@ -386,119 +375,25 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         lookback_s=lookback_s,
         estimator=ours_config(estimator_config, method, generic_classes, vehicle_classes),
         depth=depth_factory(depth_opts),
+        overlay=overlay,
+        overlay_format=overlay_format,
+        exports=exports,
+        snapshots=snapshots,
+        progress=not quiet,
+        sequence=sequence,
+        vehicle_classes=vehicle_classes,
+        other_inputs=tuple(p for p in read if p is not None),
     )
-    outputs = RunOutputs(
-        out_dir, overlay, overlay_format, exports, snapshots, quiet, sequence, vehicle_classes
-    )
-    paths = [frames, calib, boxes_path, timestamps, depth_opts.folder, depth_opts.model]
-    run_to_folder(inputs, outputs, [*paths, vocab, detector_model])
-
-
-@dataclass(frozen=True)
-class RunOutputs:
-    """What ``slopedist run`` writes and how (its output options).
-
-    Attributes:
-        out_dir: output folder (records.csv, frames.csv, run.json, tracks.csv).
-        overlay: also write annotated frames, as ``overlay_format`` (an
-            :class:`~slopedist.streaming.config.OverlayFormat` value).
-        exports: :class:`~slopedist.streaming.config.RunExport` values (MCAP, TUM trajectory).
-        snapshots: frame indices whose overlay is also written as a JPEG.
-        quiet: no progress bar.
-        sequence: sequence name written to run.json (None: the frames' folder or video name).
-        vehicle_classes: class names scored as vehicles.
-    """
-
-    out_dir: Path
-    overlay: bool
-    overlay_format: str
-    exports: tuple[str, ...]
-    snapshots: tuple[int, ...]
-    quiet: bool
-    sequence: str | None
-    vehicle_classes: tuple[str, ...]
-
-
-def run_to_folder(
-    inputs: RunInputs, outputs: RunOutputs, input_paths: Sequence[Path | Intrinsics | None]
-) -> None:
-    """Open ``inputs``, check that no output of ``outputs`` is one of ``input_paths`` (the files
-    the run reads), run until the frames end or a signal stops it (:func:`run_until_stopped`)
-    and tell on stderr what it wrote (:func:`summary_text`)."""
-    prepared = prepare_run(inputs)
-    out_dir = outputs.out_dir
-    overlay_out = overlay_path(out_dir, outputs.overlay_format) if outputs.overlay else None
-    mcap_path, tum_path = export_paths(out_dir, outputs.exports)
-    shots = [snapshot_path(out_dir, k) for k in outputs.snapshots]
-    check_run_outputs(out_dir, [overlay_out, mcap_path, tum_path, *shots], input_paths)
-    config = RunConfig(
-        out_dir,
-        inputs.lookback_s,
-        overlay_out,
-        overlay_fps(inputs.fps, prepared.source),
-        not outputs.quiet,
-        outputs.sequence,
-        mcap=mcap_path,
-        trajectory=tum_path,
-        time_origin_ns=prepared.time_origin_ns,
-        ego_speed=prepared.ego_speed,
-        vehicle_classes=outputs.vehicle_classes,
-        snapshots=outputs.snapshots,
-    )
-    result = run_until_stopped(lambda: prepared.run(config), config)
-    click.echo(summary_text(result, out_dir, outputs.snapshots), err=True)
-    remove_earlier_outputs(out_dir, result, input_paths)
-
-
-def remove_earlier_outputs(
-    out_dir: Path, result: RunResult, inputs: Sequence[Path | Intrinsics | None]
-) -> None:
-    """Remove what an earlier run into ``out_dir`` wrote and this one did not (an overlay,
-    exports, snapshots: :func:`~slopedist.streaming.config.earlier_outputs`), so that the folder
-    holds one run; an input of this run, or a folder holding one, is never removed. Says on
-    stderr what went."""
-    spared = [p.resolve() for p in inputs if isinstance(p, Path)]
-    stale = [
-        p
-        for p in earlier_outputs(out_dir, [result.overlay, *result.exports])
-        if not any(s == p.resolve() or s.is_relative_to(p.resolve()) for s in spared)
-    ]
-    for path in stale:
-        if path.is_dir():
-            shutil.rmtree(path)
-        else:
-            path.unlink()
-    if stale:
-        names = ", ".join(p.name for p in stale)
-        click.echo(
-            f"removed the outputs of an earlier run that this run did not write: {names}", err=True
-        )
-
-
-def check_run_outputs(
-    out_dir: Path, extras: list[Path | None], inputs: Sequence[Path | Intrinsics | None]
-) -> None:
-    """Fail before anything is written if an output of the run (or its temporary name) is one
-    of its input files, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports);
-    ``inputs`` may hold a calibration given as values (not a file)."""
-    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
-    outputs += [e for e in extras if e is not None]
-    outputs += [partial_path(o) for o in outputs]
-    check_outputs_spare_inputs(outputs, [p for p in inputs if isinstance(p, Path)], out_dir)
-
-
-def run_until_stopped(start: Callable[[], RunResult], config: RunConfig) -> RunResult:
-    """``start()`` (a :func:`~slopedist.streaming.loop.run_frames` call with ``config``) with
-    SIGTERM/SIGINT turned into a stop after the current frame (:attr:`RunConfig.stop`); a
-    stopped run exits with code 128 + the signal number."""
-    with stop_on_signals(config.stop):
+    stop = StopFlag()
+    with stop_on_signals(stop):
         try:
-            return start()
+            result = run_to_folder(options, stop)
         except RunAbortedError as exc:
             if not isinstance(exc.__cause__, RunStoppedError):
                 raise
             click.echo(f"slopedist: {exc}", err=True)
             raise SystemExit(128 + exc.__cause__.signum) from None
+    click.echo(summary_text(result, out_dir, snapshots), err=True)
 
 
 def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()) -> str:

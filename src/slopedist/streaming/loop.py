@@ -1,12 +1,11 @@
 """From frames to distances: the streaming run behind ``slopedist run``.
 
 For every frame, in order: its boxes come from the box file or from a detector run on its
-pixels (:class:`~slopedist.io.detections.onnx_detector.Detector`); the visual odometry gets the grey
-image (with the frame's boxes masked out of its features) and returns a camera rotation; the
-frame step
-(:class:`~slopedist.streaming.step.FrameStep`) turns rotation and boxes into θ and per-target
-estimates, never looking back across a restart of the odometry; the records are written and
-flushed at once. Memory holds one frame, the odometry's own state and the one-second
+pixels (:class:`~slopedist.io.detections.onnx_detector.Detector`); the
+:class:`~slopedist.streaming.pipeline.Pipeline` turns the frame and its boxes into θ and
+per-target estimates (its visual odometry gets the grey image, with the frame's boxes masked out
+of its features, and it never looks back across a restart of the odometry); the records are
+written and flushed at once. Memory holds one frame, the odometry's own state and the one-second
 look-back, whatever the length of the input.
 
 Outputs under the output folder:
@@ -47,11 +46,11 @@ Convention: θ in radians inside, degrees in the CSV files; timestamps in second
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import time
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -101,14 +100,11 @@ from slopedist.streaming.config import (
 )
 from slopedist.streaming.drawing import draw_fig3_overlay, lead_index
 from slopedist.streaming.mcap_export import McapExportWriter
-from slopedist.streaming.step import (
-    FrameResult,
-    FrameStep,
-    close_records,
-    iter_records,
-    open_records,
-)
+from slopedist.streaming.pipeline import FinishResult, FrameResult, OdometryOutput, Pipeline
+from slopedist.streaming.step import close_records, frame_records, open_records
 from slopedist.streaming.tracks import TRACKS_NAME, TrackSummaries
+
+_log = logging.getLogger(__name__)
 
 
 def run_frames(
@@ -175,7 +171,10 @@ def run_frames(
     # with frames decoded ahead, the loop's OpenCV calls leave a core to the decoding thread
     # (never more threads than the caller allowed)
     with opencv_threads(min(cv2.getNumThreads(), loop_threads(config.decode_ahead))):
-        return loop.run(frames)
+        result = loop.run(frames)
+    for warning in loop.end.warnings if loop.end is not None else ():
+        _log.warning("%s", warning)
+    return result
 
 
 def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None:
@@ -191,17 +190,6 @@ def check_depth_matches(estimator: Estimator, depth: DepthSource | None) -> None
         )
 
 
-@dataclass(frozen=True)
-class _OdometryOutput:
-    """What the odometry said about one frame (defaults: no pixels or no odometry)."""
-
-    R_world_cam: NDArray[np.float64] | None
-    segment: int
-    state: str = ""
-    inliers: int = 0
-    ms: float = math.nan
-
-
 class _RunLoop:
     """The state of one run: the frame step, the open outputs and the running counts."""
 
@@ -215,20 +203,27 @@ class _RunLoop:
         result: RunResult,
         detector: Detector | None = None,
     ) -> None:
-        self.odometry, self.depth, self.config, self.result = odometry, depth, config, result
+        self.depth, self.config, self.result = depth, config, result
         self.detector = detector
         self.camera = estimator.camera
         self.method = estimator.name
-        self.step = FrameStep(estimator, config.lookback_s, config.vehicle_classes)
-        self.held: list[tuple[BoxTable, float]] | None = [] if estimator.offline else None
-        """An offline method's frames with boxes, whose records wait for the end of the drive."""
+        self.pipeline = Pipeline.from_parts(
+            estimator,
+            odometry,
+            lookback_s=config.lookback_s,
+            vehicle_classes=config.vehicle_classes,
+        )
+        self.held: list[int] | None = [] if estimator.offline else None
+        """An offline method's frames with boxes (their indices), whose records wait for the
+        end of the drive (:meth:`Pipeline.finish`)."""
+        self.end: FinishResult | None = None
+        """What the pipeline gave at the end (:meth:`finish`), once it ended."""
         self.by_frame = boxes.frame_lookup()
         self.no_boxes = boxes.select(np.zeros(len(boxes), dtype=bool))
         self.seen_box_frames: set[int] = set()
         self.last_time_s: float | None = None
         """Time (s) of the last frame given to the frame step; a frame source's unreadable
         frame of a stamp that does not increase comes at or before it."""
-        self.segment = 0
         self.status_count: Counter[str] = Counter()
         self.odometry_count: Counter[str] = Counter()
         self.times = {
@@ -308,38 +303,31 @@ class _RunLoop:
         return self.result
 
     def process(self, frame: Frame) -> None:
-        """One frame: odometry, depth, the frame step, then every output."""
+        """One frame: depth, the pipeline (odometry and frame step), then every output."""
         k = frame.index
         late = self._out_of_time(frame)  # logged; its boxes are not used (boxes_without_frame)
         frame_boxes, detection_ms = (self.no_boxes, math.nan) if late else self._boxes(frame)
-        odo = self._odometry(frame, frame_boxes)
         depth_m, depth_ms = self._depth(frame, frame_boxes)
-        t0 = time.perf_counter()
         if late:
-            res = FrameResult(math.nan, FrameEstimates.empty())
+            res = self._skipped(frame)
         else:
-            res = self.step.step(
-                k,
-                frame.timestamp_s,
-                odo.R_world_cam,
-                frame_boxes,
-                frame.image,
-                depth_m,
-                odo.segment,
+            res = self.pipeline.process(
+                k, frame.timestamp_s, frame.image, frame_boxes, depth_m=depth_m
             )
             self.last_time_s = frame.timestamp_s
-        estimation_ms = (time.perf_counter() - t0) * 1e3
-        self.times["estimation"].add(estimation_ms)
+        self.times["estimation"].add(res.estimation_ms)
+        odo = res.odometry
         state = shown_state(odo.state, res.odometry_jump)
         if odo.state:  # the odometry ran on the frame
             self.odometry_count[state] += 1
+            self.times["odometry"].add(odo.ms)
         if self.held is None:
             n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
             speed = self._speed_at(frame.timestamp_s)
             self.tracks.add(frame.timestamp_s, frame_boxes, res.estimates, speed)
         else:  # offline: the records and tracks come from the pass over the drive (finish)
             if len(frame_boxes):
-                self.held.append((frame_boxes, frame.timestamp_s))
+                self.held.append(k)
             n_est = int(np.sum(res.estimates.status == EstimateStatus.OK.value))
         with self.files.writing(FRAMES_NAME):
             self.frame_log.write_row(
@@ -351,20 +339,35 @@ class _RunLoop:
                     "detail": frame.detail,
                     "odometry_state": state,
                     "inliers": odo.inliers,
-                    "segment": self.segment,
+                    "segment": odo.segment,
                     "theta_deg": math.degrees(res.theta_rad),
                     "boxes": len(frame_boxes),
                     "estimated": n_est,
                     "odometry_ms": odo.ms,
-                    "estimation_ms": estimation_ms,
+                    "estimation_ms": res.estimation_ms,
                     "depth_ms": depth_ms,
                     "detection_ms": detection_ms,
                 }
             )
         self._paint(frame, frame_boxes, res, state)
-        self._export(frame, frame_boxes, res, odo)
+        self._export(frame, frame_boxes, res)
         self.result.frames += 1  # a frame that fails part-way is in neither count
         self.status_count[frame.status.value] += 1
+
+    def _skipped(self, frame: Frame) -> FrameResult:
+        """The result of a frame the pipeline cannot take (:meth:`_out_of_time`): no θ, no
+        estimates, the odometry's segment kept."""
+        segment = self.pipeline.segment
+        return FrameResult(
+            frame.index,
+            frame.timestamp_s,
+            math.nan,
+            self.method,
+            self.no_boxes,
+            FrameEstimates.empty(),
+            OdometryOutput(None, segment),
+            estimation_ms=0.0,
+        )
 
     def _out_of_time(self, frame: Frame) -> bool:
         """Whether ``frame`` is an unreadable frame whose time (a repeated or out-of-order log
@@ -388,21 +391,6 @@ class _RunLoop:
         self.times["detection"].add(ms)
         return boxes, ms
 
-    def _odometry(self, frame: Frame, frame_boxes: BoxTable) -> _OdometryOutput:
-        """The odometry's rotation of a frame with pixels (its boxes, in the frame's own
-        pixels, masked out)."""
-        if frame.image is None or self.odometry is None:
-            return _OdometryOutput(None, self.segment)
-        gray = np.asarray(cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
-        t0 = time.perf_counter()
-        res = self.odometry.process(gray, frame.timestamp_s, in_frame_pixels(frame_boxes).boxes)
-        # a backend that waits on purpose (ORB-SLAM3's real-time pacing) reports its own
-        # working time
-        ms = getattr(self.odometry, "last_track_ms", (time.perf_counter() - t0) * 1e3)
-        self.times["odometry"].add(ms)
-        self.segment = int(getattr(res, "segment", 0))
-        return _OdometryOutput(res.R_world_cam, self.segment, res.state.value, int(res.inliers), ms)
-
     def _depth(
         self, frame: Frame, frame_boxes: BoxTable
     ) -> tuple[NDArray[np.float32] | None, float]:
@@ -419,10 +407,7 @@ class _RunLoop:
     def _write_records(self, frame_boxes: BoxTable, timestamp_s: float, est: FrameEstimates) -> int:
         """Write a frame's records (with the ground truth when the boxes carry it); returns
         how many have a distance."""
-        rows = list(iter_records(frame_boxes, timestamp_s, est, self.method))
-        if self.result.ground_truth:
-            for row, g in zip(rows, frame_boxes.extra[CSV_TRUTH_COLUMN]):
-                row[CSV_TRUTH_COLUMN] = float(g)
+        rows = frame_records(frame_boxes, timestamp_s, est, self.method)
         with self.files.writing(RECORDS_NAME):
             self.records.write_rows(rows)
         n_est = int(np.sum(est.status == EstimateStatus.OK.value))
@@ -436,15 +421,16 @@ class _RunLoop:
             counts[name] = counts.get(name, 0) + 1
         return n_est
 
-    def _write_offline_records(self, held: list[tuple[BoxTable, float]]) -> None:
-        """An offline method's records of every frame seen, from its pass over the drive,
-        and its track summaries from the same estimates."""
+    def _end_pipeline(self) -> None:
+        """The pipeline's end (:meth:`Pipeline.finish`): an offline method's records of every
+        frame seen, from its pass over the drive, and its track summaries from the same
+        estimates."""
         t0 = time.perf_counter()
-        offline = self.step.finish()
+        self.end = self.pipeline.finish()
         self.times["estimation"].total += (time.perf_counter() - t0) * 1e3  # over the frames
-        for (frame_boxes, timestamp_s), est in zip(held, offline, strict=True):
-            self._write_records(frame_boxes, timestamp_s, est)
-            self.tracks.add(timestamp_s, frame_boxes, est, self._speed_at(timestamp_s))
+        for res in self.end.frames:
+            self._write_records(res.boxes, res.t, res.estimates)
+            self.tracks.add(res.t, res.boxes, res.estimates, self._speed_at(res.t))
             self.offline_written += 1
 
     def _offline_records_failed(self, exc: SlopedistError | OSError) -> None:
@@ -453,7 +439,7 @@ class _RunLoop:
         result, held = self.result, self.held or []
         self.offline_failed = exc
         result.complete = False
-        failed = int(held[self.offline_written][0].frame[0])
+        failed = held[self.offline_written]
         result.failed_frame = failed if result.failed_frame is None else result.failed_frame
         reached = failed - 1 if failed > 0 else None  # the frames before it have all their rows
         if result.last_complete_frame is None or reached is None:
@@ -509,12 +495,11 @@ class _RunLoop:
                 raise OutputWriteError(path, OSError(f"OpenCV could not write {path.name}"))
             self.result.exports.append(str(path))
 
-    def _export(
-        self, frame: Frame, frame_boxes: BoxTable, res: FrameResult, odo: _OdometryOutput
-    ) -> None:
+    def _export(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult) -> None:
         """The frame in the MCAP export and its rotation in the TUM trajectory."""
-        if self.trajectory is not None and odo.R_world_cam is not None:
-            self.trajectory.write(frame.timestamp_s, odo.R_world_cam)
+        R = res.odometry.R_world_cam
+        if self.trajectory is not None and R is not None:
+            self.trajectory.write(frame.timestamp_s, R)
         if self.export is None:
             return
         self.export.write_frame(
@@ -540,11 +525,12 @@ class _RunLoop:
         if self.bar is not None:
             self.bar.close()
         files = self.files
-        if self.held:
-            try:
-                self._write_offline_records(self.held)
-            except (SlopedistError, OSError) as exc:  # the other outputs are closed all the same
-                self._offline_records_failed(exc)
+        try:
+            self._end_pipeline()
+        except (SlopedistError, OSError) as exc:  # the other outputs are closed all the same
+            if not self.held:
+                raise
+            self._offline_records_failed(exc)
         # (after the offline pass: its time is the method's, spread over the frames)
         result.elapsed_s = time.perf_counter() - self.start
         result.frames_per_s = result.frames / result.elapsed_s if result.elapsed_s > 0 else math.nan

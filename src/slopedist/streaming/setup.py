@@ -1,73 +1,65 @@
-"""Everything a run is made from, built one way for ``slopedist run`` and ``slopedist batch``.
+"""A run into a folder, built one way for ``slopedist run`` and ``slopedist batch``.
 
-:func:`prepare_run` turns :class:`RunInputs` (paths, drive-log topics and options) into a
-:class:`PreparedRun`: the frame source (image folder, video or drive log), the calibration
-(a file, values, or a log's ``camera_info``), the boxes or the detector mapped into the ideal
-camera, the estimator, the depth source, the rotation source (a log's IMU / odometry topic or
-visual odometry on the frames) and a log's ego speed. :meth:`PreparedRun.run` runs it with
-:func:`slopedist.streaming.loop.run_frames`. The ``run`` command and each batch drive call this and
-nothing else, so a drive of a batch gives the records of ``slopedist run`` with its options.
+:func:`run_to_folder` takes :class:`RunOptions` (the options of ``slopedist run``: what it
+reads, how, and what it writes) and opens the frame source (image folder, video or drive
+log), the calibration (a file, values, or a log's ``camera_info``), the boxes or the detector
+mapped into the ideal camera, the estimator, the depth source, the rotation source (a log's IMU
+/ odometry topic or visual odometry on the frames) and a log's ego speed; then it runs them
+through the loop (:func:`slopedist.streaming.loop.run_frames`, over a
+:class:`~slopedist.streaming.pipeline.Pipeline`) into the output folder and removes what an
+earlier run there wrote and this one did not. The ``run`` command and each batch drive call this
+and nothing else, so a drive of a batch gives the records of ``slopedist run`` with its options.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
+import shutil
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError
-from slopedist.estimators import Estimator, EstimatorConfig, build_estimator
+from slopedist.estimators import Estimator, EstimatorConfig, build_estimator, takes_ours_options
+from slopedist.estimators.base import DEFAULT_REFERENCE
 from slopedist.estimators.depthmap import DepthScaling
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.depth import DepthSource, FileDepthSource
-from slopedist.io.detections.boxes import BoxTable
+from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable
 from slopedist.io.detections.dropped import DroppedBoxes
 from slopedist.io.detections.onnx_detector import Detector
 from slopedist.io.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.io.frames import FrameSource, with_frame_size
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
+from slopedist.io.outputs import StopFlag, check_outputs_spare_inputs, partial_path
+from slopedist.io.prefetch import DEFAULT_AHEAD
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
-from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
 from slopedist.odometry.imu import SpeedTrack
 from slopedist.odometry.point_map import PointMap
-from slopedist.streaming.config import RunConfig, RunResult
-from slopedist.streaming.frame_times import SteppedFrames, long_step_warning
+from slopedist.streaming.config import (
+    FRAMES_NAME,
+    RECORDS_NAME,
+    SUMMARY_NAME,
+    OverlayFormat,
+    RunConfig,
+    RunResult,
+    earlier_outputs,
+    export_paths,
+    overlay_fps,
+    overlay_path,
+    snapshot_path,
+)
 from slopedist.streaming.loop import run_frames
+from slopedist.streaming.pipeline import build_odometry
+from slopedist.streaming.tracks import TRACKS_NAME
 
 _log = logging.getLogger(__name__)
 
-ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
-"""Rotation sources on the frames (``--odometry``; ``none`` = no rotations, for methods that do
-not use them)."""
-
 DepthFactory = Callable[[FrameSource], DepthSource]
 """Builds a run's depth source once its frame source is open (the maps' expected size)."""
-
-
-def build_odometry(
-    name: str,
-    camera: Camera,
-    vocab: Path | None = None,
-    lookback_s: float = LOOKBACK_S,
-    point_map: PointMap | None = None,
-) -> RotationOdometry:
-    """The rotation source ``name`` (``builtin`` or ``orbslam3``) for ``camera``.
-
-    The built-in backend estimates rotations directly over ``lookback_s`` seconds (the
-    look-back of the gradient) and maps its tracked points into the ideal ``camera`` with
-    ``point_map`` (lens distortion, fx ≠ fy); ORB-SLAM3 tracks a map and has neither setting.
-    """
-    if vocab is not None and name != "orbslam3":
-        raise ConfigurationError("--vocab is only used with --odometry orbslam3")
-    if name == "orbslam3":
-        return make_odometry(name, camera, vocabulary=vocab)
-    if point_map is not None:
-        return make_odometry(name, camera, lookback_s=lookback_s, point_map=point_map)
-    return make_odometry(name, camera, lookback_s=lookback_s)
 
 
 def folder_depth_source(folder: Path, frames: FrameSource) -> FileDepthSource:
@@ -176,11 +168,12 @@ class LogTopicNames:
 
 
 @dataclass(frozen=True)
-class RunInputs:
-    """What a run reads and how (the options of ``slopedist run``).
+class RunOptions:
+    """What a run reads, how, and what it writes (the options of ``slopedist run``).
 
     Attributes:
         frames: image folder, video file or drive log.
+        out_dir: output folder (records.csv, frames.csv, tracks.csv, run.json).
         calib: calibration file or values; None takes a drive log's ``camera_info``.
         image_size: ``(width, height)`` pixels completing or checked against the calibration
             (``--image-size``), or None.
@@ -190,13 +183,26 @@ class RunInputs:
         topics: the drive log's topics (:class:`LogTopicNames`).
         height_m: camera height above the road (metres); ``mount_angle_deg``: camera pitch
             relative to the vehicle (degrees).
-        odometry: visual odometry backend (:data:`ODOMETRY_CHOICES`); ``vocab``: ORB-SLAM3
+        odometry: visual odometry backend
+            (:data:`~slopedist.streaming.pipeline.ODOMETRY_CHOICES`); ``vocab``: ORB-SLAM3
             vocabulary; ``lookback_s``: look-back of the ego gradient (seconds).
-        estimator: the estimator's configuration (its method included).
+        estimator: the estimator's configuration (its method included; a reference point
+            left unset is :data:`~slopedist.estimators.base.DEFAULT_REFERENCE`).
         depth: builds the depth source of depth-map methods, or None.
+        overlay: also write annotated frames, as ``overlay_format`` (an
+            :class:`~slopedist.streaming.config.OverlayFormat` value).
+        exports: :class:`~slopedist.streaming.config.RunExport` values (MCAP, TUM trajectory).
+        snapshots: frame indices whose overlay is also written as a JPEG.
+        progress: show a progress bar on stderr.
+        sequence: sequence name written to run.json (None: the frames' folder or video name).
+        vehicle_classes: class names scored as vehicles.
+        decode_ahead: frames decoded ahead in a thread (0: all in the loop's thread).
+        other_inputs: further files the run reads through ``detector`` or ``depth`` (a model,
+            a depth folder), which no output may replace.
     """
 
     frames: Path
+    out_dir: Path = Path("slopedist_run")
     calib: Path | Intrinsics | None = None
     image_size: tuple[int, int] | None = None
     boxes: Path | None = None
@@ -212,11 +218,31 @@ class RunInputs:
     lookback_s: float = LOOKBACK_S
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     depth: DepthFactory | None = None
+    overlay: bool = False
+    overlay_format: str = OverlayFormat.MP4.value
+    exports: tuple[str, ...] = ()
+    snapshots: tuple[int, ...] = ()
+    progress: bool = True
+    sequence: str | None = None
+    vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    decode_ahead: int = DEFAULT_AHEAD
+    other_inputs: tuple[Path, ...] = ()
+
+    def input_paths(self) -> list[Path | Intrinsics | None]:
+        """Every file the run reads (a calibration given as values included)."""
+        return [
+            self.frames,
+            self.calib,
+            self.boxes,
+            self.timestamps,
+            self.vocab,
+            *self.other_inputs,
+        ]
 
 
 @dataclass
-class PreparedRun:
-    """The opened inputs of a run (:func:`prepare_run`); ``time_origin_ns`` is a drive log's
+class _OpenedRun:
+    """The opened inputs of a run (:func:`open_run`); ``time_origin_ns`` is a drive log's
     first image stamp (0 otherwise) and ``ego_speed`` its speed topic (m/s) or None."""
 
     source: FrameSource
@@ -229,43 +255,10 @@ class PreparedRun:
     ego_speed: SpeedTrack | None
     time_origin_ns: int
     dropped_boxes: DroppedBoxes = field(default_factory=DroppedBoxes)
-    lookback_s: float = LOOKBACK_S
-
-    def run(self, config: RunConfig, frames: FrameSource | None = None) -> RunResult:
-        """:func:`~slopedist.streaming.loop.run_frames` on these inputs into ``config`` (``frames``
-        replaces the source, e.g. a wrapped one).
-
-        Raises:
-            ConfigurationError: a TUM trajectory asked for without a rotation source (it would
-                be a file with no pose), before anything is written.
-        """
-        if config.trajectory is not None and self.odometry is None:
-            raise ConfigurationError(
-                "--export tum writes the rotations of the visual odometry or of a drive log's "
-                "--rotation-topic, and this run has none (--odometry none): use --odometry "
-                "builtin, or leave out --export tum"
-            )
-        stepped = SteppedFrames(frames or self.source)
-        result = run_frames(
-            stepped,
-            self.boxes,
-            self.odometry,
-            self.estimator,
-            config,
-            self.depth,
-            self.detector,
-            self.dropped_boxes.reasons,
-        )
-        for warning in self.estimator.end_warnings():
-            _log.warning("%s", warning)
-        long_steps = long_step_warning(stepped.steps_s, self.lookback_s)
-        if long_steps is not None and self.odometry is not None:  # θ from those rotations
-            _log.warning("%s", long_steps)
-        return result
 
 
 def boxes_or_detector(
-    inputs: RunInputs, dropped: DroppedBoxes | None = None
+    inputs: RunOptions, dropped: DroppedBoxes | None = None
 ) -> tuple[BoxTable, Detector | None]:
     """The box file's boxes (the rows its reader left out counted in ``dropped``), or no boxes
     and the detector (exactly one must be given)."""
@@ -276,7 +269,7 @@ def boxes_or_detector(
     raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
 
 
-def prepare_run(inputs: RunInputs) -> PreparedRun:
+def open_run(inputs: RunOptions) -> _OpenedRun:
     """Open and check everything ``inputs`` names (see the module docstring).
 
     Raises:
@@ -293,7 +286,7 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
     camera = with_frame_size(calibration.camera, source)
     dropped = DroppedBoxes()
     boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs, dropped))
-    estimator = build_estimator(inputs.estimator, camera)
+    estimator = build_estimator(with_default_reference(inputs.estimator), camera)
     check_runnable(estimator, inputs.depth is not None, boxes, topics.rotation is not None)
     depth = inputs.depth(source) if inputs.depth is not None else None
     visual = (camera, inputs.lookback_s, calibration.point_map)
@@ -304,7 +297,7 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
             "measured rotation, and --odometry none gives none: use --odometry builtin (or a "
             "drive log's --rotation-topic), or --method ours"
         )
-    return PreparedRun(
+    return _OpenedRun(
         source,
         calibration,
         boxes,
@@ -315,5 +308,114 @@ def prepare_run(inputs: RunInputs) -> PreparedRun:
         ego_speed=log_speed(source, topics.speed) if topics.speed else None,
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
         dropped_boxes=dropped,
-        lookback_s=inputs.lookback_s,
     )
+
+
+def with_default_reference(config: EstimatorConfig) -> EstimatorConfig:
+    """``config`` with :data:`~slopedist.estimators.base.DEFAULT_REFERENCE` when it names
+    none and its method reports a reference point it is asked for."""
+    if config.reference is not None or not takes_ours_options(config.method):
+        return config
+    return replace(config, reference=DEFAULT_REFERENCE.value)
+
+
+def run_to_folder(
+    options: RunOptions,
+    stop: StopFlag | None = None,
+    wrap_frames: Callable[[FrameSource], FrameSource] | None = None,
+) -> RunResult:
+    """Run ``options`` into their output folder (see the module docstring): the inputs opened,
+    the outputs checked against them before anything is written, the frames run until they
+    end or ``stop`` is set (after a frame), and the earlier run's optional outputs that this
+    one did not write removed. ``wrap_frames`` wraps the frame source (a test hook).
+
+    Raises:
+        ConfigurationError: options that do not fit together, an output that would replace an
+            input, a TUM trajectory asked for without a rotation source.
+        RunAbortedError: the run stopped part-way (from :class:`~slopedist.io.outputs.
+            RunStoppedError` on a stop request).
+        SlopedistError / OSError: unreadable inputs.
+    """
+    opened = open_run(options)
+    config = run_config(options, opened, stop or StopFlag())
+    shots = [snapshot_path(options.out_dir, k) for k in options.snapshots]
+    extras = [config.overlay, config.mcap, config.trajectory, *shots]
+    check_run_outputs(options.out_dir, extras, options.input_paths())
+    if config.trajectory is not None and opened.odometry is None:
+        raise ConfigurationError(
+            "--export tum writes the rotations of the visual odometry or of a drive log's "
+            "--rotation-topic, and this run has none (--odometry none): use --odometry "
+            "builtin, or leave out --export tum"
+        )
+    frames = wrap_frames(opened.source) if wrap_frames is not None else opened.source
+    result = run_frames(
+        frames,
+        opened.boxes,
+        opened.odometry,
+        opened.estimator,
+        config,
+        opened.depth,
+        opened.detector,
+        opened.dropped_boxes.reasons,
+    )
+    remove_earlier_outputs(options.out_dir, result, options.input_paths())
+    return result
+
+
+def run_config(options: RunOptions, opened: _OpenedRun, stop: StopFlag) -> RunConfig:
+    """The loop's :class:`~slopedist.streaming.config.RunConfig` of ``options`` (output paths
+    in their folder) and of the opened inputs (a log's time origin and ego speed)."""
+    out_dir = options.out_dir
+    mcap, trajectory = export_paths(out_dir, options.exports)
+    return RunConfig(
+        out_dir,
+        options.lookback_s,
+        overlay_path(out_dir, options.overlay_format) if options.overlay else None,
+        overlay_fps(options.fps, opened.source),
+        options.progress,
+        options.sequence,
+        mcap=mcap,
+        trajectory=trajectory,
+        time_origin_ns=opened.time_origin_ns,
+        ego_speed=opened.ego_speed,
+        vehicle_classes=options.vehicle_classes,
+        stop=stop,
+        decode_ahead=options.decode_ahead,
+        snapshots=options.snapshots,
+    )
+
+
+def check_run_outputs(
+    out_dir: Path, extras: list[Path | None], inputs: Sequence[Path | Intrinsics | None]
+) -> None:
+    """Fail before anything is written if an output of the run (or its temporary name) is one
+    of its input files, or ``out_dir`` is; ``extras``: the optional outputs (overlay, exports);
+    ``inputs`` may hold a calibration given as values (not a file)."""
+    outputs = [out_dir / n for n in (RECORDS_NAME, FRAMES_NAME, SUMMARY_NAME, TRACKS_NAME)]
+    outputs += [e for e in extras if e is not None]
+    outputs += [partial_path(o) for o in outputs]
+    check_outputs_spare_inputs(outputs, [p for p in inputs if isinstance(p, Path)], out_dir)
+
+
+def remove_earlier_outputs(
+    out_dir: Path, result: RunResult, inputs: Sequence[Path | Intrinsics | None]
+) -> list[Path]:
+    """Remove what an earlier run into ``out_dir`` wrote and this one did not (an overlay,
+    exports, snapshots: :func:`~slopedist.streaming.config.earlier_outputs`), so that the folder
+    holds one run; an input of this run, or a folder holding one, is never removed. Says in
+    the log what went; returns the removed paths."""
+    spared = [p.resolve() for p in inputs if isinstance(p, Path)]
+    stale = [
+        p
+        for p in earlier_outputs(out_dir, [result.overlay, *result.exports])
+        if not any(s == p.resolve() or s.is_relative_to(p.resolve()) for s in spared)
+    ]
+    for path in stale:
+        if path.is_dir():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    if stale:
+        names = ", ".join(p.name for p in stale)
+        _log.warning("removed the outputs of an earlier run that this run did not write: %s", names)
+    return stale

@@ -33,6 +33,7 @@ from slopedist.estimators.base import (
     settle_states,
 )
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable, concat_boxes
+from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.io.formatting import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import (
     LOOKBACK_S,
@@ -124,7 +125,7 @@ class EgoGradientTracker:
 
 
 @dataclass(frozen=True)
-class FrameResult:
+class StepResult:
     """What one frame step gives: the ego gradient θ (radians, NaN without a rotation), the
     per-box estimates and whether the frame's rotation was an odometry jump (not trusted)."""
 
@@ -200,7 +201,7 @@ class FrameStep:
         image: NDArray[np.uint8] | None = None,
         depth_m: NDArray[np.float32] | None = None,
         segment: int = 0,
-    ) -> FrameResult:
+    ) -> StepResult:
         """θ of the frame (look-back within odometry ``segment``; NaN beyond
         :data:`MAX_EGO_GRADIENT_RAD` or on an odometry jump, :class:`EgoGradientTracker`) and
         its boxes' estimates.
@@ -214,7 +215,7 @@ class FrameStep:
         theta = usable_gradient(self.gradient.update(timestamp_s, R, segment), self._theta_rest)
         R, jump = self.gradient.given_rotation(R), self.gradient.jump  # on a jump: none since
         est = self._estimate(frame_index, timestamp_s, theta, R, boxes, image, depth_m, jump)
-        return FrameResult(theta, est, jump)
+        return StepResult(theta, est, jump)
 
     def estimate(
         self,
@@ -338,7 +339,7 @@ def _rotation(
 
 def stream_track(
     step: FrameStep, track: RotationTrack, boxes: BoxTable
-) -> Iterator[tuple[BoxTable, float, FrameResult]]:
+) -> Iterator[tuple[BoxTable, float, StepResult]]:
     """Feed every frame of ``track`` with its boxes to ``step``, in order; yields each frame's
     ``(boxes, timestamp_s, result)`` (box frame indices index the track)."""
     by_frame = boxes.frame_index()
@@ -560,6 +561,21 @@ def iter_records(
         for key, values in est.extra.items():
             row[key] = float(values[i])
         yield row
+
+
+def frame_records(
+    boxes: BoxTable, timestamp_s: float, est: FrameEstimates, method: str
+) -> list[dict[str, Any]]:
+    """The records of one frame as ``records.csv`` has them (:func:`iter_records`), with the
+    ground-truth distance (:data:`~slopedist.io.detections.readers.CSV_TRUTH_COLUMN`, metres)
+    when the boxes carry it: what ``slopedist run`` writes and
+    :meth:`slopedist.FrameResult.to_records` gives."""
+    rows = list(iter_records(boxes, timestamp_s, est, method))
+    truth = boxes.extra.get(CSV_TRUTH_COLUMN)
+    if truth is not None:
+        for row, g in zip(rows, truth, strict=True):
+            row[CSV_TRUTH_COLUMN] = float(g)
+    return rows
 
 
 def _row_timestamps(
