@@ -18,7 +18,7 @@ from slopedist.core.camera import Camera
 from slopedist.io.depth import write_kitti_depth_png
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.writers import write_box_csv
-from slopedist.streaming import setup as run_setup
+from slopedist.streaming import pipeline as pipeline_module
 
 W, H = 320, 200
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -228,16 +228,16 @@ def test_lookback_reaches_the_builtin_odometry(
 ) -> None:
     pytest.importorskip("slopedist.odometry.visual")
     cam = Camera(500.0, 160.0, 100.0, height_m=1.5)
-    vo = run_setup.build_odometry("builtin", cam, None, 0.5)
+    vo = pipeline_module.build_odometry("builtin", cam, None, 0.5)
     assert vo.config.lookback_s == 0.5  # type: ignore[attr-defined]
     seen: dict[str, Any] = {}
-    real = run_setup.make_odometry
+    real = pipeline_module.make_odometry
 
     def spy(name: str, camera: Camera, **options: Any) -> Any:
         seen.update(name=name, **options)
         return real(name, camera, **options)
 
-    monkeypatch.setattr(run_setup, "make_odometry", spy)
+    monkeypatch.setattr(pipeline_module, "make_odometry", spy)
     assert main(["run", *setup(tmp_path), "--method", "ego", "--lookback", "0.3"]) == 0
     assert seen == {"name": "builtin", "lookback_s": 0.3}
 
@@ -271,13 +271,13 @@ def test_a_distorted_calibration_maps_the_odometry_points(
     calib.write_text("500 0 160\n0 500 100\n0 0 1\n-0.3 0.1 0 0\n")
     args[args.index("--calib") + 1] = str(calib)
     seen: dict[str, Any] = {}
-    real = run_setup.make_odometry
+    real = pipeline_module.make_odometry
 
     def spy(name: str, camera: Camera, **options: Any) -> Any:
         seen.update(options)
         return real(name, camera, **options)
 
-    monkeypatch.setattr(run_setup, "make_odometry", spy)
+    monkeypatch.setattr(pipeline_module, "make_odometry", spy)
     assert main(["run", *args, "--method", "ego"]) == 0
     point = np.array([[300.0, 180.0]])
     assert seen["point_map"](point)[0, 0] > 300.0  # barrel distortion undone: moved outwards
