@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -107,3 +109,55 @@ def _constant_onnx_model(
 def constant_model() -> Callable[..., Path]:
     """Builder of test ONNX models with constant outputs (see :func:`_constant_onnx_model`)."""
     return _constant_onnx_model
+
+
+@dataclass(frozen=True)
+class DriveFiles:
+    """A short drive on disk as ``slopedist run`` reads it.
+
+    Attributes:
+        frames: the image folder.
+        calib: its calibration file (KITTI layout: no image size in it).
+        boxes: a slopedist box CSV of its vehicles (with ``gt_distance_m`` when known).
+        run_options: the further ``slopedist run`` options of the drive (camera mount, times).
+        real: whether it is KITTI raw (``kitti_raw_lead``) rather than a rendered scenario.
+    """
+
+    frames: Path
+    calib: Path
+    boxes: Path
+    run_options: tuple[str, ...]
+    real: bool
+
+
+@pytest.fixture(scope="session")
+def drive_files(tmp_path_factory: pytest.TempPathFactory) -> DriveFiles:
+    """``kitti_raw_lead``'s frames, calibration and LiDAR vehicle boxes (truth: the LiDAR
+    distance) when ../shared/data has them, else a rendered synthetic scenario
+    (``slopedist simulate ego_crest``, 14 frames)."""
+    root = tmp_path_factory.mktemp("drive")
+    lead = SHARED_DATA / "kitti_raw_lead"
+    if lead.is_dir():
+        from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
+        from slopedist.io.detections.writers import write_box_csv
+        from slopedist.io.kitti.raw import KittiRawDrive
+
+        drive = KittiRawDrive.open(lead)
+        boxes = drive.lidar_boxes((1242, 375))
+        boxes.extra[CSV_TRUTH_COLUMN] = boxes.extra["z"]
+        csv = write_box_csv(boxes, root / "boxes.csv", (CSV_TRUTH_COLUMN,))
+        return DriveFiles(drive.image_dir, lead / "calib.txt", csv, (), True)
+    from slopedist.cli import main
+
+    sim = root / "sim"
+    assert main(["simulate", "ego_crest", "--out", str(sim), "--frames", "14"]) == 0
+    info = json.loads((sim / "info.json").read_text())
+    options = (
+        "--height",
+        str(info["camera_height_m"]),
+        "--mount-angle",
+        str(info["mount_angle_deg"]),
+        "--timestamps",
+        str(sim / "times.txt"),
+    )
+    return DriveFiles(sim / "image_02", sim / "calib.txt", sim / "boxes.csv", options, False)
