@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 
 import click
-import numpy as np
 
 from slopedist.cli.method_options import (
     check_methods,
@@ -19,17 +18,10 @@ from slopedist.cli.options import lookback_option, sequence_file_options, vehicl
 from slopedist.cli.record_summary import RecordTally
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
-from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.outputs import check_outputs_spare_inputs
 from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.streaming.frame_times import long_step_warning
-from slopedist.streaming.step import (
-    FrameStep,
-    close_records,
-    iter_records,
-    open_records,
-    stream_track,
-)
+from slopedist.streaming.pipeline import Pipeline, stream_rotations
+from slopedist.streaming.step import close_records, open_records
 
 
 @click.command("estimate")
@@ -67,35 +59,23 @@ def estimate(
     check_outputs_spare_inputs([out], files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
     estimator = build_estimator(config, seq.camera)
-    step = FrameStep(estimator, lookback_s, vehicle_classes)
+    pipe = Pipeline.from_parts(estimator, lookback_s=lookback_s, vehicle_classes=vehicle_classes)
     writer = open_records(out)
     tally = RecordTally()
-    held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
     try:
-        for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
-            if estimator.offline:
-                if len(frame_boxes):
-                    held.append((frame_boxes, t))
-                continue
-            writer.write_rows(tally.count(iter_records(frame_boxes, t, result.estimates, method)))
-        if held:
-            for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
-                writer.write_rows(tally.count(iter_records(frame_boxes, t, est, method)))
+        for result in stream_rotations(pipe, seq.track, seq.boxes):
+            if not pipe.offline:  # an offline method's records come when the sequence ends
+                writer.write_rows(tally.count(result.to_records()))
+        end = pipe.finish()
+        writer.write_rows(tally.count(end.to_records()))
         close_records(writer)
     except BrokenPipeError:
         if out is not None:
             raise
         quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
         return
-    for line in tally.lines(out):
+    for line in [*tally.lines(out), *end.warnings]:
         click.echo(line, err=True)
-    notes = (
-        long_step_warning(np.diff(seq.track.timestamps_s), lookback_s),
-        *estimator.end_warnings(),
-    )
-    for note in notes:
-        if note is not None:
-            click.echo(note, err=True)
 
 
 def quiet_closed_stdout() -> None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
@@ -51,7 +51,7 @@ from slopedist.io.detections.boxes import (
 from slopedist.io.frames import DEFAULT_FPS, check_calibration
 from slopedist.io.intrinsics import Intrinsics, in_frame_pixels
 from slopedist.odometry import make_odometry
-from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
+from slopedist.odometry.base import LOOKBACK_S, RotationOdometry, RotationTrack
 from slopedist.odometry.point_map import PointMap
 from slopedist.streaming.frame_times import long_step_warning
 from slopedist.streaming.step import FrameStep, frame_records
@@ -640,6 +640,20 @@ class Pipeline:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+def stream_rotations(
+    pipe: Pipeline, track: RotationTrack, boxes: BoxTable
+) -> Iterator[FrameResult]:
+    """Every frame of ``track`` (its rotations and times) with its boxes (already in the
+    method's camera; box frame indices index the track) through ``pipe``, in order: what
+    ``slopedist estimate`` streams."""
+    by_frame = boxes.frame_lookup()
+    no_boxes = BoxTable.empty()
+    for k in range(len(track)):
+        R = track.R_world_cam[k] if track.valid[k] else None
+        t = float(track.timestamps_s[k])
+        yield pipe.process(k, t, None, by_frame.get(k, no_boxes), R)
 
 
 def _check_rotation_source(estimator: Estimator, odometry: str) -> None:
