@@ -7,6 +7,8 @@
 - :mod:`~slopedist.batch.stamp`: input stamps that make a re-run skip unchanged drives;
 - :mod:`~slopedist.batch.engine`: Ray tasks, retries, progress, ``OUT/status.csv``;
 - :mod:`~slopedist.batch.fleet`: the Parquet dataset and the fleet summary tables.
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
 """
 
 from __future__ import annotations

@@ -12,6 +12,8 @@ line on stderr, ``slopedist: error: ...``, and an exit code:
 ``slopedist --debug <command> ...`` or the environment variable ``SLOPEDIST_DEBUG=1`` adds the
 traceback. A reader that closes the pipe early (``slopedist estimate ... | head -1``) ends the
 program quietly with exit code 0.
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
 """
 
 from __future__ import annotations

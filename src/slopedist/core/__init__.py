@@ -1,3 +1,6 @@
 """The foundations every layer uses: the paper's equations as pure functions (``geometry``), the
 camera and its calibration (``camera``), the exception hierarchy (``errors``), the bounds on input
-(``limits``) and strict text reading (``textfiles``)."""
+(``limits``) and strict text reading (``textfiles``).
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
+"""

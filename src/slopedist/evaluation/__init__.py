@@ -1,1 +1,4 @@
-"""Evaluation: metrics, the KITTI protocol, accuracy tables, plots and the comparison report."""
+"""Evaluation: metrics, the KITTI protocol, accuracy tables, plots and the comparison report.
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
+"""

@@ -1,4 +1,7 @@
-"""Rotation sources: pose files, OXTS/IMU, and visual odometry from pixels."""
+"""Rotation sources: pose files, OXTS/IMU, and visual odometry from pixels.
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
+"""
 
 from slopedist.odometry.base import (
     OdometryResult,

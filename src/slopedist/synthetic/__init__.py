@@ -7,4 +7,6 @@ noise, and ``slopedist demo`` (:mod:`~slopedist.synthetic.demo`) that runs every
 SyntheticSequence` renders its frames with boxes and depth maps.
 :func:`~slopedist.synthetic.traffic.simulate_traffic` is the light-weight counterpart
 for ``ours``: exactly projected 3D boxes on a flat road, no images.
+
+Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
 """
