@@ -550,5 +550,13 @@ def evaluate_kitti_tracking(
     cfg: KittiEvalConfig,
     on_sequence: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
-    """Run the evaluation; returns its JSON-ready :meth:`KittiEvaluation.report`."""
+    """Run the evaluation; returns its JSON-ready :meth:`KittiEvaluation.report`.
+
+    Example::
+
+        report = evaluate_kitti_tracking(
+            "kitti_tracking", KittiEvalConfig(methods=("flat", "paper", "ours"))
+        )
+        print(report["methods"]["ours"]["overall"]["rmse"])
+    """
     return run_kitti_tracking(root, cfg, on_sequence).report()

@@ -46,6 +46,11 @@ def distance_metrics(pred_m: ArrayLike, gt_m: ArrayLike) -> dict[str, float]:
     """Error metrics of predicted vs. true distances (both metres, same shape, positive).
 
     Returns a dict with the keys of :data:`METRIC_KEYS`; with no pairs, ``n = 0`` and NaNs.
+
+    Example:
+        >>> m = distance_metrics([10.0, 21.0], [10.0, 20.0])
+        >>> m["n"], round(m["rmse"], 3), m["mae"]
+        (2, 0.707, 0.5)
     """
     p = np.asarray(pred_m, dtype=float).ravel()
     g = np.asarray(gt_m, dtype=float).ravel()
@@ -182,7 +187,14 @@ def match_boxes(
 def match_by_frame(
     det: BoxTable, gt: BoxTable, min_iou: float = 0.5
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """:func:`match_boxes` frame by frame; returns row indices into ``det`` and ``gt``."""
+    """:func:`match_boxes` frame by frame; returns row indices into ``det`` and ``gt``.
+
+    Example:
+        >>> det = BoxTable.build([0, 0], [[0, 0, 10, 10], [50, 50, 60, 60]])
+        >>> gt = BoxTable.build([0], [[49, 50, 60, 61]])
+        >>> [rows.tolist() for rows in match_by_frame(det, gt)]
+        [[1], [0]]
+    """
     det_rows: list[NDArray[np.intp]] = []
     gt_rows: list[NDArray[np.intp]] = []
     for k in np.intersect1d(det.frames(), gt.frames()):

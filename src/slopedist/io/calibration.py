@@ -74,6 +74,14 @@ def read_calibration(
     radians. ``image_size`` (width, height; pixels; ``--image-size``) completes a calibration
     that states none (KITTI, K text, the values); it must agree with one that does.
 
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "K.txt"
+        >>> _ = path.write_text("721.5 0 609.6\\n0 721.5 172.9\\n0 0 1\\n")
+        >>> camera = read_calibration(path, height_m=1.5).camera
+        >>> camera.f, camera.c_y, camera.height_m
+        (721.5, 172.9, 1.5)
+
     Raises:
         ConfigurationError: ``image_size`` differs from the calibration's own, or the mount
             (height, angle) is out of range.

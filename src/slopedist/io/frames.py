@@ -543,6 +543,14 @@ def open_frames(
         fps: frames per second (None: 10 for folders, the container's rate for videos).
         timestamps: optional timestamps file (:func:`read_timestamps`); overrides ``fps``.
         max_pixels: largest frame decoded, pixels.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> for k in range(3):
+        ...     _ = cv2.imwrite(str(folder / f"{k:06d}.png"), np.zeros((4, 6, 3), np.uint8))
+        >>> [(f.index, f.timestamp_s, f.image.shape) for f in open_frames(folder, fps=5)]
+        [(0, 0.0, (4, 6, 3)), (1, 0.2, (4, 6, 3)), (2, 0.4, (4, 6, 3))]
     """
     path = Path(path)
     ts = read_timestamps(timestamps) if timestamps is not None else None

@@ -48,7 +48,8 @@ from slopedist.io.detections.boxes import (
     BoxTable,
     frame_pixel_boxes,
 )
-from slopedist.io.frames import DEFAULT_FPS, check_calibration
+from slopedist.io.detections.readers import read_box_file
+from slopedist.io.frames import DEFAULT_FPS, check_calibration, open_frames
 from slopedist.io.intrinsics import Intrinsics, in_frame_pixels
 from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry, RotationTrack
@@ -288,7 +289,7 @@ class Pipeline:
         calib: the camera: a calibration file of any form ``slopedist run --calib`` reads
             (KITTI calib, 3×3 K text, OpenCV or ROS YAML), or a
             :class:`~slopedist.core.camera.Camera`.
-        method: the distance method (``ours``, ``paper``, ``flat``, ...; :data:`slopedist.METHODS`).
+        method: the distance method (``ours``, ``paper``, ``flat``, ...; :class:`slopedist.Method`).
         odometry: the rotation source on the frames: ``builtin`` visual odometry, ``orbslam3``,
             or ``none`` (no rotations, or rotations given to :meth:`update`).
         height_m: the camera's height above the road, metres (None: the camera's, else 1.65).
@@ -487,6 +488,50 @@ class Pipeline:
         if self._intrinsics is not None and FRAME_BOX_COLUMN not in table.extra:
             table = self._intrinsics.rectify_table(table)
         return self.process(k, t_s, image, table, R_world_cam, depth_m)
+
+    def run(
+        self,
+        frames: str | Path,
+        boxes: str | Path | BoxTable | Callable[[NDArray[np.uint8]], Any],
+        *,
+        fps: float | None = None,
+        timestamps: str | Path | None = None,
+    ) -> Iterator[FrameResult]:
+        """:meth:`update` with every frame of an image folder or a video (its own timestamps:
+        ``fps`` or a timestamps file, as ``slopedist run`` takes them), one result per frame.
+
+        Args:
+            frames: image folder or video file (:func:`~slopedist.io.frames.open_frames`).
+            boxes: a box file (any layout ``slopedist run --boxes`` reads), a
+                :class:`~slopedist.io.detections.boxes.BoxTable` of every frame (by frame
+                index), or a detector: called with each image, it returns the boxes in any form
+                :meth:`update` takes.
+            fps: frames per second (None: 10 for a folder, a video's own rate).
+            timestamps: a timestamps file, one line per frame.
+
+        Example::
+
+            for result in Pipeline("calib.txt").run("drive.mp4", "boxes.csv"):
+                print(result.frame, [t.distance_m for t in result.targets if t.ok])
+        """
+        detect = boxes if callable(boxes) else None
+        table = None if detect is not None else boxes
+        if isinstance(table, (str, Path)):
+            table = read_box_file(table)
+        by_frame = table.frame_lookup() if isinstance(table, BoxTable) else None
+        no_boxes = BoxTable.empty()
+        for frame in open_frames(frames, fps, timestamps):
+            if (
+                frame.image is None
+                and self._last_t is not None
+                and frame.timestamp_s <= self._last_t
+            ):
+                continue  # an unreadable frame out of time order: no frame to step
+            if detect is not None:
+                found = detect(frame.image) if frame.image is not None else no_boxes
+            else:
+                found = by_frame.get(frame.index, no_boxes) if by_frame is not None else no_boxes
+            yield self.update(frame.image, found, frame.timestamp_s, frame=frame.index)
 
     def _take_image(self, image: NDArray[np.uint8] | None) -> NDArray[np.uint8] | None:
         """``image`` checked (uint8, grey or three channels, the stream's size); the first one

@@ -329,6 +329,13 @@ def run_to_folder(
     end or ``stop`` is set (after a frame), and the earlier run's optional outputs that this
     one did not write removed. ``wrap_frames`` wraps the frame source (a test hook).
 
+    Example::
+
+        result = run_to_folder(
+            RunOptions(Path("drive.mp4"), Path("run"), Path("calib.txt"), boxes=Path("boxes.csv"))
+        )
+        print(result.records, "records in run/records.csv")
+
     Raises:
         ConfigurationError: options that do not fit together, an output that would replace an
             input, a TUM trajectory asked for without a rotation source.

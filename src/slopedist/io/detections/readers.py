@@ -387,6 +387,15 @@ def read_box_file(
     PointRCNN; 17–18 space-separated fields is a KITTI label file; other layouts (MOTChallenge,
     COCO JSON) are read by :func:`slopedist.io.detections.convert.read_boxes`, which counts the
     rows it leaves out in ``dropped`` and logs them as one warning.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "boxes.csv"
+        >>> _ = path.write_text("frame,left,top,right,bottom,track_id,score,class\\n"
+        ...                     "0,560,185,660,255,7,0.9,Car\\n")
+        >>> boxes = read_box_file(path)
+        >>> boxes.frame.tolist(), boxes.track_id.tolist(), boxes.cls.tolist()
+        ([0], [7], ['Car'])
     """
     path = Path(path)
     if path.suffix.lower() == ".json":
