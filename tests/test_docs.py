@@ -234,3 +234,50 @@ def test_every_doc_a_help_text_names_exists() -> None:
     assert named  # the help texts do point to the docs
     assert sorted(n for n in named if not (ROOT / n).exists()) == []
     assert [t for t in texts if "README" in t] == []  # the README is a front door, not a reference
+
+
+def _resolves(dotted: str) -> bool:
+    """Whether ``dotted`` (below ``slopedist``) is a module, or an attribute of one."""
+    import importlib
+
+    parts = dotted.split(".")
+    for n in range(len(parts), 0, -1):
+        try:
+            obj: object = importlib.import_module(".".join(["slopedist", *parts[:n]]))
+        except ImportError:
+            continue
+        for name in parts[n:]:
+            if not hasattr(obj, name):
+                return False
+            obj = getattr(obj, name)
+        return True
+    return False
+
+
+def test_the_layer_table_names_modules_that_exist() -> None:
+    """CONTRIBUTING's layer table and its notes name modules and classes of the layout."""
+    text = (ROOT / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    table = text.split("## How the code is laid out", 1)[1].split("## Habits", 1)[0]
+    names = {
+        n
+        for n in re.findall(r"`([a-z_]+(?:\.[A-Za-z_]+)*)`", table)
+        if "." in n or (ROOT / "src" / "slopedist" / n).is_dir()
+    }
+    assert len(names) > 15
+    assert [n for n in sorted(names) if not _resolves(n)] == []
+
+
+def test_the_code_map_of_the_method_names_files_that_exist() -> None:
+    """docs/method.md's "where each step runs" and its code column name files and functions
+    of the layout."""
+    text = (ROOT / "docs" / "method.md").read_text(encoding="utf-8")
+    src = ROOT / "src" / "slopedist"
+    code_map = text.split("Where each step runs", 1)[1].split("\n\n", 1)[0]
+    paths = set(re.findall(r"`((?:[a-z_]+/)+(?:[a-z_]+\.py)?)`", code_map))
+    assert len(paths) > 8
+    assert [p for p in sorted(paths) if not (src / p).exists()] == []
+    cited = set(re.findall(r"`(src/slopedist/[a-z_/]+(?:\.py)?)`", text))
+    assert [p for p in sorted(cited) if not (ROOT / p).exists()] == []
+    functions = set(re.findall(r"`(core\.geometry\.[a-z_]+)`", text))
+    assert len(functions) >= 5
+    assert [f for f in sorted(functions) if not _resolves(f)] == []
