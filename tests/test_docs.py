@@ -275,6 +275,7 @@ def test_the_code_map_of_the_method_names_files_that_exist() -> None:
     code_map = text.split("Where each step runs", 1)[1].split("\n\n", 1)[0]
     paths = set(re.findall(r"`((?:[a-z_]+/)+(?:[a-z_]+\.py)?)`", code_map))
     assert len(paths) > 8
+    paths.discard("src/slopedist/")
     assert [p for p in sorted(paths) if not (src / p).exists()] == []
     cited = set(re.findall(r"`(src/slopedist/[a-z_/]+(?:\.py)?)`", text))
     assert [p for p in sorted(cited) if not (ROOT / p).exists()] == []
