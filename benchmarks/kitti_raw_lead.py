@@ -45,7 +45,7 @@ from slopedist.io.kitti.raw import KittiRawDrive
 from slopedist.odometry.base import OdometryResult, RotationOdometry
 from slopedist.streaming.config import RECORDS_NAME, RunConfig, RunningMean
 from slopedist.streaming.loop import run_frames
-from slopedist.streaming.setup import build_odometry
+from slopedist.streaming.pipeline import build_odometry
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_raw_lead"

@@ -39,7 +39,7 @@ from slopedist.core.camera import Camera
 from slopedist.core.errors import SlopedistError
 from slopedist.odometry.orb_vocabulary import images_in, train_from_images
 from slopedist.odometry.posefiles import read_kitti_poses
-from slopedist.streaming.setup import build_odometry
+from slopedist.streaming.pipeline import build_odometry
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "kitti_odometry"

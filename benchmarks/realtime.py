@@ -82,6 +82,7 @@ from slopedist.odometry.accuracy import OdometryEvaluation, OdometryRun, rotatio
 from slopedist.odometry.base import OdometryResult, OdometryState, RotationOdometry
 from slopedist.odometry.visual import BuiltinVisualOdometry, VisualOdometryConfig
 from slopedist.streaming import loop as runner
+from slopedist.streaming.step import FrameStep
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data"
@@ -220,10 +221,8 @@ class TimedSource:
 
 def instrumented(clock: StageClock, stack: ExitStack) -> None:
     """Time the run's stages by wrapping what ``slopedist.streaming.loop`` calls."""
-    step = runner.FrameStep.step
-    stack.enter_context(
-        mock.patch.object(runner.FrameStep, "step", clock.timed("estimation", step))
-    )
+    step = FrameStep.step
+    stack.enter_context(mock.patch.object(FrameStep, "step", clock.timed("estimation", step)))
     draw = clock.timed("overlay draw", runner.draw_fig3_overlay)
     stack.enter_context(mock.patch.object(runner, "draw_fig3_overlay", draw))
     for name in ("write", "close"):
