@@ -1,9 +1,9 @@
 """The per-frame step every loop calls (rotation → θ → per-target estimates) and the records.
 
-:class:`FrameStep` is the one step: ``slopedist run`` (:mod:`slopedist.streaming.loop`),
-``estimate``,
-``calibrate`` (:func:`stream_track`), the demo and the batch :func:`estimate_sequence` behind
-the KITTI evaluation differ only in where the frames come from and where the results go.
+:class:`FrameStep` is the one step: the streaming :class:`~slopedist.streaming.pipeline.Pipeline`
+(``slopedist run``, ``batch``, ``estimate`` and Python users), ``calibrate``
+(:func:`stream_track`), the demo and the batch :func:`estimate_sequence` behind the KITTI
+evaluation differ only in where the frames come from and where the results go.
 
 Convention: rotations camera-to-world ``(3, 3)`` relative to the first frame; timestamps in
 seconds; θ in radians inside, degrees only in the CSV written for users.
