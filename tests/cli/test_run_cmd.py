@@ -425,3 +425,29 @@ def test_frames_further_apart_than_the_lookback(
     assert main(["run", *args, "--method", "flat", *opts]) == 0
     assert main(["run", *args, "--method", "ours"]) == 0
     assert "look-back of the ego gradient" not in caplog.text
+
+
+@pytest.mark.parametrize(
+    ("calib", "frame_px", "said"),
+    [
+        ("P2: 500 0 160 0 0 500 300 0 0 0 1 0\n", (W, H), "c_y = 300.0 px lies outside the"),
+        (CALIB, (1, 1), "c_x = 160.0 px lies outside the 1×1 px images"),
+    ],
+)
+def test_a_calibration_that_does_not_fit_the_frames_names_its_file_and_the_frames(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    calib: str,
+    frame_px: tuple[int, int],
+    said: str,
+) -> None:
+    """A principal point off the image ("camera principal point c_y = 300 px is outside 0..200
+    px") and 1×1 px frames blamed on the calibration named neither the file nor the frames."""
+    args = setup(tmp_path)
+    (tmp_path / "calib.txt").write_text(calib)
+    for k in range(4):
+        cv2.imwrite(str(tmp_path / "frames" / f"{k:06d}.png"), np.zeros((*frame_px[::-1], 3)))
+    assert main(["run", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    where = f"{tmp_path / 'calib.txt'} and the frames of {tmp_path / 'frames'}"
+    assert err.startswith(f"slopedist: error: {where}: ") and said in err

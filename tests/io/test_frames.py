@@ -11,7 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from slopedist.core.camera import Camera
-from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
+from slopedist.core.errors import (
+    ConfigurationError,
+    DataMismatchError,
+    InputFileError,
+    MissingInputError,
+)
 from slopedist.io.frames import (
     DEFAULT_FPS,
     FrameStatus,
@@ -19,6 +24,8 @@ from slopedist.io.frames import (
     VideoSource,
     check_box_frames,
     check_calibration,
+    check_implied_image,
+    implied_image_sizes,
     open_frames,
     read_timestamps,
 )
@@ -256,3 +263,29 @@ def test_focal_length_must_fit_the_image_width(f: float, width: int, fov: str) -
     check_calibration(Camera(12_000.0, 609.6, 172.9), 1242, 375)  # 5.9°: a telephoto
     with pytest.raises(DataMismatchError, match=rf"field of view of {fov}"):
         check_calibration(Camera(f, width / 2, 172.9), width, 375)
+
+
+def test_the_images_a_principal_point_fits_are_those_check_calibration_accepts() -> None:
+    kitti = Camera(721.5, 609.6, 172.9)
+    (w_lo, w_hi), (h_lo, h_hi) = implied_image_sizes(kitti)
+    assert w_lo < 1242 < w_hi and h_lo < 375 < h_hi
+    check_implied_image(kitti)
+    for width, height in ((int(w_lo) + 1, 375), (int(w_hi), 375), (1242, int(h_hi))):
+        check_calibration(kitti, width, height)  # the edges of the range are accepted
+    for width, height in ((int(w_lo) - 1, 375), (int(w_hi) + 2, 375), (1242, int(h_hi) + 2)):
+        with pytest.raises(DataMismatchError):
+            check_calibration(kitti, width, height)
+
+
+@pytest.mark.parametrize(
+    ("camera", "said"),
+    [
+        (Camera(721.5, 609.6, 0.0), "c_y = 0 px is on or beyond the top edge"),
+        (Camera(721.5, -3.0, 172.9), "c_x = -3 px is on or beyond the left edge"),
+        (Camera(721.5, 609.6, 1e-320), "fits only images under a pixel in height"),
+        (Camera(20000.0, 30.0, 172.9), "focal length f = 20000 px fits no image"),
+    ],
+)
+def test_a_camera_that_fits_no_image_is_refused(camera: Camera, said: str) -> None:
+    with pytest.raises(ConfigurationError, match=said):
+        check_implied_image(camera)

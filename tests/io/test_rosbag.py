@@ -487,7 +487,8 @@ def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
 ) -> None:
     """A ROS 2 bag folder without metadata.yaml (the recorder writes it on closing) was taken for
     an image folder ("--image-topic is for drive logs …, not FOLDER"; `log info`: "Expected
-    metadata file"); a truncated MCAP said only "File end magic is invalid"."""
+    metadata file"); an MCAP cut before anything in it is whole said only "File end magic is
+    invalid" (one cut later reads up to the cut: tests/io/test_mcap_log.py)."""
     stamps = [k * PERIOD_NS for k in range(3)]
     folder = write(tmp_path, LogFormat.ROS2_SQLITE3, ImageEncoding.RAW, stamps)
     (folder / "metadata.yaml").unlink()
@@ -502,8 +503,8 @@ def test_logs_of_a_crashed_recorder_say_how_to_repair_them(
     (tmp_path / "m").mkdir()
     bag = write(tmp_path / "m", LogFormat.ROS2_MCAP, ImageEncoding.RAW, stamps)
     mcap = next(bag.glob("*.mcap"))
-    cut = tmp_path / "cut.mcap"
-    cut.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    cut = tmp_path / "cut.mcap"  # cut before its first channel: nothing to read up to the cut
+    cut.write_bytes(mcap.read_bytes()[:60])
     with pytest.raises(InputFileError, match=rf"mcap recover {cut} -o repaired.mcap"):
         log_topics(cut)
 

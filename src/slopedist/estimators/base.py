@@ -33,6 +33,7 @@ from slopedist.io.detections.boxes import (
     table_box_problems,
     vehicle_mask,
 )
+from slopedist.io.frames import implied_image_sizes
 
 
 class EstimateStatus(str, Enum):
@@ -401,6 +402,14 @@ def image_size(camera: Camera) -> tuple[int, int] | None:
     return camera.image_width, camera.image_height
 
 
+def largest_implied_image(camera: Camera) -> tuple[int, int]:
+    """The largest image ``(width, height)`` in pixels ``camera``'s principal point fits
+    (:func:`~slopedist.io.frames.implied_image_sizes`, at least 1 px each): when the image
+    size is not known, a box wholly beyond it lies outside every image the camera can take."""
+    (_, width), (_, height) = implied_image_sizes(camera)
+    return max(math.ceil(width), 1), max(math.ceil(height), 1)
+
+
 def unusable_box_reasons(
     frame: FrameInput, needs_rotation: bool, camera: Camera | None = None
 ) -> NDArray[np.object_]:
@@ -463,7 +472,8 @@ def settle_states(
     - ``cut``: the image edges that cut each usable box (``camera``'s image size; none known,
       no flag);
     - a box that is non-finite, inverted, degenerate or outside the image is ``missing`` with
-      that reason, whatever the method said;
+      that reason, whatever the method said (without an image size: outside the largest image
+      the camera's principal point fits, :func:`largest_implied_image`);
     - a box whose class is not in ``vehicle_classes`` is ``missing`` with reason
       ``not_a_vehicle`` (the row is kept, so every input box has one record; methods that
       track may still use it, e.g. as an occluder);
@@ -478,6 +488,9 @@ def settle_states(
     """
     size = image_size(camera)
     problems = table_box_problems(boxes, size)
+    if size is None:  # no image size: a box beyond every image the camera fits is outside
+        beyond = table_box_problems(boxes, largest_implied_image(camera)) == "outside_image"
+        problems[(problems == "") & beyond] = MissingReason.OUTSIDE_IMAGE.value
     bad = problems != ""
     est.distance_m = np.array(est.distance_m, dtype=float)  # the method's arrays stay its own
     est.reason, est.status = est.reason.copy(), est.status.copy()

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
 from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.textfiles import read_text
-from slopedist.io.frames import check_calibration
+from slopedist.io.frames import check_calibration, check_implied_image
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
 
 MATRIX_KEYS = ("camera_matrix", "K", "k", "cameraMatrix", "intrinsic_matrix")
@@ -91,6 +91,9 @@ def read_calibration(
         DataMismatchError: the camera cannot belong to images of ``image_size`` (principal
             point far from their centre, field of view; the frames' rule,
             :func:`~slopedist.io.frames.check_calibration`).
+        InputFileError / ConfigurationError: without an image size (given or stated), no
+            image fits the camera (:func:`~slopedist.io.frames.check_implied_image`: a
+            principal point at or beyond the image origin, such as ``c_y = 0``).
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
     intrinsics = intrinsics.with_image_size(image_size)
@@ -105,6 +108,11 @@ def read_calibration(
         check_calibration(
             camera, *image_size, f"{where} with --image-size {image_size[0]}x{image_size[1]}"
         )
+    elif intrinsics.image_size is None:  # no size to check against: some image must fit
+        if isinstance(path, Intrinsics):
+            check_implied_image(camera)
+        else:
+            _checked(Path(path), lambda: check_implied_image(camera), None)
     return CameraCalibration(intrinsics, camera)
 
 

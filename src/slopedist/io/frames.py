@@ -199,12 +199,69 @@ def _parse_time(text: str, t0: datetime | None) -> float | datetime | None:
     return whole.replace(microsecond=min(round(frac * 1e6), 999_999))
 
 
-def with_frame_size(camera: Camera, frames: FrameSource) -> Camera:
+def with_frame_size(camera: Camera, frames: FrameSource, calibration: str = "") -> Camera:
     """``camera`` knowing the image size for the border test of every box: the frames' size,
-    unless the calibration states its own (then the run checks that the two agree)."""
+    unless the calibration states its own (then the two must agree).
+
+    Raises:
+        DataMismatchError: the camera cannot belong to the frames (:func:`check_calibration`),
+            naming ``calibration`` (where the camera comes from) and the frames.
+    """
+    width, height = frames.frame_size()
+    where = f"{calibration} and the frames of {frames.path}" if calibration else str(frames.path)
+    check_calibration(camera, width, height, where)
     if camera.image_width is not None and camera.image_height is not None:
         return camera
-    return camera.with_image_size(*frames.frame_size())
+    return camera.with_image_size(width, height)
+
+
+def implied_image_sizes(camera: Camera) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``((least, largest width), (least, largest height))`` in pixels of the images whose
+    centre ``camera``'s principal point can lie off by :data:`MAX_PRINCIPAL_POINT_OFFSET`
+    (the images :func:`check_calibration` accepts for it): ``c / (0.5 ± offset)``. Empty
+    (largest below 1 px) for a principal point at or left of / above the image origin."""
+    (off_x, off_y) = MAX_PRINCIPAL_POINT_OFFSET
+    return (
+        (camera.c_x / (0.5 + off_x), camera.c_x / (0.5 - off_x)),
+        (camera.c_y / (0.5 + off_y), camera.c_y / (0.5 - off_y)),
+    )
+
+
+def check_implied_image(camera: Camera) -> None:
+    """Fail when no image fits ``camera`` (its size unknown): a principal point that lies in
+    no image of a whole number of pixels near whose centre it can be
+    (:func:`implied_image_sizes`; ``c_y`` = 0, −1 or 1e-320: no such image), or a focal
+    length that gives every image the principal point allows a horizontal field of view
+    outside :data:`FIELD_OF_VIEW_RANGE_DEG`.
+
+    Raises:
+        ConfigurationError: naming the value and, where it helps, the sizes it allows.
+    """
+    widths, heights = implied_image_sizes(camera)
+    (off_x, off_y) = MAX_PRINCIPAL_POINT_OFFSET
+    for name, c, (low, high), off, edge, side in (
+        ("c_x", camera.c_x, widths, off_x, "left", "width"),
+        ("c_y", camera.c_y, heights, off_y, "top", "height"),
+    ):
+        if math.floor(high) >= max(1, math.ceil(low)):
+            continue
+        if c <= 0:
+            what = f"is on or beyond the {edge} edge of any image"
+        else:
+            what = f"fits only images under a pixel in {side}"
+        raise ConfigurationError(
+            f"principal point {name} = {c:g} px {what} (without an image size, --image-size "
+            f"WxH, the images are those the principal point lies near the centre of: within "
+            f"{off:.0%} of their {side}); is the calibration broken?"
+        )
+    fovs = [math.degrees(2.0 * math.atan(w / (2.0 * camera.f))) for w in widths]
+    lo, hi = FIELD_OF_VIEW_RANGE_DEG
+    if fovs[1] < lo or fovs[0] > hi:
+        raise ConfigurationError(
+            f"focal length f = {camera.f:g} px fits no image of principal point c_x = "
+            f"{camera.c_x:g} px: the {widths[0]:.0f}..{widths[1]:.0f} px wide images it allows "
+            f"would see {fovs[0]:.3g}..{fovs[1]:.3g}°, outside {lo:g}..{hi:g}°"
+        )
 
 
 def check_box_frames(box_frames: NDArray[np.int64], frames: FrameSource) -> None:

@@ -41,6 +41,7 @@ from slopedist.core.errors import (
     OptionalDependencyError,
 )
 from slopedist.io.frames import Frame, FrameStatus
+from slopedist.io.mcap_log import LostMessage, McapError, McapLog
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE_TYPE = "sensor_msgs/msg/CompressedImage"
@@ -141,6 +142,11 @@ def open_log(path: str | Path) -> Iterator[Any]:
             f"it?): give a storage file itself ({files[0] if files else 'NAME.db3'}), or "
             f"rebuild metadata.yaml with: ros2 bag reindex {path}",
         )
+    mcap = mcap_storage(path)
+    if mcap is not None:
+        with _open_mcap(path, mcap) as log:
+            yield log
+        return
     any_reader, typestore = _anyreader()
     try:
         reader = any_reader([path], default_typestore=typestore)
@@ -156,6 +162,44 @@ def open_log(path: str | Path) -> Iterator[Any]:
         yield reader
     finally:
         reader.close()
+
+
+def mcap_storage(path: Path) -> Path | None:
+    """The MCAP file read for ``path``: itself (a ``.mcap`` file), or the one storage file of
+    a ROS 2 bag folder when that is an MCAP file; None for other logs (ROS 1, sqlite3, a bag
+    of several files), which rosbags reads."""
+    if path.is_file():
+        return path if path.suffix.lower() == ".mcap" else None
+    files = storage_files(path) if path.is_dir() else []
+    if len(files) == 1 and files[0].suffix.lower() == ".mcap":
+        return files[0]
+    return None
+
+
+@contextmanager
+def _open_mcap(path: Path, storage: Path) -> Iterator[McapLog]:
+    """An open :class:`~slopedist.io.mcap_log.McapLog` of ``storage`` (the file of the log
+    ``path``), read as far as it is whole.
+
+    Raises:
+        InputFileError: not an MCAP file, or no channel of it is readable.
+    """
+    _anyreader()  # the message types come from rosbags: say so when it is missing
+    log = McapLog(storage)
+    try:
+        log.open()
+    except (McapError, OSError, struct.error) as exc:
+        log.close()
+        raise InputFileError(path, f"not a readable ROS 2 log: {exc}") from None
+    try:
+        if not log.connections:
+            hint = REPAIR_HINTS[".mcap"].format(path=storage)
+            raise InputFileError(
+                path, f"not a readable ROS 2 log: {log.end or 'it has no channel'}; {hint}"
+            )
+        yield log
+    finally:
+        log.close()
 
 
 def log_errors() -> tuple[type[BaseException], ...]:
@@ -189,9 +233,12 @@ def log_errors() -> tuple[type[BaseException], ...]:
 
 
 def iter_messages(
-    reader: Any, connections: list[Any], path: Path
+    reader: Any, connections: list[Any], path: Path, lost: bool = False
 ) -> Iterator[tuple[Any, int, Any]]:
-    """``(connection, log time ns, raw bytes)`` of ``connections`` in log-time order.
+    """``(connection, log time ns, raw bytes)`` of ``connections`` in log-time order (an MCAP
+    file's in file order, see :mod:`slopedist.io.mcap_log`); with ``lost``, also the messages
+    of a damaged part of an MCAP log, with a :class:`~slopedist.io.mcap_log.LostMessage` for
+    bytes (without, they are left out: the log has warned of them).
 
     Raises:
         InputFileError: the log is damaged (naming the file and how many messages were read).
@@ -206,6 +253,8 @@ def iter_messages(
             return
         except errors as exc:
             raise InputFileError(path, f"log damaged after {count} messages: {exc}") from None
+        if isinstance(item[2], LostMessage) and not lost:
+            continue
         count += 1
         yield item
 
@@ -353,12 +402,26 @@ class LogFrameSource:
             raise InputFileError(self.path, f"topic {image_topic} has no messages")
         self.t0_ns = first[0]
 
-    def _messages(self, reader: Any) -> Iterator[tuple[int, Any, str]]:
+    def _messages(
+        self, reader: Any, spans: list[tuple[int, int, str]] | None = None
+    ) -> Iterator[tuple[int, Any, str]]:
         """``(stamp ns, message or None, why not)`` of the image messages: the header stamp, or
-        the log time for unstamped messages and those that do not deserialise."""
+        the log time for unstamped messages and those that do not deserialise. A message of a
+        damaged part of an MCAP log (:class:`~slopedist.io.mcap_log.LostMessage`) gets its
+        log time moved by the stamp offset of the message before it; a damaged part whose
+        messages are not known one by one adds ``(first stamp, last stamp, why)`` to
+        ``spans`` instead."""
         conns = [c for c in reader.connections if c.topic == self.image_topic]
         errors = log_errors()
-        for conn, log_ns, raw in iter_messages(reader, conns, self.path):
+        offset = 0  # header stamp − log time of the last message that had both
+        for conn, log_ns, raw in iter_messages(reader, conns, self.path, lost=True):
+            if isinstance(raw, LostMessage):
+                why = f"in a damaged part of the log: {raw.why}"
+                if raw.until_ns is None:
+                    yield int(log_ns) + offset, None, why
+                elif spans is not None:
+                    spans.append((int(log_ns) + offset, int(raw.until_ns) + offset, why))
+                continue
             try:
                 msg = reader.deserialize(raw, conn.msgtype)
             except errors as exc:
@@ -369,6 +432,7 @@ class LogFrameSource:
             except AttributeError:
                 yield int(log_ns), None, "message has no header (damaged type definition?)"
                 continue
+            offset = stamp - int(log_ns) if stamp else offset
             yield stamp or int(log_ns), msg, ""
 
     def expected_frames(self) -> int:
@@ -397,8 +461,9 @@ class LogFrameSource:
     def __iter__(self) -> Iterator[Frame]:
         slots = _Slots(self.period_ns)
         size: tuple[int, int] | None = None
+        spans: list[tuple[int, int, str]] = []
         with open_log(self.path) as reader:
-            messages = self._messages(reader)
+            messages = self._messages(reader, spans)
             while True:
                 try:
                     t_ns, msg, problem = next(messages)
@@ -412,7 +477,7 @@ class LogFrameSource:
                     )
                     return
                 skipped, k, order_problem = slots.place(t_ns)
-                yield from self._gap(skipped, k, slots, t_ns)
+                yield from self._gap(skipped, k, slots, t_ns, spans)
                 frame = self._frame(k, t_ns, msg, problem or order_problem, size)
                 if size is None and frame.image is not None:
                     size = (int(frame.image.shape[1]), int(frame.image.shape[0]))
@@ -437,16 +502,25 @@ class LogFrameSource:
             return Frame(k, t, None, FrameStatus.SIZE_CHANGED, name, why)
         return Frame(k, t, image, FrameStatus.OK, name)
 
-    def _gap(self, first: int, k: int, slots: _Slots, t_ns: int) -> Iterator[Frame]:
+    def _gap(
+        self, first: int, k: int, slots: _Slots, t_ns: int, spans: list[tuple[int, int, str]]
+    ) -> Iterator[Frame]:
+        """The frames ``first..k−1`` of a stamp gap before frame ``k`` (at ``t_ns``):
+        ``missing``, or ``unreadable`` where a damaged part of the log (``spans``) lay."""
         period = slots.period() or 0.0
         for j in range(first, k):
-            t = self.seconds(round(t_ns - (k - j) * period))
+            j_ns = round(t_ns - (k - j) * period)
+            name = f"{self.image_topic}#{j}"
+            why = next((w for a, b, w in spans if a - period / 2 <= j_ns <= b + period / 2), "")
+            if why:
+                yield Frame(j, self.seconds(j_ns), None, FrameStatus.UNREADABLE, name, why)
+                continue
             yield Frame(
                 j,
-                t,
+                self.seconds(j_ns),
                 None,
                 FrameStatus.MISSING,
-                f"{self.image_topic}#{j}",
+                name,
                 f"no message on {self.image_topic} for this frame (stamp gap)",
             )
 

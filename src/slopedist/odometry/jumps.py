@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from slopedist.core import geometry as geo
 from slopedist.odometry.base import RotationTrack
@@ -54,6 +54,47 @@ JUMP_STATE = "odometry_jump"
 """The odometry state a run's outputs give a frame whose rotation is a jump (``frames.csv``'s
 ``odometry_state``, ``run.json``'s ``odometry_states``, the overlay's header), whatever state
 the odometry itself reported (it tracked, so ``ok``): its θ is not trusted."""
+
+
+MAX_SPEED_M_S = 100.0
+"""The fastest a road vehicle moves, metres per second (360 km/h; the KITTI drives reach
+19 m/s). A pose file whose consecutive poses are further apart over their time step is not
+one drive in order (see :func:`impossible_steps`)."""
+
+MAX_TURN_RATE_RAD_S = math.radians(180.0)
+"""The fastest a road vehicle turns, radians per second (180°/s, a car spinning out; the
+KITTI drives turn at most 35°/s frame to frame, ORB-SLAM3 and OXTS rotations alike)."""
+
+POSITION_NOISE_M = 1.0
+"""Allowance for a pose file's position noise from one pose to the next, metres (GPS jitter;
+the OXTS positions of the KITTI drives step by at most 1.9 m per frame at 19 m/s)."""
+
+TURN_NOISE_RAD = math.radians(2.0)
+"""Allowance for a pose file's rotation noise from one pose to the next, radians."""
+
+
+def impossible_steps(
+    timestamps_s: ArrayLike,
+    R_world_cam: ArrayLike,
+    positions_m: ArrayLike | None = None,
+) -> NDArray[np.bool_]:
+    """Which steps ``k → k+1`` of a trajectory (``(N,)`` seconds, ``(N, 3, 3)`` rotations,
+    ``(N, 3)`` positions in metres or None) turn faster than :data:`MAX_TURN_RATE_RAD_S` or
+    move faster than :data:`MAX_SPEED_M_S` (each with its noise allowance): ``(N − 1,)``.
+
+    A pose file's step is a frame period, so a drive's steps stay far below the bounds; lines
+    out of order (a shuffled or merged file) jump tens of metres and degrees at once.
+    """
+    t = np.asarray(timestamps_s, dtype=float)
+    dt = np.diff(t)
+    R = np.asarray(R_world_cam, dtype=float)
+    turn = geo.rotation_angle_rad(np.swapaxes(R[:-1], -1, -2) @ R[1:])
+    bad = turn > MAX_TURN_RATE_RAD_S * dt + TURN_NOISE_RAD
+    if positions_m is not None:
+        p = np.asarray(positions_m, dtype=float)
+        moved = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        bad |= moved > MAX_SPEED_M_S * dt + POSITION_NOISE_M
+    return np.asarray(bad)
 
 
 def shown_state(state: str, jump: bool) -> str:

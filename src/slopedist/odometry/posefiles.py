@@ -11,14 +11,20 @@ from enum import Enum
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from slopedist.core.camera import read_kitti_calib
 from slopedist.core.errors import InputFileError
-from slopedist.core.geometry import not_rotations
+from slopedist.core.geometry import not_rotations, rotation_angle_rad
 from slopedist.core.limits import MAX_FRAME_INTERVAL_S
 from slopedist.core.textfiles import numbered_lines
 from slopedist.odometry.base import RotationTrack
+from slopedist.odometry.jumps import (
+    MAX_SPEED_M_S,
+    MAX_TURN_RATE_RAD_S,
+    TURN_NOISE_RAD,
+    impossible_steps,
+)
 
 KITTI_FRAME_PERIOD_S = 0.1
 """KITTI records at 10 Hz."""
@@ -95,6 +101,10 @@ def read_kitti_poses(
     16, the whole 4×4 with its last row ``0 0 0 1``).
 
     Frame k gets timestamp ``k × frame_period_s``. Rotations are made relative to the first pose.
+
+    Raises:
+        InputFileError: a malformed line, or lines whose poses are not one drive in order
+            (:func:`check_pose_order`).
     """
     data, lines = _read_numeric_rows(path, 12, KITTI_4X4_FIELDS, also=16)
     if data.shape[1] == 16:  # the whole 4×4: its last row must be 0 0 0 1
@@ -110,14 +120,9 @@ def read_kitti_poses(
         data = data[:, :12]
     R = data.reshape(-1, 3, 4)[:, :, :3]
     _check_rotations(path, R, lines)
-    R = R[0].T @ R
-    return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
-
-
-def _tum_rotations(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``(t column, rotations (N, 3, 3))`` of a TUM-layout file."""
-    data, R, _ = _read_tum(path)
-    return data[:, 0], R
+    t = np.arange(len(R)) * frame_period_s
+    check_pose_order(path, t, R, data[:, [3, 7, 11]], lines, ("r00..r22", "t0 t1 t2"))
+    return RotationTrack.from_arrays(t, R[0].T @ R)
 
 
 def _read_tum(
@@ -141,19 +146,73 @@ def _read_tum(
     return data, Rotation.from_quat(q / norms[:, None]).as_matrix(), lines
 
 
+MAX_IMPOSSIBLE_STEPS = 2
+"""Steps faster than a car moves or turns that a pose file may hold and still be read: an
+odometry glitch (out and back) or a restart in another frame (one jump), which the jump check
+of the rotations (:class:`~slopedist.odometry.jumps.PitchJumpGuard`) handles frame by frame."""
+
+MAX_IMPOSSIBLE_SHARE = 0.05
+"""Share of a pose file's steps that may be faster than a car moves or turns (beyond
+:data:`MAX_IMPOSSIBLE_STEPS`): more is not one drive in order."""
+
+
+def check_pose_order(
+    path: str | Path,
+    timestamps_s: ArrayLike,
+    R: NDArray[np.float64],
+    positions_m: NDArray[np.float64],
+    lines: NDArray[np.int64],
+    fields: tuple[str, str],
+) -> None:
+    """Refuse a pose file whose consecutive poses are, too often, further apart than a car
+    moves or turns over their time step (:func:`~slopedist.odometry.jumps.impossible_steps`):
+    lines out of order (shuffled, or two files merged), poses at another rate than the
+    frames, or translations not in metres. Read as a drive, such poses give every frame a
+    rotation from another moment, and every distance is off. A few such steps (at most
+    :data:`MAX_IMPOSSIBLE_STEPS`, or :data:`MAX_IMPOSSIBLE_SHARE` of them) are glitches or
+    restarts, left to the rotations' jump check.
+
+    Raises:
+        InputFileError: naming the first such line and its field (``fields``: the rotation's
+            and the position's names).
+    """
+    t = np.asarray(timestamps_s, dtype=float)
+    bad = impossible_steps(t, R, positions_m)
+    n = int(bad.sum())
+    if n <= MAX_IMPOSSIBLE_STEPS or n <= MAX_IMPOSSIBLE_SHARE * len(bad):
+        return
+    k = int(np.argmax(bad)) + 1
+    dt = float(t[k] - t[k - 1])
+    turn = math.degrees(float(rotation_angle_rad(R[k - 1].T @ R[k])))
+    moved = float(np.linalg.norm(positions_m[k] - positions_m[k - 1]))
+    turns_too_fast = math.radians(turn) > MAX_TURN_RATE_RAD_S * dt + TURN_NOISE_RAD
+    raise InputFileError(
+        path,
+        f"this pose is {moved:.3g} m and {turn:.3g}° from the one before, {dt:g} s earlier, "
+        f"and {n} of the {len(bad)} steps are faster than a car moves "
+        f"({MAX_SPEED_M_S:g} m/s) or turns ({math.degrees(MAX_TURN_RATE_RAD_S):g}°/s): are "
+        "the lines out of order, the poses at another rate than the frames (--frame-period), "
+        "or the translations not in metres?",
+        line=int(lines[k]),
+        field=fields[0] if turns_too_fast else fields[1],
+    )
+
+
 def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> RotationTrack:
     """TUM pose file: ``t x y z qx qy qz qw`` per line, camera-to-world.
 
     Timestamps come from the ``t`` column, or are ``index × frame_period_s`` when that is given.
 
     Raises:
-        InputFileError: a malformed line, or (timestamps from the file) a ``t`` that does not
-            increase, naming its line.
+        InputFileError: a malformed line, (timestamps from the file) a ``t`` that does not
+            increase, or lines whose poses are not one drive in order
+            (:func:`check_pose_order`), naming the line.
     """
     data, R, lines = _read_tum(path)
-    R = R[0].T @ R
     if frame_period_s is not None:
-        return RotationTrack.from_arrays(np.arange(len(R)) * frame_period_s, R)
+        t = np.arange(len(R)) * frame_period_s
+        check_pose_order(path, t, R, data[:, 1:4], lines, ("qx qy qz qw", "x y z"))
+        return RotationTrack.from_arrays(t, R[0].T @ R)
     t = data[:, 0]
     back = np.flatnonzero(np.diff(t) <= 0)
     if back.size:
@@ -169,7 +228,8 @@ def read_tum_poses(path: str | Path, frame_period_s: float | None = None) -> Rot
             line=int(lines[1]),
             field="t",
         )
-    return RotationTrack.from_arrays(t, R)
+    check_pose_order(path, t, R, data[:, 1:4], lines, ("qx qy qz qw", "x y z"))
+    return RotationTrack.from_arrays(t, R[0].T @ R)
 
 
 def read_pose_file(
@@ -274,12 +334,29 @@ def read_oxts_rotations(
     The file holds vehicle-to-world poses in the IMU frame (x forward, y left, z up) relative to
     frame 0. Each rotation is carried into the camera frame: ``R_cam = R_cam_imu · R_imu ·
     R_cam_imuᵀ``. Timestamps are ``line index × frame_period_s`` (the shared files' ``t`` column
-    was written with a wrong step, so it is ignored).
+    was written with a wrong step, so it is ignored, but it must not go back: the lines'
+    order).
+
+    Raises:
+        InputFileError: a malformed line, a ``t`` before the line's above it, or lines whose
+            poses are not one drive in order (:func:`check_pose_order`), naming the line.
     """
-    _, R_imu = _tum_rotations(path)
+    data, R_imu, lines = _read_tum(path)
+    back = np.flatnonzero(np.diff(data[:, 0]) < 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise InputFileError(
+            path,
+            f"time {data[k, 0]:g} s comes after {data[k - 1, 0]:g} s: the lines are out of "
+            "order (frame k is timed k × the frame period, but the t column keeps the order)",
+            line=int(lines[k]),
+            field="t",
+        )
+    t = np.arange(len(R_imu)) * frame_period_s
+    check_pose_order(path, t, R_imu, data[:, 1:4], lines, ("qx qy qz qw", "x y z"))
     R_cam_imu = camera_from_imu_rotation(calib_path)
     R_cam = R_cam_imu @ (R_imu[0].T @ R_imu) @ R_cam_imu.T
-    return RotationTrack.from_arrays(np.arange(len(R_cam)) * frame_period_s, R_cam)
+    return RotationTrack.from_arrays(t, R_cam)
 
 
 TUM_HEADER = "# timestamp tx ty tz qx qy qz qw"

@@ -123,6 +123,16 @@ def run_calibration(
     return read_calibration(calib, height_m, mount_rad, image_size=image_size)
 
 
+def calibration_name(calib: Path | Intrinsics | None, source: FrameSource) -> str:
+    """Where a run's calibration comes from, for messages: the file, the values, or the drive
+    log's ``camera_info``."""
+    if isinstance(calib, Path):
+        return str(calib)
+    if isinstance(calib, Intrinsics):
+        return "the calibration of --fx/--fy/--cx/--cy"
+    return f"the camera_info of {source.path}"
+
+
 def rectified_inputs(
     calibration: CameraCalibration, boxes: BoxTable, detector: Detector | None
 ) -> tuple[BoxTable, Detector | None]:
@@ -283,7 +293,7 @@ def open_run(inputs: RunOptions) -> _OpenedRun:
     calibration = run_calibration(
         source, inputs.calib, inputs.height_m, mount_rad, inputs.image_size
     )
-    camera = with_frame_size(calibration.camera, source)
+    camera = with_frame_size(calibration.camera, source, calibration_name(inputs.calib, source))
     dropped = DroppedBoxes()
     boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs, dropped))
     estimator = build_estimator(with_default_reference(inputs.estimator), camera)
