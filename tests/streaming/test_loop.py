@@ -731,10 +731,12 @@ def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
     then (a full disk) keeps the whole frames before it, closes every output and writes
     ``run.json`` saying where the records stop, as a causal run does."""
     n = 8
-    real_open = runner.open_records
+    real_writer = runner.CsvStreamWriter
 
-    def failing_records(path: Any, fields: Any = None) -> Any:
-        writer = real_open(path, fields)
+    def failing_records(stream: Any, fields: Any = None) -> Any:
+        writer = real_writer(stream, fields)
+        if fields is not None:  # not records.csv (whose header is that of its first record)
+            return writer
         write_rows, calls = writer.write_rows, [0]
 
         def write(rows: Any) -> int:
@@ -746,7 +748,7 @@ def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
         writer.write_rows = write  # type: ignore[method-assign]
         return writer
 
-    monkeypatch.setattr(runner, "open_records", failing_records)
+    monkeypatch.setattr(runner, "CsvStreamWriter", failing_records)
     out = tmp_path / "out"
     with pytest.raises(RunAbortedError, match=r"8 frames.*stop before frame 3.*No space left"):
         run_frames(

@@ -21,8 +21,10 @@ from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
 from slopedist.estimators.ours.selfcal import estimator_calibration_warning
 from slopedist.io.detections.boxes import BoxTable
-from slopedist.io.outputs import check_outputs_spare_inputs
+from slopedist.io.formatting import CsvStreamWriter
+from slopedist.io.outputs import check_outputs_spare_inputs, output_file, partial_path
 from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
+from slopedist.odometry.base import RotationTrack
 from slopedist.streaming.frame_times import long_step_warning
 from slopedist.streaming.step import (
     FrameStep,
@@ -65,29 +67,21 @@ def estimate(
             "slopedist run FRAMES --depth-dir DIR or --depth-model MODEL.onnx, or slopedist "
             "eval kitti-tracking --depth-dir DIR"
         )
-    check_outputs_spare_inputs([out], files.input_files)
+    written = [out, partial_path(out)] if out is not None else []
+    check_outputs_spare_inputs(written, files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
     estimator = build_estimator(config, seq.camera)
     step = FrameStep(estimator, lookback_s, vehicle_classes)
-    writer = open_records(out)
     tally = RecordTally()
-    held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
-    try:
-        for frame_boxes, t, result in stream_track(step, seq.track, seq.boxes):
-            if estimator.offline:
-                if len(frame_boxes):
-                    held.append((frame_boxes, t))
-                continue
-            writer.write_rows(tally.count(iter_records(frame_boxes, t, result.estimates, method)))
-        if held:
-            for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
-                writer.write_rows(tally.count(iter_records(frame_boxes, t, est, method)))
-        close_records(writer)
-    except BrokenPipeError:
-        if out is not None:
-            raise
-        quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
-        return
+    if out is not None:  # whole: the file takes its name when every record is written
+        with output_file(out) as stream:
+            write_estimates(CsvStreamWriter(stream), step, seq.track, seq.boxes, method, tally)
+    else:
+        try:
+            write_estimates(open_records(None), step, seq.track, seq.boxes, method, tally)
+        except BrokenPipeError:
+            quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
+            return
     for line in tally.lines(out):
         click.echo(line, err=True)
     notes = (
@@ -97,6 +91,31 @@ def estimate(
     for note in notes:
         if note is not None:
             click.echo(note, err=True)
+
+
+def write_estimates(
+    writer: CsvStreamWriter,
+    step: FrameStep,
+    track: RotationTrack,
+    boxes: BoxTable,
+    method: str,
+    tally: RecordTally,
+) -> None:
+    """The records (of ``method``) of every frame of ``track`` with ``boxes``, frame by frame
+    (an offline method's at the end, from its pass over the sequence), counted in ``tally``;
+    then ``writer`` is closed."""
+    estimator = step.estimator
+    held: list[tuple[BoxTable, float]] = []  # an offline method's frames, written at the end
+    for frame_boxes, t, result in stream_track(step, track, boxes):
+        if estimator.offline:
+            if len(frame_boxes):
+                held.append((frame_boxes, t))
+            continue
+        writer.write_rows(tally.count(iter_records(frame_boxes, t, result.estimates, method)))
+    if held:
+        for (frame_boxes, t), est in zip(held, step.finish(), strict=True):
+            writer.write_rows(tally.count(iter_records(frame_boxes, t, est, method)))
+    close_records(writer)
 
 
 def quiet_closed_stdout() -> None:

@@ -50,6 +50,7 @@ from slopedist.estimators import DEFAULT_METHOD, EstimatorConfig, offline_method
 from slopedist.io.depth import DepthOutputKind, OnnxDepthConfig, OnnxDepthSource
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.outputs import (
+    OutputFolder,
     RunStoppedError,
     check_outputs_spare_inputs,
     partial_path,
@@ -445,9 +446,10 @@ def run_to_folder(
         vehicle_classes=outputs.vehicle_classes,
         snapshots=outputs.snapshots,
     )
-    result = run_until_stopped(lambda: prepared.run(config), config)
-    click.echo(summary_text(result, out_dir, outputs.snapshots), err=True)
-    remove_earlier_outputs(out_dir, result, input_paths)
+    with OutputFolder(out_dir).lock():  # until the earlier run's stale outputs are gone
+        result = run_until_stopped(lambda: prepared.run(config), config)
+        click.echo(summary_text(result, out_dir, outputs.snapshots), err=True)
+        remove_earlier_outputs(out_dir, result, input_paths)
 
 
 def remove_earlier_outputs(
