@@ -370,14 +370,25 @@ class OutputFolder:
     def lock(self) -> Iterator[OutputFolder]:
         """Hold the folder's lock inside the block (the folder is created first).
 
+        Folders the lock created are removed again at its end if they are still empty (a
+        command refused before it wrote anything leaves nothing behind).
+
         Raises:
             OutputFolderBusyError: another command holds it (the message names the folder and
                 the holder's pid); a lock file left by a command that ended without releasing
                 it is taken over, with a note.
         """
+        created = [p for p in (self.path, *self.path.parents) if not p.exists()]
         self.path.mkdir(parents=True, exist_ok=True)
-        with _exclusive(self.path / LOCK_NAME, self.path):
-            yield self
+        try:
+            with _exclusive(self.path / LOCK_NAME, self.path):
+                yield self
+        finally:
+            for folder in created:  # the deepest first
+                try:
+                    folder.rmdir()
+                except OSError:  # not empty (or gone): the command wrote into it
+                    break
 
     def open_whole_rows(self, name: str) -> WholeRowsFile:
         """A :class:`WholeRowsFile` for output ``name``, under its temporary name."""
