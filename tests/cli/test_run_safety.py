@@ -4,6 +4,7 @@ their inputs and closed pipes: what stays on disk is valid and says how far it g
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import os
 import shutil
@@ -11,7 +12,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -219,35 +222,137 @@ def test_estimate_into_a_closed_pipe_exits_quietly(tmp_path: Path) -> None:
     assert res.stderr.decode() == "" and res.returncode == 0
 
 
-def _mount_tmpfs(path: Path, size: str) -> bool:
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        return False
-    path.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)],
-                         capture_output=True)  # fmt: skip
-    return res.returncode == 0
+def make_wide_inputs(tmp_path: Path, n: int, per_frame: int) -> list[str]:
+    """``n`` frames with ``per_frame`` boxes each, every box its own track (so that
+    ``tracks.csv`` grows with the records)."""
+    args = make_inputs(tmp_path, n)
+    frames = np.repeat(np.arange(n), per_frame)
+    shift = np.tile(np.arange(per_frame) * 0.5, n)
+    boxes = np.stack([100 + shift, np.full_like(shift, 110), 150 + shift, np.full_like(shift, 150)])
+    table = BoxTable.build(frames, boxes.T, track_id=np.arange(n * per_frame))
+    write_box_csv(table, tmp_path / "boxes.csv")
+    return args
 
 
-def test_disk_full_names_the_file_and_frame_and_keeps_whole_rows(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+def check_whole_or_absent(out: Path, per_frame: int) -> dict[str, object]:
+    """records.csv, frames.csv, tracks.csv and run.json of a run stopped by a full disk: each
+    absent, or whole (no NUL byte, whole rows, whole frames); returns ``run.json``."""
+    for name in ("records.csv", "frames.csv", "tracks.csv", "run.json"):
+        if (out / name).exists():
+            assert b"\0" not in (out / name).read_bytes(), f"{name} holds NUL bytes"
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["complete"] is False and "No space left" in summary["error"]
+    last = summary["last_complete_frame"]
+    frames = [int(r["frame"]) for r in read_rows(out / "frames.csv")]
+    assert frames == list(range(last + 1))
+    per = Counter(int(r["frame"]) for r in read_rows(out / "records.csv"))
+    assert sorted(per) == list(range(len(per))) and len(per) in (last + 1, last + 2)
+    assert set(per.values()) == {per_frame}  # no frame cut short
+    assert summary["records"] == sum(per.values())
+    if (out / "tracks.csv").exists():  # written at the end: whole, or not at all
+        assert len(read_rows(out / "tracks.csv")) == sum(per.values())
+    return summary
+
+
+def small_disk_run(tmp_path: Path, args: list[str], size: str) -> tuple[int, str, Path]:
+    """``slopedist run ARGS`` with ``--out`` on a file system of ``size`` (a tmpfs mounted in
+    a user and mount namespace of its own: no root needed); its exit code and stderr, and a
+    copy of the output folder. Skips where namespaces or tmpfs are not available."""
+    unshare = shutil.which("unshare")
+    probe = [unshare or "unshare", "--user", "--map-root-user", "--mount", "true"]
+    if unshare is None or subprocess.run(probe, capture_output=True).returncode != 0:
+        pytest.skip("needs `unshare --user --map-root-user --mount` for a small real disk")
+    disk, copy = tmp_path / "disk", tmp_path / "copy"
+    disk.mkdir()
+    script = (  # $0 the disk, $1 its size, $2 where the output is copied, then the command
+        'mount -t tmpfs -o size="$1" tmpfs "$0" || exit 99; copy="$2"; shift 2; '
+        '"$@" --out "$0/out" 2>"$0.err"; code=$?; cp -a "$0/out" "$copy"; exit $code'
+    )
+    cmd = [unshare, "--user", "--map-root-user", "--mount", "sh", "-c", script]
+    cmd += [str(disk), size, str(copy), sys.executable, "-m", "slopedist", "run", *args]
+    res = subprocess.run(cmd, capture_output=True, env={**os.environ, "PYTHONPATH": SRC})
+    if res.returncode == 99:
+        pytest.skip(f"cannot mount a tmpfs in a user namespace: {res.stderr.decode()}")
+    err_file = disk.with_name("disk.err")
+    err = err_file.read_text() if err_file.exists() else res.stderr.decode()
+    return res.returncode, err, copy
+
+
+def test_a_full_disk_leaves_each_output_whole_or_absent_and_the_report_reads_it(
+    tmp_path: Path,
 ) -> None:
-    disk = tmp_path / "disk"
-    if not _mount_tmpfs(disk, "200k"):
-        pytest.skip("needs root and a working `mount -t tmpfs` for a small full disk")
-    try:
-        args = make_inputs(tmp_path, 3000)
-        code = main(["run", *args, "--out", str(disk / "out"), "--odometry", "none",
-                     "--method", "flat"])  # fmt: skip
-        err = capsys.readouterr().err
-        assert code == 2
-        assert "records.csv" in err and "No space left" in err and "run stopped at frame" in err
-        rows = read_rows(disk / "out" / "records.csv")
-        assert len(rows) > 100
-        summary = json.loads((disk / "out" / "run.json").read_text())
-        assert summary["complete"] is False and "No space left" in summary["error"]
-        assert int(rows[-1]["frame"]) <= summary["failed_frame"]
-    finally:
-        subprocess.run(["umount", str(disk)], check=False)
+    """A real 1 MB file system filling up: records.csv held NUL bytes and a torn frame after
+    its last whole row (cut back while a buffer still held data, which close() then wrote at
+    the old offset), and tracks.csv was left empty, so that `slopedist report` refused the
+    folder. Now each file is whole up to a frame, or absent."""
+    per_frame = 300
+    args = make_wide_inputs(tmp_path, 60, per_frame)
+    code, err, out = small_disk_run(
+        tmp_path, [*args, "--odometry", "none", "--method", "flat"], "1m"
+    )
+    assert code == 2, err
+    assert "No space left" in err and "run stopped at frame" in err
+    summary = check_whole_or_absent(out, per_frame)
+    assert 10 < summary["last_complete_frame"] < 59
+    assert main(["report", str(out), "--out", str(tmp_path / "report")]) == 0
+
+
+def test_a_full_disk_at_the_lowest_write_leaves_whole_outputs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same with the disk simulated at ``os.write`` (no namespaces needed): a file system
+    with 60 kB free under the output folder, which writes what fits and then refuses."""
+    per_frame = 30
+    args = make_wide_inputs(tmp_path, 40, per_frame)
+    out = tmp_path / "out"
+    SmallDisk(out, 60_000).install(monkeypatch)
+    assert main(["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]) == 2
+    err = capsys.readouterr().err
+    assert "No space left" in err and "run stopped at frame" in err
+    summary = check_whole_or_absent(out, per_frame)
+    assert 5 < summary["last_complete_frame"] < 39
+    assert not list(out.glob("*.partial*"))
+    monkeypatch.undo()
+    assert main(["report", str(out), "--out", str(tmp_path / "report")]) == 0
+
+
+class SmallDisk:
+    """A file system with ``free`` bytes left under ``root``: ``os.write`` to a file opened
+    there with ``os.open`` writes what fits (a short write), then fails with ENOSPC; bytes
+    written over a file's existing ones take no space, as on a real disk."""
+
+    def __init__(self, root: Path, free: int) -> None:
+        self.root, self.free = root.resolve(), free
+        self.fds: set[int] = set()
+        self.real_open, self.real_write, self.real_close = os.open, os.write, os.close
+
+    def install(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch.setattr(os, "open", self.open)
+        monkeypatch.setattr(os, "write", self.write)
+        monkeypatch.setattr(os, "close", self.close)
+
+    def open(self, path: Any, flags: int, mode: int = 0o777, **kw: Any) -> int:
+        fd = self.real_open(path, flags, mode, **kw)
+        if Path(os.fsdecode(path)).resolve().is_relative_to(self.root):
+            self.fds.add(fd)
+        return fd
+
+    def close(self, fd: int) -> None:
+        self.fds.discard(fd)
+        self.real_close(fd)
+
+    def write(self, fd: int, data: Any) -> int:
+        if fd not in self.fds:
+            return self.real_write(fd, data)
+        data = bytes(data)
+        end = os.lseek(fd, 0, os.SEEK_CUR) + len(data)
+        growth = max(0, end - os.fstat(fd).st_size)
+        fits = len(data) - max(0, growth - self.free)
+        if fits <= 0:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        written = self.real_write(fd, data[:fits])
+        self.free -= max(0, growth - (len(data) - written))
+        return written
 
 
 def test_run_knows_the_image_size_and_estimate_takes_it(
