@@ -469,3 +469,157 @@ def test_run_counts_the_box_rows_its_reader_left_out(
         f"warning: {coco}: dropped 3 of 4 box rows (75 %): 2 category_id 1 (not in the class "
         "map), 1 crowd annotations (iscrowd 1)"
     ]
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused_and_the_first_stays_whole(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two runs into one --out mixed their rows (frames out of order, a torn row) and both
+    exited 0. Now the second is refused at once, naming the folder and the first's pid."""
+    n = 200
+    args = make_inputs(tmp_path, n)
+    out = tmp_path / "out"
+    first = start_run([*args, "--out", str(out)])
+    wait_for_rows(out / "records.partial.csv", 10, first)
+    second = ["run", *args, "--out", str(out), "--odometry", "none", "--method", "flat"]
+    assert main(second) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"slopedist: error: {out} is in use by another slopedist command (pid {first.pid} on "
+        in err
+    )
+    _, first_err = first.communicate(timeout=300)
+    assert first.returncode == 0, first_err.decode()
+    rows = read_rows(out / "records.csv")
+    assert [int(r["frame"]) for r in rows] == list(range(n)) and {r["method"] for r in rows} == {
+        "ego"
+    }
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["complete"] is True and summary["records"] == n
+    assert sorted(p.name for p in out.iterdir()) == [
+        "frames.csv",
+        "records.csv",
+        "run.json",
+        "tracks.csv",
+    ]  # no .partial file, no lock file
+
+
+def test_a_run_takes_over_the_lock_a_killed_run_left_with_a_note(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    args = make_inputs(tmp_path, 300)
+    out = tmp_path / "out"
+    killed = start_run([*args, "--out", str(out)])
+    wait_for_rows(out / "records.partial.csv", 5, killed)
+    killed.kill()
+    killed.wait(timeout=60)
+    assert (out / ".slopedist.lock").read_text().startswith(f"pid {killed.pid} on ")
+    flat = ["--odometry", "none", "--method", "flat"]
+    (tmp_path / "b").mkdir()
+    with caplog.at_level("WARNING", logger="slopedist.io.outputs"):
+        assert main(["run", *make_inputs(tmp_path / "b", 3), "--out", str(out), *flat]) == 0
+    assert [r.getMessage().split(" on ")[0] for r in caplog.records] == [
+        f"note: took over the lock of {out} left by pid {killed.pid}"
+    ]
+    assert not (out / ".slopedist.lock").exists()
+
+
+def test_an_interrupted_rerun_keeps_the_complete_run_and_its_partial_output_beside_it(
+    tmp_path: Path,
+) -> None:
+    """SIGTERM to a rerun into a folder holding a complete run replaced that run with the
+    partial one. Now the complete run stays as it was, and the stopped rerun's files keep
+    their temporary names beside it, with its summary as run.partial.json."""
+    args = make_inputs(tmp_path, 400)
+    out = tmp_path / "out"
+    flat = ["--odometry", "none", "--method", "flat"]
+    assert main(["run", *args, "--out", str(out), *flat, "--snapshot", "3"]) == 0
+    first = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert sorted(first) == [
+        "frames.csv",
+        "records.csv",
+        "run.json",
+        "snapshot_000003.jpg",
+        "tracks.csv",
+    ]
+    rerun = start_run([*args, "--out", str(out), "--snapshot", "3"])
+    wait_for_rows(out / "records.partial.csv", 10, rerun)
+    rerun.send_signal(signal.SIGTERM)
+    _, err = rerun.communicate(timeout=120)
+    assert rerun.returncode == 128 + signal.SIGTERM, err.decode()
+    assert {n: (out / n).read_bytes() for n in first} == first  # the complete run, whole
+    assert "the complete earlier run in" in err.decode() and "records.partial.csv" in err.decode()
+    partial = json.loads((out / "run.partial.json").read_text())
+    assert partial["complete"] is False and "SIGTERM" in partial["error"]
+    rows = read_rows(out / "records.partial.csv")
+    last = partial["last_complete_frame"]
+    assert [int(r["frame"]) for r in rows] == list(range(last + 1))
+    assert {r["method"] for r in rows} == {"ego"}
+    assert len(read_rows(out / "frames.partial.csv")) == last + 1
+    assert (out / "snapshot_000003.partial.jpg").is_file()
+    assert not (out / ".slopedist.lock").exists()
+    # the next complete run replaces the complete one and the stopped one's leftovers
+    assert main(["run", *args, "--out", str(out), *flat]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "frames.csv",
+        "records.csv",
+        "run.json",
+        "tracks.csv",
+    ]
+
+
+def test_estimate_writes_its_out_file_whole_or_leaves_the_previous_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`estimate --out` wrote over the previous file as it went: a full disk left it cut.
+    Now the file is replaced only when every record is written."""
+    args = _estimate_args(tmp_path)
+    out = tmp_path / "est" / "records.csv"
+    assert main([*args, "--out", str(out)]) == 0
+    before = out.read_bytes()
+    SmallDisk(out.parent, 2000).install(monkeypatch)
+    assert main([*args, "--out", str(out), "--method", "paper"]) == 2
+    err = capsys.readouterr().err
+    assert "No space left" in err and "records.partial.csv" in err
+    assert out.read_bytes() == before
+    partial = (tmp_path / "est" / "records.partial.csv").read_bytes()
+    assert partial.endswith(b"\n") and b"\0" not in partial
+    monkeypatch.undo()
+    assert sorted(p.name for p in out.parent.iterdir()) == ["records.csv", "records.partial.csv"]
+
+
+def test_paths_of_any_bytes_work_in_run_and_report(tmp_path: Path) -> None:
+    """A folder name with a byte that is not UTF-8: `report` failed with "internal error:
+    UnicodeEncodeError", and OpenCV, given such a name, crashed the interpreter. Now every
+    file is read and written, and the name is printed and written with the byte as \\xff."""
+    root = os.fsencode(tmp_path) + b"/bad\xffname"
+    try:
+        os.mkdir(root)
+    except OSError as exc:
+        pytest.skip(f"the file system refuses a name that is not UTF-8: {exc}")
+    folder = Path(os.fsdecode(root))
+    (tmp_path / "in").mkdir()
+    args = make_inputs(tmp_path / "in", 4)  # (the test's own OpenCV calls take UTF-8 names)
+    os.rename(tmp_path / "in", folder / "in")
+    args = [a.replace(str(tmp_path / "in"), str(folder / "in")) for a in args]
+    for png in sorted((folder / "in" / "frames").iterdir()):  # JPEG frames: read by OpenCV
+        image = cv2.imdecode(np.frombuffer(png.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
+        png.with_suffix(".jpg").write_bytes(cv2.imencode(".jpg", image)[1].tobytes())
+        png.unlink()
+    out = folder / "out"
+    env = {**os.environ, "PYTHONPATH": SRC}
+    cmd = [sys.executable, "-m", "slopedist"]
+    run = [*cmd, "run", *args, "--out", str(out), "--overlay", "--overlay-format", "png"]
+    res = subprocess.run([*run, "--snapshot", "1"], env=env, capture_output=True)
+    assert res.returncode == 0, res.stderr.decode(errors="backslashreplace")
+    shown = str(tmp_path) + "/bad\\xffname"
+    assert f"to {shown}/out/records.csv" in res.stderr.decode()
+    assert len(read_rows(out / "records.csv")) == 4
+    assert len(list((out / "overlay").glob("*.png"))) == 4
+    assert (out / "snapshot_000001.jpg").is_file()
+    report = folder / "report"
+    res = subprocess.run([*cmd, "report", str(out), "--out", str(report)], env=env,
+                         capture_output=True)  # fmt: skip
+    assert res.returncode == 0, res.stderr.decode(errors="backslashreplace")
+    assert f"wrote {shown}/report/report.html" in res.stderr.decode()
+    assert f"{shown}/out" in (report / "report.md").read_text(encoding="utf-8")
