@@ -31,15 +31,19 @@ closest
   an MCAP export for Foxglove (:mod:`slopedist.streaming.mcap_export`) and the rotation source's
   trajectory as a TUM file (camera-to-world, translation 0; for ``evo_traj`` / ``evo_ape``).
 
-Crash safety: the files are written under temporary names (``records.partial.csv``,
-``frames.partial.csv``, ``overlay.partial.mp4`` / ``overlay.partial/``) and renamed when the run
-ends, so a previous run in the folder stays whole until the new one is finished: after a kill
+Crash safety (:mod:`slopedist.io.outputs`): the output folder is locked for the run (a second
+run into it is refused); the tables are written in whole frames (a full disk cuts a file back to
+its last whole frame, never leaving a torn row or NUL bytes) under temporary names
+(``records.partial.csv``, ``frames.partial.csv``, ``overlay.partial.mp4`` /
+``overlay.partial/``, ``snapshot_NNNNNN.partial.jpg``), renamed when the run ends. A complete
+run always takes the final names; a run that stops early (an error, a full disk, a stop request:
+:func:`stop_on_signals`, SIGTERM/SIGINT stop it after the current frame) takes them only when
+the folder holds no complete earlier run, which otherwise stays as it is, the stopped run's
+files keeping their temporary names beside it (its summary ``run.partial.json``). After a kill
 that leaves no chance to finish (SIGKILL, power loss) the previous run is intact and the
-``.partial`` files mark the new one as partial. The run also ends, writing ``run.json``, on an
-error, on a full disk (rows written before are whole; the message names the file and frame)
-and on a stop request (:func:`stop_on_signals`: SIGTERM/SIGINT stop it after the current frame).
-``run.json`` is written last, through a temporary name; the previous one is removed before the
-new files take their names, so it never describes other records.
+``.partial`` files mark the new one as partial. ``run.json`` is written last, through a
+temporary name; the previous one is removed before the new files take their names, so it never
+describes other records.
 
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
 """
