@@ -731,10 +731,12 @@ def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
     then (a full disk) keeps the whole frames before it, closes every output and writes
     ``run.json`` saying where the records stop, as a causal run does."""
     n = 8
-    real_open = runner.open_records
+    real_writer = runner.CsvStreamWriter
 
-    def failing_records(path: Any, fields: Any = None) -> Any:
-        writer = real_open(path, fields)
+    def failing_records(stream: Any, fields: Any = None) -> Any:
+        writer = real_writer(stream, fields)
+        if fields is not None:  # not records.csv (whose header is that of its first record)
+            return writer
         write_rows, calls = writer.write_rows, [0]
 
         def write(rows: Any) -> int:
@@ -746,7 +748,7 @@ def test_an_offline_run_whose_records_fail_at_the_end_keeps_them_and_says_so(
         writer.write_rows = write  # type: ignore[method-assign]
         return writer
 
-    monkeypatch.setattr(runner, "open_records", failing_records)
+    monkeypatch.setattr(runner, "CsvStreamWriter", failing_records)
     out = tmp_path / "out"
     with pytest.raises(RunAbortedError, match=r"8 frames.*stop before frame 3.*No space left"):
         run_frames(
@@ -817,3 +819,39 @@ def test_an_offline_run_stopped_part_way_says_its_records_cover_the_frames_reach
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["method"] == "ours-offline" and summary["complete"] is False
     assert summary["last_complete_frame"] == 2 and summary["records"] == 6
+
+
+def test_a_run_stopped_part_way_never_replaces_a_complete_earlier_run(tmp_path: Path) -> None:
+    """A stop request (raised after frame 2, as SIGTERM does) in a rerun into a folder that
+    holds a complete run: that run stays byte for byte; the stopped one's files keep their
+    temporary names beside it, whole up to its last frame."""
+    n = 8
+    out = tmp_path / "out"
+    frames_dir = make_frames(tmp_path / "f", n)
+
+    def run(method: str, stop_after: int | None = None) -> None:
+        config = RunConfig(out, progress=False, decode_ahead=0)
+        frames: Any = open_frames(frames_dir)
+        if stop_after is not None:
+            frames = StoppingFrames(frames, config, stop_after)
+        estimator = make_estimator(method, CAM)
+        run_frames(frames, boxes_every_frame(n), ScriptedOdometry(), estimator, config)
+
+    run("flat")
+    earlier = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert sorted(earlier) == ["frames.csv", "records.csv", "run.json", "tracks.csv"]
+    with pytest.raises(RunAbortedError, match=r"complete earlier run in .* is kept") as stopped:
+        run("paper", stop_after=2)
+    assert stopped.value.records_path == out / "records.partial.csv"
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.name in earlier} == earlier
+    rows = read_csv(out / "records.partial.csv")
+    assert [int(r["frame"]) for r in rows] == [0, 0, 1, 1, 2, 2]
+    assert {r["method"] for r in rows} == {"paper"}
+    summary = json.loads((out / "run.partial.json").read_text())
+    assert summary["complete"] is False and summary["last_complete_frame"] == 2
+    assert sorted(p.name for p in out.iterdir() if p.name not in earlier) == [
+        "frames.partial.csv",
+        "records.partial.csv",
+        "run.partial.json",
+        "tracks.partial.csv",
+    ]

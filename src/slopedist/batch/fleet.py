@@ -138,9 +138,8 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     types = {c: pa.float64() for c in _FLOAT_COLUMNS}
     types.update({c: pa.int64() for c in _INT_COLUMNS})
     types.update({c: pa.string() for c in _STRING_COLUMNS})
-    table = pa.csv.read_csv(
-        out_dir / drive / RECORDS_NAME, convert_options=pa.csv.ConvertOptions(column_types=types)
-    )
+    with (out_dir / drive / RECORDS_NAME).open("rb") as fh:  # (a path of any bytes)
+        table = pa.csv.read_csv(fh, convert_options=pa.csv.ConvertOptions(column_types=types))
     for i, column in enumerate(table.schema):  # an extra column empty in this drive: numbers
         if pa.types.is_null(column.type):
             table = table.set_column(i, column.name, table.column(i).cast(pa.float64()))
@@ -148,7 +147,8 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(".part-0.parquet.tmp")
-    pa.parquet.write_table(table, tmp)
+    with tmp.open("wb") as fh:
+        pa.parquet.write_table(table, fh)
     os.replace(tmp, target)
     return target
 

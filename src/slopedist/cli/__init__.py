@@ -11,13 +11,15 @@ line on stderr, ``slopedist: error: ...``, and an exit code:
 
 ``slopedist --debug <command> ...`` or the environment variable ``SLOPEDIST_DEBUG=1`` adds the
 traceback. A reader that closes the pipe early (``slopedist estimate ... | head -1``) ends the
-program quietly with exit code 0.
+program quietly with exit code 0. A path is printed whatever its bytes (one that is not UTF-8
+as ``\\xNN``).
 
 Internal: the names a user needs are those of :mod:`slopedist` itself (docs/python.md).
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import sys
@@ -28,6 +30,7 @@ import click
 
 from slopedist import __version__
 from slopedist.core.errors import SlopedistError
+from slopedist.core.paths import PATH_BYTES_ERRORS
 
 DEBUG_ENV = "SLOPEDIST_DEBUG"
 """Environment variable that, set to ``1``, shows tracebacks (like ``--debug``)."""
@@ -213,10 +216,21 @@ def _exit_code(exc: BaseException) -> int:
     return EXIT_INTERNAL_ERROR
 
 
+def _print_any_path() -> None:
+    """Standard output and error write a file-name byte that is not UTF-8 as ``\\xNN``
+    (:data:`~slopedist.core.paths.PATH_BYTES_ERRORS`), so a path of any bytes can be printed."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            with contextlib.suppress(ValueError, OSError):  # (a closed or detached stream)
+                reconfigure(errors=PATH_BYTES_ERRORS)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``slopedist`` program; returns the exit code (see the module
     docstring)."""
     _Session.debug = os.environ.get(DEBUG_ENV, "") not in ("", "0")
+    _print_any_path()
     args = list(sys.argv[1:] if argv is None else argv)
     try:  # not cli.main(): it turns a closed pipe into exit code 1 and hides other errors' kind
         with cli.make_context("slopedist", args) as ctx:

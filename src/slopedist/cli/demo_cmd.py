@@ -10,6 +10,7 @@ import click
 from slopedist.cli.method_options import check_methods, estimator_options
 from slopedist.cli.options import given_list
 from slopedist.estimators import EstimatorConfig
+from slopedist.io.outputs import OutputFolder
 from slopedist.synthetic.demo import (
     DEFAULT_OUT,
     DemoConfig,
@@ -95,7 +96,8 @@ def demo(
         jobs,
     )
     t0 = time.perf_counter()
-    result = run_demo(cfg, echo=lambda s: click.echo(s, err=True))
+    with OutputFolder(out_dir).lock():
+        result = run_demo(cfg, echo=lambda s: click.echo(s, err=True))
     click.echo(format_demo_tables(result))
     click.echo("")
     click.echo(f"finished in {time.perf_counter() - t0:.0f} s; files:")

@@ -18,9 +18,10 @@ from slopedist.cli.options import lookback_option, sequence_file_options, vehicl
 from slopedist.cli.record_summary import RecordTally
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
-from slopedist.io.outputs import check_outputs_spare_inputs
-from slopedist.io.sequence_files import SequenceFiles, read_sequence_files
-from slopedist.streaming.pipeline import Pipeline, stream_rotations
+from slopedist.io.formatting import CsvStreamWriter
+from slopedist.io.outputs import check_outputs_spare_inputs, output_file, partial_path
+from slopedist.io.sequence_files import SequenceFiles, SequenceInputs, read_sequence_files
+from slopedist.streaming.pipeline import FinishResult, Pipeline, stream_rotations
 from slopedist.streaming.step import close_records, open_records
 
 
@@ -56,26 +57,38 @@ def estimate(
             "slopedist run FRAMES --depth-dir DIR or --depth-model MODEL.onnx, or slopedist "
             "eval kitti-tracking --depth-dir DIR"
         )
-    check_outputs_spare_inputs([out], files.input_files)
+    written = [out, partial_path(out)] if out is not None else []
+    check_outputs_spare_inputs(written, files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
     estimator = build_estimator(config, seq.camera)
     pipe = Pipeline.from_parts(estimator, lookback_s=lookback_s, vehicle_classes=vehicle_classes)
-    writer = open_records(out)
     tally = RecordTally()
-    try:
-        for result in stream_rotations(pipe, seq.track, seq.boxes):
-            if not pipe.offline:  # an offline method's records come when the sequence ends
-                writer.write_rows(tally.count(result.to_records()))
-        end = pipe.finish()
-        writer.write_rows(tally.count(end.to_records()))
-        close_records(writer)
-    except BrokenPipeError:
-        if out is not None:
-            raise
-        quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
-        return
+    if out is not None:  # whole: the file takes its name when every record is written
+        with output_file(out) as stream:
+            end = write_estimates(CsvStreamWriter(stream), pipe, seq, tally)
+    else:
+        try:
+            end = write_estimates(open_records(None), pipe, seq, tally)
+        except BrokenPipeError:
+            quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
+            return
     for line in [*tally.lines(out), *end.warnings]:
         click.echo(line, err=True)
+
+
+def write_estimates(
+    writer: CsvStreamWriter, pipe: Pipeline, seq: SequenceInputs, tally: RecordTally
+) -> FinishResult:
+    """The records of every frame of ``seq`` through ``pipe``, frame by frame (an offline
+    method's at the end, from its pass over the sequence), counted in ``tally``; then
+    ``writer`` is closed. Returns the pipeline's end (:meth:`Pipeline.finish`)."""
+    for result in stream_rotations(pipe, seq.track, seq.boxes):
+        if not pipe.offline:  # an offline method's records come when the sequence ends
+            writer.write_rows(tally.count(result.to_records()))
+    end = pipe.finish()
+    writer.write_rows(tally.count(end.to_records()))
+    close_records(writer)
+    return end
 
 
 def quiet_closed_stdout() -> None:

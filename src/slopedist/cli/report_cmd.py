@@ -29,7 +29,7 @@ from slopedist.evaluation.report import (
 from slopedist.evaluation.report.kitti import default_kitti_methods
 from slopedist.evaluation.report.runs import run_folders
 from slopedist.evaluation.table import format_text
-from slopedist.io.outputs import check_outputs_spare_inputs
+from slopedist.io.outputs import OutputFolder, check_outputs_spare_inputs
 
 
 def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
@@ -108,12 +108,13 @@ def report(
         depth_dir=depth_dir,
     )
     opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))
-    data = report_data(
-        source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
-    )
-    written = write_report(
-        data, out_dir, opts.tracks, opts.n_tracks, parquet=False if no_parquet else None
-    )
+    with OutputFolder(out_dir).lock():
+        data = report_data(
+            source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)
+        )
+        written = write_report(
+            data, out_dir, opts.tracks, opts.n_tracks, parquet=False if no_parquet else None
+        )
     for t in written.tables:
         if t.key in SUMMARY_TABLES:
             click.echo(format_text(t) + "\n")

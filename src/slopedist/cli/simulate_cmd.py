@@ -8,6 +8,7 @@ import click
 from tqdm import tqdm
 
 from slopedist.core.errors import ConfigurationError
+from slopedist.io.outputs import OutputFolder
 from slopedist.synthetic.export import (
     SIMULATION_NAMES,
     DepthFormat,
@@ -79,27 +80,28 @@ def simulate(
     if out_dir is None:
         raise click.UsageError("give the output folder with --out DIR")
     sc = load_scenario(scenario)
-    held = [name for name in SIMULATION_NAMES if (out_dir / name).exists()]
-    if held and not force:  # a simulation, or a drive's own calib.txt, boxes.csv, frames
-        raise ConfigurationError(
-            f"{out_dir} already holds {', '.join(held)} (a simulation or other data that "
-            "would be overwritten); choose another --out or add --force"
-        )
-    seq = SyntheticSequence(sc, BoxNoiseSpec.exact() if exact_boxes else None)
-    total = len(seq) if max_frames is None else min(len(seq), max_frames)
-    refuse_stale_frames(out_dir, total, not no_images, DepthFormat(depth))
-    path = Path(scenario)
-    text = path.read_text(encoding="utf-8") if path.is_file() else builtin_text(sc.name)
-    with tqdm(total=total, unit="frame", desc=f"simulate {sc.name}", dynamic_ncols=True) as bar:
-        info = write_simulation(
-            seq,
-            out_dir,
-            text,
-            depth=DepthFormat(depth),
-            images=not no_images,
-            max_frames=max_frames,
-            on_frame=lambda _k: bar.update(1),
-        )
+    with OutputFolder(out_dir).lock():
+        held = [name for name in SIMULATION_NAMES if (out_dir / name).exists()]
+        if held and not force:  # a simulation, or a drive's own calib.txt, boxes.csv, frames
+            raise ConfigurationError(
+                f"{out_dir} already holds {', '.join(held)} (a simulation or other data that "
+                "would be overwritten); choose another --out or add --force"
+            )
+        seq = SyntheticSequence(sc, BoxNoiseSpec.exact() if exact_boxes else None)
+        total = len(seq) if max_frames is None else min(len(seq), max_frames)
+        refuse_stale_frames(out_dir, total, not no_images, DepthFormat(depth))
+        path = Path(scenario)
+        text = path.read_text(encoding="utf-8") if path.is_file() else builtin_text(sc.name)
+        with tqdm(total=total, unit="frame", desc=f"simulate {sc.name}", dynamic_ncols=True) as bar:
+            info = write_simulation(
+                seq,
+                out_dir,
+                text,
+                depth=DepthFormat(depth),
+                images=not no_images,
+                max_frames=max_frames,
+                on_frame=lambda _k: bar.update(1),
+            )
     click.echo(
         f"wrote {info['frames']} frames of '{sc.name}' to {out_dir} "
         f"(camera height {info['camera_height_m']:g} m)"

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera, read_kitti_calib
 from slopedist.core.errors import ConfigurationError, InputFileError
+from slopedist.core.paths import utf8_name
 from slopedist.core.textfiles import read_text
 from slopedist.io.frames import check_calibration, check_implied_image
 from slopedist.io.intrinsics import DISTORTION_COUNTS, Intrinsics
@@ -209,7 +210,8 @@ def _first(fs: cv2.FileStorage, keys: tuple[str, ...]) -> tuple[str, np.ndarray 
 
 def _open_filestorage(path: Path) -> cv2.FileStorage:
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        with utf8_name(path) as name:
+            fs = cv2.FileStorage(name, cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
         cause = exc.__cause__ or exc
         match = re.search(r"\((\d+)\): ([^'\n]+)", str(cause))

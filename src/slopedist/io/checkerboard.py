@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.errors import ConfigurationError, DataMismatchError
+from slopedist.core.paths import utf8_name
 from slopedist.io.intrinsics import Intrinsics
 
 MIN_VIEWS = 3
@@ -200,15 +201,16 @@ def write_opencv_yaml(fit: CheckerboardFit, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     intr = fit.intrinsics
-    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
-    try:
-        if intr.image_size is not None:
-            fs.write("image_width", int(intr.image_size[0]))
-            fs.write("image_height", int(intr.image_size[1]))
-        fs.write("camera_matrix", intr.K)
-        fs.write("distortion_coefficients", intr.dist.reshape(1, -1))
-        fs.write("rms_reprojection_error_px", float(fit.rms_px))
-        fs.write("n_views", int(fit.n_views))
-    finally:
-        fs.release()
+    with utf8_name(path) as name:  # (alive until the file is written: release)
+        fs = cv2.FileStorage(name, cv2.FILE_STORAGE_WRITE)
+        try:
+            if intr.image_size is not None:
+                fs.write("image_width", int(intr.image_size[0]))
+                fs.write("image_height", int(intr.image_size[1]))
+            fs.write("camera_matrix", intr.K)
+            fs.write("distortion_coefficients", intr.dist.reshape(1, -1))
+            fs.write("rms_reprojection_error_px", float(fit.rms_px))
+            fs.write("n_views", int(fit.n_views))
+        finally:
+            fs.release()
     return path

@@ -5,8 +5,9 @@ One place for the rules every output file follows:
 - numbers in CSV cells: integers as integers, floats with 6 significant digits (``.6g``), NaN and
   ±inf as an empty field, booleans as ``0``/``1``; the times of a drive (``TIME_COLUMNS``) to the
   microsecond, so that Unix-epoch timestamps keep their fraction;
-- CSV files: UTF-8, LF line ends, a header row, flushed after every :meth:`CsvStreamWriter.
-  write_rows` call (one frame), so a killed run leaves whole rows;
+- CSV files: UTF-8 (a file-name byte that is not UTF-8 as ``\\xNN``:
+  :data:`~slopedist.core.paths.PATH_BYTES_ERRORS`), LF line ends, a header row, flushed after
+  every :meth:`CsvStreamWriter.write_rows` call (one frame), so a killed run leaves whole rows;
 - JSON: strict (RFC 8259): NaN and ±inf become ``null``, numpy scalars and arrays become numbers
   and lists, paths become strings; ``-`` as the path writes to standard output.
 """
@@ -21,9 +22,11 @@ import math
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import Any, Protocol
 
 import numpy as np
+
+from slopedist.core.paths import PATH_BYTES_ERRORS
 
 STDOUT_PATH = "-"
 """The path that means standard output in ``--json -`` and friends."""
@@ -89,6 +92,17 @@ def format_row(row: Mapping[str, Any]) -> dict[str, Any]:
     return {k: _cell(k, v) for k, v in row.items()}
 
 
+class TextSink(Protocol):
+    """Where a :class:`CsvStreamWriter` writes: a text file, standard output, or a file that
+    keeps whole batches only (:class:`~slopedist.io.outputs.WholeRowsFile`)."""
+
+    def write(self, text: str, /) -> int: ...
+
+    def flush(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
 class CsvStreamWriter:
     """A CSV table written as it is produced: LF line ends, flushed after each batch of rows.
 
@@ -97,7 +111,7 @@ class CsvStreamWriter:
     the header is an error of the caller (``ValueError``).
     """
 
-    def __init__(self, stream: IO[str], fields: Sequence[str] | None = None) -> None:
+    def __init__(self, stream: TextSink, fields: Sequence[str] | None = None) -> None:
         self._stream = stream
         self._writer: Any = None  # a csv.writer once the header is known
         self._fields: list[str] = []
@@ -109,7 +123,9 @@ class CsvStreamWriter:
     @classmethod
     def open(cls, path: str | Path, fields: Sequence[str] | None = None) -> CsvStreamWriter:
         """Create (truncate) ``path`` as UTF-8 and return a writer that closes it."""
-        fh = Path(path).open("w", newline="", encoding="utf-8")  # noqa: SIM115 (closed by close())
+        fh = Path(path).open(  # noqa: SIM115 (closed by close())
+            "w", newline="", encoding="utf-8", errors=PATH_BYTES_ERRORS
+        )
         writer = cls(fh, fields)
         writer._owned = True
         return writer

@@ -41,6 +41,7 @@ from slopedist.core.errors import (
     MissingInputError,
 )
 from slopedist.core.limits import DEFAULT_MAX_PIXELS, MAX_FRAME_INTERVAL_S
+from slopedist.core.paths import utf8_name
 from slopedist.core.textfiles import numbered_lines
 from slopedist.io.framefiles import list_frame_files
 from slopedist.io.images import header_image_size, image_size_problem, read_colour
@@ -441,7 +442,8 @@ class ImageFolderSource:
             size = header_image_size(path)
             if size is not None:
                 return size
-            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+            with utf8_name(path) as name:
+                image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
             if image is not None:
                 return int(image.shape[1]), int(image.shape[0])
         raise InputFileError(self.path, "none of the image files could be read")
@@ -533,7 +535,8 @@ class VideoSource:
         self.timing = _Timing(fps, timestamps_s, timestamps_name)
 
     def _open(self) -> cv2.VideoCapture:
-        cap = cv2.VideoCapture(str(self.path))
+        with utf8_name(self.path) as name:  # (OpenCV keeps the file it opened)
+            cap = cv2.VideoCapture(name)
         if not cap.isOpened():
             cap.release()
             raise InputFileError(

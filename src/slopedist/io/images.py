@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.errors import InputFileError, MissingInputError
 from slopedist.core.limits import DEFAULT_MAX_PIXELS
+from slopedist.core.paths import utf8_name
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_SOI = b"\xff\xd8"
@@ -159,7 +160,8 @@ def read_image_file(
     problem = image_size_problem(path, max_pixels)
     if problem:
         raise InputFileError(path, f"{not_decoded}; {problem}")
-    image = cv2.imread(str(path), flags)
+    with utf8_name(path) as name:
+        image = cv2.imread(name, flags)
     if image is None:
         raise InputFileError(path, not_decoded)
     return np.asarray(image)
@@ -214,5 +216,6 @@ def read_colour(path: str | Path) -> NDArray[np.uint8] | None:
             shape = () if conversion == cv2.COLOR_GRAY2BGR else (3,)  # after (H, W)
             if pixels is not None and pixels.dtype == np.uint8 and pixels.shape[2:] == shape:
                 return np.asarray(cv2.cvtColor(pixels, conversion), dtype=np.uint8)
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    with utf8_name(path) as name:
+        image = cv2.imread(name, cv2.IMREAD_COLOR)
     return None if image is None else np.asarray(image, dtype=np.uint8)

@@ -26,6 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.errors import ConfigurationError, InputFileError
+from slopedist.core.paths import utf8_name
+from slopedist.io.outputs import write_image
 
 MP4_TIME_BASE = Fraction(1, 1000)
 """Time unit of the presentation timestamps of written videos (milliseconds)."""
@@ -122,7 +124,8 @@ class _OpenCVWriter:
     def __init__(self, path: Path, size: tuple[int, int], fps: float) -> None:
         self.path = path
         self.size = size
-        self._video = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
+        with utf8_name(path) as name:  # (OpenCV keeps the file it opened)
+            self._video = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
         if not self._video.isOpened():
             raise InputFileError(path, "OpenCV cannot write an MP4 (mp4v) video here")
 
@@ -176,9 +179,7 @@ class OverlayWriter:
         """Write the annotated image of frame ``index`` (shown at ``timestamp_s`` seconds, or
         ``index / fps`` when None)."""
         if not self.is_video:
-            path = self.target / f"{index:06d}.png"
-            if not cv2.imwrite(str(path), image):
-                raise InputFileError(path, "could not write the overlay image")
+            write_image(self.target / f"{index:06d}.png", image)  # whole, or not at all
             self.written += 1
             return
         if self._video is None:
@@ -239,9 +240,8 @@ def open_overlay_video(folder: Path, fps: float) -> OverlayWriter | GifWriter:
         writer = OverlayWriter(folder / "overlay.mp4", fps)
         if importlib.util.find_spec("av") is not None:
             return writer
-        probe = cv2.VideoWriter(
-            str(folder / "overlay.mp4"), cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16)
-        )
+        with utf8_name(folder / "overlay.mp4") as name:
+            probe = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16))
         ok = probe.isOpened()
         probe.release()
         if ok:

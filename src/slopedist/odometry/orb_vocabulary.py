@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.errors import MissingInputError
+from slopedist.core.paths import utf8_name
 
 ORB_BYTES = 32
 """Bytes of one ORB descriptor (256 bits)."""
@@ -154,7 +155,8 @@ def train_from_images(
     """ORB features of every image → vocabulary file ``out``."""
     descs = []
     for p in paths:
-        image = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+        with utf8_name(p) as name:
+            image = cv2.imread(name, cv2.IMREAD_GRAYSCALE)
         if image is not None:
             descs.append(orb_descriptors(np.asarray(image, np.uint8), n_features))
     return write_vocabulary(train_vocabulary(descs, k, depth), out, k, depth)

@@ -15,11 +15,10 @@ from pathlib import Path
 from slopedist.core.errors import SlopedistError
 from slopedist.io.depth.base import DepthSource
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES
-from slopedist.io.outputs import (
-    StopFlag,
-)
+from slopedist.io.outputs import StopFlag, partial_path
 from slopedist.io.prefetch import DEFAULT_AHEAD
 from slopedist.odometry.base import LOOKBACK_S
+from slopedist.streaming.tracks import TRACKS_NAME
 
 RECORDS_NAME = "records.csv"
 FRAMES_NAME = "frames.csv"
@@ -74,10 +73,14 @@ def earlier_outputs(out_dir: Path, written: Iterable[str | Path | None]) -> list
     """The optional outputs in ``out_dir`` that a run did not write (``written``: its overlay
     and exports, as in :class:`RunResult`): an overlay video or folder, ``run.mcap``,
     ``trajectory.tum`` and snapshot JPEGs left by an earlier run into the same folder, which
-    no longer match its records."""
+    no longer match its records, and the files an earlier run that stopped left under their
+    temporary names (:func:`~slopedist.io.outputs.partial_path`)."""
     kept = {Path(p) for p in written if p is not None}
     candidates = [overlay_path(out_dir, f) for f in OverlayFormat]
     candidates += [out_dir / MCAP_NAME, out_dir / TRAJECTORY_NAME]
+    candidates += [partial_path(p) for p in candidates]
+    tables = (RECORDS_NAME, FRAMES_NAME, TRACKS_NAME, SUMMARY_NAME)
+    candidates += [partial_path(out_dir / name) for name in tables]
     candidates += sorted(out_dir.glob("snapshot_[0-9]*.jpg"))
     return [p for p in candidates if p.exists() and p not in kept]
 

@@ -30,15 +30,19 @@ closest
   an MCAP export for Foxglove (:mod:`slopedist.streaming.mcap_export`) and the rotation source's
   trajectory as a TUM file (camera-to-world, translation 0; for ``evo_traj`` / ``evo_ape``).
 
-Crash safety: the files are written under temporary names (``records.partial.csv``,
-``frames.partial.csv``, ``overlay.partial.mp4`` / ``overlay.partial/``) and renamed when the run
-ends, so a previous run in the folder stays whole until the new one is finished: after a kill
+Crash safety (:mod:`slopedist.io.outputs`): the output folder is locked for the run (a second
+run into it is refused); the tables are written in whole frames (a full disk cuts a file back to
+its last whole frame, never leaving a torn row or NUL bytes) under temporary names
+(``records.partial.csv``, ``frames.partial.csv``, ``overlay.partial.mp4`` /
+``overlay.partial/``, ``snapshot_NNNNNN.partial.jpg``), renamed when the run ends. A complete
+run always takes the final names; a run that stops early (an error, a full disk, a stop request:
+:func:`stop_on_signals`, SIGTERM/SIGINT stop it after the current frame) takes them only when
+the folder holds no complete earlier run, which otherwise stays as it is, the stopped run's
+files keeping their temporary names beside it (its summary ``run.partial.json``). After a kill
 that leaves no chance to finish (SIGKILL, power loss) the previous run is intact and the
-``.partial`` files mark the new one as partial. The run also ends, writing ``run.json``, on an
-error, on a full disk (rows written before are whole; the message names the file and frame)
-and on a stop request (:func:`stop_on_signals`: SIGTERM/SIGINT stop it after the current frame).
-``run.json`` is written last, through a temporary name; the previous one is removed before the
-new files take their names, so it never describes other records.
+``.partial`` files mark the new one as partial. ``run.json`` is written last, through a
+temporary name; the previous one is removed before the new files take their names, so it never
+describes other records.
 
 Convention: θ in radians inside, degrees in the CSV files; timestamps in seconds.
 """
@@ -69,9 +73,11 @@ from slopedist.io.frames import Frame, FrameSource, check_box_frames, check_cali
 from slopedist.io.intrinsics import in_frame_pixels
 from slopedist.io.outputs import (
     OutputFiles,
+    OutputFolder,
     OutputWriteError,
     RunStoppedError,
     partial_path,
+    write_image,
 )
 from slopedist.io.overlay import OverlayWriter
 from slopedist.io.prefetch import (
@@ -101,8 +107,8 @@ from slopedist.streaming.config import (
 from slopedist.streaming.drawing import draw_fig3_overlay, lead_index
 from slopedist.streaming.mcap_export import McapExportWriter
 from slopedist.streaming.pipeline import FinishResult, FrameResult, OdometryOutput, Pipeline
-from slopedist.streaming.step import close_records, frame_records, open_records
-from slopedist.streaming.tracks import TRACKS_NAME, TrackSummaries
+from slopedist.streaming.step import close_records, frame_records
+from slopedist.streaming.tracks import TRACK_FIELDS, TRACKS_NAME, TrackSummaries
 
 _log = logging.getLogger(__name__)
 
@@ -151,7 +157,6 @@ def run_frames(
     check_calibration(estimator.camera, width, height, str(frames.path))
     check_box_frames(boxes.frame, frames)
     out = Path(config.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     result = RunResult(
         str(out),
         estimator.name,
@@ -165,12 +170,13 @@ def run_frames(
         if detector
         else None,
     )
-    loop = _RunLoop(boxes, odometry, estimator, depth, config, result, detector)
     if config.decode_ahead:
         frames = PrefetchedFrames(frames, config.decode_ahead)
     # with frames decoded ahead, the loop's OpenCV calls leave a core to the decoding thread
     # (never more threads than the caller allowed)
-    with opencv_threads(min(cv2.getNumThreads(), loop_threads(config.decode_ahead))):
+    threads = min(cv2.getNumThreads(), loop_threads(config.decode_ahead))
+    with OutputFolder(out).lock(), opencv_threads(threads):
+        loop = _RunLoop(boxes, odometry, estimator, depth, config, result, detector)
         result = loop.run(frames)
     for warning in loop.end.warnings if loop.end is not None else ():
         _log.warning("%s", warning)
@@ -233,12 +239,13 @@ class _RunLoop:
             "detection": RunningMean(),
         }
         out = Path(config.out_dir)
-        self.records_path = out / RECORDS_NAME
         extra_outputs = [p for p in (config.overlay, config.mcap, config.trajectory) if p]
-        self.files = OutputFiles(out, (RECORDS_NAME, FRAMES_NAME, TRACKS_NAME), extra_outputs)
+        self.files = OutputFiles(
+            out, (RECORDS_NAME, FRAMES_NAME, TRACKS_NAME), extra_outputs, whole_only=(TRACKS_NAME,)
+        )
         self.files.reserve(SUMMARY_NAME)
-        self.records = open_records(partial_path(self.records_path))
-        self.frame_log = CsvStreamWriter.open(partial_path(out / FRAMES_NAME), FRAME_FIELDS)
+        self.records = CsvStreamWriter(self.files.open_whole_rows(RECORDS_NAME))
+        self.frame_log = CsvStreamWriter(self.files.open_whole_rows(FRAMES_NAME), FRAME_FIELDS)
         self.painter: OverlaySink | None = None
         if config.overlay:
             self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
@@ -261,7 +268,9 @@ class _RunLoop:
         """Why an offline method's records could not all be written at the end, or None."""
         self.offline_written = 0
         """How many of :attr:`held`'s frames have their offline records written."""
-        self.offline_note = ""
+        self.offline_failed_frame = 0
+        """The first frame whose offline records could not be written (with
+        :attr:`offline_failed`)."""
         self.start = time.perf_counter()
 
     def run(self, frames: FrameSource) -> RunResult:
@@ -295,11 +304,18 @@ class _RunLoop:
         if self.offline_failed is not None:  # the frames all ran; their records did not
             raise RunAbortedError(
                 f"run went through its {self.result.frames} frames (per-frame log "
-                f"{Path(self.config.out_dir) / FRAMES_NAME}), but{self.offline_note[1:]}"
-                f"{self.summary_failed}",
+                f"{self.files.where(FRAMES_NAME)}), but{self._offline_note()[1:]}"
+                f"{self.summary_failed}{self.files.kept_note()}",
                 self.result.failed_frame,
-                self.records_path,
+                self.files.where(RECORDS_NAME),
             ) from self.offline_failed
+        if self.files.failed:  # the frames all ran; an output could not be written whole
+            raise RunAbortedError(
+                f"run went through its {self.result.frames} frames, but {self.files.failed}"
+                f"{self.summary_failed}{self.files.kept_note()}",
+                None,
+                self.files.where(RECORDS_NAME),
+            )
         return self.result
 
     def process(self, frame: Frame) -> None:
@@ -439,7 +455,7 @@ class _RunLoop:
         result, held = self.result, self.held or []
         self.offline_failed = exc
         result.complete = False
-        failed = held[self.offline_written]
+        failed = self.offline_failed_frame = held[self.offline_written]
         result.failed_frame = failed if result.failed_frame is None else result.failed_frame
         reached = failed - 1 if failed > 0 else None  # the frames before it have all their rows
         if result.last_complete_frame is None or reached is None:
@@ -448,9 +464,15 @@ class _RunLoop:
             result.last_complete_frame = min(result.last_complete_frame, reached)
         if result.error is None:
             result.error = f"{type(exc).__name__}: {exc}"
-        self.offline_note = (
-            f"; the {self.method} records stop before frame {failed} "
-            f"({exc}): {self.records_path} holds those of the frames before it"
+
+    def _offline_note(self) -> str:
+        """What the messages add when an offline method's records stopped part-way (else "")."""
+        if self.offline_failed is None:
+            return ""
+        return (
+            f"; the {self.method} records stop before frame {self.offline_failed_frame} "
+            f"({self.offline_failed}): {self.files.where(RECORDS_NAME)} holds those of the "
+            "frames before it"
         )
 
     def _speed_at(self, timestamp_s: float) -> float:
@@ -466,7 +488,8 @@ class _RunLoop:
             return
         if frame.image is None:
             if self.painter is not None:
-                self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
+                with self.files.writing(self.painter.target.name):
+                    self.painter.write_placeholder(k, f"frame {k}: {frame.status.value}", t)
             return
         theta = res.theta_rad
         head = f"frame {k}  t {t:.2f} s"
@@ -484,35 +507,39 @@ class _RunLoop:
             self.shown,
         )
         if isinstance(self.painter, BackgroundOverlay) and not snapshot:
-            self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread
+            with self.files.writing(self.painter.target.name):
+                self.painter.write_drawn(k, draw, t)  # drawn in the overlay's thread
             return
         image = draw()
         if self.painter is not None:
-            self.painter.write(k, image, t)
+            with self.files.writing(self.painter.target.name):
+                self.painter.write(k, image, t)
         if snapshot:
             path = snapshot_path(Path(self.config.out_dir), k)
-            if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, SNAPSHOT_QUALITY]):
-                raise OutputWriteError(path, OSError(f"OpenCV could not write {path.name}"))
+            self.files.add(path)
+            write_image(partial_path(path), image, [cv2.IMWRITE_JPEG_QUALITY, SNAPSHOT_QUALITY])
             self.result.exports.append(str(path))
 
     def _export(self, frame: Frame, frame_boxes: BoxTable, res: FrameResult) -> None:
         """The frame in the MCAP export and its rotation in the TUM trajectory."""
         R = res.odometry.R_world_cam
         if self.trajectory is not None and R is not None:
-            self.trajectory.write(frame.timestamp_s, R)
+            with self.files.writing(self.trajectory.path.name):
+                self.trajectory.write(frame.timestamp_s, R)
         if self.export is None:
             return
-        self.export.write_frame(
-            frame.index,
-            frame.timestamp_s,
-            frame.source,
-            frame.status.value,
-            frame.image,
-            in_frame_pixels(frame_boxes),  # annotations of the source image
-            res.estimates,
-            res.theta_rad,
-            lead_index(self.camera, frame_boxes, res.estimates),
-        )
+        with self.files.writing(self.export.path.name):
+            self.export.write_frame(
+                frame.index,
+                frame.timestamp_s,
+                frame.source,
+                frame.status.value,
+                frame.image,
+                in_frame_pixels(frame_boxes),  # annotations of the source image
+                res.estimates,
+                res.theta_rad,
+                lead_index(self.camera, frame_boxes, res.estimates),
+            )
 
     def finish(self) -> None:
         """Fill in the summary, close every output and write ``run.json``."""
@@ -548,9 +575,10 @@ class _RunLoop:
         for writer in (self.export, self.trajectory):
             if writer is not None:
                 files.close(writer.path.name, writer.close)
-        if files.failed and result.error is None:
-            result.error = files.failed
-        files.promote(SUMMARY_NAME)
+        if files.failed:  # an output is cut or missing: the run is not whole
+            result.complete = False
+            result.error = result.error or files.failed
+        files.commit(SUMMARY_NAME, result.complete)
         try:
             files.write_summary(SUMMARY_NAME, result)
         except OSError as exc:
@@ -567,7 +595,8 @@ class _RunLoop:
         return last is not None and k <= last
 
     def _write_tracks(self) -> None:
-        self.tracks.write(self.files.path(TRACKS_NAME))
+        tracks = CsvStreamWriter(self.files.open_whole_rows(TRACKS_NAME), TRACK_FIELDS)
+        tracks.write_rows(self.tracks.rows())
 
     def _aborted(self, exc: BaseException, frame: Frame | None) -> RunAbortedError:
         last = self.result.last_complete_frame
@@ -582,8 +611,9 @@ class _RunLoop:
         )
         return RunAbortedError(
             f"run stopped at {where}: {exc}. The {whose} of the {self.result.frames} frames "
-            f"before it are in {self.records_path} (per-frame log "
-            f"{Path(self.config.out_dir) / FRAMES_NAME}){self.offline_note}{self.summary_failed}",
+            f"before it are in {self.files.where(RECORDS_NAME)} (per-frame log "
+            f"{self.files.where(FRAMES_NAME)}){self._offline_note()}{self.summary_failed}"
+            f"{self.files.kept_note()}",
             self.result.failed_frame,
-            self.records_path,
+            self.files.where(RECORDS_NAME),
         )

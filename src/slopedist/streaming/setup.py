@@ -33,7 +33,7 @@ from slopedist.io.detections.onnx_detector import Detector
 from slopedist.io.detections.readers import CSV_TRUTH_COLUMN, read_box_file
 from slopedist.io.frames import FrameSource, with_frame_size
 from slopedist.io.intrinsics import Intrinsics, RectifiedDetector
-from slopedist.io.outputs import StopFlag, check_outputs_spare_inputs, partial_path
+from slopedist.io.outputs import OutputFolder, StopFlag, check_outputs_spare_inputs, partial_path
 from slopedist.io.prefetch import DEFAULT_AHEAD
 from slopedist.io.sources import log_calibration, log_rotation_source, log_speed, open_source
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry
@@ -365,17 +365,18 @@ def run_to_folder(
             "builtin, or leave out --export tum"
         )
     frames = wrap_frames(opened.source) if wrap_frames is not None else opened.source
-    result = run_frames(
-        frames,
-        opened.boxes,
-        opened.odometry,
-        opened.estimator,
-        config,
-        opened.depth,
-        opened.detector,
-        opened.dropped_boxes.reasons,
-    )
-    remove_earlier_outputs(options.out_dir, result, options.input_paths())
+    with OutputFolder(options.out_dir).lock():  # until the earlier run's stale outputs are gone
+        result = run_frames(
+            frames,
+            opened.boxes,
+            opened.odometry,
+            opened.estimator,
+            config,
+            opened.depth,
+            opened.detector,
+            opened.dropped_boxes.reasons,
+        )
+        remove_earlier_outputs(options.out_dir, result, options.input_paths())
     return result
 
 

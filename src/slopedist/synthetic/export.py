@@ -37,6 +37,7 @@ import numpy as np
 
 from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.geometry import ego_road_gradient
+from slopedist.core.paths import utf8_name
 from slopedist.io.depth.files import write_kitti_depth_png
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.readers import CSV_BOX_COLUMNS, CSV_TRUTH_COLUMN
@@ -230,8 +231,9 @@ def _write_frame_files(f: SyntheticFrame, files: _FrameFiles) -> None:
     k = f.index
     if files.images:
         path = files.image_dir / frame_file_name(k, "png")
-        if not cv2.imwrite(str(path), f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-            raise InputFileError(path, "could not be written as PNG")
+        with utf8_name(path) as name:
+            if not cv2.imwrite(name, f.image, [cv2.IMWRITE_PNG_COMPRESSION, 1]):
+                raise InputFileError(path, "could not be written as PNG")
     if files.depth is DepthFormat.PNG:
         write_kitti_depth_png(files.depth_dir / frame_file_name(k, "png"), f.depth_m)
     elif files.depth is DepthFormat.NPY:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from slopedist.core.paths import PATH_BYTES_ERRORS, utf8_text
 from slopedist.evaluation.metrics import compact_names
 from slopedist.evaluation.report.data import ReportData
 from slopedist.evaluation.report.figures import Figure, report_figures
@@ -58,8 +59,9 @@ def write_table_files(
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        columns = {f: [r.get(f) for r in records] for f in fields}
-        pq.write_table(pa.table(columns), path.with_suffix(".parquet"))
+        columns = {f: [utf8_text(r.get(f)) for r in records] for f in fields}
+        with path.with_suffix(".parquet").open("wb") as fh:  # (a path of any bytes)
+            pq.write_table(pa.table(columns), fh)
         written.append(path.with_suffix(".parquet"))
     return written
 
@@ -182,7 +184,8 @@ def write_report(
     for f in figures:
         (out / "figures" / f.name).write_bytes(f.png)
         files.append(out / "figures" / f.name)
-    (out / "report.md").write_text(markdown_page(data, tables, figures), encoding="utf-8")
-    (out / "report.html").write_text(html_page(data, tables, figures), encoding="utf-8")
+    markdown, page = markdown_page(data, tables, figures), html_page(data, tables, figures)
+    (out / "report.md").write_text(markdown, encoding="utf-8", errors=PATH_BYTES_ERRORS)
+    (out / "report.html").write_text(page, encoding="utf-8", errors=PATH_BYTES_ERRORS)
     files += [out / "report.md", out / "report.html"]
     return WrittenReport(out, tables, figures, files)

@@ -25,6 +25,7 @@ from slopedist.core.errors import (
     MissingInputError,
 )
 from slopedist.core.limits import DEFAULT_MAX_PIXELS
+from slopedist.core.paths import utf8_name
 from slopedist.io.depth.base import DepthSource
 from slopedist.io.images import read_image_file
 
@@ -75,8 +76,9 @@ def write_kitti_depth_png(path: str | Path, depth_m: NDArray[np.floating]) -> No
     stored = np.zeros(d.shape, dtype=np.uint16)
     stored[valid] = np.clip(np.round(d[valid] * KITTI_DEPTH_SCALE), 1, np.iinfo(np.uint16).max)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), stored):
-        raise InputFileError(path, "could not be written as PNG")
+    with utf8_name(path) as name:
+        if not cv2.imwrite(name, stored):
+            raise InputFileError(path, "could not be written as PNG")
 
 
 def _check_npy_header(path: Path, max_pixels: int) -> None:
