@@ -1,12 +1,17 @@
 """The fuzz suite's long profile: mutated inputs over every reader and command, counts by outcome.
 
-Builds the small valid corpus of ``tests/fuzz/harness.py`` once, then runs ``--cases`` cases
-(default 2,000), each a command with one input file mutated (truncation, random or non-UTF-8
-bytes, NaN/inf/1e308 numbers, empty files, header only, wrong column counts, huge fields, BOM),
-drawn with a fixed seed (``--seed``), every command and mutation in turn. Unlike the fast profile
-in the tests (hypothesis, which stops at the first defect), every case runs, and the counts by
-outcome are printed: the allowed ``clean_error`` and ``ok``, and the defects ``bad_ok``,
-``internal_error``, ``traceback`` and ``hang`` with examples.
+Builds the small valid corpus of ``tests/fuzz/harness.py`` once (a rendered scenario with its
+calibration, poses, boxes, depth maps as ``.npy`` and KITTI PNG, a video and an MCAP log of its
+frames, KITTI-layout labels, a finished run), then runs ``--cases`` cases (default 2,000), each
+a command with one input file mutated (truncation, cut at half, 200 bytes inverted, random or
+non-UTF-8 bytes, NaN/inf/1e308 numbers, empty files, header only, wrong column counts, huge
+fields, BOM, lines shuffled, a box far outside the image), drawn with a fixed seed
+(``--seed``), every command and mutation in turn. Unlike the fast profile in the tests
+(hypothesis, which stops at the first defect), every case runs, and the counts by outcome are
+printed: the allowed ``same_output`` (accepted, with the records of the unmutated input),
+``ok`` (accepted with other records, per-item states covering what is not ``ok``) and
+``clean_error``, and the defects ``bad_ok``, ``numpy_warning``, ``internal_error``,
+``traceback`` and ``hang`` with examples; then the outcomes per mutation.
 
 Usage (from the repository root)::
 
@@ -24,7 +29,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fuzz"))
-from harness import ALLOWED, CASES, MUTATIONS, build_corpus, run_case
+from harness import ALLOWED, CASES, MUTATIONS, OUTCOMES, build_corpus, run_case
 
 
 def main() -> int:
@@ -36,6 +41,7 @@ def main() -> int:
     mutations = sorted(MUTATIONS)
     counts: collections.Counter[str] = collections.Counter()
     per_case: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
+    per_mutation: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     defects = []
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -46,12 +52,19 @@ def main() -> int:
             outcome = run_case(corpus, case, mutation, rng.randrange(2**31), Path(tmp) / "work")
             counts[outcome.kind] += 1
             per_case[case.name][outcome.kind] += 1
+            per_mutation[mutation][outcome.kind] += 1
             if outcome.kind not in ALLOWED:
                 defects.append(outcome)
     print(f"{args.cases} cases over {len(CASES)} command lines × {len(mutations)} mutations")
     print(f"({time.perf_counter() - start:.0f} s)")
-    for kind in ("ok", "clean_error", "bad_ok", "internal_error", "traceback", "hang"):
+    for kind in OUTCOMES:
         print(f"  {kind:15s} {counts.get(kind, 0)}")
+    print("per mutation (" + ", ".join(OUTCOMES[:3]) + ", defects):")
+    for name in mutations:
+        c = per_mutation[name]
+        defects_here = sum(v for k, v in c.items() if k not in ALLOWED)
+        print(f"  {name:15s} " + " ".join(f"{c.get(k, 0):5d}" for k in OUTCOMES[:3]), end="")
+        print(f" {defects_here:5d}")
     for o in defects[:25]:
         print(f"  DEFECT {o.kind}: {o.case} / {o.mutation}: {o.detail[:160]}")
     if defects:

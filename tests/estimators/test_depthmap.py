@@ -158,12 +158,28 @@ def test_plausibility_applies_to_metres_after_scaling() -> None:
     assert list(out1.reason) == ["no_depth", ""]
 
 
-def test_cap_at_80_m_and_no_cap() -> None:
+def test_a_depth_is_never_capped() -> None:
+    """A depth beyond 80 m was capped to 80 m and marked ``ok`` (the README: never clamped)."""
     cars = [(0.0, 100.0)]
-    capped = DepthMapEstimator(CAMERA).estimate(frame_of(cars, render(cars)))
-    assert capped.distance_m[0] == 80.0 and capped.extra["depth_raw_m"][0] == pytest.approx(100)
-    free = DepthMapEstimator(CAMERA, max_depth_m=None).estimate(frame_of(cars, render(cars)))
-    assert free.distance_m[0] == pytest.approx(100.0)
+    out = DepthMapEstimator(CAMERA).estimate(frame_of(cars, render(cars)))
+    assert out.distance_m[0] == pytest.approx(100.0) and out.reason[0] == ""
+    beyond = render(cars)
+    beyond[beyond == 100.0] = 1500.0  # not a road scene's depth
+    out = DepthMapEstimator(CAMERA).estimate(frame_of(cars, beyond))
+    assert out.reason[0] == "no_depth" and np.isnan(out.distance_m[0])
+
+
+@pytest.mark.parametrize("window_px", [201, 100_001])
+def test_a_window_wider_than_the_box_never_leaves_it(window_px: int) -> None:
+    """``--depth-window 100001`` gave every target the median of the whole map (15.52 m
+    against 20, 42 and 55 m); at 201 px a target read 19.9 m instead of 39.75 m."""
+    cars = [(-2.5, 20.0), (0.0, 39.75), (2.5, 55.0)]
+    est = DepthMapEstimator(CAMERA, sample="window", window_px=window_px)
+    out = est.estimate(frame_of(cars, render(cars)))
+    np.testing.assert_allclose(out.distance_m, [z for _, z in cars], rtol=1e-6)
+    tiny = np.array([[620.2, 200.2, 620.4, 200.4]])  # covers no pixel centre: the nearest one
+    depth = np.full((H, W), 30.0, np.float32)
+    assert sample_box_depth(depth, tiny, DepthSample.WINDOW, window_px)[0] == 30.0
 
 
 def test_bad_options_and_depth_size() -> None:
@@ -172,7 +188,6 @@ def test_bad_options_and_depth_size() -> None:
         {"scaling": "magic"},
         {"window_px": 4},
         {"lower_fraction": 0.0},
-        {"max_depth_m": 0.0},
     ):
         with pytest.raises(ConfigurationError, match="depthmap"):
             DepthMapEstimator(CAMERA, **kw)  # type: ignore[arg-type]

@@ -31,9 +31,8 @@ GROUND_CONTACT = ("flat", "ego", "paper", "imu", "imu-ego")
 
 
 def settled(method: str, boxes: list[list[float]], depth_m: float | None = None) -> FrameEstimates:
-    """A frame through :class:`FrameStep` (θ = 0, level camera; a uniform depth map, uncapped)."""
-    options = {"max_depth_m": None} if method == "depthmap" else {}
-    step = FrameStep(make_estimator(method, CAMERA, **options))
+    """A frame through :class:`FrameStep` (θ = 0, level camera; a uniform depth map)."""
+    step = FrameStep(make_estimator(method, CAMERA))
     table = BoxTable.build(np.zeros(len(boxes)), boxes)
     depth = None if depth_m is None else np.full((H, W), depth_m, dtype=np.float32)
     return step.estimate(0, 0.0, 0.0, np.eye(3), table, None, depth)

@@ -6,14 +6,21 @@ PointRCNN detections made from it; a finished ``run`` folder), with one input fi
 case ends in exactly one outcome:
 
 - ``clean_error``: exit code 2 and a message (a user mistake, reported as such);
-- ``ok``: exit code 0, and every ``records.csv`` row marked ``ok`` has a finite distance in
-  ``(0, MAX_PLAUSIBLE_M]`` — a per-item state covers everything else;
-- ``bad_ok``: exit code 0 but an ``ok`` row with a non-finite, negative or implausible distance;
+- ``same_output``: exit code 0 with the output of the unmutated input (the same records:
+  status, reason and distance of every row): the mutation changed nothing that is read
+  (line ends, a byte-order mark, a field a command does not use);
+- ``ok``: exit code 0 with another output, and every row marked ``ok`` has a finite distance
+  in ``(0, MAX_PLAUSIBLE_M]`` and a box that meets the corpus' images — per-item states cover
+  everything else;
+- ``bad_ok``: exit code 0 but an ``ok`` row with a non-finite, negative or implausible
+  distance, or with a box wholly outside the images;
+- ``numpy_warning``: a numpy ``RuntimeWarning`` reached the user (before a clean error or
+  not: each stands for an error or a state the program should say instead);
 - ``internal_error``: exit code 1 (an exception the program did not expect);
 - ``traceback``: an exception escaped :func:`slopedist.cli.main`;
 - ``hang``: the case ran longer than :data:`CASE_TIMEOUT_S`.
 
-Only the first two are allowed. Used by ``tests/fuzz/test_fuzz_cli.py`` (a fast hypothesis
+Only the first three are allowed. Used by ``tests/fuzz/test_fuzz_cli.py`` (a fast hypothesis
 profile) and ``benchmarks/fuzz_inputs.py`` (the long profile, with counts per outcome).
 """
 
@@ -39,8 +46,23 @@ MAX_PLAUSIBLE_M = 1000.0
 CASE_TIMEOUT_S = 60
 """A case running longer than this is a hang."""
 
-ALLOWED = frozenset({"clean_error", "ok"})
+ALLOWED = frozenset({"clean_error", "same_output", "ok"})
 """Outcomes that are not defects."""
+
+OUTCOMES = (
+    "same_output",
+    "ok",
+    "clean_error",
+    "bad_ok",
+    "numpy_warning",
+    "internal_error",
+    "traceback",
+    "hang",
+)
+"""Every outcome, in the order the long profile prints their counts."""
+
+IMAGE_SIZE_PX = (1242, 375)
+"""The corpus' frames (the KITTI camera of ``slopedist simulate``)."""
 
 NASTY_NUMBERS = ("nan", "NaN", "inf", "-inf", "1e308", "-1e308", "1e23", "-1", "0", "", "1e-300")
 
@@ -64,6 +86,11 @@ class Corpus:
     def kitti(self) -> Path:
         return self.root / "kitti"
 
+    @property
+    def outputs(self) -> Path:
+        """The records of each case on the unmutated corpus (``NAME.json``)."""
+        return self.root.parent / f"{self.root.name}-outputs"
+
 
 def build_corpus(root: Path, frames: int = 12) -> Corpus:
     """Render a short scenario and derive every input kind from it (a few seconds)."""
@@ -84,6 +111,7 @@ def build_corpus(root: Path, frames: int = 12) -> Corpus:
     )
     assert code == 0, "simulate failed while building the fuzz corpus"
     _write_kitti_layout(corpus)
+    _write_video_log_and_pngs(corpus)
     run_args = ["run", str(corpus.sim / "image_02"), "--calib", str(corpus.sim / "calib.txt")]
     run_args += ["--boxes", str(corpus.sim / "boxes.csv"), "--method", "paper", "--quiet"]
     code = main([*run_args, "--out", str(corpus.run_dir)])
@@ -113,6 +141,59 @@ def _write_kitti_layout(corpus: Corpus) -> None:
     ):
         (corpus.kitti / sub).mkdir(parents=True, exist_ok=True)
         (corpus.kitti / sub / "0000.txt").write_text(text, encoding="utf-8")
+
+
+def _write_video_log_and_pngs(corpus: Corpus) -> None:
+    """``sim/video.mp4`` (MPEG-4 Part 2, a key frame every 6 frames), ``sim/log.mcap`` (the
+    frames as a ROS 2 MCAP log written in small chunks with CRCs) and ``sim/depth_png/`` (the
+    depth maps as KITTI depth PNGs) from the rendered scenario."""
+    import av
+    import cv2
+    import numpy as np
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    from slopedist.io.calibration import read_calibration
+    from slopedist.io.depth.files import read_npy_depth, write_kitti_depth_png
+    from slopedist.io.rosbag_write import ImageEncoding, LogFormat, LogFrame, write_log
+
+    sim = corpus.sim
+    frames = sorted((sim / "image_02").glob("*.png"))
+    images = [cv2.imread(str(f)) for f in frames]
+    with av.open(str(sim / "video.mp4"), "w") as container:
+        stream = container.add_stream("mpeg4", rate=10)
+        stream.width, stream.height = images[0].shape[1], images[0].shape[0]
+        stream.pix_fmt, stream.gop_size, stream.bit_rate = "yuv420p", 6, 4_000_000
+        for image in images:
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    camera = read_calibration(sim / "calib.txt").camera.with_image_size(*IMAGE_SIZE_PX)
+    log_frames = [LogFrame(k * 100_000_000, im) for k, im in enumerate(images)]
+    bag = write_log(sim / "bag", log_frames, camera, LogFormat.ROS2_MCAP, ImageEncoding.JPEG)
+    with next(bag.glob("*.mcap")).open("rb") as src, (sim / "log.mcap").open("wb") as out:
+        writer = Writer(out, chunk_size=64_000, compression=CompressionType.NONE)
+        writer.start(profile="ros2", library="slopedist fuzz corpus")
+        ids: dict[tuple[str, int], int] = {}
+        for schema, channel, message in make_reader(src).iter_messages():
+            if schema is not None and ("s", schema.id) not in ids:
+                ids["s", schema.id] = writer.register_schema(
+                    schema.name, schema.encoding, schema.data
+                )
+            if ("c", channel.id) not in ids:
+                ids["c", channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, ids.get(("s", channel.schema_id), 0)
+                )
+            writer.add_message(
+                ids["c", channel.id], message.log_time, message.data, message.publish_time
+            )
+        writer.finish()
+    shutil.rmtree(bag)
+    (sim / "depth_png").mkdir()
+    for path in sorted((sim / "depth").glob("*.npy")):
+        write_kitti_depth_png(sim / "depth_png" / f"{path.stem}.png", read_npy_depth(path))
+    assert np.isfinite(read_npy_depth(next((sim / "depth").glob("*.npy")))).any()
 
 
 # ------------------------------------------------------------------------------ the mutations
@@ -198,6 +279,45 @@ def bom(data: bytes, rng: random.Random) -> bytes:
     return b"\xef\xbb\xbf" + data
 
 
+def flip_bytes(data: bytes, rng: random.Random) -> bytes:
+    """200 bytes inverted somewhere in the middle half (a damaged sector)."""
+    if len(data) < 400:
+        return bytes(b ^ 0xFF for b in data)
+    start = rng.randrange(len(data) // 4, 3 * len(data) // 4 - 200)
+    return data[:start] + bytes(b ^ 0xFF for b in data[start : start + 200]) + data[start + 200 :]
+
+
+def truncate_half(data: bytes, rng: random.Random) -> bytes:
+    """Cut at half (a recorder that lost power)."""
+    return data[: len(data) // 2]
+
+
+def shuffle_lines(data: bytes, rng: random.Random) -> bytes:
+    """Every line but the first in random order."""
+    lines = data.split(b"\n")
+    rest = lines[1:]
+    rng.shuffle(rest)
+    return b"\n".join([lines[0], *rest])
+
+
+FAR_BOXES = ([b"5000", b"5000", b"5100", b"5100"], [b"-900", b"170", b"-800", b"230"])
+"""Boxes no image of the corpus' camera holds."""
+
+
+def far_box(data: bytes, rng: random.Random) -> bytes:
+    """A copy of a row of a box CSV with its box far outside any image (``5000, 5000, 5100,
+    5100`` or left of it, ``−900 … −800``)."""
+    lines = data.rstrip(b"\n").split(b"\n")
+    rows = [ln for ln in lines[1:] if ln.count(b",") >= 4]
+    if not rows:
+        return data
+    fields = rng.choice(rows).split(b",")
+    fields[1:5] = rng.choice(
+        [[b"5000", b"5000", b"5100", b"5100"], [b"-900", b"170", b"-800", b"230"]]
+    )
+    return b"\n".join([*lines, b",".join(fields)]) + b"\n"
+
+
 MUTATIONS: dict[str, Mutation] = {
     f.__name__: f
     for f in (
@@ -214,8 +334,15 @@ MUTATIONS: dict[str, Mutation] = {
         huge_field,
         crlf,
         bom,
+        flip_bytes,
+        truncate_half,
+        shuffle_lines,
+        far_box,
     )
 }
+
+UNMUTATED = "unmutated"
+"""The name :func:`run_case` takes for running a case on the corpus as it is."""
 
 
 # ---------------------------------------------------------------------------------- the cases
@@ -299,6 +426,59 @@ CASES: tuple[Case, ...] = (
         ("eval", "kitti-tracking", "{root}/kitti", "--boxes", "pointrcnn", "--score", "0.5"),
         "kitti/pointrcnn_car/0000.txt",
     ),
+    Case(
+        "run-video",
+        ("run", f"{S}/video.mp4", *RUN[2:], "--boxes", f"{S}/boxes.csv", "--method", "paper"),
+        "sim/video.mp4",
+    ),
+    Case(
+        "run-mcap",
+        (
+            "run",
+            f"{S}/log.mcap",
+            "--image-topic",
+            "/camera/image_raw",
+            "--quiet",
+            "--out",
+            "{out}/run",
+            "--boxes",
+            f"{S}/boxes.csv",
+            "--method",
+            "paper",
+        ),
+        "sim/log.mcap",
+    ),
+    Case(
+        "run-depth-png",
+        (
+            *RUN,
+            "--boxes",
+            f"{S}/boxes.csv",
+            "--method",
+            "depthmap",
+            "--odometry",
+            "none",
+            "--depth-dir",
+            f"{S}/depth_png",
+        ),
+        "sim/depth_png/000004.png",
+    ),
+    Case(
+        "run-depth-window",
+        (
+            *RUN,
+            "--boxes",
+            f"{S}/boxes.csv",
+            "--method",
+            "depthmap",
+            *DEPTH,
+            "--depth-sample",
+            "window",
+            "--depth-window",
+            "100001",
+        ),
+        "sim/depth/000003.npy",
+    ),
 )
 
 
@@ -332,7 +512,8 @@ def _alarm(seconds: int) -> Iterator[None]:
 
 
 def run_case(corpus: Corpus, case: Case, mutation: str, seed: int, work: Path) -> Outcome:
-    """Copy the corpus to ``work``, mutate the case's file, run the command, classify."""
+    """Copy the corpus to ``work``, mutate the case's file (:data:`UNMUTATED`: leave it), run
+    the command, classify (comparing with the records of the unmutated run)."""
     root = work / "corpus"
     if root.exists():
         shutil.rmtree(root)
@@ -341,39 +522,96 @@ def run_case(corpus: Corpus, case: Case, mutation: str, seed: int, work: Path) -
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)
-    target = root / case.target
-    target.write_bytes(MUTATIONS[mutation](target.read_bytes(), random.Random(seed)))
+    if mutation != UNMUTATED:
+        target = root / case.target
+        target.write_bytes(MUTATIONS[mutation](target.read_bytes(), random.Random(seed)))
     argv = case.resolved(root, out)
-    from slopedist.cli import main
-
-    stderr = io.StringIO()
-    try:
-        with (
-            _alarm(CASE_TIMEOUT_S),
-            contextlib.redirect_stdout(io.StringIO()),
-            contextlib.redirect_stderr(stderr),
-        ):
-            code = main(argv)
-    except _TimeoutError:
-        return Outcome(case.name, mutation, "hang", " ".join(argv))
-    except SystemExit as exc:  # click may exit directly
-        code = exc.code if isinstance(exc.code, int) else 1
-    except BaseException as exc:
-        tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
-        return Outcome(case.name, mutation, "traceback", tb)
-    message = stderr.getvalue().strip().splitlines()
+    code, message, numpy_warnings = _run(argv)
+    if isinstance(code, Outcome):
+        return Outcome(case.name, mutation, code.kind, code.detail)
+    if numpy_warnings:
+        return Outcome(case.name, mutation, "numpy_warning", numpy_warnings[0])
     if code == 2:
-        return Outcome(case.name, mutation, "clean_error", message[-1] if message else "")
+        return Outcome(case.name, mutation, "clean_error", message)
     if code != 0:
-        return Outcome(case.name, mutation, "internal_error", message[-1] if message else "")
+        return Outcome(case.name, mutation, "internal_error", message)
     bad = bad_ok_rows(out)
     if bad:
         return Outcome(case.name, mutation, "bad_ok", bad[0])
+    records = output_records(out, root)
+    if mutation == UNMUTATED:
+        corpus.outputs.mkdir(parents=True, exist_ok=True)
+        (corpus.outputs / f"{case.name}.json").write_text(json.dumps(records), encoding="utf-8")
+    elif records == unmutated_records(corpus, case, work.parent / f"{work.name}-unmutated"):
+        return Outcome(case.name, mutation, "same_output", "")
     return Outcome(case.name, mutation, "ok", "")
 
 
+def _run(argv: list[str]) -> tuple[int | Outcome, str, list[str]]:
+    """``(exit code, or the outcome of a hang or escaped exception; the last line of the
+    messages; the numpy RuntimeWarnings raised, as "file:line: text")`` of one command."""
+    import warnings
+
+    from slopedist.cli import main
+
+    stderr = io.StringIO()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            with (
+                _alarm(CASE_TIMEOUT_S),
+                contextlib.redirect_stdout(io.StringIO()),
+                contextlib.redirect_stderr(stderr),
+            ):
+                code = main(argv)
+        except _TimeoutError:
+            return Outcome("", "", "hang", " ".join(argv)), "", []
+        except SystemExit as exc:  # click may exit directly
+            code = exc.code if isinstance(exc.code, int) else 1
+        except BaseException as exc:
+            tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
+            return Outcome("", "", "traceback", tb), "", []
+    numpy_warnings = [
+        f"{Path(w.filename).name}:{w.lineno}: {w.message}"
+        for w in caught
+        if issubclass(w.category, RuntimeWarning)
+    ]
+    message = stderr.getvalue().strip().splitlines()
+    return code, message[-1] if message else "", numpy_warnings
+
+
+def unmutated_records(corpus: Corpus, case: Case, work: Path) -> list[list[str]]:
+    """The records of ``case`` on the unmutated corpus (run once, then kept)."""
+    path = corpus.outputs / f"{case.name}.json"
+    if not path.exists():
+        outcome = run_case(corpus, case, UNMUTATED, 0, work)
+        if not path.exists():
+            raise AssertionError(f"the unmutated corpus fails {case.name}: {outcome}")
+    records: list[list[str]] = json.loads(path.read_text(encoding="utf-8"))
+    return records
+
+
+def output_records(out: Path, root: Path) -> list[list[str]]:
+    """What a command's output says of the targets: every row of every CSV under ``out``
+    with a ``status`` column, as ``[file, frame, track, status, reason, distance]`` (no
+    timings, no paths), and for a command without such a file the names of its files."""
+    rows: list[list[str]] = []
+    for path in sorted(out.rglob("*.csv")):
+        with path.open(encoding="utf-8", newline="") as fh:
+            reader = csv.DictReader(fh)
+            if not reader.fieldnames or "status" not in reader.fieldnames:
+                continue
+            keys = ("frame", "track_id", "status", "reason", "distance_m")
+            name = str(path.relative_to(out))
+            rows += [[name, *(row.get(k) or "" for k in keys)] for row in reader]
+    if not rows:
+        rows = [[str(p.relative_to(out))] for p in sorted(out.rglob("*")) if p.is_file()]
+    return rows
+
+
 def bad_ok_rows(out: Path) -> list[str]:
-    """Rows of any ``records.csv`` under ``out`` marked ``ok`` whose distance is not plausible."""
+    """Rows of any records CSV under ``out`` marked ``ok`` whose distance is not plausible, or
+    whose box lies wholly outside the corpus' images (:data:`IMAGE_SIZE_PX`)."""
     bad = []
     for path in out.rglob("*.csv"):
         with path.open(encoding="utf-8", newline="") as fh:
@@ -389,7 +627,20 @@ def bad_ok_rows(out: Path) -> list[str]:
                     d = math.nan
                 if not (math.isfinite(d) and 0.0 < d <= MAX_PLAUSIBLE_M):
                     bad.append(f"{path.name}:{i} ok with distance {row['distance_m']!r}")
+                elif _outside_image(row):
+                    box = ", ".join(row[k] for k in ("left", "top", "right", "bottom"))
+                    bad.append(f"{path.name}:{i} ok for a box outside the images ({box})")
     return bad
+
+
+def _outside_image(row: dict[str, str]) -> bool:
+    """Whether a records row's box lies wholly outside the corpus' images."""
+    try:
+        left, top, right, bottom = (float(row[k]) for k in ("left", "top", "right", "bottom"))
+    except (KeyError, TypeError, ValueError):
+        return False
+    width, height = IMAGE_SIZE_PX
+    return right <= -0.5 or bottom <= -0.5 or left >= width - 0.5 or top >= height - 0.5
 
 
 def log_outcome(outcome: Outcome) -> None:

@@ -19,6 +19,7 @@ from harness import (
     ALLOWED,
     CASES,
     MUTATIONS,
+    UNMUTATED,
     Case,
     Corpus,
     bad_ok_rows,
@@ -42,9 +43,11 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
 def test_unmutated_corpus_runs_clean(corpus: Corpus, work: Path, case: Case) -> None:
-    """The harness's baseline: every command succeeds on the valid corpus (crlf keeps it valid)."""
-    outcome = run_case(corpus, case, "crlf", 0, work)
-    assert outcome.kind == "ok", outcome
+    """The harness's baseline: every command succeeds on the valid corpus, without a numpy
+    warning, and gives its records again when nothing it reads changed."""
+    assert run_case(corpus, case, UNMUTATED, 0, work).kind == "ok"
+    if case.target.endswith((".csv", ".txt")):  # crlf keeps a text file as it was
+        assert run_case(corpus, case, "crlf", 0, work).kind == "same_output"
 
 
 def test_bad_ok_rows_sees_implausible_distances(tmp_path: Path) -> None:
@@ -52,6 +55,15 @@ def test_bad_ok_rows_sees_implausible_distances(tmp_path: Path) -> None:
         "frame,distance_m,status\n0,12.5,ok\n1,,missing\n2,-3,ok\n3,1e9,ok\n4,nan,ok\n"
     )
     assert len(bad_ok_rows(tmp_path)) == 3
+
+
+def test_bad_ok_rows_sees_boxes_outside_the_images(tmp_path: Path) -> None:
+    (tmp_path / "records.csv").write_text(
+        "frame,left,top,right,bottom,distance_m,status\n0,500,150,600,250,12.5,ok\n"
+        "1,5000,5000,5100,5100,0.24,ok\n2,-900,170,-800,230,9.36,ok\n"
+        "3,5000,5000,5100,5100,,missing\n"
+    )
+    assert len(bad_ok_rows(tmp_path)) == 2
 
 
 @settings(

@@ -130,3 +130,63 @@ def test_run_on_a_vfr_video_writes_the_true_times_to_frames_csv(
     with (tmp_path / "out" / "frames.csv").open(newline="") as fh:
         times = [float(r["timestamp_s"]) for r in csv.DictReader(fh)]
     assert times == pytest.approx(VFR_TIMES, abs=1e-6)
+
+
+def write_textured(path: Path, codec: str, n: int = 24, gop: int = 12) -> Path:
+    """``n`` frames of a moving texture (320×240, a key frame every ``gop``) in ``codec``."""
+    import av
+
+    rng = np.random.default_rng(1)
+    base = np.repeat(np.repeat(rng.integers(0, 255, (60, 80, 3), np.uint8), 4, 0), 4, 1)
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream(codec, rate=10)
+        stream.width, stream.height, stream.pix_fmt = 320, 240, "yuv420p"
+        stream.gop_size = gop
+        for k in range(n):
+            image = np.roll(base, 3 * k, axis=1)
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    return path
+
+
+def middle_of_a_predicted_frame(path: Path) -> int:
+    """The byte in the middle of the largest packet of a frame predicted from others, early in
+    the first group of pictures (its slice data: damage there is concealed, not a hard
+    error; and the key frame of the next group is far enough on to end it)."""
+    import av
+
+    with av.open(str(path)) as container:
+        packets = [p for p in container.demux(container.streams.video[0]) if p.size]
+    first_gop = [p for p in packets[1:6] if not p.is_keyframe]
+    largest = max(first_gop, key=lambda p: p.size)
+    return int(largest.pos) + largest.size // 2
+
+
+@pytest.mark.parametrize("codec", ["mpeg4", "libx264"])
+def test_frames_the_decoder_reports_damaged_are_unreadable_never_used(
+    tmp_path: Path, codec: str
+) -> None:
+    """Bytes flipped in ``mdat`` (libav: "ac-tex damaged", "Error at MB") gave every frame
+    ``ok``, θ −0.25° instead of +0.06° and distances up to 23 % long."""
+    path = write_textured(tmp_path / "clean.mp4", codec)
+    clean = list(PyAVVideoSource(path))
+    assert len(clean) == 24 and all(f.ok for f in clean)
+    data = bytearray(path.read_bytes())
+    start = middle_of_a_predicted_frame(path)
+    data[start - 8 : start + 8] = bytes(b ^ 0xFF for b in data[start - 8 : start + 8])
+    damaged_path = tmp_path / "damaged.mp4"
+    damaged_path.write_bytes(bytes(data))
+    damaged = list(PyAVVideoSource(damaged_path))
+    assert [f.index for f in damaged] == list(range(24))
+    changed = [
+        k
+        for k, (a, b) in enumerate(zip(clean, damaged))
+        if b.image is None or np.abs(a.image.astype(int) - b.image).mean() > 0.5
+    ]
+    assert changed  # the damage shows
+    for k in changed:  # and no frame that shows it is used
+        assert damaged[k].status is FrameStatus.UNREADABLE, (k, damaged[k].detail)
+        assert "damage" in damaged[k].detail
+    assert damaged[-1].ok  # the next key frame ends it

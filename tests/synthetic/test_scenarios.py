@@ -101,6 +101,20 @@ def test_builtin_text_round_trips_through_a_user_file(tmp_path: Path) -> None:
             5,
             "wheelbase_m",
         ),
+        *(  # a vehicle that vanished from the truth and the boxes (a numpy warning only)
+            (
+                MINIMAL.replace("speed_kmh = 40.0", f"speed_kmh = 40.0\n{name} = {value}"),
+                f"target[0].{name}",
+                8,
+                "m, got",
+            )
+            for name, value in (
+                ("wheelbase_m", "1e-300"),
+                ("length_m", "1e-300"),
+                ("width_m", "0.001"),
+                ("height_m", "1e4"),
+            )
+        ),
         (MINIMAL + "[road]\nstart_grade_pct = 55\n", "road.start_grade_pct", 9, "±40"),
         (MINIMAL + "[noise]\ntruncate = 1\n", "noise.truncate", 9, "true or false"),
         (

@@ -5,8 +5,9 @@ the target's box. Options:
 
 Sampling (:class:`DepthSample`):
     ``centre``: the single pixel nearest to the box centre ``((l+r)/2, (t+b)/2)`` (the paper);
-    ``window``: median of the valid pixels of a ``window_px × window_px`` square around it
-    (robust to holes and noise, and usable on sparse LiDAR maps);
+    ``window``: median of the valid pixels of a ``window_px × window_px`` square around it,
+    cut to the box (robust to holes and noise, and usable on sparse LiDAR maps; a window wider
+    than the box never reaches the road or the cars beside it);
     ``lower``: median of the valid pixels of the box's lower part: the bottom
     ``lower_fraction`` of its rows and the central half of its columns (the vehicle's rear
     and wheels, away from the background seen beside and above it).
@@ -26,9 +27,9 @@ depth-evaluation literature (Monodepth2 scales each image by ``median(truth)/med
     A frame without any reference pair reuses the last frame's scale; before the first scale of
     a sequence, targets are missing with reason ``no_scale``.
 
-Plausibility and cap: a depth below ``min_depth_m`` (default 0.1 m) or above 1000 m after
-scaling is reason ``no_depth`` (a 1e-30 network output is not a distance of 0.001 m); above
-``max_depth_m`` (default 80 m, the KITTI protocol; None = no cap) it is capped.
+Plausibility: a depth below ``min_depth_m`` (default 0.1 m) or above 1000 m after scaling is
+reason ``no_depth`` (a 1e-30 network output is not a distance of 0.001 m); a depth is never
+capped (evaluations cap every method's estimates alike, at 80 m for the KITTI protocol).
 
 Scale check (scaling ``none``): metric depth maps must agree with the flat-ground distance of
 eq. 1 where it is reliable — boxes whose contact distance is
@@ -43,7 +44,7 @@ Border: the depth at the box centre is still a pixel of the vehicle when the box
 image border (the visible part is what the box covers), so a cut box keeps status ``ok`` with
 its ``cut`` flag; boxes wholly outside the image or degenerate are ``missing`` before sampling.
 
-Extra output columns: ``depth_raw_m`` (sampled depth before scaling and cap) and ``depth_scale``.
+Extra output columns: ``depth_raw_m`` (sampled depth before scaling) and ``depth_scale``.
 """
 
 from __future__ import annotations
@@ -70,7 +71,6 @@ from slopedist.estimators.base import (
 from slopedist.io.depth.base import MAX_PLAUSIBLE_DEPTH_M, MIN_PLAUSIBLE_DEPTH_M, plausible_depth
 from slopedist.io.detections.boxes import EDGES, border_cuts
 
-DEFAULT_MAX_DEPTH_M = 80.0
 DEFAULT_MIN_DEPTH_M = MIN_PLAUSIBLE_DEPTH_M
 SCALE_CHECK_RANGE_M = (3.0, 12.0)
 """Flat-ground contact distances (m) at which a metric depth map's scale is checked."""
@@ -120,7 +120,8 @@ def sample_box_depth(
     """Depth of every box ``(left, top, right, bottom)`` sampled from ``depth_m``.
 
     Pixel ``(row i, column j)`` is centred on image coordinates ``(y = i, x = j)``. Boxes that
-    reach past the image are clipped to it; NaN where no valid pixel is sampled. ``metric``:
+    reach past the image are clipped to it, and a ``window`` to the pixels whose centres lie in
+    the box (never fewer than the centre pixel); NaN where no valid pixel is sampled. ``metric``:
     the map is in metres, and values outside the plausible range are no value; otherwise
     (scale-less maps) only non-finite and non-positive values are.
     """
@@ -138,7 +139,10 @@ def sample_box_depth(
             row = math.floor(0.5 * (top + bottom) + 0.5)
             col = math.floor(0.5 * (left + right) + 0.5)
             half = window_px // 2 if sample is DepthSample.WINDOW else 0
-            r0, r1, c0, c1 = row - half, row + half + 1, col - half, col + half + 1
+            r0 = min(max(row - half, math.ceil(top)), row)
+            r1 = max(min(row + half, math.floor(bottom)), row) + 1
+            c0 = min(max(col - half, math.ceil(left)), col)
+            c1 = max(min(col + half, math.floor(right)), col) + 1
         r0, r1, c0, c1 = max(r0, 0), min(r1, h), max(c0, 0), min(c1, w)
         if r0 < r1 and c0 < c1:
             out[k] = _median_valid(d[r0:r1, c0:c1], metric)
@@ -154,7 +158,6 @@ class DepthMapEstimator(Estimator):
         window_px: side of the ``window`` square, pixels (odd; ≥ 1).
         lower_fraction: share of the box height used by ``lower`` (0 < x ≤ 1).
         scaling: :class:`DepthScaling` (or its name).
-        max_depth_m: upper cap, metres (None = no cap).
         min_depth_m: smallest plausible depth after scaling, metres (smaller: ``no_depth``).
         truth_column: box column holding ground-truth distances for ``truth`` scaling.
     """
@@ -171,7 +174,6 @@ class DepthMapEstimator(Estimator):
         window_px: int = 5,
         lower_fraction: float = 1.0 / 3.0,
         scaling: DepthScaling | str = DepthScaling.NONE,
-        max_depth_m: float | None = DEFAULT_MAX_DEPTH_M,
         min_depth_m: float = DEFAULT_MIN_DEPTH_M,
         truth_column: str = TRUTH_COLUMN,
     ) -> None:
@@ -189,13 +191,8 @@ class DepthMapEstimator(Estimator):
             raise ConfigurationError(
                 f"depthmap: lower fraction must be in (0, 1], got {lower_fraction}"
             )
-        if max_depth_m is not None and not max_depth_m > min_depth_m:
-            raise ConfigurationError(
-                f"depthmap: cap {max_depth_m} m must exceed the minimum depth {min_depth_m} m"
-            )
         self.window_px = int(window_px)
         self.lower_fraction = float(lower_fraction)
-        self.max_depth_m = max_depth_m
         self.min_depth_m = float(min_depth_m)
         self.truth_column = truth_column
         self._last_scale = math.nan
@@ -293,7 +290,6 @@ class DepthMapEstimator(Estimator):
         with np.errstate(invalid="ignore"):
             implausible = ~((d >= self.min_depth_m) & (d <= MAX_PLAUSIBLE_DEPTH_M))
         reasons[(reasons == "") & implausible] = MissingReason.NO_DEPTH.value
-        d = np.minimum(d, self.max_depth_m if self.max_depth_m else np.inf)
         d = np.where(reasons == "", d, np.nan)
         theta = np.full(n, frame.theta_rad, dtype=float)
         nan = np.full(n, np.nan)

@@ -13,11 +13,23 @@ upside-down dashcam's rotation metadata), as players and OpenCV show it and as a
 on it saw it. A frame without a pts takes the previous one's plus one nominal period; a pts
 that does not increase gives a frame of status ``unreadable`` (as in a log, see
 :mod:`slopedist.io.rosbag`).
+
+Damage: a frame the decoder reports damaged (libav logs an error while decoding it, such as
+"Error at MB" or "ac-tex damaged", or flags it corrupt) is ``unreadable``, and so is every frame
+after it up to the next key frame: they are predicted from the damaged one and show its smear.
+The decoder's messages can arrive a few frames ahead of their frame (B-frame reordering), so
+the frames from the first message on are marked, and a key frame ends the damage only once
+:func:`damage_slack` frames have gone by without a message. Frames are decoded on one
+thread: PyAV deadlocks when a decoding thread of libav logs (which is why it logs nothing by
+default). OpenCV's decoding (:class:`~slopedist.io.frames.VideoSource`: without PyAV, or with
+a forced frame rate) reports no damage.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -81,6 +93,7 @@ class PyAVVideoSource:
 
         with self._open() as container:
             stream = container.streams.video[0]
+            _one_thread(stream)
             size = int(stream.codec_context.width), int(stream.codec_context.height)
             try:
                 first = next(container.decode(stream))
@@ -96,10 +109,11 @@ class PyAVVideoSource:
         last: float | None = None
         size: tuple[int, int] | None = None
         k = 0
-        with self._open() as container:
+        with self._open() as container, decoder_errors() as errors:
             stream = container.streams.video[0]
-            stream.thread_type = "AUTO"
+            _one_thread(stream)
             frames = container.decode(stream)
+            damage = _Damage(stream.codec_context, errors)
             while True:
                 name = f"{self.path.name}#{k}"
                 try:
@@ -120,7 +134,7 @@ class PyAVVideoSource:
                     t = 0.0 if last is None else last + period
                 if self.timestamps_s is not None:
                     t = self._given(k)
-                status, detail, image = self._check(vf, t, last, size)
+                status, detail, image = self._check(vf, t, last, size, damage.judge(k, vf))
                 size = size or _displayed_size(vf)
                 if status is FrameStatus.OK:
                     last = t
@@ -137,9 +151,11 @@ class PyAVVideoSource:
 
     @staticmethod
     def _check(
-        vf: Any, t: float, last: float | None, size: tuple[int, int] | None
+        vf: Any, t: float, last: float | None, size: tuple[int, int] | None, damaged: str
     ) -> tuple[FrameStatus, str, NDArray[np.uint8] | None]:
         this = _displayed_size(vf)
+        if damaged:
+            return FrameStatus.UNREADABLE, damaged, None
         if last is not None and not t > last:
             why = f"presentation time {t:.6f} s does not increase (the frame before: {last:.6f} s)"
             return FrameStatus.UNREADABLE, why, None
@@ -151,6 +167,113 @@ class PyAVVideoSource:
         if turns:
             image = np.ascontiguousarray(np.rot90(image, turns))
         return FrameStatus.OK, "", image
+
+
+DAMAGE_SLACK_FRAMES = 1
+"""Frames beyond the decoder's threads and reordering delay that must go by without a damage
+message before a key frame ends the damage (see :func:`damage_slack`)."""
+
+REORDER_FRAMES = 4
+"""Frames a decoder with B-frames holds back before showing one, at most, in the streams of
+common encoders (x264's B-pyramid: 2; H.264 allows up to 16, which no dashcam writes)."""
+
+
+def _one_thread(stream: Any) -> None:
+    """Decode ``stream`` on the calling thread: a decoding thread of libav that logs while
+    Python waits for it deadlocks PyAV (hence PyAV logs nothing by default), and the damage
+    check needs the decoder's messages (:func:`decoder_errors`)."""
+    stream.thread_type = "NONE"
+    stream.codec_context.thread_count = 1
+
+
+def damage_slack(codec_context: Any) -> int:
+    """How many frames the decoder's messages may arrive ahead of their frame: one per
+    decoding thread beyond the first (none: :func:`_one_thread`), the reordering delay of a
+    stream with B-frames, and :data:`DAMAGE_SLACK_FRAMES`."""
+    threads = int(getattr(codec_context, "thread_count", 1) or 1)
+    reorder = REORDER_FRAMES if getattr(codec_context, "has_b_frames", False) else 0
+    return threads - 1 + reorder + DAMAGE_SLACK_FRAMES
+
+
+class _Damage:
+    """Which frames of a stream the decoder's error messages (``errors``, shared with
+    :func:`decoder_errors`) mark damaged (see the module docstring)."""
+
+    def __init__(self, codec_context: Any, errors: list[tuple[int, str, str]]) -> None:
+        self.codec = str(getattr(codec_context, "name", ""))
+        self.slack = damage_slack(codec_context)
+        self.errors = errors
+        self.seen = len(errors)
+        self.why = ""
+        self.since = -1
+        self.quiet = 0
+
+    def judge(self, k: int, vf: Any) -> str:
+        """Why frame ``k`` (decoded as ``vf``) is damaged, or "" when it is not."""
+        new = [m for _, name, m in self.errors[self.seen :] if name == self.codec]
+        self.seen = len(self.errors)
+        if new or getattr(vf, "is_corrupt", False):
+            said = new[0].strip() if new else "the frame is flagged corrupt"
+            if not self.why:
+                self.why, self.since = said, k
+            self.quiet = 0
+            return f"the decoder reports damage: {said}"
+        if not self.why:
+            return ""
+        self.quiet += 1
+        if vf.key_frame and self.quiet > self.slack:
+            self.why, self.since, self.quiet = "", -1, 0
+            return ""
+        return f"predicted from damaged frames (from frame {self.since} on: {self.why})"
+
+
+class _SharedCapture:
+    """One capture of libav's messages for every decoding that overlaps in time (PyAV routes
+    them to a single capture at a time)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.users = 0
+        self.capture: Any = None
+        self.level: Any = None
+
+    def enter(self) -> list[tuple[int, str, str]]:
+        import av.logging
+
+        with self.lock:
+            if self.users == 0:
+                self.level = av.logging.get_level()
+                av.logging.set_level(av.logging.ERROR)
+                self.capture = av.logging.Capture(local=False)
+                self.capture.__enter__()
+            self.users += 1
+            logs: list[tuple[int, str, str]] = self.capture.logs
+            return logs
+
+    def exit(self) -> None:
+        import av.logging
+
+        with self.lock:
+            self.users -= 1
+            if self.users == 0:
+                self.capture.__exit__(None, None, None)
+                av.logging.set_level(self.level)
+                self.capture = None
+
+
+_SHARED = _SharedCapture()
+
+
+@contextmanager
+def decoder_errors() -> Iterator[list[tuple[int, str, str]]]:
+    """The messages ``(level, source, text)`` of level error and worse that libav logs while
+    the block runs, from any thread (PyAV logs nothing by default); blocks that overlap (a
+    decoding thread and the main one) share the list, each reading on from where it began."""
+    errors = _SHARED.enter()
+    try:
+        yield errors
+    finally:
+        _SHARED.exit()
 
 
 def _quarter_turns(vf: Any) -> int:

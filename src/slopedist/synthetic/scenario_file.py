@@ -53,10 +53,10 @@ Layout (units are in the names; every table and field is optional unless marked 
     accel_mps2 = 0.0
     start_m = 0.0                     # plan distance of the ego's centre at t = 0
     lane = 0                          # or lateral_m = offset from the centreline, left > 0
-    length_m = 4.5
-    width_m = 1.8
-    height_m = 1.5
-    wheelbase_m = 2.7
+    length_m = 4.5                    # 1..30 m
+    width_m = 1.8                     # 0.3..4 m
+    height_m = 1.5                    # 0.5..5 m
+    wheelbase_m = 2.7                 # 0.5..20 m, shorter than length_m
 
     [[target]]                        # zero or more (none: an empty road, no boxes)
     id = 1                            # track id (default: 1, 2, ...)
@@ -362,6 +362,33 @@ class _VehicleIdentity(NamedTuple):
     cls: str
 
 
+VEHICLE_DIMENSIONS_M = (
+    ("length_m", 4.5),
+    ("width_m", 1.8),
+    ("height_m", 1.5),
+    ("wheelbase_m", 2.7),
+)
+"""A vehicle's dimensions in a scenario file, in the order :class:`VehicleSpec` takes them,
+with their defaults (metres)."""
+
+VEHICLE_DIMENSION_RANGES_M = {
+    "length_m": (1.0, 30.0),
+    "width_m": (0.3, 4.0),
+    "height_m": (0.5, 5.0),
+    "wheelbase_m": (0.5, 20.0),
+}
+"""The dimensions a road vehicle has, metres (a bicycle to a road train): a dimension outside
+them (``wheelbase_m = 1e-300``) is not a vehicle, and the world would lose it (its pitch on a
+grade change divides by the wheelbase)."""
+
+
+def _dimension(r: TableReader, t: dict[str, Any], where: str, name: str, default: float) -> float:
+    low, high = VEHICLE_DIMENSION_RANGES_M[name]
+    return r.number(
+        t, name, where, default, lambda x: low <= x <= high, f"in [{low:g}, {high:g}] m"
+    )
+
+
 def _vehicle(
     r: TableReader,
     t: dict[str, Any],
@@ -393,10 +420,7 @@ def _vehicle(
         r.number(t, "start_m", where, identity.default_start_m),
         r.number(t, "speed_kmh", where, None, lambda x: 0 <= x <= 250, "in [0, 250] km/h") / 3.6,
         r.number(t, "accel_mps2", where, 0.0, lambda x: abs(x) <= 10, "within ±10 m/s²"),
-        r.number(t, "length_m", where, 4.5, positive, "> 0"),
-        r.number(t, "width_m", where, 1.8, positive, "> 0"),
-        r.number(t, "height_m", where, 1.5, positive, "> 0"),
-        r.number(t, "wheelbase_m", where, 2.7, positive, "> 0"),
+        *(_dimension(r, t, where, name, default) for name, default in VEHICLE_DIMENSIONS_M),
         (colour_rgb[2] / 255.0, colour_rgb[1] / 255.0, colour_rgb[0] / 255.0),
         identity.cls,
     )

@@ -31,14 +31,20 @@ from slopedist.io.detections.boxes import BoxTable
 from tests.conftest import shared_data_path
 
 
-def test_kitti_png_is_uint16_over_256_with_zero_as_no_value(tmp_path: Path) -> None:
-    raw = np.array([[0, 256, 2560], [65535, 1, 0]], dtype=np.uint16)
+def test_kitti_png_is_uint16_over_256_with_zero_and_its_largest_value_as_no_value(
+    tmp_path: Path,
+) -> None:
+    """65535 (255.996 m) is what writers clip every depth beyond the format to: it was read as
+    a depth, which the depth-map method then capped to 80 m and marked ``ok``."""
+    raw = np.array([[0, 256, 2560], [65535, 1, 65534]], dtype=np.uint16)
     cv2.imwrite(str(tmp_path / "0000000000.png"), raw)
     d = read_kitti_depth_png(tmp_path / "0000000000.png")
     assert d.dtype == np.float32
     np.testing.assert_allclose(d[0, 1:], [1.0, 10.0])
-    np.testing.assert_allclose(d[1, :2], [65535 / 256, 1 / 256])
-    assert np.isnan(d[0, 0]) and np.isnan(d[1, 2])
+    np.testing.assert_allclose(d[1, 1:], [1 / 256, 65534 / 256])
+    assert np.isnan(d[0, 0]) and np.isnan(d[1, 0])
+    write_kitti_depth_png(tmp_path / "far.png", np.full((2, 2), 300.0))  # beyond the format
+    assert np.isnan(read_kitti_depth_png(tmp_path / "far.png")).all()
 
 
 @settings(max_examples=30, deadline=None)

@@ -3,7 +3,9 @@
 Formats:
 
 - KITTI depth PNG: single-channel 16-bit PNG, ``value / 256`` = metres, ``0`` = no value
-  (the layout of the KITTI depth benchmark and of projected LiDAR maps).
+  (the layout of the KITTI depth benchmark and of projected LiDAR maps); ``65535`` (255.996 m),
+  the largest value, is no value too: writers clip every depth beyond the format's range to
+  it (:func:`write_kitti_depth_png` does), so it says only "this far or further".
 - ``.npy``: a 2-D float array of metres; NaN, ±inf and values ≤ 0 mean no value.
 
 A folder of depth files is indexed by file name: every ``*.png`` / ``*.npy`` whose stem is an
@@ -35,10 +37,14 @@ DEPTH_FILE_SUFFIXES = (".png", ".npy")
 KITTI_DEPTH_SCALE = 256.0
 """KITTI depth PNG: stored value = metres × 256."""
 
+KITTI_DEPTH_BEYOND = np.iinfo(np.uint16).max
+"""KITTI depth PNG: the stored value of a depth at or beyond the format's range (255.996 m),
+to which writers clip: no measurement."""
+
 
 def read_kitti_depth_png(path: str | Path) -> NDArray[np.float32]:
-    """Read a KITTI depth PNG (uint16, value/256 = metres, 0 = no value) → float32 metres, NaN
-    where there is no value.
+    """Read a KITTI depth PNG (uint16, value/256 = metres, 0 and 65535 = no value) → float32
+    metres, NaN where there is no value.
 
     Raises:
         MissingInputError: the file does not exist.
@@ -59,14 +65,15 @@ def read_kitti_depth_png(path: str | Path) -> NDArray[np.float32]:
             f"{channels} channel(s) of {raw.dtype}",
         )
     depth = raw.astype(np.float32) / np.float32(KITTI_DEPTH_SCALE)
-    depth[raw == 0] = np.nan
+    depth[(raw == 0) | (raw == KITTI_DEPTH_BEYOND)] = np.nan
     return depth
 
 
 def write_kitti_depth_png(path: str | Path, depth_m: NDArray[np.floating]) -> None:
     """Write a depth map (metres; NaN or ≤ 0 = no value) as a KITTI depth PNG.
 
-    Values are rounded to 1/256 m; depths beyond the format's range (255.996 m) are clipped.
+    Values are rounded to 1/256 m; depths beyond the format's range (255.996 m) are written as
+    its largest value, which :func:`read_kitti_depth_png` reads as no value.
     """
     path = Path(path)
     d = np.asarray(depth_m, dtype=np.float64)
