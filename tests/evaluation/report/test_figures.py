@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.evaluation.report.test_report import _record, write_run
 
 from slopedist.core.errors import ConfigurationError
 from slopedist.evaluation.report import ReportOptions, report_data
 from slopedist.evaluation.report.figures import choose_tracks, figure_tracks, track_series
+from tests.evaluation.report.test_report import _record, write_run
 
 
 def test_track_series_aligns_methods_on_the_track_times(tmp_path: Path) -> None:
