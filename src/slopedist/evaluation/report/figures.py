@@ -108,14 +108,15 @@ def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure
     draw_distance_panel`, as in the demo's plots)."""
     if not tracks:
         return None
-    fig = new_figure(9, 2.6 * len(tracks))
+    fig = new_figure(10, 2.6 * len(tracks))
     axes = fig.subplots(len(tracks), 1, squeeze=False)[:, 0]
     for ax, (s, track) in zip(axes, tracks):
         draw_distance_panel(ax, *track_series(data, s, track))
         ax.set_title(f"sequence {s}, track {track}", fontsize=9)
         ax.set_ylabel("distance (m)")
     axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
-    axes[0].legend(fontsize=7, ncol=min(len(data.methods) + 1, 7), loc="upper right")
+    lines, labels = axes[0].get_legend_handles_labels()
+    fig.legend(lines, labels, fontsize=7, loc="outside right upper")  # not over the data
     return Figure(
         "distance_over_time.png",
         "Estimated distance against the truth over time for chosen tracks "
