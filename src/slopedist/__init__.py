@@ -4,4 +4,4 @@ Implements Back et al., "Improved and efficient inter-vehicle distance estimatio
 gradients of both ego and target vehicles", its baselines, and improvements on top of it.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
