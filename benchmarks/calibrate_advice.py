@@ -36,7 +36,7 @@ Usage::
         [--json OUT]
 
 Exit status 1 when, under the leave-one-sequence-out thresholds, following the advice worsens a
-sequence's ``paper`` or ``ours`` by more than 2 % under any prior (issue 12's check). Takes about
+sequence's ``paper`` or ``ours`` by more than 2 % under any prior. Takes about
 15 minutes (2 cores).
 """
 

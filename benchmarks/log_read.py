@@ -8,7 +8,7 @@ read with :class:`slopedist.io.frames.ImageFolderSource` (PNG files). Logs with 
 images decode the same PNG data as the folder, so their difference to it is the cost of the log
 container itself (reading, deserialising, the stamp bookkeeping). Prints the median wall
 time per frame (milliseconds) of one full pass over each source, and the difference to the
-folder. The issue's budget: a bag adds no more than 2 ms per frame over the folder.
+folder. The budget: a bag adds no more than 2 ms per frame over the folder.
 
 Usage::
 

@@ -1,6 +1,6 @@
 """Why the built-in visual odometry misses the relative-rotation target on the sharp turn.
 
-Issue 3 asks for a median relative-rotation error ≤ 0.15° over 10-frame windows; the built-in
+The goal is a median relative-rotation error ≤ 0.15° over 10-frame windows; the built-in
 odometry gets about 0.10° on ``seq06_000-050`` (nearly straight) and 0.20° on ``unknown_000-050``
 (a 98° turn in 51 frames). This script collects the evidence on whether that gap is the odometry's
 fault (a solver bias, KLT drift) or a mismatch between the images with their calibration and the

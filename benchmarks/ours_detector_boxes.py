@@ -1,4 +1,4 @@
-"""Where ``ours`` loses on real detector boxes, and what is left to win (issue 16).
+"""Where ``ours`` loses on real detector boxes, and what is left to win.
 
 Same protocol as ``slopedist eval kitti-tracking`` (ground truth = Car/Van label rows with
 truncated = 0, occluded ≤ 1, 0 < z ≤ 80 m; detections matched to it by IoU ≥ 0.5; estimates
@@ -77,7 +77,7 @@ ROTATION = KittiEvalConfig().rotation
 """The rotation source the evaluation feeds by default (ORB-SLAM3)."""
 
 MIN_SCORE = {BoxSource.POINTRCNN: 2.0, BoxSource.RRC: 0.5}
-"""The detectors' score thresholds of the issue's figures (PointRCNN ≥ 2, RRC ≥ 0.5)."""
+"""The detectors' score thresholds of the targets set for ``ours`` (PointRCNN ≥ 2, RRC ≥ 0.5)."""
 
 RANGE_BINS_M = ((0, 10), (10, 20), (20, 30), (30, 40), (40, 60), (60, 80))
 

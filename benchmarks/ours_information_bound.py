@@ -1,9 +1,9 @@
-"""What the inputs can tell: an information bound for ``ours`` (issue 16).
+"""What the inputs can tell: an information bound for ``ours``.
 
 Is there information in what ``ours`` is given — the boxes, their class, the calibration, the
 camera rotations and metric ORB-SLAM3 poses, the tracks over time — that ``ours`` does not use,
-enough to reach the issue's figures (pooled RMSE ≤ 2.6 m ground-truth boxes, ≤ 1.7 m PointRCNN
-≥ 2, ≤ 2.1 m RRC ≥ 0.5)? A learned correction answers it from above: a gradient-boosting
+enough to reach the targets set for it (pooled RMSE ≤ 2.6 m ground-truth boxes, ≤ 1.7 m
+PointRCNN ≥ 2, ≤ 2.1 m RRC ≥ 0.5)? A learned correction answers it from above: a gradient-boosting
 regressor (scikit-learn's ``HistGradientBoostingRegressor``, the ``learned`` extra) trained
 **leave one sequence out** on ``log truth − log ours`` from features ``ours`` could compute
 itself. If it stays above a figure, these inputs (as far as a flexible learner on 12 drives can
@@ -70,7 +70,7 @@ from slopedist.streaming.step import ego_gradients
 
 CAP_M = 80.0
 FIGURES_M = {BoxSource.GT: 2.6, BoxSource.POINTRCNN: 1.7, BoxSource.RRC: 2.1}
-"""The issue's causal figures per box source (pooled RMSE, m)."""
+"""The causal targets set for ``ours`` per box source (pooled RMSE, m)."""
 
 RECORD_COLUMNS = (
     *CUE_COLUMNS,

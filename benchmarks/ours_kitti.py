@@ -17,7 +17,7 @@ ORB-SLAM3 rotations; pooled RMSE over all 13 sequences. Prints
    of the published KITTI-object averages; the occlusion check's outlier test chosen LOO from
    1, 2, 3σ.
 3. The ablation, with the shipped defaults: the size cue alone (fixed 1.52 m height plus the
-   half length, the issue's reference), then the parts of ``ours`` added one at a time. (The
+   half length, the size reference), then the parts of ``ours`` added one at a time. (The
    occlusion-aware size cue acts on boxes drawn around the visible part of a vehicle; the
    labels and PointRCNN's boxes are drawn around the whole vehicle, so here it must merely do
    no harm; its effect shows on the LiDAR-cluster boxes of ``benchmarks/kitti_raw_lead.py``,
@@ -31,7 +31,7 @@ ORB-SLAM3 rotations; pooled RMSE over all 13 sequences. Prints
    ≥ 0.5): flat, paper, ours with the class as given, and ours reading the detectors' one class
    ``Car`` as a mixture of vehicle types (``--generic-class``; published type frequencies,
    nothing fitted); the pooled RMSE, the recall and on how many sequences ``ours`` is within
-   1.1 × the better of flat and paper (the issue's per-sequence figure).
+   1.1 × the better of flat and paper (the per-sequence target).
 
 Usage::
 
@@ -163,7 +163,7 @@ SYNTHETIC_METHODS: list[tuple[str, str, dict[str, Any]]] = [
 learning; ours-offline)."""
 
 MIN_SCORE = {BoxSource.POINTRCNN: 2.0, BoxSource.RRC: 0.5}
-"""The detectors' score thresholds of the issue's figures (PointRCNN ≥ 2, RRC ≥ 0.5)."""
+"""The detectors' score thresholds of the targets set for ``ours`` (PointRCNN ≥ 2, RRC ≥ 0.5)."""
 
 Scores = dict[str, tuple[float, int]]
 """Per sequence: (sum of squared errors, number of scored targets)."""
@@ -215,7 +215,7 @@ def ours_pooled(data: Path, boxes: BoxSource, options: dict[str, Any]) -> float:
 
 
 def naive_size_cue(data: Path) -> float:
-    """The issue's reference: Z = f·1.52 m/(box height) + 3.88 m/2, pooled RMSE (80 m cap)."""
+    """The size reference: Z = f·1.52 m/(box height) + 3.88 m/2, pooled RMSE (80 m cap)."""
     sq, n = 0.0, 0
     for name in list_sequences(data):
         seq = load_sequence(data, name)

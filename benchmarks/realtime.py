@@ -1,5 +1,5 @@
 """Real-time budget of ``slopedist run``: time per frame per stage, and the odometry against a
-naive OpenCV reference (issue 15).
+naive OpenCV reference.
 
 Inputs (made from the shared data, written under ``--out``):
 

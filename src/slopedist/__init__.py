@@ -18,7 +18,7 @@ Everything under the subpackages is internal. The names are imported when first 
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 _SOURCES: dict[str, tuple[str, str]] = {
     "Pipeline": ("slopedist.streaming.pipeline", "Pipeline"),

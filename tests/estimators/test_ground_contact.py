@@ -126,7 +126,7 @@ def test_records_carry_status_and_cut_and_an_upper_bound_is_not_scored() -> None
 def test_the_kitti_raw_lead_car_cut_by_the_bottom_reads_at_least_its_lidar_distance(
     kitti_raw_lead_dir,
 ) -> None:
-    """The issue's case: a lead car 4.2–4.8 m ahead (LiDAR nearest face) whose box is cut by
+    """A lead car 4.2–4.8 m ahead (LiDAR nearest face) whose box is cut by
     the image bottom read 5.9 m ``ok``; it is now an upper bound, and it is one."""
     from slopedist.io.kitti.raw import KittiRawDrive, lidar_vehicle_boxes, read_velodyne
 

@@ -64,7 +64,7 @@ def test_vans_and_trucks_called_car_are_far_less_wrong_read_as_a_generic_class()
     """Flat road, 0.5 px box noise, 12 vehicles (60 % cars, 25 % vans, 15 % trucks) over four
     seeds: read as a mixture of types, ``ours`` errs far less than taking ``Car`` at its word
     (no odd-object mode), and less than with the odd-object mode alone (which already helps:
-    a near van far from a car's size is an odd object). The issue's figure (within 10 % of the
+    a near van far from a car's size is an odd object). The goal (within 10 % of the
     run with the true classes) is NOT met: a van at 40 m and a car at 28 m differ in their
     ground contact by less than a 1° road-gradient prior explains, so only near vehicles are
     told apart."""

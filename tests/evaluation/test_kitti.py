@@ -68,7 +68,7 @@ def test_detections_report_recall(kitti_tracking_dir: Path) -> None:
 
 
 def test_rrc_camera_detections_are_matched_like_pointrcnn(kitti_tracking_dir: Path) -> None:
-    """The issue's figures: RRC boxes at score >= 0.5 reach a recall of about 0.90."""
+    """RRC boxes at score >= 0.5 reach a recall of about 0.90."""
     cfg = KittiEvalConfig(boxes=BoxSource.RRC, min_score=0.5, methods=("flat",))
     report = evaluate_kitti_tracking(kitti_tracking_dir, cfg)
     overall = report["methods"]["flat"]["overall"]

@@ -23,6 +23,7 @@ from slopedist.streaming.step import ego_gradients
 from slopedist.synthetic import demo_scenario
 from slopedist.synthetic.demo import (
     DemoConfig,
+    demo_tables,
     format_demo_tables,
     plan_methods,
     pooled_scores,
@@ -104,6 +105,21 @@ def test_the_summary_scores_ours_own_sigma(demo_run) -> None:
     row = next(r for r in table.rows if r[0] == "ours")
     assert row[1] == len(err) and row[3] == pytest.approx(within_2)
     assert 0.0 < row[2] <= row[3] <= row[4] <= 1.0
+
+
+def test_the_tables_and_plots_say_what_their_truth_is(demo_run) -> None:
+    """Table 1, the targets counted at the cap and the uncertainty table name the synthetic
+    truth and the point of the vehicle it refers to (not "KITTI z", which named a dataset)."""
+    tables = demo_tables(demo_run)
+    table1, at_cap, *_, sigma = tables
+    assert table1.title.startswith("Table 1. RMSE (m) against the synthetic truth (vehicle centre)")
+    assert "against the synthetic truth" in at_cap.title
+    assert sigma.title == (
+        "Uncertainty: errors against the synthetic truth (vehicle centre) within the methods' own σ"
+    )
+    assert not any("against KITTI z" in t.title for t in tables)
+    results = json.loads((demo_run.config.out_dir / "results.json").read_text())
+    assert results["protocol"]["distance"].startswith("the synthetic truth (vehicle centre)")
 
 
 def test_flat_road_estimates_are_close_to_the_truth(demo_run) -> None:

@@ -67,7 +67,7 @@ COMMANDS: dict[str, _Lazy] = {
     "report": _Lazy(
         "report_cmd",
         "report",
-        "Write the comparison report of SOURCE: a KITTI tracking folder, `slopedist run` "
+        "Write the report of SOURCE: a KITTI tracking folder, `slopedist run` "
         "output(s) or a `slopedist batch` output (the fleet report).",
     ),
     "run": _Lazy(

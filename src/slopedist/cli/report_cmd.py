@@ -1,5 +1,6 @@
-"""``slopedist report``: the comparison report (Tables 1 and 2, metrics, figures) of a KITTI
-tracking folder or of ``slopedist run`` outputs, as Markdown, HTML and CSV."""
+"""``slopedist report``: the report of a KITTI tracking folder, of ``slopedist run`` outputs or
+of a ``slopedist batch`` output (with a truth Tables 1 and 2, metrics, figures; without one the
+per-track table and plots), as Markdown, HTML and CSV."""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from slopedist.evaluation.report import (
     report_data,
     write_report,
 )
+from slopedist.evaluation.report.data import NEAR_DISTANCE_M
 from slopedist.evaluation.report.kitti import default_kitti_methods
 from slopedist.evaluation.report.runs import run_folders
 from slopedist.evaluation.table import format_text
@@ -71,24 +73,35 @@ def parse_tracks(value: str | None) -> list[tuple[str, int]] | None:
     "--tracks",
     help="Tracks to plot over time, SEQUENCE:TRACK_ID,... [default: the longest tracks].",
 )
+@click.option(
+    "--near",
+    "near_m",
+    type=click.FloatRange(min=0.0, min_open=True, max=1000.0),
+    default=NEAR_DISTANCE_M,
+    show_default=True,
+    metavar="M",
+    help="Runs: the per-track table's threshold, how long each track was closer than M metres.",
+)
 @click.option("--no-parquet", is_flag=True, help="Do not write Parquet even if pyarrow exists.")
 @offline_option
 @estimator_options(depth=True)
-def report(
+def report(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
     out_dir: Path,
     methods: str | None,
     sequences: str | None,
     depth_dir: Path | None,
     tracks: str | None,
+    near_m: float,
     no_parquet: bool,
     offline: bool,
     estimator_config: EstimatorConfig,
     kitti_config: KittiEvalConfig,
 ) -> None:
-    """Write the comparison report of SOURCE: a KITTI tracking folder, `slopedist run`
-    output(s) or a `slopedist batch` output (the fleet report). Prints Table 1 (RMSE) and
-    Table 2 (time per frame), and for a batch the pooled fleet tables."""
+    """Write the report of SOURCE: a KITTI tracking folder, `slopedist run` output(s) or a
+    `slopedist batch` output (the fleet report). With a truth, compares the methods and prints
+    Table 1 (RMSE) and Table 2 (time per frame), and for a batch the pooled fleet tables;
+    without one, the page has a table and a plot per track."""
     names = check_methods(split_list(methods) or [], evaluation=True)
     kind = detect_source(source)
     # the report's records.csv, tracks.csv... would replace a run's own
@@ -107,7 +120,9 @@ def report(
         method_options=evaluation_method_options(estimator_config, names),
         depth_dir=depth_dir,
     )
-    opts = ReportOptions(eval=cfg, methods=names or None, tracks=parse_tracks(tracks))
+    opts = ReportOptions(
+        eval=cfg, methods=names or None, tracks=parse_tracks(tracks), near_m=near_m
+    )
     with OutputFolder(out_dir).lock():
         data = report_data(
             source, opts, on_sequence=lambda s: click.echo(f"sequence {s} ...", err=True)

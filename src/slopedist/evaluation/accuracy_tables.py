@@ -191,10 +191,11 @@ def bins_table(scores: PooledScores, scope: Mapping[str, Mapping[str, Any]], not
     )
 
 
-def uncertainty_table(scores: PooledScores) -> Table | None:
+def uncertainty_table(scores: PooledScores, truth: str = "") -> Table | None:
     """How well each method's own 1σ (``sigma_m``) describes its errors, overall: the share
     of errors within 1, 2 and 3 σ against a Gaussian's, and the RMS of error/σ; for the
-    methods that report a σ (None when none does)."""
+    methods that report a σ (None when none does). ``truth``: what the errors are taken
+    against, named in the title (empty: not named)."""
     methods = [m for m in scores.methods if "uncertainty" in scores.overall[m]]
     if not methods:
         return None
@@ -224,7 +225,8 @@ def uncertainty_table(scores: PooledScores) -> Table | None:
     formats = {1: "d", **{j: ".3f" for j in range(2, 3 + len(SIGMA_LEVELS))}}
     return Table(
         "uncertainty",
-        "Uncertainty: errors within the methods' own σ",
+        "Uncertainty: errors" + (f" against {truth}" if truth else "") + " within the "
+        "methods' own σ",
         headers,
         rows,
         note=note,

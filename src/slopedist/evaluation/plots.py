@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import io
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from slopedist.core.geometry import GradientAdjustment
 
 PALETTE = (
     "tab:blue",
@@ -105,11 +108,19 @@ def png_bytes(fig: Any, dpi: int = 90) -> bytes:
     return buf.getvalue()
 
 
-def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSeries) -> None:
+def draw_distance_panel(
+    ax: Any,
+    t_s: NDArray[np.float64],
+    series: DistanceSeries,
+    methods: Sequence[str] | None = None,
+    lw: float = 1.0,
+) -> None:
     """One target's distances over time on the matplotlib axes ``ax``: the truth in black, each
-    method in its :func:`method_colour`, and a triangle at the top where a method's box bottom
-    was at or above its vanishing line. The y axis runs from 0 to twice the largest true
-    distance or a little over the largest estimate, whichever is more (20 to 100 m)."""
+    method of ``methods`` (default: every one of ``series``) in its :func:`method_colour` with
+    line width ``lw``, and a triangle at the top where a method's box bottom was at or above
+    its vanishing line. The y axis runs from 0 to twice the largest true distance or a little
+    over the largest estimate of any method of ``series``, whichever is more (20 to 100 m), so
+    panels of one target share it."""
     finite = series.truth[np.isfinite(series.truth)]
     if finite.size:
         ax.plot(t_s, series.truth, color="black", lw=2.0, label="truth")
@@ -118,9 +129,11 @@ def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSerie
         1.05 * float(np.nanmax(d)) for d in series.estimates.values() if np.isfinite(d).any()
     ]
     top = float(np.clip(max(values), 20.0, 100.0))
-    for i, (name, d) in enumerate(series.estimates.items()):
+    drawn = series.estimates if methods is None else [m for m in methods if m in series.estimates]
+    for i, name in enumerate(drawn):
         colour = method_colour(name)
-        ax.plot(t_s, d, color=colour, lw=1.0, marker=".", ms=3, label=name)
+        d = series.estimates[name]
+        ax.plot(t_s, d, color=colour, lw=lw, marker=".", ms=2 + lw, label=name)
         miss = series.below_horizon.get(name)
         if miss is not None and miss.any():
             marks = np.full(int(miss.sum()), top * (0.97 - 0.03 * i))
@@ -132,28 +145,63 @@ def draw_distance_panel(ax: Any, t_s: NDArray[np.float64], series: DistanceSerie
 BELOW_HORIZON_NOTE = "▼ = counted at the cap: box at or near the vanishing line, or unresolved"
 """What the triangles of :func:`draw_distance_panel` mean (for an axis label or caption)."""
 
+HEADLINE_METHODS = ("flat", "paper", "ours")
+"""The methods of the demo's first distance panel: flat ground, the paper's method and ours;
+the others go to a second panel beside it."""
+
+
+def method_groups(methods: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """``methods`` split for the distance plots: ``(title, methods)`` of the
+    :data:`HEADLINE_METHODS` and of the others, leaving out an empty group."""
+    headline = [m for m in HEADLINE_METHODS if m in methods]
+    others = [m for m in methods if m not in HEADLINE_METHODS]
+    groups = [("flat ground, the paper's method and ours", headline), ("the other methods", others)]
+    return [(title, group) for title, group in groups if group]
+
 
 def plot_distance_series(
     path: str | Path, t_s: NDArray[np.float64], series: list[DistanceSeries], title: str = ""
 ) -> Path:
-    """Distance vs. truth over time, one panel per target (:func:`draw_distance_panel`);
-    saved as PNG (Agg, no display)."""
+    """:func:`distance_figure` saved as PNG at ``path``."""
+    return _save(distance_figure(t_s, series, title), path)
+
+
+def _save(fig: Any, path: str | Path) -> Path:
     path = Path(path)
-    fig = new_figure(10, 2.6 * max(len(series), 1))
-    axes = fig.subplots(max(len(series), 1), 1, squeeze=False)[:, 0]
-    for ax, s in zip(axes, series):
-        draw_distance_panel(ax, t_s, s)
-        ax.set_ylabel(f"target {s.track_id}: z (m)")
-    if series:  # no target: an empty panel without a legend
-        axes[0].legend(loc="upper left", ncol=4, fontsize=8)
-    else:
-        axes[0].set_title("no target in this scenario")
-    axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
-    if title:
-        fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     return path
+
+
+def distance_figure(t_s: NDArray[np.float64], series: list[DistanceSeries], title: str = "") -> Any:
+    """Distance vs. truth over time, one row per target (:func:`draw_distance_panel`): flat
+    ground, the paper's method and ours in a first column, drawn bold, the other methods in a
+    second (:func:`method_groups`), with a shared y axis per target; one legend outside the
+    panels (right). A matplotlib figure on the Agg canvas."""
+    methods = list(series[0].estimates) if series else []
+    groups = method_groups(methods) or [("", [])]
+    rows = max(len(series), 1)
+    fig = new_figure(6.5 + 4.5 * (len(groups) - 1) + 1.6, 2.5 * rows + 0.6)
+    axes = fig.subplots(rows, len(groups), squeeze=False, sharex=True, sharey="row")
+    for r, s in enumerate(series):
+        for c, (_, group) in enumerate(groups):
+            draw_distance_panel(axes[r, c], t_s, s, group, lw=1.4 if c == 0 else 0.9)
+        axes[r, 0].set_ylabel(f"target {s.track_id}: distance (m)")
+    for c, (heading, _) in enumerate(groups):
+        axes[0, c].set_title(heading, fontsize=9)
+        axes[-1, c].set_xlabel("time (s)")
+    if series:
+        handles: dict[str, Any] = {}  # label → line, once per label
+        for ax in axes[0]:
+            lines, labels = ax.get_legend_handles_labels()
+            handles.update(zip(labels, lines))
+        fig.legend(list(handles.values()), list(handles), loc="outside right upper", fontsize=8)
+    else:  # no target: an empty panel without a legend
+        axes[0, 0].set_title("no target in this scenario")
+    fig.supxlabel(BELOW_HORIZON_NOTE, fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return fig
 
 
 def plot_theta_series(
@@ -163,15 +211,29 @@ def plot_theta_series(
     theta_true: NDArray[np.float64],
     targets: list[TargetTheta],
     title: str = "",
-    thresholds_px: tuple[float, ...] = (0.0, -10.0, -20.0),
+    adjustment: GradientAdjustment | None = None,
 ) -> Path:
-    """θ vs. truth over time (top) and Δy of eq. 6 per target (bottom); saved as PNG.
+    """:func:`theta_figure` saved as PNG at ``path``."""
+    fig = theta_figure(t_s, theta_est, theta_true, targets, title, adjustment)
+    return _save(fig, path)
+
+
+def theta_figure(
+    t_s: NDArray[np.float64],
+    theta_est: NDArray[np.float64],
+    theta_true: NDArray[np.float64],
+    targets: list[TargetTheta],
+    title: str = "",
+    adjustment: GradientAdjustment | None = None,
+) -> Any:
+    """θ vs. truth over time (top) and Δy of eq. 6 per target (bottom), a matplotlib figure.
 
     Top panel, degrees: θ of eq. 4 from the odometry and from the true rotations, and per
-    target the θ that would make eq. 1 exact and the paper's adjusted θ (eq. 7).
+    target the θ that would make eq. 1 exact and the paper's adjusted θ (eq. 7). Bottom panel,
+    pixels: Δy per target and the thresholds of ``adjustment`` (eq. 7; None: the paper's),
+    each labelled with the step it adds to θ. The legends stand outside the panels (right).
     """
-    path = Path(path)
-    fig = new_figure(10, 6.0)
+    fig = new_figure(11.5, 6.0)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(t_s, np.degrees(theta_true), color="black", lw=2.0, label="θ, true rotations")
     ax1.plot(t_s, np.degrees(theta_est), color="tab:blue", lw=1.2, label="θ, odometry")
@@ -197,18 +259,44 @@ def plot_theta_series(
         ax2.plot(
             t_s, tt.delta_y, color=colour, lw=1.0, marker=".", ms=3, label=f"target {tt.track_id}"
         )
-    for th in thresholds_px:
-        ax2.axhline(th, color="grey", lw=0.8, ls="--")
+    _draw_thresholds(ax2, adjustment or GradientAdjustment())
     ax1.set_ylabel("θ (deg)")
     ax1.grid(alpha=0.3)
-    ax1.legend(fontsize=7, ncol=2, loc="best")
+    ax1.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax2.set_ylabel("Δy = b_y − v (px)")
     ax2.set_xlabel("time (s)")
     ax2.grid(alpha=0.3)
     if targets:
-        ax2.legend(fontsize=7, loc="best")
+        ax2.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     if title:
         fig.suptitle(title)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    return path
+    return fig
+
+
+def threshold_labels(adjustment: GradientAdjustment) -> list[str]:
+    """The eq. 7 steps as words: ``"Δy ≤ 0 px: θ + 3°"``, ``"≤ −10 px: + 5°"``,
+    ``"< −20 px: + 6°"`` (the paper's), most lenient first."""
+    (t1, t2, t3), alphas = adjustment.thresholds_px, np.degrees(adjustment.alphas_rad)
+    return [
+        f"Δy ≤ {t1:g} px: θ + {alphas[0]:g}°",
+        f"≤ {t2:g} px: + {alphas[1]:g}°",
+        f"< {t3:g} px: + {alphas[2]:g}°",
+    ]
+
+
+def _draw_thresholds(ax: Any, adjustment: GradientAdjustment) -> None:
+    """The eq. 7 thresholds as dashed lines across ``ax``, each labelled at its right end, just
+    outside the data (:func:`threshold_labels`)."""
+    for th, label in zip(adjustment.thresholds_px, threshold_labels(adjustment)):
+        ax.axhline(th, color="grey", lw=0.8, ls="--")
+        ax.annotate(
+            label.replace("-", "−"),
+            (1.0, th),
+            xycoords=("axes fraction", "data"),
+            xytext=(4, 0),
+            textcoords="offset points",
+            va="center",
+            fontsize=7,
+            color="0.3",
+            annotation_clip=False,
+        )

@@ -150,6 +150,23 @@ def format_markdown(table: Table) -> str:
     return "\n".join(lines)
 
 
+def html_text(text: str) -> str:
+    """``text`` as HTML: escaped, its code spans (between backticks) as ``<code>`` elements
+    (an unpaired backtick stays as it is), so no Markdown syntax shows on the page."""
+    parts = text.split("`")
+    if len(parts) % 2 == 0:  # an odd number of backticks: the last one opens nothing
+        parts[-2:] = ["`".join(parts[-2:])]
+    return "".join(
+        f"<code>{html.escape(p)}</code>" if k % 2 else html.escape(p) for k, p in enumerate(parts)
+    )
+
+
+def plain_text(text: str) -> str:
+    """``text`` without the backticks of its code spans (for an ``alt`` or ``title``)."""
+    parts = text.split("`")
+    return text if len(parts) % 2 == 0 else "".join(parts)
+
+
 def format_html(table: Table) -> str:
     """An HTML ``<section>`` with the title, the ``<table>`` (best values in ``<b>``), the note."""
 
@@ -163,12 +180,12 @@ def format_html(table: Table) -> str:
         for i in range(len(table.rows))
     )
     note = (
-        ('<p class="note">' + "<br>".join(html.escape(n) for n in table.note.splitlines()) + "</p>")
+        ('<p class="note">' + "<br>".join(html_text(n) for n in table.note.splitlines()) + "</p>")
         if table.note
         else ""
     )
     return (
-        f'<section id="{table.key}"><h2>{html.escape(table.title)}</h2>\n'
+        f'<section id="{table.key}"><h2>{html_text(table.title)}</h2>\n'
         f"<table><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>{note}"
         f"</section>"
     )

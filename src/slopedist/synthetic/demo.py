@@ -43,7 +43,8 @@ from tqdm import tqdm
 
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError
-from slopedist.estimators import causal_methods
+from slopedist.core.geometry import GradientAdjustment
+from slopedist.estimators import EstimatorConfig, causal_methods
 from slopedist.evaluation import accuracy_tables as score_tables
 from slopedist.evaluation.metrics import AT_CAP_REASONS, PooledScores, pool_methods
 from slopedist.evaluation.plots import (
@@ -73,6 +74,14 @@ from slopedist.synthetic.sensors import (
 from slopedist.synthetic.sequence import SyntheticSequence
 
 FloatArray = NDArray[np.float64]
+
+SYNTHETIC_TRUTH_POINT = "vehicle centre"
+"""The point of a vehicle the synthetic truth refers to, in words."""
+SYNTHETIC_TRUTH_SHORT = f"the synthetic truth ({SYNTHETIC_TRUTH_POINT})"
+SYNTHETIC_TRUTH = (
+    f"{SYNTHETIC_TRUTH_SHORT}: camera z of the 3D box's bottom centre, KITTI's convention"
+)
+"""What the demo scores against, for its tables and ``results.json``."""
 
 __all__ = [
     "DEFAULT_OUT",
@@ -117,7 +126,8 @@ def run_scenario(
         loop.theta_true[: loop.n],
         files,
     )
-    plots = plot_inputs(run, loop.seq, folder, [p.name for p in loop.active]) if cfg.plots else None
+    methods = [p.name for p in loop.active]
+    plots = plot_inputs(run, loop.seq, folder, methods, cfg.estimator) if cfg.plots else None
     if plots is not None and plot:
         run.files += write_plots(plots)
     return run, plans, plots
@@ -152,6 +162,7 @@ class ScenarioPlots:
         distance_path, theta_path: the PNG files.
         t_s: frame times, seconds; series: per target, distances vs truth (metres).
         theta_est, theta_true: θ of eq. 4 per frame, radians; targets: per target θ terms.
+        adjustment: the paper's eq. 7 steps the methods ran with (its thresholds are drawn).
     """
 
     name: str
@@ -162,12 +173,18 @@ class ScenarioPlots:
     theta_est: FloatArray
     theta_true: FloatArray
     targets: list[TargetTheta]
+    adjustment: GradientAdjustment
 
 
 def plot_inputs(
-    run: ScenarioRun, seq: SyntheticSequence, folder: Path, methods: list[str]
+    run: ScenarioRun,
+    seq: SyntheticSequence,
+    folder: Path,
+    methods: list[str],
+    estimator: EstimatorConfig,
 ) -> ScenarioPlots:
-    """The distance vs truth and θ vs truth plots' data of one scenario."""
+    """The distance vs truth and θ vs truth plots' data of one scenario (``estimator``: the
+    methods' options, whose eq. 7 steps the θ plot draws)."""
     t = seq.truth.timestamps_s[: run.frames]
     cam = seq.camera
     series = []
@@ -206,13 +223,17 @@ def plot_inputs(
         run.theta_est,
         run.theta_true,
         theta_targets,
+        GradientAdjustment.from_degrees(estimator.alphas_deg, estimator.thresholds_px),
     )
 
 
 def write_plots(plots: ScenarioPlots) -> list[str]:
     """Write the two plots of one scenario; returns their paths."""
     plot_distance_series(
-        plots.distance_path, plots.t_s, plots.series, f"{plots.name}: distance vs truth (KITTI z)"
+        plots.distance_path,
+        plots.t_s,
+        plots.series,
+        f"{plots.name}: distance against the synthetic truth ({SYNTHETIC_TRUTH_POINT})",
     )
     plot_theta_series(
         plots.theta_path,
@@ -220,7 +241,8 @@ def write_plots(plots: ScenarioPlots) -> list[str]:
         plots.theta_est,
         plots.theta_true,
         plots.targets,
-        f"{plots.name}: ego gradient θ vs truth",
+        f"{plots.name}: ego gradient θ against the true rotations; Δy and the eq. 7 steps",
+        plots.adjustment,
     )
     return [str(plots.distance_path), str(plots.theta_path)]
 
@@ -348,9 +370,9 @@ def rmse_table(result: DemoResult, scores: PooledScores) -> Table:
         else "the TRUE rotations (diagnostic, --odometry truth)"
     )
     title = (
-        f"Table 1. RMSE (m) against KITTI z (camera z of the box's bottom centre); rotations "
-        f"from {odo}; noisy detector boxes; estimates capped at {CAP_M:g} m, a box at or above "
-        f"the vanishing line counts as {CAP_M:g} m"
+        f"Table 1. RMSE (m) against {SYNTHETIC_TRUTH}; rotations from {odo}; noisy detector "
+        f"boxes; estimates capped at {CAP_M:g} m, a box at or above the vanishing line counts "
+        f"as {CAP_M:g} m"
     )
     table = score_tables.rmse_table(scores, title, row_label="scenario", key="rmse")
     empty = [r.name for r in result.runs if not any(len(s.truth) for s in r.scores.values())]
@@ -369,7 +391,10 @@ def missing_table(result: DemoResult) -> Table:
     rows: list[list[Any]] = [
         [r.name, *(r.scores[m].metrics()["below_horizon"] for m in methods)] for r in result.runs
     ]
-    title = f"Targets at or near the vanishing line (counted as {CAP_M:g} m)"
+    title = (
+        f"Targets at or near the vanishing line (counted as {CAP_M:g} m against the synthetic "
+        "truth)"
+    )
     return Table("below_horizon", title, ["scenario", *methods], rows)
 
 
@@ -431,7 +456,7 @@ def demo_tables(result: DemoResult) -> list[Table]:
     last, how well the methods' own σ describes their errors, when a method reports one)."""
     scores = pooled_scores(result)
     tables = [rmse_table(result, scores), missing_table(result), timing_table(result)]
-    sigma = score_tables.uncertainty_table(scores)
+    sigma = score_tables.uncertainty_table(scores, truth=SYNTHETIC_TRUTH_SHORT)
     return [*tables, odometry_table(result), *([sigma] if sigma is not None else [])]
 
 
@@ -449,7 +474,7 @@ def _results_json(result: DemoResult) -> dict[str, Any]:
             "max_frames": result.config.max_frames,
         },
         "protocol": {
-            "distance": "KITTI z: camera z of the 3D box's bottom centre",
+            "distance": SYNTHETIC_TRUTH,
             "cap_m": CAP_M,
             "matching": "by track id",
             "imu_noise_deg": math.degrees(IMU_PITCH_NOISE_RAD),

@@ -141,15 +141,10 @@ def _has_pyarrow() -> bool:
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-@pytest.mark.skipif(
-    CHROMIUM is None,
-    reason="headless Chromium not installed (Debian package 'chromium'; .ci/run installs it)",
-)
-def test_html_figures_render_in_headless_chromium(
-    kitti_report: tuple[Path, str, Path], tmp_path: Path
-) -> None:
-    out, _, _ = kitti_report
-    cmd = [
+def chromium_command(profile: Path, action: str, page: Path) -> list[str]:
+    """Headless Chromium loading ``page`` with a fresh profile and no network chatter, doing
+    ``action`` (``--dump-dom``, ``--screenshot=PATH``)."""
+    return [
         str(CHROMIUM),
         "--headless",
         "--no-sandbox",
@@ -158,11 +153,22 @@ def test_html_figures_render_in_headless_chromium(
         "--disable-component-update",
         "--disable-sync",
         "--no-first-run",
-        f"--user-data-dir={tmp_path / 'profile'}",
+        f"--user-data-dir={profile}",
         "--virtual-time-budget=10000",
-        "--dump-dom",
-        (out / "report.html").as_uri(),
+        action,
+        page.as_uri(),
     ]
+
+
+@pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="headless Chromium not installed (Debian package 'chromium'; .ci/run installs it)",
+)
+def test_html_figures_render_in_headless_chromium(
+    kitti_report: tuple[Path, str, Path], tmp_path: Path
+) -> None:
+    out, _, _ = kitti_report
+    cmd = chromium_command(tmp_path / "profile", "--dump-dom", out / "report.html")
     dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False).stdout
     body = re.search(r"<body[^>]*>", dom)
     assert body is not None, f"no <body> in Chromium's DOM dump: {dom[:300]!r}"
@@ -276,9 +282,11 @@ def test_run_output_without_truth_has_no_table1(tmp_path: Path) -> None:
     write_run(tmp_path / "r", rows, [{"frame": 0, "estimation_ms": 2.0}], extra=())
     data = report_data(tmp_path / "r", ReportOptions())
     assert not data.has_truth
-    assert [t.key for t in report_tables(data)] == ["table2_time"]
+    assert [t.key for t in report_tables(data)] == ["tracks", "table2_time"]
     written = write_report(data, tmp_path / "out", parquet=False)
-    assert [f.name for f in written.figures] == ["distance_over_time.png"]
+    assert written.figures == []  # track 3 is seen in 2 frames: too few to plot
+    written = write_report(data, tmp_path / "out", tracks=[("r", 3)], parquet=False)
+    assert [f.name for f in written.figures] == ["track_r_3.png"]
 
 
 def test_bad_sources_and_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -53,7 +53,7 @@ def test_markdown_report_of_a_run_named_with_a_pipe_and_a_tag(tmp_path: Path) ->
     data = report_data(tmp_path / "s<i>|2", ReportOptions())
     write_report(data, tmp_path / "out", parquet=False)
     md = (tmp_path / "out" / "report.md").read_text(encoding="utf-8")
-    assert "sequences: s&lt;i>|2." in md  # (a code span shows ``<i>`` as it is)
+    assert "sequence: s&lt;i>|2." in md  # (a code span shows ``<i>`` as it is)
     table = md[md.index("| sequence |") :].split("\n\n")[0].splitlines()
     widths = {len(re.split(r"(?<!\\)\|", line)) for line in table}
     assert len(widths) == 1, table

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from slopedist.batch.fleet import FleetSummary
 from slopedist.evaluation.kitti import KittiEvalConfig
-from slopedist.evaluation.metrics import PooledScores
+from slopedist.evaluation.metrics import PooledScores, compact_names
 from slopedist.streaming.tracks import TRACK_FIELDS
 
 
@@ -29,6 +29,12 @@ class SourceKind(str, Enum):
     """A ``slopedist batch`` output folder (``status.csv`` and one run folder per drive)."""
 
 
+NEAR_DISTANCE_M = 10.0
+"""Default distance threshold of the per-track table's "time closer than" column, metres
+(the two-second rule's gap at 18 km/h: a car this close is followed closely at town speeds).
+Without the ego speed in the records, a headway in seconds cannot be computed per frame."""
+
+
 @dataclass
 class ReportOptions:
     """Options of a report (KITTI options are those of :class:`KittiEvalConfig`).
@@ -40,14 +46,17 @@ class ReportOptions:
         tracks: ``(sequence, track_id)`` pairs to plot over time (None = the longest track of
             each of the ``n_tracks`` sequences with the longest tracks).
         n_tracks: number of tracks chosen automatically.
-        title: page title.
+        title: page title (None: :func:`default_title`, what the page holds).
+        near_m: the per-track table's distance threshold: how long each track was closer
+            than this, metres.
     """
 
     eval: KittiEvalConfig = field(default_factory=lambda: KittiEvalConfig(methods=()))
     methods: Sequence[str] | None = None
     tracks: Sequence[tuple[str, int]] | None = None
     n_tracks: int = 4
-    title: str = "slopedist comparison report"
+    title: str | None = None
+    near_m: float = NEAR_DISTANCE_M
 
 
 @dataclass
@@ -90,9 +99,15 @@ RECORD_COLUMNS = (
     "scored",
     "reason",
     "theta_deg",
+    "sigma_m",
+    "ttc_s",
+    "bound_m",
 )
 """Columns of the report's ``records.csv`` (one row per target, frame and method; metres,
-seconds, degrees)."""
+seconds, degrees). ``distance_m`` is capped by the KITTI rule where the records are scored
+against a truth (and empty for an upper bound); ``sigma_m`` is a method's own 1σ of it,
+``ttc_s`` its time to collision (seconds), ``bound_m`` the distance of an ``upper_bound``
+record (the true one is at most this)."""
 TRACK_COLUMNS = ("sequence", "method", *TRACK_FIELDS)
 """Columns of the per-track summaries of run outputs (``tracks.csv`` of each run, see
 :mod:`slopedist.streaming.tracks`, with its sequence and method)."""
@@ -121,6 +136,9 @@ class ReportData:
             None.
         batch_status: the rows of a batch output's ``status.csv`` (``drive``, ``status``,
             ``error``, ``frames``, ...), or None.
+        references: ``{method: point of the vehicle its distances refer to}`` (``centre``,
+            ``nearest_face``, ``contact``; several joined by ``/``), where the records say.
+        near_m: the per-track table's distance threshold, metres.
     """
 
     title: str
@@ -138,6 +156,8 @@ class ReportData:
     tracks: Columns | None = None
     fleet: FleetSummary | None = None
     batch_status: list[dict[str, str]] | None = None
+    references: dict[str, str] = field(default_factory=dict)
+    near_m: float = NEAR_DISTANCE_M
 
     @property
     def methods(self) -> list[str]:
@@ -176,3 +196,26 @@ class ReportData:
                 " of the simulation" if self.kind is SourceKind.SYNTHETIC else ""
             )
         return f"the {self.truth_source} (IMU) truth"
+
+
+SOURCE_WORDS = {
+    SourceKind.KITTI_TRACKING: "a KITTI tracking folder",
+    SourceKind.RUN: "`slopedist run` output (records.csv, frames.csv)",
+    SourceKind.SYNTHETIC: "`slopedist demo` output (synthetic hills)",
+    SourceKind.FLEET: "`slopedist batch` output",
+}
+"""What each kind of source is, in words for the report's first line."""
+
+
+def default_title(kind: SourceKind, sequences: Sequence[str], methods: Sequence[str]) -> str:
+    """A page title that says what the page holds: ``Run report: <sequences>`` for runs of one
+    method, ``Method comparison: <sequences>`` for several; the KITTI, demo and batch pages by
+    their source."""
+    if kind is SourceKind.KITTI_TRACKING:
+        return "Method comparison on KITTI tracking"
+    if kind is SourceKind.SYNTHETIC:
+        return "Method comparison on the synthetic hills (slopedist demo)"
+    if kind is SourceKind.FLEET:
+        return f"Fleet report: {len(sequences)} drive{'s' * (len(sequences) != 1)}"
+    what = "Run report" if len(methods) == 1 else "Method comparison"
+    return f"{what}: {compact_names(list(sequences))}"

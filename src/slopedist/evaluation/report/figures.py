@@ -1,12 +1,15 @@
-"""The report's figures: distance against the truth over time for chosen tracks, the error
-against the true distance, and the ego gradient θ over time. Each method has its one colour of
-:func:`slopedist.evaluation.plots.method_colour`, as in the demo's plots."""
+"""The report's figures: with a truth, distance against the truth over time for chosen tracks
+and the error against the true distance; without one, a small plot of each leading track's
+distance over time on its own scale, with the method's 1σ band; and the ego gradient θ over
+time. Each method has its one colour of :func:`slopedist.evaluation.plots.method_colour`, as in
+the demo's plots."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,18 +25,28 @@ from slopedist.evaluation.plots import (
     png_bytes,
 )
 from slopedist.evaluation.report.data import ReportData
+from slopedist.evaluation.report.runs import reference_words
+from slopedist.evaluation.report.track_summary import leading_tracks
 
 ERROR_BIN_M = 5.0
 """Width of the ground-truth distance bins of the error-vs-distance figure, metres."""
 
 
+LEADING_TRACK_PLOTS = 6
+"""Tracks plotted one by one on the page of runs without truth (the leading ones)."""
+
+
 @dataclass
 class Figure:
-    """A figure: file name, caption, PNG bytes."""
+    """A figure: file name, caption, PNG bytes; ``after``: the key of the table it follows on
+    the page (None: after every table); ``small``: one of a set of small plots, laid out side
+    by side."""
 
     name: str
     caption: str
     png: bytes
+    after: str | None = None
+    small: bool = False
 
 
 def choose_tracks(data: ReportData, n: int) -> list[tuple[str, int]]:
@@ -95,14 +108,15 @@ def figure_tracks(data: ReportData, tracks: Sequence[tuple[str, int]]) -> Figure
     draw_distance_panel`, as in the demo's plots)."""
     if not tracks:
         return None
-    fig = new_figure(9, 2.6 * len(tracks))
+    fig = new_figure(10, 2.6 * len(tracks))
     axes = fig.subplots(len(tracks), 1, squeeze=False)[:, 0]
     for ax, (s, track) in zip(axes, tracks):
         draw_distance_panel(ax, *track_series(data, s, track))
         ax.set_title(f"sequence {s}, track {track}", fontsize=9)
         ax.set_ylabel("distance (m)")
     axes[-1].set_xlabel(f"time (s)   ({BELOW_HORIZON_NOTE})")
-    axes[0].legend(fontsize=7, ncol=min(len(data.methods) + 1, 7), loc="upper right")
+    lines, labels = axes[0].get_legend_handles_labels()
+    fig.legend(lines, labels, fontsize=7, loc="outside right upper")  # not over the data
     return Figure(
         "distance_over_time.png",
         "Estimated distance against the truth over time for chosen tracks "
@@ -199,7 +213,7 @@ def figure_theta(data: ReportData, max_panels: int = 12) -> Figure | None:
     axes[0, 0].set_ylabel("θ (deg)")
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
-    what = f"against {data.truth_name()}" if data.truth_source else "(no IMU truth in this source)"
+    what = f"against {data.truth_name()}" if data.truth_source else "(no truth of θ in this source)"
     return Figure(
         "theta_over_time.png",
         f"Ego road gradient θ (eq. 4, 1 s look-back) over time {what}.",
@@ -207,10 +221,132 @@ def figure_theta(data: ReportData, max_panels: int = 12) -> Figure | None:
     )
 
 
+def _series(data: ReportData, sel: NDArray[np.bool_]) -> dict[str, NDArray[np.float64]]:
+    """The selected records in time order: time, distance, 1σ and upper bound."""
+    rec = data.records
+    t = rec.array("timestamp_s")[sel]
+    order = np.argsort(t, kind="stable")
+    out = {"t": t[order]}
+    for key in ("distance_m", "sigma_m", "bound_m"):
+        out[key] = rec.array(key)[sel][order]
+    return out
+
+
+def _draw_method(ax: Any, name: str, s: dict[str, NDArray[np.float64]], bounds_label: str) -> float:
+    """One method's distances of a track (line, ±1σ band, upper bounds as open triangles);
+    returns the largest value drawn (metres, 0 when none)."""
+    colour = method_colour(name)
+    d, sigma, bound = s["distance_m"], s["sigma_m"], s["bound_m"]
+    label = name if np.isfinite(d).any() else "_"  # only bounds: no line to name
+    ax.plot(s["t"], d, color=colour, lw=1.3, marker=".", ms=3, label=label)
+    band = np.isfinite(d) & np.isfinite(sigma)
+    if band.any():
+        low, high = np.where(band, d - sigma, np.nan), np.where(band, d + sigma, np.nan)
+        ax.fill_between(s["t"], low, high, color=colour, alpha=0.22, lw=0, label=f"{name} ±1σ")
+    has_bound = np.isfinite(bound)
+    if has_bound.any():
+        ax.plot(
+            s["t"][has_bound],
+            bound[has_bound],
+            "v",
+            mfc="none",
+            color=colour,
+            ms=4,
+            label=bounds_label,
+        )
+    drawn = np.concatenate([d, np.where(band, d + sigma, np.nan), bound])
+    return float(np.nanmax(drawn)) if np.isfinite(drawn).any() else 0.0
+
+
+def draw_track_panel(ax: Any, data: ReportData, sequence: str, track: int) -> list[str]:
+    """One track's estimated distance over time on the matplotlib axes ``ax``, without a
+    truth: every method that has records of it, a y scale of its own from 0 to a little over
+    the largest value drawn, the ±1σ band of a method that gives one, upper bounds as open
+    triangles, the per-track table's distance threshold dotted, and the legend outside the
+    axes (right). Returns what the caption must explain.
+
+    Raises:
+        ConfigurationError: the track has no records.
+    """
+    rec = data.records
+    sel = (rec.array("sequence", object) == sequence) & (rec.array("track_id", int) == track)
+    if not sel.any():
+        raise ConfigurationError(f"track {track} of sequence {sequence} has no records to plot")
+    meth = rec.array("method", object)
+    top, has_band, has_bound = 0.0, False, False
+    for m in [m for m in data.methods if (sel & (meth == m)).any()]:
+        s = _series(data, sel & (meth == m))
+        top = max(top, _draw_method(ax, m, s, "upper bound" if not has_bound else "_"))
+        has_band |= bool((np.isfinite(s["distance_m"]) & np.isfinite(s["sigma_m"])).any())
+        has_bound |= bool(np.isfinite(s["bound_m"]).any())
+    top = 1.15 * top if top > 0 else 1.0
+    if data.near_m < top:
+        ax.axhline(data.near_m, color="0.35", lw=0.8, ls=":")
+        ax.annotate(
+            f"{data.near_m:g} m",
+            (1.0, data.near_m),
+            xycoords=("axes fraction", "data"),
+            xytext=(-2, 2),
+            textcoords="offset points",
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color="0.35",
+        )
+    ax.set_ylim(0.0, top)
+    ax.set(xlabel="time (s)", ylabel="distance (m)")
+    where = f", {sequence}" if len(data.sequences) > 1 else ""
+    ax.set_title(f"track {track}{where}", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    return [
+        *(["band: ±1σ, the method's own uncertainty"] if has_band else []),
+        *(["▽: an upper bound, for a box cut by the image bottom"] if has_bound else []),
+        *([f"dotted: {data.near_m:g} m"] if data.near_m < top else []),
+    ]
+
+
+def figure_track(data: ReportData, sequence: str, track: int) -> Figure:
+    """A small plot of one track's estimated distance over time (:func:`draw_track_panel`),
+    placed after the per-track table.
+
+    Raises:
+        ConfigurationError: the track has no records.
+    """
+    fig = new_figure(5.6, 2.3)
+    extras = draw_track_panel(fig.subplots(), data, sequence, track)
+    points = set(data.references.values())
+    to = f" to {reference_words(points.pop())}" if len(points) == 1 else ""
+    where = f" of {sequence}" if len(data.sequences) > 1 else ""
+    return Figure(
+        f"track_{_file_part(sequence)}_{track}.png",
+        f"Track {track}{where}: estimated distance{to} over time"
+        + (f" ({'; '.join(extras)})" if extras else "")
+        + ".",
+        png_bytes(fig),
+        after="tracks",
+        small=True,
+    )
+
+
+def _file_part(name: str) -> str:
+    """``name`` with every character that is not a letter, digit, ``-`` or ``_`` as ``_``."""
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
 def report_figures(
     data: ReportData, tracks: Sequence[tuple[str, int]] | None, n_tracks: int
 ) -> list[Figure]:
-    """Every figure of the report (matplotlib on the Agg canvas, no display)."""
-    chosen = list(tracks) if tracks else choose_tracks(data, n_tracks)
-    figs = [figure_tracks(data, chosen), figure_error_vs_distance(data), figure_theta(data)]
+    """Every figure of the report (matplotlib on the Agg canvas, no display): with a truth the
+    chosen tracks against it (``tracks``, else :func:`choose_tracks` of ``n_tracks``) and the
+    error by distance; without one a plot per track (``tracks``, else the
+    :data:`LEADING_TRACK_PLOTS` :func:`~slopedist.evaluation.report.track_summary.
+    leading_tracks`); then θ."""
+    if data.has_truth:
+        chosen = list(tracks) if tracks else choose_tracks(data, n_tracks)
+        figs = [figure_tracks(data, chosen), figure_error_vs_distance(data)]
+    else:
+        chosen = list(tracks) if tracks else leading_tracks(data, LEADING_TRACK_PLOTS)
+        figs = [figure_track(data, s, t) for s, t in chosen]
+    figs.append(figure_theta(data))
     return [f for f in figs if f is not None]

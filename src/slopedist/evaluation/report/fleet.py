@@ -17,7 +17,12 @@ from slopedist.batch.safety import SAFETY_FIELDS, SHORT_HEADWAY_S, fleet_base_me
 from slopedist.batch.status import STATUS_NAME, DriveStatus
 from slopedist.core.errors import InputFileError, MissingInputError
 from slopedist.core.textfiles import CsvRows
-from slopedist.evaluation.report.data import ReportData, ReportOptions, SourceKind
+from slopedist.evaluation.report.data import (
+    ReportData,
+    ReportOptions,
+    SourceKind,
+    default_title,
+)
 from slopedist.evaluation.report.runs import run_report_data
 from slopedist.evaluation.table import Table, best_marks
 
@@ -75,6 +80,8 @@ def fleet_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         )
     data = run_report_data(root, opts, folders)
     data.kind = SourceKind.FLEET
+    if opts.title is None:
+        data.title = default_title(SourceKind.FLEET, data.sequences, data.methods)
     data.fleet = _keep_methods(fleet_summary(root), opts.methods)
     data.batch_status = status
     counts = _status_counts(status)

@@ -27,6 +27,7 @@ from slopedist.evaluation.report.data import (
     ReportData,
     ReportOptions,
     SourceKind,
+    default_title,
 )
 from slopedist.io.kitti.tracking import BoxSource, RotationSource, load_sequence
 from slopedist.streaming.step import ego_gradients
@@ -168,7 +169,7 @@ def kitti_report_data(
         _add_theta(theta, name, run)
     protocol = evaluation.config.protocol()
     return ReportData(
-        title=opts.title,
+        title=opts.title or default_title(SourceKind.KITTI_TRACKING, [], methods),
         source=root,
         kind=SourceKind.KITTI_TRACKING,
         scores=evaluation.scores(),

@@ -22,12 +22,11 @@ from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
 from slopedist.core.textfiles import CsvRows, number_cell, read_json
 from slopedist.estimators import ESTIMATORS
-from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.base import EstimateStatus, ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation.metrics import (
     ScoredSet,
     cap_estimates,
-    compact_names,
     pool_methods,
     record_reason,
     reported_sigma,
@@ -40,11 +39,15 @@ from slopedist.evaluation.report.data import (
     ReportData,
     ReportOptions,
     SourceKind,
+    default_title,
 )
 from slopedist.streaming.tracks import TRACKS_NAME, read_tracks
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
 """Columns of a run's ``records.csv`` read as the ground-truth distance (metres), first found."""
+
+TTC_COLUMN = "ttc_s"
+"""The records' column of a method's time to collision (seconds; ``ours``)."""
 
 SIGMA_COLUMN = "sigma_m"
 """The records' column of a method's own 1σ of ``distance_m`` (metres; ``ours``), scored
@@ -172,6 +175,7 @@ class _RunReader:
     times: dict[tuple[str, str], list[float]] = field(default_factory=dict)
     truth_found: bool = False
     theta_truth: set[str] = field(default_factory=set)
+    references: dict[str, set[str]] = field(default_factory=dict)
 
     def read_records(self, folder: Path, seq: str) -> list[str]:
         """Add a folder's records and its methods' scored sets; returns its methods.
@@ -195,6 +199,7 @@ class _RunReader:
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
             by_method.setdefault(method, []).append((d, g, reason, sigma))
+            self._note_reference(method, row.get("reference", ""))
             tid = row.get("track_id", "")
             self.records.add(
                 sequence=seq,
@@ -208,6 +213,9 @@ class _RunReader:
                 scored=False,
                 reason=reason,
                 theta_deg=_float(row.get("theta_deg", ""), path, lineno, "theta_deg"),
+                sigma_m=sigma,
+                ttc_s=_float(row.get(TTC_COLUMN, ""), path, lineno, TTC_COLUMN),
+                bound_m=d if row["status"] == EstimateStatus.UPPER_BOUND.value else math.nan,
             )
         seq_sets = self.sets.setdefault(seq, {})
         for method, vals in by_method.items():
@@ -218,6 +226,13 @@ class _RunReader:
                 )
             seq_sets[method] = _scored_set(vals)
         return list(by_method)
+
+    def _note_reference(self, method: str, reference: str) -> None:
+        """Remember the point of the vehicle a method's distances refer to (the truth's
+        declared point when every distance is moved to it)."""
+        point = self.reference.value if self.reference is not None else reference.strip()
+        if point:
+            self.references.setdefault(method, set()).add(point)
 
     def read_tracks(self, folder: Path, seq: str, methods: list[str]) -> None:
         """Add a run folder's per-track summaries (``tracks.csv``, if there is one)."""
@@ -295,8 +310,16 @@ class _RunReader:
         return out
 
     def mark_scored(self) -> None:
-        """Cap the records' distances and mark the scored ones (the rule of the sets)."""
+        """Cap the records' distances and mark the scored ones (the rule of the sets); without
+        a truth nothing is scored and the distances stay as the runs wrote them (an upper
+        bound's in ``bound_m``)."""
         rec = self.records
+        if not self.truth_found:
+            reasons = rec.data["reason"]
+            rec.data["distance_m"] = [
+                d if r == "" else math.nan for d, r in zip(rec.data["distance_m"], reasons)
+            ]
+            return
         capped, ok = cap_estimates(rec.array("distance_m"), rec.array("reason", object))
         rec.data["distance_m"] = [float(v) if o else math.nan for v, o in zip(capped, ok)]
         rec.data["scored"] = list(ok & np.isfinite(rec.array("gt_distance_m")))
@@ -363,7 +386,7 @@ def _truth_frame_log(folder: Path) -> Path | None:
     return None
 
 
-def _notes(names: list[str], truth_found: bool, reference: ReferencePoint | None) -> list[str]:
+def _notes(truth_found: bool, reference: ReferencePoint | None) -> list[str]:
     compared = (
         f"declared to refer to the vehicle's {reference.value}, every method's distance moved "
         "to that point"
@@ -377,14 +400,44 @@ def _notes(names: list[str], truth_found: bool, reference: ReferencePoint | None
             "targets as 80 m)."
         )
         if truth_found
-        else "No ground-truth column in records.csv (" + ", ".join(TRUTH_COLUMNS) + "): "
-        "the accuracy tables are empty; distances over time are shown without truth."
+        else "No ground truth: the records have none of the columns "
+        + ", ".join(TRUTH_COLUMNS)
+        + ", so the distances are the methods' estimates, shown as the runs wrote them, "
+        "and there is no accuracy table."
     )
     return [
-        "Source: `slopedist run` output (records.csv, frames.csv) of " + compact_names(names) + ".",
         truth,
         "Times are the per-frame means of frames.csv (odometry_ms, estimation_ms, depth_ms); "
         "the 2D detector is excluded.",
+    ]
+
+
+REFERENCE_WORDS = {
+    ReferencePoint.CENTRE.value: "the vehicle's centre",
+    ReferencePoint.NEAREST_FACE.value: "the vehicle's nearest face (the gap)",
+    ReferencePoint.CONTACT.value: "the ground under the bottom of the vehicle's box",
+    ReferencePoint.BOX_CENTRE_PIXEL.value: "the depth at the centre of the vehicle's box",
+}
+"""What each reference point of the records means, for the report's notes and captions."""
+
+
+def reference_words(reference: str) -> str:
+    """Words for a records' ``reference`` value (several joined by ``/``)."""
+    return " or ".join(REFERENCE_WORDS.get(r, r) for r in reference.split("/"))
+
+
+def _reference_note(references: dict[str, str]) -> list[str]:
+    """One line saying which point of the vehicle the distances refer to (none when the
+    records do not say)."""
+    if not references:
+        return []
+    points = set(references.values())
+    if len(points) == 1:
+        return [f"Distances refer to {reference_words(points.pop())}."]
+    return [
+        "Distances refer to: "
+        + "; ".join(f"{m}, {reference_words(r)}" for m, r in sorted(references.items()))
+        + "."
     ]
 
 
@@ -422,8 +475,9 @@ def run_report_data(
     reader.mark_scored()
     missing = ScoredSet(np.zeros(0), np.zeros(0), 0, info={"missing": NOT_IN_RECORDS})
     per_seq = {s: {m: reader.sets[s].get(m, missing) for m in methods} for s in by_seq}
+    references = {m: "/".join(sorted(r)) for m, r in reader.references.items()}
     return ReportData(
-        title=opts.title,
+        title=opts.title or default_title(SourceKind.RUN, list(by_seq), methods),
         source=root,
         kind=SourceKind.RUN,
         scores=pool_methods(per_seq, methods),
@@ -435,11 +489,17 @@ def run_report_data(
             "folders": [str(f) for f in folders],
             "gt_reference": reader.reference.value if reader.reference else None,
         },
-        notes=[*_notes(list(by_seq), reader.truth_found, reader.reference), *partial],
+        notes=[
+            *_reference_note(references),
+            *_notes(reader.truth_found, reader.reference),
+            *partial,
+        ],
         warnings=partial,
         truth_source="truth" if reader.theta_truth else None,
         has_truth=reader.truth_found,
         tracks=reader.tracks if len(reader.tracks) else None,
+        references=references,
+        near_m=opts.near_m,
     )
 
 

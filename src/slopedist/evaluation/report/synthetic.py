@@ -11,8 +11,7 @@ from typing import Any
 
 from slopedist.core.errors import InputFileError
 from slopedist.core.textfiles import read_json
-from slopedist.evaluation.metrics import compact_names
-from slopedist.evaluation.report.data import ReportData, ReportOptions, SourceKind
+from slopedist.evaluation.report.data import ReportData, ReportOptions, SourceKind, default_title
 from slopedist.evaluation.report.runs import demo_number, run_report_data
 
 DEMO_RESULTS = "results.json"
@@ -47,17 +46,16 @@ def _timing(data: ReportData, results: dict[str, Any], path: Path, m: str) -> di
     }
 
 
-def _notes(data: ReportData, config: dict[str, Any]) -> list[str]:
+def _notes(config: dict[str, Any]) -> list[str]:
     odometry = (
         "the built-in visual odometry on the rendered frames"
         if config.get("odometry", "visual") == "visual"
         else "the TRUE rotations (demo --odometry truth)"
     )
     return [
-        "Source: `slopedist demo` output (synthetic hills) of scenarios "
-        + compact_names(data.sequences)
-        + f"; rotations from {odometry}; noisy detector boxes.",
-        "Ground truth: the synthetic targets' KITTI z (camera z of the 3D box's bottom centre); "
+        f"Rotations from {odometry}; noisy detector boxes.",
+        "Ground truth: the synthetic vehicles' centre (KITTI's convention: camera z of the 3D "
+        "box's bottom centre); "
         "the same cap rule as KITTI (estimates above 80 m count as 80 m, below-horizon "
         "targets as 80 m).",
         "Methods bound to an IMU get the true rotations with simulated IMU noise; depth-map "
@@ -98,5 +96,7 @@ def synthetic_report_data(root: str | Path, opts: ReportOptions) -> ReportData:
         "config": config,
         "demo_protocol": results.get("protocol"),
     }
-    data.notes = _notes(data, config)
+    data.notes = _notes(config)
+    if opts.title is None:
+        data.title = default_title(SourceKind.SYNTHETIC, data.sequences, data.methods)
     return data

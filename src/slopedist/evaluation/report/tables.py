@@ -11,8 +11,9 @@ import numpy as np
 
 from slopedist.estimators import ESTIMATORS
 from slopedist.evaluation.accuracy_tables import score_tables
-from slopedist.evaluation.report.data import ReportData
+from slopedist.evaluation.report.data import ReportData, SourceKind
 from slopedist.evaluation.report.fleet import fleet_tables
+from slopedist.evaluation.report.track_summary import tracks_table
 from slopedist.evaluation.table import Table, best_marks
 
 
@@ -120,68 +121,24 @@ def theta_table(data: ReportData) -> Table | None:
     )
 
 
-TRACK_TABLE_ROWS = 20
-"""Tracks shown in the report's track table (the rest are in the runs' ``tracks.csv``)."""
-
-
-def tracks_table(data: ReportData) -> Table | None:
-    """The tracks that came closest (smallest TTC, then smallest distance) of run outputs."""
-    if data.tracks is None or not len(data.tracks):
-        return None
-    rows = [
-        [
-            r["sequence"],
-            r["method"],
-            int(r["track_id"]),
-            r["first_s"],
-            r["last_s"],
-            r["min_distance_m"],
-            r["min_ttc_s"],
-            int(r["ttc_events"]),
-            r["mean_headway_s"],
-        ]
-        for r in data.tracks.records()
-    ]
-    rows.sort(key=lambda r: (_nan_last(r[6]), _nan_last(r[5])))
-    shown = rows[:TRACK_TABLE_ROWS]
-    return Table(
-        "tracks",
-        f"Tracks: {len(shown)} of {len(rows)}, smallest TTC first, then smallest distance",
-        [
-            "sequence",
-            "method",
-            "track",
-            "first (s)",
-            "last (s)",
-            "min dist (m)",
-            "min TTC (s)",
-            "TTC < 2 s events",
-            "headway (s)",
-        ],
-        shown,
-        [[False] * 9 for _ in shown],
-        "From each run's tracks.csv: seconds, metres; TTC from methods that estimate it (ours); "
-        "headway = distance / ego speed where the run had one (--speed-topic).",
-        {2: "d", 3: ".1f", 4: ".1f", 7: "d"},
-    )
-
-
-def _nan_last(x: float) -> float:
-    return x if math.isfinite(x) else math.inf
-
-
 SUMMARY_TABLES = ("fleet_pooled", "fleet_safety_pooled", "table1_rmse", "table2_time")
 """Keys of the tables ``slopedist report`` prints (the others are on the page and in CSV)."""
 
 
 def report_tables(data: ReportData) -> list[Table]:
-    """Every table of the report, in page order (a batch output's fleet tables first)."""
+    """Every table of the report, in page order: a batch output's fleet tables first; with a
+    truth the accuracy tables, Table 2, θ and the tracks of run outputs; without one the
+    tracks first (what such a page is read for), then Table 2 and θ."""
     tables = fleet_tables(data)
-    tables += score_tables(data.scores) if data.has_truth else []
-    tables.append(table2(data))
-    for extra in (theta_table(data), tracks_table(data)):
-        if extra is not None:
-            tables.append(extra)
+    tracks = tracks_table(data) if data.kind in (SourceKind.RUN, SourceKind.FLEET) else None
+    if data.has_truth:
+        tables += [*score_tables(data.scores), table2(data)]
+    else:
+        tables += [*([tracks] if tracks is not None else []), table2(data)]
+    theta = theta_table(data)
+    tables += [theta] if theta is not None else []
+    if data.has_truth and tracks is not None:
+        tables.append(tracks)
     return tables
 
 

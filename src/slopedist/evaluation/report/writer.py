@@ -16,10 +16,17 @@ from typing import Any
 
 from slopedist.core.paths import PATH_BYTES_ERRORS, utf8_text
 from slopedist.evaluation.metrics import compact_names
-from slopedist.evaluation.report.data import ReportData
+from slopedist.evaluation.report.data import SOURCE_WORDS, ReportData
 from slopedist.evaluation.report.figures import Figure, report_figures
 from slopedist.evaluation.report.tables import METRIC_RECORD_FIELDS, metric_records, report_tables
-from slopedist.evaluation.table import Table, format_html, format_markdown, markdown_text
+from slopedist.evaluation.table import (
+    Table,
+    format_html,
+    format_markdown,
+    html_text,
+    markdown_text,
+    plain_text,
+)
 from slopedist.io.formatting import write_csv, write_json
 
 HTML_SCRIPT = """<script>
@@ -41,6 +48,10 @@ th, td { border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: right; }
 th:first-child, td:first-child { text-align: left; }
 thead { background: #f0f0f0; } .note { font-size: 0.85em; color: #555; max-width: 60em; }
 figure { margin: 1em 0; } img.figure { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.9em; max-width: 60em; }
+.small-figures { display: flex; flex-wrap: wrap; gap: 0 1.5em; }
+.small-figures figure { flex: 0 1 520px; margin: 0.6em 0; }
+code { font-size: 0.95em; background: #f4f4f4; padding: 0 0.2em; }
 </style>"""
 
 
@@ -114,21 +125,50 @@ def _write_data_files(
 
 
 def _intro(data: ReportData) -> list[str]:
+    """The lines under the title: the source and what it holds, then the source's notes."""
+    several = "s" if len(data.sequences) > 1 else ""
     return [
-        f"Source: `{data.source}` ({data.kind.value}); methods: "
-        f"{', '.join(data.methods)}; sequences: {compact_names(data.sequences)}.",
+        f"Source: `{data.source}`, {SOURCE_WORDS[data.kind]}; "
+        f"method{'s' if len(data.methods) > 1 else ''}: {', '.join(data.methods)}; "
+        f"sequence{several}: {compact_names(data.sequences)}.",
         *data.notes,
     ]
+
+
+def _page_order(tables: list[Table], figures: list[Figure]) -> list[Table | list[Figure]]:
+    """The page's blocks in order: each table, followed by the figures that go after it
+    (:attr:`Figure.after`), then the other figures; consecutive small figures as one
+    block."""
+    keys = {t.key for t in tables}
+    blocks: list[Table | list[Figure]] = []
+    for t in tables:
+        blocks.append(t)
+        blocks += _figure_blocks([f for f in figures if f.after == t.key])
+    return blocks + _figure_blocks([f for f in figures if f.after not in keys])
+
+
+def _figure_blocks(figures: list[Figure]) -> list[Table | list[Figure]]:
+    """``figures`` as blocks: a run of small ones together, every other one alone."""
+    blocks: list[Table | list[Figure]] = []
+    for f in figures:
+        last = blocks[-1] if blocks else None
+        if f.small and isinstance(last, list) and last[-1].small:
+            last.append(f)
+        else:
+            blocks.append([f])
+    return blocks
 
 
 def markdown_page(data: ReportData, tables: list[Table], figures: list[Figure]) -> str:
     """``report.md``: the notes, the tables, the figures (as files under ``figures/``)."""
     md = [f"# {_md(data.title)}", "", *[f"- {_md(n)}" for n in _intro(data)], ""]
-    for t in tables:
-        md += [format_markdown(t), ""]
-    for f in figures:
-        alt = _md(f.caption).replace("[", "\\[").replace("]", "\\]")
-        md += [f"![{alt}](figures/{f.name})", "", f"*{_md(f.caption)}*", ""]
+    for block in _page_order(tables, figures):
+        if isinstance(block, Table):
+            md += [format_markdown(block), ""]
+            continue
+        for f in block:
+            alt = _md(f.caption).replace("[", "\\[").replace("]", "\\]")
+            md += [f"![{alt}](figures/{f.name})", "", f"*{_md(f.caption)}*", ""]
     return "\n".join(md)
 
 
@@ -140,20 +180,31 @@ def _md(text: str) -> str:
     return "`".join(p if k % 2 else markdown_text(p) for k, p in enumerate(parts))
 
 
+def _html_figure(f: Figure) -> str:
+    b64 = base64.b64encode(f.png).decode("ascii")
+    return (
+        f'<figure><img class="figure" alt="{html.escape(plain_text(f.caption))}" '
+        f'src="data:image/png;base64,{b64}"><figcaption>{html_text(f.caption)}'
+        f"</figcaption></figure>"
+    )
+
+
 def html_page(data: ReportData, tables: list[Table], figures: list[Figure]) -> str:
-    """``report.html``: one self-contained page (figures embedded as base64 PNG)."""
+    """``report.html``: one self-contained page (figures embedded as base64 PNG; the text's
+    code spans as ``<code>``, no Markdown syntax)."""
     body = [
         f"<h1>{html.escape(data.title)}</h1>",
-        "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in _intro(data)) + "</ul>",
+        "<ul>" + "".join(f"<li>{html_text(n)}</li>" for n in _intro(data)) + "</ul>",
     ]
-    body += [format_html(t) for t in tables]
-    for f in figures:
-        b64 = base64.b64encode(f.png).decode("ascii")
-        body.append(
-            f'<figure><img class="figure" alt="{html.escape(f.caption)}" '
-            f'src="data:image/png;base64,{b64}"><figcaption>{html.escape(f.caption)}'
-            f"</figcaption></figure>"
-        )
+    for block in _page_order(tables, figures):
+        if isinstance(block, Table):
+            body.append(format_html(block))
+        elif block[0].small:
+            body.append(
+                '<div class="small-figures">' + "".join(map(_html_figure, block)) + "</div>"
+            )
+        else:
+            body += [_html_figure(f) for f in block]
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         f"<title>{html.escape(data.title)}</title>{HTML_STYLE}</head>\n<body>\n"

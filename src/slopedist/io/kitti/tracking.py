@@ -1,6 +1,6 @@
 """KITTI tracking sequences: calibration, labels, rotations (ORB-SLAM3 or OXTS), detections.
 
-Layout under the data root (see the README's data section)::
+Layout under the data root (see docs/inputs.md, the KITTI data layout)::
 
     calib/NNNN.txt  label_02/NNNN.txt  orbslam3_poses/NNNN.txt  oxts_poses/NNNN.txt
     pointrcnn_car/NNNN.txt
