@@ -9,7 +9,9 @@ Layers, low to high (a module's layer is that of its longest matching prefix):
 3. ``estimators``, ``synthetic`` — the methods and the synthetic world they are tested on;
 4. ``streaming.step`` — the one per-frame step;
 5. ``streaming``, ``evaluation``, ``synthetic.demo``, ``batch`` — the applications of the step;
-6. ``cli`` — options in, library calls out; a command module imports no other command module.
+6. ``cli`` — options in, library calls out; a command module imports no other command module;
+   the package root (``slopedist/__init__.py``: the public names of every layer, imported on
+   first use) is at this layer too.
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ LAYERS: dict[str, int] = {
 """Layer of each module prefix below ``slopedist`` (the longest matching prefix counts)."""
 
 APPLICATION_LAYER = 5
+PUBLIC_API_LAYER = 6
+"""Layer of the package root, which re-exports the public names of every layer."""
 
 
 def module_name(path: Path) -> str:
@@ -49,13 +53,16 @@ def module_name(path: Path) -> str:
 
 
 def layer_of(name: str) -> int:
-    """Layer of a dotted module name below ``slopedist`` (the package root itself is layer 0)."""
-    parts = name.split(".") if name else []
+    """Layer of a dotted module name below ``slopedist`` (the package root itself:
+    :data:`PUBLIC_API_LAYER`)."""
+    if not name:
+        return PUBLIC_API_LAYER
+    parts = name.split(".")
     for n in range(len(parts), 0, -1):
         prefix = ".".join(parts[:n])
         if prefix in LAYERS:
             return LAYERS[prefix]
-    return APPLICATION_LAYER if parts else 0
+    return APPLICATION_LAYER
 
 
 def imported_modules(path: Path) -> set[str]:
@@ -111,6 +118,7 @@ def test_layer_of_hand_cases() -> None:
     assert layer_of("streaming.loop") == APPLICATION_LAYER
     assert layer_of("evaluation.report.tables") == APPLICATION_LAYER
     assert layer_of("cli.run_cmd") == 6
+    assert layer_of("") == PUBLIC_API_LAYER
 
 
 def test_checker_sees_an_upward_import(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

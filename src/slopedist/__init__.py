@@ -16,8 +16,6 @@ Everything under the subpackages is internal. The names are imported when first 
 ``import slopedist`` stays fast.
 """
 
-from __future__ import annotations
-
 __version__ = "0.2.0"
 
 _SOURCES: dict[str, tuple[str, str]] = {
