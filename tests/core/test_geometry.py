@@ -178,3 +178,15 @@ def test_rest_gradient_is_minus_the_mount_angle(mount_angle_rad: float) -> None:
     """By hand: n0 = [0, −cos θ0, −sin θ0], d0 = [0, 0, 1], so n0ᵀd0 = −sin θ0 and
     θ = π/2 − arccos(−sin θ0) = −θ0."""
     assert geo.rest_gradient(mount_angle_rad) == pytest.approx(-mount_angle_rad, abs=1e-12)
+
+
+def test_a_matrix_of_huge_entries_is_no_rotation_and_warns_of_nothing() -> None:
+    """A pose of 1e308 read from a file was refused only after a numpy overflow warning."""
+    import warnings
+
+    R = np.eye(3)
+    R[0, 0] = 1e308
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert geo.not_rotations(R) and geo.not_rotations(np.full((3, 3), np.nan))
+        assert not geo.not_rotations(np.eye(3))

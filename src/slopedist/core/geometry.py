@@ -222,8 +222,11 @@ ROTATION_TOLERANCE = 1e-3
 
 
 def not_rotations(R: ArrayLike, tol: float = ROTATION_TOLERANCE) -> NDArray[np.bool_]:
-    """Which of the matrices ``(..., 3, 3)`` are not rotations: ``RᵀR`` off the identity by
-    more than ``tol`` in some entry, or a reflection (``det R < 0``)."""
+    """Which of the matrices ``(..., 3, 3)`` are not rotations: an entry beyond ``1 + tol`` in
+    size or not a number, ``RᵀR`` off the identity by more than ``tol`` in some entry, or a
+    reflection (``det R < 0``)."""
     R = np.asarray(R, dtype=float)
+    beyond = ~(np.abs(R) <= 1.0 + tol).all(axis=(-2, -1))  # no rotation has such entries
+    R = np.where(beyond[..., None, None], 0.0, R)  # (NaN, 1e308: no overflow in RᵀR)
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-2, -1))
-    return np.asarray((err > tol) | (np.linalg.det(R) < 0))
+    return np.asarray(beyond | (err > tol) | (np.linalg.det(R) < 0))
