@@ -42,16 +42,10 @@ from slopedist.estimators.base import (
     ReferencePoint,
 )
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
-from slopedist.estimators.ours.border import (
-    ImageBorder,
-    border_cuts_of,
-    boxes_all_usable,
-    settle_border_cuts,
-    usable_box_range,
-)
+from slopedist.estimators.ours.border import ImageBorder, border_cuts_of, settle_border_cuts
 from slopedist.estimators.ours.class_table import ClassTable
 from slopedist.estimators.ours.config import OursConfig
-from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
+from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.priors import yaw_grid, yaw_prior_weights
 from slopedist.estimators.ours.records import (
     EXTRA_COLUMNS,
@@ -62,8 +56,6 @@ from slopedist.estimators.ours.records import (
     FusedCues,
     TargetGradient,
     TrackMatch,
-    filled,
-    object_column,
     scatter,
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalibrator
@@ -94,9 +86,6 @@ _BOX_NOISE_PRIOR_COUNT = 200
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
-
-_NO_COLUMN = np.zeros(0, dtype=object)
-"""An empty status column: :class:`FrameEstimates` derives the statuses from the reasons."""
 
 
 class OursEstimator(Estimator):
@@ -154,24 +143,12 @@ class OursEstimator(Estimator):
         )
         self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
         self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
-        n_modes = len(self._size_modes)
-        self._log_prior_all = (np.tile(self._log_yaw_prior, n_modes) + self._log_mode)[None, :]
-        self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
-        self._box_low, self._box_high = usable_box_range(self._border.known_size)
         self.reset()
-
-    def _log_prior_rows(self, n: int) -> FloatArray:
-        """The log prior of the hypotheses (headings × body-style modes) for ``n`` targets,
-        ``(n, K·modes)`` (a slice of a cached block: no broadcasting per frame)."""
-        block = self._log_prior_block
-        if block.shape[0] < n:
-            block = self._log_prior_block = np.repeat(self._log_prior_all, 2 * n, axis=0)
-        return block[:n]
 
     def reset(self) -> None:
         """Forget all tracks and the self-calibration (new sequence)."""
@@ -203,16 +180,11 @@ class OursEstimator(Estimator):
     # -- one frame -------------------------------------------------------------------------
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
-        boxes = frame.boxes.boxes
-        n = boxes.shape[0]
+        n = frame.boxes.boxes.shape[0]
         seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
-        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high, seen)
-        if all_usable:
-            good = np.arange(n)
-            reasons = object_column("", n)
-        else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
-            reasons = table_box_problems(frame.boxes, self._border.known_size)
-            good = np.flatnonzero(reasons == "")
+        # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
+        reasons = table_box_problems(frame.boxes, self._border.known_size)
+        good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
@@ -225,37 +197,31 @@ class OursEstimator(Estimator):
         values: dict[str, FloatArray] = {}
         edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            edges = self._border.cut_edges(seen if all_usable else seen[good])
-            box_values = self._estimate_boxes(
-                frame, good, all_usable, theta_f, jitter, calib, edges
-            )
+            edges = self._border.cut_edges(seen[good])
+            box_values = self._estimate_boxes(frame, good, theta_f, jitter, calib, edges)
             values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
             if self.config.self_calibrate:
                 values.update(self._calibration_columns(good.size))
-        out = scatter(values, good if not all_usable else None, n)
+        out = scatter(values, good, n)
         est = FrameEstimates(
-            theta_rad=filled(n, theta_in),
+            theta_rad=np.full(n, theta_in),
             theta_adj_rad=out["theta_adj_rad"],
             delta_y_px=out["delta_y_px"],
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(self._reference.value, n),
+            reference=np.full(n, self._reference.value, dtype=object),
             extra={k: out[k] for k in EXTRA_COLUMNS},
-            # every box usable: every status ok (what FrameEstimates would derive, cheaper)
-            status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
-            cut=object_column("", n),
+            cut=np.full(n, "", dtype=object),
         )
         # centre to nearest face, before the border cuts settle
         half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and edges is not None:
-            cut = edges
-            if not all_usable:
-                cut = np.zeros((n, 4), dtype=bool)
-                cut[good] = edges
+            cut = np.zeros((n, 4), dtype=bool)
+            cut[good] = edges
             settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
             bounded = est.status == EstimateStatus.UPPER_BOUND.value
-            if any_true(bounded):  # the nearest face of a bound is a bound (the same cue)
+            if bounded.any():  # the nearest face of a bound is a bound (the same cue)
                 face = est.extra["distance_nearest_face_m"]
                 face[bounded] = est.distance_m[bounded] - half_extent[bounded]
         est.withhold_uncertain(self.config.max_relative_sigma)
@@ -269,13 +235,12 @@ class OursEstimator(Estimator):
         """The self-calibration in use, as columns of ``n`` boxes."""
         cal = self.selfcal.calibration()
         names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
-        return {f"calib_{k}": filled(n, getattr(cal, k)) for k in names}
+        return {f"calib_{k}": np.full(n, getattr(cal, k)) for k in names}
 
     def _estimate_boxes(
         self,
         frame: FrameInput,
         good: NDArray[np.intp],
-        all_good: bool,
         theta_rad: float,
         jitter_rad: float,
         calib: CalibrationInUse,
@@ -292,7 +257,7 @@ class OursEstimator(Estimator):
         """
         cfg = self.config
         cam = self.camera
-        targets = self._frame_targets(frame, good, all_good, cut_edges)
+        targets = self._frame_targets(frame, good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
         if cfg.size_learning:  # the tracks' own sizes in the class constants
@@ -369,31 +334,15 @@ class OursEstimator(Estimator):
     # -- the steps of a frame, in order -----------------------------------------------------
 
     def _frame_targets(
-        self,
-        frame: FrameInput,
-        good: NDArray[np.intp],
-        all_good: bool,
-        cut_edges: NDArray[np.bool_],
+        self, frame: FrameInput, good: NDArray[np.intp], cut_edges: NDArray[np.bool_]
     ) -> FrameTargets:
-        """The usable boxes, their class constants, edges and border cuts (``cut_edges``)."""
+        """The usable boxes ``good``, their class constants and border cuts (``cut_edges``)."""
         table = frame.boxes
-        boxes = table.boxes if all_good else table.boxes[good]
-        ids = table.track_id if all_good else table.track_id[good]
-        classes = self._classes.gather(table.cls if all_good else table.cls[good])
-        border_cuts = border_cuts_of(cut_edges)
-        n_hyp = classes.hypotheses.half_extent_m.shape[1]
-        edges = np.empty((4, boxes.shape[0], n_hyp))  # each edge over the hypotheses
-        edges[:] = boxes.T[:, :, None]
-        left, top, right, bottom = edges
         return FrameTargets(
-            boxes,
-            ids,
-            classes,
-            left,
-            top,
-            right,
-            bottom,
-            border_cuts,
+            table.boxes[good],
+            table.track_id[good],
+            self._classes.gather(table.cls[good]),
+            border_cuts_of(cut_edges),
             self.box_sigma_px,
             frame.timestamp_s,
         )
@@ -407,7 +356,7 @@ class OursEstimator(Estimator):
         boxes, ids = targets.boxes_px, targets.track_ids
         predicted = None
         # the boxes' image motion serves IoU association (id-less boxes) and the noise estimate
-        box_motion = cfg.adapt_box_noise or any_true(ids < 0)
+        box_motion = cfg.adapt_box_noise or bool((ids < 0).any())
         if not len(tr):  # (no track is ever stored unless cfg.tracking)
             rows = np.full(boxes.shape[0], -1, np.int64)
             turned, depth_ratio = tr.last_box, np.ones(0)
@@ -419,8 +368,7 @@ class OursEstimator(Estimator):
             rows = associate(tr, boxes, ids, cfg.min_iou)
             turned, depth_ratio = tr.last_box, None  # the depth ratios of the continued only
         continued = rows >= 0
-        every = all_true(continued)
-        r_old = rows if every else rows[continued]
+        r_old = rows[continued]
         state = tr.state[:, r_old]  # (a copy)
         elapsed = t - state[ROW_LAST_T]
         grad_var = state[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * elapsed  # predicted
@@ -431,7 +379,7 @@ class OursEstimator(Estimator):
             self._d2_sum += d2_sum
             self._d2_count += d2_count
         return TrackMatch(
-            rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
+            rows, continued, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
     def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
@@ -453,7 +401,9 @@ class OursEstimator(Estimator):
                 type_weight, self._yaw.size, axis=1
             )
         if log_heading_prior is None:
-            return self._log_prior_rows(match.rows.shape[0])
+            log_heading_prior = np.broadcast_to(
+                self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
+            )
         return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
 
     def _filter_distance(
@@ -538,7 +488,7 @@ class OursEstimator(Estimator):
         v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
         near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
         self.selfcal.update(
-            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near, shape_gap
+            uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
         )
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
@@ -553,16 +503,14 @@ class OursEstimator(Estimator):
         tr = self.tracks
         rows = update.rows
         cont = rows >= 0
-        if all_true(cont):
-            write_continued(tr, update, None)
-            return tr.uid[rows]
         uid = np.empty(rows.shape[0], np.int64)
         uid[cont] = tr.uid[rows[cont]]
         write_continued(tr, update, cont)
         new = ~cont
-        new_uid = self._new_uids(int(np.count_nonzero(new)))
-        uid[new] = new_uid
-        self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
+        if new.any():
+            new_uid = self._new_uids(int(np.count_nonzero(new)))
+            uid[new] = new_uid
+            self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
         return uid
 
     def _drop_stale(self, t: float) -> None:

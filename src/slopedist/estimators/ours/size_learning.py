@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.class_table import MIN_NEAR_M, HypothesisConstants
-from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, all_true, any_true
+from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.records import (
     DistanceFilterResult,
     FrameTargets,
@@ -113,9 +113,7 @@ def evidence_weight(elapsed_s: FloatArray, continued: BoolArray, time_s: float) 
     """``(n,)`` weight of this frame's evidence, ``min(1, dt/τ)`` with ``dt`` the time since
     the track's last update (``elapsed_s`` ``(m,)``, of the continued targets); 0 for a
     target that starts a track (its first frame's gradient error is shared with the next)."""
-    w = np.minimum(np.maximum(elapsed_s, ZERO) / time_s, ONE)
-    if all_true(continued):
-        return w
+    w = np.minimum(np.maximum(elapsed_s, 0.0) / time_s, 1.0)
     out = np.zeros(continued.shape[0])
     out[continued] = w
     return out
@@ -176,7 +174,7 @@ def learn_frame(
         usable &= ~(cuts.sides | cuts.top | cuts.bottom)
     weight = evidence_weight(match.elapsed_s, match.continued, evidence_time_s)
     restarted = match.continued & ~distance.continued
-    if any_true(restarted):
+    if restarted.any():
         weight[restarted] = 0.0
         size = size._replace(
             log_scale=np.where(restarted, 0.0, size.log_scale),

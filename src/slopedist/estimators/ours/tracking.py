@@ -17,7 +17,6 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.fusion import all_true
 from slopedist.io.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
 
 FloatArray = NDArray[np.float64]
@@ -325,12 +324,8 @@ def start_tracks(
         add.state[ROW_SIZE] = update.size_rows[:, new]
     claimed = ext[ext >= 0]
     if claimed.size and len(tracks):
-        replaced = (
-            (tracks.ext_id[:, None] == claimed[None, :]).any(axis=1)
-            if claimed.size * len(tracks) <= 4096  # cheaper than np.isin for a few
-            else np.isin(tracks.ext_id, claimed)
-        )
-        if np.count_nonzero(replaced):
+        replaced = np.isin(tracks.ext_id, claimed)
+        if replaced.any():
             tracks = tracks.keep(~replaced)
     return tracks.concat(add)
 
@@ -360,7 +355,7 @@ def turn_boxes(
     ray = np.ones((b.shape[0], 3))
     ray[:, :2] = (mid - c) * (1.0 / f)
     R_now = np.asarray(R_now, dtype=float)
-    if np.count_nonzero(R_last == R_last[0]) == R_last.size:  # all seen at one rotation
+    if (R_last == R_last[0]).all():  # all seen at one rotation
         out = ray @ (R_last[0].T @ R_now)  # rows: (R_nowᵀ·R_last·ray)ᵀ
     else:
         out = (R_last @ ray[:, :, None])[..., 0] @ R_now
@@ -450,7 +445,7 @@ def associate(
                 rows[k] = -1
             seen.add(i)
     has_id = track_ids >= 0
-    if all_true(has_id):
+    if has_id.all():
         return rows
     free_boxes = np.flatnonzero(~has_id)
     free_tracks = np.flatnonzero(tracks.ext_id < 0)
