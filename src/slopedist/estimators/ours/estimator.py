@@ -42,6 +42,13 @@ from slopedist.estimators.base import (
     ReferencePoint,
 )
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
+from slopedist.estimators.ours.association import (
+    associate,
+    box_noise_sums,
+    depth_ratios,
+    moved_boxes,
+    turn_boxes,
+)
 from slopedist.estimators.ours.border import ImageBorder, border_cuts_of, settle_border_cuts
 from slopedist.estimators.ours.class_table import ClassTable
 from slopedist.estimators.ours.config import OursConfig
@@ -59,22 +66,7 @@ from slopedist.estimators.ours.records import (
     scatter,
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalibrator
-from slopedist.estimators.ours.tracking import (
-    ROW_GRAD_VAR,
-    ROW_LAST_BOX,
-    ROW_LAST_T,
-    ROW_ROT,
-    ROW_SIZE,
-    TrackArrays,
-    TrackUpdate,
-    associate,
-    box_noise_sums,
-    depth_ratios,
-    moved_boxes,
-    start_tracks,
-    turn_boxes,
-    write_continued,
-)
+from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
 __all__ = ["EXTRA_COLUMNS", "OursConfig", "OursEstimator", "OursSelfCalibratingEstimator"]
@@ -152,7 +144,7 @@ class OursEstimator(Estimator):
 
     def reset(self) -> None:
         """Forget all tracks and the self-calibration (new sequence)."""
-        self.tracks = TrackArrays.empty(self._yaw.size)
+        self.tracks = Tracks.empty(self._yaw.size)
         self.selfcal.reset()
         self._next_uid = 0
         self._border.reset()
@@ -323,7 +315,7 @@ class OursEstimator(Estimator):
 
     def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
         """Each target's size belief before this frame (its track's, else the class prior)."""
-        stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
+        stored = match.before.size_rows if match.continued_rows.size else None
         return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
 
     def _keep_frame(self, *frame_state: Any) -> None:
@@ -357,21 +349,23 @@ class OursEstimator(Estimator):
         predicted = None
         # the boxes' image motion serves IoU association (id-less boxes) and the noise estimate
         box_motion = cfg.adapt_box_noise or bool((ids < 0).any())
+        last_boxes = tr.last_box_px.T
         if not len(tr):  # (no track is ever stored unless cfg.tracking)
             rows = np.full(boxes.shape[0], -1, np.int64)
-            turned, depth_ratio = tr.last_box, np.ones(0)
+            turned, depth_ratio = last_boxes, np.ones(0)
         elif box_motion:
-            turned, depth_ratio = turn_boxes(tr.last_box, cam.f, cam.c_x, cam.c_y, tr.R_last, R_now)
+            R_last = tr.R_world_cam.transpose(2, 0, 1)  # (T, 3, 3)
+            turned, depth_ratio = turn_boxes(last_boxes, cam.f, cam.c_x, cam.c_y, R_last, R_now)
             predicted = moved_boxes(tr, turned, t)
             rows = associate(tr, boxes, ids, cfg.min_iou, predicted)
         else:
             rows = associate(tr, boxes, ids, cfg.min_iou)
-            turned, depth_ratio = tr.last_box, None  # the depth ratios of the continued only
+            turned, depth_ratio = last_boxes, None  # the depth ratios of the continued only
         continued = rows >= 0
         r_old = rows[continued]
-        state = tr.state[:, r_old]  # (a copy)
-        elapsed = t - state[ROW_LAST_T]
-        grad_var = state[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * elapsed  # predicted
+        before = tr.take(r_old)
+        elapsed = t - before.last_time_s
+        grad_var = before.gradient_var_rad2 + cfg.process.gradient_rad**2 * elapsed  # predicted
         if cfg.adapt_box_noise and r_old.size and predicted is not None:
             d2_sum, d2_count = box_noise_sums(
                 tr, boxes[continued] - predicted[r_old], r_old, t, self.box_sigma_px
@@ -379,7 +373,7 @@ class OursEstimator(Estimator):
             self._d2_sum += d2_sum
             self._d2_count += d2_count
         return TrackMatch(
-            rows, continued, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
+            rows, continued, r_old, before, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
     def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
@@ -423,8 +417,8 @@ class OursEstimator(Estimator):
         if match.depth_ratio is not None:
             return match.depth_ratio[match.continued_rows]
         cam = self.camera
-        state = match.continued_state
-        return depth_ratios(state[ROW_LAST_BOX], cam.f, cam.c_x, cam.c_y, state[ROW_ROT], R_now)
+        before = match.before
+        return depth_ratios(before.last_box_px, cam.f, cam.c_x, cam.c_y, before.R_world_cam, R_now)
 
     def _update_tracks(
         self,
@@ -505,19 +499,19 @@ class OursEstimator(Estimator):
         cont = rows >= 0
         uid = np.empty(rows.shape[0], np.int64)
         uid[cont] = tr.uid[rows[cont]]
-        write_continued(tr, update, cont)
+        tr.write_continued(update, cont)
         new = ~cont
         if new.any():
             new_uid = self._new_uids(int(np.count_nonzero(new)))
             uid[new] = new_uid
-            self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
+            self.tracks = tr.with_started(update, new, new_uid, self._log_yaw_prior)
         return uid
 
     def _drop_stale(self, t: float) -> None:
         tr = self.tracks
         age = self.config.max_age_s + 1e-9
-        if len(tr) and t - np.minimum.reduce(tr.last_t) > age:  # the oldest is stale
-            self.tracks = tr.keep(t - tr.last_t <= age)
+        if len(tr) and t - tr.last_time_s.min() > age:  # the oldest is stale
+            self.tracks = tr.take(t - tr.last_time_s <= age)
 
     def _calibration_in_use(self) -> CalibrationInUse:
         if self.config.self_calibrate:

@@ -32,13 +32,6 @@ from slopedist.estimators.ours.records import (
     TrackMatch,
     UpperBound,
 )
-from slopedist.estimators.ours.tracking import (
-    ROW_FILTER,
-    ROW_GRAD_MEAN,
-    ROW_GRAD_OTHER,
-    ROW_LOG_W,
-    ROW_NOISE,
-)
 
 FloatArray = NDArray[np.float64]
 
@@ -331,9 +324,9 @@ def contact_gradient_prior(
     grad_v = np.full(n, np.inf)
     grad_o = np.zeros(n)
     if match.continued_rows.size:
-        grad_m[match.continued] = match.continued_state[ROW_GRAD_MEAN]
+        grad_m[match.continued] = match.before.gradient_mean_rad
         grad_v[match.continued] = match.gradient_var_rad2
-        grad_o[match.continued] = match.continued_state[ROW_GRAD_OTHER]
+        grad_o[match.continued] = match.before.gradient_var_other_rad2
     a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
     return a_m[:, None], a_v[:, None]
 
@@ -360,7 +353,7 @@ def filter_distance(
     if depth_ratio is None:
         filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
         return DistanceFilterResult(filt, match.rows, continued)
-    prior = match.continued_state[ROW_FILTER]
+    prior = match.before.filter_rows.copy()
     prior[0] += np.log(np.maximum(depth_ratio, _MIN_DEPTH_RATIO))
     pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
     old = match.continued
@@ -368,7 +361,7 @@ def filter_distance(
     updated, nis = kf.cv_update_rows(pred, m_old, w_old)
     scale = None
     if cfg.noise_time_s is not None:  # the frame-to-frame noise this track shows
-        prior_scale = match.continued_state[ROW_NOISE]
+        prior_scale = match.before.noise_scale
         scale = _noise_scale(prior_scale, nis, match.elapsed_s, cfg.noise_time_s)
     dev = m_old - pred[0]
     same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
@@ -435,7 +428,7 @@ def target_gradient(
     z_h_sd = targets.classes.height_sigma_m * 0.5 / z_size
     a_other = gain2 * (size.var - size.var_white) + z_h_sd * z_h_sd
     prior_mean, prior_var = _gradient_prior(
-        rows, match.continued, match.continued_state[ROW_GRAD_MEAN], match.gradient_var_rad2
+        rows, match.continued, match.before.gradient_mean_rad, match.gradient_var_rad2
     )
     g_mean, g_var = kf.random_walk_update(prior_mean, prior_var, 0.0, 0.0, a_obs, a_white)
     alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, cfg.gradient_sigma_rad)
@@ -541,7 +534,7 @@ def carried_heading_prior(
     (``yaw_memory``): a continued track's belief relaxing to the prior ``log_yaw_prior``
     ``(K,)`` with time constant ``memory_s`` (s); the prior for a new track."""
     mix = 1.0 - np.exp(-match.elapsed_s / memory_s)
-    carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
+    carried = (1.0 - mix[:, None]) * np.exp(match.before.log_heading_belief.T) + mix[
         :, None
     ] * np.exp(log_yaw_prior)
     n = match.rows.shape[0]

@@ -28,7 +28,6 @@ from numpy.typing import NDArray
 from slopedist.estimators.ours.config import OursConfig
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
-from slopedist.estimators.ours.tracking import ROW_ODD
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -39,7 +38,7 @@ def carried_evidence(match: TrackMatch) -> FloatArray:
     that starts a track)."""
     evidence = np.zeros(match.rows.shape[0])
     if match.continued_rows.size:
-        evidence[match.continued] = match.continued_state[ROW_ODD]
+        evidence[match.continued] = match.before.odd_evidence
     return evidence
 
 

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from slopedist.estimators.ours.class_table import TargetClasses
 from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue
+from slopedist.estimators.ours.tracks import Tracks
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -124,8 +125,7 @@ class TrackMatch(NamedTuple):
         rows: ``(n,)`` column of the track each box continues, −1 for a new track.
         continued: ``(n,)`` ``rows >= 0``.
         continued_rows: ``rows[continued]``.
-        continued_state: ``(ROW_LOG_W + K, m)`` a copy of those tracks' states (rows as
-            :mod:`~slopedist.estimators.ours.tracking`'s ``ROW_*``).
+        before: those ``m`` tracks as they were before this frame (a copy).
         elapsed_s: ``(m,)`` time since those tracks' last update.
         gradient_var_rad2: ``(m,)`` their gradient variance predicted to now (random walk).
         turned_boxes_px: ``(T, 4)`` every track's last box turned with the camera (pixels).
@@ -138,7 +138,7 @@ class TrackMatch(NamedTuple):
     rows: IntArray
     continued: BoolArray
     continued_rows: IntArray
-    continued_state: FloatArray
+    before: Tracks
     elapsed_s: FloatArray
     gradient_var_rad2: FloatArray
     turned_boxes_px: FloatArray
