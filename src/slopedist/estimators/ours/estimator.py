@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,6 +59,7 @@ from slopedist.estimators.ours.records import (
     BoxEstimates,
     CalibrationInUse,
     DistanceFilterResult,
+    FrameState,
     FrameTargets,
     FusedCues,
     TargetGradient,
@@ -66,12 +67,28 @@ from slopedist.estimators.ours.records import (
     scatter,
 )
 from slopedist.estimators.ours.selfcal import Calibration, SelfCalibrator
+from slopedist.estimators.ours.size_learning import LearnedSizes
 from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
 __all__ = ["EXTRA_COLUMNS", "OursConfig", "OursEstimator", "OursSelfCalibratingEstimator"]
 
 FloatArray = NDArray[np.float64]
+
+
+class FilterRecorder(Protocol):
+    """What keeps each frame's filter states (an offline pass's smoothing)."""
+
+    def record(
+        self,
+        good: NDArray[np.intp],
+        frame: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+    ) -> None:
+        """The filter states ``frame`` of the frame's usable boxes ``good`` (their rows in the
+        frame), their target gradients and track uids."""
+
 
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
@@ -86,16 +103,26 @@ class OursEstimator(Estimator):
     Args:
         camera: intrinsics and the (possibly rough) mount.
         config: options (default :class:`OursConfig`).
+        sizes: where the tracks' own sizes come from with ``size_learning`` (default: learned
+            over each track, :class:`~slopedist.estimators.ours.size_learning.LearnedSizes`).
+        recorder: given each frame's filter states, predictions included (an offline pass's
+            smoothing: :mod:`~slopedist.estimators.ours.offline`); None: nothing is kept.
         **overrides: individual :class:`OursConfig` fields, e.g. ``self_calibrate=False``.
     """
 
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
-    _keep_predicted: ClassVar[bool] = False  # keep the filter's predictions (offline pass)
-    _learns_size: ClassVar[bool] = True  # learn the tracks' sizes (with size_learning)
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        *,
+        sizes: LearnedSizes | None = None,
+        recorder: FilterRecorder | None = None,
+        **overrides: Any,
+    ) -> None:
         super().__init__(camera)
         if config is not None and not isinstance(config, OursConfig):
             raise ConfigurationError(f"ours option config must be an OursConfig, got {config!r}")
@@ -110,6 +137,10 @@ class OursEstimator(Estimator):
                 )
             config = dataclasses.replace(config, **overrides)
         self.config = config
+        self._sizes = (
+            (sizes or LearnedSizes(config.size_evidence_time)) if config.size_learning else None
+        )
+        self._recorder = recorder
         grid = yaw_grid() if config.yaw_hypotheses else np.zeros(1)
         self._yaw = grid
         self._log_yaw_prior = (
@@ -252,8 +283,8 @@ class OursEstimator(Estimator):
         targets = self._frame_targets(frame, good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
-        if cfg.size_learning:  # the tracks' own sizes in the class constants
-            track_size = self._track_size(targets, match)
+        if self._sizes is not None:  # the tracks' own sizes in the class constants
+            track_size = self._sizes.before_frame(targets, match)
             targets = size_learning.with_track_size(targets, track_size)
         size = frame_cues.size_cues(cfg, cam, targets, calib)
         ground = None
@@ -280,20 +311,15 @@ class OursEstimator(Estimator):
         gradient = frame_cues.target_gradient(
             cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
         )
+        state = FrameState(targets, match, size, fused, distance)
         size_rows = None
-        if track_size is not None:  # this frame's evidence (none in an offline pass's second)
-            size_rows = (
-                size_learning.learn_frame(
-                    targets, match, size, fused, distance, track_size, cfg.size_evidence_time
-                )
-                if self._learns_size
-                else np.stack([track_size.log_scale, track_size.log_var])
-            )
+        if self._sizes is not None and track_size is not None:  # this frame's evidence
+            size_rows = self._sizes.after_frame(state, track_size)
         uid = self._update_tracks(
             targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
         )
-        if self._keep_predicted:
-            self._keep_frame(match, fused, distance, uid, targets, gradient)
+        if self._recorder is not None:
+            self._recorder.record(good, state, gradient, uid)
         if cfg.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
@@ -312,16 +338,6 @@ class OursEstimator(Estimator):
         if size_rows is not None:
             out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
         return out
-
-    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
-        """Each target's size belief before this frame (its track's, else the class prior)."""
-        stored = match.before.size_rows if match.continued_rows.size else None
-        return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
-
-    def _keep_frame(self, *frame_state: Any) -> None:
-        """Keep a frame's filter states (match, fused cues, distance filters, uids, targets, target
-        gradients) for an offline pass (``_keep_predicted``: see
-        :mod:`~slopedist.estimators.ours.offline`)."""
 
     # -- the steps of a frame, in order -----------------------------------------------------
 
@@ -409,7 +425,7 @@ class OursEstimator(Estimator):
         if self.config.motion_model and match.continued_rows.size:
             ratio = self._continued_depth_ratios(match, R_now)
         return frame_cues.filter_distance(
-            self.config, match, measurement, ratio, self._keep_predicted
+            self.config, match, measurement, ratio, self._recorder is not None
         )
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:

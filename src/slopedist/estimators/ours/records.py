@@ -206,6 +206,25 @@ class DistanceFilterResult(NamedTuple):
     noise_scale: FloatArray | None = None
 
 
+class FrameState(NamedTuple):
+    """A frame's targets with their tracks, cues and distance filters: what the steps after
+    the distance filter read.
+
+    Attributes:
+        targets: the usable boxes and their class constants.
+        match: their tracks.
+        size_cues: the size cues per hypothesis.
+        fused: the cues fused and collapsed over the hypotheses.
+        distance: the distance filters after this frame.
+    """
+
+    targets: FrameTargets
+    match: TrackMatch
+    size_cues: SizeCues
+    fused: FusedCues
+    distance: DistanceFilterResult
+
+
 class TargetGradient(NamedTuple):
     """Each target's road gradient α relative to the ego's, from Δy and the size distance.
 
