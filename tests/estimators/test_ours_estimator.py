@@ -41,8 +41,8 @@ def test_registered_and_built_with_defaults_only() -> None:
     assert "ours" in available_methods() and "ours-selfcal" in available_methods()
     est = make_estimator("ours", CAM)
     assert isinstance(est, OursEstimator) and est.name == "ours"
-    assert not est.config.self_calibrate
-    assert make_estimator("ours-selfcal", CAM).config.self_calibrate  # type: ignore[attr-defined]
+    assert not est.ablation.self_calibrate
+    assert make_estimator("ours-selfcal", CAM).ablation.self_calibrate  # type: ignore[attr-defined]
 
 
 def test_unknown_or_bad_options_fail_clearly() -> None:

@@ -24,7 +24,6 @@ Everything is causal: the streaming pipeline and the batch one give identical nu
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, ClassVar, Protocol
 
@@ -51,7 +50,13 @@ from slopedist.estimators.ours.association import (
 )
 from slopedist.estimators.ours.border import ImageBorder, border_cuts_of, settle_border_cuts
 from slopedist.estimators.ours.class_table import ClassTable
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import (
+    OursAblation,
+    OursConfig,
+    carries_state,
+    configs_of,
+    size_evidence_time,
+)
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.priors import yaw_grid, yaw_prior_weights
 from slopedist.estimators.ours.records import (
@@ -71,7 +76,13 @@ from slopedist.estimators.ours.size_learning import LearnedSizes
 from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
-__all__ = ["EXTRA_COLUMNS", "OursConfig", "OursEstimator", "OursSelfCalibratingEstimator"]
+__all__ = [
+    "EXTRA_COLUMNS",
+    "OursAblation",
+    "OursConfig",
+    "OursEstimator",
+    "OursSelfCalibratingEstimator",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -107,7 +118,9 @@ class OursEstimator(Estimator):
             over each track, :class:`~slopedist.estimators.ours.size_learning.LearnedSizes`).
         recorder: given each frame's filter states, predictions included (an offline pass's
             smoothing: :mod:`~slopedist.estimators.ours.offline`); None: nothing is kept.
-        **overrides: individual :class:`OursConfig` fields, e.g. ``self_calibrate=False``.
+        ablation: experimental settings (default :class:`OursAblation`).
+        **overrides: individual options of either, e.g. ``box_sigma_px=1.0`` or
+            ``self_calibrate=True`` (:func:`~slopedist.estimators.ours.config.configs_of`).
     """
 
     name: ClassVar[str] = "ours"
@@ -118,6 +131,7 @@ class OursEstimator(Estimator):
         self,
         camera: Camera,
         config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
         *,
         sizes: LearnedSizes | None = None,
         recorder: FilterRecorder | None = None,
@@ -126,46 +140,41 @@ class OursEstimator(Estimator):
         super().__init__(camera)
         if config is not None and not isinstance(config, OursConfig):
             raise ConfigurationError(f"ours option config must be an OursConfig, got {config!r}")
-        config = config or OursConfig()
-        if overrides:
-            known = {f.name for f in dataclasses.fields(OursConfig)}
-            unknown = sorted(set(overrides) - known)
-            if unknown:
-                raise ConfigurationError(
-                    f"unknown option(s) for method 'ours': {', '.join(unknown)} "
-                    f"(known: {', '.join(sorted(known))})"
-                )
-            config = dataclasses.replace(config, **overrides)
+        if ablation is not None and not isinstance(ablation, OursAblation):
+            raise ConfigurationError(
+                f"ours option ablation must be an OursAblation, got {ablation!r}"
+            )
+        config, abl = configs_of(overrides, config, ablation)
         self.config = config
-        self._sizes = (
-            (sizes or LearnedSizes(config.size_evidence_time)) if config.size_learning else None
-        )
+        self.ablation = abl
+        evidence_time = size_evidence_time(config, abl)
+        self._sizes = (sizes or LearnedSizes(evidence_time)) if config.size_learning else None
         self._recorder = recorder
-        grid = yaw_grid() if config.yaw_hypotheses else np.zeros(1)
+        grid = yaw_grid() if abl.yaw_hypotheses else np.zeros(1)
         self._yaw = grid
         self._log_yaw_prior = (
-            np.log(yaw_prior_weights(grid, config.yaw_prior)) if grid.size > 1 else np.zeros(1)
+            np.log(yaw_prior_weights(grid, abl.yaw_prior)) if grid.size > 1 else np.zeros(1)
         )
         self.selfcal = SelfCalibrator(
-            camera.f, camera.mount_angle_rad, camera.height_m, config.selfcal
+            camera.f, camera.mount_angle_rad, camera.height_m, abl.selfcal
         )
         self._theta_rest = float(geo.rest_gradient(camera.mount_angle_rad))
-        self._size_modes = [m for m, _ in config.size_modes]
+        self._size_modes = [m for m, _ in abl.size_modes]
         generic = tuple(config.generic_classes)
         self._classes = ClassTable(
-            config.priors,
+            abl.priors,
             grid,
             () if config.generic_sigma_only else generic,
-            config.type_mixture,
+            abl.type_mixture,
             len(self._size_modes),
             generic if config.generic_sigma_only else (),
         )
         self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
         self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
-            self._size_modes[:1], grid.size * len(config.type_mixture)
+            self._size_modes[:1], grid.size * len(abl.type_mixture)
         )
-        self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
-        self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
+        self._log_mode = np.repeat(np.log([p for _, p in abl.size_modes]), grid.size)
+        self._odd_check = odd_objects.OddObjectCheck.of(config, abl, grid.size)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
@@ -191,7 +200,7 @@ class OursEstimator(Estimator):
         ``_BOX_NOISE_PRIOR_COUNT`` pseudo-observations of the prior.
         """
         s0 = self.config.box_sigma_px
-        if not self.config.adapt_box_noise:
+        if not self.ablation.adapt_box_noise:
             return s0
         n0 = _BOX_NOISE_PRIOR_COUNT
         return math.sqrt((n0 * s0 * s0 + self._d2_sum / 6.0) / (n0 + self._d2_count))
@@ -212,9 +221,8 @@ class OursEstimator(Estimator):
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
         theta_f = (theta_in if theta_ok else self._theta_rest) + calib.horizon_offset_rad
-        jitter = (
-            self.config.theta_sigma_rad if theta_ok else self.config.no_rotation_theta_sigma_rad
-        )
+        abl = self.ablation
+        jitter = abl.theta_sigma_rad if theta_ok else abl.no_rotation_theta_sigma_rad
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
@@ -223,7 +231,7 @@ class OursEstimator(Estimator):
             edges = self._border.cut_edges(seen[good])
             box_values = self._estimate_boxes(frame, good, theta_f, jitter, calib, edges)
             values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
-            if self.config.self_calibrate:
+            if abl.self_calibrate:
                 values.update(self._calibration_columns(good.size))
         out = scatter(values, good, n)
         est = FrameEstimates(
@@ -242,7 +250,7 @@ class OursEstimator(Estimator):
         if self._border.known_size is not None and edges is not None:
             cut = np.zeros((n, 4), dtype=bool)
             cut[good] = edges
-            settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+            settle_border_cuts(est, cut, abl.use_width, abl.use_ground_contact)
             bounded = est.status == EstimateStatus.UPPER_BOUND.value
             if bounded.any():  # the nearest face of a bound is a bound (the same cue)
                 face = est.extra["distance_nearest_face_m"]
@@ -278,7 +286,7 @@ class OursEstimator(Estimator):
         vehicle types); the class constants come as such planes from one gather
         (:class:`ClassTable`), so that the arithmetic of a frame's few targets never broadcasts.
         """
-        cfg = self.config
+        abl = self.ablation
         cam = self.camera
         targets = self._frame_targets(frame, good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
@@ -286,15 +294,17 @@ class OursEstimator(Estimator):
         if self._sizes is not None:  # the tracks' own sizes in the class constants
             track_size = self._sizes.before_frame(targets, match)
             targets = size_learning.with_track_size(targets, track_size)
-        size = frame_cues.size_cues(cfg, cam, targets, calib)
+        size = frame_cues.size_cues(abl, cam, targets, calib)
         ground = None
-        if cfg.use_ground_contact:
-            alpha, alpha_var = frame_cues.contact_gradient_prior(cfg, match)
-            ground = frame_cues.ground_contact_cue(
-                cfg, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
+        if abl.use_ground_contact:
+            alpha, alpha_var = frame_cues.contact_gradient_prior(
+                abl.gradient_feedback, self.config.gradient_sigma_rad, match
             )
-            if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
-                size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
+            ground = frame_cues.ground_contact_cue(
+                abl, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
+            )
+            if abl.occlusion_aware and targets.boxes_px.shape[0] > 1:
+                size = frame_cues.occlusion_adjusted(abl, targets, size, ground)
         log_prior = self._log_prior(match, targets)
         odd = self._odd_check.carried(match, targets)  # the tracks' odd-object evidence
         fused = frame_cues.fuse_hypotheses(
@@ -303,13 +313,21 @@ class OursEstimator(Estimator):
             ground,
             self._odd_check.prior(log_prior, odd),
             self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
-            cfg.consistency_gate_sigma,
-            size.height.camera_lever if cfg.road_bend_sigma else None,
+            abl.consistency_gate_sigma,
+            size.height.camera_lever if abl.road_bend_sigma else None,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
         gradient = frame_cues.target_gradient(
-            cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
+            self.config.gradient_sigma_rad,
+            cam,
+            targets,
+            match,
+            fused,
+            distance.rows,
+            theta_rad,
+            jitter_rad,
+            calib.height_m,
         )
         state = FrameState(targets, match, size, fused, distance)
         size_rows = None
@@ -320,7 +338,7 @@ class OursEstimator(Estimator):
         )
         if self._recorder is not None:
             self._recorder.record(good, state, gradient, uid)
-        if cfg.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
+        if abl.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
@@ -333,7 +351,7 @@ class OursEstimator(Estimator):
             uid,
             theta_rad,
             calib,
-            cfg.gradient_sigma_rad,
+            self.config.gradient_sigma_rad,
         )
         if size_rows is not None:
             out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
@@ -357,32 +375,32 @@ class OursEstimator(Estimator):
 
     def _match_tracks(self, targets: FrameTargets, R_now: FloatArray | None) -> TrackMatch:
         """Associate the boxes with the live tracks and gather the continued tracks' states."""
-        cfg = self.config
+        abl = self.ablation
         cam = self.camera
         tr = self.tracks
         t = targets.time_s
         boxes, ids = targets.boxes_px, targets.track_ids
         predicted = None
         # the boxes' image motion serves IoU association (id-less boxes) and the noise estimate
-        box_motion = cfg.adapt_box_noise or bool((ids < 0).any())
+        box_motion = abl.adapt_box_noise or bool((ids < 0).any())
         last_boxes = tr.last_box_px.T
-        if not len(tr):  # (no track is ever stored unless cfg.tracking)
+        if not len(tr):  # (no track is ever stored unless carries_state)
             rows = np.full(boxes.shape[0], -1, np.int64)
             turned, depth_ratio = last_boxes, np.ones(0)
         elif box_motion:
             R_last = tr.R_world_cam.transpose(2, 0, 1)  # (T, 3, 3)
             turned, depth_ratio = turn_boxes(last_boxes, cam.f, cam.c_x, cam.c_y, R_last, R_now)
             predicted = moved_boxes(tr, turned, t)
-            rows = associate(tr, boxes, ids, cfg.min_iou, predicted)
+            rows = associate(tr, boxes, ids, abl.min_iou, predicted)
         else:
-            rows = associate(tr, boxes, ids, cfg.min_iou)
+            rows = associate(tr, boxes, ids, abl.min_iou)
             turned, depth_ratio = last_boxes, None  # the depth ratios of the continued only
         continued = rows >= 0
         r_old = rows[continued]
         before = tr.take(r_old)
         elapsed = t - before.last_time_s
-        grad_var = before.gradient_var_rad2 + cfg.process.gradient_rad**2 * elapsed  # predicted
-        if cfg.adapt_box_noise and r_old.size and predicted is not None:
+        grad_var = before.gradient_var_rad2 + abl.process.gradient_rad**2 * elapsed  # predicted
+        if abl.adapt_box_noise and r_old.size and predicted is not None:
             d2_sum, d2_count = box_noise_sums(
                 tr, boxes[continued] - predicted[r_old], r_old, t, self.box_sigma_px
             )
@@ -396,9 +414,9 @@ class OursEstimator(Estimator):
         """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
         headings × vehicle types when a target's class is generic)."""
         log_heading_prior = None
-        if self.config.yaw_memory and match.continued_rows.size:
+        if self.ablation.yaw_memory and match.continued_rows.size:
             log_heading_prior = frame_cues.carried_heading_prior(
-                match, self._log_yaw_prior, self.config.yaw_memory_s
+                match, self._log_yaw_prior, self.ablation.yaw_memory_s
             )
         type_weight = targets.classes.type_log_weight
         if type_weight is not None:
@@ -422,10 +440,10 @@ class OursEstimator(Estimator):
         """:func:`~slopedist.estimators.ours.frame_cues.filter_distance`, with the depth change
         the camera's rotation ``R_now`` gives each continued track."""
         ratio = None
-        if self.config.motion_model and match.continued_rows.size:
+        if self.ablation.motion_model and match.continued_rows.size:
             ratio = self._continued_depth_ratios(match, R_now)
         return frame_cues.filter_distance(
-            self.config, match, measurement, ratio, self._recorder is not None
+            self.ablation, match, measurement, ratio, self._recorder is not None
         )
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:
@@ -449,12 +467,12 @@ class OursEstimator(Estimator):
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
-        cfg = self.config
-        if not cfg.tracking:
+        abl = self.ablation
+        if not carries_state(self.config, abl):
             return self._new_uids(targets.boxes_px.shape[0])
         belief: FloatArray | None = None
-        if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
-            belief = frame_cues.heading_belief(fused, cfg.yaw_evidence_weight, self._yaw.size)
+        if abl.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
+            belief = frame_cues.heading_belief(fused, abl.yaw_evidence_weight, self._yaw.size)
         return self._store(
             TrackUpdate(
                 distance.rows,
@@ -530,7 +548,7 @@ class OursEstimator(Estimator):
             self.tracks = tr.take(t - tr.last_time_s <= age)
 
     def _calibration_in_use(self) -> CalibrationInUse:
-        if self.config.self_calibrate:
+        if self.ablation.self_calibrate:
             cov = self.selfcal.covariance
             return CalibrationInUse(
                 self.selfcal.horizon_offset_rad,
@@ -547,7 +565,13 @@ class OursSelfCalibratingEstimator(OursEstimator):
 
     name: ClassVar[str] = "ours-selfcal"
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
-        if config is None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
+        **overrides: Any,
+    ) -> None:
+        if ablation is None:
             overrides.setdefault("self_calibrate", True)
-        super().__init__(camera, config, **overrides)
+        super().__init__(camera, config, ablation, **overrides)

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from slopedist.core.camera import Camera
 from slopedist.estimators.ours import cues, fusion, road_bend
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import OursAblation
 from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue, ModeSpreads
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
@@ -37,7 +37,7 @@ FloatArray = NDArray[np.float64]
 
 
 def size_cues(
-    cfg: OursConfig, cam: Camera, targets: FrameTargets, calib: CalibrationInUse
+    cfg: OursAblation, cam: Camera, targets: FrameTargets, calib: CalibrationInUse
 ) -> SizeCues:
     """Height and width cues per (target, heading hypothesis); a dimension cut by the image
     border keeps a weak Gaussian weight and bounds the distance from above."""
@@ -84,7 +84,7 @@ def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
     )
 
 
-def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
+def _border_cut_size_cues(cfg: OursAblation, targets: FrameTargets, size: SizeCues) -> SizeCues:
     """The size cues with the dimensions cut by the image border (height: top or bottom;
     width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
     cuts = targets.border_cuts
@@ -101,7 +101,7 @@ def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues
 
 
 def _cut_by_border(
-    cfg: OursConfig,
+    cfg: OursAblation,
     cue: SizeCue,
     log_sigma: FloatArray,
     rows: NDArray[np.bool_],
@@ -123,7 +123,7 @@ def _cut_by_border(
 
 
 def ground_contact_cue(
-    cfg: OursConfig,
+    cfg: OursAblation,
     cam: Camera,
     targets: FrameTargets,
     bounds: list[UpperBound],
@@ -168,7 +168,7 @@ def ground_contact_cue(
 
 
 def occlusion_adjusted(
-    cfg: OursConfig, targets: FrameTargets, size: SizeCues, ground: LogCue
+    cfg: OursAblation, targets: FrameTargets, size: SizeCues, ground: LogCue
 ) -> SizeCues:
     """A size cue that says too far may show only part of a vehicle hidden behind a nearer
     one (censored): which sides nearer boxes may cut, then the outlier test against the
@@ -313,12 +313,13 @@ def _collapse(
 
 
 def contact_gradient_prior(
-    cfg: OursConfig, match: TrackMatch
+    gradient_feedback: bool, gradient_sigma_rad: float, match: TrackMatch
 ) -> tuple[FloatArray | float, FloatArray | float]:
     """Mean and variance (rad, rad²) of the target gradient α the ground-contact cue uses:
-    each track's estimate predicted to now (``gradient_feedback``), else the prior."""
-    if not cfg.gradient_feedback:  # the prior, the same for every target
-        return 0.0, cfg.gradient_sigma_rad**2
+    each track's estimate predicted to now (``gradient_feedback``), else the prior (spread
+    ``gradient_sigma_rad``)."""
+    if not gradient_feedback:  # the prior, the same for every target
+        return 0.0, gradient_sigma_rad**2
     n = match.rows.shape[0]
     grad_m = np.zeros(n)
     grad_v = np.full(n, np.inf)
@@ -327,7 +328,7 @@ def contact_gradient_prior(
         grad_m[match.continued] = match.before.gradient_mean_rad
         grad_v[match.continued] = match.gradient_var_rad2
         grad_o[match.continued] = match.before.gradient_var_other_rad2
-    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, gradient_sigma_rad)
     return a_m[:, None], a_v[:, None]
 
 
@@ -336,7 +337,7 @@ _MIN_DEPTH_RATIO = 0.1
 
 
 def filter_distance(
-    cfg: OursConfig,
+    cfg: OursAblation,
     match: TrackMatch,
     measurement: LogCue,
     depth_ratio: FloatArray | None,
@@ -401,7 +402,7 @@ def _noise_scale(
 
 
 def target_gradient(
-    cfg: OursConfig,
+    gradient_sigma_rad: float,
     cam: Camera,
     targets: FrameTargets,
     match: TrackMatch,
@@ -413,7 +414,8 @@ def target_gradient(
 ) -> TargetGradient:
     """Each target's continuous road gradient α from its box centre's offset Δy below the
     horizon and the size distance (:func:`~slopedist.estimators.ours.cues.target_gradient`),
-    updated as a random walk over its track (``rows``: after the distance gate)."""
+    updated as a random walk over its track (``rows``: after the distance gate), and combined
+    with the prior of spread ``gradient_sigma_rad``."""
     f = cam.f
     size = fused.size
     boxes = targets.boxes_px
@@ -431,7 +433,7 @@ def target_gradient(
         rows, match.continued, match.before.gradient_mean_rad, match.gradient_var_rad2
     )
     g_mean, g_var = kf.random_walk_update(prior_mean, prior_var, 0.0, 0.0, a_obs, a_white)
-    alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, cfg.gradient_sigma_rad)
+    alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, gradient_sigma_rad)
     return TargetGradient(g_mean, g_var, a_other, alpha, alpha_var, delta_y, z_size)
 
 

@@ -25,7 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import (
+    OursAblation,
+    OursConfig,
+    carries_state,
+    size_evidence_time,
+)
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
 
@@ -112,14 +117,17 @@ class OddObjectCheck:
     evidence_time_s: float
 
     @classmethod
-    def of(cls, config: OursConfig, n_headings: int) -> OddObjectCheck:
-        """The check of ``config``."""
-        modes = config.size_modes
+    def of(cls, config: OursConfig, ablation: OursAblation, n_headings: int) -> OddObjectCheck:
+        """The check of an estimator's options."""
+        modes = ablation.size_modes
         odd = next((k for k, (mode, _) in enumerate(modes) if mode.odd), None)
         weight = modes[odd][1] if odd is not None else 0.5
         log_odds = float(np.log(weight) - np.log1p(-weight))
         return cls(
-            odd if config.tracking else None, n_headings, log_odds, config.size_evidence_time
+            odd if carries_state(config, ablation) else None,
+            n_headings,
+            log_odds,
+            size_evidence_time(config, ablation),
         )
 
     def carried(self, match: TrackMatch, targets: FrameTargets) -> FloatArray | None:

@@ -33,7 +33,7 @@ from slopedist.core.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
 from slopedist.estimators.ours import road_bend
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import OursAblation, OursConfig, size_evidence_time
 from slopedist.estimators.ours.estimator import OursEstimator
 from slopedist.estimators.ours.records import FrameState, FrameTargets, TargetGradient, TrackMatch
 from slopedist.estimators.ours.size_learning import LearnedSizes, TrackSize
@@ -62,9 +62,15 @@ class OursOfflineEstimator(OursEstimator):
     name: ClassVar[str] = "ours-offline"
     offline: ClassVar[bool] = True
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
+        **overrides: Any,
+    ) -> None:
         overrides["size_learning"] = True
-        super().__init__(camera, config, **overrides)
+        super().__init__(camera, config, ablation, **overrides)
 
     def reset(self) -> None:
         super().reset()
@@ -86,9 +92,10 @@ class OursOfflineEstimator(OursEstimator):
 
     def finish(self) -> list[FrameEstimates]:
         """The offline estimates of every frame given since :meth:`reset`, in order."""
-        sizes = FinalSizes(_final_sizes(self._frames, self._causal), self.config)
+        evidence_time = size_evidence_time(self.config, self.ablation)
+        sizes = FinalSizes(_final_sizes(self._frames, self._causal), evidence_time)
         log = FilterLog(self.config.gradient_sigma_rad)
-        second = OursEstimator(self.camera, self.config, sizes=sizes, recorder=log)
+        second = OursEstimator(self.camera, self.config, self.ablation, sizes=sizes, recorder=log)
         estimates = []
         for frame in self._frames:
             log.start_frame()
@@ -117,8 +124,8 @@ class FinalSizes(LearnedSizes):
     (``seeds``, keyed by the box), learned no further; a box without one keeps its track's
     size with the class prior's variance."""
 
-    def __init__(self, seeds: dict[BoxKey, FloatArray], config: OursConfig) -> None:
-        super().__init__(config.size_evidence_time)
+    def __init__(self, seeds: dict[BoxKey, FloatArray], evidence_time_s: float) -> None:
+        super().__init__(evidence_time_s)
         self._seeds = seeds
 
     def before_frame(self, targets: FrameTargets, match: TrackMatch) -> TrackSize:
