@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from slopedist.estimators import make_estimator
-from slopedist.estimators.ours import CLASS_PRIORS, DimensionPrior, OursConfig
+from slopedist.estimators.ours import CLASS_PRIORS, DimensionPrior, OursAblation, OursConfig
 from slopedist.estimators.ours.filter import ProcessNoise
 from slopedist.estimators.ours.prior_fitting import (
     LabelFitInputs,
@@ -321,8 +321,7 @@ def section_loo(data: Path, inputs: dict[str, LabelFitInputs]) -> None:
         f"{overall(base_pr, 'flat')['rmse']:.2f}, paper {overall(base_pr, 'paper')['rmse']:.2f}"
     )
     everything = fit_parameters(list(inputs.values()))
-    cfg = OursConfig()
-    shipped = {"yaw_prior": cfg.yaw_prior, "box_sigma_px": cfg.box_sigma_px}
+    shipped = {"yaw_prior": OursAblation().yaw_prior, "box_sigma_px": OursConfig().box_sigma_px}
     print(
         "   fit on all 13 sequences (in-lane w, σ°, broad w, σ°, box σ px): "
         f"{', '.join(describe(everything))}; the shipped defaults "

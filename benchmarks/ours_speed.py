@@ -9,15 +9,18 @@ not counted (as in the paper's comparison). Two workloads:
    all 13 sequences: the traffic density of real urban scenes.
 2. Simulated traffic (:func:`slopedist.synthetic.traffic.simulate_traffic`) with a fixed
    number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
-3. Scaling: the same traffic at 10, 100 and 1000 vehicles per frame, with track ids and without
-   (id-less boxes are associated by IoU), and the per-target cost at 1000 over that at 10. The
-   scene keeps its size, so at 1000 vehicles the boxes crowd the image: the overlapping box pairs
-   per frame (which the occlusion check and the IoU association visit) are printed too.
+3. Scaling: the same traffic at 10, 100 and 1000 vehicles per frame (``--targets``: any
+   counts, e.g. ``--targets 300,3000``), with track ids and without (id-less boxes are
+   associated by IoU), the per-target cost over that at the smallest count, and the peak memory
+   the estimator allocates over a run (``tracemalloc``, a run of its own). The scene keeps its
+   size, so at 1000 vehicles the boxes crowd the image: the overlapping box pairs per frame
+   (which the occlusion check and the IoU association visit) are printed too.
 
 Usage::
 
     python benchmarks/ours_speed.py [--data ../shared/data/kitti_tracking] [--repeats 3]
-                                    [--scaling-frames 40]
+                                    [--scaling-frames 40] [--targets 10,100,1000]
+                                    [--skip kitti,simulated]
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+import tracemalloc  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -148,17 +153,29 @@ def overlapping_pairs_per_frame(frames: list[FrameInput]) -> float:
     )
 
 
-def scaling(repeats: int, n_frames: int) -> None:
-    print(f"3. Scaling: ours per target at 10, 100, 1000 vehicles per frame ({n_frames} frames)")
+def peak_memory_mb(method: str, camera: Camera, frames: list[FrameInput]) -> float:
+    """Peak memory the estimator allocates over a run of ``frames`` (MB, ``tracemalloc``)."""
+    est = make_estimator(method, camera)
+    tracemalloc.start()
+    for fr in frames:
+        est.estimate(fr)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak / 1e6
+
+
+def scaling(repeats: int, n_frames: int, counts: Sequence[int]) -> None:
+    listed = ", ".join(str(n) for n in counts)
+    print(f"3. Scaling: ours per target at {listed} vehicles per frame ({n_frames} frames)")
     cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
     rows = []
     for with_ids in (True, False):
         base = math.nan
-        for n in (10, 100, 1000):
+        for n in counts:
             frames, n_boxes = traffic_frames(cam, n, n_frames, with_ids)
             sec = cpu_time("ours", cam, frames, repeats)
             per_target_us = 1e6 * sec / n_boxes
-            base = per_target_us if n == 10 else base
+            base = per_target_us if n == counts[0] else base
             rows.append(
                 [
                     "track ids" if with_ids else "IoU (no ids)",
@@ -168,6 +185,7 @@ def scaling(repeats: int, n_frames: int) -> None:
                     1e3 * sec / len(frames),
                     per_target_us,
                     per_target_us / base,
+                    peak_memory_mb("ours", cam, frames),
                 ]
             )
     header = [
@@ -177,7 +195,8 @@ def scaling(repeats: int, n_frames: int) -> None:
         "overlapping pairs/frame",
         "ms/frame",
         "us/target",
-        "us/target ÷ at N=10",
+        f"us/target ÷ at N={counts[0]}",
+        "peak MB",
     ]
     print(format_table(header, rows))
 
@@ -187,14 +206,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--scaling-frames", type=int, default=40, help="frames per scaling run")
+    ap.add_argument(
+        "--targets", default="10,100,1000", help="vehicles per frame of the scaling section"
+    )
+    ap.add_argument(
+        "--skip", default="", help="sections to skip, comma-separated: kitti, simulated"
+    )
     args = ap.parse_args(argv)
-    if (args.data / "label_02").is_dir():
+    skip = {s.strip() for s in args.skip.split(",") if s.strip()}
+    counts = [int(n) for n in args.targets.split(",")]
+    if "kitti" in skip:
+        pass
+    elif (args.data / "label_02").is_dir():
         kitti(args.data, args.repeats)
     else:
         print(f"(KITTI tracking data not found at {args.data}: section 1 skipped)\n")
-    simulated(args.repeats)
-    print()
-    scaling(args.repeats, args.scaling_frames)
+    if "simulated" not in skip:
+        simulated(args.repeats)
+        print()
+    scaling(args.repeats, args.scaling_frames, counts)
     return 0
 
 

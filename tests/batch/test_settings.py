@@ -17,11 +17,13 @@ from slopedist.batch.settings import (
     unapplied,
 )
 from slopedist.core.errors import ConfigurationError
-from slopedist.estimators.ours.config import OursConfig, settable_options
+from slopedist.estimators.ours.config import OursAblation, OursConfig, settable_options
 
-BOOL_OPTIONS = sorted(f.name for f in fields(OursConfig) if str(f.type) == "bool")
+BOOL_OPTIONS = sorted(
+    f.name for f in (*fields(OursConfig), *fields(OursAblation)) if str(f.type) == "bool"
+)
 POSITIVE_OPTIONS = ["box_sigma_px", "gate_sigma", "max_age_s", "yaw_memory_s", "truncation_factor"]
-"""Float options whose only rule is > 0 (OursConfig.__post_init__)."""
+"""Float options whose only rule is > 0 (OursConfig's and OursAblation's checks)."""
 
 parse_cell = CELL_PARSERS["ours_options"]
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -21,7 +22,14 @@ from slopedist.estimators import (
     make_estimator,
 )
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
-from slopedist.estimators.ours.config import OursConfig, parse_option, settable_options
+from slopedist.estimators.ours.config import (
+    OursConfig,
+    configs_of,
+    experimental_options,
+    parse_option,
+    settable_options,
+    user_options,
+)
 from slopedist.estimators.ours.estimator import OursEstimator
 
 CAMERA = Camera(721.5, 609.6, 172.9, 1.65)
@@ -81,7 +89,7 @@ def test_ours_options_reach_ours_and_ours_selfcal() -> None:
     for method in ("ours", "ours-selfcal"):
         est = build_estimator(cfg.with_method(method), CAMERA)
         assert isinstance(est, OursEstimator)
-        assert est.config.odd_object_weight == 0.0 and not est.config.use_width
+        assert est.ablation.odd_object_weight == 0.0 and not est.ablation.use_width
         assert est.config.reference == "contact"
     assert cfg.options("paper").keys() == {"adjustment"} and cfg.options("flat") == {}
 
@@ -167,9 +175,20 @@ def test_ours_config_refuses_values_of_the_wrong_kind_or_range(kwargs: dict, mes
     ("C", "a", "r"), a bool sigma 1 px, a factor 0 a zero height spread; an unknown reference
     only when an estimator was built) or failed with a bare TypeError (a text min_iou)."""
     with pytest.raises(ConfigurationError, match=message):
-        OursConfig(**kwargs)
+        configs_of(kwargs)
     with pytest.raises(ConfigurationError, match=message):
         make_estimator("ours", CAMERA, **kwargs)
+
+
+def test_ten_options_and_the_experimental_rest() -> None:
+    """At most ten options are a user's; the rest of what ``KEY=VALUE`` sets is the
+    ablation's, experimental, and no key is both."""
+    users = [f.name for f in dataclasses.fields(OursConfig)]
+    assert len(users) <= 10 and {"reference", "generic_classes"} <= set(users)
+    assert set(user_options()) <= set(users)
+    assert "box_sigma_px" in users and "odd_object_weight" in experimental_options()
+    assert not set(users) & set(experimental_options())
+    assert sorted(user_options() + experimental_options()) == settable_options()
 
 
 def test_ours_config_must_be_an_ours_config() -> None:
@@ -183,7 +202,10 @@ def test_ours_config_must_be_an_ours_config() -> None:
     [
         ({"reference": "roof"}, "reference must be one of"),
         ({"ours_options": (("box_sigma_px", -1.0),)}, "box_sigma_px must be a finite number"),
-        ({"ours_options": (("speed_of_light", 1.0),)}, "unknown ours option\\(s\\): speed_of"),
+        (
+            {"ours_options": (("speed_of_light", 1.0),)},
+            "unknown option\\(s\\) for method 'ours': speed_of",
+        ),
         ({"ours_options": ("box_sigma_px",)}, "ours_options must be \\(name, value\\) pairs"),
         ({"thresholds_px": (0.0, -10.0)}, "thresholds_px must be three finite numbers"),
         ({"alphas_deg": (math.nan, 5.0, 6.0)}, "alphas_deg must be three finite numbers"),

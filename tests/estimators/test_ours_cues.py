@@ -264,7 +264,6 @@ def test_height_cue_log_is_height_cue_in_log_form(
         np.array([[h]]),
         np.array([[e]]),
         np.array([[var_e]]),
-        np.array([[h > H_CAM]]),
     )
     assert got.mean[0, 0] == pytest.approx(math.log(z), abs=1e-9)
     assert got.lever[0, 0] == pytest.approx(dH * h / z_ref, rel=1e-9)

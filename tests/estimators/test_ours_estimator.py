@@ -41,8 +41,8 @@ def test_registered_and_built_with_defaults_only() -> None:
     assert "ours" in available_methods() and "ours-selfcal" in available_methods()
     est = make_estimator("ours", CAM)
     assert isinstance(est, OursEstimator) and est.name == "ours"
-    assert not est.config.self_calibrate
-    assert make_estimator("ours-selfcal", CAM).config.self_calibrate  # type: ignore[attr-defined]
+    assert not est.ablation.self_calibrate
+    assert make_estimator("ours-selfcal", CAM).ablation.self_calibrate  # type: ignore[attr-defined]
 
 
 def test_unknown_or_bad_options_fail_clearly() -> None:
@@ -178,16 +178,18 @@ def test_every_option_set_estimates_simulated_traffic(opts: dict, with_ids: bool
     assert np.all(e.extra["distance_nearest_face_m"] < e.distance_m)
 
 
-def test_tracks_keep_their_state_in_rows() -> None:
+def test_tracks_keep_their_state_by_name() -> None:
     est = OursEstimator(CAM)
     outs = _approach(est, 0, 5, 40.0, -5.0, 7, CAR)
     tr = est.tracks
-    assert len(tr) == 1 and tr.ext_id.tolist() == [7]
-    assert tr.x.shape == (1, 2) and tr.P.shape == (1, 2, 2) and tr.last_box.shape == (1, 4)
-    assert math.exp(tr.x[0, 0]) == pytest.approx(outs[-1].distance_m[0], rel=0.01)
-    assert tr.n_obs[0] == 5 and tr.last_t[0] == pytest.approx(0.4)
-    assert np.allclose(tr.R_last[0], np.eye(3)) and tr.log_w.shape == (1, est._yaw.size)
-    assert np.all(np.linalg.eigvalsh(tr.P[0]) > 0)
+    assert len(tr) == 1 and tr.box_track_id.tolist() == [7]
+    assert tr.filter_rows.shape == (5, 1) and tr.last_box_px.shape == (4, 1)
+    assert math.exp(tr.filter_rows[0, 0]) == pytest.approx(outs[-1].distance_m[0], rel=0.01)
+    assert tr.n_updates[0] == 5 and tr.last_time_s[0] == pytest.approx(0.4)
+    assert np.allclose(tr.R_world_cam[:, :, 0], np.eye(3))
+    assert tr.log_heading_belief.shape == (est._yaw.size, 1)
+    p00, p01, p11 = tr.filter_rows[2:, 0]
+    assert np.all(np.linalg.eigvalsh([[p00, p01], [p01, p11]]) > 0)
 
 
 def _approach(

@@ -13,7 +13,7 @@ from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import FrameEstimates, FrameInput
 from slopedist.estimators.ours import OursEstimator
 from slopedist.estimators.ours.cues import project_box
-from slopedist.estimators.ours.fusion import ModeSpreads, SizeMode, mode_spreads
+from slopedist.estimators.ours.fusion import ModeSpreads, SizeMode
 from slopedist.estimators.ours.odd_objects import (
     MAX_EVIDENCE,
     MAX_LOG_ODDS,
@@ -88,13 +88,16 @@ def test_mode_spreads() -> None:
     the odd object's floor (the class's spreads come repeated over the modes, mode-major)."""
     sh, sw = np.array([[0.08, 0.2]]), np.array([[0.06, 0.7]])
     modes = [SizeMode(), SizeMode(height_factor=3.0), SizeMode(log_sigma_floor=0.5)]
-    h, w = mode_spreads(modes, np.tile(sh, 3), np.tile(sw, 3))
+    h, w = ModeSpreads(modes, 2).spreads(np.tile(sh, 3), np.tile(sw, 3))
     assert h.shape == w.shape == (1, 6)
     assert np.allclose(h[0], [0.08, 0.2, 0.24, 0.6, 0.5, 0.5])
     assert np.allclose(w[0], [0.06, 0.7, 0.06, 0.7, 0.5, 0.7])
-    one_h, one_w = mode_spreads(modes[2:], sh, sw)
+    one_h, one_w = ModeSpreads(modes[2:], 2).spreads(sh, sw)
     assert np.allclose(one_h, [[0.5, 0.5]]) and np.allclose(one_w, [[0.5, 0.7]])
+    typical_h, typical_w = ModeSpreads(modes[:1], 2).spreads(sh, sw)
+    assert np.array_equal(typical_h, sh) and np.array_equal(typical_w, sw)
     assert modes[2].odd and not modes[1].odd
+    assert ModeSpreads(modes, 2).odd == 2 and ModeSpreads(modes[:2], 2).odd is None
 
 
 def test_frame_log_ratio_by_hand() -> None:
@@ -144,23 +147,3 @@ def test_bad_odd_object_options_fail_clearly(options: dict) -> None:
         OursEstimator(CAM, **options)
     with pytest.raises(ConfigurationError, match="sum below 1"):
         OursEstimator(CAM, atypical_height_weight=0.5, odd_object_weight=0.5)
-
-
-def test_mode_spreads_of_read_only_constants_are_kept() -> None:
-    """:class:`ModeSpreads` gives :func:`mode_spreads`'s values; the spreads of read-only
-    inputs (a class table's constants) are kept while the same arrays come, those of
-    writable ones computed every time."""
-    modes = [SizeMode(), SizeMode(height_factor=3.0), SizeMode(log_sigma_floor=0.5)]
-    sh, sw = np.tile([[0.08, 0.2]], (2, 3)), np.tile([[0.06, 0.7]], (2, 3))
-    spreads = ModeSpreads(modes, 2)
-    expected = mode_spreads(modes, sh, sw)
-    first = spreads.spreads(sh, sw)
-    assert spreads.spreads(sh, sw) is not first  # writable: computed afresh
-    sh.flags.writeable = sw.flags.writeable = False
-    kept = spreads.spreads(sh, sw)
-    assert spreads.spreads(sh, sw) is kept
-    for h, w in (first, kept):
-        assert np.array_equal(h, expected[0]) and np.array_equal(w, expected[1])
-    assert spreads.odd == 2 and ModeSpreads(modes[:2], 2).odd is None
-    h, w = ModeSpreads([SizeMode()], 2).spreads(sh, sw)
-    assert h is sh and w is sw  # the typical mode alone: the class's own spreads

@@ -109,6 +109,6 @@ def test_the_lever_is_the_height_cues_derivative_in_the_camera_height() -> None:
         cue = cues.height_cue_log(D, f, h, 0.5, 0.0, H, e, var0)
         np.testing.assert_allclose(cue.camera_lever, (hi - lo) / (2 * step), rtol=1e-5)
     tall = np.array([[2.9, 1.5]])  # a roof above the camera: the box is the near face alone
-    cue = cues.height_cue_log(np.array([[50.0]]), f, 1.65, 0.5, 0.0, tall, e, var0, tall > 1.65)
+    cue = cues.height_cue_log(np.array([[50.0]]), f, 1.65, 0.5, 0.0, tall, e, var0)
     assert cue.camera_lever is not None
     assert cue.camera_lever[0, 0] == 0.0 and cue.camera_lever[0, 1] > 0.0

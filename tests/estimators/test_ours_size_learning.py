@@ -8,8 +8,9 @@ import pytest
 from slopedist.core.camera import Camera
 from slopedist.estimators import make_estimator
 from slopedist.estimators.base import FrameInput
-from slopedist.estimators.ours import OursConfig
+from slopedist.estimators.ours import OursAblation, OursConfig
 from slopedist.estimators.ours.class_table import ClassTable
+from slopedist.estimators.ours.config import size_evidence_time
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.priors import CLASS_PRIORS, yaw_grid
 from slopedist.estimators.ours.size_learning import (
@@ -59,7 +60,7 @@ def test_stored_beliefs_and_weights() -> None:
     assert size.spread_ratio == pytest.approx([np.sqrt(0.2), 1.0, 1.0])
     w = evidence_weight(np.array([0.1, 8.0]), np.array([True, False, True]), 4.0)
     assert w.tolist() == [0.025, 0.0, 1.0]
-    assert OursConfig().size_evidence_time == pytest.approx(4.0)  # (1° / 0.5°/√s)²
+    assert size_evidence_time(OursConfig(), OursAblation()) == pytest.approx(4.0)  # (1°/0.5°/√s)²
 
 
 def test_hypotheses_scale_with_the_learned_size() -> None:

@@ -7,24 +7,28 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.estimators.ours import tracking
-from slopedist.estimators.ours.tracking import TrackArrays, associate
+from slopedist.estimators.ours import association
+from slopedist.estimators.ours.association import associate
+from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 
 
-def id_less_tracks(boxes: np.ndarray) -> TrackArrays:
+def id_less_tracks(boxes: np.ndarray) -> Tracks:
     k = boxes.shape[0]
-    return TrackArrays.start(
-        np.arange(k),
+    zeros = np.zeros(k)
+    first = TrackUpdate(
+        np.full(k, -1),
         np.full(k, -1),
         np.zeros((5, k)),
-        np.zeros((k, 1)),
-        np.zeros(k),
-        np.zeros(k),
-        np.zeros(k),
-        0.0,
+        None,
+        zeros,
+        zeros,
+        zeros,
         boxes,
+        0.0,
         np.eye(3),
+        None,
     )
+    return Tracks.empty(1).with_started(first, np.ones(k, bool), np.arange(k), np.zeros(1))
 
 
 def test_greedy_iou_association_by_hand() -> None:
@@ -52,7 +56,7 @@ def test_association_of_many_boxes_equals_the_full_iou_matrix(seed: int, min_iou
     ids = np.full(boxes.shape[0], -1)
     sparse = associate(tracks, boxes, ids, min_iou)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(tracking, "_DENSE_MAX_PAIRS", 10**9)
+        mp.setattr(association, "_DENSE_MAX_PAIRS", 10**9)
         dense = associate(tracks, boxes, ids, min_iou)
     assert sparse.tolist() == dense.tolist()
     assert np.count_nonzero(sparse >= 0) > n // 2

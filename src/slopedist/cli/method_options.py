@@ -102,8 +102,9 @@ ours_option = click.option(
     "ours_options",
     multiple=True,
     metavar="KEY=VALUE",
-    help="ours, ours-selfcal: set one of its options, e.g. odd_object_weight=0 or "
-    "size_learning=true (repeatable; docs/method.md lists them).",
+    help="ours, ours-selfcal, ours-offline: set one of its options, e.g. box_sigma_px=1.0 or "
+    "size_learning=true (repeatable; docs/method.md lists them; the ablation's keys, e.g. "
+    "odd_object_weight=0, are taken too, as experimental settings for benchmarks).",
 )
 
 

@@ -36,7 +36,11 @@ from slopedist.estimators.ground_contact import (
 from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
 from slopedist.estimators.ours.config import OPTION_SEPARATOR as OURS_OPTION_SEPARATOR
-from slopedist.estimators.ours.config import OursConfig, idle_sigma_only, unscored_generic_class
+from slopedist.estimators.ours.config import (
+    configs_of,
+    idle_sigma_only,
+    unscored_generic_class,
+)
 from slopedist.estimators.ours.config import parse_option_list as parse_ours_option_list
 from slopedist.estimators.ours.config import parse_options as parse_ours_options
 from slopedist.estimators.ours.cues import project_box
@@ -173,8 +177,9 @@ class EstimatorConfig:
         depth_scaling: per-frame median scaling of scale-less depth (``depthmap``).
         reference: the point of the vehicle ``ours`` reports (``centre``, ``nearest_face``,
             ``contact``; None: its default, the centre).
-        ours_options: ``(name, value)`` settings of ``ours`` and ``ours-selfcal``
-            (:class:`~slopedist.estimators.ours.config.OursConfig` fields, e.g. from
+        ours_options: ``(name, value)`` settings of ``ours`` and the methods built on it
+            (:class:`~slopedist.estimators.ours.config.OursConfig` options, or experimental
+            :class:`~slopedist.estimators.ours.config.OursAblation` ones; e.g. from
             ``--ours-option``, :func:`~slopedist.estimators.ours.config.parse_option`).
         generic_classes: class names ``ours`` reads as generic, a mixture of vehicle types
             (its option ``generic_classes``; ``--generic-class``): those a class-blind
@@ -183,8 +188,8 @@ class EstimatorConfig:
     Raises:
         ConfigurationError: an unknown method, eq. 7 steps that are not three finite numbers
             or thresholds that do not decrease, an unknown depth sample or scaling, ours
-            options or a reference :class:`~slopedist.estimators.ours.config.OursConfig`
-            refuses.
+            options or a reference that ``ours`` refuses
+            (:func:`~slopedist.estimators.ours.config.configs_of`).
     """
 
     method: str = DEFAULT_METHOD
@@ -206,17 +211,11 @@ class EstimatorConfig:
             raise ConfigurationError(
                 f"ours_options must be (name, value) pairs, got {self.ours_options!r}"
             ) from None
-        known = {f.name for f in dataclasses.fields(OursConfig)}
-        if set(ours) - known:
-            raise ConfigurationError(
-                f"unknown ours option(s): {', '.join(sorted(set(ours) - known))} "
-                f"(known: {', '.join(sorted(known))})"
-            )
         if self.reference is not None:
             ours["reference"] = self.reference
         if self.generic_classes:
             ours["generic_classes"] = self.generic_classes
-        OursConfig(**ours)  # the ranges of the ours options and the reference
+        configs_of(ours)  # the known options, their ranges and the reference
         try:
             object.__setattr__(self, "depth_sample", DepthSample(self.depth_sample))
             object.__setattr__(self, "depth_scaling", DepthScaling(self.depth_scaling))

@@ -87,11 +87,6 @@ def _cell(key: str, value: Any) -> Any:
     return format_time_cell(value) if key in TIME_COLUMNS else format_cell(value)
 
 
-def format_row(row: Mapping[str, Any]) -> dict[str, Any]:
-    """:func:`format_cell` applied to every value of a record (times: :func:`format_time_cell`)."""
-    return {k: _cell(k, v) for k, v in row.items()}
-
-
 class TextSink(Protocol):
     """Where a :class:`CsvStreamWriter` writes: a text file, standard output, or a file that
     keeps whole batches only (:class:`~slopedist.io.outputs.WholeRowsFile`)."""

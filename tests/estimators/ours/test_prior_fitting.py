@@ -127,7 +127,7 @@ def test_box_edge_noise_is_robust_to_outliers_and_offsets() -> None:
 
 
 def test_shipped_defaults_are_the_fit_on_all_shared_sequences(kitti_tracking_dir: Path) -> None:
-    from slopedist.estimators.ours import OursConfig
+    from slopedist.estimators.ours import OursAblation, OursConfig
     from slopedist.estimators.ours.prior_fitting import fit_parameters, kitti_tracking_fit_inputs
     from slopedist.io.kitti.tracking import list_sequences
 
@@ -137,7 +137,7 @@ def test_shipped_defaults_are_the_fit_on_all_shared_sequences(kitti_tracking_dir
     assert len(inputs) == 13
     fitted = fit_parameters(inputs)
     cfg = OursConfig()
-    assert fitted["yaw_prior"] == cfg.yaw_prior
+    assert fitted["yaw_prior"] == OursAblation().yaw_prior
     assert fitted["box_sigma_px"] == cfg.box_sigma_px
     # the labels' 2D boxes are their 3D boxes' projections, to a fraction of a pixel
     assert 0.1 < cfg.box_sigma_px < 1.0

@@ -8,6 +8,7 @@ estimator that ties them together (:mod:`.estimator`).
 
 from slopedist.estimators.ours.estimator import (
     EXTRA_COLUMNS,
+    OursAblation,
     OursConfig,
     OursEstimator,
     OursSelfCalibratingEstimator,
@@ -20,6 +21,7 @@ __all__ = [
     "EXTRA_COLUMNS",
     "Calibration",
     "DimensionPrior",
+    "OursAblation",
     "OursConfig",
     "OursEstimator",
     "OursSelfCalibratingEstimator",

@@ -19,15 +19,8 @@ from slopedist.estimators.base import (
     MissingReason,
     image_size,
 )
-from slopedist.estimators.ours.fusion import all_true, any_true
 from slopedist.estimators.ours.records import BorderCuts
-from slopedist.io.detections.boxes import (
-    ABSURD_COORDINATE_PX,
-    ABSURD_IMAGE_SIZES,
-    MIN_BOX_SIZE_PX,
-    border_cut_limits,
-    cuts_at,
-)
+from slopedist.io.detections.boxes import border_cuts
 
 FloatArray = NDArray[np.float64]
 
@@ -50,16 +43,11 @@ class ImageBorder:
     def reset(self) -> None:
         self._max_right = -math.inf
         self._max_bottom = -math.inf
-        self._limits_of: tuple[tuple[float, float], tuple[FloatArray, FloatArray]] | None = None
 
     def cut_edges(self, boxes: FloatArray) -> NDArray[np.bool_]:
         """``(n, 4)`` flags: is the (left, top, right, bottom) edge of each box ``(n, 4)`` cut?
-        (:func:`~slopedist.io.detections.boxes.border_cuts`, its limits kept while the image size
-        stays.)"""
-        size = self.known_size or self._seen_size(boxes)
-        if self._limits_of is None or self._limits_of[0] != size:
-            self._limits_of = (size, border_cut_limits(size))
-        return cuts_at(boxes, self._limits_of[1])
+        (:func:`~slopedist.io.detections.boxes.border_cuts`)"""
+        return border_cuts(boxes, self.known_size or self._seen_size(boxes))
 
     def _seen_size(self, boxes: FloatArray) -> tuple[float, float]:
         """The image size as far as the boxes show it (inf while unknown)."""
@@ -75,42 +63,9 @@ class ImageBorder:
 def border_cuts_of(cut: NDArray[np.bool_]) -> BorderCuts | None:
     """The (left or right, top, bottom) flags of boxes whose edges ``cut`` ``(n, 4)``
     (:meth:`ImageBorder.cut_edges`) the border cuts, or None when no box is cut."""
-    if not any_true(cut):
+    if not cut.any():
         return None
     return BorderCuts(cut[:, 0] | cut[:, 2], cut[:, 1], cut[:, 3])
-
-
-def usable_box_range(size: tuple[int, int] | None) -> tuple[FloatArray, FloatArray]:
-    """Open ranges ``(low, high)`` of (left, top, right, bottom), pixels, within which a box
-    is neither absurd nor outside an image of ``size = (width, height)`` (None: unknown; the
-    limits of :func:`~slopedist.io.detections.boxes.box_problems`)."""
-    if size is None:
-        return np.full(4, -ABSURD_COORDINATE_PX), np.full(4, ABSURD_COORDINATE_PX)
-    w, h = float(size[0]), float(size[1])
-    low = np.array([-ABSURD_IMAGE_SIZES * w, -ABSURD_IMAGE_SIZES * h, -0.5, -0.5])
-    high = np.array([w - 0.5, h - 0.5, (1 + ABSURD_IMAGE_SIZES) * w, (1 + ABSURD_IMAGE_SIZES) * h])
-    return low, high
-
-
-def boxes_all_usable(
-    boxes: FloatArray, low: FloatArray, high: FloatArray, seen: FloatArray | None = None
-) -> bool:
-    """Whether every box ``(n, 4)`` is certainly usable (finite, at least
-    :data:`~slopedist.io.detections.boxes.MIN_BOX_SIZE_PX` wide and high, inside the open range
-    ``(low, high)`` of :func:`usable_box_range`): the common case, checked cheaply; otherwise
-    :func:`~slopedist.io.detections.boxes.table_box_problems` decides box by box.
-
-    ``seen``: the same boxes in the frame's own pixels when a lens model mapped ``boxes``
-    (:func:`~slopedist.io.detections.boxes.frame_pixel_boxes`), None (or ``boxes`` itself) when
-    not. The image border is judged there, as the slow path judges ``outside_image``: a
-    pincushion lens maps a box beyond the frame's edge into the ideal camera's image, which
-    must not make it usable."""
-    size = boxes[:, 2:] - boxes[:, :2]
-    inside = (boxes > low) & (boxes < high)  # False for NaN
-    usable = all_true(size >= MIN_BOX_SIZE_PX) and all_true(inside)
-    if usable and seen is not None and seen is not boxes:
-        usable = all_true((seen > low) & (seen < high))
-    return usable
 
 
 def settle_border_cuts(
@@ -123,7 +78,7 @@ def settle_border_cuts(
     reason ``cut_bottom``, whose distance is the least of the cut contact and width cues (each
     says at least the true distance: the lowest visible row lies above the contact row, the
     visible width is less than the vehicle's)."""
-    if not any_true(cut):
+    if not cut.any():
         return
     side = cut[:, 0] | cut[:, 2]
     top, bottom = cut[:, 1], cut[:, 3]
@@ -133,7 +88,7 @@ def settle_border_cuts(
     if use_ground_contact:
         uncut |= ~bottom
     bounded = ~uncut & (est.status == EstimateStatus.OK.value)
-    if not any_true(bounded):
+    if not bounded.any():
         return
     contact = np.where(bottom, est.extra["distance_ground_contact_m"], np.inf)
     width = np.where(side, est.extra["distance_width_m"], np.inf)

@@ -1,7 +1,7 @@
 """Class priors of ``ours`` as per-heading constants, computed once per class name.
 
-The priors and the heading grid are fixed for an estimator, so each frame only gathers rows
-(one fancy-indexing operation per frame) instead of recomputing them. Lengths in metres,
+The priors and the heading grid are fixed for an estimator, so each class name's constants are
+computed once and a frame gathers its targets' rows. Lengths in metres,
 headings ψ in radians (the angle of a vehicle's length axis from the camera's z axis).
 """
 
@@ -31,10 +31,6 @@ FloatArray = NDArray[np.float64]
 
 MIN_NEAR_M = 0.5
 """Smallest distance to a target's nearest face the cues accept, metres."""
-
-MAX_KEPT = 64
-"""Sequences of class names whose constants a :class:`ClassTable` keeps (a few hundred kB at
-most; on the KITTI tracking labels 90 % of the frames repeat one of them, as with 4096)."""
 
 
 class HypothesisConstants(NamedTuple):
@@ -135,27 +131,11 @@ class ClassTable:
         self._type_rows: list[tuple[float, ...]] = []  # T per class row
         self._type_weights: list[FloatArray] = []
         self._generic_rows: list[bool] = []
-        self._kept: dict[tuple[object, ...], TargetClasses] = {}
         self._build()
 
     def gather(self, classes: NDArray[np.object_]) -> TargetClasses:
-        """The constants of the class names ``classes`` ``(n,)`` (new names are added).
-
-        Consecutive frames mostly list the same classes in the same order, so the constants
-        of each sequence of names are kept (read-only arrays; at most :data:`MAX_KEPT`
-        sequences, then the memory starts afresh) and a frame that repeats one gathers
-        nothing."""
-        names = tuple(classes.tolist())
-        kept = self._kept.get(names)
-        if kept is None:
-            if len(self._kept) >= MAX_KEPT:
-                self._kept.clear()
-            kept = self._kept[names] = self._gather(names)
-        return kept
-
-    def _gather(self, classes: tuple[object, ...]) -> TargetClasses:
-        """:meth:`gather` without the memory; the arrays are made read-only."""
-        rows = self._row_indices(classes)
+        """The constants of the class names ``classes`` ``(n,)`` (new names are added)."""
+        rows = self._row_indices(classes.tolist())
         scalars = self._scalars[rows]
         # rows gathered along the second axis: each plane of a frame is contiguous
         generic = self._generic[rows]
@@ -166,9 +146,6 @@ class ClassTable:
         moments = self._spread[rows] if self._spread_names else None
         if moments is not None and not self._is_spread[rows].any():
             moments = None
-        for a in (scalars, generic, planes, type_log_weight, moments):
-            if a is not None:
-                a.flags.writeable = False
         return TargetClasses(
             scalars[:, 0],
             scalars[:, 3],
@@ -179,17 +156,16 @@ class ClassTable:
             moments,
         )
 
-    def _row_indices(self, classes: tuple[object, ...]) -> NDArray[np.intp]:
+    def _row_indices(self, classes: list[object]) -> NDArray[np.intp]:
+        """The table rows of the class names ``classes`` (rows are added for new names)."""
         index = self._index
-        try:
-            return np.array([index[c] for c in classes], dtype=np.intp)
-        except KeyError:
-            for c in classes:
-                if c not in index:
-                    index[c] = len(self._rows)
-                    self._add_row(c)
+        new = [c for c in dict.fromkeys(classes) if c not in index]
+        for c in new:
+            index[c] = len(self._rows)
+            self._add_row(c)
+        if new:
             self._build()
-            return np.array([index[c] for c in classes], dtype=np.intp)
+        return np.array([index[c] for c in classes], dtype=np.intp)
 
     def _add_row(self, name: object) -> None:
         """A new class name's prior and its vehicle types."""

@@ -25,12 +25,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.estimators.ours.fusion import HALF, ONE, ZERO, LogCue, any_true, const
+from slopedist.estimators.ours.fusion import LogCue
 
 FloatArray = NDArray[np.float64]
-
-
-_TWO, _FOUR = const(2.0), const(4.0)
 
 _CORNER_L = np.array([0.5, 0.5, -0.5, -0.5])
 _CORNER_W = np.array([0.5, -0.5, -0.5, 0.5])
@@ -133,7 +130,7 @@ def height_cue(
         (2.0 * e) * inv_S,
     )
     roof_above = h < H
-    if not any_true(roof_above):
+    if not roof_above.any():
         return outs
     Zt = H / d + e
     return (
@@ -176,15 +173,14 @@ def height_cue_log(
     height_m: FloatArray,
     half_extent_m: FloatArray,
     half_extent_var_m2: FloatArray,
-    roof_above: NDArray[np.bool_] | None = None,
 ) -> SizeCue:
     """:func:`height_cue` as a :class:`SizeCue` in closed form (the estimator's per-frame path).
 
     With ``d = D/f``, ``S = √(H² + 4d(d·e² + e(2h − H)))`` and ``Z = (H + S)/(2d)`` (roof below
     the camera): ``∂Z/∂H = (Z − e)/S``, ``∂Z/∂D = (e² − Z²)/(S·f)``, ``∂Z/∂e = (2de + 2h − H)/S``
-    and ``∂Z/∂h = 2e/S``; where ``roof_above`` (``h < H``), ``Z = H/d + e``. The white variance
-    is that of the two edges' noise ``σ`` (box height variance ``2σ²``), the other that of the
-    half extent and the camera height.
+    and ``∂Z/∂h = 2e/S``; where the roof is above the camera (``h < H``), ``Z = H/d + e``. The
+    white variance is that of the two edges' noise ``σ`` (box height variance ``2σ²``), the
+    other that of the half extent and the camera height.
 
     Args:
         box_height_px: ``(N, 1)`` box heights ``b − t`` (> 0), pixels.
@@ -192,34 +188,33 @@ def height_cue_log(
         sigma_px, cam_height_sigma_m: box-edge noise (px) and camera-height uncertainty (m).
         height_m, half_extent_m, half_extent_var_m2: the class's height, the footprint's half
             depth extent and its variance per hypothesis, broadcastable to ``(N, K)``.
-        roof_above: where the vehicle is taller than the camera height (None: nowhere).
     """
     H = height_m
     e = half_extent_m
     d = box_height_px * (1.0 / f)
     ee = e * e
     tw = 2.0 * cam_height_m - H
-    S = np.sqrt(H * H + (_FOUR * d) * (d * ee + e * tw))
-    inv_S = ONE / S
-    Z = (H + S) * (HALF / d)
-    inv_Z = ONE / Z
+    S = np.sqrt(H * H + (4.0 * d) * (d * ee + e * tw))
+    inv_S = 1.0 / S
+    Z = (H + S) * (0.5 / d)
+    inv_Z = 1.0 / Z
     sz = inv_S * inv_Z
     lever = (Z - e) * sz * H
     rel_D = (ee - Z * Z) * sz
     white = (rel_D * rel_D) * (2.0 * (sigma_px / f) ** 2)
-    de = (_TWO * d) * e + tw
+    de = (2.0 * d) * e + tw
     other = (de * de * half_extent_var_m2 + ee * (2.0 * cam_height_sigma_m) ** 2) * (sz * sz)
-    camera = (_TWO * e) * sz  # ∂ℓ/∂h = (∂Z/∂h)/Z
-    if roof_above is not None and any_true(roof_above):
+    camera = (2.0 * e) * sz  # ∂ℓ/∂h = (∂Z/∂h)/Z
+    roof_above = np.asarray(H > cam_height_m)  # noqa: SIM300 (H is the array)
+    if roof_above.any():  # the box spans the near face alone: Z = H/d + e
         Zt = H / d + e
-        inv_Zt = ONE / Zt
+        inv_Zt = 1.0 / Zt
         rel_t = H / (d * d) * inv_Zt
-        # into the arrays just computed (cheaper than np.where's new ones)
-        np.copyto(Z, Zt, where=roof_above)
-        np.copyto(lever, H / d * inv_Zt, where=roof_above)
-        np.copyto(white, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), where=roof_above)
-        np.copyto(other, half_extent_var_m2 * inv_Zt * inv_Zt, where=roof_above)
-        np.copyto(camera, ZERO, where=roof_above)  # the box spans the near face alone
+        Z = np.where(roof_above, Zt, Z)
+        lever = np.where(roof_above, H / d * inv_Zt, lever)
+        white = np.where(roof_above, rel_t * rel_t * (2.0 * (sigma_px / f) ** 2), white)
+        other = np.where(roof_above, half_extent_var_m2 * inv_Zt * inv_Zt, other)
+        camera = np.where(roof_above, 0.0, camera)
     return SizeCue(np.log(Z), lever, white, other, camera)
 
 
@@ -339,7 +334,7 @@ def ground_contact_cue(
     ``b ≤ v`` (the contact point is at or above the horizon).
     """
     gap = np.asarray(bottom, dtype=float) - np.asarray(v, dtype=float)
-    gap = np.where(gap > ZERO, gap, np.nan)  # NaN propagates without a warning
+    gap = np.where(gap > 0.0, gap, np.nan)  # NaN propagates without a warning
     return np.asarray(f * np.asarray(cam_height_m, dtype=float) / gap + np.asarray(half_extent_m))
 
 
@@ -383,8 +378,7 @@ def expected_centre_offset_px(
     near = Z - e  # > 0 for the box of a real target
     top_depth = Z + e  # the far roof edge is the top of the box, unless the roof is above
     roof_above = h < H
-    if any_true(roof_above):
-        top_depth = np.where(roof_above, near, top_depth)
+    top_depth = np.where(roof_above, near, top_depth)
     return np.asarray((h / near + (h - H) / top_depth) * (0.5 * f))
 
 
@@ -427,14 +421,12 @@ def ground_contact_log_cue(
     """
     gap = bottom - np.asarray(v, dtype=float)
     fh = f * np.asarray(cam_height_m, dtype=float)
-    bad = gap <= ZERO
-    if any_true(bad):  # NaN, which then propagates (and no division by a zero gap)
-        gap = np.where(bad, np.nan, gap)
+    gap = np.where(gap > 0.0, gap, np.nan)  # NaN propagates (no division by a zero gap)
     zn = fh / gap
     z = zn + half_extent_m
     gain = zn * zn * (1.0 / fh)
     gain *= gain  # (σ_d/σ_row)², see ground_contact_sigma
-    inv_z2 = ONE / (z * z)
+    inv_z2 = 1.0 / (z * z)
     white = gain * row_var_white * inv_z2
     zh = zn * (np.asarray(height_sigma_m) * f / fh)
     other = (gain * row_var_other + zh * zh + np.square(half_extent_sigma_m)) * inv_z2

@@ -24,9 +24,8 @@ Everything is causal: the streaming pipeline and the batch one give identical nu
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,28 +41,34 @@ from slopedist.estimators.base import (
     ReferencePoint,
 )
 from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
-from slopedist.estimators.ours.border import (
-    ImageBorder,
-    border_cuts_of,
-    boxes_all_usable,
-    settle_border_cuts,
-    usable_box_range,
+from slopedist.estimators.ours.association import (
+    associate,
+    box_noise_sums,
+    depth_ratios,
+    moved_boxes,
+    turn_boxes,
 )
+from slopedist.estimators.ours.border import ImageBorder, border_cuts_of, settle_border_cuts
 from slopedist.estimators.ours.class_table import ClassTable
-from slopedist.estimators.ours.config import OursConfig
-from slopedist.estimators.ours.fusion import LogCue, all_true, any_true
+from slopedist.estimators.ours.config import (
+    OursAblation,
+    OursConfig,
+    carries_state,
+    configs_of,
+    size_evidence_time,
+)
+from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.priors import yaw_grid, yaw_prior_weights
 from slopedist.estimators.ours.records import (
     EXTRA_COLUMNS,
     BoxEstimates,
     CalibrationInUse,
     DistanceFilterResult,
+    FrameState,
     FrameTargets,
     FusedCues,
     TargetGradient,
     TrackMatch,
-    filled,
-    object_column,
     scatter,
 )
 from slopedist.estimators.ours.selfcal import (
@@ -72,36 +77,40 @@ from slopedist.estimators.ours.selfcal import (
     estimator_calibration_warning,
     self_calibrates,
 )
-from slopedist.estimators.ours.tracking import (
-    ROW_GRAD_VAR,
-    ROW_LAST_BOX,
-    ROW_LAST_T,
-    ROW_ROT,
-    ROW_SIZE,
-    TrackArrays,
-    TrackUpdate,
-    associate,
-    box_noise_sums,
-    depth_ratios,
-    moved_boxes,
-    start_tracks,
-    turn_boxes,
-    write_continued,
-)
+from slopedist.estimators.ours.size_learning import LearnedSizes
+from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
-__all__ = ["EXTRA_COLUMNS", "OursConfig", "OursEstimator", "OursSelfCalibratingEstimator"]
+__all__ = [
+    "EXTRA_COLUMNS",
+    "OursAblation",
+    "OursConfig",
+    "OursEstimator",
+    "OursSelfCalibratingEstimator",
+]
 
 FloatArray = NDArray[np.float64]
+
+
+class FilterRecorder(Protocol):
+    """What keeps each frame's filter states (an offline pass's smoothing)."""
+
+    def record(
+        self,
+        good: NDArray[np.intp],
+        frame: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+    ) -> None:
+        """The filter states ``frame`` of the frame's usable boxes ``good`` (their rows in the
+        frame), their target gradients and track uids."""
+
 
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
 SELFCAL_MAX_LOG_SIGMA = 0.15
 """Classes whose height prior is looser than this (relative) do not feed the self-calibration."""
-
-_NO_COLUMN = np.zeros(0, dtype=object)
-"""An empty status column: :class:`FrameEstimates` derives the statuses from the reasons."""
 
 
 class OursEstimator(Estimator):
@@ -110,77 +119,77 @@ class OursEstimator(Estimator):
     Args:
         camera: intrinsics and the (possibly rough) mount.
         config: options (default :class:`OursConfig`).
-        **overrides: individual :class:`OursConfig` fields, e.g. ``self_calibrate=False``.
+        sizes: where the tracks' own sizes come from with ``size_learning`` (default: learned
+            over each track, :class:`~slopedist.estimators.ours.size_learning.LearnedSizes`).
+        recorder: given each frame's filter states, predictions included (an offline pass's
+            smoothing: :mod:`~slopedist.estimators.ours.offline`); None: nothing is kept.
+        ablation: experimental settings (default :class:`OursAblation`).
+        **overrides: individual options of either, e.g. ``box_sigma_px=1.0`` or
+            ``self_calibrate=True`` (:func:`~slopedist.estimators.ours.config.configs_of`).
     """
 
     name: ClassVar[str] = "ours"
     needs_rotation: ClassVar[bool] = True
     handles_border_cuts: ClassVar[bool] = True
-    _keep_predicted: ClassVar[bool] = False  # keep the filter's predictions (offline pass)
-    _learns_size: ClassVar[bool] = True  # learn the tracks' sizes (with size_learning)
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
+        *,
+        sizes: LearnedSizes | None = None,
+        recorder: FilterRecorder | None = None,
+        **overrides: Any,
+    ) -> None:
         super().__init__(camera)
         if config is not None and not isinstance(config, OursConfig):
             raise ConfigurationError(f"ours option config must be an OursConfig, got {config!r}")
-        config = config or OursConfig()
-        if overrides:
-            known = {f.name for f in dataclasses.fields(OursConfig)}
-            unknown = sorted(set(overrides) - known)
-            if unknown:
-                raise ConfigurationError(
-                    f"unknown option(s) for method 'ours': {', '.join(unknown)} "
-                    f"(known: {', '.join(sorted(known))})"
-                )
-            config = dataclasses.replace(config, **overrides)
+        if ablation is not None and not isinstance(ablation, OursAblation):
+            raise ConfigurationError(
+                f"ours option ablation must be an OursAblation, got {ablation!r}"
+            )
+        config, abl = configs_of(overrides, config, ablation)
         self.config = config
-        grid = yaw_grid() if config.yaw_hypotheses else np.zeros(1)
+        self.ablation = abl
+        evidence_time = size_evidence_time(config, abl)
+        self._sizes = (sizes or LearnedSizes(evidence_time)) if config.size_learning else None
+        self._recorder = recorder
+        grid = yaw_grid() if abl.yaw_hypotheses else np.zeros(1)
         self._yaw = grid
         self._log_yaw_prior = (
-            np.log(yaw_prior_weights(grid, config.yaw_prior)) if grid.size > 1 else np.zeros(1)
+            np.log(yaw_prior_weights(grid, abl.yaw_prior)) if grid.size > 1 else np.zeros(1)
         )
         self.selfcal = SelfCalibrator(
-            camera.f, camera.mount_angle_rad, camera.height_m, config.selfcal
+            camera.f, camera.mount_angle_rad, camera.height_m, abl.selfcal
         )
         self._theta_rest = float(geo.rest_gradient(camera.mount_angle_rad))
-        self._size_modes = [m for m, _ in config.size_modes]
+        self._size_modes = [m for m, _ in abl.size_modes]
         generic = tuple(config.generic_classes)
         self._classes = ClassTable(
-            config.priors,
+            abl.priors,
             grid,
             () if config.generic_sigma_only else generic,
-            config.type_mixture,
+            abl.type_mixture,
             len(self._size_modes),
             generic if config.generic_sigma_only else (),
         )
         self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
         self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
-            self._size_modes[:1], grid.size * len(config.type_mixture)
+            self._size_modes[:1], grid.size * len(abl.type_mixture)
         )
-        self._log_mode = np.repeat(np.log([p for _, p in config.size_modes]), grid.size)
-        self._odd_check = odd_objects.OddObjectCheck.of(config, grid.size)
-        n_modes = len(self._size_modes)
-        self._log_prior_all = (np.tile(self._log_yaw_prior, n_modes) + self._log_mode)[None, :]
-        self._log_prior_block = np.repeat(self._log_prior_all, 16, axis=0)
+        self._log_mode = np.repeat(np.log([p for _, p in abl.size_modes]), grid.size)
+        self._odd_check = odd_objects.OddObjectCheck.of(config, abl, grid.size)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
-        self._box_low, self._box_high = usable_box_range(self._border.known_size)
         self.reset()
-
-    def _log_prior_rows(self, n: int) -> FloatArray:
-        """The log prior of the hypotheses (headings × body-style modes) for ``n`` targets,
-        ``(n, K·modes)`` (a slice of a cached block: no broadcasting per frame)."""
-        block = self._log_prior_block
-        if block.shape[0] < n:
-            block = self._log_prior_block = np.repeat(self._log_prior_all, 2 * n, axis=0)
-        return block[:n]
 
     def reset(self) -> None:
         """Forget all tracks and the self-calibration (new sequence)."""
-        self.tracks = TrackArrays.empty(self._yaw.size)
+        self.tracks = Tracks.empty(self._yaw.size)
         self.selfcal.reset()
         self._next_uid = 0
         self._border.reset()
@@ -196,7 +205,7 @@ class OursEstimator(Estimator):
         ``_BOX_NOISE_PRIOR_COUNT`` pseudo-observations of the prior.
         """
         s0 = self.config.box_sigma_px
-        if not self.config.adapt_box_noise:
+        if not self.ablation.adapt_box_noise:
             return s0
         n0 = _BOX_NOISE_PRIOR_COUNT
         return math.sqrt((n0 * s0 * s0 + self._d2_sum / 6.0) / (n0 + self._d2_count))
@@ -222,59 +231,47 @@ class OursEstimator(Estimator):
     # -- one frame -------------------------------------------------------------------------
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
-        boxes = frame.boxes.boxes
-        n = boxes.shape[0]
+        n = frame.boxes.boxes.shape[0]
         seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
-        all_usable = boxes_all_usable(boxes, self._box_low, self._box_high, seen)
-        if all_usable:
-            good = np.arange(n)
-            reasons = object_column("", n)
-        else:  # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
-            reasons = table_box_problems(frame.boxes, self._border.known_size)
-            good = np.flatnonzero(reasons == "")
+        # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
+        reasons = table_box_problems(frame.boxes, self._border.known_size)
+        good = np.flatnonzero(reasons == "")
         theta_in = float(frame.theta_rad)
         calib = self._calibration_in_use()
         theta_ok = math.isfinite(theta_in)
         theta_f = (theta_in if theta_ok else self._theta_rest) + calib.horizon_offset_rad
-        jitter = (
-            self.config.theta_sigma_rad if theta_ok else self.config.no_rotation_theta_sigma_rad
-        )
+        abl = self.ablation
+        jitter = abl.theta_sigma_rad if theta_ok else abl.no_rotation_theta_sigma_rad
         self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
         # caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
         edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            edges = self._border.cut_edges(seen if all_usable else seen[good])
-            box_values = self._estimate_boxes(
-                frame, good, all_usable, theta_f, jitter, calib, edges
-            )
+            edges = self._border.cut_edges(seen[good])
+            box_values = self._estimate_boxes(frame, good, theta_f, jitter, calib, edges)
             values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
-            if self.config.self_calibrate:
+            if abl.self_calibrate:
                 values.update(self._calibration_columns(good.size))
-        out = scatter(values, good if not all_usable else None, n)
+        out = scatter(values, good, n)
         est = FrameEstimates(
-            theta_rad=filled(n, theta_in),
+            theta_rad=np.full(n, theta_in),
             theta_adj_rad=out["theta_adj_rad"],
             delta_y_px=out["delta_y_px"],
             v_px=out["v_px"],
             distance_m=out["distance_m"],
             reason=reasons,
-            reference=object_column(self._reference.value, n),
+            reference=np.full(n, self._reference.value, dtype=object),
             extra={k: out[k] for k in EXTRA_COLUMNS},
-            # every box usable: every status ok (what FrameEstimates would derive, cheaper)
-            status=object_column(EstimateStatus.OK.value, n) if all_usable else _NO_COLUMN,
-            cut=object_column("", n),
+            cut=np.full(n, "", dtype=object),
         )
         # centre to nearest face, before the border cuts settle
         half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
         if self._border.known_size is not None and edges is not None:
-            cut = edges
-            if not all_usable:
-                cut = np.zeros((n, 4), dtype=bool)
-                cut[good] = edges
-            settle_border_cuts(est, cut, self.config.use_width, self.config.use_ground_contact)
+            cut = np.zeros((n, 4), dtype=bool)
+            cut[good] = edges
+            settle_border_cuts(est, cut, abl.use_width, abl.use_ground_contact)
             bounded = est.status == EstimateStatus.UPPER_BOUND.value
-            if any_true(bounded):  # the nearest face of a bound is a bound (the same cue)
+            if bounded.any():  # the nearest face of a bound is a bound (the same cue)
                 face = est.extra["distance_nearest_face_m"]
                 face[bounded] = est.distance_m[bounded] - half_extent[bounded]
         est.withhold_uncertain(self.config.max_relative_sigma)
@@ -288,13 +285,12 @@ class OursEstimator(Estimator):
         """The self-calibration in use, as columns of ``n`` boxes."""
         cal = self.selfcal.calibration()
         names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
-        return {f"calib_{k}": filled(n, getattr(cal, k)) for k in names}
+        return {f"calib_{k}": np.full(n, getattr(cal, k)) for k in names}
 
     def _estimate_boxes(
         self,
         frame: FrameInput,
         good: NDArray[np.intp],
-        all_good: bool,
         theta_rad: float,
         jitter_rad: float,
         calib: CalibrationInUse,
@@ -309,23 +305,25 @@ class OursEstimator(Estimator):
         vehicle types); the class constants come as such planes from one gather
         (:class:`ClassTable`), so that the arithmetic of a frame's few targets never broadcasts.
         """
-        cfg = self.config
+        abl = self.ablation
         cam = self.camera
-        targets = self._frame_targets(frame, good, all_good, cut_edges)
+        targets = self._frame_targets(frame, good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
         track_size = None
-        if cfg.size_learning:  # the tracks' own sizes in the class constants
-            track_size = self._track_size(targets, match)
+        if self._sizes is not None:  # the tracks' own sizes in the class constants
+            track_size = self._sizes.before_frame(targets, match)
             targets = size_learning.with_track_size(targets, track_size)
-        size = frame_cues.size_cues(cfg, cam, targets, calib)
+        size = frame_cues.size_cues(abl, cam, targets, calib)
         ground = None
-        if cfg.use_ground_contact:
-            alpha, alpha_var = frame_cues.contact_gradient_prior(cfg, match)
-            ground = frame_cues.ground_contact_cue(
-                cfg, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
+        if abl.use_ground_contact:
+            alpha, alpha_var = frame_cues.contact_gradient_prior(
+                abl.gradient_feedback, self.config.gradient_sigma_rad, match
             )
-            if cfg.occlusion_aware and targets.boxes_px.shape[0] > 1:
-                size = frame_cues.occlusion_adjusted(cfg, targets, size, ground)
+            ground = frame_cues.ground_contact_cue(
+                abl, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
+            )
+            if abl.occlusion_aware and targets.boxes_px.shape[0] > 1:
+                size = frame_cues.occlusion_adjusted(abl, targets, size, ground)
         log_prior = self._log_prior(match, targets)
         odd = self._odd_check.carried(match, targets)  # the tracks' odd-object evidence
         fused = frame_cues.fuse_hypotheses(
@@ -334,29 +332,32 @@ class OursEstimator(Estimator):
             ground,
             self._odd_check.prior(log_prior, odd),
             self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
-            cfg.consistency_gate_sigma,
-            size.height.camera_lever if cfg.road_bend_sigma else None,
+            abl.consistency_gate_sigma,
+            size.height.camera_lever if abl.road_bend_sigma else None,
         )
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
         gradient = frame_cues.target_gradient(
-            cfg, cam, targets, match, fused, distance.rows, theta_rad, jitter_rad, calib.height_m
+            self.config.gradient_sigma_rad,
+            cam,
+            targets,
+            match,
+            fused,
+            distance.rows,
+            theta_rad,
+            jitter_rad,
+            calib.height_m,
         )
+        state = FrameState(targets, match, size, fused, distance)
         size_rows = None
-        if track_size is not None:  # this frame's evidence (none in an offline pass's second)
-            size_rows = (
-                size_learning.learn_frame(
-                    targets, match, size, fused, distance, track_size, cfg.size_evidence_time
-                )
-                if self._learns_size
-                else np.stack([track_size.log_scale, track_size.log_var])
-            )
+        if self._sizes is not None and track_size is not None:  # this frame's evidence
+            size_rows = self._sizes.after_frame(state, track_size)
         uid = self._update_tracks(
             targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
         )
-        if self._keep_predicted:
-            self._keep_frame(match, fused, distance, uid, targets, gradient)
-        if cfg.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
+        if self._recorder is not None:
+            self._recorder.record(good, state, gradient, uid)
+        if abl.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
             shape_gap = frame_cues.shape_gap(targets, size)
             self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
         out = frame_cues.box_estimates(
@@ -369,97 +370,72 @@ class OursEstimator(Estimator):
             uid,
             theta_rad,
             calib,
-            cfg.gradient_sigma_rad,
+            self.config.gradient_sigma_rad,
         )
         if size_rows is not None:
             out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
         return out
 
-    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
-        """Each target's size belief before this frame (its track's, else the class prior)."""
-        stored = match.continued_state[ROW_SIZE] if match.continued_rows.size else None
-        return size_learning.track_size(stored, match.continued, targets.classes.height_log_sigma)
-
-    def _keep_frame(self, *frame_state: Any) -> None:
-        """Keep a frame's filter states (match, fused cues, distance filters, uids, targets, target
-        gradients) for an offline pass (``_keep_predicted``: see
-        :mod:`~slopedist.estimators.ours.offline`)."""
-
     # -- the steps of a frame, in order -----------------------------------------------------
 
     def _frame_targets(
-        self,
-        frame: FrameInput,
-        good: NDArray[np.intp],
-        all_good: bool,
-        cut_edges: NDArray[np.bool_],
+        self, frame: FrameInput, good: NDArray[np.intp], cut_edges: NDArray[np.bool_]
     ) -> FrameTargets:
-        """The usable boxes, their class constants, edges and border cuts (``cut_edges``)."""
+        """The usable boxes ``good``, their class constants and border cuts (``cut_edges``)."""
         table = frame.boxes
-        boxes = table.boxes if all_good else table.boxes[good]
-        ids = table.track_id if all_good else table.track_id[good]
-        classes = self._classes.gather(table.cls if all_good else table.cls[good])
-        border_cuts = border_cuts_of(cut_edges)
-        n_hyp = classes.hypotheses.half_extent_m.shape[1]
-        edges = np.empty((4, boxes.shape[0], n_hyp))  # each edge over the hypotheses
-        edges[:] = boxes.T[:, :, None]
-        left, top, right, bottom = edges
         return FrameTargets(
-            boxes,
-            ids,
-            classes,
-            left,
-            top,
-            right,
-            bottom,
-            border_cuts,
+            table.boxes[good],
+            table.track_id[good],
+            self._classes.gather(table.cls[good]),
+            border_cuts_of(cut_edges),
             self.box_sigma_px,
             frame.timestamp_s,
         )
 
     def _match_tracks(self, targets: FrameTargets, R_now: FloatArray | None) -> TrackMatch:
         """Associate the boxes with the live tracks and gather the continued tracks' states."""
-        cfg = self.config
+        abl = self.ablation
         cam = self.camera
         tr = self.tracks
         t = targets.time_s
         boxes, ids = targets.boxes_px, targets.track_ids
         predicted = None
         # the boxes' image motion serves IoU association (id-less boxes) and the noise estimate
-        box_motion = cfg.adapt_box_noise or any_true(ids < 0)
-        if not len(tr):  # (no track is ever stored unless cfg.tracking)
+        box_motion = abl.adapt_box_noise or bool((ids < 0).any())
+        last_boxes = tr.last_box_px.T
+        if not len(tr):  # (no track is ever stored unless carries_state)
             rows = np.full(boxes.shape[0], -1, np.int64)
-            turned, depth_ratio = tr.last_box, np.ones(0)
+            turned, depth_ratio = last_boxes, np.ones(0)
         elif box_motion:
-            turned, depth_ratio = turn_boxes(tr.last_box, cam.f, cam.c_x, cam.c_y, tr.R_last, R_now)
+            R_last = tr.R_world_cam.transpose(2, 0, 1)  # (T, 3, 3)
+            turned, depth_ratio = turn_boxes(last_boxes, cam.f, cam.c_x, cam.c_y, R_last, R_now)
             predicted = moved_boxes(tr, turned, t)
-            rows = associate(tr, boxes, ids, cfg.min_iou, predicted)
+            rows = associate(tr, boxes, ids, abl.min_iou, predicted)
         else:
-            rows = associate(tr, boxes, ids, cfg.min_iou)
-            turned, depth_ratio = tr.last_box, None  # the depth ratios of the continued only
+            rows = associate(tr, boxes, ids, abl.min_iou)
+            turned, depth_ratio = last_boxes, None  # the depth ratios of the continued only
         continued = rows >= 0
-        every = all_true(continued)
-        r_old = rows if every else rows[continued]
-        state = tr.state[:, r_old]  # (a copy)
-        elapsed = t - state[ROW_LAST_T]
-        grad_var = state[ROW_GRAD_VAR] + cfg.process.gradient_rad**2 * elapsed  # predicted
-        if cfg.adapt_box_noise and r_old.size and predicted is not None:
+        r_old = rows[continued]
+        before = tr.take(r_old)
+        elapsed = t - before.last_time_s
+        grad_var = before.gradient_var_rad2 + abl.process.gradient_rad**2 * elapsed  # predicted
+        if abl.adapt_box_noise and r_old.size and predicted is not None:
             d2_sum, d2_count = box_noise_sums(
                 tr, boxes[continued] - predicted[r_old], r_old, t, self.box_sigma_px
             )
             self._d2_sum += d2_sum
             self._d2_count += d2_count
         return TrackMatch(
-            rows, continued, every, r_old, state, elapsed, grad_var, turned, depth_ratio, box_motion
+            rows, continued, r_old, before, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
     def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
         """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
         headings × vehicle types when a target's class is generic)."""
         log_heading_prior = None
-        if self.config.yaw_memory and match.continued_rows.size:
+        if self.ablation.yaw_memory and match.continued_rows.size:
             log_heading_prior = frame_cues.carried_heading_prior(
-                match, self._log_yaw_prior, self.config.yaw_memory_s
+                match, self._log_yaw_prior, self.ablation.yaw_memory_s
             )
         type_weight = targets.classes.type_log_weight
         if type_weight is not None:
@@ -472,7 +448,9 @@ class OursEstimator(Estimator):
                 type_weight, self._yaw.size, axis=1
             )
         if log_heading_prior is None:
-            return self._log_prior_rows(match.rows.shape[0])
+            log_heading_prior = np.broadcast_to(
+                self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
+            )
         return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
 
     def _filter_distance(
@@ -481,10 +459,10 @@ class OursEstimator(Estimator):
         """:func:`~slopedist.estimators.ours.frame_cues.filter_distance`, with the depth change
         the camera's rotation ``R_now`` gives each continued track."""
         ratio = None
-        if self.config.motion_model and match.continued_rows.size:
+        if self.ablation.motion_model and match.continued_rows.size:
             ratio = self._continued_depth_ratios(match, R_now)
         return frame_cues.filter_distance(
-            self.config, match, measurement, ratio, self._keep_predicted
+            self.ablation, match, measurement, ratio, self._recorder is not None
         )
 
     def _continued_depth_ratios(self, match: TrackMatch, R_now: FloatArray | None) -> FloatArray:
@@ -492,8 +470,8 @@ class OursEstimator(Estimator):
         if match.depth_ratio is not None:
             return match.depth_ratio[match.continued_rows]
         cam = self.camera
-        state = match.continued_state
-        return depth_ratios(state[ROW_LAST_BOX], cam.f, cam.c_x, cam.c_y, state[ROW_ROT], R_now)
+        before = match.before
+        return depth_ratios(before.last_box_px, cam.f, cam.c_x, cam.c_y, before.R_world_cam, R_now)
 
     def _update_tracks(
         self,
@@ -508,12 +486,12 @@ class OursEstimator(Estimator):
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
-        cfg = self.config
-        if not cfg.tracking:
+        abl = self.ablation
+        if not carries_state(self.config, abl):
             return self._new_uids(targets.boxes_px.shape[0])
         belief: FloatArray | None = None
-        if cfg.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
-            belief = frame_cues.heading_belief(fused, cfg.yaw_evidence_weight, self._yaw.size)
+        if abl.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
+            belief = frame_cues.heading_belief(fused, abl.yaw_evidence_weight, self._yaw.size)
         return self._store(
             TrackUpdate(
                 distance.rows,
@@ -557,7 +535,7 @@ class OursEstimator(Estimator):
         v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
         near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
         self.selfcal.update(
-            uid, targets.boxes_px[:, 3], filled(n, v_cfg), filled(n, theta_cfg), near, shape_gap
+            uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
         )
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
@@ -572,26 +550,24 @@ class OursEstimator(Estimator):
         tr = self.tracks
         rows = update.rows
         cont = rows >= 0
-        if all_true(cont):
-            write_continued(tr, update, None)
-            return tr.uid[rows]
         uid = np.empty(rows.shape[0], np.int64)
         uid[cont] = tr.uid[rows[cont]]
-        write_continued(tr, update, cont)
+        tr.write_continued(update, cont)
         new = ~cont
-        new_uid = self._new_uids(int(np.count_nonzero(new)))
-        uid[new] = new_uid
-        self.tracks = start_tracks(tr, update, new, new_uid, self._log_yaw_prior)
+        if new.any():
+            new_uid = self._new_uids(int(np.count_nonzero(new)))
+            uid[new] = new_uid
+            self.tracks = tr.with_started(update, new, new_uid, self._log_yaw_prior)
         return uid
 
     def _drop_stale(self, t: float) -> None:
         tr = self.tracks
         age = self.config.max_age_s + 1e-9
-        if len(tr) and t - np.minimum.reduce(tr.last_t) > age:  # the oldest is stale
-            self.tracks = tr.keep(t - tr.last_t <= age)
+        if len(tr) and t - tr.last_time_s.min() > age:  # the oldest is stale
+            self.tracks = tr.take(t - tr.last_time_s <= age)
 
     def _calibration_in_use(self) -> CalibrationInUse:
-        if self.config.self_calibrate:
+        if self.ablation.self_calibrate:
             cov = self.selfcal.covariance
             return CalibrationInUse(
                 self.selfcal.horizon_offset_rad,
@@ -608,7 +584,13 @@ class OursSelfCalibratingEstimator(OursEstimator):
 
     name: ClassVar[str] = "ours-selfcal"
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
-        if config is None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
+        **overrides: Any,
+    ) -> None:
+        if ablation is None:
             overrides.setdefault("self_calibrate", True)
-        super().__init__(camera, config, **overrides)
+        super().__init__(camera, config, ablation, **overrides)

@@ -22,13 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.fusion import HALF, ONE, ZERO, all_true, any_true, const
-
 FloatArray = NDArray[np.float64]
 
-IDX_LOG_Z, IDX_RATE = 0, 1
-
-_MIN_GROWTH, _THIRD, _MINUS_TWO, _MINUS_ONE = const(0.2), const(1.0 / 3.0), const(-2.0), const(-1.0)
+MIN_GROWTH = 0.2
+"""Smallest growth factor ``1 + r·dt`` of a prediction: a target is never propagated through
+the camera."""
 
 
 @dataclass(frozen=True)
@@ -45,22 +43,26 @@ class ProcessNoise:
 
 
 def cv_predict_rows(s: FloatArray, dt_s: FloatArray, accel_mps2: float) -> FloatArray:
-    """:func:`cv_predict` on state rows: ``s`` ``(5, m)`` = ℓ, r, P_ℓℓ, P_ℓr, P_rr (one column
-    per track); returns the predicted rows."""
+    """Propagate distance filters over ``dt_s`` seconds (constant velocity, white-noise
+    acceleration of density ``accel_mps2``, m/s² per √s).
+
+    ``s`` ``(5, m)``: the state rows ℓ, r, P_ℓℓ, P_ℓr, P_rr, one column per track; returns the
+    predicted rows. The growth factor ``1 + r·dt`` is kept ≥ :data:`MIN_GROWTH`.
+    """
     log_z, r, p00, p01, p11 = s
     dt = np.asarray(dt_s, dtype=float)
-    grow = np.maximum(r * dt + ONE, _MIN_GROWTH)
-    ig = ONE / grow
+    grow = np.maximum(r * dt + 1.0, MIN_GROWTH)
+    ig = 1.0 / grow
     f01 = dt * ig
     out = np.empty(s.shape)
     lp = log_z + np.log(grow)
     out[0] = lp
     out[1] = r * ig
-    qdt = np.exp(lp * _MINUS_TWO) * (accel_mps2 * accel_mps2) * dt
+    qdt = np.exp(lp * -2.0) * (accel_mps2 * accel_mps2) * dt
     a = p01 + f01 * p11
     ig2 = ig * ig
-    out[2] = p00 + f01 * (p01 + a) + qdt * dt * dt * _THIRD
-    out[3] = ig2 * a + qdt * dt * HALF
+    out[2] = p00 + f01 * (p01 + a) + qdt * dt * dt * (1.0 / 3.0)
+    out[3] = ig2 * a + qdt * dt * 0.5
     out[4] = ig2 * ig2 * p11 + qdt
     return out
 
@@ -77,8 +79,8 @@ def start_rows(log_z: FloatArray, var: FloatArray, rate_sigma_per_s: float) -> F
 
 
 def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """:func:`cv_update` on state rows (see :func:`cv_predict_rows`): the updated rows and the
-    normalised innovation squared."""
+    """Update the state rows ``s`` (see :func:`cv_predict_rows`) with measurements ``y`` of ℓ
+    of variance ``r``: the updated rows and the normalised innovation squared."""
     log_z, rate, p00, p01, p11 = s
     inv_S = 1.0 / (p00 + r)
     nu = y - log_z
@@ -93,48 +95,6 @@ def cv_update_rows(s: FloatArray, y: FloatArray, r: FloatArray) -> tuple[FloatAr
     return out, nu * nu * inv_S
 
 
-def rows_of(x: FloatArray, P: FloatArray) -> FloatArray:
-    """State rows ``(5, ...)`` of states ``(..., 2)`` and covariances ``(..., 2, 2)``."""
-    return np.stack([x[..., IDX_LOG_Z], x[..., IDX_RATE], P[..., 0, 0], P[..., 0, 1], P[..., 1, 1]])
-
-
-def states_of(s: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """States ``(..., 2)`` and covariances ``(..., 2, 2)`` of state rows ``(5, ...)``."""
-    x = np.stack([s[0], s[1]], axis=-1)
-    P = np.stack([np.stack([s[2], s[3]], axis=-1), np.stack([s[3], s[4]], axis=-1)], axis=-2)
-    return x, P
-
-
-def cv_predict(
-    x: FloatArray, P: FloatArray, dt_s: FloatArray, accel_mps2: float
-) -> tuple[FloatArray, FloatArray]:
-    """Propagate ``(..., 2)`` states and ``(..., 2, 2)`` covariances over ``dt_s`` seconds.
-
-    The growth factor ``1 + r·dt`` is kept ≥ 0.2 so a target is never propagated through the
-    camera.
-    """
-    return states_of(
-        cv_predict_rows(
-            rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)), dt_s, accel_mps2
-        )
-    )
-
-
-def cv_update(
-    x: FloatArray, P: FloatArray, y: FloatArray, r: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Update ``(ℓ, r)`` with a measurement ``y`` of ℓ of variance ``r``.
-
-    Returns the new state, covariance and the normalised innovation squared.
-    """
-    rows, nis = cv_update_rows(
-        rows_of(np.asarray(x, dtype=float), np.asarray(P, dtype=float)),
-        np.asarray(y, dtype=float),
-        np.asarray(r, dtype=float),
-    )
-    return (*states_of(rows), nis)
-
-
 def random_walk_update(
     mean: FloatArray,
     var: FloatArray,
@@ -147,9 +107,6 @@ def random_walk_update(
     ``obs_var``); non-finite observations only predict."""
     v = var + rate * rate * np.asarray(dt_s, dtype=float) if rate else np.asarray(var)
     ok = np.isfinite(obs + obs_var)
-    if all_true(ok):
-        k = v / (v + obs_var)
-        return mean + k * (obs - mean), (ONE - k) * v
     k = np.where(ok, v / np.where(ok, v + obs_var, 1.0), 0.0)
     return mean + k * np.where(ok, obs - mean, 0.0), (1.0 - k) * v
 
@@ -157,58 +114,28 @@ def random_walk_update(
 def distance_moments_rows(
     s: FloatArray, extra_log_var: FloatArray | float = 0.0
 ) -> tuple[FloatArray, FloatArray]:
-    """:func:`distance_moments` of state rows (see :func:`cv_predict_rows`)."""
-    s2 = np.maximum(s[2] + extra_log_var, ZERO)
-    mean = np.exp(s[0] + s2 * HALF)
+    """Mean and standard deviation of ``Z = exp(ℓ)`` (log-normal, metres) of the state rows
+    ``s`` (see :func:`cv_predict_rows`); ``extra_log_var`` adds variance of ℓ that the filter
+    does not hold (the persistent part)."""
+    s2 = np.maximum(s[2] + extra_log_var, 0.0)
+    mean = np.exp(s[0] + s2 * 0.5)
     return mean, mean * np.sqrt(np.expm1(s2))
 
 
 def motion_moments_rows(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`speed_moments` and :func:`ttc_moments` of state rows: speed (m/s), its 1σ, time
-    to collision (s, NaN unless approaching) and its 1σ."""
+    """Relative speed ``Ż = r·Z`` (m/s, negative when approaching) and its 1σ (first order),
+    and the time to collision ``−Z/Ż = −1/r`` (s) and its 1σ (NaN unless the target
+    approaches) of the state rows ``s`` (see :func:`cv_predict_rows`)."""
     log_z, r, p00, p01, p11 = s
     z = np.exp(log_z)
     speed = r * z
     var = speed * speed * p00 + (speed + speed) * z * p01 + z * z * p11
-    speed_sd = np.sqrt(np.maximum(var, ZERO))
-    away = r >= ZERO
-    r_ = np.where(away, -1.0, r) if any_true(away) else r
-    ttc = _MINUS_ONE / r_
-    ttc_sd = np.sqrt(np.maximum(p11, ZERO)) / (r_ * r_)
-    if any_true(away):
-        ttc[away] = np.nan
-        ttc_sd[away] = np.nan
+    speed_sd = np.sqrt(np.maximum(var, 0.0))
+    away = r >= 0.0
+    r_ = np.where(away, -1.0, r)
+    ttc = np.where(away, np.nan, -1.0 / r_)
+    ttc_sd = np.where(away, np.nan, np.sqrt(np.maximum(p11, 0.0)) / (r_ * r_))
     return speed, speed_sd, ttc, ttc_sd
-
-
-def distance_moments(
-    x: FloatArray, P: FloatArray, extra_log_var: FloatArray | float = 0.0
-) -> tuple[FloatArray, FloatArray]:
-    """Mean and standard deviation of ``Z = exp(ℓ)`` (log-normal), metres.
-
-    ``extra_log_var`` adds variance of ℓ that the filter does not hold (the persistent part).
-    """
-    s2 = np.maximum(P[..., 0, 0] + extra_log_var, 0.0)
-    mean = np.exp(x[..., IDX_LOG_Z] + 0.5 * s2)
-    return mean, mean * np.sqrt(np.expm1(s2))
-
-
-def speed_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Relative speed ``Ż = r·Z`` (m/s, negative when approaching) and its 1σ (first order)."""
-    z = np.exp(x[..., IDX_LOG_Z])
-    r = x[..., IDX_RATE]
-    j_l, j_r = r * z, z
-    var = j_l * j_l * P[..., 0, 0] + 2 * j_l * j_r * P[..., 0, 1] + j_r * j_r * P[..., 1, 1]
-    return r * z, np.sqrt(np.maximum(var, 0.0))
-
-
-def ttc_moments(x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Time to collision ``−Z/Ż = −1/r`` (s) and its 1σ; NaN unless the target approaches."""
-    r = x[..., IDX_RATE]
-    approaching = r < 0
-    r_ = np.where(approaching, r, -1.0)
-    sigma = np.sqrt(np.maximum(P[..., 1, 1], 0.0)) / (r_ * r_)
-    return np.where(approaching, -1.0 / r_, np.nan), np.where(approaching, sigma, np.nan)
 
 
 def rts_smooth_rows(updated: FloatArray, predicted: FloatArray, dt_s: FloatArray) -> FloatArray:

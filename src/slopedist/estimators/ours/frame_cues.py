@@ -17,17 +17,9 @@ from numpy.typing import NDArray
 from slopedist.core.camera import Camera
 from slopedist.estimators.ours import cues, fusion, road_bend
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours.config import OursAblation
 from slopedist.estimators.ours.cues import SizeCue
-from slopedist.estimators.ours.fusion import (
-    HALF,
-    ONE,
-    LogCue,
-    ModeSpreads,
-    all_true,
-    any_true,
-    const,
-)
+from slopedist.estimators.ours.fusion import LogCue, ModeSpreads
 from slopedist.estimators.ours.occlusion import hidden_sides, occlusion_log_var, unexplained_excess
 from slopedist.estimators.ours.records import (
     BoxEstimates,
@@ -39,28 +31,19 @@ from slopedist.estimators.ours.records import (
     TargetGradient,
     TrackMatch,
     UpperBound,
-    filled,
-)
-from slopedist.estimators.ours.tracking import (
-    ROW_FILTER,
-    ROW_GRAD_MEAN,
-    ROW_GRAD_OTHER,
-    ROW_LOG_W,
-    ROW_NOISE,
 )
 
 FloatArray = NDArray[np.float64]
 
 
 def size_cues(
-    cfg: OursConfig, cam: Camera, targets: FrameTargets, calib: CalibrationInUse
+    cfg: OursAblation, cam: Camera, targets: FrameTargets, calib: CalibrationInUse
 ) -> SizeCues:
     """Height and width cues per (target, heading hypothesis); a dimension cut by the image
     border keeps a weak Gaussian weight and bounds the distance from above."""
     hyp = targets.classes.hypotheses
-    tall = hyp.height_m > calib.height_m  # the roof above the camera, per hypothesis
     height = cues.height_cue_log(
-        targets.bottom_px - targets.top_px,
+        targets.edge_px(3) - targets.edge_px(1),
         cam.f,
         calib.height_m,
         targets.box_sigma_px,
@@ -68,12 +51,11 @@ def size_cues(
         hyp.height_m,
         hyp.half_extent_m,
         hyp.half_extent_var_m2,
-        tall if any_true(tall) else None,
     )
     if cfg.use_width:
         width = cues.width_cue_log(
-            targets.left_px,
-            targets.right_px,
+            targets.edge_px(0),
+            targets.edge_px(2),
             cam.f,
             cam.c_x,
             targets.box_sigma_px,
@@ -83,7 +65,7 @@ def size_cues(
             hyp.half_length_sin_m,
             hyp.min_centre_depth_m,
         )
-        length_share = (ONE - width.lever) * hyp.log_sigma_length
+        length_share = (1.0 - width.lever) * hyp.log_sigma_length
         length_share *= length_share
         width = SizeCue(width.mean, width.lever, width.var_white, length_share)
     else:
@@ -102,7 +84,7 @@ def shape_gap(targets: FrameTargets, size: SizeCues) -> FloatArray:
     )
 
 
-def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues) -> SizeCues:
+def _border_cut_size_cues(cfg: OursAblation, targets: FrameTargets, size: SizeCues) -> SizeCues:
     """The size cues with the dimensions cut by the image border (height: top or bottom;
     width: a side) weakened and, with ``censor_border_cuts``, turned into upper bounds."""
     cuts = targets.border_cuts
@@ -111,15 +93,15 @@ def _border_cut_size_cues(cfg: OursConfig, targets: FrameTargets, size: SizeCues
     hyp = targets.classes.hypotheses
     height, width, bounds, _ = size
     cut_h = (cuts.top | cuts.bottom)[:, None]
-    if any_true(cut_h):
+    if cut_h.any():
         height = _cut_by_border(cfg, height, hyp.log_sigma_height, cut_h, bounds, True)
-    if cfg.use_width and any_true(cuts.sides):
+    if cfg.use_width and cuts.sides.any():
         width = _cut_by_border(cfg, width, hyp.log_sigma_width, cuts.sides[:, None], bounds, False)
     return SizeCues(height, width, bounds)
 
 
 def _cut_by_border(
-    cfg: OursConfig,
+    cfg: OursAblation,
     cue: SizeCue,
     log_sigma: FloatArray,
     rows: NDArray[np.bool_],
@@ -141,7 +123,7 @@ def _cut_by_border(
 
 
 def ground_contact_cue(
-    cfg: OursConfig,
+    cfg: OursAblation,
     cam: Camera,
     targets: FrameTargets,
     bounds: list[UpperBound],
@@ -166,7 +148,7 @@ def ground_contact_cue(
     row_other = (f / cos2) ** 2 * (alpha_var + calib.horizon_offset_sigma_rad**2)
     hyp = targets.classes.hypotheses
     ground = cues.ground_contact_log_cue(
-        targets.bottom_px,
+        targets.edge_px(3),
         v_target,
         f,
         calib.height_m,
@@ -177,7 +159,7 @@ def ground_contact_cue(
         hyp.half_extent_sigma_m,
     )
     cuts = targets.border_cuts
-    if cuts is not None and any_true(cuts.bottom):
+    if cuts is not None and cuts.bottom.any():
         rows = cuts.bottom[:, None]
         if cfg.censor_border_cuts:
             bounds.append(UpperBound(ground.mean, ground.var, rows))
@@ -186,7 +168,7 @@ def ground_contact_cue(
 
 
 def occlusion_adjusted(
-    cfg: OursConfig, targets: FrameTargets, size: SizeCues, ground: LogCue
+    cfg: OursAblation, targets: FrameTargets, size: SizeCues, ground: LogCue
 ) -> SizeCues:
     """A size cue that says too far may show only part of a vehicle hidden behind a nearer
     one (censored): which sides nearer boxes may cut, then the outlier test against the
@@ -195,13 +177,13 @@ def occlusion_adjusted(
     hyp = targets.classes.hypotheses
     height, width, bounds, _ = size
     cut_w, cut_h = hidden_sides(targets.boxes_px, gate * targets.box_sigma_px)
-    if any_true(cut_h):
+    if cut_h.any():
         excess = unexplained_excess(
             height.mean, _total_var(height, hyp.log_sigma_height), ground.mean, ground.var, gate
         )
         extra = occlusion_log_var(excess, cut_h[:, None])
         height = height._replace(var_other=height.var_other + extra)
-    if cfg.use_width and any_true(cut_w):
+    if cfg.use_width and cut_w.any():
         excess = unexplained_excess(
             width.mean, _total_var(width, hyp.log_sigma_width), ground.mean, ground.var, gate
         )
@@ -309,7 +291,7 @@ def _collapse(
         measurement = fusion.widen_to_mixture(fused, w_best, weights)
         size_mix = fusion.widen_to_mixture(size_cue, w_best, weights)
         width_mean = width_mean.reshape(n, n_modes, -1)[rows, best]
-    gap = filled(n, np.nan)
+    gap = np.full(n, np.nan)
     ground_mix = None
     if ground is not None:  # per heading (the same in every size mode), or per hypothesis
         by_heading = ground.mean.shape[1] == heading_weights.shape[1]
@@ -331,30 +313,31 @@ def _collapse(
 
 
 def contact_gradient_prior(
-    cfg: OursConfig, match: TrackMatch
+    gradient_feedback: bool, gradient_sigma_rad: float, match: TrackMatch
 ) -> tuple[FloatArray | float, FloatArray | float]:
     """Mean and variance (rad, rad²) of the target gradient α the ground-contact cue uses:
-    each track's estimate predicted to now (``gradient_feedback``), else the prior."""
-    if not cfg.gradient_feedback:  # the prior, the same for every target
-        return 0.0, cfg.gradient_sigma_rad**2
+    each track's estimate predicted to now (``gradient_feedback``), else the prior (spread
+    ``gradient_sigma_rad``)."""
+    if not gradient_feedback:  # the prior, the same for every target
+        return 0.0, gradient_sigma_rad**2
     n = match.rows.shape[0]
     grad_m = np.zeros(n)
     grad_v = np.full(n, np.inf)
     grad_o = np.zeros(n)
     if match.continued_rows.size:
-        grad_m[match.continued] = match.continued_state[ROW_GRAD_MEAN]
+        grad_m[match.continued] = match.before.gradient_mean_rad
         grad_v[match.continued] = match.gradient_var_rad2
-        grad_o[match.continued] = match.continued_state[ROW_GRAD_OTHER]
-    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, cfg.gradient_sigma_rad)
+        grad_o[match.continued] = match.before.gradient_var_other_rad2
+    a_m, a_v = fusion.shrink_to_prior(grad_m, grad_v + grad_o, gradient_sigma_rad)
     return a_m[:, None], a_v[:, None]
 
 
-_MIN_DEPTH_RATIO = const(0.1)
+_MIN_DEPTH_RATIO = 0.1
 """Smallest depth change the camera's rotation may cause a track between two updates."""
 
 
 def filter_distance(
-    cfg: OursConfig,
+    cfg: OursAblation,
     match: TrackMatch,
     measurement: LogCue,
     depth_ratio: FloatArray | None,
@@ -371,20 +354,15 @@ def filter_distance(
     if depth_ratio is None:
         filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
         return DistanceFilterResult(filt, match.rows, continued)
-    prior = match.continued_state[ROW_FILTER]
+    prior = match.before.filter_rows.copy()
     prior[0] += np.log(np.maximum(depth_ratio, _MIN_DEPTH_RATIO))
     pred = kf.cv_predict_rows(prior, match.elapsed_s, cfg.process.accel_mps2)
-    every = match.all_continued
     old = match.continued
-    m_old, v_old, w_old = (
-        (measurement.mean, measurement.var, measurement.var_white)
-        if every
-        else (measurement.mean[old], measurement.var[old], measurement.var_white[old])
-    )
+    m_old, v_old, w_old = measurement.mean[old], measurement.var[old], measurement.var_white[old]
     updated, nis = kf.cv_update_rows(pred, m_old, w_old)
     scale = None
     if cfg.noise_time_s is not None:  # the frame-to-frame noise this track shows
-        prior_scale = match.continued_state[ROW_NOISE]
+        prior_scale = match.before.noise_scale
         scale = _noise_scale(prior_scale, nis, match.elapsed_s, cfg.noise_time_s)
     dev = m_old - pred[0]
     same = dev * dev <= (pred[2] + v_old) * cfg.gate_sigma**2
@@ -392,9 +370,6 @@ def filter_distance(
     if keep_predicted:
         predicted = np.full((5, n), np.nan)
         predicted[:, np.flatnonzero(old)[same]] = pred[:, same]
-    if every and all_true(same):  # every target continues its track
-        continued[:] = True
-        return DistanceFilterResult(updated, match.rows, continued, predicted, scale)
     filt = kf.start_rows(measurement.mean, measurement.var_white, cfg.rate_sigma_per_s)
     idx = np.flatnonzero(old)
     filt[:, idx[same]] = updated[:, same]
@@ -403,7 +378,7 @@ def filter_distance(
     rows[idx[~same]] = -1  # another vehicle took this track's id or place: afresh
     scale_all = None
     if scale is not None:
-        scale_all = filled(n, 1.0)
+        scale_all = np.ones(n)
         scale_all[idx[same]] = scale[same]
     return DistanceFilterResult(filt, rows, continued, predicted, scale_all)
 
@@ -422,12 +397,12 @@ def _noise_scale(
     The filter itself keeps the nominal noise (a filter told the larger noise lags approaching
     vehicles: on KITTI it cost 1–2 % of RMSE); the scale widens the σ of the speed and the
     time to collision it reports (:func:`box_estimates`), which the jumps make uncertain."""
-    weight = np.minimum(elapsed_s * (1.0 / time_s), ONE)
+    weight = np.minimum(elapsed_s * (1.0 / time_s), 1.0)
     return prior_scale + weight * (nis - prior_scale)
 
 
 def target_gradient(
-    cfg: OursConfig,
+    gradient_sigma_rad: float,
     cam: Camera,
     targets: FrameTargets,
     match: TrackMatch,
@@ -439,29 +414,26 @@ def target_gradient(
 ) -> TargetGradient:
     """Each target's continuous road gradient α from its box centre's offset Δy below the
     horizon and the size distance (:func:`~slopedist.estimators.ours.cues.target_gradient`),
-    updated as a random walk over its track (``rows``: after the distance gate)."""
+    updated as a random walk over its track (``rows``: after the distance gate), and combined
+    with the prior of spread ``gradient_sigma_rad``."""
     f = cam.f
     size = fused.size
     boxes = targets.boxes_px
     z_size = np.exp(size.mean)
-    delta_y = (boxes[:, 1] + boxes[:, 3]) * HALF - (cam.c_y - f * math.tan(theta_rad))
+    delta_y = (boxes[:, 1] + boxes[:, 3]) * 0.5 - (cam.c_y - f * math.tan(theta_rad))
     flat = cues.expected_centre_offset_px(
         z_size, f, cam_height_m, targets.classes.height_m, fused.half_extent_m
     )
     a_obs = np.arctan((flat - delta_y) * (1.0 / f))  # cues.target_gradient, flat once
     gain2 = flat * flat * (1.0 / (f * f))
     a_white = gain2 * size.var_white + (targets.box_sigma_px**2 + (f * jitter_rad) ** 2) / f**2
-    z_h_sd = targets.classes.height_sigma_m * HALF / z_size
+    z_h_sd = targets.classes.height_sigma_m * 0.5 / z_size
     a_other = gain2 * (size.var - size.var_white) + z_h_sd * z_h_sd
     prior_mean, prior_var = _gradient_prior(
-        rows,
-        match.continued,
-        match.all_continued,
-        match.continued_state[ROW_GRAD_MEAN],
-        match.gradient_var_rad2,
+        rows, match.continued, match.before.gradient_mean_rad, match.gradient_var_rad2
     )
     g_mean, g_var = kf.random_walk_update(prior_mean, prior_var, 0.0, 0.0, a_obs, a_white)
-    alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, cfg.gradient_sigma_rad)
+    alpha, alpha_var = fusion.shrink_to_prior(g_mean, g_var + a_other, gradient_sigma_rad)
     return TargetGradient(g_mean, g_var, a_other, alpha, alpha_var, delta_y, z_size)
 
 
@@ -492,7 +464,7 @@ def box_estimates(
         sigma = kf.distance_moments_rows(filt, persistent + sigma_only)[1]
     speed, speed_sd, ttc, ttc_sd = _motion_outputs(filt, distance.continued)
     if distance.noise_scale is not None:  # the noise the track shows, when it is larger
-        widen = np.sqrt(np.maximum(distance.noise_scale, ONE))
+        widen = np.sqrt(np.maximum(distance.noise_scale, 1.0))
         speed_sd, ttc_sd = speed_sd * widen, ttc_sd * widen
     v_frame = cam.c_y - f * math.tan(theta_rad)
     theta_adj = theta_rad + gradient.gradient_rad  # the target's road: θ + α
@@ -526,15 +498,8 @@ def _motion_outputs(
     filt: FloatArray, continued: NDArray[np.bool_]
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Speed (m/s), its σ, time to collision (s) and its σ; NaN for a track's first frame."""
-    n = continued.shape[0]
-    if not any_true(continued):
-        nan = filled(n, np.nan)
-        return nan, nan, nan, nan
-    speed, speed_sd, ttc, ttc_sd = kf.motion_moments_rows(filt)
-    if all_true(continued):
-        return speed, speed_sd, ttc, ttc_sd
     speed, speed_sd, ttc, ttc_sd = (
-        np.where(continued, a, np.nan) for a in (speed, speed_sd, ttc, ttc_sd)
+        np.where(continued, a, np.nan) for a in kf.motion_moments_rows(filt)
     )
     return speed, speed_sd, ttc, ttc_sd
 
@@ -545,25 +510,19 @@ def _total_var(cue: SizeCue, log_sigma: FloatArray) -> FloatArray:
     return (cue.lever * log_sigma) ** 2 + cue.var_white + cue.var_other
 
 
-_MAX_GRADIENT_VAR = const(1e6)
+_MAX_GRADIENT_VAR = 1e6
 """Prior variance of a new track's road gradient (rad², practically none)."""
 
 
 def _gradient_prior(
-    rows: NDArray[np.int64],
-    old: NDArray[np.bool_],
-    every_old: bool,
-    mean_old: FloatArray,
-    var_old: FloatArray,
+    rows: NDArray[np.int64], old: NDArray[np.bool_], mean_old: FloatArray, var_old: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Mean and variance (rad, rad²) of each target's road gradient before this frame: its
     track's random walk predicted to now (``mean_old``, ``var_old``: of the targets ``old``
     that were associated with a track), or (0, 10⁶) for a target that starts a track (``rows``
     < 0, after the gate)."""
-    kept = rows[old] >= 0 if not every_old else rows >= 0
-    if every_old and all_true(kept):
-        return mean_old, np.minimum(var_old, _MAX_GRADIENT_VAR)
-    mean, var = np.zeros(rows.shape), filled(rows.shape[0], 1e6)
+    kept = rows[old] >= 0
+    mean, var = np.zeros(rows.shape), np.full(rows.shape[0], _MAX_GRADIENT_VAR)
     idx = np.flatnonzero(old)[kept]
     mean[idx] = mean_old[kept]
     var[idx] = np.minimum(var_old[kept], _MAX_GRADIENT_VAR)
@@ -577,7 +536,7 @@ def carried_heading_prior(
     (``yaw_memory``): a continued track's belief relaxing to the prior ``log_yaw_prior``
     ``(K,)`` with time constant ``memory_s`` (s); the prior for a new track."""
     mix = 1.0 - np.exp(-match.elapsed_s / memory_s)
-    carried = (1.0 - mix[:, None]) * np.exp(match.continued_state[ROW_LOG_W:].T) + mix[
+    carried = (1.0 - mix[:, None]) * np.exp(match.before.log_heading_belief.T) + mix[
         :, None
     ] * np.exp(log_yaw_prior)
     n = match.rows.shape[0]

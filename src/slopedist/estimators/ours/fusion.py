@@ -21,40 +21,12 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-try:  # numpy's C count (np.count_nonzero without its Python wrapper: a third of the cost)
-    from numpy._core.multiarray import count_nonzero as _count_nonzero
-except ImportError:  # numpy < 2
-    from numpy.core.multiarray import count_nonzero as _count_nonzero  # type: ignore[no-redef]
-
-
-def all_true(mask: NDArray[np.bool_]) -> bool:
-    """``mask.all()`` for the small arrays of one frame (counting is cheaper than reducing)."""
-    return bool(_count_nonzero(mask) == mask.size)
-
-
-def any_true(mask: NDArray[np.bool_]) -> bool:
-    """``mask.any()`` for the small arrays of one frame."""
-    return bool(_count_nonzero(mask))
-
-
-def const(value: float) -> FloatArray:
-    """``value`` as a read-only 0-d float array, a constant of the per-frame arithmetic:
-    numpy takes it as the operand of an array about 0.2 µs sooner than a Python float (which
-    it converts and promotes as a weak scalar on every call), a third of an operation on a
-    frame's few targets; the results are the same to the bit. Only for array operands (with
-    a Python float it gives a numpy scalar)."""
-    out = np.array(value, dtype=float)
-    out.flags.writeable = False
-    return out
-
-
-ZERO, HALF, ONE = const(0.0), const(0.5), const(1.0)
-"""Constants of the per-frame arithmetic (:func:`const`)."""
+_HALF_LOG_2PI = 0.5 * float(np.log(2.0 * np.pi))
+_INV_SQRT_2PI = 1.0 / float(np.sqrt(2.0 * np.pi))
 
 
 class LogCue(NamedTuple):
-    """A log-distance estimate ``ℓ = log Z`` with its error split in two (a named tuple: built
-    several times per frame, so cheap to make).
+    """A log-distance estimate ``ℓ = log Z`` with its error split in two.
 
     Attributes:
         mean: ℓ (Z in metres).
@@ -92,17 +64,15 @@ def fuse_size_cues(
     C11, C22, C12 = _size_covariance(height, width, sigma_log_h, sigma_log_w, corr_hw)
     # den > 0 unless both cues are exact (C is a covariance); a missing width gives NaN
     den = C11 + C22 - C12 - C12
-    inv_den = ONE / den
+    inv_den = 1.0 / den
     a_h = (C22 - C12) * inv_den
     a_w = (C11 - C12) * inv_den
     diff = yh - yw
     mean = yw + a_h * diff
     var = (C11 * C22 - C12 * C12) * inv_den
     white = a_h * a_h * r_h_white + a_w * a_w * r_w_white
-    loglik = (diff * diff * inv_den + np.log(den)) * _MINUS_HALF - _HALF_LOG_2PI
+    loglik = (diff * diff * inv_den + np.log(den)) * -0.5 - _HALF_LOG_2PI
     both = np.isfinite(den)
-    if all_true(both):
-        return LogCue(mean, var, white, loglik)
     return LogCue(
         np.where(both, mean, yh),
         np.where(both, var, C11),
@@ -137,10 +107,6 @@ def size_cue_weights(
     return np.asarray((C22 - C12) / (C11 + C22 - C12 - C12))
 
 
-_HALF_LOG_2PI = const(0.5 * float(np.log(2.0 * np.pi)))
-_MINUS_HALF = const(-0.5)
-
-
 class SizeMode(NamedTuple):
     """A mode of the size prior: how the class's relative size spreads widen in it.
 
@@ -168,9 +134,8 @@ class SizeMode(NamedTuple):
 
 
 class ModeSpreads:
-    """How size modes widen a class's relative spreads, per hypothesis: the constants of
-    hypotheses ``(n, M·K)`` (``M`` modes, ``K`` columns each, mode-major) built once, so that
-    a frame only reads them.
+    """How size modes widen a class's relative spreads, per hypothesis ``(n, M·K)`` (``M``
+    modes, ``K`` columns each, mode-major).
 
     Args:
         modes: the size modes.
@@ -184,47 +149,19 @@ class ModeSpreads:
     def __init__(self, modes: Sequence[SizeMode], n_columns: int) -> None:
         self.modes = tuple(modes)
         self.odd = next((k for k, mode in enumerate(self.modes) if mode.odd), None)
-        self._typical = self.modes == (SizeMode(),)  # the class's spreads as they are
-        self._scaled = any(m.height_factor != 1.0 for m in self.modes)
-        factor = np.repeat([m.height_factor for m in self.modes], n_columns)
-        floor = np.repeat([m.log_sigma_floor for m in self.modes], n_columns)
-        self._row = np.stack([factor, floor])[:, None, :]  # (2, 1, M·K)
-        self._rows = self._row
-        self._kept: tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray]] | None = None
+        self._height_factor = np.repeat([m.height_factor for m in self.modes], n_columns)
+        self._floor = np.repeat([m.log_sigma_floor for m in self.modes], n_columns)
 
     def spreads(
         self, sigma_log_h: FloatArray, sigma_log_w: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
         """The class's relative height and width spreads in each size mode, per hypothesis:
         from ``sigma_log_h``, ``sigma_log_w`` ``(n, M·K)``, the class's repeated over the
-        modes, the height's times its mode's factor, both at least its mode's floor.
-
-        The spreads of read-only inputs (a :class:`~slopedist.estimators.ours.class_table.
-        ClassTable`'s, the same arrays while a drive's frames list the same classes) are kept
-        until other inputs come."""
-        if self._typical:
-            return sigma_log_h, sigma_log_w
-        kept = self._kept
-        if kept is not None and kept[0] is sigma_log_h and kept[1] is sigma_log_w:
-            return kept[2]
-        n = sigma_log_h.shape[0]
-        if self._rows.shape[1] < n:  # (2, rows, M·K): sliced per frame, never broadcast
-            self._rows = np.repeat(self._row, 2 * n, axis=1)
-        factor, floor = self._rows[:, :n]
-        scaled = sigma_log_h * factor if self._scaled else sigma_log_h  # (x·1 is x)
-        out = np.maximum(scaled, floor), np.maximum(sigma_log_w, floor)
-        if not (sigma_log_h.flags.writeable or sigma_log_w.flags.writeable):
-            out[0].flags.writeable = out[1].flags.writeable = False
-            self._kept = (sigma_log_h, sigma_log_w, out)
-        return out
-
-
-def mode_spreads(
-    modes: list[SizeMode], sigma_log_h: FloatArray, sigma_log_w: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """:meth:`ModeSpreads.spreads` of ``modes`` (``sigma_log_h``, ``sigma_log_w``
-    ``(n, M·K)``)."""
-    return ModeSpreads(modes, sigma_log_h.shape[-1] // len(modes)).spreads(sigma_log_h, sigma_log_w)
+        modes, the height's times its mode's factor, both at least its mode's floor."""
+        return (
+            np.maximum(sigma_log_h * self._height_factor, self._floor),
+            np.maximum(sigma_log_w, self._floor),
+        )
 
 
 def shape_gap_sigma(
@@ -265,22 +202,19 @@ def fuse_log_cues(a: LogCue, b: LogCue) -> LogCue:
     The white variance is propagated with the same weights; ``loglik`` adds the consistency of
     the two cues to ``a``'s. Where ``b`` is missing (NaN) the result is ``a``.
     """
-    ok = np.isfinite(b.mean + b.var) & (b.var > ZERO)
-    every = all_true(ok)
-    vb = b.var if every else np.where(ok, b.var, 1.0)
-    mb = b.mean if every else np.where(ok, b.mean, 0.0)
-    wb_white = b.var_white if every else np.where(ok, b.var_white, 0.0)
+    ok = np.isfinite(b.mean + b.var) & (b.var > 0.0)
+    vb = np.where(ok, b.var, 1.0)
+    mb = np.where(ok, b.mean, 0.0)
+    wb_white = np.where(ok, b.var_white, 0.0)
     tot = a.var + vb  # > 0: vb > 0 and a.var ≥ 0
-    inv_tot = ONE / tot
+    inv_tot = 1.0 / tot
     wa = vb * inv_tot
     wb = a.var * inv_tot
     diff = a.mean - mb
     mean = mb + wa * diff
     var = a.var * wa
     white = wa * wa * a.var_white + wb * wb * wb_white
-    ll = (diff * diff * inv_tot + np.log(tot)) * _MINUS_HALF - _HALF_LOG_2PI
-    if every:
-        return LogCue(mean, var, white, a.loglik + ll)
+    ll = (diff * diff * inv_tot + np.log(tot)) * -0.5 - _HALF_LOG_2PI
     return LogCue(
         np.where(ok, mean, a.mean),
         np.where(ok, var, a.var),
@@ -307,16 +241,11 @@ def censor_upper(cue: LogCue, bound: ArrayLike, bound_var: ArrayLike, where: Arr
     root = np.sqrt(tot)
     a = (np.asarray(bound, dtype=float) - mu) / root
     log_cdf = special.log_ndtr(a)
-    lam = np.exp(_MINUS_HALF * a * a - log_cdf) * _INV_SQRT_2PI
-    factor = ONE - var / tot * lam * (lam + a)
-    keep = ~(np.asarray(where, dtype=bool) & np.isfinite(a))
-    out = LogCue(mu - var / root * lam, var * factor, cue.var_white * factor, cue.loglik + log_cdf)
-    for new, old in zip(out, cue, strict=True):  # the cue as it was where not used (into
-        np.copyto(new, old, where=keep)  # the new arrays: cheaper than np.where's)
-    return out
-
-
-_INV_SQRT_2PI = const(1.0 / np.sqrt(2.0 * np.pi))
+    lam = np.exp(-0.5 * a * a - log_cdf) * _INV_SQRT_2PI
+    factor = 1.0 - var / tot * lam * (lam + a)
+    use = np.asarray(where, dtype=bool) & np.isfinite(a)
+    censored = (mu - var / root * lam, var * factor, cue.var_white * factor, cue.loglik + log_cdf)
+    return LogCue(*(np.where(use, new, old) for new, old in zip(censored, cue, strict=True)))
 
 
 def collapse_hypotheses(cue: LogCue, log_weight: ArrayLike) -> tuple[LogCue, FloatArray]:
@@ -365,21 +294,11 @@ def check_consistency(
     with np.errstate(invalid="ignore", divide="ignore"):
         gap = diff / np.sqrt(total)
     apart = np.abs(gap) > gate_sigma  # False for NaN
-    if not any_true(apart):
+    if not apart.any():
         return fused, gap
     mixture = 0.5 * total + 0.25 * diff * diff
     var = np.where(apart, np.maximum(fused.var, mixture), fused.var)
     return LogCue(fused.mean, var, fused.var_white, fused.loglik), gap
-
-
-def concat_cues(parts: list[LogCue]) -> LogCue:
-    """Log cues side by side along the hypothesis axis."""
-    return LogCue(
-        *(
-            np.concatenate([getattr(p, k) for p in parts], axis=-1)
-            for k in ("mean", "var", "var_white", "loglik")
-        )
-    )
 
 
 def inflate(cue: LogCue, mask: NDArray[np.bool_], factor: float) -> LogCue:
@@ -399,8 +318,5 @@ def shrink_to_prior(
     ``prior_sigma``: the posterior mean and variance."""
     s2 = prior_sigma * prior_sigma
     finite = np.isfinite(var)
-    if all_true(finite):
-        total = s2 + var
-        return mean * s2 / total, s2 * var / total
     v = np.where(finite, var, 1.0)
     return (np.where(finite, mean * s2 / (s2 + v), 0.0), np.where(finite, s2 * v / (s2 + v), s2))

@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.estimators.ours.fusion import ZERO, any_true
 from slopedist.io.detections.boxes import overlapping_pairs
 
 FloatArray = NDArray[np.float64]
@@ -75,7 +74,7 @@ def _hidden_sides_dense(
     lo_j, hi_j = lo[None], hi[None]
     reach = np.minimum(b_hi, hi_j) > np.maximum(b_lo, lo_j)
     near = reach[..., 0] & reach[..., 1] & (b[None, :, 3] > b[:, None, 3])
-    if not any_true(near):
+    if not near.any():
         no = np.zeros(b.shape[0], dtype=bool)
         return no, no.copy()
     on = ((b_lo >= lo_j) & (b_lo <= hi_j)) | ((b_hi >= lo_j) & (b_hi <= hi_j))
@@ -94,7 +93,7 @@ def unexplained_excess(
     """How far a log-distance cue says farther than a reference beyond their own noise:
     ``max(y_cue − y_ref, 0)² − gate_sigma²·(var_cue + var_ref)`` (log², > 0 only for an
     outlier on the far side; NaN where either is missing)."""
-    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), ZERO)
+    excess = np.maximum(np.asarray(y_cue) - np.asarray(y_ref), 0.0)
     return np.asarray(
         excess * excess - gate_sigma * gate_sigma * (np.asarray(var_cue) + np.asarray(var_ref))
     )
@@ -117,4 +116,4 @@ def occlusion_log_var(unexplained: ArrayLike, cut: ArrayLike) -> FloatArray:
         cut: whether the cue's dimension may be cut short, broadcastable to ``unexplained``.
     """
     u = np.asarray(unexplained)
-    return np.asarray(np.where(np.asarray(cut) & (u > ZERO), u, ZERO))
+    return np.asarray(np.where(np.asarray(cut) & (u > 0.0), u, 0.0))

@@ -25,11 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from slopedist.estimators.ours.config import OursConfig
-from slopedist.estimators.ours.fusion import all_true, const
+from slopedist.estimators.ours.config import (
+    OursAblation,
+    OursConfig,
+    carries_state,
+    size_evidence_time,
+)
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
-from slopedist.estimators.ours.tracking import ROW_ODD
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -38,11 +41,9 @@ BoolArray = NDArray[np.bool_]
 def carried_evidence(match: TrackMatch) -> FloatArray:
     """``(n,)`` each target's odd-object evidence from its track's past frames (0 for a target
     that starts a track)."""
-    if match.all_continued:
-        return match.continued_state[ROW_ODD].copy()
     evidence = np.zeros(match.rows.shape[0])
     if match.continued_rows.size:
-        evidence[match.continued] = match.continued_state[ROW_ODD]
+        evidence[match.continued] = match.before.odd_evidence
     return evidence
 
 
@@ -65,13 +66,9 @@ def frame_log_ratio(odd_prob: FloatArray, prior_log_odds: FloatArray) -> FloatAr
     log odds are taken at most :data:`MAX_LOG_ODDS` (a probability of 1 in float64)."""
     # within (0, 1) so that both logarithms are finite (a sum of weights may round to 1 or
     # above, or underflow to 0); NaN (no weights) stays NaN
-    p = np.minimum(np.maximum(odd_prob, _TINY), _ALMOST_ONE)
+    p = np.minimum(np.maximum(odd_prob, 1e-300), 1.0 - 2.0**-53)
     log_odds = np.log(p) - np.log1p(-p)
-    return np.minimum(np.maximum(log_odds, _LOW_LOG_ODDS), _HIGH_LOG_ODDS) - prior_log_odds
-
-
-_TINY = const(1e-300)
-_ALMOST_ONE = const(1.0 - 2.0**-53)
+    return np.minimum(np.maximum(log_odds, -MAX_LOG_ODDS), MAX_LOG_ODDS) - prior_log_odds
 
 
 MAX_LOG_ODDS = 36.0
@@ -81,9 +78,6 @@ MAX_EVIDENCE = 20.0
 """Bound of a track's evidence (nats, either sign): well inside the log odds a probability
 resolves, so a frame can always be read back (:func:`frame_log_ratio`), and a long track can
 still change its mind within a few τ when its cues change (a vehicle no longer hidden)."""
-
-_LOW_LOG_ODDS, _HIGH_LOG_ODDS = const(-MAX_LOG_ODDS), const(MAX_LOG_ODDS)
-_LOW_EVIDENCE, _HIGH_EVIDENCE = const(-MAX_EVIDENCE), const(MAX_EVIDENCE)
 
 
 def updated_evidence(
@@ -96,12 +90,12 @@ def updated_evidence(
     ±:data:`MAX_EVIDENCE` (a non-finite ratio adds nothing); a target whose track failed the
     distance gate (``restarted``; None: none did) starts afresh from 0."""
     add = weight * log_ratio
-    total = np.minimum(np.maximum(evidence + add, _LOW_EVIDENCE), _HIGH_EVIDENCE)
+    total = np.minimum(np.maximum(evidence + add, -MAX_EVIDENCE), MAX_EVIDENCE)
     ok = np.isfinite(add)
     if restarted is None:
-        return total if all_true(ok) else np.where(ok, total, evidence)
+        return np.where(ok, total, evidence)
     ok &= ~restarted
-    return total if all_true(ok) else np.where(ok, total, np.where(restarted, 0.0, evidence))
+    return np.where(ok, total, np.where(restarted, 0.0, evidence))
 
 
 @dataclass(frozen=True)
@@ -123,14 +117,17 @@ class OddObjectCheck:
     evidence_time_s: float
 
     @classmethod
-    def of(cls, config: OursConfig, n_headings: int) -> OddObjectCheck:
-        """The check of ``config``."""
-        modes = config.size_modes
+    def of(cls, config: OursConfig, ablation: OursAblation, n_headings: int) -> OddObjectCheck:
+        """The check of an estimator's options."""
+        modes = ablation.size_modes
         odd = next((k for k, (mode, _) in enumerate(modes) if mode.odd), None)
         weight = modes[odd][1] if odd is not None else 0.5
         log_odds = float(np.log(weight) - np.log1p(-weight))
         return cls(
-            odd if config.tracking else None, n_headings, log_odds, config.size_evidence_time
+            odd if carries_state(config, ablation) else None,
+            n_headings,
+            log_odds,
+            size_evidence_time(config, ablation),
         )
 
     def carried(self, match: TrackMatch, targets: FrameTargets) -> FloatArray | None:
@@ -161,7 +158,5 @@ class OddObjectCheck:
             return None
         weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
         ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
-        restarted = None
-        if not (match.all_continued and all_true(distance.continued)):
-            restarted = match.continued & ~distance.continued
+        restarted = match.continued & ~distance.continued
         return updated_evidence(evidence, ratio, weight, restarted)

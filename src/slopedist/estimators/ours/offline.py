@@ -10,8 +10,9 @@ frames it was given:
    last frame holds the evidence of all its frames (the size is constant over a track, so
    filtering to the end is smoothing).
 2. **Smoothing** (:meth:`~OursOfflineEstimator.finish`): ``ours`` again, every box's size
-   cues computed with the final size belief of its pass-1 track (no further learning), and a
-   Rauch–Tung–Striebel backward pass over each track's distance filter
+   cues computed with the final size belief of its pass-1 track (:class:`FinalSizes`: no
+   further learning), its filter states kept (:class:`FilterLog`), then a Rauch–Tung–Striebel
+   backward pass over each track's distance filter
    (:func:`~slopedist.estimators.ours.filter.rts_smooth_rows`).
 
 Its figures are reported under its own name (``ours-offline``), never mixed with the causal
@@ -31,16 +32,11 @@ from numpy.typing import NDArray
 from slopedist.core.camera import Camera
 from slopedist.estimators.base import EstimateStatus, FrameEstimates, FrameInput
 from slopedist.estimators.ours import filter as kf
-from slopedist.estimators.ours import road_bend, size_learning
-from slopedist.estimators.ours.config import OursConfig
+from slopedist.estimators.ours import road_bend
+from slopedist.estimators.ours.config import OursAblation, OursConfig, size_evidence_time
 from slopedist.estimators.ours.estimator import OursEstimator
-from slopedist.estimators.ours.records import (
-    DistanceFilterResult,
-    FrameTargets,
-    FusedCues,
-    TargetGradient,
-    TrackMatch,
-)
+from slopedist.estimators.ours.records import FrameState, FrameTargets, TargetGradient, TrackMatch
+from slopedist.estimators.ours.size_learning import LearnedSizes, TrackSize
 
 FloatArray = NDArray[np.float64]
 
@@ -66,9 +62,15 @@ class OursOfflineEstimator(OursEstimator):
     name: ClassVar[str] = "ours-offline"
     offline: ClassVar[bool] = True
 
-    def __init__(self, camera: Camera, config: OursConfig | None = None, **overrides: Any) -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        config: OursConfig | None = None,
+        ablation: OursAblation | None = None,
+        **overrides: Any,
+    ) -> None:
         overrides["size_learning"] = True
-        super().__init__(camera, config, **overrides)
+        super().__init__(camera, config, ablation, **overrides)
 
     def reset(self) -> None:
         super().reset()
@@ -90,10 +92,15 @@ class OursOfflineEstimator(OursEstimator):
 
     def finish(self) -> list[FrameEstimates]:
         """The offline estimates of every frame given since :meth:`reset`, in order."""
-        seeds = _final_sizes(self._frames, self._causal)
-        second = _SmoothingPass(self.camera, self.config, seeds)
-        estimates = [second.estimate(frame) for frame in self._frames]
-        return second.smoothed(estimates)
+        evidence_time = size_evidence_time(self.config, self.ablation)
+        sizes = FinalSizes(_final_sizes(self._frames, self._causal), evidence_time)
+        log = FilterLog(self.config.gradient_sigma_rad)
+        second = OursEstimator(self.camera, self.config, self.ablation, sizes=sizes, recorder=log)
+        estimates = []
+        for frame in self._frames:
+            log.start_frame()
+            estimates.append(second.estimate(frame))
+        return log.smoothed(estimates)
 
 
 def _final_sizes(frames: list[FrameInput], causal: list[FloatArray]) -> dict[BoxKey, FloatArray]:
@@ -112,6 +119,28 @@ def _final_sizes(frames: list[FrameInput], causal: list[FloatArray]) -> dict[Box
     return {key: final[u] for key, u in rows}
 
 
+class FinalSizes(LearnedSizes):
+    """The sizes of the smoothing pass: every box's size is its pass-1 track's final belief
+    (``seeds``, keyed by the box), learned no further; a box without one keeps its track's
+    size with the class prior's variance."""
+
+    def __init__(self, seeds: dict[BoxKey, FloatArray], evidence_time_s: float) -> None:
+        super().__init__(evidence_time_s)
+        self._seeds = seeds
+
+    def before_frame(self, targets: FrameTargets, match: TrackMatch) -> TrackSize:
+        prior = super().before_frame(targets, match)
+        seeded = [self._seeds.get(k) for k in _box_keys(targets.time_s, targets.boxes_px)]
+        log_scale, log_var = prior.log_scale.copy(), prior.prior_log_var.copy()
+        for i, s in enumerate(seeded):
+            if s is not None:
+                log_scale[i], log_var[i] = s
+        return TrackSize(log_scale, log_var, prior.prior_log_var)
+
+    def after_frame(self, frame: FrameState, size: TrackSize) -> FloatArray:
+        return np.stack([size.log_scale, size.log_var])
+
+
 @dataclass
 class _TargetLog:
     """What the smoothing pass keeps of each frame's targets (``(n,)`` or ``(5, n)``)."""
@@ -126,59 +155,46 @@ class _TargetLog:
     sigma_log_var: FloatArray | None  # what widens the σ only (road_bend.sigma_only_log_var)
 
 
-class _SmoothingPass(OursEstimator):
-    """Pass 2: ``ours`` with every box's size fixed at its pass-1 track's final belief, keeping
-    each frame's predicted and updated distance filter states for the backward pass."""
+class FilterLog:
+    """The smoothing pass's record of every frame's distance filters (the estimator's
+    ``recorder``), and the smoothing of its tracks (:meth:`smoothed`).
 
-    _keep_predicted: ClassVar[bool] = True
-    _learns_size: ClassVar[bool] = False
+    Args:
+        gradient_sigma_rad: the estimator's target-gradient prior spread (for the σ that the
+            road bend adds, :func:`~slopedist.estimators.ours.road_bend.sigma_only_log_var`).
+    """
 
-    def __init__(self, camera: Camera, config: OursConfig, seeds: dict[BoxKey, FloatArray]) -> None:
-        super().__init__(camera, config, size_learning=True)
-        self._seeds = seeds
-        self.log: list[_TargetLog | None] = []
-        self._good: NDArray[np.intp] = np.zeros(0, np.intp)
+    def __init__(self, gradient_sigma_rad: float) -> None:
+        self._gradient_sigma_rad = gradient_sigma_rad
+        self.frames: list[_TargetLog | None] = []
 
-    def estimate(self, frame: FrameInput) -> FrameEstimates:
-        self.log.append(None)
-        return super().estimate(frame)
+    def start_frame(self) -> None:
+        """A frame begins (one with no usable box keeps nothing)."""
+        self.frames.append(None)
 
-    def _estimate_boxes(self, frame: FrameInput, good: NDArray[np.intp], *args: Any) -> Any:
-        self._good = good
-        return super()._estimate_boxes(frame, good, *args)
-
-    def _track_size(self, targets: FrameTargets, match: TrackMatch) -> size_learning.TrackSize:
-        prior = super()._track_size(targets, match)
-        seeded = [self._seeds.get(k) for k in _box_keys(targets.time_s, targets.boxes_px)]
-        log_scale, log_var = prior.log_scale.copy(), prior.prior_log_var.copy()
-        for i, s in enumerate(seeded):
-            if s is not None:
-                log_scale[i], log_var[i] = s
-        return size_learning.TrackSize(log_scale, log_var, prior.prior_log_var)
-
-    def _keep_frame(
+    def record(
         self,
-        match: TrackMatch,
-        fused: FusedCues,
-        distance: DistanceFilterResult,
-        uid: NDArray[np.int64],
-        targets: FrameTargets,
+        good: NDArray[np.intp],
+        frame: FrameState,
         gradient: TargetGradient,
+        uid: NDArray[np.int64],
     ) -> None:
+        """Keep the filter states of the frame's usable boxes ``good``."""
+        targets, match, _, fused, distance = frame
         n = uid.shape[0]
         elapsed = np.full(n, np.nan)
         elapsed[match.continued] = match.elapsed_s
         predicted = distance.predicted_rows
         meas = fused.measurement
-        self.log[-1] = _TargetLog(
-            self._good.copy(),
+        self.frames[-1] = _TargetLog(
+            good.copy(),
             uid,
             np.full((5, n), np.nan) if predicted is None else predicted,
             distance.filter_rows.copy(),
             np.where(distance.continued, elapsed, np.nan),
             meas.var - meas.var_white,
             np.ones(n) if distance.noise_scale is None else distance.noise_scale,
-            road_bend.sigma_only_log_var(targets, fused, gradient, self.config.gradient_sigma_rad),
+            road_bend.sigma_only_log_var(targets, fused, gradient, self._gradient_sigma_rad),
         )
 
     def smoothed(self, estimates: list[FrameEstimates]) -> list[FrameEstimates]:
@@ -187,7 +203,7 @@ class _SmoothingPass(OursEstimator):
         speed and time to collision widened by the track's noise scale, as ``ours`` does).
         The list is changed in place (each frame's estimates replaced by a changed copy in turn,
         so that the drive's estimates are never held twice) and returned."""
-        logs = [log for log in self.log if log is not None]
+        logs = [log for log in self.frames if log is not None]
         if not logs:
             return estimates
         uid = np.concatenate([log.uid for log in logs])
@@ -215,7 +231,7 @@ class _SmoothingPass(OursEstimator):
         speed_sd, ttc_sd = speed_sd * widen, ttc_sd * widen  # the noise the track shows, as ours
         out = estimates  # each frame's replaced by its copy in turn: never two of the drive
         k = 0
-        for f, log in enumerate(self.log):
+        for f, log in enumerate(self.frames):
             if log is None:
                 continue
             out[f] = _copy(out[f])

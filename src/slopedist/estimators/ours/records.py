@@ -1,6 +1,6 @@
 """Typed records passed between the per-frame steps of ``ours`` and its output columns.
 
-Named tuples (cheap to build, a few per frame). Per-target arrays are ``(n,)``; per (target,
+Named tuples. Per-target arrays are ``(n,)``; per (target,
 heading hypothesis) arrays are ``(n, K)``. Distances in metres (camera frame: x right, y down,
 z forward; a target's distance is its centre's z), log distances ``ℓ = log(Z / 1 m)``, angles in
 radians, image coordinates in pixels (rows grow downwards), times in seconds.
@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from slopedist.estimators.ours.class_table import TargetClasses
 from slopedist.estimators.ours.cues import SizeCue
 from slopedist.estimators.ours.fusion import LogCue
+from slopedist.estimators.ours.tracks import Tracks
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -81,8 +82,6 @@ class FrameTargets(NamedTuple):
         boxes_px: ``(n, 4)`` (left, top, right, bottom).
         track_ids: ``(n,)`` the boxes' track ids (−1: none).
         classes: their class constants.
-        left_px, top_px, right_px, bottom_px: the box edges repeated over the hypotheses,
-            contiguous ``(n, K)`` planes.
         border_cuts: boxes touching the image border (None: no box does).
         box_sigma_px: box-edge noise used for this frame (before this frame's boxes refine it).
         time_s: the frame's timestamp.
@@ -91,13 +90,14 @@ class FrameTargets(NamedTuple):
     boxes_px: FloatArray
     track_ids: IntArray
     classes: TargetClasses
-    left_px: FloatArray
-    top_px: FloatArray
-    right_px: FloatArray
-    bottom_px: FloatArray
     border_cuts: BorderCuts | None
     box_sigma_px: float
     time_s: float
+
+    def edge_px(self, k: int) -> FloatArray:
+        """``(n, 1)`` edge ``k`` (0 left, 1 top, 2 right, 3 bottom) of every box, a column
+        that broadcasts over the hypotheses."""
+        return self.boxes_px[:, k : k + 1]
 
 
 class UpperBound(NamedTuple):
@@ -124,10 +124,8 @@ class TrackMatch(NamedTuple):
     Attributes:
         rows: ``(n,)`` column of the track each box continues, −1 for a new track.
         continued: ``(n,)`` ``rows >= 0``.
-        all_continued: whether every box continues a track.
         continued_rows: ``rows[continued]``.
-        continued_state: ``(ROW_LOG_W + K, m)`` a copy of those tracks' states (rows as
-            :mod:`~slopedist.estimators.ours.tracking`'s ``ROW_*``).
+        before: those ``m`` tracks as they were before this frame (a copy).
         elapsed_s: ``(m,)`` time since those tracks' last update.
         gradient_var_rad2: ``(m,)`` their gradient variance predicted to now (random walk).
         turned_boxes_px: ``(T, 4)`` every track's last box turned with the camera (pixels).
@@ -139,9 +137,8 @@ class TrackMatch(NamedTuple):
 
     rows: IntArray
     continued: BoolArray
-    all_continued: bool
     continued_rows: IntArray
-    continued_state: FloatArray
+    before: Tracks
     elapsed_s: FloatArray
     gradient_var_rad2: FloatArray
     turned_boxes_px: FloatArray
@@ -209,6 +206,25 @@ class DistanceFilterResult(NamedTuple):
     noise_scale: FloatArray | None = None
 
 
+class FrameState(NamedTuple):
+    """A frame's targets with their tracks, cues and distance filters: what the steps after
+    the distance filter read.
+
+    Attributes:
+        targets: the usable boxes and their class constants.
+        match: their tracks.
+        size_cues: the size cues per hypothesis.
+        fused: the cues fused and collapsed over the hypotheses.
+        distance: the distance filters after this frame.
+    """
+
+    targets: FrameTargets
+    match: TrackMatch
+    size_cues: SizeCues
+    fused: FusedCues
+    distance: DistanceFilterResult
+
+
 class TargetGradient(NamedTuple):
     """Each target's road gradient α relative to the ego's, from Δy and the size distance.
 
@@ -260,46 +276,11 @@ class BoxEstimates(NamedTuple):
 OUTPUT_KEYS = ("distance_m", "theta_adj_rad", "v_px", "delta_y_px", *EXTRA_COLUMNS)
 """Every per-box output column of :meth:`OursEstimator.estimate`."""
 
-_ABSENT: dict[tuple[str, ...], list[str]] = {}
 
-
-def scatter(
-    values: dict[str, FloatArray], rows: NDArray[np.intp] | None, n: int
-) -> dict[str, FloatArray]:
+def scatter(values: dict[str, FloatArray], rows: NDArray[np.intp], n: int) -> dict[str, FloatArray]:
     """Per-box outputs of length ``n`` for every :data:`OUTPUT_KEYS`: ``values`` (of the boxes
-    ``rows``; all boxes when None) placed in NaN-filled columns; keys without values stay NaN."""
-    keys = OUTPUT_KEYS
-    if rows is None:
-        have = tuple(values)
-        missing = _ABSENT.get(have)
-        if missing is None:
-            missing = _ABSENT[have] = [k for k in keys if k not in values]
-    else:
-        missing = list(keys)
-    nan = np.empty((len(missing), n))
-    nan.fill(np.nan)
-    out = dict(zip(missing, nan, strict=True))
-    if rows is None:
-        out.update(values)
-    else:
-        for k, v in values.items():
-            out[k][rows] = v
+    ``rows``) placed in NaN-filled columns; keys without values stay NaN."""
+    out = {k: np.full(n, np.nan) for k in OUTPUT_KEYS}
+    for k, v in values.items():
+        out[k][rows] = v
     return out
-
-
-def filled(n: int, value: float) -> FloatArray:
-    """``np.full(n, value)``, cheaper for the few targets of a frame."""
-    out = np.empty(n)
-    out.fill(value)
-    return out
-
-
-_OBJECT_COLUMNS: dict[str, NDArray[np.object_]] = {}
-
-
-def object_column(value: str, n: int) -> NDArray[np.object_]:
-    """A new object array of ``n`` copies of ``value`` (copied from a cached template)."""
-    tmpl = _OBJECT_COLUMNS.get(value)
-    if tmpl is None or tmpl.shape[0] < n:
-        tmpl = _OBJECT_COLUMNS[value] = np.full(max(n, 64), value, dtype=object)
-    return tmpl[:n].copy()

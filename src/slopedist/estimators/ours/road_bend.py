@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours import vehicle_types
-from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, any_true, size_cue_weights
+from slopedist.estimators.ours.fusion import LogCue, size_cue_weights
 from slopedist.estimators.ours.records import FrameTargets, FusedCues, SizeCues, TargetGradient
 
 FloatArray = NDArray[np.float64]
@@ -42,15 +42,11 @@ def fused_camera_lever(
     if height_lever is None:
         return None
     lever = size_cue_weights((size.height, size.width), spreads, corr_hw) * height_lever
-    no_width = np.isnan(lever)  # the height cue alone
-    if any_true(no_width):
-        lever = np.where(no_width, height_lever, lever)
+    lever = np.where(np.isnan(lever), height_lever, lever)  # NaN: the height cue alone
     if ground is None:
         return np.asarray(lever)
-    w = ONE / (ONE + size_cue.var / ground.var)  # 1 where the ground contact's variance is inf
-    no_ground = np.isnan(w)
-    if any_true(no_ground):
-        w = np.where(no_ground, ONE, w)
+    w = 1.0 / (1.0 + size_cue.var / ground.var)  # 1 where the ground contact's variance is inf
+    w = np.where(np.isnan(w), 1.0, w)  # NaN: no ground contact
     return np.asarray(w * lever)
 
 
@@ -65,7 +61,7 @@ def road_bend_log_var(
     """``(n,)`` variance (log distance²) of the camera height above the target's road: ``lever``
     (``∂ℓ/∂h'``, 1/m) times ``Z_n·σ(α − α̂)`` with ``Z_n`` the centre distance less the half
     extent (m) and the target gradient ``α̂`` with its variance (rad, rad²)."""
-    near = np.maximum(distance_m - half_extent_m, ZERO)
+    near = np.maximum(distance_m - half_extent_m, 0.0)
     spread2 = gradient_rad * gradient_rad + gradient_var_rad2 + gradient_sigma_rad**2
     return np.asarray((lever * near) ** 2 * spread2)
 

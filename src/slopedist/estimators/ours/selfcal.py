@@ -319,8 +319,9 @@ def _inv2(M: FloatArray) -> FloatArray:
 
 
 def self_calibrates(estimator: object) -> bool:
-    """Whether ``estimator`` calibrates θ0 and h online (``ours-selfcal``: ``self_calibrate``)."""
-    return bool(getattr(getattr(estimator, "config", None), "self_calibrate", False))
+    """Whether ``estimator`` calibrates θ0 and h online (``ours-selfcal``: its experimental
+    setting ``self_calibrate``)."""
+    return bool(getattr(getattr(estimator, "ablation", None), "self_calibrate", False))
 
 
 def uncalibrated_warning(name: str, calibration: Calibration) -> str | None:

@@ -34,14 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.class_table import MIN_NEAR_M, HypothesisConstants
-from slopedist.estimators.ours.fusion import ONE, ZERO, LogCue, all_true, any_true
-from slopedist.estimators.ours.records import (
-    DistanceFilterResult,
-    FrameTargets,
-    FusedCues,
-    SizeCues,
-    TrackMatch,
-)
+from slopedist.estimators.ours.fusion import LogCue
+from slopedist.estimators.ours.records import FrameState, FrameTargets, TrackMatch
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -113,9 +107,7 @@ def evidence_weight(elapsed_s: FloatArray, continued: BoolArray, time_s: float) 
     """``(n,)`` weight of this frame's evidence, ``min(1, dt/τ)`` with ``dt`` the time since
     the track's last update (``elapsed_s`` ``(m,)``, of the continued targets); 0 for a
     target that starts a track (its first frame's gradient error is shared with the next)."""
-    w = np.minimum(np.maximum(elapsed_s, ZERO) / time_s, ONE)
-    if all_true(continued):
-        return w
+    w = np.minimum(np.maximum(elapsed_s, 0.0) / time_s, 1.0)
     out = np.zeros(continued.shape[0])
     out[continued] = w
     return out
@@ -157,26 +149,19 @@ def with_track_size(targets: FrameTargets, size: TrackSize) -> FrameTargets:
     return targets._replace(classes=classes._replace(hypotheses=hyp))
 
 
-def learn_frame(
-    targets: FrameTargets,
-    match: TrackMatch,
-    size_cues: SizeCues,
-    fused: FusedCues,
-    distance: DistanceFilterResult,
-    size: TrackSize,
-    evidence_time_s: float,
-) -> FloatArray:
+def learn_frame(frame: FrameState, size: TrackSize, evidence_time_s: float) -> FloatArray:
     """``(2, n)`` each target's size belief after this frame (:func:`learn`): this frame's
     evidence where its box is not cut by the image border (where a nearer box may cut it,
     only evidence that it is bigger), weighed by :func:`evidence_weight`; a target whose track
     failed the distance gate starts from the class prior again."""
+    targets, match, size_cues, fused, distance = frame
     usable = np.ones(targets.boxes_px.shape[0], dtype=bool)
     cuts = targets.border_cuts
     if cuts is not None:
         usable &= ~(cuts.sides | cuts.top | cuts.bottom)
     weight = evidence_weight(match.elapsed_s, match.continued, evidence_time_s)
     restarted = match.continued & ~distance.continued
-    if any_true(restarted):
+    if restarted.any():
         weight[restarted] = 0.0
         size = size._replace(
             log_scale=np.where(restarted, 0.0, size.log_scale),
@@ -197,3 +182,25 @@ def size_columns(rows: FloatArray, class_height_m: FloatArray) -> dict[str, Floa
         "size_log_sigma": np.sqrt(rows[1]),
         "track_height_m": class_height_m * scale,
     }
+
+
+class LearnedSizes:
+    """Each track's own size, learned over its track (the estimator's ``size_learning``).
+
+    Args:
+        evidence_time_s: τ, the time over which a track's ground-contact evidence about its
+            size is one independent observation, seconds (:func:`evidence_weight`).
+    """
+
+    def __init__(self, evidence_time_s: float) -> None:
+        self.evidence_time_s = evidence_time_s
+
+    def before_frame(self, targets: FrameTargets, match: TrackMatch) -> TrackSize:
+        """Each target's size belief before this frame: its track's, else the class prior."""
+        stored = match.before.size_rows if match.continued_rows.size else None
+        return track_size(stored, match.continued, targets.classes.height_log_sigma)
+
+    def after_frame(self, frame: FrameState, size: TrackSize) -> FloatArray:
+        """``(2, n)`` each target's size belief after ``frame`` (:func:`learn_frame`), from its
+        belief ``size`` before it."""
+        return learn_frame(frame, size, self.evidence_time_s)

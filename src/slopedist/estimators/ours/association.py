@@ -1,0 +1,189 @@
+"""Which box of a frame continues which track of ``ours``, and where the tracks' boxes go.
+
+Boxes that carry a track id (``>= 0``) continue the track with that id; boxes without one are
+matched to the id-less tracks by 2D IoU with the tracks' predicted boxes (greedy, best pair
+first). A track's box is predicted by turning its last box with the camera's own rotation
+(:func:`turn_boxes`) and moving it on at its image velocity (:func:`moved_boxes`).
+
+Image coordinates in pixels (a box is left, top, right, bottom); times in seconds; rotations
+camera-to-world.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from slopedist.estimators.ours.tracks import Tracks
+from slopedist.io.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def associate(
+    tracks: Tracks,
+    boxes: FloatArray,
+    track_ids: IntArray,
+    min_iou: float = 0.3,
+    predicted: FloatArray | None = None,
+) -> IntArray:
+    """Row of ``tracks`` each box continues, or −1 for a new track.
+
+    Boxes with an id ``>= 0`` follow the live track with that id (a second box with the same id
+    in one frame starts a new track); the others are matched by IoU to the live id-less tracks'
+    ``predicted`` boxes ``(T, 4)`` (default: their last boxes), greedily, best pair first.
+    """
+    n = boxes.shape[0]
+    if len(tracks) == 0 or n == 0:
+        return np.full(n, -1, np.int64)
+    ids = track_ids.tolist()
+    by_id = tracks.row_of_box_track_id()
+    rows = np.array([by_id.get(i, -1) if i >= 0 else -1 for i in ids], dtype=np.int64)
+    if len(set(ids)) < n:  # a second box with an id already taken starts a new track
+        seen: set[int] = set()
+        for k, i in enumerate(ids):
+            if i >= 0 and i in seen:
+                rows[k] = -1
+            seen.add(i)
+    has_id = track_ids >= 0
+    if has_id.all():
+        return rows
+    free_boxes = np.flatnonzero(~has_id)
+    free_tracks = np.flatnonzero(tracks.box_track_id < 0)
+    if free_boxes.size and free_tracks.size:
+        ref = tracks.last_box_px.T if predicted is None else predicted
+        bi, ti, iou = _iou_candidates(boxes[free_boxes], ref[free_tracks], min_iou)
+        order = np.argsort(-iou, kind="stable")
+        taken_b: set[int] = set()
+        used: set[int] = set()  # id-less tracks are never taken by an id
+        for o in order.tolist():
+            b, t = int(bi[o]), int(free_tracks[ti[o]])
+            if b in taken_b or t in used:
+                continue
+            rows[free_boxes[b]] = t
+            taken_b.add(b)
+            used.add(t)
+    return rows
+
+
+_DENSE_MAX_PAIRS = 2048
+"""Up to this many (box, track) pairs every IoU is computed at once (cheaper than sorting)."""
+
+
+def _iou_candidates(
+    boxes: FloatArray, tracks: FloatArray, min_iou: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """The (box, track) pairs with IoU ≥ ``min_iou``, row-major, and their IoU.
+
+    With ``min_iou > 0`` only overlapping boxes can qualify, so for many boxes the IoU is
+    computed for the overlapping pairs only (:func:`overlapping_pairs`: near linear in the
+    number of boxes); the pairs and values are the same as from the full matrix.
+    """
+    if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
+        iou = iou_matrix(boxes, tracks)
+        bi, ti = np.nonzero(iou >= min_iou)
+        return bi, ti, iou[bi, ti]
+    bi, ti = overlapping_pairs(boxes, tracks)
+    iou = pair_iou(boxes, tracks, bi, ti)
+    keep = np.flatnonzero(iou >= min_iou)
+    keep = keep[np.lexsort((ti[keep], bi[keep]))]  # row-major, as np.nonzero gives them
+    return bi[keep], ti[keep], iou[keep]
+
+
+def turn_boxes(
+    boxes: FloatArray,
+    f: float,
+    c_x: float,
+    c_y: float,
+    R_last: FloatArray,
+    R_now: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Where boxes ``(T, 4)`` seen at camera-to-world rotations ``R_last`` ``(T, 3, 3)`` go
+    when the camera has turned to ``R_now`` ``(3, 3)`` (pixels), and the depth ratio
+    ``Z_new/Z_old`` ``(T,)`` of the points seen at their centres (the ego's own rotation
+    changes every target's depth, most for targets off to the side).
+
+    A pure rotation moves every pixel whatever its depth; between two frames it is small, so
+    each box is shifted by the motion of its centre (its size changes by a second-order
+    amount). ``R_now`` None (rotation unknown) leaves the boxes where they were.
+
+    numpy multiplies ``R_last`` with BLAS when each matrix is contiguous in memory and with a
+    loop of its own otherwise, and the two may differ in the last bit: the tracks' rotations
+    keep the memory layout :class:`~slopedist.estimators.ours.tracks.Tracks` gives them
+    (track axis innermost after :meth:`~slopedist.estimators.ours.tracks.Tracks.concat`,
+    outermost after :meth:`~slopedist.estimators.ours.tracks.Tracks.take`), on which the
+    records' last digits depend.
+    """
+    b = np.asarray(boxes, dtype=float)
+    if b.shape[0] == 0 or R_now is None:
+        return b.copy(), np.ones(b.shape[0])
+    c = np.array([c_x, c_y])
+    mid = 0.5 * (b[:, :2] + b[:, 2:])  # box centres (u, v)
+    ray = np.ones((b.shape[0], 3))
+    ray[:, :2] = (mid - c) * (1.0 / f)
+    R_now = np.asarray(R_now, dtype=float)
+    if (R_last == R_last[0]).all():  # all seen at one rotation: one product for all
+        out = ray @ (R_last[0].T @ R_now)  # rows: (R_nowᵀ·R_last·ray)ᵀ
+    else:
+        out = (R_last @ ray[:, :, None])[..., 0] @ R_now
+    z = out[:, 2]
+    shift = c + out[:, :2] * (f / np.maximum(z, 1e-6))[:, None] - mid
+    return b + np.concatenate([shift, shift], axis=1), z
+
+
+def depth_ratios(
+    boxes_px: FloatArray,
+    f: float,
+    c_x: float,
+    c_y: float,
+    R_last: FloatArray,
+    R_now: FloatArray | None,
+) -> FloatArray:
+    """The second output of :func:`turn_boxes` alone: ``Z_new/Z_old`` ``(T,)`` of the points
+    seen at the centres of the boxes ``boxes_px`` ``(4, T)`` (as :attr:`Tracks.last_box_px`)
+    when the camera turns from the camera-to-world rotations ``R_last`` ``(3, 3, T)`` (as
+    :attr:`Tracks.R_world_cam`) to ``R_now`` (ones when it is None)."""
+    b = np.asarray(boxes_px, dtype=float)
+    if b.shape[1] == 0 or R_now is None:
+        return np.ones(b.shape[1])
+    # the new depth of the old ray ((u − c_x)/f, (v − c_y)/f, 1) is R_now's z axis (in the
+    # world) · R_last·ray, i.e. ray · (R_lastᵀ·R_now[:, 2])
+    m = b.shape[1]
+    R_rows = np.ascontiguousarray(R_last).reshape(3, 3 * m)  # [a, b·T + t] = R_last[a, b, t]
+    q = (np.asarray(R_now, dtype=float)[:, 2] @ R_rows).reshape(3, m)
+    inv_2f = 0.5 / f
+    return (
+        (b[0] + b[2] - 2.0 * c_x) * inv_2f * q[0] + (b[1] + b[3] - 2.0 * c_y) * inv_2f * q[1] + q[2]
+    )
+
+
+def moved_boxes(tracks: Tracks, turned: FloatArray, t: float) -> FloatArray:
+    """The tracks' ``turned`` boxes ``(T, 4)`` moved on to time ``t`` at their image velocities
+    (pixels); tracks with a single update (no velocity yet) only turn."""
+    vel = tracks.box_velocity_px_s.T
+    vel = np.where(np.isnan(vel), 0.0, vel)
+    return turned + vel * (t - tracks.last_time_s)[:, None]
+
+
+def box_noise_sums(
+    tracks: Tracks, miss: FloatArray, rows: IntArray, t: float, sigma_px: float
+) -> tuple[float, int]:
+    """Sum of squares and count of the misses of the constant-velocity box predictions
+    (``miss`` = box − predicted box, pixels, of the tracks ``rows``) of tracks updated at an
+    even pace: second differences of the box edges, variance 6σ² each; a miss beyond
+    ``4·√6·sigma_px`` (an id switch, a jump) counts at that cap."""
+    dt1 = t - tracks.last_time_s[rows]
+    dt0 = tracks.last_time_s[rows] - tracks.previous_time_s[rows]
+    even = (
+        np.isfinite(dt0)
+        & (np.abs(dt1 - dt0) <= 0.2 * dt0)
+        & np.all(np.isfinite(tracks.box_velocity_px_s[:, rows]), axis=0)
+    )
+    if not np.any(even):
+        return 0.0, 0
+    d2 = miss[even]
+    cap = 4.0 * math.sqrt(6.0) * sigma_px
+    return float(np.sum(np.minimum(d2 * d2, cap * cap))), int(d2.size)
