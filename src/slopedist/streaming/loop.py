@@ -163,6 +163,7 @@ def run_frames(
         sequence=config.sequence if config.sequence else default_sequence_name(frames.path),
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
+        reference=config.reference.value if config.reference is not None else None,
         dropped_boxes=dict(dropped_boxes or {}),
         depth_source=describe_depth(depth) if depth is not None else None,
         exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
@@ -218,6 +219,7 @@ class _RunLoop:
             odometry,
             lookback_s=config.lookback_s,
             vehicle_classes=config.vehicle_classes,
+            reference=config.reference,
         )
         self.held: list[int] | None = [] if estimator.offline else None
         """An offline method's frames with boxes (their indices), whose records wait for the
