@@ -457,7 +457,9 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
             "in FRAMES (or unreadable, out of time order) and were not used"
         )
     if result.overlay:
-        lines.append(f"overlay: {result.overlay}")
+        lines.append(f"overlay: {result.overlay} ({result.overlay_codec})")
+    if result.overlay_warning:
+        lines.append(f"warning: {result.overlay_warning}")
     lines.extend(f"export: {path}" for path in result.exports)
     unwritten = sorted(
         {k for k in snapshots if str(snapshot_path(out_dir, k)) not in result.exports}

@@ -199,6 +199,10 @@ class RunResult:
             ``reference`` column says it row by row), None: each method's own point.
         overlay: overlay path, or None; ``exports``: the MCAP / TUM files and snapshot images
             written.
+        overlay_codec: what the overlay is written as (``h264 (libx264)``, ``mp4v``, ``png``:
+            :func:`~slopedist.io.overlay.video_codec`), None without one;
+            ``overlay_warning``: why an MP4 overlay is not H.264 (browsers do not play it), or
+            None.
         complete: whether every frame was processed.
         last_complete_frame: index of the last frame whose rows are all written (None: none).
         error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
@@ -230,6 +234,8 @@ class RunResult:
     ground_truth: bool = False
     reference: str | None = None
     overlay: str | None = None
+    overlay_codec: str | None = None
+    overlay_warning: str | None = None
     exports: list[str] = field(default_factory=list)
     complete: bool = False
     last_complete_frame: int | None = None

@@ -79,7 +79,7 @@ from slopedist.io.outputs import (
     partial_path,
     write_image,
 )
-from slopedist.io.overlay import OverlayWriter
+from slopedist.io.overlay import OverlayWriter, video_fallback_note
 from slopedist.io.prefetch import (
     BackgroundOverlay,
     OverlaySink,
@@ -250,7 +250,10 @@ class _RunLoop:
         self.frame_log = CsvStreamWriter(self.files.open_whole_rows(FRAMES_NAME), FRAME_FIELDS)
         self.painter: OverlaySink | None = None
         if config.overlay:
-            self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            writer = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            result.overlay_codec = writer.codec
+            result.overlay_warning = video_fallback_note() if writer.is_video else None
+            self.painter = writer
             if config.decode_ahead:  # encoded behind the loop, in a thread
                 self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
         # an offline method's overlay and export show its causal pass, as the frames come: say so
