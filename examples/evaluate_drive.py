@@ -8,7 +8,7 @@ Usage::
 
 BOXES is a box CSV with a ``gt_distance_m`` column (the true distance of each box, metres);
 ``--reference`` names the point of the vehicle that truth refers to (``centre`` for KITTI
-labels, ``nearest_face`` for LiDAR), which the methods that can report it are asked for. Each
+labels, ``nearest_face`` for LiDAR), to which every method's distance is moved. Each
 method is run as ``slopedist run`` runs it (:func:`slopedist.run_to_folder`: DIR/<method>/
 records.csv, frames.csv, run.json), and its ``ok`` distances are scored against the truth.
 """
@@ -60,7 +60,8 @@ def main() -> None:
             timestamps=args.timestamps,
             height_m=args.height,
             mount_angle_deg=args.mount_angle,
-            estimator=slopedist.EstimatorConfig(method=method, reference=args.reference),
+            estimator=slopedist.EstimatorConfig(method=method),
+            reference=slopedist.ReferencePoint(args.reference),
             progress=False,
         )
         result = slopedist.run_to_folder(options)

@@ -364,7 +364,7 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
     expected = {
         "face": ("ours", *face, "--ours-option", "size_learning=true"),
         "batchwide": ("ours", *batch_wide),
-        "paper": ("paper",),
+        "paper": ("paper", "--reference", "contact"),
     }
     for drive, (method, *options) in expected.items():
         times = ["--timestamps", str(sim / "times.txt")]
@@ -393,7 +393,7 @@ def test_per_drive_settings_reach_the_records_and_a_changed_setting_runs_again(
         "use_width=false",
         "",
     )
-    assert settings["paper"]["reference"] == ""  # the batch-wide reference is ours's only
+    assert settings["paper"]["reference"] == "contact"  # the batch-wide reference: every drive
     assert (settings["batchwide"]["generic_classes"], settings["paper"]["generic_classes"]) == (
         "Car",
         "",

@@ -222,3 +222,27 @@ def test_a_status_the_reason_contradicts_is_not_scored_but_refused(
     )
     with pytest.raises(InputFileError, match=rf"records\.csv, line 3, field '{field}'"):
         fleet_summary(tmp_path)
+
+
+def test_a_drive_at_the_gap_is_scored_at_each_method_s_own_point(tmp_path: Path) -> None:
+    """Against a truth the fleet scores ``ours`` at its centre (its own half extent, else half
+    the class's length prior) and ``paper`` at its contact row, whatever point the drive was
+    run at: the KITTI protocol's comparison."""
+    fields = (*FIELDS, "reference", "class", "distance_centre_m", "distance_nearest_face_m")
+    folder = tmp_path / "gap"
+    folder.mkdir()
+    rows = [
+        (0, 1, "ours", 18.0, "ok", "", 20.0, "nearest_face", "Car", 20.5, 18.0),
+        (1, 1, "ours", 18.0, "ok", "", 20.0, "nearest_face", "Car", "", ""),
+        (0, 1, "paper", 18.0, "ok", "", 20.0, "contact", "Car", "", ""),
+        (1, 1, "paper", 23.0, "ok", "", 20.0, "centre", "Car", "", ""),
+    ]
+    write_csv(folder / "records.csv", (dict(zip(fields, r)) for r in rows), fields)
+    write_json(folder / "run.json", {"error": None, "batch_inputs": {}})
+    by_method = {r["method"]: r for r in fleet_summary(tmp_path).drives}
+    car_half = 3.88 / 2
+    ours_err = [0.5, 18.0 + car_half - 20.0]
+    paper_err = [-2.0, 23.0 - car_half - 20.0]
+    for method, err in (("ours", ours_err), ("paper", paper_err)):
+        expected = math.sqrt(sum(e * e for e in err) / 2)
+        assert by_method[method]["rmse"] == pytest.approx(expected), method

@@ -20,6 +20,7 @@ from slopedist.batch.manifest import (
 )
 from slopedist.batch.settings import SETTING_COLUMNS, RunSettings
 from slopedist.core.errors import ConfigurationError, InputFileError, MissingInputError
+from slopedist.estimators.base import ReferencePoint
 
 HEADER = "drive,frames,calib,boxes,method,height,mount_angle,timestamps"
 
@@ -214,8 +215,8 @@ def settings_row(name: str, method: str = "", **cells: str) -> str:
 
 def test_run_settings_columns_and_batch_wide_values(tmp_path: Path) -> None:
     """Each setting column parsed; an empty cell takes the batch-wide value, which applies
-    only to the methods that take it (ours options and reference: ours-family; offline: a
-    method with an offline mode)."""
+    only to the methods that take it (ours options: ours-family; offline: a method with an
+    offline mode; reference: every method)."""
     batch = RunSettings(
         reference="contact",
         ours_options=(("use_width", False),),
@@ -256,12 +257,16 @@ def test_run_settings_columns_and_batch_wide_values(tmp_path: Path) -> None:
     # every cell empty: the batch-wide values, but offline (ours-selfcal has no offline mode)
     assert b.settings == replace(batch, offline=False)
     assert b.settings.run_method(b.method) == "ours-selfcal"
-    assert c.settings == RunSettings(vehicle_classes=("Car",), overlay=True, export=("tum",))
+    assert c.settings == RunSettings(
+        reference="contact", vehicle_classes=("Car",), overlay=True, export=("tum",)
+    )
+    assert c.settings.shown_reference() is ReferencePoint.CONTACT
+    assert RunSettings().shown_reference() is ReferencePoint.NEAREST_FACE  # the gap
     assert c.settings.estimator("paper").ours_options == ()
     assert d.settings.run_method(d.method) == "ours-offline"
     assert spec_summary(a)["ours_options"] == {"odd_object_weight": 0.0, "size_learning": True}
     assert spec_summary(c, changed_only=True).keys() >= {"overlay", "export", "vehicle_classes"}
-    assert "reference" not in spec_summary(c, changed_only=True)
+    assert spec_summary(c, changed_only=True)["reference"] == "contact"  # every method's
 
 
 def test_generic_classes_column_and_batch_wide_value(tmp_path: Path) -> None:
@@ -330,7 +335,6 @@ def test_run_settings_cell_errors_name_line_and_field(
     ("method", "cells", "field", "message"),
     [
         ("paper", {"ours_options": "use_width=false"}, "ours_options", "is for methods ours,"),
-        ("flat", {"reference": "contact"}, "reference", "this drive's method is 'flat'"),
         ("paper", {"offline": "true"}, "offline", "method 'paper' has no offline mode"),
         ("paper", {"generic_classes": "car"}, "generic_classes", "is for methods ours,"),
     ],

@@ -114,11 +114,12 @@ def test_json_that_is_an_input_is_refused(
     assert simulated[name].read_text() == before
 
 
-def test_estimate_with_ours_writes_centre_distances_and_extras(
+def test_estimate_with_ours_writes_the_gap_by_default_and_centre_on_request(
     simulated: dict[str, Path], tmp_path: Path
 ) -> None:
     out = tmp_path / "records.csv"
-    assert main(["estimate", *_args(simulated), "--method", "ours", "--out", str(out)]) == 0
+    args = ["estimate", *_args(simulated), "--method", "ours"]
+    assert main([*args, "--reference", "centre", "--out", str(out)]) == 0
     rows = list(csv.DictReader(out.open()))
     assert rows and set(EXTRA_COLUMNS) <= set(rows[0])
     assert {r["reference"] for r in rows} == {"centre"}
@@ -127,8 +128,7 @@ def test_estimate_with_ours_writes_centre_distances_and_extras(
     assert sum(1 for r in late if r["speed_mps"] != "") > 0.9 * len(late)
     assert all(math.isfinite(float(r["distance_nearest_face_m"])) for r in rows)
     face = tmp_path / "face.csv"
-    args = ["estimate", *_args(simulated), "--method", "ours", "--reference", "nearest_face"]
-    assert main([*args, "--out", str(face)]) == 0
+    assert main([*args, "--out", str(face)]) == 0  # the gap by default
     face_rows = list(csv.DictReader(face.open()))
     assert {r["reference"] for r in face_rows} == {"nearest_face"}
     for r, f in zip(rows, face_rows):

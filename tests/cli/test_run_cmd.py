@@ -451,3 +451,31 @@ def test_a_calibration_that_does_not_fit_the_frames_names_its_file_and_the_frame
     err = capsys.readouterr().err.strip()
     where = f"{tmp_path / 'calib.txt'} and the frames of {tmp_path / 'frames'}"
     assert err.startswith(f"slopedist: error: {where}: ") and said in err
+
+
+def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path: Path) -> None:
+    """``run`` gives the distance to the nearest face (``reference`` says so, as ``run.json``);
+    ``--reference centre`` the centre; scored against a truth (KITTI's z, the centre) both
+    runs get the same figures: each method is scored at its own point."""
+    common = setup(tmp_path, n=6, truth=True)
+    assert main(["run", *common, "--odometry", "none"]) == 0
+    face = records(tmp_path)
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert summary["reference"] == "nearest_face"
+    centre_out = tmp_path / "centre"
+    args = ["run", *common[:-3], "--out", str(centre_out), "--quiet", "--odometry", "none"]
+    assert main([*args, "--reference", "centre"]) == 0
+    with (centre_out / "records.csv").open() as fh:
+        centre = list(csv.DictReader(fh))
+    ok = [(f, c) for f, c in zip(face, centre) if f["status"] == "ok"]
+    assert ok and {f["reference"] for f, _ in ok} == {"nearest_face"}
+    assert {c["reference"] for _, c in ok} == {"centre"}
+    for f, c in ok:
+        assert float(f["distance_m"]) == pytest.approx(float(c["distance_nearest_face_m"]))
+        assert float(f["distance_m"]) < float(c["distance_m"])
+    tables = []
+    for folder in (tmp_path / "out", centre_out):
+        report = tmp_path / f"report_{folder.name}"
+        assert main(["report", str(folder), "--out", str(report), "--no-parquet"]) == 0
+        tables.append((report / "table1_rmse.csv").read_text())
+    assert tables[0] == tables[1]

@@ -19,7 +19,7 @@ from slopedist.cli import main
 from slopedist.core.camera import Camera
 from slopedist.core.errors import DataMismatchError, InputFileError
 from slopedist.estimators import make_estimator
-from slopedist.io import prefetch
+from slopedist.io import overlay, prefetch
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.writers import write_box_csv
 from slopedist.io.frames import Frame, FrameSource, FrameStatus, open_frames
@@ -307,7 +307,40 @@ def test_overlay_png_folder_and_mp4(tmp_path: Path, target: str) -> None:
     else:
         cap = cv2.VideoCapture(str(tmp_path / "out" / target))
         assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == n  # placeholder for the missing frame
+        assert fourcc(cap) in {"avc1", "h264"}  # what browsers play
         cap.release()
+        summary = json.loads((tmp_path / "out" / "run.json").read_text())
+        assert summary["overlay_codec"].startswith("h264")
+        assert summary["overlay_warning"] is None
+
+
+def fourcc(cap: cv2.VideoCapture) -> str:
+    """The FourCC of an opened video, as text (``avc1``, ``mp4v``, ...)."""
+    code = int(cap.get(cv2.CAP_PROP_FOURCC))
+    return "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)).lower()
+
+
+def test_an_overlay_without_h264_says_so_in_run_json(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without an H.264 encoder the MP4 is OpenCV's mp4v, which browsers do not play:
+    ``run.json`` says which codec and why."""
+    monkeypatch.setattr(overlay, "h264_encoder", lambda: None)
+    n = 3
+    out = tmp_path / "out"
+    run_frames(
+        open_frames(make_frames(tmp_path / "f", n)),
+        boxes_every_frame(n),
+        ScriptedOdometry(),
+        make_estimator("ego", CAM),
+        RunConfig(out, overlay=out / "overlay.mp4", progress=False),
+    )
+    cap = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert fourcc(cap) in {"mp4v", "fmp4"}  # MPEG-4 Part 2, as OpenCV reads it back
+    cap.release()
+    summary = json.loads((out / "run.json").read_text())
+    assert summary["overlay_codec"] == "mp4v"
+    assert "browsers do not" in summary["overlay_warning"]
 
 
 def _cli_setup(tmp_path: Path, n: int = 5) -> tuple[Path, Path, Path]:
@@ -855,3 +888,29 @@ def test_a_run_stopped_part_way_never_replaces_a_complete_earlier_run(tmp_path: 
         "run.partial.json",
         "tracks.partial.csv",
     ]
+
+
+@pytest.mark.parametrize("h264", [True, False])
+def test_cli_run_overlay_is_h264_or_says_why_not_on_stderr(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    h264: bool,
+) -> None:
+    """``run --overlay`` writes an MP4 browsers play (FourCC avc1); without an H.264 encoder
+    the fallback is a warning line on stderr."""
+    frames, calib, boxes = _cli_setup(tmp_path)
+    monkeypatch.setattr(run_setup, "build_odometry", lambda *a, **k: ScriptedOdometry())
+    if not h264:
+        monkeypatch.setattr(overlay, "h264_encoder", lambda: None)
+    out = tmp_path / "out"
+    base = ["run", str(frames), "--calib", str(calib), "--boxes", str(boxes), "--quiet"]
+    assert main([*base, "--out", str(out), "--overlay"]) == 0
+    cap = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert fourcc(cap) in ({"avc1", "h264"} if h264 else {"mp4v", "fmp4"})
+    cap.release()
+    err = capsys.readouterr().err.splitlines()
+    assert f"overlay: {out / 'overlay.mp4'} ({overlay.video_codec()})" in err
+    warnings = [line for line in err if line.startswith("warning: ") and "mp4v" in line]
+    assert len(warnings) == (0 if h264 else 1)
+    assert all("browsers do not" in w and "pip install" in w for w in warnings)

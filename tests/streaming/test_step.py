@@ -14,6 +14,8 @@ from scipy.spatial.transform import Rotation
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError, DataMismatchError
 from slopedist.estimators import available_methods, make_estimator
+from slopedist.estimators.base import FrameEstimates, ReferencePoint
+from slopedist.estimators.references import own_half_extent_m, to_reference
 from slopedist.io.detections import BoxTable
 from slopedist.odometry import RotationTrack
 from slopedist.streaming.step import (
@@ -531,3 +533,31 @@ def test_the_stream_and_the_batch_find_the_same_jumps_and_gradients(dts, data) -
         for k in range(n)
     ]
     np.testing.assert_allclose(streamed, ego_gradients(track), equal_nan=True, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["paper", "ours", "depthmap"])
+def test_a_frame_step_with_a_reference_moves_every_method_there(method: str) -> None:
+    """``FrameStep(reference=...)`` (what ``run`` does) gives every method's distances at the
+    point asked for, as :func:`to_reference` moves them; without it each keeps its own."""
+    track, boxes = synthetic_sequence(30)
+    depth = np.full((375, 1242), 15.0, np.float32) if method == "depthmap" else None
+
+    def stream(reference: ReferencePoint | None) -> FrameEstimates:
+        step = FrameStep(make_estimator(method, CAMERA), reference=reference)
+        step.reset()
+        parts = []
+        for k, frame_boxes in boxes.by_frame():
+            R = track.R_world_cam[k] if track.valid[k] else None
+            parts.append(step.step(k, 0.1 * k, R, frame_boxes, None, depth).estimates)
+        return concat_estimates(parts)
+
+    own, centre = stream(None), stream(ReferencePoint.CENTRE)
+    face = stream(ReferencePoint.NEAREST_FACE)
+    half = own_half_extent_m(own.extra, len(own))
+    for wanted, got in ((ReferencePoint.CENTRE, centre), (ReferencePoint.NEAREST_FACE, face)):
+        expected = to_reference(own.distance_m, own.reference, boxes.cls, wanted, half)
+        np.testing.assert_allclose(got.distance_m, expected, equal_nan=True)
+    assert np.isfinite(face.distance_m).sum() > 10
+    assert set(centre.reference.tolist()) == {"centre"}
+    shown = {"paper": "contact", "ours": "nearest_face", "depthmap": "nearest_face"}[method]
+    assert set(face.reference.tolist()) == {shown}

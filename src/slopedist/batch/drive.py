@@ -79,6 +79,7 @@ def drive_options(spec: DriveSpec, out_dir: Path) -> RunOptions:
         progress=False,
         sequence=spec.sequence or spec.name,
         vehicle_classes=settings.vehicle_classes,
+        reference=settings.shown_reference(),
         decode_ahead=0,
     )
 

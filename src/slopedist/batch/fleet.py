@@ -40,6 +40,8 @@ from slopedist.batch.stamp import SETTINGS_KEY
 from slopedist.core.errors import OptionalDependencyError
 from slopedist.core.limits import MAX_RECORD_MAGNITUDE
 from slopedist.core.textfiles import CsvRows, number_cell, read_json
+from slopedist.estimators import native_reference
+from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation.metrics import (
     DISTANCE_BINS_M,
     bin_label,
@@ -217,17 +219,40 @@ def batch_drive_folders(out_dir: Path) -> list[Path]:
 
 def _read_pairs(folder: Path) -> dict[str, dict[str, Any]]:
     """Per method (named by :func:`~slopedist.batch.safety.fleet_method`): distances, truths,
-    reasons of the folder's ``records.csv`` (NaN where empty)."""
+    reasons of the folder's ``records.csv`` (NaN where empty); each distance with a truth at
+    its method's own point (:func:`_scored_distances`)."""
     summary = read_json(folder / SUMMARY_NAME, "run summary")
     path = folder / RECORDS_NAME
     out: dict[str, dict[str, Any]] = {}
     for line, row in CsvRows(path, "run records"):
-        method = fleet_method(summary, row.get("method") or "")
-        acc = out.setdefault(method, {"d": [], "g": [], "r": []})
-        for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN)):
-            acc[key].append(number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE))
+        base = row.get("method") or ""
+        acc = out.setdefault(fleet_method(summary, base), {"base": base, "d": [], "g": [], "r": []})
+        for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN), *_EXTENT_CELLS):
+            value = number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE)
+            acc.setdefault(key, []).append(value)
+        acc.setdefault("ref", []).append(row.get("reference") or "")
+        acc.setdefault("cls", []).append(row.get("class") or "")
         acc["r"].append(record_reason(row.get("status"), row.get("reason"), path, line))
+    for acc in out.values():
+        acc["d"] = _scored_distances(acc)
     return out
+
+
+_EXTENT_CELLS = (("centre", CENTRE_COLUMN), ("face", NEAREST_FACE_COLUMN))
+"""The record cells of a method's own half extent (``ours``: centre and nearest face)."""
+
+
+def _scored_distances(acc: dict[str, Any]) -> np.ndarray:
+    """A method's distances (metres) moved from the point each record names to the method's
+    own, where the fleet scores them against the truth (``slopedist report``'s rule,
+    :func:`~slopedist.evaluation.report.runs.scored_at`): the rows of a drive run at the nearest
+    face (the default) are scored as ``eval kitti-tracking`` scores against KITTI's label z."""
+    d = np.asarray(acc["d"], dtype=float)
+    native = native_reference(acc["base"])
+    if native is None:
+        return d
+    half = np.asarray(acc["centre"], dtype=float) - np.asarray(acc["face"], dtype=float)
+    return to_reference(d, acc["ref"], acc["cls"], native, half)
 
 
 def _metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, Any]:

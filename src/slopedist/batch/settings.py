@@ -11,8 +11,8 @@ batch-wide options as a whole). The cells are parsed by the parsers of ``slopedi
 items separates them with ``;`` (:data:`LIST_SEPARATOR`): ``odd_object_weight=0;size_learning=
 true``, ``Car;Van;Truck``, ``mcap;tum`` (a comma would need quoting in a CSV file).
 
-A batch-wide value applies to the drives whose method takes it (``reference``,
-``ours_options`` and ``generic_classes``: ``ours``, ``ours-selfcal``, ``ours-offline``;
+A batch-wide value applies to the drives whose method takes it (``reference``: every
+method; ``ours_options`` and ``generic_classes``: ``ours``, ``ours-selfcal``, ``ours-offline``;
 ``offline``: the methods with an offline mode), so one batch can compare ``ours`` with
 ``paper``; a cell for a method that does not take it is an error, as is an ``overlay_format``
 cell of a drive without an overlay, a generic class that is not one of the drive's vehicle
@@ -38,7 +38,8 @@ from slopedist.estimators import (
     takes_ours_options,
     unscored_generic_class,
 )
-from slopedist.estimators.base import parse_reference
+from slopedist.estimators.base import ReferencePoint, parse_reference
+from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.streaming.config import OverlayFormat, RunExport
 
@@ -66,8 +67,9 @@ class RunSettings:
     same names).
 
     Attributes:
-        reference: the point of the vehicle ``distance_m`` refers to (``centre``,
-            ``nearest_face``, ``contact``; ``--reference``), None for the method's own.
+        reference: the point of the vehicle every method's ``distance_m`` is moved to
+            (``centre``, ``nearest_face``, ``contact``; ``--reference``), None for
+            :data:`~slopedist.estimators.references.DEFAULT_REFERENCE` (the nearest face).
         ours_options: ``(key, value)`` options of ``ours`` (``--ours-option``), sorted by key.
         generic_classes: class names ``ours`` reads as a mixture of vehicle types
             (``--generic-class``; a class-blind detector's class).
@@ -97,13 +99,18 @@ class RunSettings:
         return offline_method(method) if self.offline else method
 
     def estimator(self, method: str) -> EstimatorConfig:
-        """The estimator configuration of a drive of ``method`` (other options default)."""
+        """The estimator configuration of a drive of ``method`` (other options default; the
+        method reports its own point, which the run moves to :meth:`shown_reference`)."""
         return EstimatorConfig(
             method=self.run_method(method),
-            reference=self.reference,
             ours_options=self.ours_options,
             generic_classes=self.generic_classes,
         )
+
+    def shown_reference(self) -> ReferencePoint:
+        """The point of the vehicle the drive's distances are moved to (:attr:`reference`,
+        else :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`)."""
+        return parse_reference(self.reference) if self.reference else DEFAULT_REFERENCE
 
     def changed(self) -> dict[str, Any]:
         """The settings that differ from the defaults (``slopedist run`` without them)."""
@@ -171,12 +178,12 @@ CELL_PARSERS: dict[str, Callable[[str], Any]] = {
 """How each cell of :data:`SETTING_COLUMNS` is read (raising ConfigurationError)."""
 
 
-OURS_COLUMNS = ("reference", "ours_options", "generic_classes")
+OURS_COLUMNS = ("ours_options", "generic_classes")
 """The setting columns of the methods built on ``ours`` (:func:`ours_methods`)."""
 
 
 def ours_methods() -> list[str]:
-    """The methods that take ``reference``, ``ours_options`` and ``generic_classes``."""
+    """The methods that take ``ours_options`` and ``generic_classes``."""
     return [m for m in available_methods() if takes_ours_options(m)]
 
 
@@ -216,7 +223,7 @@ def drive_settings(
     if given.get("offline") and problem:
         raise where("offline", problem)
     settings: dict[str, Any] = {
-        "reference": batch.reference if ours else None,
+        "reference": batch.reference,
         "ours_options": batch.ours_options if ours else (),
         "generic_classes": batch.generic_classes if ours else (),
         "vehicle_classes": batch.vehicle_classes,
@@ -282,15 +289,14 @@ def settings_cell(value: Any) -> Any:
 
 
 def unapplied(batch: RunSettings, drive_methods: Iterable[str]) -> list[str]:
-    """Warnings for batch-wide ``reference``, ``ours_options``, ``generic_classes`` and
-    ``offline`` values that no
+    """Warnings for batch-wide ``ours_options``, ``generic_classes`` and ``offline`` values
+    that no
     drive takes (none of the drives' methods ``drive_methods`` is one they apply to), so that
     a batch of ``paper`` drives given ``--offline`` says it ran them causally."""
     methods = list(drive_methods)
     ours = any(takes_ours_options(m) for m in methods)
     offline = any(_offline_problem(m) is None for m in methods)
     given = {
-        "--reference": batch.reference is not None and not ours,
         "--ours-option": bool(batch.ours_options) and not ours,
         "--generic-class": bool(batch.generic_classes) and not ours,
         "--offline": batch.offline and not offline,

@@ -119,8 +119,9 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     use its camera_info instead), boxes and optionally method, the log's image_topic,
     rotation_topic and speed_topic and other `run` options (paths relative to the manifest;
     list cells such as ours_options separate their items with ';'). The options here are the
-    values of the drives that leave a cell empty (--reference, --ours-option, --generic-class
-    and --offline apply to the drives whose method takes them; --image-topic to drive logs).
+    values of the drives that leave a cell empty (--ours-option, --generic-class and --offline
+    apply to the drives whose method takes them; --image-topic to drive logs; --reference to
+    every drive, whose distances are to the vehicles' nearest face without it).
     Complete drives with unchanged inputs and settings are skipped; a failed drive is recorded in
     OUT/status.csv and does not stop the others. Exit code 1 when every drive failed, or at a
     failure with --fail-fast. Needs Ray: pip install 'slopedist[batch]'.

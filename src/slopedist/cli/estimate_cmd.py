@@ -13,6 +13,7 @@ from slopedist.cli.method_options import (
     estimator_options,
     generic_class_option,
     ours_config,
+    user_reference,
 )
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.cli.record_summary import RecordTally
@@ -50,6 +51,7 @@ def estimate(
 
     An offline method (ours-offline) writes its records when the sequence ends."""
     check_methods([method])
+    estimator_config, reference = user_reference(estimator_config)
     config = ours_config(estimator_config, method, generic_classes, vehicle_classes)
     if getattr(ESTIMATORS.get(method), "needs_depth", False):  # every record would be no_depth
         raise ConfigurationError(
@@ -61,7 +63,9 @@ def estimate(
     check_outputs_spare_inputs(written, files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
     estimator = build_estimator(config, seq.camera)
-    pipe = Pipeline.from_parts(estimator, lookback_s=lookback_s, vehicle_classes=vehicle_classes)
+    pipe = Pipeline.from_parts(
+        estimator, lookback_s=lookback_s, vehicle_classes=vehicle_classes, reference=reference
+    )
     tally = RecordTally()
     if out is not None:  # whole: the file takes its name when every record is written
         with output_file(out) as stream:

@@ -26,8 +26,9 @@ from slopedist.estimators import (
     with_offline,
 )
 from slopedist.estimators import parse_ours_options as ours_option_pairs
-from slopedist.estimators.base import VEHICLE_REFERENCES
+from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
 from slopedist.estimators.depthmap import DepthSample, DepthScaling
+from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.evaluation.learned_peer import PEER_METHOD
 
 
@@ -92,9 +93,19 @@ reference_option = click.option(
     "--reference",
     type=click.Choice([r.value for r in VEHICLE_REFERENCES]),
     default=None,
-    help="ours: the point of the vehicle distance_m refers to (default centre; an evaluation "
-    "defaults to its truth's --gt-reference).",
+    help="The point of the vehicle distance_m refers to, for every method [run, estimate, "
+    f"batch: {DEFAULT_REFERENCE.value}, the gap; an evaluation: its truth's, "
+    "--gt-reference, as ours reports it].",
 )
+
+
+def user_reference(config: EstimatorConfig) -> tuple[EstimatorConfig, ReferencePoint]:
+    """The point a command's user sees distances at (``--reference``, else
+    :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`) and ``config`` without it:
+    each method then reports its own point, and the frame step moves every method's
+    distances to the one asked for (:class:`~slopedist.streaming.step.FrameStep`)."""
+    wanted = ReferencePoint(config.reference) if config.reference else DEFAULT_REFERENCE
+    return dataclasses.replace(config, reference=None), wanted
 
 
 ours_option = click.option(

@@ -22,6 +22,7 @@ from slopedist.cli.method_options import (
     generic_class_option,
     ours_config,
     parse_triple,
+    user_reference,
 )
 from slopedist.cli.options import (
     FINITE_FLOAT,
@@ -351,6 +352,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     """
     method = method or DEFAULT_METHOD
     check_methods([method])
+    estimator_config, reference = user_reference(estimator_config)
     if offline:
         method = offline_method(method)
     model = detector_model
@@ -382,6 +384,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         progress=not quiet,
         sequence=sequence,
         vehicle_classes=vehicle_classes,
+        reference=reference,
         other_inputs=tuple(p for p in read if p is not None),
     )
     stop = StopFlag()
@@ -454,7 +457,9 @@ def summary_text(result: RunResult, out_dir: Path, snapshots: Sequence[int] = ()
             "in FRAMES (or unreadable, out of time order) and were not used"
         )
     if result.overlay:
-        lines.append(f"overlay: {result.overlay}")
+        lines.append(f"overlay: {result.overlay} ({result.overlay_codec})")
+    if result.overlay_warning:
+        lines.append(f"warning: {result.overlay_warning}")
     lines.extend(f"export: {path}" for path in result.exports)
     unwritten = sorted(
         {k for k in snapshots if str(snapshot_path(out_dir, k)) not in result.exports}

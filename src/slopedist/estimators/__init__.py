@@ -134,6 +134,23 @@ def takes_ours_options(name: str) -> bool:
     return isinstance(factory, type) and issubclass(factory, OursEstimator)
 
 
+def native_reference(name: str) -> ReferencePoint | None:
+    """The point of the vehicle method ``name`` reports when not asked for another: ``ours``
+    and the methods built on it their centre (option ``reference``'s default, KITTI's label
+    z), ``depthmap`` the surface at the box centre pixel, the ground-contact methods the
+    contact row; None for a name that is no method (e.g. a record written by another tool).
+    An evaluation without a declared truth point scores each method there (the published
+    protocol)."""
+    factory = ESTIMATORS.get(str(getattr(name, "value", name)))
+    if factory is None:
+        return None
+    if takes_ours_options(name):
+        return ReferencePoint(OursConfig.reference)
+    if isinstance(factory, type) and issubclass(factory, DepthMapEstimator):
+        return ReferencePoint.BOX_CENTRE_PIXEL
+    return ReferencePoint.CONTACT
+
+
 def make_estimator(name: str, camera: Camera, **options: Any) -> Estimator:
     """Build the estimator registered as ``name`` for ``camera``.
 
@@ -294,6 +311,7 @@ __all__ = [
     "causal_methods",
     "idle_sigma_only",
     "make_estimator",
+    "native_reference",
     "offline_method",
     "parse_ours_option_list",
     "parse_ours_options",

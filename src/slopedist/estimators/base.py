@@ -144,12 +144,6 @@ VEHICLE_REFERENCES = (ReferencePoint.CENTRE, ReferencePoint.NEAREST_FACE, Refere
 ground truth can declare (``--gt-reference``)."""
 
 
-DEFAULT_REFERENCE = ReferencePoint.CENTRE
-"""The point of the vehicle that ``slopedist run``, ``batch`` and :class:`slopedist.Pipeline`
-report when none is asked for (``--reference``); a method that cannot report another reports its
-own point (the ground-contact methods: the contact row)."""
-
-
 def parse_reference(text: str) -> ReferencePoint:
     """One of :data:`VEHICLE_REFERENCES` by its value (``centre``, ``nearest_face``,
     ``contact``; surrounding spaces ignored).

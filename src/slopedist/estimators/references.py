@@ -6,7 +6,10 @@ bottom, which for a vehicle ahead is the ground under its nearest face; ``ours``
 (KITTI's label z), its nearest face or its contact point, as asked; ``depthmap`` the surface
 seen at the box's centre pixel. Ground truth refers to one of them too (KITTI labels: the
 centre; LiDAR clusters: the nearest face). An evaluation compares like with like by moving
-every method's distance to the truth's point with :func:`to_reference`.
+every method's distance to the truth's point with :func:`to_reference`. What a user sees
+(``run``, ``estimate``, ``batch``, the overlay, ``tracks.csv``) is every method's estimate
+moved to :data:`DEFAULT_REFERENCE`, the gap to the vehicle's nearest face, unless another
+point is asked for (:func:`at_reference`).
 
 Along the camera's z axis the contact point and the nearest face are the same distance (the
 contact row is the foot of the nearest face), and so is a visible surface point; the centre
@@ -18,13 +21,25 @@ vehicle seen from behind). Distances in metres.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.estimators import prior_for
-from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.base import FrameEstimates, ReferencePoint
+
+DEFAULT_REFERENCE = ReferencePoint.NEAREST_FACE
+"""The point of a vehicle the distances a user sees refer to unless another is asked for
+(``--reference``): its nearest face (the rear of a car ahead), so that ``distance_m`` is the
+gap a following distance, a headway or a time to collision is about. ``run``, ``estimate``,
+``batch``, their overlays and ``tracks.csv`` and the Python API report it; an evaluation
+against a truth compares at the truth's point instead (KITTI's label z: the centre)."""
+
+TTC_COLUMNS = ("ttc_s", "ttc_sigma_s")
+"""Extra columns of a time to collision and its 1σ (seconds): the time until the distance
+closes, so a distance moved to another point moves them in proportion."""
 
 CENTRE_COLUMN = "distance_centre_m"
 """Extra column of a method that reports the distance to the centre whatever its main one."""
@@ -95,3 +110,45 @@ def to_reference(
     else:
         d[is_centre] -= half[is_centre]
     return d
+
+
+def reported_labels(reported: ArrayLike, wanted: ReferencePoint) -> NDArray[np.object_]:
+    """The ``reference`` of each row once its distance is moved to ``wanted``: ``wanted``,
+    except that a row at the ``contact`` point stays ``contact`` when the nearest face is asked
+    for (the ground under the nearest face, the same distance: what the ground-contact methods
+    measure)."""
+    rep = np.asarray(reported, dtype=object).ravel()
+    out = np.full(rep.shape, ReferencePoint(wanted).value, dtype=object)
+    if ReferencePoint(wanted) is ReferencePoint.NEAREST_FACE:
+        out[rep == ReferencePoint.CONTACT.value] = ReferencePoint.CONTACT.value
+    return out
+
+
+def at_reference(est: FrameEstimates, classes: ArrayLike, wanted: ReferencePoint) -> FrameEstimates:
+    """A frame's estimates with every distance moved to ``wanted`` (:func:`to_reference`, by
+    the method's own half extent where it reports one, else half the length prior of the
+    box's class ``classes``), the ``reference`` column saying where each now is
+    (:func:`reported_labels`) and a time to collision (:data:`TTC_COLUMNS`) scaled with the
+    distance it closes. The 1σ ``sigma_m`` stays the method's own; the method's arrays are
+    not changed (a new :class:`FrameEstimates`)."""
+    n = len(est)
+    if not n:
+        return est
+    wanted = ReferencePoint(wanted)
+    moved = to_reference(
+        est.distance_m, est.reference, classes, wanted, own_half_extent_m(est.extra, n)
+    )
+    extra = dict(est.extra)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(est.distance_m > 0, moved / est.distance_m, np.nan)
+    for name in TTC_COLUMNS:
+        if name in extra:
+            extra[name] = np.asarray(extra[name], dtype=float) * ratio
+    return dataclasses.replace(
+        est,
+        distance_m=moved,
+        reference=reported_labels(est.reference, wanted),
+        extra=extra,
+        status=est.status.copy(),
+        cut=est.cut.copy(),
+    )

@@ -1,11 +1,14 @@
 """Writing annotated frames: a folder of PNG files or an MP4 video.
 
-MP4 videos are H.264 (``yuv420p``, the profile every browser plays) written with PyAV's bundled
-``libx264`` as a *fragmented* MP4 (``frag_keyframe+empty_moov+default_base_moof``) with a key
+MP4 videos are H.264 (``yuv420p``, the profile every browser plays) written with the FFmpeg that
+PyAV's wheels bundle (a core dependency; its ``libx264``, else ``libopenh264``) as a *fragmented*
+MP4 (``frag_keyframe+empty_moov+default_base_moof``) with a key
 frame every second and no encoder look-ahead (``tune=zerolatency``): every finished fragment is
 on disk, so a run killed part-way leaves a file that plays up to its last second. Frame times are
-the frames' own timestamps (variable frame rate kept), in milliseconds. Without PyAV the video
-falls back to OpenCV's MPEG-4 Part 2 (``mp4v``; plays in desktop players, not in browsers).
+the frames' own timestamps (variable frame rate kept), in milliseconds. Without PyAV or an
+H.264 encoder in it the video falls back to OpenCV's MPEG-4 Part 2 (``mp4v``; plays in desktop
+players, not in browsers), and :func:`video_fallback_note` says so (``run`` and the demo print it
+and write it to ``run.json`` / ``results.json``).
 
 Where neither can write MP4, :func:`open_overlay_video` falls back to an animated GIF (needs
 Pillow).
@@ -16,6 +19,7 @@ column / row (``yuv420p`` needs even sizes).
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 from fractions import Fraction
 from pathlib import Path
@@ -38,6 +42,55 @@ H264_OPTIONS = {"preset": "ultrafast", "tune": "zerolatency", "crf": "26"}
 ``veryfast``), no look-ahead (frames leave the encoder at once), and CRF 26 (files 20–40 %
 larger than ``veryfast`` at CRF 23 gave, labels and boxes as legible; browsers play it like any
 other ``yuv420p`` H.264)."""
+
+H264_ENCODERS = ("libx264", "libopenh264")
+"""FFmpeg's H.264 encoders, in order of preference (PyAV's wheels carry one of them)."""
+
+ENCODER_OPTIONS = {"libx264": H264_OPTIONS, "libopenh264": {}}
+"""Encoder settings of each of :data:`H264_ENCODERS` (OpenH264 has no presets: its defaults)."""
+
+MP4V_CODEC = "mp4v"
+"""The FourCC of OpenCV's fallback (MPEG-4 Part 2)."""
+
+
+@functools.cache
+def h264_encoder() -> str | None:
+    """The first of :data:`H264_ENCODERS` the installed PyAV can encode with, or None (no
+    PyAV, or an FFmpeg built without either)."""
+    try:
+        import av
+    except ImportError:
+        return None
+    for name in H264_ENCODERS:
+        try:
+            av.codec.Codec(name, "w")
+        except Exception:  # PyAV raises its own error types for an unknown codec
+            continue
+        return name
+    return None
+
+
+def video_codec() -> str:
+    """What an MP4 overlay is encoded with here: ``h264 (libx264)`` or another of
+    :data:`H264_ENCODERS`, or :data:`MP4V_CODEC` (OpenCV's fallback)."""
+    encoder = h264_encoder()
+    return f"h264 ({encoder})" if encoder else MP4V_CODEC
+
+
+def video_fallback_note() -> str | None:
+    """Why an MP4 overlay would not be H.264 here, and what to do (None: it is)."""
+    if h264_encoder() is not None:
+        return None
+    why = (
+        "PyAV is not installed"
+        if importlib.util.find_spec("av") is None
+        else "the installed PyAV's FFmpeg has no H.264 encoder (" + ", ".join(H264_ENCODERS) + ")"
+    )
+    return (
+        f"{why}: the MP4 overlay is MPEG-4 Part 2 (mp4v), which desktop players play and "
+        "browsers do not; pip install --upgrade av (its wheels carry H.264) for H.264"
+    )
+
 
 FRAGMENTED_MP4 = {"movflags": "frag_keyframe+empty_moov+default_base_moof", "flush_packets": "1"}
 """MP4 muxer flags: a fragment per key frame, the header first (playable while written), each
@@ -62,13 +115,16 @@ class H264Writer:
             one).
 
     Raises:
-        OptionalDependencyError-free: raises ImportError when PyAV is missing (callers choose
-            the fallback).
+        ImportError: PyAV is missing or has no H.264 encoder (:func:`h264_encoder`; callers
+            choose the fallback).
     """
 
     def __init__(self, path: str | Path, size: tuple[int, int], fps: float) -> None:
         import av
 
+        encoder = h264_encoder()
+        if encoder is None:
+            raise ImportError("no H.264 encoder in PyAV")
         self.path = Path(path)
         self.fps = fps
         width, height = size[0] + size[0] % 2, size[1] + size[1] % 2
@@ -77,7 +133,8 @@ class H264Writer:
             str(self.path), "w", format="mp4", container_options=FRAGMENTED_MP4
         )
         rate = Fraction(fps).limit_denominator(1001)
-        stream = self._container.add_stream("libx264", rate=rate, options=dict(H264_OPTIONS))
+        options = dict(ENCODER_OPTIONS[encoder])
+        stream: Any = self._container.add_stream(encoder, rate=rate, options=options)
         stream.width, stream.height = width, height
         stream.pix_fmt = "yuv420p"
         stream.time_base = MP4_TIME_BASE
@@ -139,7 +196,8 @@ class _OpenCVWriter:
 def open_video_writer(
     path: str | Path, size: tuple[int, int], fps: float
 ) -> H264Writer | _OpenCVWriter:
-    """H.264 with PyAV when installed, else OpenCV's mp4v (see the module docstring)."""
+    """H.264 with PyAV when it has an H.264 encoder, else OpenCV's mp4v (see the module
+    docstring and :func:`video_fallback_note`)."""
     path = Path(path)
     try:
         return H264Writer(path, size, fps)
@@ -165,6 +223,8 @@ class OverlayWriter:
         self.target = Path(target)
         self.fps = fps
         self.is_video = self.target.suffix.lower() == ".mp4"
+        self.codec = video_codec() if self.is_video else "png"
+        """What the frames are written as: :func:`video_codec` for a video, ``png``."""
         self._video: H264Writer | _OpenCVWriter | None = None
         self._size: tuple[int, int] | None = None
         self.written = 0
@@ -234,11 +294,11 @@ class GifWriter:
 
 
 def open_overlay_video(folder: Path, fps: float) -> OverlayWriter | GifWriter:
-    """``folder/overlay.mp4`` (H.264 with PyAV, else OpenCV's mp4v), or an animated
-    ``folder/overlay.gif`` where neither can write MP4."""
+    """``folder/overlay.mp4`` (H.264 with PyAV, else OpenCV's mp4v: :func:`video_fallback_note`),
+    or an animated ``folder/overlay.gif`` where neither can write MP4."""
     try:
         writer = OverlayWriter(folder / "overlay.mp4", fps)
-        if importlib.util.find_spec("av") is not None:
+        if h264_encoder() is not None:
             return writer
         with utf8_name(folder / "overlay.mp4") as name:
             probe = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, (16, 16))

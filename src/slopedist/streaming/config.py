@@ -13,6 +13,8 @@ from enum import Enum
 from pathlib import Path
 
 from slopedist.core.errors import SlopedistError
+from slopedist.estimators.base import ReferencePoint
+from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.io.depth.base import DepthSource
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES
 from slopedist.io.outputs import StopFlag, partial_path
@@ -192,8 +194,15 @@ class RunResult:
         detection_ms_mean: mean detection time per frame, milliseconds.
         frames_without_depth: frames with boxes for which the depth source had no map.
         ground_truth: whether ``records.csv`` carries ``gt_distance_m``.
+        reference: the point of the vehicle every ``distance_m`` was moved to
+            (:class:`~slopedist.estimators.base.ReferencePoint` value; the records'
+            ``reference`` column says it row by row), None: each method's own point.
         overlay: overlay path, or None; ``exports``: the MCAP / TUM files and snapshot images
             written.
+        overlay_codec: what the overlay is written as (``h264 (libx264)``, ``mp4v``, ``png``:
+            :func:`~slopedist.io.overlay.video_codec`), None without one;
+            ``overlay_warning``: why an MP4 overlay is not H.264 (browsers do not play it), or
+            None.
         complete: whether every frame was processed.
         last_complete_frame: index of the last frame whose rows are all written (None: none).
         error: why the run stopped early, or None; ``failed_frame``: the frame it stopped at
@@ -223,7 +232,10 @@ class RunResult:
     detection_ms_mean: float = math.nan
     frames_without_depth: int = 0
     ground_truth: bool = False
+    reference: str | None = None
     overlay: str | None = None
+    overlay_codec: str | None = None
+    overlay_warning: str | None = None
     exports: list[str] = field(default_factory=list)
     complete: bool = False
     last_complete_frame: int | None = None
@@ -276,6 +288,9 @@ class RunConfig:
             ``tracks.csv``; None when unknown.
         vehicle_classes: class names scored as vehicles (other boxes: ``missing``,
             ``not_a_vehicle``).
+        reference: the point of the vehicle every method's distances are moved to
+            (:data:`~slopedist.estimators.references.DEFAULT_REFERENCE`, the nearest face,
+            unless told otherwise); None: each method's own point.
         stop: checked after every frame; once its ``signum`` is set the run ends there
             (:func:`~slopedist.io.outputs.stop_on_signals`), raising :class:`RunAbortedError` from
             :class:`RunStoppedError`.
@@ -298,6 +313,7 @@ class RunConfig:
     time_origin_ns: int = 0
     ego_speed: Callable[[float], float] | None = None
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    reference: ReferencePoint | None = DEFAULT_REFERENCE
     stop: StopFlag = field(default_factory=StopFlag)
     decode_ahead: int = DEFAULT_AHEAD
     snapshots: tuple[int, ...] = ()

@@ -79,7 +79,7 @@ from slopedist.io.outputs import (
     partial_path,
     write_image,
 )
-from slopedist.io.overlay import OverlayWriter
+from slopedist.io.overlay import OverlayWriter, video_fallback_note
 from slopedist.io.prefetch import (
     BackgroundOverlay,
     OverlaySink,
@@ -163,6 +163,7 @@ def run_frames(
         sequence=config.sequence if config.sequence else default_sequence_name(frames.path),
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
+        reference=config.reference.value if config.reference is not None else None,
         dropped_boxes=dict(dropped_boxes or {}),
         depth_source=describe_depth(depth) if depth is not None else None,
         exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
@@ -218,6 +219,7 @@ class _RunLoop:
             odometry,
             lookback_s=config.lookback_s,
             vehicle_classes=config.vehicle_classes,
+            reference=config.reference,
         )
         self.held: list[int] | None = [] if estimator.offline else None
         """An offline method's frames with boxes (their indices), whose records wait for the
@@ -248,7 +250,10 @@ class _RunLoop:
         self.frame_log = CsvStreamWriter(self.files.open_whole_rows(FRAMES_NAME), FRAME_FIELDS)
         self.painter: OverlaySink | None = None
         if config.overlay:
-            self.painter = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            writer = OverlayWriter(partial_path(config.overlay), config.overlay_fps)
+            result.overlay_codec = writer.codec
+            result.overlay_warning = video_fallback_note() if writer.is_video else None
+            self.painter = writer
             if config.decode_ahead:  # encoded behind the loop, in a thread
                 self.painter = BackgroundOverlay(self.painter, config.decode_ahead)
         # an offline method's overlay and export show its causal pass, as the frames come: say so

@@ -31,14 +31,15 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError, DataMismatchError
-from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator, takes_ours_options
+from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator
 from slopedist.estimators.base import (
-    DEFAULT_REFERENCE,
     EstimateStatus,
     FrameEstimates,
     ReferencePoint,
     SelfCalibration,
+    parse_reference,
 )
+from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.detections.adapters import as_box_table
 from slopedist.io.detections.boxes import (
@@ -294,9 +295,10 @@ class Pipeline:
             or ``none`` (no rotations, or rotations given to :meth:`update`).
         height_m: the camera's height above the road, metres (None: the camera's, else 1.65).
         mount_angle_deg: its mount angle θ0, degrees (None: the camera's, else 0).
-        reference: the point of the vehicle the distances refer to (``centre``,
-            ``nearest_face``, ``contact``), for the methods that can report another than their
-            own; the default is ``slopedist run``'s.
+        reference: the point of the vehicle every method's distances are moved to
+            (``nearest_face``, ``centre``, ``contact``;
+            :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`, the gap to the
+            vehicle's nearest face, as ``slopedist run``); None: each method's own point.
         vehicle_classes: class names scored as vehicles (others: ``missing``,
             ``not_a_vehicle``).
         fps: the frame rate that gives a frame's time when :meth:`update` gets none.
@@ -330,7 +332,7 @@ class Pipeline:
         odometry: str = "builtin",
         height_m: float | None = None,
         mount_angle_deg: float | None = None,
-        reference: str | ReferencePoint = DEFAULT_REFERENCE,
+        reference: str | ReferencePoint | None = DEFAULT_REFERENCE,
         vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
         fps: float = DEFAULT_FPS,
         lookback_s: float = LOOKBACK_S,
@@ -344,8 +346,6 @@ class Pipeline:
             )
         calibration = pipeline_calibration(calib, height_m, mount_angle_deg, image_size)
         options = dict(method_options)
-        if takes_ours_options(method):
-            options.setdefault("reference", ReferencePoint(reference).value)
         estimator = make_estimator(method, calibration.camera, **options)  # the options checked
         _check_rotation_source(estimator, odometry)
 
@@ -360,6 +360,7 @@ class Pipeline:
             return est, build_odometry(odometry, camera, None, lookback_s, calibration.point_map)
 
         self._setup(calibration.camera, lookback_s, vehicle_classes, fps, class_map)
+        self.reference = _reference_point(reference)
         self._intrinsics = None if calibration.intrinsics.is_ideal else calibration.intrinsics
         self._parts: Callable[[Camera], tuple[Estimator, RotationOdometry | None]] | None = parts
         if calibration.camera.image_width is not None:
@@ -374,12 +375,14 @@ class Pipeline:
         lookback_s: float = LOOKBACK_S,
         vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
         fps: float = DEFAULT_FPS,
+        reference: str | ReferencePoint | None = DEFAULT_REFERENCE,
     ) -> Pipeline:
         """A pipeline of a built method and rotation source (``slopedist run`` builds them
         from its options and the frames); :meth:`process` takes boxes already in the method's
-        ideal camera. Internal."""
+        ideal camera; ``reference`` as in the class. Internal."""
         pipe = cls.__new__(cls)
         pipe._setup(estimator.camera, lookback_s, vehicle_classes, fps, None)
+        pipe.reference = _reference_point(reference)
         pipe._intrinsics = None
         pipe._parts = None
         pipe._begin(estimator, odometry)
@@ -418,7 +421,7 @@ class Pipeline:
 
     def _begin(self, estimator: Estimator, odometry: RotationOdometry | None) -> None:
         self.camera = estimator.camera
-        self._step = FrameStep(estimator, self.lookback_s, self.vehicle_classes)
+        self._step = FrameStep(estimator, self.lookback_s, self.vehicle_classes, self.reference)
         self._odometry = odometry
 
     @property
@@ -685,6 +688,17 @@ class Pipeline:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+def _reference_point(reference: str | ReferencePoint | None) -> ReferencePoint | None:
+    """``reference`` as a :class:`~slopedist.estimators.base.ReferencePoint` (None stays None).
+
+    Raises:
+        ConfigurationError: a name that is no vehicle reference point.
+    """
+    if reference is None:
+        return None
+    return parse_reference(str(getattr(reference, "value", reference)))
 
 
 def stream_rotations(

@@ -17,14 +17,15 @@ import logging
 import math
 import shutil
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError
-from slopedist.estimators import Estimator, EstimatorConfig, build_estimator, takes_ours_options
-from slopedist.estimators.base import DEFAULT_REFERENCE
+from slopedist.estimators import Estimator, EstimatorConfig, build_estimator
+from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.depthmap import DepthScaling
+from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.io.calibration import CameraCalibration, read_calibration
 from slopedist.io.depth import DepthSource, FileDepthSource
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable
@@ -196,8 +197,7 @@ class RunOptions:
         odometry: visual odometry backend
             (:data:`~slopedist.streaming.pipeline.ODOMETRY_CHOICES`); ``vocab``: ORB-SLAM3
             vocabulary; ``lookback_s``: look-back of the ego gradient (seconds).
-        estimator: the estimator's configuration (its method included; a reference point
-            left unset is :data:`~slopedist.estimators.base.DEFAULT_REFERENCE`).
+        estimator: the estimator's configuration (its method included).
         depth: builds the depth source of depth-map methods, or None.
         overlay: also write annotated frames, as ``overlay_format`` (an
             :class:`~slopedist.streaming.config.OverlayFormat` value).
@@ -206,6 +206,9 @@ class RunOptions:
         progress: show a progress bar on stderr.
         sequence: sequence name written to run.json (None: the frames' folder or video name).
         vehicle_classes: class names scored as vehicles.
+        reference: the point of the vehicle every method's distances are moved to
+            (``--reference``; :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`, the
+            nearest face, by default); None: each method's own point.
         decode_ahead: frames decoded ahead in a thread (0: all in the loop's thread).
         other_inputs: further files the run reads through ``detector`` or ``depth`` (a model,
             a depth folder), which no output may replace.
@@ -235,6 +238,7 @@ class RunOptions:
     progress: bool = True
     sequence: str | None = None
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
+    reference: ReferencePoint | None = DEFAULT_REFERENCE
     decode_ahead: int = DEFAULT_AHEAD
     other_inputs: tuple[Path, ...] = ()
 
@@ -296,7 +300,7 @@ def open_run(inputs: RunOptions) -> _OpenedRun:
     camera = with_frame_size(calibration.camera, source, calibration_name(inputs.calib, source))
     dropped = DroppedBoxes()
     boxes, detector = rectified_inputs(calibration, *boxes_or_detector(inputs, dropped))
-    estimator = build_estimator(with_default_reference(inputs.estimator), camera)
+    estimator = build_estimator(inputs.estimator, camera)
     check_runnable(estimator, inputs.depth is not None, boxes, topics.rotation is not None)
     depth = inputs.depth(source) if inputs.depth is not None else None
     visual = (camera, inputs.lookback_s, calibration.point_map)
@@ -319,14 +323,6 @@ def open_run(inputs: RunOptions) -> _OpenedRun:
         time_origin_ns=int(getattr(source, "t0_ns", 0)),
         dropped_boxes=dropped,
     )
-
-
-def with_default_reference(config: EstimatorConfig) -> EstimatorConfig:
-    """``config`` with :data:`~slopedist.estimators.base.DEFAULT_REFERENCE` when it names
-    none and its method reports a reference point it is asked for."""
-    if config.reference is not None or not takes_ours_options(config.method):
-        return config
-    return replace(config, reference=DEFAULT_REFERENCE.value)
 
 
 def run_to_folder(
@@ -397,6 +393,7 @@ def run_config(options: RunOptions, opened: _OpenedRun, stop: StopFlag) -> RunCo
         time_origin_ns=opened.time_origin_ns,
         ego_speed=opened.ego_speed,
         vehicle_classes=options.vehicle_classes,
+        reference=options.reference,
         stop=stop,
         decode_ahead=options.decode_ahead,
         snapshots=options.snapshots,

@@ -30,8 +30,10 @@ from slopedist.estimators.base import (
     FrameEstimates,
     FrameInput,
     MissingReason,
+    ReferencePoint,
     settle_states,
 )
+from slopedist.estimators.references import at_reference
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable, concat_boxes
 from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.io.formatting import STDOUT_PATH, CsvStreamWriter
@@ -144,8 +146,12 @@ class FrameStep:
     ``cut`` flag from the camera's image size, boxes outside the image or degenerate, classes
     not in ``vehicle_classes``, and for a method that does not handle border cuts itself
     (:attr:`~slopedist.estimators.base.Estimator.handles_border_cuts`) a bottom cut makes an
-    ``ok`` row an ``upper_bound``). Loops differ only in where frames come from and where the
-    results go.
+    ``ok`` row an ``upper_bound``). With a ``reference`` every method's distances are moved to
+    that point of the vehicle (:func:`~slopedist.estimators.references.at_reference`: what a
+    user sees, :data:`~slopedist.estimators.references.DEFAULT_REFERENCE` by default in
+    ``run``); None leaves each at the point its method reports (evaluations, which compare at
+    their truth's point). Loops differ only in where frames come from and where the results
+    go.
 
     Example::
 
@@ -159,8 +165,10 @@ class FrameStep:
         estimator: Estimator,
         lookback_s: float = LOOKBACK_S,
         vehicle_classes: Iterable[str] = DEFAULT_VEHICLE_CLASSES,
+        reference: ReferencePoint | None = None,
     ) -> None:
         self.estimator = estimator
+        self.reference = ReferencePoint(reference) if reference is not None else None
         if isinstance(vehicle_classes, str):  # tuple("Car") is ("C", "a", "r"): no vehicle at all
             raise ConfigurationError(
                 f"vehicle_classes must be a collection of class names, got the text "
@@ -282,6 +290,8 @@ class FrameStep:
             est.reason[est.reason == MissingReason.NO_ROTATION.value] = (
                 MissingReason.ODOMETRY_JUMP.value
             )
+        if self.reference is not None:
+            est = at_reference(est, boxes.cls, self.reference)
         return est
 
     def skip(self, frame_index: int, timestamp_s: float) -> None:

@@ -55,6 +55,7 @@ from slopedist.evaluation.plots import (
 )
 from slopedist.evaluation.table import Table, format_texts
 from slopedist.io.formatting import write_csv, write_json
+from slopedist.io.overlay import video_codec, video_fallback_note
 from slopedist.io.prefetch import usable_cores
 from slopedist.synthetic.demo_scenario import (
     CAP_M,
@@ -327,6 +328,9 @@ def run_demo(cfg: DemoConfig, echo: Callable[[str], None] = print) -> DemoResult
             + ", ".join(sc.name for sc in scenarios)
         )
     cfg.out_dir.mkdir(parents=True, exist_ok=True)
+    note = video_fallback_note() if cfg.video else None
+    if note:
+        echo(f"warning: {note}")
     total = sum(
         s.n_frames if cfg.max_frames is None else min(s.n_frames, cfg.max_frames) for s in scenarios
     )
@@ -472,6 +476,8 @@ def _results_json(result: DemoResult) -> dict[str, Any]:
             "scenarios": list(result.config.scenarios),
             "odometry": result.config.odometry,
             "max_frames": result.config.max_frames,
+            "overlay_codec": video_codec() if result.config.video else None,
+            "overlay_warning": video_fallback_note() if result.config.video else None,
         },
         "protocol": {
             "distance": SYNTHETIC_TRUTH,

@@ -21,7 +21,7 @@ import numpy as np
 from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
 from slopedist.core.textfiles import CsvRows, number_cell, read_json
-from slopedist.estimators import ESTIMATORS
+from slopedist.estimators import ESTIMATORS, native_reference
 from slopedist.estimators.base import EstimateStatus, ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation.metrics import (
@@ -194,8 +194,9 @@ class _RunReader:
                 continue
             reason = record_reason(row["status"], row["reason"], path, lineno)
             d = _distance(row, path, lineno)
-            if self.reference is not None:
-                d = _at_reference(d, row, path, lineno, self.reference)
+            wanted = self.reference if self.reference is not None else scored_at(truth_col, method)
+            if wanted is not None:
+                d = _at_reference(d, row, path, lineno, wanted)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
             by_method.setdefault(method, []).append((d, g, reason, sigma))
@@ -354,6 +355,14 @@ def _at_reference(
         [d], [row.get("reference", "")], [row.get("class", "")], wanted, [centre - face]
     )
     return float(moved[0])
+
+
+def scored_at(truth_column: str | None, method: str) -> ReferencePoint | None:
+    """The point a run's record of ``method`` is scored at against a truth column whose point
+    is not declared (``--gt-reference``): the method's own (the published protocol, which
+    ``eval kitti-tracking`` follows against KITTI's label z), whatever point the run moved it
+    to; None without a truth (the records as written) or for an unknown method."""
+    return native_reference(method) if truth_column is not None else None
 
 
 def _scored_set(vals: list[tuple[float, float, str, float]]) -> ScoredSet:
