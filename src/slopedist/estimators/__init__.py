@@ -37,6 +37,7 @@ from slopedist.estimators.imu import ImuEgoEstimator, ImuEstimator
 from slopedist.estimators.ours import OursEstimator, OursSelfCalibratingEstimator
 from slopedist.estimators.ours.config import OPTION_SEPARATOR as OURS_OPTION_SEPARATOR
 from slopedist.estimators.ours.config import (
+    OursConfig,
     configs_of,
     idle_sigma_only,
     unscored_generic_class,
