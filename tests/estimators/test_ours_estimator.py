@@ -14,6 +14,7 @@ from slopedist.estimators import ReferencePoint, available_methods, make_estimat
 from slopedist.estimators.base import FrameInput, largest_implied_image
 from slopedist.estimators.ours import EXTRA_COLUMNS, OursEstimator
 from slopedist.estimators.ours.cues import project_box
+from slopedist.estimators.ours.priors import YAW_GRID_DEG
 from slopedist.io.detections.boxes import BoxTable, box_problems
 from slopedist.odometry.base import RotationTrack
 from slopedist.streaming.step import ego_gradients, estimate_sequence
@@ -187,7 +188,7 @@ def test_tracks_keep_their_state_by_name() -> None:
     assert math.exp(tr.filter_rows[0, 0]) == pytest.approx(outs[-1].distance_m[0], rel=0.01)
     assert tr.n_updates[0] == 5 and tr.last_time_s[0] == pytest.approx(0.4)
     assert np.allclose(tr.R_world_cam[:, :, 0], np.eye(3))
-    assert tr.log_heading_belief.shape == (est._yaw.size, 1)
+    assert tr.log_heading_belief.shape == (len(YAW_GRID_DEG), 1)
     p00, p01, p11 = tr.filter_rows[2:, 0]
     assert np.all(np.linalg.eigvalsh([[p00, p01], [p01, p11]]) > 0)
 

@@ -1,10 +1,5 @@
-"""slopedist's own estimator (``--method ours``).
-
-Pure math (:mod:`.cues`: size and ground-contact cues, their uncertainties, fusion, the continuous
-target gradient; :mod:`.filter`: the Kalman filter equations) is kept apart from state
-(:mod:`.tracking`: track bookkeeping; :mod:`.selfcal`: online calibration) and from the
-estimator that ties them together (:mod:`.estimator`).
-"""
+"""slopedist's own estimator (``--method ours``): the algorithm is :mod:`.estimator`'s
+``OursEstimator.estimate``, step by step; docs/method.md's code map names every module."""
 
 from slopedist.estimators.ours.estimator import (
     EXTRA_COLUMNS,

@@ -1,22 +1,32 @@
 """``ours``: size and ground-contact cues fused per target, tracked over time, self-calibrating.
 
-For every box and every heading hypothesis ψ the estimator computes
+A frame (:meth:`OursEstimator.estimate`) goes through these steps, in order:
 
-1. the **height cue** (:func:`~slopedist.estimators.ours.cues.height_cue`): distance from the box
-   height and the class's height prior, exact for a 3D box (roof and footprint in perspective);
-2. the **width cue** (:func:`~slopedist.estimators.ours.cues.width_cue`): from the box width,
-   the class's width and length and ψ — a car seen at an angle shows its side, so the heading is
-   a hypothesis, weighed by how it reconciles width and height and by a prior of aligned traffic;
-3. the **ground-contact cue**: eq. 1 with the vanishing line of the ego gradient θ (eq. 4–5), as
-   the paper, plus the target's own continuous road gradient α; a size cue whose box side
-   lies on a nearer target's box and that says farther than the ground contact by more than
-   noise explains is taken as cut short by occlusion (censored) and loses weight,
-
-and fuses them by their propagated uncertainties in an extended Kalman filter per track whose
-state is log-distance, relative rate, the vehicle's size deviation from its class prior and α
-(:mod:`~slopedist.estimators.ours.filter`). The distance reported is to the vehicle's centre
-(KITTI's z); ``distance_nearest_face_m`` is the distance to its nearest face. The mount angle
-and height are re-estimated online from the targets (:mod:`~slopedist.estimators.ours.selfcal`).
+1. **usable boxes**: the boxes with no problem (``reason`` empty), their class constants and the
+   edges the image border cuts (:mod:`~slopedist.estimators.ours.border`);
+2. **the horizon**: the ego gradient θ with the self-calibration's offset, its jitter and the
+   camera mount in use;
+3. **tracks**: each box continues a live track (by its track id, else by IoU with the track's
+   predicted box: :mod:`~slopedist.estimators.ours.association`) or starts one; a track's own
+   size replaces the class prior's with ``size_learning``
+   (:mod:`~slopedist.estimators.ours.size_learning`);
+4. **the cues** per (target, hypothesis) (:mod:`~slopedist.estimators.ours.frame_cues`): the
+   height cue (:func:`~slopedist.estimators.ours.cues.height_cue`, exact for a 3D box), the
+   width cue (:func:`~slopedist.estimators.ours.cues.width_cue`, for each heading ψ) and the
+   ground contact (eq. 1 with the vanishing line of θ, eq. 4–5); a size cue that a nearer
+   target's box may cut is censored (:mod:`~slopedist.estimators.ours.occlusion`);
+5. **the fusion over the hypotheses** (headings × size modes, or × vehicle types for a generic
+   class: :mod:`~slopedist.estimators.ours.hypotheses`): the cues fused by their propagated
+   uncertainties, the hypotheses collapsed by their posterior weights;
+6. **the filters** of each track (:mod:`~slopedist.estimators.ours.track_filters`): the distance
+   (a constant-velocity Kalman filter on log distance: :mod:`~slopedist.estimators.ours.filter`)
+   and the target's road gradient α; the track's odd-object evidence and learned size;
+7. **the tracks written**, the self-calibration fed
+   (:mod:`~slopedist.estimators.ours.selfcal`);
+8. **the records** (:mod:`~slopedist.estimators.ours.outputs`): the distance to the vehicle's
+   centre (KITTI's z) with its σ, speed and time to collision; a box the border cuts on every
+   cue is an upper bound; a box too uncertain is withheld; the distance is moved to the
+   reference point asked for.
 
 Everything is causal: the streaming pipeline and the batch one give identical numbers, and
 :meth:`OursEstimator.reset` forgets all state.
@@ -25,7 +35,7 @@ Everything is causal: the streaming pipeline and the batch one give identical nu
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,7 +50,8 @@ from slopedist.estimators.base import (
     FrameInput,
     ReferencePoint,
 )
-from slopedist.estimators.ours import frame_cues, fusion, odd_objects, size_learning
+from slopedist.estimators.ours import frame_cues, hypotheses, odd_objects, outputs, size_learning
+from slopedist.estimators.ours import track_filters as filters
 from slopedist.estimators.ours.association import (
     associate,
     box_noise_sums,
@@ -58,18 +69,16 @@ from slopedist.estimators.ours.config import (
     size_evidence_time,
 )
 from slopedist.estimators.ours.fusion import LogCue
-from slopedist.estimators.ours.priors import yaw_grid, yaw_prior_weights
+from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
 from slopedist.estimators.ours.records import (
-    EXTRA_COLUMNS,
-    BoxEstimates,
     CalibrationInUse,
     DistanceFilterResult,
     FrameState,
     FrameTargets,
     FusedCues,
+    SizeCues,
     TargetGradient,
     TrackMatch,
-    scatter,
 )
 from slopedist.estimators.ours.selfcal import (
     Calibration,
@@ -77,7 +86,7 @@ from slopedist.estimators.ours.selfcal import (
     estimator_calibration_warning,
     self_calibrates,
 )
-from slopedist.estimators.ours.size_learning import LearnedSizes
+from slopedist.estimators.ours.size_learning import LearnedSizes, TrackSize
 from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
 
@@ -106,6 +115,24 @@ class FilterRecorder(Protocol):
         frame), their target gradients and track uids."""
 
 
+class FrameHorizon(NamedTuple):
+    """The horizon a frame's cues use.
+
+    Attributes:
+        theta_rad: the ego gradient θ (the frame's; a camera at rest's when it has none) plus
+            the calibration's horizon offset δ.
+        jitter_rad: its per-frame noise.
+        calib: the camera mount in use.
+        measured: whether the frame's θ was measured (a frame without a rotation, or with an
+            odometry jump, has none).
+    """
+
+    theta_rad: float
+    jitter_rad: float
+    calib: CalibrationInUse
+    measured: bool
+
+
 _BOX_NOISE_PRIOR_COUNT = 200
 """Weight (in edge samples) of the configured box noise in its online estimate."""
 
@@ -119,11 +146,11 @@ class OursEstimator(Estimator):
     Args:
         camera: intrinsics and the (possibly rough) mount.
         config: options (default :class:`OursConfig`).
+        ablation: experimental settings (default :class:`OursAblation`).
         sizes: where the tracks' own sizes come from with ``size_learning`` (default: learned
             over each track, :class:`~slopedist.estimators.ours.size_learning.LearnedSizes`).
         recorder: given each frame's filter states, predictions included (an offline pass's
             smoothing: :mod:`~slopedist.estimators.ours.offline`); None: nothing is kept.
-        ablation: experimental settings (default :class:`OursAblation`).
         **overrides: individual options of either, e.g. ``box_sigma_px=1.0`` or
             ``self_calibrate=True`` (:func:`~slopedist.estimators.ours.config.configs_of`).
     """
@@ -155,31 +182,22 @@ class OursEstimator(Estimator):
         evidence_time = size_evidence_time(config, abl)
         self._sizes = (sizes or LearnedSizes(evidence_time)) if config.size_learning else None
         self._recorder = recorder
-        grid = yaw_grid() if abl.yaw_hypotheses else np.zeros(1)
-        self._yaw = grid
-        self._log_yaw_prior = (
-            np.log(yaw_prior_weights(grid, abl.yaw_prior)) if grid.size > 1 else np.zeros(1)
-        )
+        self._hypotheses = hypotheses.Hypotheses(abl)
+        headings = self._hypotheses.yaw_rad
         self.selfcal = SelfCalibrator(
             camera.f, camera.mount_angle_rad, camera.height_m, abl.selfcal
         )
         self._theta_rest = float(geo.rest_gradient(camera.mount_angle_rad))
-        self._size_modes = [m for m, _ in abl.size_modes]
         generic = tuple(config.generic_classes)
         self._classes = ClassTable(
             abl.priors,
-            grid,
+            headings,
             () if config.generic_sigma_only else generic,
             abl.type_mixture,
-            len(self._size_modes),
+            len(self._hypotheses.size_modes),
             generic if config.generic_sigma_only else (),
         )
-        self._mode_spreads = fusion.ModeSpreads(self._size_modes, grid.size)
-        self._type_spreads = fusion.ModeSpreads(  # a generic class: its types take the modes' place
-            self._size_modes[:1], grid.size * len(abl.type_mixture)
-        )
-        self._log_mode = np.repeat(np.log([p for _, p in abl.size_modes]), grid.size)
-        self._odd_check = odd_objects.OddObjectCheck.of(config, abl, grid.size)
+        self._odd_check = odd_objects.OddObjectCheck.of(config, abl, headings.size)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
@@ -189,7 +207,7 @@ class OursEstimator(Estimator):
 
     def reset(self) -> None:
         """Forget all tracks and the self-calibration (new sequence)."""
-        self.tracks = Tracks.empty(self._yaw.size)
+        self.tracks = Tracks.empty(self._hypotheses.yaw_rad.size)
         self.selfcal.reset()
         self._next_uid = 0
         self._border.reset()
@@ -228,155 +246,107 @@ class OursEstimator(Estimator):
         warning = estimator_calibration_warning(self)
         return [] if warning is None else [warning]
 
-    # -- one frame -------------------------------------------------------------------------
+    # -- one frame, step by step ------------------------------------------------------------
 
     def estimate(self, frame: FrameInput) -> FrameEstimates:
         n = frame.boxes.boxes.shape[0]
-        seen = frame_pixel_boxes(frame.boxes)  # what the border cuts: the frame's pixels
         # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
         reasons = table_box_problems(frame.boxes, self._border.known_size)
         good = np.flatnonzero(reasons == "")
-        theta_in = float(frame.theta_rad)
-        calib = self._calibration_in_use()
-        theta_ok = math.isfinite(theta_in)
-        theta_f = (theta_in if theta_ok else self._theta_rest) + calib.horizon_offset_rad
-        abl = self.ablation
-        jitter = abl.theta_sigma_rad if theta_ok else abl.no_rotation_theta_sigma_rad
-        self._drop_stale(frame.timestamp_s)  # before association: the same whether or not the
-        # caller also passes the frames with no boxes
+        horizon = self._frame_horizon(frame.theta_rad)
+        self._drop_stale_tracks(frame.timestamp_s)  # before association: the same whether or
+        # not the caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
-        edges = None  # (good, 4): which edges of the usable boxes the image border cuts
+        cut_edges = None  # (good, 4): which edges of the usable boxes the image border cuts
         if good.size:
-            edges = self._border.cut_edges(seen[good])
-            box_values = self._estimate_boxes(frame, good, theta_f, jitter, calib, edges)
-            values = {k: v for k, v in zip(BoxEstimates._fields, box_values) if v is not None}
-            if abl.self_calibrate:
-                values.update(self._calibration_columns(good.size))
-        out = scatter(values, good, n)
-        est = FrameEstimates(
-            theta_rad=np.full(n, theta_in),
-            theta_adj_rad=out["theta_adj_rad"],
-            delta_y_px=out["delta_y_px"],
-            v_px=out["v_px"],
-            distance_m=out["distance_m"],
-            reason=reasons,
-            reference=np.full(n, self._reference.value, dtype=object),
-            extra={k: out[k] for k in EXTRA_COLUMNS},
-            cut=np.full(n, "", dtype=object),
-        )
-        # centre to nearest face, before the border cuts settle
-        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]
-        if self._border.known_size is not None and edges is not None:
-            cut = np.zeros((n, 4), dtype=bool)
-            cut[good] = edges
-            settle_border_cuts(est, cut, abl.use_width, abl.use_ground_contact)
-            bounded = est.status == EstimateStatus.UPPER_BOUND.value
-            if bounded.any():  # the nearest face of a bound is a bound (the same cue)
-                face = est.extra["distance_nearest_face_m"]
-                face[bounded] = est.distance_m[bounded] - half_extent[bounded]
+            cut_edges = self._border.cut_edges(frame_pixel_boxes(frame.boxes)[good])
+            values = self._estimate_targets(frame, good, cut_edges, horizon)
+        est = outputs.frame_estimates(values, good, n, frame.theta_rad, reasons, self._reference)
+        half_extent = est.distance_m - est.extra["distance_nearest_face_m"]  # centre to face
+        if self._border.known_size is not None and cut_edges is not None:
+            self._bound_cut_boxes(est, good, cut_edges, half_extent)
         est.withhold_uncertain(self.config.max_relative_sigma)
-        est.extra["distance_centre_m"] = est.distance_m.copy()
-        if self._reference is not ReferencePoint.CENTRE:  # the nearest face (or its foot)
-            est.distance_m -= half_extent
+        outputs.move_to_reference(est, self._reference, half_extent)
         est.withhold_distances()  # a withheld distance is in no column
         return est
 
-    def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
-        """The self-calibration in use, as columns of ``n`` boxes."""
-        cal = self.selfcal.calibration()
-        names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
-        return {f"calib_{k}": np.full(n, getattr(cal, k)) for k in names}
-
-    def _estimate_boxes(
+    def _estimate_targets(
         self,
         frame: FrameInput,
         good: NDArray[np.intp],
-        theta_rad: float,
-        jitter_rad: float,
-        calib: CalibrationInUse,
         cut_edges: NDArray[np.bool_],
-    ) -> BoxEstimates:
-        """All outputs for the usable boxes ``good`` of ``frame`` (and the state updates).
-
-        ``theta_rad`` is the ego gradient θ plus the calibration's horizon offset, ``jitter_rad``
-        its per-frame noise; ``cut_edges`` ``(len(good), 4)``: the boxes' edges the image border
-        cuts (:meth:`~slopedist.estimators.ours.border.ImageBorder.cut_edges`). Per (target,
-        hypothesis) quantities are ``(n, K)`` arrays (``(n, M·K)`` over ``M`` size modes or
-        vehicle types); the class constants come as such planes from one gather
-        (:class:`ClassTable`), so that the arithmetic of a frame's few targets never broadcasts.
-        """
+        horizon: FrameHorizon,
+    ) -> dict[str, FloatArray]:
+        """The output columns of the usable boxes ``good`` of ``frame`` (and the state
+        updates); ``cut_edges`` ``(len(good), 4)``: the boxes' edges the image border cuts."""
         abl = self.ablation
-        cam = self.camera
         targets = self._frame_targets(frame, good, cut_edges)
         match = self._match_tracks(targets, frame.R_world_cam)
-        track_size = None
+        size_before = None
         if self._sizes is not None:  # the tracks' own sizes in the class constants
-            track_size = self._sizes.before_frame(targets, match)
-            targets = size_learning.with_track_size(targets, track_size)
-        size = frame_cues.size_cues(abl, cam, targets, calib)
-        ground = None
-        if abl.use_ground_contact:
-            alpha, alpha_var = frame_cues.contact_gradient_prior(
-                abl.gradient_feedback, self.config.gradient_sigma_rad, match
-            )
-            ground = frame_cues.ground_contact_cue(
-                abl, cam, targets, size.bounds, alpha, alpha_var, theta_rad, jitter_rad, calib
-            )
-            if abl.occlusion_aware and targets.boxes_px.shape[0] > 1:
-                size = frame_cues.occlusion_adjusted(abl, targets, size, ground)
-        log_prior = self._log_prior(match, targets)
+            size_before = self._sizes.before_frame(targets, match)
+            targets = size_learning.with_track_size(targets, size_before)
+        size = frame_cues.size_cues(abl, self.camera, targets, horizon.calib)
+        ground = self._ground_contact_cue(targets, match, size, horizon)
+        size = self._censor_occluded(targets, size, ground)
         odd = self._odd_check.carried(match, targets)  # the tracks' odd-object evidence
-        fused = frame_cues.fuse_hypotheses(
-            targets,
-            size,
-            ground,
-            self._odd_check.prior(log_prior, odd),
-            self._mode_spreads if targets.classes.type_log_weight is None else self._type_spreads,
-            abl.consistency_gate_sigma,
-            size.height.camera_lever if abl.road_bend_sigma else None,
-        )
+        fused = self._fuse_hypotheses(targets, match, size, ground, odd)
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
-        gradient = frame_cues.target_gradient(
-            self.config.gradient_sigma_rad,
-            cam,
-            targets,
-            match,
-            fused,
-            distance.rows,
-            theta_rad,
-            jitter_rad,
-            calib.height_m,
-        )
+        gradient = self._target_gradient(targets, match, fused, distance, horizon)
         state = FrameState(targets, match, size, fused, distance)
-        size_rows = None
-        if self._sizes is not None and track_size is not None:  # this frame's evidence
-            size_rows = self._sizes.after_frame(state, track_size)
-        uid = self._update_tracks(
-            targets, match, fused, distance, gradient, frame.R_world_cam, size_rows, odd
-        )
+        size_after = self._learn_sizes(state, size_before)
+        uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
         if self._recorder is not None:
             self._recorder.record(good, state, gradient, uid)
-        if abl.self_calibrate and math.isfinite(frame.theta_rad):  # not a θ it assumed
-            shape_gap = frame_cues.shape_gap(targets, size)
-            self._feed_selfcal(targets, shape_gap, fused, gradient, uid, theta_rad, calib)
-        out = frame_cues.box_estimates(
-            cam,
-            self._yaw,
+        if abl.self_calibrate and horizon.measured:  # not a θ it assumed
+            self._feed_selfcal(state, gradient, uid, horizon)
+        out = outputs.box_estimates(
+            self.camera,
+            self._hypotheses.yaw_rad,
             targets,
             fused,
             distance,
             gradient,
             uid,
-            theta_rad,
-            calib,
+            horizon.theta_rad,
+            horizon.calib,
             self.config.gradient_sigma_rad,
         )
-        if size_rows is not None:
-            out = out._replace(**size_learning.size_columns(size_rows, targets.classes.height_m))
-        return out
+        if size_after is not None:
+            out = out._replace(**size_learning.size_columns(size_after, targets.classes.height_m))
+        values = {k: v for k, v in zip(out._fields, out, strict=True) if v is not None}
+        if abl.self_calibrate:
+            values.update(self._calibration_columns(good.size))
+        return values
 
-    # -- the steps of a frame, in order -----------------------------------------------------
+    def _frame_horizon(self, theta_rad: float) -> FrameHorizon:
+        """The horizon of a frame whose ego gradient is ``theta_rad`` (NaN: unknown)."""
+        calib = self._calibration_in_use()
+        measured = math.isfinite(theta_rad)
+        theta = (float(theta_rad) if measured else self._theta_rest) + calib.horizon_offset_rad
+        abl = self.ablation
+        jitter = abl.theta_sigma_rad if measured else abl.no_rotation_theta_sigma_rad
+        return FrameHorizon(theta, jitter, calib, measured)
+
+    def _calibration_in_use(self) -> CalibrationInUse:
+        """The self-calibration's mount when self-calibrating, else the configured one."""
+        if self.ablation.self_calibrate:
+            cov = self.selfcal.covariance
+            return CalibrationInUse(
+                self.selfcal.horizon_offset_rad,
+                math.sqrt(cov[0, 0]),
+                self.selfcal.height_m,
+                math.sqrt(cov[1, 1]),
+            )
+        return self._fixed_calib
+
+    def _drop_stale_tracks(self, t: float) -> None:
+        """Drop the tracks not seen for longer than ``max_age_s`` at time ``t``."""
+        tr = self.tracks
+        age = self.config.max_age_s + 1e-9
+        if len(tr) and t - tr.last_time_s.min() > age:  # the oldest is stale
+            self.tracks = tr.take(t - tr.last_time_s <= age)
 
     def _frame_targets(
         self, frame: FrameInput, good: NDArray[np.intp], cut_edges: NDArray[np.bool_]
@@ -429,39 +399,71 @@ class OursEstimator(Estimator):
             rows, continued, r_old, before, elapsed, grad_var, turned, depth_ratio, box_motion
         )
 
-    def _log_prior(self, match: TrackMatch, targets: FrameTargets) -> FloatArray:
-        """``(n, K·modes)`` log prior of the hypotheses (headings × body-style modes, or
-        headings × vehicle types when a target's class is generic)."""
-        log_heading_prior = None
-        if self.ablation.yaw_memory and match.continued_rows.size:
-            log_heading_prior = frame_cues.carried_heading_prior(
-                match, self._log_yaw_prior, self.ablation.yaw_memory_s
-            )
-        type_weight = targets.classes.type_log_weight
-        if type_weight is not None:
-            if log_heading_prior is None:
-                log_heading_prior = np.broadcast_to(
-                    self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
-                )
-            n_types = type_weight.shape[1]
-            return np.tile(log_heading_prior, n_types) + np.repeat(
-                type_weight, self._yaw.size, axis=1
-            )
-        if log_heading_prior is None:
-            log_heading_prior = np.broadcast_to(
-                self._log_yaw_prior, (match.rows.shape[0], self._yaw.size)
-            )
-        return np.tile(log_heading_prior, len(self._size_modes)) + self._log_mode
+    def _ground_contact_cue(
+        self, targets: FrameTargets, match: TrackMatch, size: SizeCues, horizon: FrameHorizon
+    ) -> LogCue | None:
+        """The ground-contact cue per hypothesis (None without ``use_ground_contact``), with
+        the target gradient prior it assumes; a box cut at the bottom adds its bound to the
+        size cues' (``size.bounds``)."""
+        abl = self.ablation
+        if not abl.use_ground_contact:
+            return None
+        alpha, alpha_var = filters.contact_gradient_prior(
+            abl.gradient_feedback, self.config.gradient_sigma_rad, match
+        )
+        return frame_cues.ground_contact_cue(
+            abl,
+            self.camera,
+            targets,
+            size.bounds,
+            alpha,
+            alpha_var,
+            horizon.theta_rad,
+            horizon.jitter_rad,
+            horizon.calib,
+        )
+
+    def _censor_occluded(
+        self, targets: FrameTargets, size: SizeCues, ground: LogCue | None
+    ) -> SizeCues:
+        """The size cues with those a nearer target's box may cut censored against the ground
+        contact (``occlusion_aware``; :func:`~slopedist.estimators.ours.frame_cues.
+        occlusion_adjusted`)."""
+        if ground is None or not self.ablation.occlusion_aware or targets.boxes_px.shape[0] < 2:
+            return size
+        return frame_cues.occlusion_adjusted(self.ablation, targets, size, ground)
+
+    def _fuse_hypotheses(
+        self,
+        targets: FrameTargets,
+        match: TrackMatch,
+        size: SizeCues,
+        ground: LogCue | None,
+        odd_evidence: FloatArray | None,
+    ) -> FusedCues:
+        """The cues fused per hypothesis and collapsed over them; the hypotheses' prior holds
+        the tracks' odd-object evidence."""
+        abl = self.ablation
+        log_prior = self._hypotheses.log_prior(match, targets)
+        return hypotheses.fuse_hypotheses(
+            targets,
+            size,
+            ground,
+            self._odd_check.prior(log_prior, odd_evidence),
+            self._hypotheses.spreads(targets),
+            abl.consistency_gate_sigma,
+            size.height.camera_lever if abl.road_bend_sigma else None,
+        )
 
     def _filter_distance(
         self, match: TrackMatch, measurement: LogCue, R_now: FloatArray | None
     ) -> DistanceFilterResult:
-        """:func:`~slopedist.estimators.ours.frame_cues.filter_distance`, with the depth change
-        the camera's rotation ``R_now`` gives each continued track."""
+        """:func:`~slopedist.estimators.ours.track_filters.filter_distance`, with the depth
+        change the camera's rotation ``R_now`` gives each continued track."""
         ratio = None
         if self.ablation.motion_model and match.continued_rows.size:
             ratio = self._continued_depth_ratios(match, R_now)
-        return frame_cues.filter_distance(
+        return filters.filter_distance(
             self.ablation, match, measurement, ratio, self._recorder is not None
         )
 
@@ -473,109 +475,135 @@ class OursEstimator(Estimator):
         before = match.before
         return depth_ratios(before.last_box_px, cam.f, cam.c_x, cam.c_y, before.R_world_cam, R_now)
 
-    def _update_tracks(
+    def _target_gradient(
         self,
         targets: FrameTargets,
         match: TrackMatch,
         fused: FusedCues,
         distance: DistanceFilterResult,
+        horizon: FrameHorizon,
+    ) -> TargetGradient:
+        """:func:`~slopedist.estimators.ours.track_filters.target_gradient` of the frame."""
+        return filters.target_gradient(
+            self.config.gradient_sigma_rad,
+            self.camera,
+            targets,
+            match,
+            fused,
+            distance.rows,
+            horizon.theta_rad,
+            horizon.jitter_rad,
+            horizon.calib.height_m,
+        )
+
+    def _learn_sizes(self, state: FrameState, size_before: TrackSize | None) -> FloatArray | None:
+        """``(2, n)`` each target's size belief after this frame (None without
+        ``size_learning``)."""
+        if self._sizes is None or size_before is None:
+            return None
+        return self._sizes.after_frame(state, size_before)
+
+    def _update_tracks(
+        self,
+        state: FrameState,
         gradient: TargetGradient,
         R_now: FloatArray | None,
-        size_rows: FloatArray | None = None,
-        odd_evidence: FloatArray | None = None,
+        size_rows: FloatArray | None,
+        odd_evidence: FloatArray | None,
     ) -> NDArray[np.int64]:
         """Write this frame into the tracks (when any state is carried); the track uid of
         every target."""
+        targets, match, _, fused, distance = state
         abl = self.ablation
         if not carries_state(self.config, abl):
             return self._new_uids(targets.boxes_px.shape[0])
         belief: FloatArray | None = None
         if abl.yaw_memory:  # the heading belief a track carries (only read with yaw_memory)
-            belief = frame_cues.heading_belief(fused, abl.yaw_evidence_weight, self._yaw.size)
-        return self._store(
-            TrackUpdate(
-                distance.rows,
-                targets.track_ids,
-                distance.filter_rows,
-                belief,
-                gradient.track_mean_rad,
-                gradient.track_var_rad2,
-                gradient.obs_var_other_rad2,
-                targets.boxes_px,
-                targets.time_s,
-                np.eye(3) if R_now is None else np.asarray(R_now, dtype=float),
-                match.turned_boxes_px if match.box_motion else None,
-                size_rows,
-                odd_evidence,
-                distance.noise_scale,
-            )
+            n_headings = self._hypotheses.yaw_rad.size
+            belief = hypotheses.heading_belief(fused, abl.yaw_evidence_weight, n_headings)
+        update = TrackUpdate(
+            distance.rows,
+            targets.track_ids,
+            distance.filter_rows,
+            belief,
+            gradient.track_mean_rad,
+            gradient.track_var_rad2,
+            gradient.obs_var_other_rad2,
+            targets.boxes_px,
+            targets.time_s,
+            np.eye(3) if R_now is None else np.asarray(R_now, dtype=float),
+            match.turned_boxes_px if match.box_motion else None,
+            size_rows,
+            odd_evidence,
+            distance.noise_scale,
         )
-
-    def _feed_selfcal(
-        self,
-        targets: FrameTargets,
-        shape_gap: FloatArray,
-        fused: FusedCues,
-        gradient: TargetGradient,
-        uid: NDArray[np.int64],
-        theta_rad: float,
-        calib: CalibrationInUse,
-    ) -> None:
-        """Give the self-calibration the targets of tightly sized classes whose box is not cut
-        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps (of a
-        frame with a measured θ only: the caller skips one without a rotation or with an
-        odometry jump, whose resting θ is no measurement)."""
-        cam, n = self.camera, uid.shape[0]
-        classes = targets.classes
-        usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
-        cuts = targets.border_cuts
-        if cuts is not None:
-            usable &= ~cuts.top & ~cuts.bottom
-        theta_cfg = theta_rad - calib.horizon_offset_rad
-        v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
-        near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
-        self.selfcal.update(
-            uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
-        )
+        tr = self.tracks
+        continued = update.rows >= 0
+        uid = np.empty(continued.shape[0], np.int64)
+        uid[continued] = tr.uid[update.rows[continued]]
+        tr.write_continued(update, continued)
+        new = ~continued
+        if new.any():  # the tracks are replaced only when one starts (see tracks.py)
+            new_uid = self._new_uids(int(np.count_nonzero(new)))
+            uid[new] = new_uid
+            log_prior = self._hypotheses.log_yaw_prior
+            self.tracks = tr.with_started(update, new, new_uid, log_prior)
+        return uid
 
     def _new_uids(self, k: int) -> NDArray[np.int64]:
         uid = np.arange(self._next_uid, self._next_uid + k)
         self._next_uid += k
         return uid
 
-    # -- state handling ---------------------------------------------------------------------
+    def _feed_selfcal(
+        self,
+        state: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+        horizon: FrameHorizon,
+    ) -> None:
+        """Give the self-calibration the targets of tightly sized classes whose box is not cut
+        by the top or bottom border: bottom rows, nearest-face size distances, shape gaps (of a
+        frame with a measured θ only: the caller skips one without a rotation or with an
+        odometry jump, whose resting θ is no measurement)."""
+        targets, fused = state.targets, state.fused
+        cam, n = self.camera, uid.shape[0]
+        classes = targets.classes
+        usable = (classes.height_log_sigma <= SELFCAL_MAX_LOG_SIGMA) & ~classes.generic
+        cuts = targets.border_cuts
+        if cuts is not None:
+            usable &= ~cuts.top & ~cuts.bottom
+        theta_cfg = horizon.theta_rad - horizon.calib.horizon_offset_rad
+        v_cfg = cam.c_y - cam.f * math.tan(theta_cfg)
+        near = np.where(usable, gradient.size_distance_m - fused.half_extent_m, np.nan)
+        shape_gap = frame_cues.shape_gap(targets, state.size_cues)
+        self.selfcal.update(
+            uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
+        )
 
-    def _store(self, update: TrackUpdate) -> NDArray[np.int64]:
-        """Write the updated states back; returns the track uid of every target."""
-        tr = self.tracks
-        rows = update.rows
-        cont = rows >= 0
-        uid = np.empty(rows.shape[0], np.int64)
-        uid[cont] = tr.uid[rows[cont]]
-        tr.write_continued(update, cont)
-        new = ~cont
-        if new.any():
-            new_uid = self._new_uids(int(np.count_nonzero(new)))
-            uid[new] = new_uid
-            self.tracks = tr.with_started(update, new, new_uid, self._log_yaw_prior)
-        return uid
+    def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
+        """The self-calibration in use, as columns of ``n`` boxes."""
+        cal = self.selfcal.calibration()
+        names = ("mount_angle_rad", "mount_angle_sigma_rad", "height_m", "height_sigma_m")
+        return {f"calib_{k}": np.full(n, getattr(cal, k)) for k in names}
 
-    def _drop_stale(self, t: float) -> None:
-        tr = self.tracks
-        age = self.config.max_age_s + 1e-9
-        if len(tr) and t - tr.last_time_s.min() > age:  # the oldest is stale
-            self.tracks = tr.take(t - tr.last_time_s <= age)
-
-    def _calibration_in_use(self) -> CalibrationInUse:
-        if self.ablation.self_calibrate:
-            cov = self.selfcal.covariance
-            return CalibrationInUse(
-                self.selfcal.horizon_offset_rad,
-                math.sqrt(cov[0, 0]),
-                self.selfcal.height_m,
-                math.sqrt(cov[1, 1]),
-            )
-        return self._fixed_calib
+    def _bound_cut_boxes(
+        self,
+        est: FrameEstimates,
+        good: NDArray[np.intp],
+        cut_edges: NDArray[np.bool_],
+        half_extent: FloatArray,
+    ) -> None:
+        """The states of the boxes the image border cuts
+        (:func:`~slopedist.estimators.ours.border.settle_border_cuts`); the nearest face of an
+        upper bound is a bound too (the same cue), ``half_extent`` nearer."""
+        cut = np.zeros((est.distance_m.shape[0], 4), dtype=bool)
+        cut[good] = cut_edges
+        settle_border_cuts(est, cut, self.ablation.use_width, self.ablation.use_ground_contact)
+        bounded = est.status == EstimateStatus.UPPER_BOUND.value
+        if bounded.any():
+            face = est.extra["distance_nearest_face_m"]
+            face[bounded] = est.distance_m[bounded] - half_extent[bounded]
 
 
 class OursSelfCalibratingEstimator(OursEstimator):

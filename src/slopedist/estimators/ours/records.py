@@ -22,33 +22,6 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
-EXTRA_COLUMNS = (
-    "sigma_m",
-    "distance_centre_m",
-    "distance_nearest_face_m",
-    "speed_mps",
-    "speed_sigma_mps",
-    "ttc_s",
-    "ttc_sigma_s",
-    "target_gradient_rad",
-    "target_gradient_sigma_rad",
-    "yaw_rad",
-    "distance_size_m",
-    "distance_ground_contact_m",
-    "distance_width_m",
-    "cue_gap_sigma",
-    "odd_size_prob",
-    "size_scale",
-    "size_log_sigma",
-    "track_height_m",
-    "track_uid",
-    "calib_mount_angle_rad",
-    "calib_mount_angle_sigma_rad",
-    "calib_height_m",
-    "calib_height_sigma_m",
-)
-"""Method-specific columns of ``ours`` (all float; NaN where not defined)."""
-
 
 class CalibrationInUse(NamedTuple):
     """The camera mount used for a frame.
@@ -243,44 +216,3 @@ class TargetGradient(NamedTuple):
     gradient_var_rad2: FloatArray
     delta_y_px: FloatArray
     size_distance_m: FloatArray
-
-
-class BoxEstimates(NamedTuple):
-    """Outputs of the usable boxes of a frame (see :data:`EXTRA_COLUMNS` for the extras; the
-    self-calibration columns are added by the caller)."""
-
-    distance_m: FloatArray
-    theta_adj_rad: FloatArray
-    v_px: FloatArray
-    delta_y_px: FloatArray
-    sigma_m: FloatArray
-    distance_nearest_face_m: FloatArray
-    speed_mps: FloatArray
-    speed_sigma_mps: FloatArray
-    ttc_s: FloatArray
-    ttc_sigma_s: FloatArray
-    target_gradient_rad: FloatArray
-    target_gradient_sigma_rad: FloatArray
-    yaw_rad: FloatArray
-    distance_size_m: FloatArray
-    distance_ground_contact_m: FloatArray
-    distance_width_m: FloatArray
-    cue_gap_sigma: FloatArray
-    track_uid: FloatArray
-    odd_size_prob: FloatArray | None = None
-    size_scale: FloatArray | None = None
-    size_log_sigma: FloatArray | None = None
-    track_height_m: FloatArray | None = None
-
-
-OUTPUT_KEYS = ("distance_m", "theta_adj_rad", "v_px", "delta_y_px", *EXTRA_COLUMNS)
-"""Every per-box output column of :meth:`OursEstimator.estimate`."""
-
-
-def scatter(values: dict[str, FloatArray], rows: NDArray[np.intp], n: int) -> dict[str, FloatArray]:
-    """Per-box outputs of length ``n`` for every :data:`OUTPUT_KEYS`: ``values`` (of the boxes
-    ``rows``) placed in NaN-filled columns; keys without values stay NaN."""
-    out = {k: np.full(n, np.nan) for k in OUTPUT_KEYS}
-    for k, v in values.items():
-        out[k][rows] = v
-    return out
