@@ -30,7 +30,6 @@ from slopedist.cli.run_options import (
     run_offline_option,
 )
 from slopedist.estimators import DEFAULT_METHOD
-from slopedist.io.outputs import OutputFolder
 from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 
 
@@ -153,8 +152,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
         progress=not quiet,
         parquet=not no_parquet,
     )
-    with OutputFolder(out_dir).lock():
-        result = run_batch(drives, out_dir, options)
+    result = run_batch(drives, out_dir, options)
     click.echo(batch_summary_text(result), err=True)
     if result.all_failed or (fail_fast and result.count(DriveStatus.FAILED)):
         click.get_current_context().exit(1)
