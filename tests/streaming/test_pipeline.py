@@ -155,7 +155,7 @@ def test_ours_knows_the_border_of_a_kitti_calibration(tmp_path: Path) -> None:
     pipe = Pipeline(kitti_calib(tmp_path), odometry="none")
     targets = pipe.update(IMAGE, BOXES, R_world_cam=np.eye(3)).targets
     assert [t.cut for t in targets] == ["", "", "bottom"]
-    assert targets[0].ok and targets[0].reference == "centre"
+    assert targets[0].ok and targets[0].reference == "nearest_face"
     assert math.isfinite(targets[0].sigma_m) and targets[0].track_id >= 0
 
 
