@@ -19,7 +19,7 @@ from slopedist.cli.options import lookback_option, sequence_file_options, vehicl
 from slopedist.cli.record_summary import RecordTally
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
-from slopedist.io.formatting import CsvStreamWriter
+from slopedist.io.formatting import STDOUT_PATH, CsvStreamWriter
 from slopedist.io.outputs import check_outputs_spare_inputs, output_file, partial_path
 from slopedist.io.sequence_files import SequenceFiles, SequenceInputs, read_sequence_files
 from slopedist.streaming.pipeline import FinishResult, Pipeline, stream_rotations
@@ -59,6 +59,8 @@ def estimate(
             "slopedist run FRAMES --depth-dir DIR or --depth-model MODEL.onnx, or slopedist "
             "eval kitti-tracking --depth-dir DIR"
         )
+    if out is not None and str(out) == STDOUT_PATH:  # '-': standard output
+        out = None
     written = [out, partial_path(out)] if out is not None else []
     check_outputs_spare_inputs(written, files.input_files)
     seq = read_sequence_files(files)  # the camera knows --image-size, if given
