@@ -76,6 +76,7 @@ def _estimate(sim: Path, out: Path, *options: str) -> tuple[np.ndarray, np.ndarr
     args += ["--boxes", str(sim / "boxes.csv"), "--frame-period", "0.1", "--method", "ours"]
     args += ["--height", str(info["camera_height_m"])]
     args += ["--mount-angle", str(info["mount_angle_deg"]), "--image-size", "1920x1080"]
+    args += ["--reference", "centre"]  # the truth, z_m, is the vehicle's centre
     for option in options:
         args += ["--ours-option", option]
     assert main([*args, "--out", str(out)]) == 0
