@@ -287,7 +287,7 @@ def test_offline_run_writes_the_offline_records_at_the_end(tmp_path: Path) -> No
     args = setup(tmp_path, n=6)
     assert main(["run", *args, "--method", "ours", "--odometry", "none"]) == 0
     causal = records(tmp_path)
-    assert main(["run", *args, "--offline", "--odometry", "none"]) == 0
+    assert main(["run", *args, "--offline", "--odometry", "none", "--columns", "all"]) == 0
     offline = records(tmp_path)
     assert [r["method"] for r in offline] == ["ours-offline"] * 6
     assert [r["frame"] for r in offline] == [r["frame"] for r in causal]
@@ -458,13 +458,13 @@ def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path:
     ``--reference centre`` the centre; scored against a truth (KITTI's z, the centre) both
     runs get the same figures: each method is scored at its own point."""
     common = setup(tmp_path, n=6, truth=True)
-    assert main(["run", *common, "--odometry", "none"]) == 0
+    assert main(["run", *common, "--odometry", "none", "--columns", "all"]) == 0
     face = records(tmp_path)
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["reference"] == "nearest_face"
     centre_out = tmp_path / "centre"
     args = ["run", *common[:-3], "--out", str(centre_out), "--quiet", "--odometry", "none"]
-    assert main([*args, "--reference", "centre"]) == 0
+    assert main([*args, "--reference", "centre", "--columns", "all"]) == 0
     with (centre_out / "records.csv").open() as fh:
         centre = list(csv.DictReader(fh))
     ok = [(f, c) for f, c in zip(face, centre) if f["status"] == "ok"]

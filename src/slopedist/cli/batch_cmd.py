@@ -23,6 +23,7 @@ from slopedist.cli.options import (
     vehicle_classes_option,
 )
 from slopedist.cli.run_options import (
+    columns_option,
     export_option,
     image_topic_option,
     overlay_format_option,
@@ -86,6 +87,7 @@ from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 @overlay_option
 @overlay_format_option
 @export_option
+@columns_option
 @image_topic_option
 def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
@@ -110,6 +112,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     overlay: bool,
     overlay_format: str,
     exports: tuple[str, ...],
+    columns: str,
     image_topic: str | None,
 ) -> None:
     """Run every drive of SOURCE (a CSV or TOML manifest, or a folder of drives) into OUT.
@@ -136,6 +139,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
         overlay_format,
         exports,
         generic_classes,
+        columns,
     )
     defaults = DriveDefaults(
         method, odometry, height_m, mount_angle_deg, lookback_s, settings, image_topic

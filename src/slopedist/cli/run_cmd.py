@@ -39,6 +39,7 @@ from slopedist.cli.options import (
 )
 from slopedist.cli.record_summary import not_vehicles_line
 from slopedist.cli.run_options import (
+    columns_option,
     export_option,
     image_topic_option,
     overlay_format_option,
@@ -65,6 +66,7 @@ from slopedist.streaming.setup import (
     folder_depth_source,
     run_to_folder,
 )
+from slopedist.streaming.step import RecordColumns
 
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
@@ -267,6 +269,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     show_default=True,
     help="Output folder: records.csv, frames.csv, run.json, overlay.",
 )
+@columns_option
 @overlay_option
 @overlay_format_option
 @click.option(
@@ -322,6 +325,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     odometry: str,
     vocab: Path | None,
     out_dir: Path,
+    columns: str,
     overlay: bool,
     overlay_format: str,
     snapshots: tuple[int, ...],
@@ -385,6 +389,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         sequence=sequence,
         vehicle_classes=vehicle_classes,
         reference=reference,
+        columns=RecordColumns(columns),
         other_inputs=tuple(p for p in read if p is not None),
     )
     stop = StopFlag()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import click
 
 from slopedist.streaming.config import OverlayFormat, RunExport
+from slopedist.streaming.step import RecordColumns
 
 image_topic_option = click.option(
     "--image-topic",
@@ -37,4 +38,12 @@ overlay_format_option = click.option(
     default=OverlayFormat.MP4.value,
     show_default=True,
     help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
+)
+columns_option = click.option(
+    "--columns",
+    type=click.Choice([c.value for c in RecordColumns]),
+    default=RecordColumns.DEFAULT.value,
+    show_default=True,
+    help="Columns of records.csv: default (frame, time, track, box, distance, σ, status, "
+    "speed, TTC: docs/usage.md#columns-of-recordscsv) or all (with the method's diagnostics).",
 )

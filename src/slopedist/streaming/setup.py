@@ -55,6 +55,7 @@ from slopedist.streaming.config import (
 )
 from slopedist.streaming.loop import run_frames
 from slopedist.streaming.pipeline import build_odometry
+from slopedist.streaming.step import RecordColumns
 from slopedist.streaming.tracks import TRACKS_NAME
 
 _log = logging.getLogger(__name__)
@@ -210,6 +211,8 @@ class RunOptions:
             (``--reference``; :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`, the
             nearest face, by default); None: each method's own point.
         decode_ahead: frames decoded ahead in a thread (0: all in the loop's thread).
+        columns: the columns of ``records.csv`` (``--columns``; :class:`~slopedist.streaming.
+            step.RecordColumns`).
         other_inputs: further files the run reads through ``detector`` or ``depth`` (a model,
             a depth folder), which no output may replace.
     """
@@ -240,6 +243,7 @@ class RunOptions:
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
     reference: ReferencePoint | None = DEFAULT_REFERENCE
     decode_ahead: int = DEFAULT_AHEAD
+    columns: RecordColumns = RecordColumns.DEFAULT
     other_inputs: tuple[Path, ...] = ()
 
     def input_paths(self) -> list[Path | Intrinsics | None]:
@@ -397,6 +401,7 @@ def run_config(options: RunOptions, opened: _OpenedRun, stop: StopFlag) -> RunCo
         stop=stop,
         decode_ahead=options.decode_ahead,
         snapshots=options.snapshots,
+        columns=options.columns,
     )
 
 
