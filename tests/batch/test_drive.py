@@ -165,8 +165,8 @@ def test_a_drive_with_run_settings_gives_the_outputs_of_run_alone(
     sim: Path, tmp_path: Path
 ) -> None:
     """Reference point, ours options, vehicle classes, offline mode, a PNG overlay, the TUM
-    export and every column of a drive's settings give what ``slopedist run`` gives with the same options;
-    ``run.json`` records them, with the paths of the published folder."""
+    export and every column of a drive's settings give what ``slopedist run`` gives with the
+    same options; ``run.json`` records them, with the paths of the published folder."""
     settings = RunSettings(
         reference="nearest_face",
         ours_options=(("odd_object_weight", 0.0), ("size_learning", True)),

@@ -19,6 +19,7 @@ from slopedist.io.depth import write_kitti_depth_png
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.writers import write_box_csv
 from slopedist.streaming import pipeline as pipeline_module
+from slopedist.streaming.step import DEFAULT_RECORD_FIELDS, METHOD_TRACK_COLUMN
 
 W, H = 320, 200
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -479,3 +480,52 @@ def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path:
         assert main(["report", str(folder), "--out", str(report), "--no-parquet"]) == 0
         tables.append((report / "table1_rmse.csv").read_text())
     assert tables[0] == tables[1]
+
+
+def _sparse_track(tmp_path: Path, track_ids: bool) -> list[str]:
+    """Ten frames; one car in frames 0, 1, 5 and 9 only (user's track id 1 when
+    ``track_ids``), the common arguments of ``ours`` without odometry."""
+    args = setup(tmp_path, n=10)
+    seen = np.array([0, 1, 5, 9])
+    ids = np.ones(len(seen)) if track_ids else None
+    boxes = BoxTable.build(seen, np.tile(BOX, (len(seen), 1)), ids)
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    return [*args, "--method", "ours", "--odometry", "none"]
+
+
+def test_default_records_have_the_columns_a_user_acts_on_and_the_users_track(
+    tmp_path: Path,
+) -> None:
+    """The default ``records.csv`` has at most 16 columns, the user's own track id on every row
+    of a sparse track and no diagnostics; ``--columns all`` has every column, the method's own
+    track number under a name that says what it is; ``tracks.csv`` follows the same id."""
+    args = _sparse_track(tmp_path, track_ids=True)
+    assert main(["run", *args]) == 0
+    rows = records(tmp_path)
+    assert list(rows[0]) == list(DEFAULT_RECORD_FIELDS) and len(rows[0]) <= 16
+    assert [r["track_id"] for r in rows] == ["1"] * 4
+    with (tmp_path / "out" / "tracks.csv").open() as fh:
+        assert [t["track_id"] for t in csv.DictReader(fh)] == ["1"]
+    assert main(["run", *args, "--columns", "all"]) == 0
+    full = records(tmp_path)
+    assert {"method", "cut", "cue_gap_sigma", METHOD_TRACK_COLUMN} <= set(full[0])
+    assert "track_uid" not in full[0] and [r["track_id"] for r in full] == ["1"] * 4
+    assert [r["distance_m"] for r in full] == [r["distance_m"] for r in rows]
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert (summary["method"], summary["columns"]) == ("ours", "all")
+
+
+def test_boxes_without_track_ids_follow_the_trackers_id(tmp_path: Path) -> None:
+    """Boxes without a track id: ``track_id`` is the tracker's, in the records and in
+    ``tracks.csv``; a run with truth adds ``gt_distance_m`` and stays within 16 columns."""
+    assert main(["run", *_sparse_track(tmp_path, track_ids=False)]) == 0
+    rows = records(tmp_path)
+    assert all(int(r["track_id"]) >= 0 for r in rows)
+    with (tmp_path / "out" / "tracks.csv").open() as fh:
+        tracked = {t["track_id"] for t in csv.DictReader(fh)}
+    assert tracked and tracked == {r["track_id"] for r in rows if r["status"] == "ok"}
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    assert main(["run", *setup(truth, n=3, truth=True), "--method", "flat"]) == 0
+    header = next(csv.reader((truth / "out" / "records.csv").open()))
+    assert header == [*DEFAULT_RECORD_FIELDS, "gt_distance_m"] and len(header) <= 16
