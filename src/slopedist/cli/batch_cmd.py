@@ -9,6 +9,7 @@ import click
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
 from slopedist.batch.settings import RunSettings, unapplied
+from slopedist.cli.choice import Choice
 from slopedist.cli.method_options import (
     check_methods,
     generic_class_option,
@@ -48,7 +49,7 @@ from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 )
 @click.option(
     "--odometry",
-    type=click.Choice(ODOMETRY_CHOICES),
+    type=Choice(ODOMETRY_CHOICES),
     default="builtin",
     show_default=True,
     help="Odometry of drives that name none.",

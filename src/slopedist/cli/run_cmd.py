@@ -16,6 +16,7 @@ from typing import Any
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.cli.method_options import (
     check_methods,
     estimator_options,
@@ -166,7 +167,7 @@ _DEPTH_SOURCE_OPTIONS = (
     ),
     click.option(
         "--depth-output",
-        type=click.Choice(list(DEPTH_OUTPUTS)),
+        type=Choice(list(DEPTH_OUTPUTS)),
         default="depth",
         show_default=True,
         help="ONNX model output: depth (metres = scale × output) or inverse depth / "
@@ -249,7 +250,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 @run_offline_option
 @click.option(
     "--odometry",
-    type=click.Choice(ODOMETRY_CHOICES),
+    type=Choice(ODOMETRY_CHOICES),
     default="builtin",
     show_default=True,
     help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
