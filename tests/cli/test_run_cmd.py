@@ -452,6 +452,7 @@ def test_a_calibration_that_does_not_fit_the_frames_names_its_file_and_the_frame
     err = capsys.readouterr().err.strip()
     where = f"{tmp_path / 'calib.txt'} and the frames of {tmp_path / 'frames'}"
     assert err.startswith(f"slopedist: error: {where}: ") and said in err
+    assert "the calibration is probably for another resolution (about" in err
 
 
 def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path: Path) -> None:
@@ -529,3 +530,34 @@ def test_boxes_without_track_ids_follow_the_trackers_id(tmp_path: Path) -> None:
     assert main(["run", *setup(truth, n=3, truth=True), "--method", "flat"]) == 0
     header = next(csv.reader((truth / "out" / "records.csv").open()))
     assert header == [*DEFAULT_RECORD_FIELDS, "gt_distance_m"] and len(header) <= 16
+
+
+K_1080P = "1000 0 960\n0 1000 540\n0 0 1\n"
+"""A 3×3 K calibrated on 1920×1080 px frames."""
+ANOTHER_RESOLUTION = (
+    "the calibration's principal point c_x = 960.0 px lies outside the 320×200 px images; "
+    "the calibration is probably for another resolution (about "
+    "1920×1080 px = 2·c_x × 2·c_y); give the calibration for these frames, or resize the "
+    "frames to it"
+)
+
+
+def test_a_calibration_for_another_resolution_names_the_file_and_the_cause(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A K of 1920×1080 px frames on 320×200 px frames, in ``run`` and in ``estimate
+    --image-size``: one line naming the file and the resolution it is probably for."""
+    args = setup(tmp_path)
+    calib = tmp_path / "k1080.txt"
+    calib.write_text(K_1080P)
+    args[args.index("--calib") + 1] = str(calib)
+    assert main(["run", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    where = f"{calib} and the frames of {tmp_path / 'frames'}"
+    assert err == f"slopedist: error: {where}: {ANOTHER_RESOLUTION}"
+    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n" * 4)
+    estimate = ["estimate", "--calib", str(calib), "--poses", str(tmp_path / "poses.txt")]
+    estimate += ["--boxes", str(tmp_path / "boxes.csv"), "--image-size", f"{W}x{H}"]
+    assert main(estimate) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"slopedist: error: {calib} with --image-size {W}x{H}: {ANOTHER_RESOLUTION}"
