@@ -561,3 +561,24 @@ def test_a_calibration_for_another_resolution_names_the_file_and_the_cause(
     assert main(estimate) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"slopedist: error: {calib} with --image-size {W}x{H}: {ANOTHER_RESOLUTION}"
+
+
+def test_a_run_without_boxes_points_to_the_detector_guide(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Neither --boxes nor --detector: one line that names both and docs/detectors.md, which
+    starts with the shortest way to a detector (the commands it names exist)."""
+    args = setup(tmp_path)
+    at = args.index("--boxes")
+    assert main(["run", *args[:at], *args[at + 2 :]]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "slopedist: error: no boxes: give a box file (--boxes FILE) or an ONNX detector "
+        "(--detector MODEL.onnx; export one yourself in two commands: docs/detectors.md)"
+    ]
+    guide = (Path(__file__).parents[2] / "docs" / "detectors.md").read_text(encoding="utf-8")
+    first = guide.split("\n## ")[1]
+    assert first.startswith("The shortest way") and "yolo export model=yolov8n.pt" in first
+    assert "slopedist run drive.mp4 --calib calib.txt --detector yolov8n.onnx" in first
+    assert main(["run", *args, "--detector", str(tmp_path / "m.onnx")]) == 2
+    assert "not both" in capsys.readouterr().err

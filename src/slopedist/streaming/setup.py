@@ -275,6 +275,13 @@ class _OpenedRun:
     dropped_boxes: DroppedBoxes = field(default_factory=DroppedBoxes)
 
 
+NO_BOXES = (
+    "no boxes: give a box file (--boxes FILE) or an ONNX detector (--detector MODEL.onnx; "
+    "export one yourself in two commands: docs/detectors.md)"
+)
+"""The error of a run given neither boxes nor a detector."""
+
+
 def boxes_or_detector(
     inputs: RunOptions, dropped: DroppedBoxes | None = None
 ) -> tuple[BoxTable, Detector | None]:
@@ -284,7 +291,9 @@ def boxes_or_detector(
         return read_box_file(inputs.boxes, inputs.score, dropped), None
     if inputs.detector is not None and inputs.boxes is None:
         return BoxTable.empty(), inputs.detector()
-    raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
+    if inputs.boxes is not None:
+        raise ConfigurationError("give the boxes as a file (--boxes) or a detector, not both")
+    raise ConfigurationError(NO_BOXES)
 
 
 def open_run(inputs: RunOptions) -> _OpenedRun:
