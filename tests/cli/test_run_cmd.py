@@ -582,3 +582,15 @@ def test_a_run_without_boxes_points_to_the_detector_guide(
     assert "slopedist run drive.mp4 --calib calib.txt --detector yolov8n.onnx" in first
     assert main(["run", *args, "--detector", str(tmp_path / "m.onnx")]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+def test_a_report_of_default_records_with_truth_says_how_ours_was_moved(tmp_path: Path) -> None:
+    """Default records lack ``ours``'s own depth extent: the report scores them all the same,
+    at the truth's centre with the class's length, and says so."""
+    assert main(["run", *setup(tmp_path, n=6, truth=True), "--odometry", "none"]) == 0
+    report = tmp_path / "report"
+    assert main(["report", str(tmp_path / "out"), "--out", str(report), "--no-parquet"]) == 0
+    assert (report / "table1_rmse.csv").read_text().count("\n") >= 2
+    text = (report / "report.md").read_text(encoding="utf-8")
+    assert "ours: moved to the truth's point with half the class's length" in text
+    assert "--columns all" in text
