@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from slopedist.core import geometry as geo
 from slopedist.core.errors import ConfigurationError, DataMismatchError
+from slopedist.core.suggest import did_you_mean
 from slopedist.estimators.base import (
     EstimateStatus,
     Estimator,
@@ -586,8 +587,11 @@ def parse_columns(value: str | RecordColumns) -> RecordColumns:
     try:
         return RecordColumns(getattr(value, "value", value))
     except ValueError:
-        choices = ", ".join(c.value for c in RecordColumns)
-        raise ConfigurationError(f"unknown record columns '{value}'; choose {choices}") from None
+        names = [c.value for c in RecordColumns]
+        raise ConfigurationError(
+            f"unknown record columns '{value}'{did_you_mean(str(value), names)} (choose from "
+            f"{', '.join(names)})"
+        ) from None
 
 
 def user_track_ids(boxes: BoxTable, est: FrameEstimates) -> NDArray[np.int64]:
