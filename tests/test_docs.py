@@ -284,6 +284,17 @@ def test_the_code_map_of_the_method_names_files_that_exist() -> None:
     assert [f for f in sorted(functions) if not _resolves(f)] == []
 
 
+def test_the_code_map_of_ours_lists_every_module_once() -> None:
+    """docs/method.md's code map of ``ours`` has one row for each of its modules."""
+    text = (ROOT / "docs" / "method.md").read_text(encoding="utf-8")
+    table = text.split("Code map of\n`src/slopedist/estimators/ours/`", 1)[1].split("\n\n", 2)[1]
+    rows = re.findall(r"^\| `([a-z_]+\.py)` \|", table, flags=re.MULTILINE)
+    package = ROOT / "src" / "slopedist" / "estimators" / "ours"
+    modules = sorted(p.name for p in package.glob("*.py") if p.name != "__init__.py")
+    assert sorted(rows) == modules
+    assert len(rows) == len(set(rows))
+
+
 def markdown_table_column(path: Path, heading: str) -> list[str]:
     """The first cells (without backticks) of the first table under ``heading``."""
     lines = path.read_text(encoding="utf-8").splitlines()

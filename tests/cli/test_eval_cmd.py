@@ -146,3 +146,15 @@ def test_a_sequence_list_that_names_nothing_is_a_usage_error(
     """``--sequences ","`` ran every sequence (an empty list read as the option left out)."""
     assert main([*command, str(kitti_tracking_dir), "--sequences", ","]) == 2
     assert "'--sequences': names nothing" in capsys.readouterr().err
+
+
+def test_box_size_options_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A size σ outside (0, 100] % is a usage error naming the option; sizes asked of RRC's
+    boxes (which have none) fail with the reason."""
+    (tmp_path / "label_02").mkdir()
+    (tmp_path / "label_02" / "0000.txt").write_text("")
+    args = ["eval", "kitti-tracking", str(tmp_path), "--methods", "ours"]
+    assert main([*args, "--box-sizes", "--box-size-sigma", "0"]) == 2
+    assert "--box-size-sigma" in capsys.readouterr().err
+    assert main([*args, "--boxes", "rrc", "--box-sizes"]) != 0
+    assert "RRC's boxes carry no vehicle size" in capsys.readouterr().err

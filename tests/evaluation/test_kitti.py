@@ -8,8 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from slopedist.core.errors import MissingInputError
-from slopedist.evaluation.kitti import KittiEvalConfig, evaluate_kitti_tracking, run_kitti_tracking
+from slopedist.core.errors import ConfigurationError, MissingInputError
+from slopedist.evaluation.kitti import (
+    KittiEvalConfig,
+    check_run,
+    evaluate_kitti_tracking,
+    run_kitti_tracking,
+)
 from slopedist.io.kitti.tracking import BoxSource, RotationSource
 
 EXPECTED_POOLED = {"flat": 10.03, "ego": 10.71, "paper": 10.07}
@@ -176,3 +181,33 @@ def test_detections_after_the_last_labelled_frame_are_not_fed(
     cfg = dataclasses.replace(KittiEvalConfig(), boxes="rrc", min_score=0.5)
     report = evaluate_kitti_tracking(tmp_path, cfg)
     assert 0 < report["methods"]["paper"]["overall"]["n"] < 200
+
+
+def test_the_detector_sizes_are_fed_only_when_asked(kitti_tracking_dir: Path) -> None:
+    """``box_sizes``: PointRCNN's h, w, l reach ``ours`` (closer to the truth than its class
+    prior, so its error falls), and the protocol says so; off, the report is the published
+    protocol's, without the entry."""
+    base = KittiEvalConfig(
+        sequences=["0001"], boxes=BoxSource.POINTRCNN, min_score=2.0, methods=("ours",)
+    )
+    plain = evaluate_kitti_tracking(kitti_tracking_dir, base)
+    sized = evaluate_kitti_tracking(
+        kitti_tracking_dir, dataclasses.replace(base, box_sizes=True, box_size_sigma_pct=5.0)
+    )
+    assert "box_sizes" not in plain["protocol"]
+    assert sized["protocol"]["box_sizes"] == {
+        "from": "pointrcnn (height, width, length)",
+        "sigma_pct": 5.0,
+    }
+    rmse = [r["methods"]["ours"]["overall"]["rmse"] for r in (plain, sized)]
+    assert rmse[1] < 0.8 * rmse[0]
+
+
+def test_sizes_asked_of_boxes_without_them_are_refused(tmp_path: Path) -> None:
+    (tmp_path / "label_02").mkdir()
+    (tmp_path / "label_02" / "0000.txt").write_text("")
+    with pytest.raises(ConfigurationError, match="RRC's boxes carry no vehicle size"):
+        check_run(tmp_path, KittiEvalConfig(boxes=BoxSource.RRC, box_sizes=True))
+    with pytest.raises(ConfigurationError, match="give both"):
+        check_run(tmp_path, KittiEvalConfig(boxes=BoxSource.POINTRCNN, box_size_sigma_pct=5.0))
+    assert check_run(tmp_path, KittiEvalConfig(boxes=BoxSource.GT, box_sizes=True)) == ["0000"]

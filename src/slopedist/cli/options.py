@@ -19,6 +19,7 @@ from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.io.detections.layouts import LogitKind, OutputLayout
 from slopedist.io.detections.onnx_detector import COCO_VEHICLES, DetectorSettings, OnnxDetector
+from slopedist.io.detections.sizes import DEFAULT_SIZE_SIGMA_PCT, MAX_SIZE_SIGMA_PCT
 from slopedist.io.intrinsics import Intrinsics
 from slopedist.io.kitti.tracking import BoxSource, RotationSource
 from slopedist.io.sequence_files import PoseFileLayout, SequenceFiles
@@ -374,6 +375,22 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
             "generic: a mixture of car/van/truck/bus (option generic_classes).",
         ),
         click.option(
+            "--box-sizes/--no-box-sizes",
+            default=False,
+            show_default=True,
+            help=f"{prefix}Feed the vehicle sizes the boxes know to ours, in place of its "
+            "class prior: PointRCNN's h, w, l (LiDAR-derived, closer to the truth than a "
+            "camera detector's), the labels' own with --boxes gt; RRC has none.",
+        ),
+        click.option(
+            "--box-size-sigma",
+            "box_size_sigma_pct",
+            type=BoundedFloat(0.0, MAX_SIZE_SIGMA_PCT, "%"),
+            default=None,
+            help=f"{prefix}1σ of the sizes of --box-sizes, percent of each dimension "
+            f"[default: {DEFAULT_SIZE_SIGMA_PCT:g}].",
+        ),
+        click.option(
             "--gt-reference",
             type=Choice([r.value for r in GT_REFERENCES]),
             default=None,
@@ -388,7 +405,8 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
 def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """The options every KITTI tracking evaluation shares — ``--rotation``, ``--boxes``,
     ``--score`` (help text starts with ``prefix``), ``--height``, ``--mount-angle``,
-    ``--lookback``, ``--generic-class``, ``--gt-reference`` and ``--workers`` — handed to the
+    ``--lookback``, ``--generic-class``, ``--box-sizes``, ``--box-size-sigma``,
+    ``--gt-reference`` and ``--workers`` — handed to the
     command as one ``kitti_config`` (:class:`~slopedist.evaluation.kitti.KittiEvalConfig`; the
     command
     adds its sequences, methods and method options with :func:`dataclasses.replace`)."""
@@ -420,6 +438,8 @@ def kitti_eval_options(prefix: str = "") -> Callable[[Callable[..., Any]], Calla
                 lookback_s=lookback_s,
                 workers=workers,
                 generic_detector_class=generic_class,
+                box_sizes=kwargs.pop("box_sizes"),
+                box_size_sigma_pct=kwargs.pop("box_size_sigma_pct"),
                 gt_reference=ReferencePoint(gt_reference) if gt_reference else None,
             )
             return command(*args, **kwargs)

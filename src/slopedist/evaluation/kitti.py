@@ -43,6 +43,7 @@ from slopedist.evaluation.metrics import (
 )
 from slopedist.io.depth.files import FileDepthSource
 from slopedist.io.detections.boxes import BoxTable, box_problems
+from slopedist.io.detections.sizes import DEFAULT_SIZE_SIGMA_PCT, SIZE_COLUMNS, SIZE_SIGMA_COLUMN
 from slopedist.io.kitti.tracking import (
     DETECTOR_CLASSES,
     PROTOCOL_CLASSES,
@@ -87,6 +88,14 @@ class KittiEvalConfig:
     generic_detector_class: bool = False
     """With detector boxes (every box ``Car``), ``ours`` reads the class as generic: a mixture
     of vehicle types (option ``generic_classes``), unless its options say otherwise."""
+    box_sizes: bool = False
+    """Feed the vehicle sizes the boxes know (PointRCNN's ``h, w, l``, LiDAR-derived; the
+    labels' own with ground-truth boxes; RRC knows none) as box columns
+    (:mod:`slopedist.io.detections.sizes`): ``ours`` then uses them in place of its class
+    prior. Off in the published protocol."""
+    box_size_sigma_pct: float | None = None
+    """The 1σ of those sizes, percent of each dimension (None:
+    :data:`~slopedist.io.detections.sizes.DEFAULT_SIZE_SIGMA_PCT`)."""
     workers: int = 1
     """CPUs to run the sequences on: above 1, one Ray task per sequence
     (:func:`slopedist.batch.engine.map_tasks`, the batch extra); the results are those of 1."""
@@ -148,6 +157,7 @@ class KittiEvalConfig:
                 if self.generic_detector_class and BoxSource(self.boxes).is_detector
                 else None
             ),
+            **self._box_sizes_protocol(),
             "cap_m": self.cap_m,
             "cap_rule": (
                 f"estimates above {self.cap_m:g} m are set to {self.cap_m:g} m; a target "
@@ -168,14 +178,47 @@ class KittiEvalConfig:
             "methods": list(self.methods),
         }
 
+    def _box_sizes_protocol(self) -> dict[str, Any]:
+        """The protocol's ``box_sizes`` entry, only when the sizes are fed (the published
+        protocol's report stays as it was)."""
+        if not self.box_sizes:
+            return {}
+        sigma = self.box_size_sigma_pct
+        source = "labels" if BoxSource(self.boxes) is BoxSource.GT else BoxSource(self.boxes).value
+        return {
+            "box_sizes": {
+                "from": f"{source} (height, width, length)",
+                "sigma_pct": DEFAULT_SIZE_SIGMA_PCT if sigma is None else sigma,
+            }
+        }
+
 
 def _boxes_for(seq: KittiTrackingSequence, cfg: KittiEvalConfig, gt: BoxTable) -> BoxTable:
     """The boxes the methods are fed: the labels, or the detector's boxes of the labelled
-    frames (a detection after the last labelled frame has no truth to be scored against)."""
-    if BoxSource(cfg.boxes) is BoxSource.GT:
-        return gt
-    detections = seq.detections(cfg.min_score, BoxSource(cfg.boxes))
-    return detections.select(detections.frame < seq.n_frames)
+    frames (a detection after the last labelled frame has no truth to be scored against);
+    with ``cfg.box_sizes`` their vehicle sizes as box columns."""
+    source = BoxSource(cfg.boxes)
+    if source is BoxSource.GT:
+        return _with_size_sigma(_label_sizes(gt), cfg) if cfg.box_sizes else gt
+    detections = seq.detections(cfg.min_score, source, sizes=cfg.box_sizes)
+    detections = detections.select(detections.frame < seq.n_frames)
+    return _with_size_sigma(detections, cfg) if cfg.box_sizes else detections
+
+
+def _label_sizes(labels: BoxTable) -> BoxTable:
+    """``labels`` with their dimensions (``dims_hwl``) as the size columns."""
+    dims = np.asarray(labels.extra["dims_hwl"], dtype=float).reshape(-1, 3)
+    extra = {**labels.extra, **{c: dims[:, k] for k, c in enumerate(SIZE_COLUMNS)}}
+    return BoxTable(labels.frame, labels.boxes, labels.track_id, labels.score, labels.cls, extra)
+
+
+def _with_size_sigma(boxes: BoxTable, cfg: KittiEvalConfig) -> BoxTable:
+    """``boxes`` with ``cfg.box_size_sigma_pct`` as every box's size σ (when given)."""
+    if cfg.box_size_sigma_pct is None:
+        return boxes
+    sigma = np.full(len(boxes), float(cfg.box_size_sigma_pct))
+    extra = {**boxes.extra, SIZE_SIGMA_COLUMN: sigma}
+    return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls, extra)
 
 
 @dataclass
@@ -258,7 +301,8 @@ def check_run(root: str | Path, cfg: KittiEvalConfig) -> list[str]:
 
     Raises:
         MissingInputError: a named sequence is not under ``root``.
-        ConfigurationError: no methods, or depth maps needed and ``cfg.depth_dir`` not given.
+        ConfigurationError: no methods, depth maps needed and ``cfg.depth_dir`` not given,
+            or vehicle sizes asked of boxes that have none (:func:`_check_box_sizes`).
     """
     available = list_sequences(root)
     names = list(dict.fromkeys(cfg.sequences)) if cfg.sequences else available
@@ -276,7 +320,23 @@ def check_run(root: str | Path, cfg: KittiEvalConfig) -> list[str]:
             f"method(s) {', '.join(needing)} need depth maps: give a depth folder "
             f"(--depth-dir DIR with DIR/<sequence>/<frame>.png or .npy)"
         )
+    _check_box_sizes(cfg)
     return names
+
+
+def _check_box_sizes(cfg: KittiEvalConfig) -> None:
+    """Fail for sizes asked of boxes that have none, or a size σ without the sizes.
+
+    Raises:
+        ConfigurationError: ``box_sizes`` with RRC's boxes, or ``box_size_sigma_pct``
+            without ``box_sizes``.
+    """
+    if cfg.box_sizes and BoxSource(cfg.boxes) is BoxSource.RRC:
+        raise ConfigurationError(
+            "RRC's boxes carry no vehicle size: --box-sizes needs --boxes pointrcnn or gt"
+        )
+    if cfg.box_size_sigma_pct is not None and not cfg.box_sizes:
+        raise ConfigurationError("--box-size-sigma is the σ of --box-sizes: give both")
 
 
 class _SequenceRotations:

@@ -19,7 +19,9 @@ Damage: a frame the decoder reports damaged (libav logs an error while decoding 
 after it up to the next key frame: they are predicted from the damaged one and show its smear.
 The decoder's messages can arrive a few frames ahead of their frame (B-frame reordering), so
 the frames from the first message on are marked, and a key frame ends the damage only once
-:func:`damage_slack` frames have gone by without a message. Frames are decoded on one
+:func:`damage_slack` frames have gone by without a message. A B-frame is shown before the
+frame it is predicted from, so B-frames are held until their next reference frame is decoded,
+and are ``unreadable`` with it when it is damaged. Frames are decoded on one
 thread: PyAV deadlocks when a decoding thread of libav logs (which is why it logs nothing by
 default). OpenCV's decoding (:class:`~slopedist.io.frames.VideoSource`: without PyAV, or with
 a forced frame rate) reports no damage.
@@ -27,6 +29,7 @@ a forced frame rate) reports no damage.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -102,6 +105,10 @@ class PyAVVideoSource:
             return _displayed_size(first)
 
     def __iter__(self) -> Iterator[Frame]:
+        return _with_b_frames_held(self._judged())
+
+    def _judged(self) -> Iterator[tuple[Frame, bool, bool]]:
+        """Each frame, whether it is a B-frame and whether the decoder reports it damaged."""
         import av
 
         period = 1.0 / self.container_fps
@@ -122,9 +129,8 @@ class PyAVVideoSource:
                     return
                 except av.FFmpegError as exc:
                     t = (last or 0.0) + period
-                    yield Frame(
-                        k, t, None, FrameStatus.UNREADABLE, name, f"decoding stopped: {exc}"
-                    )
+                    why = f"decoding stopped: {exc}"
+                    yield Frame(k, t, None, FrameStatus.UNREADABLE, name, why), False, False
                     return
                 if vf.pts is not None and vf.time_base is not None:
                     pts = vf.pts * vf.time_base
@@ -134,11 +140,13 @@ class PyAVVideoSource:
                     t = 0.0 if last is None else last + period
                 if self.timestamps_s is not None:
                     t = self._given(k)
-                status, detail, image = self._check(vf, t, last, size, damage.judge(k, vf))
+                damaged = damage.judge(k, vf)
+                status, detail, image = self._check(vf, t, last, size, damaged)
                 size = size or _displayed_size(vf)
                 if status is FrameStatus.OK:
                     last = t
-                yield Frame(k, t, image, status, name, detail)
+                reported = damaged.startswith(REPORTED_DAMAGE)
+                yield Frame(k, t, image, status, name, detail), _is_b_frame(vf), reported
                 k += 1
 
     def _given(self, k: int) -> float:
@@ -176,6 +184,43 @@ message before a key frame ends the damage (see :func:`damage_slack`)."""
 REORDER_FRAMES = 4
 """Frames a decoder with B-frames holds back before showing one, at most, in the streams of
 common encoders (x264's B-pyramid: 2; H.264 allows up to 16, which no dashcam writes)."""
+
+
+AV_PICTURE_TYPE_B = 3
+"""libav's picture type of a B-frame (``AV_PICTURE_TYPE_B``)."""
+
+REPORTED_DAMAGE = "the decoder reports damage"
+"""How the detail of a frame the decoder itself reports damaged begins."""
+
+
+def _is_b_frame(vf: Any) -> bool:
+    """True when the decoded frame ``vf`` is a B-frame (predicted from a later frame too)."""
+    kind = getattr(vf, "pict_type", None)  # PyAV ≥ 18: an int; before: an enum item
+    return kind == AV_PICTURE_TYPE_B or str(getattr(kind, "name", "")) == "B"
+
+
+def _with_b_frames_held(
+    judged: Iterator[tuple[Frame, bool, bool]],
+) -> Iterator[Frame]:
+    """The frames of ``judged`` in order, each B-frame held until the next other frame, its
+    later reference: when the decoder reports that one damaged, the held B-frames, predicted
+    from it, are ``unreadable`` too."""
+    held: list[Frame] = []
+    for frame, is_b, reported in judged:
+        if is_b:
+            held.append(frame)
+            continue
+        for b in held:
+            yield _predicted_from(b, frame) if reported and b.status is FrameStatus.OK else b
+        held = []
+        yield frame
+    yield from held
+
+
+def _predicted_from(b: Frame, reference: Frame) -> Frame:
+    """The B-frame ``b`` marked ``unreadable``: it is predicted from the damaged ``reference``."""
+    why = f"predicted from damaged frame {reference.index} ({reference.detail})"
+    return dataclasses.replace(b, image=None, status=FrameStatus.UNREADABLE, detail=why)
 
 
 def _one_thread(stream: Any) -> None:
@@ -217,7 +262,7 @@ class _Damage:
             if not self.why:
                 self.why, self.since = said, k
             self.quiet = 0
-            return f"the decoder reports damage: {said}"
+            return f"{REPORTED_DAMAGE}: {said}"
         if not self.why:
             return ""
         self.quiet += 1

@@ -90,6 +90,21 @@ class TargetClasses(NamedTuple):
     type_moments: FloatArray | None = None
 
 
+DetectorSizes = tuple[FloatArray, FloatArray]
+"""A detector's vehicle sizes: ``(n, 3)`` height, width, length and ``(n, 3)`` their 1σ, metres
+(NaN = unknown; :func:`slopedist.io.detections.sizes.size_arrays`)."""
+
+
+def _sized(sizes: DetectorSizes | None, n: int) -> NDArray[np.bool_] | None:
+    """``(n,)`` the targets with a known dimension, or None when there is none."""
+    if sizes is None:
+        return None
+    sized = np.asarray(np.isfinite(sizes[0]).any(axis=1), dtype=bool)
+    if sized.shape[0] != n:
+        raise ValueError(f"{sized.shape[0]} detector sizes for {n} targets")
+    return sized if sized.any() else None
+
+
 class ClassTable:
     """Class priors and their per-heading constants, one row per class name seen so far.
 
@@ -133,18 +148,36 @@ class ClassTable:
         self._generic_rows: list[bool] = []
         self._build()
 
-    def gather(self, classes: NDArray[np.object_]) -> TargetClasses:
-        """The constants of the class names ``classes`` ``(n,)`` (new names are added)."""
+    def gather(
+        self, classes: NDArray[np.object_], sizes: DetectorSizes | None = None
+    ) -> TargetClasses:
+        """The constants of the class names ``classes`` ``(n,)`` (new names are added).
+
+        ``sizes``: the vehicle sizes a detector gives, ``(n, 3)`` height, width, length and
+        ``(n, 3)`` their 1σ (m; NaN = unknown). A target with a known dimension takes it, and
+        its σ, in place of its class prior's (the class prior's for the others; the class's
+        height-width correlation); its vehicle type is then known: it is never read as a
+        mixture of types (:attr:`TargetClasses.generic` false) nor widened by one for σ.
+        """
         rows = self._row_indices(classes.tolist())
         scalars = self._scalars[rows]
-        # rows gathered along the second axis: each plane of a frame is contiguous
         generic = self._generic[rows]
+        sized = _sized(sizes, rows.shape[0])
+        if sized is not None:
+            generic = generic & ~sized
+        # rows gathered along the second axis: each plane of a frame is contiguous
         if self._generic_names and generic.any():
             planes, type_log_weight = self._type_planes[:, rows], self._type_log_weight[rows]
         else:
             planes, type_log_weight = self._planes[:, rows], None
         moments = self._spread[rows] if self._spread_names else None
-        if moments is not None and not self._is_spread[rows].any():
+        spread = self._is_spread[rows] if self._spread_names else None
+        if sizes is not None and sized is not None:
+            scalars, planes, type_log_weight, moments = self._with_sizes(
+                sizes, sized, scalars, planes, type_log_weight, moments
+            )
+            spread = None if spread is None else spread & ~sized
+        if moments is not None and spread is not None and not spread.any():
             moments = None
         return TargetClasses(
             scalars[:, 0],
@@ -155,6 +188,42 @@ class ClassTable:
             type_log_weight,
             moments,
         )
+
+    def _with_sizes(
+        self,
+        sizes: DetectorSizes,
+        sized: NDArray[np.bool_],
+        scalars: FloatArray,
+        planes: FloatArray,
+        type_log_weight: FloatArray | None,
+        moments: FloatArray | None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
+        """The gathered constants with the ``sized`` targets' own: their known dimensions and
+        σ in their prior rows, their planes in the frame's layout (repeated over the size
+        modes, or over the types with the other types of no weight), one type for σ."""
+        dims, sigma = sizes
+        idx = np.flatnonzero(sized)
+        a = scalars[idx, :7].copy()
+        known = np.isfinite(dims[idx])
+        a[:, 0:3] = np.where(known, dims[idx], a[:, 0:3])
+        a[:, 3:6] = np.where(known, sigma[idx], a[:, 3:6])
+        scalars = scalars.copy()
+        scalars[idx] = np.concatenate([a, a[:, 3:6] / a[:, 0:3]], axis=1)
+        own = self._planes_of(a)
+        planes = planes.copy()
+        if type_log_weight is not None:
+            n_types = type_log_weight.shape[1]
+            planes[:, idx] = np.tile(own, n_types)
+            type_log_weight = type_log_weight.copy()
+            type_log_weight[idx] = NOT_THIS_TYPE_LOG_WEIGHT
+            type_log_weight[idx, 0] = 0.0
+        else:
+            planes[:, idx] = np.tile(own, self._n_modes)
+        if moments is not None:
+            moments = moments.copy()
+            moments[idx] = 0.0
+            moments[idx, 1:, 2] = NOT_THIS_TYPE_LOG_WEIGHT
+        return scalars, planes, type_log_weight, moments
 
     def _row_indices(self, classes: list[object]) -> NDArray[np.intp]:
         """The table rows of the class names ``classes`` (rows are added for new names)."""

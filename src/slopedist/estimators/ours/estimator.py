@@ -2,8 +2,10 @@
 
 A frame (:meth:`OursEstimator.estimate`) goes through these steps, in order:
 
-1. **usable boxes**: the boxes with no problem (``reason`` empty), their class constants and the
-   edges the image border cuts (:mod:`~slopedist.estimators.ours.border`);
+1. **usable boxes**: the boxes with no problem (``reason`` empty), their class constants (with
+   the vehicle size a box carries, a detector's, in place of its class prior's:
+   :mod:`slopedist.io.detections.sizes`) and the edges the image border cuts
+   (:mod:`~slopedist.estimators.ours.border`);
 2. **the horizon**: the ego gradient θ with the self-calibration's offset, its jitter and the
    camera mount in use;
 3. **tracks**: each box continues a live track (by its track id, else by IoU with the track's
@@ -89,6 +91,7 @@ from slopedist.estimators.ours.selfcal import (
 from slopedist.estimators.ours.size_learning import LearnedSizes, TrackSize
 from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
 from slopedist.io.detections.boxes import frame_pixel_boxes, table_box_problems
+from slopedist.io.detections.sizes import size_arrays
 
 __all__ = [
     "EXTRA_COLUMNS",
@@ -351,12 +354,13 @@ class OursEstimator(Estimator):
     def _frame_targets(
         self, frame: FrameInput, good: NDArray[np.intp], cut_edges: NDArray[np.bool_]
     ) -> FrameTargets:
-        """The usable boxes ``good``, their class constants and border cuts (``cut_edges``)."""
+        """The usable boxes ``good``, their class constants (with the vehicle sizes the boxes
+        carry in place of their class prior's) and border cuts (``cut_edges``)."""
         table = frame.boxes
         return FrameTargets(
             table.boxes[good],
             table.track_id[good],
-            self._classes.gather(table.cls[good]),
+            self._classes.gather(table.cls[good], size_arrays(table.extra, good)),
             border_cuts_of(cut_edges),
             self.box_sigma_px,
             frame.timestamp_s,

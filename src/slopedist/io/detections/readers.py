@@ -6,6 +6,7 @@ Every reader returns a :class:`~slopedist.io.detections.boxes.BoxTable` and fail
 The slopedist box CSV (for user boxes) has a header row and these columns::
 
     frame,left,top,right,bottom[,track_id][,score][,class][,gt_distance_m]
+    [,height_m][,width_m][,length_m][,size_sigma_pct]
 
 ``frame`` is the 0-based frame index (int); ``left, top, right, bottom`` are pixels of the image
 the calibration belongs to (origin top-left); ``track_id`` is an int (-1 or empty = unknown);
@@ -14,9 +15,13 @@ the calibration belongs to (origin top-left); ``track_id`` is an int (-1 or empt
 (camera z, as KITTI's label z), > 0; empty = unknown. When present it is kept as the box column
 ``gt_distance_m`` (NaN where unknown): ``slopedist run`` copies it into ``records.csv`` so that
 ``slopedist report`` can score the run, and the depthmap method's ``truth`` scaling reads it.
-Other columns are ignored. A file whose boxes all lie within 0..1 (normalised coordinates), or
-whose boxes are mostly inverted (``x, y, width, height`` columns read as ``right, bottom``), is
-refused as a whole (:func:`check_box_columns`): its few boxes that look valid would be wrong.
+``height_m, width_m, length_m`` (optional, each on its own) are the vehicle's dimensions as a
+detector knows them, metres in 0.3–30 (empty or ``nan`` = unknown: the class prior's);
+``size_sigma_pct`` their 1σ in percent of each dimension, in (0, 100] (empty = 10 %)
+(:mod:`slopedist.io.detections.sizes`). Other columns are ignored. A file whose boxes all lie
+within 0..1 (normalised coordinates), or whose boxes are mostly inverted (``x, y, width,
+height`` columns read as ``right, bottom``), is refused as a whole (:func:`check_box_columns`):
+its few boxes that look valid would be wrong.
 """
 
 from __future__ import annotations
@@ -36,6 +41,12 @@ from slopedist.core.limits import MAX_ABS_PIXEL, MAX_INDEX
 from slopedist.core.textfiles import CsvRows, numbered_lines
 from slopedist.io.detections.boxes import NO_TRACK, BoxTable
 from slopedist.io.detections.dropped import DroppedBoxes
+from slopedist.io.detections.sizes import (
+    SIZE_COLUMNS,
+    SIZE_SIGMA_COLUMN,
+    size_sigma_value,
+    size_value,
+)
 
 CSV_BOX_COLUMNS = ("frame", "left", "top", "right", "bottom", "track_id", "score", "class")
 CSV_REQUIRED = ("frame", "left", "top", "right", "bottom")
@@ -196,7 +207,10 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
     """PointRCNN detection file: ``frame,type(2=car),x1,y1,x2,y2,score,h,w,l,x,y,z,ry,alpha``.
 
     Rows with ``score < min_score`` are dropped when ``min_score`` is given. Extra columns: ``z``
-    (the detector's 3D distance, m; not ground truth) and ``dims_hwl``.
+    (the detector's 3D distance, m; not ground truth) and the detector's vehicle size ``h, w, l``
+    as :data:`~slopedist.io.detections.sizes.SIZE_COLUMNS` (metres; its σ unknown, so the
+    default's). PointRCNN measures them in a LiDAR point cloud: closer to the truth than a
+    camera detector's.
     """
     frames, boxes, scores, dims, zs = [], [], [], [], []
     for lineno, line in numbered_lines(path, "PointRCNN detection file"):
@@ -204,7 +218,7 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         frame = _index(path, lineno, "frame", f["frame"])
         score = _parse(path, lineno, "score", f["score"], score_value)
         box = _box(path, lineno, ("x1", "y1", "x2", "y2"), [f[k] for k in ("x1", "y1", "x2", "y2")])
-        dim = [_parse(path, lineno, k, f[k], float) for k in ("h", "w", "l")]
+        dim = [size_value(path, lineno, k, f[k]) for k in ("h", "w", "l")]
         z = _parse(path, lineno, "z", f["z"], float)
         if min_score is not None and score < min_score:
             continue
@@ -213,13 +227,9 @@ def read_pointrcnn(path: str | Path, min_score: float | None = None) -> BoxTable
         scores.append(score)
         dims.append(dim)
         zs.append(z)
-    return _car_table(
-        frames,
-        boxes,
-        scores,
-        dims_hwl=np.asarray(dims, dtype=float).reshape(-1, 3),
-        z=np.asarray(zs, dtype=float),
-    )
+    dims_a = np.asarray(dims, dtype=float).reshape(-1, 3)
+    sizes = {name: dims_a[:, k] for k, name in enumerate(SIZE_COLUMNS)}
+    return _car_table(frames, boxes, scores, z=np.asarray(zs, dtype=float), **sizes)
 
 
 RRC_FIELDS = ("frame", "x1", "y1", "x2", "y2", "score")
@@ -292,6 +302,8 @@ def read_box_csv(path: str | Path) -> BoxTable:
             line=1,
         )
     has_truth = CSV_TRUTH_COLUMN in rows.header
+    size_names = [c for c in (*SIZE_COLUMNS, SIZE_SIGMA_COLUMN) if c in rows.header]
+    sizes = {c: array("d") for c in size_names}
     frames, tids, lines = array("q"), array("q"), array("q")
     boxes, scores, truth = array("d"), array("d"), array("d")
     classes: list[str] = []
@@ -306,7 +318,11 @@ def read_box_csv(path: str | Path) -> BoxTable:
         classes.append(sys.intern((row.get("class") or "").strip() or "Car"))
         if has_truth:
             truth.append(_truth_distance(path, lineno, row.get(CSV_TRUTH_COLUMN)))
+        for c in size_names:
+            read = size_sigma_value if c == SIZE_SIGMA_COLUMN else size_value
+            sizes[c].append(read(path, lineno, c, row.get(c) or ""))
     extra = {CSV_TRUTH_COLUMN: np.array(truth, dtype=float)} if has_truth else {}
+    extra.update({c: np.array(v, dtype=float) for c, v in sizes.items()})
     box_array = np.array(boxes, dtype=float).reshape(-1, 4)
     check_box_columns(path, box_array, np.array(lines, dtype=np.int64))
     return BoxTable.build(

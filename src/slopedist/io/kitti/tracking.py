@@ -21,6 +21,7 @@ from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import DataMismatchError, MissingInputError
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.readers import read_kitti_labels, read_pointrcnn, read_rrc
+from slopedist.io.detections.sizes import without_sizes
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.posefiles import KITTI_FRAME_PERIOD_S, read_kitti_poses, read_oxts_rotations
 
@@ -146,16 +147,31 @@ class KittiTrackingSequence:
         return track
 
     def detections(
-        self, min_score: float | None = None, source: BoxSource = BoxSource.POINTRCNN
+        self,
+        min_score: float | None = None,
+        source: BoxSource = BoxSource.POINTRCNN,
+        sizes: bool = False,
     ) -> BoxTable:
-        """A detector's car boxes (PointRCNN's or RRC's) with score ≥ ``min_score``."""
+        """A detector's car boxes (PointRCNN's or RRC's) with score ≥ ``min_score``; with
+        ``sizes`` the vehicle sizes the detector gives (PointRCNN's, LiDAR-derived: the box
+        columns of :mod:`slopedist.io.detections.sizes`), else none (RRC gives none)."""
         path = self.root / DETECTION_FOLDERS[source] / f"{self.name}.txt"
         if not path.is_file():
             raise MissingInputError(
                 f"sequence {self.name}: no {source.value} detections, expected {path}"
             )
         reader = read_pointrcnn if source is BoxSource.POINTRCNN else read_rrc
-        return reader(path, min_score)
+        table = reader(path, min_score)
+        if sizes:
+            return table
+        return BoxTable(
+            table.frame,
+            table.boxes,
+            table.track_id,
+            table.score,
+            table.cls,
+            without_sizes(table.extra),
+        )
 
 
 def load_sequence(
