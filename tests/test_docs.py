@@ -293,3 +293,26 @@ def test_the_code_map_of_ours_lists_every_module_once() -> None:
     modules = sorted(p.name for p in package.glob("*.py") if p.name != "__init__.py")
     assert sorted(rows) == modules
     assert len(rows) == len(set(rows))
+
+
+def markdown_table_column(path: Path, heading: str) -> list[str]:
+    """The first cells (without backticks) of the first table under ``heading``."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    start = lines.index(heading)
+    cells: list[str] = []
+    for line in lines[start + 1 :]:
+        if line.startswith("#"):
+            break
+        if line.startswith("|"):
+            cells.append(line.split("|")[1].strip().strip("`"))
+        elif cells:
+            break
+    return cells[2:]  # after the header and its rule
+
+
+def test_the_records_schema_table_lists_the_default_columns() -> None:
+    """docs/usage.md's table of ``records.csv`` is the code's default column list, in order."""
+    from slopedist.streaming.step import DEFAULT_RECORD_FIELDS
+
+    table = markdown_table_column(ROOT / "docs" / "usage.md", "### Columns of `records.csv`")
+    assert table == list(DEFAULT_RECORD_FIELDS)

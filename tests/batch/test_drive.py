@@ -164,9 +164,9 @@ def test_a_drive_with_a_detector_gives_the_records_of_run_alone(
 def test_a_drive_with_run_settings_gives_the_outputs_of_run_alone(
     sim: Path, tmp_path: Path
 ) -> None:
-    """Reference point, ours options, vehicle classes, offline mode, a PNG overlay and the TUM
-    export of a drive's settings give what ``slopedist run`` gives with the same options;
-    ``run.json`` records them, with the paths of the published folder."""
+    """Reference point, ours options, vehicle classes, offline mode, a PNG overlay, the TUM
+    export and every column of a drive's settings give what ``slopedist run`` gives with the
+    same options; ``run.json`` records them, with the paths of the published folder."""
     settings = RunSettings(
         reference="nearest_face",
         ours_options=(("odd_object_weight", 0.0), ("size_learning", True)),
@@ -175,6 +175,7 @@ def test_a_drive_with_run_settings_gives_the_outputs_of_run_alone(
         overlay=True,
         overlay_format="png",
         export=("tum",),
+        columns="all",
     )
     spec = spec_of(sim, method="ours", settings=settings)
     out = tmp_path / "batch"
@@ -184,6 +185,7 @@ def test_a_drive_with_run_settings_gives_the_outputs_of_run_alone(
     options = ["--timestamps", str(sim / "times.txt"), "--reference", "nearest_face", "--offline"]
     options += ["--ours-option", "size_learning=true", "--ours-option", "odd_object_weight=0"]
     options += ["--vehicle-classes", "Car,Van", "--overlay", "--overlay-format", "png"]
+    options += ["--columns", "all"]
     alone = run_alone(
         sim / "image_02",
         sim / "calib.txt",

@@ -110,7 +110,7 @@ def test_settings_table_by_hand(batch_out: Path) -> None:
     lines = write_fleet_summary(batch_out)[-1].read_text().splitlines()
     assert lines[0] == ",".join(SETTINGS_FIELDS)
     assert lines[1].startswith("d1,ours,nearest_face,size_learning=true;size_evidence_time_s=")
-    assert ",Car;Van,1,,,mcap;tum,,1.7," in lines[1]
+    assert ",Car;Van,1,,,mcap;tum,,,1.7," in lines[1]
 
 
 def test_parquet_partition_round_trip(batch_out: Path) -> None:

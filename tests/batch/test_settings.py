@@ -82,6 +82,7 @@ def test_settings_cells_read_back_as_the_same_settings() -> None:
         ("Car", "Van"),
         offline=True,
         overlay=True,
+        columns="all",
         overlay_format="png",
         export=("tum", "mcap"),
         generic_classes=("car",),

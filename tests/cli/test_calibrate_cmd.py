@@ -18,6 +18,7 @@ from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.estimators.ours import EXTRA_COLUMNS
 from slopedist.estimators.ours.selfcal import Calibration, uncalibrated_warning
 from slopedist.streaming.mount_calibration import judge_mount
+from slopedist.streaming.step import METHOD_TRACK_COLUMN
 from slopedist.synthetic.traffic import simulate_traffic
 
 F, CX, CY = 721.5, 609.6, 172.9
@@ -119,16 +120,17 @@ def test_estimate_with_ours_writes_the_gap_by_default_and_centre_on_request(
 ) -> None:
     out = tmp_path / "records.csv"
     args = ["estimate", *_args(simulated), "--method", "ours"]
-    assert main([*args, "--reference", "centre", "--out", str(out)]) == 0
+    assert main([*args, "--reference", "centre", "--out", str(out), "--columns", "all"]) == 0
     rows = list(csv.DictReader(out.open()))
-    assert rows and set(EXTRA_COLUMNS) <= set(rows[0])
+    named = {METHOD_TRACK_COLUMN if c == "track_uid" else c for c in EXTRA_COLUMNS}
+    assert rows and named <= set(rows[0])
     assert {r["reference"] for r in rows} == {"centre"}
     assert all(r["status"] == "ok" for r in rows)
     late = [r for r in rows if int(r["frame"]) > 20]
     assert sum(1 for r in late if r["speed_mps"] != "") > 0.9 * len(late)
     assert all(math.isfinite(float(r["distance_nearest_face_m"])) for r in rows)
     face = tmp_path / "face.csv"
-    assert main([*args, "--out", str(face)]) == 0  # the gap by default
+    assert main([*args, "--out", str(face), "--columns", "all"]) == 0  # the gap by default
     face_rows = list(csv.DictReader(face.open()))
     assert {r["reference"] for r in face_rows} == {"nearest_face"}
     for r, f in zip(rows, face_rows):

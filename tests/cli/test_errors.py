@@ -143,3 +143,31 @@ def test_eval_with_every_detection_filtered_out(
     argv = ["eval", "kitti-tracking", str(kitti_tracking_dir), "--methods", "paper"]
     assert main([*argv, "--boxes", "pointrcnn", "--score", "100"]) == 0
     assert "Pooled over all sequences" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "suggestion"),
+    [
+        (["run", "frames", "--method", "our"], "unknown method 'our'; did you mean 'ours'?"),
+        (["run", "frames", "--odometry", "builtn"], "; did you mean 'builtin'?"),
+        (["run", "frames", "--columns", "al"], "; did you mean 'all'?"),
+        (["estimate", "--reference", "nearest-face"], "; did you mean 'nearest_face'?"),
+        (["rn"], "No such command 'rn'; did you mean 'run'?"),
+        (
+            ["eval", "kitti-trackin"],
+            "No such command 'kitti-trackin'; did you mean 'kitti-tracking'?",
+        ),
+    ],
+)
+def test_a_mistyped_value_or_command_is_one_line_with_did_you_mean(
+    argv: list[str], suggestion: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("slopedist: error: ") and suggestion in err[0]
+
+
+def test_a_value_like_no_choice_gets_no_suggestion(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "frames", "--method", "zzzz"]) == 2
+    err = capsys.readouterr().err
+    assert "did you mean" not in err and "choose from flat, ego, paper" in err

@@ -183,6 +183,11 @@ def _estimate_rows(paths: dict[str, Path], out: Path, *options: str) -> list[dic
     return list(csv.DictReader(out.open()))
 
 
+def _all_columns(paths: dict[str, Path], out: Path, *options: str) -> list[dict[str, str]]:
+    """:func:`_estimate_rows` with every column (``--columns all``)."""
+    return _estimate_rows(paths, out, *options, "--columns", "all")
+
+
 def test_estimate_applies_the_eq7_options_to_every_method_built_on_paper(
     small_sequence: dict[str, Path], tmp_path: Path
 ) -> None:
@@ -191,10 +196,10 @@ def test_estimate_applies_the_eq7_options_to_every_method_built_on_paper(
     small_sequence["boxes"].write_text(
         "frame,left,top,right,bottom,track_id\n0,500,120,600,200,1\n1,300,150,420,260,2\n"
     )
-    default = _estimate_rows(small_sequence, tmp_path / "d.csv", "--method", "imu")
+    default = _all_columns(small_sequence, tmp_path / "d.csv", "--method", "imu")
     steep = ("--alphas", "20,30,40")
-    imu = _estimate_rows(small_sequence, tmp_path / "i.csv", "--method", "imu", *steep)
-    paper = _estimate_rows(small_sequence, tmp_path / "p.csv", "--method", "paper", *steep)
+    imu = _all_columns(small_sequence, tmp_path / "i.csv", "--method", "imu", *steep)
+    paper = _all_columns(small_sequence, tmp_path / "p.csv", "--method", "paper", *steep)
     # box 0: centre 12.9 px above the vanishing line (θ = 0): α2 applies
     assert float(default[0]["theta_adj_deg"]) == pytest.approx(5.0)
     assert float(imu[0]["theta_adj_deg"]) == pytest.approx(30.0)
@@ -211,7 +216,7 @@ def test_estimate_an_offline_method(small_sequence: dict[str, Path], tmp_path: P
     rows = {}
     for method in ("ours", "ours-offline"):
         out = tmp_path / f"{method}.csv"
-        assert main([*args, str(out), "--method", method]) == 0
+        assert main([*args, str(out), "--method", method, "--columns", "all"]) == 0
         rows[method] = list(csv.DictReader(out.open()))
     assert [r["frame"] for r in rows["ours-offline"]] == [r["frame"] for r in rows["ours"]]
     assert {r["method"] for r in rows["ours-offline"]} == {"ours-offline"}
@@ -225,8 +230,8 @@ def test_ours_options_reach_ours_from_the_command_line(
     """``--ours-option KEY=VALUE`` sets options of ``ours`` (``size_learning=true`` fills
     the size columns, ``use_width=false`` changes the distances); a bad key or value is one
     usage error naming the option, and nothing is written."""
-    default = _estimate_rows(small_sequence, tmp_path / "d.csv", "--method", "ours")
-    learned = _estimate_rows(
+    default = _all_columns(small_sequence, tmp_path / "d.csv", "--method", "ours")
+    learned = _all_columns(
         small_sequence,
         tmp_path / "l.csv",
         "--method",

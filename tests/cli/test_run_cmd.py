@@ -19,6 +19,7 @@ from slopedist.io.depth import write_kitti_depth_png
 from slopedist.io.detections.boxes import BoxTable
 from slopedist.io.detections.writers import write_box_csv
 from slopedist.streaming import pipeline as pipeline_module
+from slopedist.streaming.step import DEFAULT_RECORD_FIELDS, METHOD_TRACK_COLUMN
 
 W, H = 320, 200
 CALIB = "P2: 500 0 160 0 0 500 100 0 0 0 1 0\n"
@@ -287,7 +288,7 @@ def test_offline_run_writes_the_offline_records_at_the_end(tmp_path: Path) -> No
     args = setup(tmp_path, n=6)
     assert main(["run", *args, "--method", "ours", "--odometry", "none"]) == 0
     causal = records(tmp_path)
-    assert main(["run", *args, "--offline", "--odometry", "none"]) == 0
+    assert main(["run", *args, "--offline", "--odometry", "none", "--columns", "all"]) == 0
     offline = records(tmp_path)
     assert [r["method"] for r in offline] == ["ours-offline"] * 6
     assert [r["frame"] for r in offline] == [r["frame"] for r in causal]
@@ -451,6 +452,7 @@ def test_a_calibration_that_does_not_fit_the_frames_names_its_file_and_the_frame
     err = capsys.readouterr().err.strip()
     where = f"{tmp_path / 'calib.txt'} and the frames of {tmp_path / 'frames'}"
     assert err.startswith(f"slopedist: error: {where}: ") and said in err
+    assert "the calibration is probably for another resolution (about" in err
 
 
 def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path: Path) -> None:
@@ -458,13 +460,13 @@ def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path:
     ``--reference centre`` the centre; scored against a truth (KITTI's z, the centre) both
     runs get the same figures: each method is scored at its own point."""
     common = setup(tmp_path, n=6, truth=True)
-    assert main(["run", *common, "--odometry", "none"]) == 0
+    assert main(["run", *common, "--odometry", "none", "--columns", "all"]) == 0
     face = records(tmp_path)
     summary = json.loads((tmp_path / "out" / "run.json").read_text())
     assert summary["reference"] == "nearest_face"
     centre_out = tmp_path / "centre"
     args = ["run", *common[:-3], "--out", str(centre_out), "--quiet", "--odometry", "none"]
-    assert main([*args, "--reference", "centre"]) == 0
+    assert main([*args, "--reference", "centre", "--columns", "all"]) == 0
     with (centre_out / "records.csv").open() as fh:
         centre = list(csv.DictReader(fh))
     ok = [(f, c) for f, c in zip(face, centre) if f["status"] == "ok"]
@@ -479,3 +481,116 @@ def test_run_reports_the_gap_by_default_and_is_scored_as_at_the_centre(tmp_path:
         assert main(["report", str(folder), "--out", str(report), "--no-parquet"]) == 0
         tables.append((report / "table1_rmse.csv").read_text())
     assert tables[0] == tables[1]
+
+
+def _sparse_track(tmp_path: Path, track_ids: bool) -> list[str]:
+    """Ten frames; one car in frames 0, 1, 5 and 9 only (user's track id 1 when
+    ``track_ids``), the common arguments of ``ours`` without odometry."""
+    args = setup(tmp_path, n=10)
+    seen = np.array([0, 1, 5, 9])
+    ids = np.ones(len(seen)) if track_ids else None
+    boxes = BoxTable.build(seen, np.tile(BOX, (len(seen), 1)), ids)
+    write_box_csv(boxes, tmp_path / "boxes.csv")
+    return [*args, "--method", "ours", "--odometry", "none"]
+
+
+def test_default_records_have_the_columns_a_user_acts_on_and_the_users_track(
+    tmp_path: Path,
+) -> None:
+    """The default ``records.csv`` has at most 16 columns, the user's own track id on every row
+    of a sparse track and no diagnostics; ``--columns all`` has every column, the method's own
+    track number under a name that says what it is; ``tracks.csv`` follows the same id."""
+    args = _sparse_track(tmp_path, track_ids=True)
+    assert main(["run", *args]) == 0
+    rows = records(tmp_path)
+    assert list(rows[0]) == list(DEFAULT_RECORD_FIELDS) and len(rows[0]) <= 16
+    assert [r["track_id"] for r in rows] == ["1"] * 4
+    with (tmp_path / "out" / "tracks.csv").open() as fh:
+        assert [t["track_id"] for t in csv.DictReader(fh)] == ["1"]
+    assert main(["run", *args, "--columns", "all"]) == 0
+    full = records(tmp_path)
+    assert {"method", "cut", "cue_gap_sigma", METHOD_TRACK_COLUMN} <= set(full[0])
+    assert "track_uid" not in full[0] and [r["track_id"] for r in full] == ["1"] * 4
+    assert [r["distance_m"] for r in full] == [r["distance_m"] for r in rows]
+    summary = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert (summary["method"], summary["columns"]) == ("ours", "all")
+
+
+def test_boxes_without_track_ids_follow_the_trackers_id(tmp_path: Path) -> None:
+    """Boxes without a track id: ``track_id`` is the tracker's, in the records and in
+    ``tracks.csv``; a run with truth adds ``gt_distance_m`` and stays within 16 columns."""
+    assert main(["run", *_sparse_track(tmp_path, track_ids=False)]) == 0
+    rows = records(tmp_path)
+    assert all(int(r["track_id"]) >= 0 for r in rows)
+    with (tmp_path / "out" / "tracks.csv").open() as fh:
+        tracked = {t["track_id"] for t in csv.DictReader(fh)}
+    assert tracked and tracked == {r["track_id"] for r in rows if r["status"] == "ok"}
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    assert main(["run", *setup(truth, n=3, truth=True), "--method", "flat"]) == 0
+    header = next(csv.reader((truth / "out" / "records.csv").open()))
+    assert header == [*DEFAULT_RECORD_FIELDS, "gt_distance_m"] and len(header) <= 16
+
+
+K_1080P = "1000 0 960\n0 1000 540\n0 0 1\n"
+"""A 3×3 K calibrated on 1920×1080 px frames."""
+ANOTHER_RESOLUTION = (
+    "the calibration's principal point c_x = 960.0 px lies outside the 320×200 px images; "
+    "the calibration is probably for another resolution (about "
+    "1920×1080 px = 2·c_x × 2·c_y); give the calibration for these frames, or resize the "
+    "frames to it"
+)
+
+
+def test_a_calibration_for_another_resolution_names_the_file_and_the_cause(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A K of 1920×1080 px frames on 320×200 px frames, in ``run`` and in ``estimate
+    --image-size``: one line naming the file and the resolution it is probably for."""
+    args = setup(tmp_path)
+    calib = tmp_path / "k1080.txt"
+    calib.write_text(K_1080P)
+    args[args.index("--calib") + 1] = str(calib)
+    assert main(["run", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    where = f"{calib} and the frames of {tmp_path / 'frames'}"
+    assert err == f"slopedist: error: {where}: {ANOTHER_RESOLUTION}"
+    (tmp_path / "poses.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 0\n" * 4)
+    estimate = ["estimate", "--calib", str(calib), "--poses", str(tmp_path / "poses.txt")]
+    estimate += ["--boxes", str(tmp_path / "boxes.csv"), "--image-size", f"{W}x{H}"]
+    assert main(estimate) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"slopedist: error: {calib} with --image-size {W}x{H}: {ANOTHER_RESOLUTION}"
+
+
+def test_a_run_without_boxes_points_to_the_detector_guide(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Neither --boxes nor --detector: one line that names both and docs/detectors.md, which
+    starts with the shortest way to a detector (the commands it names exist)."""
+    args = setup(tmp_path)
+    at = args.index("--boxes")
+    assert main(["run", *args[:at], *args[at + 2 :]]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "slopedist: error: no boxes: give a box file (--boxes FILE) or an ONNX detector "
+        "(--detector MODEL.onnx; export one yourself in two commands: docs/detectors.md)"
+    ]
+    guide = (Path(__file__).parents[2] / "docs" / "detectors.md").read_text(encoding="utf-8")
+    first = guide.split("\n## ")[1]
+    assert first.startswith("The shortest way") and "yolo export model=yolov8n.pt" in first
+    assert "slopedist run drive.mp4 --calib calib.txt --detector yolov8n.onnx" in first
+    assert main(["run", *args, "--detector", str(tmp_path / "m.onnx")]) == 2
+    assert "not both" in capsys.readouterr().err
+
+
+def test_a_report_of_default_records_with_truth_says_how_ours_was_moved(tmp_path: Path) -> None:
+    """Default records lack ``ours``'s own depth extent: the report scores them all the same,
+    at the truth's centre with the class's length, and says so."""
+    assert main(["run", *setup(tmp_path, n=6, truth=True), "--odometry", "none"]) == 0
+    report = tmp_path / "report"
+    assert main(["report", str(tmp_path / "out"), "--out", str(report), "--no-parquet"]) == 0
+    assert (report / "table1_rmse.csv").read_text().count("\n") >= 2
+    text = (report / "report.md").read_text(encoding="utf-8")
+    assert "ours: moved to the truth's point with half the class's length" in text
+    assert "--columns all" in text

@@ -42,7 +42,8 @@ def make_inputs(tmp_path: Path, n: int) -> list[str]:
     boxes = BoxTable.build(np.arange(n), np.tile((100.0, 110.0, 150.0, 150.0), (n, 1)))
     write_box_csv(boxes, tmp_path / "boxes.csv")
     return [str(frames), "--calib", str(tmp_path / "calib.txt"), "--boxes",
-            str(tmp_path / "boxes.csv"), "--quiet", "--method", "ego"]  # fmt: skip
+            str(tmp_path / "boxes.csv"), "--quiet", "--method", "ego",
+            "--columns", "all"]  # fmt: skip
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
@@ -394,10 +395,10 @@ def test_run_knows_the_image_size_and_estimate_takes_it(
     (tmp_path / "b.csv").write_text("frame,left,top,right,bottom\n0,500,180,600,374\n")
     assert main([*est, "--image-size", "1242x375"]) == 0
     row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
-    assert (row["status"], row["cut"]) == ("upper_bound", "bottom")
+    assert (row["status"], row["reason"]) == ("upper_bound", "cut_bottom")
     assert main(est) == 0
     row = next(csv.DictReader(capsys.readouterr().out.splitlines()))
-    assert (row["status"], row["cut"]) == ("ok", "")
+    assert (row["status"], row["reason"]) == ("ok", "")
     assert main([*est, "--image-size", "1242"]) == 2
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
 

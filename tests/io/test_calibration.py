@@ -178,7 +178,11 @@ def test_a_lens_model_that_moves_the_image_edge_absurdly_is_refused(
 @pytest.mark.parametrize(
     ("size", "message"),
     [
-        ((300, 200), r"k.txt: camera principal point c_x = 609.6 px is outside 0..300 px"),
+        (
+            (300, 200),
+            r"k.txt with --image-size 300x200: .* c_x = 609.6 px lies outside .* "
+            r"probably for another resolution \(about 1219×346 px",
+        ),
         ((5000, 5000), r"k.txt with --image-size 5000x5000: .* c_x = 609.6 px is far from"),
         ((1242, 1000), r"k.txt with --image-size 1242x1000: .* c_y = 172.9 px is far from"),
         ((1242, 375), None),
@@ -195,8 +199,7 @@ def test_an_image_size_the_calibration_cannot_belong_to_is_refused(
     if message is None:
         assert read_calibration(path, image_size=size).camera.image_width == size[0]
         return
-    kind = InputFileError if size == (300, 200) else DataMismatchError
-    with pytest.raises(kind, match=message):
+    with pytest.raises(DataMismatchError, match=message):
         read_calibration(path, image_size=size)
 
 

@@ -26,7 +26,7 @@ from slopedist.io.detections.readers import read_box_file
 from slopedist.io.formatting import CsvStreamWriter
 from slopedist.io.frames import open_frames
 from slopedist.streaming.pipeline import Pipeline, Target
-from slopedist.streaming.step import FrameStep
+from slopedist.streaming.step import DEFAULT_RECORD_FIELDS, FrameStep
 
 KITTI_P2 = (
     "P2: 7.215377e+02 0.000000e+00 6.095593e+02 4.485728e+01 0.000000e+00 7.215377e+02 "
@@ -293,3 +293,35 @@ def test_a_camera_instead_of_a_file(tmp_path: Path) -> None:
     assert [fields(t)[:-1] for t in by_camera] == [fields(t)[:-1] for t in by_file]
     higher = Pipeline(cam, method="flat", height_m=2.0).update(IMAGE, BOXES).targets
     assert higher[0].distance_m == pytest.approx(by_file[0].distance_m * 2.0 / 1.65)
+
+
+@pytest.mark.parametrize(
+    ("options", "suggestion"),
+    [
+        ({"method": "our"}, "unknown method 'our'; did you mean 'ours'?"),
+        ({"odometry": "builtn"}, "unknown odometry 'builtn'; did you mean 'builtin'?"),
+        ({"reference": "nearest-face"}, "did you mean 'nearest_face'?"),
+    ],
+)
+def test_a_mistyped_pipeline_option_says_did_you_mean(
+    options: dict[str, str], suggestion: str
+) -> None:
+    with pytest.raises(ConfigurationError, match=suggestion.replace("?", r"\?")):
+        Pipeline(Camera(f=721.5, c_x=609.6, c_y=172.9), **options)
+
+
+def test_records_of_the_default_columns_or_all() -> None:
+    """``to_records()`` gives the default columns, ``to_records("all")`` every column (the
+    method's own included), a mistyped choice a suggestion."""
+    pipe = Pipeline(
+        Camera(f=721.5, c_x=609.6, c_y=172.9), method="flat", odometry="none",
+        image_size=(1242, 375),
+    )  # fmt: skip
+    result = pipe.update(None, [(560, 190, 660, 260)])
+    row = result.to_records()[0]
+    assert list(row) == list(DEFAULT_RECORD_FIELDS) and row["status"] == "ok"
+    full = result.to_records("all")[0]
+    assert {"method", "theta_deg", "cut", "score"} <= set(full)
+    assert full["distance_m"] == row["distance_m"]
+    with pytest.raises(ConfigurationError, match=r"did you mean 'all'\?"):
+        result.to_records("al")

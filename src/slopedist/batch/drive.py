@@ -41,6 +41,7 @@ from slopedist.streaming.setup import (
     folder_depth_source,
     run_to_folder,
 )
+from slopedist.streaming.step import RecordColumns
 
 TMP_PREFIX = ".tmp-"
 ATTEMPTS_PREFIX = ".attempts-"
@@ -81,6 +82,7 @@ def drive_options(spec: DriveSpec, out_dir: Path) -> RunOptions:
         vehicle_classes=settings.vehicle_classes,
         reference=settings.shown_reference(),
         decode_ahead=0,
+        columns=RecordColumns(settings.columns),
     )
 
 

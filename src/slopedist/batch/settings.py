@@ -1,6 +1,7 @@
 """The ``slopedist run`` settings of a batch drive beyond its inputs and camera: the reference
 point of ``distance_m``, the options of ``ours`` and its generic classes, the vehicle classes,
-the offline mode, the overlay and the exports (:class:`RunSettings`).
+the offline mode, the overlay, the exports and the columns of ``records.csv``
+(:class:`RunSettings`).
 
 Each is a manifest column (:data:`SETTING_COLUMNS`, CSV and TOML) and a batch-wide option of
 ``slopedist batch`` (the ``slopedist run`` option of the same name); an empty cell takes the
@@ -42,6 +43,7 @@ from slopedist.estimators.base import ReferencePoint, parse_reference
 from slopedist.estimators.references import DEFAULT_REFERENCE
 from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, vehicle_class_names
 from slopedist.streaming.config import OverlayFormat, RunExport
+from slopedist.streaming.step import RecordColumns, parse_columns
 
 LIST_SEPARATOR = OURS_OPTION_SEPARATOR
 """Separator of the items of one manifest cell (``;``)."""
@@ -55,6 +57,7 @@ SETTING_COLUMNS = (
     "overlay",
     "overlay_format",
     "export",
+    "columns",
 )
 """Manifest columns of :class:`RunSettings` (each the field of that name)."""
 
@@ -79,6 +82,8 @@ class RunSettings:
             (:class:`~slopedist.streaming.config.OverlayFormat` value).
         export: :class:`~slopedist.streaming.config.RunExport` values (``--export``), in that
             enum's order.
+        columns: the columns of ``records.csv`` (``--columns``:
+            :class:`~slopedist.streaming.step.RecordColumns` value).
     """
 
     reference: str | None = None
@@ -89,6 +94,7 @@ class RunSettings:
     overlay_format: str = OverlayFormat.MP4.value
     export: tuple[str, ...] = ()
     generic_classes: tuple[str, ...] = ()
+    columns: str = RecordColumns.DEFAULT.value
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ours_options", tuple(sorted(self.ours_options)))
@@ -174,6 +180,7 @@ CELL_PARSERS: dict[str, Callable[[str], Any]] = {
     "overlay": _flag,
     "overlay_format": lambda text: _choice(OverlayFormat, text),
     "export": lambda text: tuple(_choice(RunExport, item) for item in _items(text)),
+    "columns": lambda text: parse_columns(text.strip()).value,
 }
 """How each cell of :data:`SETTING_COLUMNS` is read (raising ConfigurationError)."""
 
@@ -231,6 +238,7 @@ def drive_settings(
         "overlay": batch.overlay,
         "overlay_format": batch.overlay_format,
         "export": batch.export,
+        "columns": batch.columns,
     } | given
     if "overlay_format" in given and not settings["overlay"]:
         raise where("overlay_format", "is for drives with an overlay (overlay = true)")

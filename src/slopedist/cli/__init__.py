@@ -5,7 +5,8 @@ Each command lives in its own module, listed in :data:`COMMANDS` and imported on
 line on stderr, ``slopedist: error: ...``, and an exit code:
 
 - 2 for user errors: :class:`~slopedist.core.errors.SlopedistError` (bad file, bad option), click's
-  usage errors, and operating-system errors about files (not found, permission, disk full);
+  usage errors (a mistyped option value or command with "did you mean", one line), and
+  operating-system errors about files (not found, permission, disk full);
 - 1 for internal errors (a bug): the line names the exception and points to ``--debug``;
 - 130 when interrupted (Ctrl-C).
 
@@ -29,6 +30,7 @@ from typing import NamedTuple
 import click
 
 from slopedist import __version__
+from slopedist.cli.choice import SuggestingGroup, needs_usage
 from slopedist.core.errors import SlopedistError
 from slopedist.core.paths import PATH_BYTES_ERRORS
 
@@ -123,7 +125,7 @@ sentence of its help (shown by ``slopedist --help`` without importing the module
 checks it against the command's own help)."""
 
 
-class LazyGroup(click.Group):
+class LazyGroup(SuggestingGroup):
     """A click group that imports a command's module only when that command runs (or its own
     help is shown): ``slopedist --help`` and each command start without the others' imports
     (SciPy, the estimators, the renderer)."""
@@ -196,7 +198,7 @@ def _exit_code(exc: BaseException) -> int:
         click.echo("aborted", err=True)
         return EXIT_INTERRUPTED
     if isinstance(exc, click.ClickException):  # a mistyped command line: its usage first
-        ctx = exc.ctx if isinstance(exc, click.UsageError) else None
+        ctx = exc.ctx if isinstance(exc, click.UsageError) and needs_usage(exc) else None
         if ctx is not None:
             click.echo(ctx.get_usage(), err=True)
             if ctx.command.get_help_option(ctx) is not None:

@@ -9,6 +9,7 @@ import click
 from slopedist.batch import BatchOptions, BatchResult, DriveDefaults, DriveStatus, load_drives
 from slopedist.batch.engine import DEFAULT_MAX_RETRIES, run_batch
 from slopedist.batch.settings import RunSettings, unapplied
+from slopedist.cli.choice import Choice
 from slopedist.cli.method_options import (
     check_methods,
     generic_class_option,
@@ -23,6 +24,7 @@ from slopedist.cli.options import (
     vehicle_classes_option,
 )
 from slopedist.cli.run_options import (
+    columns_option,
     export_option,
     image_topic_option,
     overlay_format_option,
@@ -47,7 +49,7 @@ from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 )
 @click.option(
     "--odometry",
-    type=click.Choice(ODOMETRY_CHOICES),
+    type=Choice(ODOMETRY_CHOICES),
     default="builtin",
     show_default=True,
     help="Odometry of drives that name none.",
@@ -86,6 +88,7 @@ from slopedist.streaming.pipeline import ODOMETRY_CHOICES
 @overlay_option
 @overlay_format_option
 @export_option
+@columns_option
 @image_topic_option
 def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     source: Path,
@@ -110,6 +113,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
     overlay: bool,
     overlay_format: str,
     exports: tuple[str, ...],
+    columns: str,
     image_topic: str | None,
 ) -> None:
     """Run every drive of SOURCE (a CSV or TOML manifest, or a folder of drives) into OUT.
@@ -136,6 +140,7 @@ def batch(  # noqa: PLR0913 (a click command: one parameter per option)
         overlay_format,
         exports,
         generic_classes,
+        columns,
     )
     defaults = DriveDefaults(
         method, odometry, height_m, mount_angle_deg, lookback_s, settings, image_topic

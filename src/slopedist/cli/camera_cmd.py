@@ -9,6 +9,7 @@ import click
 import numpy as np
 from numpy.typing import NDArray
 
+from slopedist.cli.choice import SuggestingGroup
 from slopedist.cli.options import BoundedFloat, parse_size
 from slopedist.io.checkerboard import calibrate_checkerboard, write_opencv_yaml
 from slopedist.io.frames import open_frames
@@ -22,7 +23,7 @@ def _every(path: Path, step: int) -> Iterator[NDArray[np.uint8]]:
             yield frame.image
 
 
-@click.group("camera")
+@click.group("camera", cls=SuggestingGroup)
 def camera_group() -> None:
     """Camera intrinsics (focal lengths, principal point, lens distortion)."""
 

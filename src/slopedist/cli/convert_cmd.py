@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.cli.options import FINITE_FLOAT, parse_size
 from slopedist.core.limits import MAX_INDEX
 from slopedist.io.detections.convert import (
@@ -24,7 +25,7 @@ from slopedist.io.outputs import check_outputs_spare_inputs
 @click.option(
     "--from",
     "source_format",
-    type=click.Choice([f.value for f in BoxFormat]),
+    type=Choice([f.value for f in BoxFormat]),
     default=BoxFormat.AUTO.value,
     show_default=True,
     help="Layout of SOURCE (auto: from its content; a folder is YOLO, .json is COCO).",
@@ -32,7 +33,7 @@ from slopedist.io.outputs import check_outputs_spare_inputs
 @click.option(
     "--to",
     "target_format",
-    type=click.Choice([BoxFormat.AUTO.value, *(f.value for f in WRITABLE)]),
+    type=Choice([BoxFormat.AUTO.value, *(f.value for f in WRITABLE)]),
     default=BoxFormat.AUTO.value,
     show_default=True,
     help="Layout of TARGET (auto: COCO for a .json file, else slopedist CSV; YOLO: a folder).",

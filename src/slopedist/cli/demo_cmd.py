@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.cli.method_options import check_methods, estimator_options
 from slopedist.cli.options import given_list
 from slopedist.estimators import EstimatorConfig
@@ -41,7 +42,7 @@ from slopedist.synthetic.scenarios import SUITE, builtin_names
 )
 @click.option(
     "--odometry",
-    type=click.Choice(["visual", "truth"]),
+    type=Choice(["visual", "truth"]),
     default="visual",
     show_default=True,
     help="'visual': built-in visual odometry on the rendered frames; 'truth': the true "

@@ -17,13 +17,15 @@ from slopedist.cli.method_options import (
 )
 from slopedist.cli.options import lookback_option, sequence_file_options, vehicle_classes_option
 from slopedist.cli.record_summary import RecordTally
+from slopedist.cli.run_options import columns_option
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators import ESTIMATORS, EstimatorConfig, build_estimator
+from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.io.formatting import STDOUT_PATH, CsvStreamWriter
 from slopedist.io.outputs import check_outputs_spare_inputs, output_file, partial_path
 from slopedist.io.sequence_files import SequenceFiles, SequenceInputs, read_sequence_files
 from slopedist.streaming.pipeline import FinishResult, Pipeline, stream_rotations
-from slopedist.streaming.step import close_records, open_records
+from slopedist.streaming.step import RecordColumns, close_records, open_records
 
 
 @click.command("estimate")
@@ -34,6 +36,7 @@ from slopedist.streaming.step import close_records, open_records
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the records CSV here (default: standard output).",
 )
+@columns_option
 @vehicle_classes_option
 @lookback_option
 @estimator_options()
@@ -42,6 +45,7 @@ def estimate(
     files: SequenceFiles,
     method: str,
     out: Path | None,
+    columns: str,
     vehicle_classes: tuple[str, ...],
     lookback_s: float,
     estimator_config: EstimatorConfig,
@@ -69,12 +73,13 @@ def estimate(
         estimator, lookback_s=lookback_s, vehicle_classes=vehicle_classes, reference=reference
     )
     tally = RecordTally()
+    chosen = RecordColumns(columns)
     if out is not None:  # whole: the file takes its name when every record is written
         with output_file(out) as stream:
-            end = write_estimates(CsvStreamWriter(stream), pipe, seq, tally)
+            end = write_estimates(CsvStreamWriter(stream), pipe, seq, tally, chosen)
     else:
         try:
-            end = write_estimates(open_records(None), pipe, seq, tally)
+            end = write_estimates(open_records(None), pipe, seq, tally, chosen)
         except BrokenPipeError:
             quiet_closed_stdout()  # the reader (e.g. `| head -1`) has all it wanted
             return
@@ -83,17 +88,21 @@ def estimate(
 
 
 def write_estimates(
-    writer: CsvStreamWriter, pipe: Pipeline, seq: SequenceInputs, tally: RecordTally
+    writer: CsvStreamWriter,
+    pipe: Pipeline,
+    seq: SequenceInputs,
+    tally: RecordTally,
+    columns: RecordColumns = RecordColumns.DEFAULT,
 ) -> FinishResult:
-    """The records of every frame of ``seq`` through ``pipe``, frame by frame (an offline
-    method's at the end, from its pass over the sequence), counted in ``tally``; then
-    ``writer`` is closed. Returns the pipeline's end (:meth:`Pipeline.finish`)."""
+    """The records (of ``columns``) of every frame of ``seq`` through ``pipe``, frame by frame
+    (an offline method's at the end, from its pass over the sequence), counted in ``tally``;
+    then ``writer`` is closed. Returns the pipeline's end (:meth:`Pipeline.finish`)."""
     for result in stream_rotations(pipe, seq.track, seq.boxes):
         if not pipe.offline:  # an offline method's records come when the sequence ends
-            writer.write_rows(tally.count(result.to_records()))
+            writer.write_rows(tally.count(result.to_records(columns)))
     end = pipe.finish()
-    writer.write_rows(tally.count(end.to_records()))
-    close_records(writer)
+    writer.write_rows(tally.count(end.to_records(columns)))
+    close_records(writer, columns, CSV_TRUTH_COLUMN in seq.boxes.extra)
     return end
 
 

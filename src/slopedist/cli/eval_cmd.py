@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from slopedist.cli.choice import SuggestingGroup
 from slopedist.cli.method_options import (
     check_methods,
     estimator_options,
@@ -22,7 +23,7 @@ from slopedist.io.formatting import STDOUT_PATH, write_json
 from slopedist.io.outputs import check_outputs_spare_inputs
 
 
-@click.group("eval")
+@click.group("eval", cls=SuggestingGroup)
 def eval_group() -> None:
     """Evaluate estimators against ground truth."""
 

@@ -7,11 +7,12 @@ from pathlib import Path
 
 import click
 
+from slopedist.cli.choice import SuggestingGroup
 from slopedist.io.formatting import dumps_json
 from slopedist.io.rosbag import log_topics
 
 
-@click.group("log")
+@click.group("log", cls=SuggestingGroup)
 def log_group() -> None:
     """Drive logs: ROS 1 bags, ROS 2 bags (sqlite3 or MCAP) and MCAP files."""
 

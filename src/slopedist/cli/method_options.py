@@ -13,8 +13,10 @@ from typing import Any
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.cli.options import apply_options, split_list
 from slopedist.core.errors import ConfigurationError
+from slopedist.core.suggest import did_you_mean
 from slopedist.estimators import (
     ESTIMATORS,
     OFFLINE_COUNTERPARTS,
@@ -38,8 +40,9 @@ def check_methods(names: list[str], evaluation: bool = False) -> list[str]:
     known = available_methods() + ([PEER_METHOD] if evaluation else [])
     bad = [n for n in names if n not in known]
     if bad:
+        named = f"method '{bad[0]}'{did_you_mean(bad[0], known)}" if len(bad) == 1 else ""
         raise click.BadParameter(
-            f"unknown method(s) {', '.join(bad)}; choose from {', '.join(known)}",
+            f"unknown {named or 'methods ' + ', '.join(bad)} (choose from {', '.join(known)})",
             param_hint="--methods/--method",
         )
     return names
@@ -91,7 +94,7 @@ thresholds_option = click.option(
 
 reference_option = click.option(
     "--reference",
-    type=click.Choice([r.value for r in VEHICLE_REFERENCES]),
+    type=Choice([r.value for r in VEHICLE_REFERENCES]),
     default=None,
     help="The point of the vehicle distance_m refers to, for every method [run, estimate, "
     f"batch: {DEFAULT_REFERENCE.value}, the gap; an evaluation: its truth's, "
@@ -233,7 +236,7 @@ def estimator_config(
 _DEPTHMAP_OPTIONS = (
     click.option(
         "--depth-sample",
-        type=click.Choice([s.value for s in DepthSample]),
+        type=Choice([s.value for s in DepthSample]),
         default=DepthSample.CENTRE.value,
         show_default=True,
         help="depthmap: box centre pixel, a window around it, or the box's lower part.",
@@ -247,7 +250,7 @@ _DEPTHMAP_OPTIONS = (
     ),
     click.option(
         "--depth-scaling",
-        type=click.Choice([s.value for s in DepthScaling]),
+        type=Choice([s.value for s in DepthScaling]),
         default=DepthScaling.NONE.value,
         show_default=True,
         help="depthmap: per-frame median scaling for scale-less depth (contact = "

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from slopedist.cli.choice import Choice, SuggestingGroup
 from slopedist.cli.options import lookback_option
 from slopedist.core.errors import DataMismatchError, InputFileError, MissingInputError
 from slopedist.io.formatting import STDOUT_PATH, dumps_json, write_json
@@ -20,7 +21,7 @@ from slopedist.odometry.accuracy import OdometryEvaluation, run_odometry
 from slopedist.odometry.factory import available_odometry, make_odometry
 
 
-@click.group("odometry")
+@click.group("odometry", cls=SuggestingGroup)
 def odometry_group() -> None:
     """Visual odometry (camera rotations from pixels)."""
 
@@ -29,7 +30,7 @@ def odometry_group() -> None:
 @click.argument("seq_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option(
     "--backend",
-    type=click.Choice(available_odometry()),
+    type=Choice(available_odometry()),
     default="builtin",
     show_default=True,
     help="Visual-odometry backend.",

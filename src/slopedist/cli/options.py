@@ -12,6 +12,7 @@ from typing import Any
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M, MAX_MOUNT_ANGLE_RAD
 from slopedist.core.errors import ConfigurationError
 from slopedist.estimators.base import VEHICLE_REFERENCES, ReferencePoint
@@ -259,7 +260,7 @@ def _sequence_file_options(required: bool) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--pose-format",
-            type=click.Choice([p.value for p in PoseFileLayout]),
+            type=Choice([p.value for p in PoseFileLayout]),
             default=PoseFileLayout.AUTO.value,
             show_default=True,
             help="Pose layout; 'oxts' = vehicle-frame TUM poses (x forward, y left, z up).",
@@ -336,7 +337,7 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
     return (
         click.option(
             "--rotation",
-            type=click.Choice([r.value for r in RotationSource]),
+            type=Choice([r.value for r in RotationSource]),
             default=RotationSource.ORBSLAM3.value,
             show_default=True,
             help=f"{prefix}Rotation source of the visual-odometry methods "
@@ -344,7 +345,7 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--boxes",
-            type=click.Choice([b.value for b in BoxSource]),
+            type=Choice([b.value for b in BoxSource]),
             default=BoxSource.GT.value,
             show_default=True,
             help=f"{prefix}Ground-truth boxes, PointRCNN or RRC (camera) detections.",
@@ -391,7 +392,7 @@ def _kitti_eval_option_list(prefix: str) -> tuple[Callable[..., Any], ...]:
         ),
         click.option(
             "--gt-reference",
-            type=click.Choice([r.value for r in GT_REFERENCES]),
+            type=Choice([r.value for r in GT_REFERENCES]),
             default=None,
             help="Declare the point of the vehicle the truth's distance refers to "
             "(KITTI labels: centre): every method's distance is moved to it (ground-contact "
@@ -516,7 +517,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "layout",
         "detector_layout",
         {
-            "type": click.Choice([v.value for v in OutputLayout]),
+            "type": Choice([v.value for v in OutputLayout]),
             "default": OutputLayout.AUTO.value,
             "show_default": True,
             "help": "Output layout of the model (auto: from its output shapes; docs/detectors.md).",
@@ -549,7 +550,7 @@ DETECTOR_OPTION_SPECS: tuple[tuple[str, str, dict[str, Any]], ...] = (
         "logits",
         "detector_logits",
         {
-            "type": click.Choice([v.value for v in LogitKind]),
+            "type": Choice([v.value for v in LogitKind]),
             "default": LogitKind.SIGMOID.value,
             "show_default": True,
             "help": "DETR logits: one sigmoid per class, or softmax with a no-object class.",

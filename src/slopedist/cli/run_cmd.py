@@ -16,6 +16,7 @@ from typing import Any
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.cli.method_options import (
     check_methods,
     estimator_options,
@@ -39,6 +40,7 @@ from slopedist.cli.options import (
 )
 from slopedist.cli.record_summary import not_vehicles_line
 from slopedist.cli.run_options import (
+    columns_option,
     export_option,
     image_topic_option,
     overlay_format_option,
@@ -65,6 +67,7 @@ from slopedist.streaming.setup import (
     folder_depth_source,
     run_to_folder,
 )
+from slopedist.streaming.step import RecordColumns
 
 DEPTH_OUTPUTS = {"depth": DepthOutputKind.DEPTH, "inverse": DepthOutputKind.INVERSE_DEPTH}
 """``--depth-output`` values: what the ONNX model's output means."""
@@ -164,7 +167,7 @@ _DEPTH_SOURCE_OPTIONS = (
     ),
     click.option(
         "--depth-output",
-        type=click.Choice(list(DEPTH_OUTPUTS)),
+        type=Choice(list(DEPTH_OUTPUTS)),
         default="depth",
         show_default=True,
         help="ONNX model output: depth (metres = scale × output) or inverse depth / "
@@ -247,7 +250,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
 @run_offline_option
 @click.option(
     "--odometry",
-    type=click.Choice(ODOMETRY_CHOICES),
+    type=Choice(ODOMETRY_CHOICES),
     default="builtin",
     show_default=True,
     help="Visual odometry backend (orbslam3 is an optional extra; none = no rotations, "
@@ -267,6 +270,7 @@ def depth_source_options(command: Callable[..., Any]) -> Callable[..., Any]:
     show_default=True,
     help="Output folder: records.csv, frames.csv, run.json, overlay.",
 )
+@columns_option
 @overlay_option
 @overlay_format_option
 @click.option(
@@ -322,6 +326,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
     odometry: str,
     vocab: Path | None,
     out_dir: Path,
+    columns: str,
     overlay: bool,
     overlay_format: str,
     snapshots: tuple[int, ...],
@@ -385,6 +390,7 @@ def run(  # noqa: PLR0913 (a click command: one parameter per option)
         sequence=sequence,
         vehicle_classes=vehicle_classes,
         reference=reference,
+        columns=RecordColumns(columns),
         other_inputs=tuple(p for p in read if p is not None),
     )
     stop = StopFlag()

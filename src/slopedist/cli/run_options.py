@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import click
 
+from slopedist.cli.choice import Choice
 from slopedist.streaming.config import OverlayFormat, RunExport
+from slopedist.streaming.step import RecordColumns
 
 image_topic_option = click.option(
     "--image-topic",
@@ -23,7 +25,7 @@ run_offline_option = click.option(
 export_option = click.option(
     "--export",
     "exports",
-    type=click.Choice([e.value for e in RunExport]),
+    type=Choice([e.value for e in RunExport]),
     multiple=True,
     help="Also write OUT/run.mcap (Foxglove schemas) and/or OUT/trajectory.tum (rotations, "
     "for evo). Repeatable.",
@@ -33,8 +35,16 @@ overlay_option = click.option(
 )
 overlay_format_option = click.option(
     "--overlay-format",
-    type=click.Choice([f.value for f in OverlayFormat]),
+    type=Choice([f.value for f in OverlayFormat]),
     default=OverlayFormat.MP4.value,
     show_default=True,
     help="Overlay as OUT/overlay.mp4 or as PNG files in OUT/overlay/.",
+)
+columns_option = click.option(
+    "--columns",
+    type=Choice([c.value for c in RecordColumns]),
+    default=RecordColumns.DEFAULT.value,
+    show_default=True,
+    help="Columns of records.csv: default (frame, time, track, box, distance, σ, status, "
+    "speed, TTC: docs/usage.md#columns-of-recordscsv) or all (with the method's diagnostics).",
 )

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
+from slopedist.cli.choice import Choice
 from slopedist.core.errors import ConfigurationError
 from slopedist.io.outputs import OutputFolder
 from slopedist.synthetic.export import (
@@ -35,7 +36,7 @@ from slopedist.synthetic.sequence import SyntheticSequence
 @click.option("--list", "list_only", is_flag=True, help="List the built-in scenarios and exit.")
 @click.option(
     "--depth",
-    type=click.Choice([d.value for d in DepthFormat]),
+    type=Choice([d.value for d in DepthFormat]),
     default="png",
     show_default=True,
     help="True depth maps: KITTI depth PNG, float32 .npy, or none.",

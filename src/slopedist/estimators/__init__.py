@@ -20,6 +20,7 @@ from typing import Any
 from slopedist.core import geometry as geo
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError
+from slopedist.core.suggest import did_you_mean
 from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
@@ -275,7 +276,8 @@ def _method_name(name: str | Method) -> str:
     value = str(getattr(name, "value", name))
     if value not in ESTIMATORS:
         raise ConfigurationError(
-            f"unknown method '{name}'; choose from {', '.join(available_methods())}"
+            f"unknown method '{name}'{did_you_mean(value, available_methods())} (choose from "
+            f"{', '.join(available_methods())})"
         )
     return value
 

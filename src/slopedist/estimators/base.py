@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError
+from slopedist.core.suggest import did_you_mean
 from slopedist.io.detections.boxes import (
     DEFAULT_VEHICLE_CLASSES,
     BoxTable,
@@ -155,7 +156,8 @@ def parse_reference(text: str) -> ReferencePoint:
     value = text.strip()
     if value not in choices:
         raise ConfigurationError(
-            f"'{value}' is not a reference point; choose from {', '.join(choices)}"
+            f"'{value}' is not a reference point{did_you_mean(value, choices)} (choose from "
+            f"{', '.join(choices)})"
         )
     return choices[value]
 

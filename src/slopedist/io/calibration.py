@@ -97,24 +97,34 @@ def read_calibration(
             principal point at or beyond the image origin, such as ``c_y = 0``).
     """
     intrinsics = path if isinstance(path, Intrinsics) else read_intrinsics(path, kitti_key)
+    where = "the calibration" if isinstance(path, Intrinsics) else str(path)
+    if image_size is not None:
+        where += f" with --image-size {image_size[0]}x{image_size[1]}"
+        if intrinsics.image_size is None:  # the frames' rule first: it names the likely cause
+            check_calibration(_file_camera(path, intrinsics), *image_size, where)
     intrinsics = intrinsics.with_image_size(image_size)
+    _file_camera(path, intrinsics)  # focal length, principal point (against a stated size)
     if not isinstance(path, Intrinsics):  # the file's own part of the camera, named as such
-        _checked(Path(path), intrinsics.camera, None)  # focal length, principal point
         _checked(Path(path), intrinsics.check_lens_scale, "distortion")
     else:
         intrinsics.check_lens_scale()
     camera = intrinsics.camera(height_m, mount_angle_rad)
     if image_size is not None:
-        where = "the calibration" if isinstance(path, Intrinsics) else str(path)
-        check_calibration(
-            camera, *image_size, f"{where} with --image-size {image_size[0]}x{image_size[1]}"
-        )
+        check_calibration(camera, *image_size, where)
     elif intrinsics.image_size is None:  # no size to check against: some image must fit
         if isinstance(path, Intrinsics):
             check_implied_image(camera)
         else:
             _checked(Path(path), lambda: check_implied_image(camera), None)
     return CameraCalibration(intrinsics, camera)
+
+
+def _file_camera(path: str | Path | Intrinsics, intrinsics: Intrinsics) -> Camera:
+    """The camera of ``intrinsics`` (focal length and principal point checked), its errors
+    naming the file ``path`` when it came from one."""
+    if isinstance(path, Intrinsics):
+        return intrinsics.camera()
+    return _checked(Path(path), intrinsics.camera, None)
 
 
 def read_intrinsics(path: str | Path, kitti_key: str = "P2") -> Intrinsics:

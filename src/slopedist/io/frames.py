@@ -285,6 +285,21 @@ def check_box_frames(box_frames: NDArray[np.int64], frames: FrameSource) -> None
         )
 
 
+def resolution_hint(camera: Camera, width: int, height: int) -> str:
+    """The likely cause of a principal point that does not fit ``width × height`` px images:
+    a calibration made at another resolution, about ``2·c_x × 2·c_y`` px (a calibration's
+    principal point lies near its images' centre); empty when that is no image or is the
+    frames' own size."""
+    implied = (round(2.0 * camera.c_x), round(2.0 * camera.c_y))
+    if min(implied) < 1 or implied == (width, height):
+        return ""
+    return (
+        "the calibration is probably for another resolution (about "
+        f"{implied[0]}×{implied[1]} px = 2·c_x × 2·c_y); give the calibration for these "
+        "frames, or resize the frames to it"
+    )
+
+
 def check_calibration(camera: Camera, width: int, height: int, where: str = "frames") -> None:
     """Fail when ``camera`` cannot belong to images of ``width × height`` pixels.
 
@@ -294,7 +309,8 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
     :data:`FIELD_OF_VIEW_RANGE_DEG`.
 
     Raises:
-        DataMismatchError: naming the sizes and the offending value.
+        DataMismatchError: naming the sizes, the offending value and, for a principal point,
+            the likely cause (:func:`resolution_hint`).
     """
     if (
         camera.image_width is not None
@@ -309,16 +325,18 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
         ("c_x", camera.c_x, width, MAX_PRINCIPAL_POINT_OFFSET[0]),
         ("c_y", camera.c_y, height, MAX_PRINCIPAL_POINT_OFFSET[1]),
     ):
+        hint = resolution_hint(camera, width, height)
         if not 0.0 <= c <= size:
             raise DataMismatchError(
                 f"{where}: the calibration's principal point {name} = {c:.1f} px lies outside "
-                f"the {width}×{height} px images; does the calibration belong to these frames?"
+                f"the {width}×{height} px images; "
+                f"{hint or 'does the calibration belong to these frames?'}"
             )
         if abs(c - size / 2) > offset * size:
             raise DataMismatchError(
                 f"{where}: the calibration's principal point {name} = {c:.1f} px is far from the "
-                f"centre ({size / 2:.1f} px) of the {width}×{height} px images; were the frames "
-                "resized or cropped after calibration?"
+                f"centre ({size / 2:.1f} px) of the {width}×{height} px images; "
+                f"{hint or 'were the frames resized or cropped after calibration?'}"
             )
     fov = math.degrees(2.0 * math.atan(width / (2.0 * camera.f)))
     lo, hi = FIELD_OF_VIEW_RANGE_DEG

@@ -20,6 +20,7 @@ from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES
 from slopedist.io.outputs import StopFlag, partial_path
 from slopedist.io.prefetch import DEFAULT_AHEAD
 from slopedist.odometry.base import LOOKBACK_S
+from slopedist.streaming.step import RecordColumns
 from slopedist.streaming.tracks import TRACKS_NAME
 
 RECORDS_NAME = "records.csv"
@@ -197,6 +198,7 @@ class RunResult:
         reference: the point of the vehicle every ``distance_m`` was moved to
             (:class:`~slopedist.estimators.base.ReferencePoint` value; the records'
             ``reference`` column says it row by row), None: each method's own point.
+        columns: the columns of ``records.csv`` (``default`` or ``all``).
         overlay: overlay path, or None; ``exports``: the MCAP / TUM files and snapshot images
             written.
         overlay_codec: what the overlay is written as (``h264 (libx264)``, ``mp4v``, ``png``:
@@ -233,6 +235,7 @@ class RunResult:
     frames_without_depth: int = 0
     ground_truth: bool = False
     reference: str | None = None
+    columns: str = RecordColumns.DEFAULT.value
     overlay: str | None = None
     overlay_codec: str | None = None
     overlay_warning: str | None = None
@@ -300,6 +303,8 @@ class RunConfig:
             (:class:`~slopedist.io.prefetch.PrefetchedFrames`; a second core decodes while the
             odometry works), and overlay frames queued for drawing and encoding in another
             (:class:`~slopedist.io.prefetch.BackgroundOverlay`); 0: all in the loop's thread.
+        columns: the columns of ``records.csv`` (``--columns``: what a user acts on, or all
+            with the method's diagnostics).
     """
 
     out_dir: Path
@@ -317,3 +322,4 @@ class RunConfig:
     stop: StopFlag = field(default_factory=StopFlag)
     decode_ahead: int = DEFAULT_AHEAD
     snapshots: tuple[int, ...] = ()
+    columns: RecordColumns = RecordColumns.DEFAULT

@@ -107,7 +107,7 @@ from slopedist.streaming.config import (
 from slopedist.streaming.drawing import draw_fig3_overlay, lead_index
 from slopedist.streaming.mcap_export import McapExportWriter
 from slopedist.streaming.pipeline import FinishResult, FrameResult, OdometryOutput, Pipeline
-from slopedist.streaming.step import close_records, frame_records
+from slopedist.streaming.step import close_records, frame_records, with_user_track_ids
 from slopedist.streaming.tracks import TRACK_FIELDS, TRACKS_NAME, TrackSummaries
 
 _log = logging.getLogger(__name__)
@@ -164,6 +164,7 @@ def run_frames(
         overlay=str(config.overlay) if config.overlay else None,
         ground_truth=CSV_TRUTH_COLUMN in boxes.extra,
         reference=config.reference.value if config.reference is not None else None,
+        columns=config.columns.value,
         dropped_boxes=dict(dropped_boxes or {}),
         depth_source=describe_depth(depth) if depth is not None else None,
         exports=[str(p) for p in (config.mcap, config.trajectory) if p is not None],
@@ -342,6 +343,7 @@ class _RunLoop:
         if odo.state:  # the odometry ran on the frame
             self.odometry_count[state] += 1
             self.times["odometry"].add(odo.ms)
+        frame_boxes = with_user_track_ids(frame_boxes, res.estimates)  # as the records name them
         if self.held is None:
             n_est = self._write_records(frame_boxes, frame.timestamp_s, res.estimates)
             speed = self._speed_at(frame.timestamp_s)
@@ -428,7 +430,7 @@ class _RunLoop:
     def _write_records(self, frame_boxes: BoxTable, timestamp_s: float, est: FrameEstimates) -> int:
         """Write a frame's records (with the ground truth when the boxes carry it); returns
         how many have a distance."""
-        rows = frame_records(frame_boxes, timestamp_s, est, self.method)
+        rows = frame_records(frame_boxes, timestamp_s, est, self.method, self.config.columns)
         with self.files.writing(RECORDS_NAME):
             self.records.write_rows(rows)
         n_est = int(np.sum(est.status == EstimateStatus.OK.value))
@@ -450,8 +452,9 @@ class _RunLoop:
         self.end = self.pipeline.finish()
         self.times["estimation"].total += (time.perf_counter() - t0) * 1e3  # over the frames
         for res in self.end.frames:
-            self._write_records(res.boxes, res.t, res.estimates)
-            self.tracks.add(res.t, res.boxes, res.estimates, self._speed_at(res.t))
+            boxes = with_user_track_ids(res.boxes, res.estimates)
+            self._write_records(boxes, res.t, res.estimates)
+            self.tracks.add(res.t, boxes, res.estimates, self._speed_at(res.t))
             self.offline_written += 1
 
     def _offline_records_failed(self, exc: SlopedistError | OSError) -> None:
@@ -572,7 +575,10 @@ class _RunLoop:
         result.estimation_ms_mean = self.times["estimation"].mean()
         result.depth_ms_mean = self.times["depth"].mean()
         result.detection_ms_mean = self.times["detection"].mean()
-        files.close(RECORDS_NAME, lambda: close_records(self.records))
+        files.close(
+            RECORDS_NAME,
+            lambda: close_records(self.records, self.config.columns, self.result.ground_truth),
+        )
         files.close(FRAMES_NAME, self.frame_log.close)
         files.close(TRACKS_NAME, self._write_tracks)
         if self.painter is not None:

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError, DataMismatchError
+from slopedist.core.suggest import did_you_mean
 from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator
 from slopedist.estimators.base import (
     EstimateStatus,
@@ -45,7 +46,6 @@ from slopedist.io.detections.adapters import as_box_table
 from slopedist.io.detections.boxes import (
     DEFAULT_VEHICLE_CLASSES,
     FRAME_BOX_COLUMN,
-    NO_TRACK,
     BoxTable,
     frame_pixel_boxes,
 )
@@ -56,7 +56,13 @@ from slopedist.odometry import make_odometry
 from slopedist.odometry.base import LOOKBACK_S, RotationOdometry, RotationTrack
 from slopedist.odometry.point_map import PointMap
 from slopedist.streaming.frame_times import long_step_warning
-from slopedist.streaming.step import FrameStep, frame_records
+from slopedist.streaming.step import (
+    FrameStep,
+    RecordColumns,
+    frame_records,
+    parse_columns,
+    user_track_ids,
+)
 
 ODOMETRY_CHOICES = ("builtin", "orbslam3", "none")
 """Rotation sources on the frames (``--odometry``; ``none`` = no rotations, for methods that do
@@ -187,10 +193,17 @@ class FrameResult:
         """One :class:`Target` per box."""
         return _targets(self.boxes, self.estimates)
 
-    def to_records(self) -> list[dict[str, Any]]:
+    def to_records(self, columns: str | RecordColumns = "default") -> list[dict[str, Any]]:
         """The frame's rows of ``records.csv`` (the same columns and values ``slopedist run``
-        writes)."""
-        return frame_records(self.boxes, self.t, self.estimates, self.method)
+        writes): ``columns`` ``"default"`` (what a user acts on) or ``"all"`` (with the
+        method's diagnostics, as ``--columns all``).
+
+        Raises:
+            ConfigurationError: another ``columns``.
+        """
+        return frame_records(
+            self.boxes, self.t, self.estimates, self.method, parse_columns(columns)
+        )
 
 
 def _column(est: FrameEstimates, name: str) -> NDArray[np.float64]:
@@ -202,10 +215,7 @@ def _targets(boxes: BoxTable, est: FrameEstimates) -> tuple[Target, ...]:
     """The :class:`Target` of every box of a frame."""
     pixels = frame_pixel_boxes(boxes)
     sigma, speed, ttc = (_column(est, c) for c in ("sigma_m", "speed_mps", "ttc_s"))
-    own_track = _column(est, "track_uid")
-    ids = boxes.track_id.astype(np.int64)
-    unknown = (ids == NO_TRACK) & np.isfinite(own_track)
-    ids[unknown] = own_track[unknown].astype(np.int64)
+    ids = user_track_ids(boxes, est)
     return tuple(
         Target(
             track_id=int(ids[i]),
@@ -246,9 +256,10 @@ class FinishResult:
     calibration: SelfCalibration | None = None
     warnings: tuple[str, ...] = ()
 
-    def to_records(self) -> list[dict[str, Any]]:
-        """The rows of ``records.csv`` of :attr:`frames`, in order."""
-        return [row for frame in self.frames for row in frame.to_records()]
+    def to_records(self, columns: str | RecordColumns = "default") -> list[dict[str, Any]]:
+        """The rows of ``records.csv`` of :attr:`frames`, in order (``columns`` as
+        :meth:`FrameResult.to_records`)."""
+        return [row for frame in self.frames for row in frame.to_records(columns)]
 
 
 def pipeline_calibration(
@@ -342,7 +353,8 @@ class Pipeline:
     ) -> None:
         if odometry not in ODOMETRY_CHOICES:
             raise ConfigurationError(
-                f"unknown odometry '{odometry}'; choose from {', '.join(ODOMETRY_CHOICES)}"
+                f"unknown odometry '{odometry}'{did_you_mean(odometry, ODOMETRY_CHOICES)} "
+                f"(choose from {', '.join(ODOMETRY_CHOICES)})"
             )
         calibration = pipeline_calibration(calib, height_m, mount_angle_deg, image_size)
         options = dict(method_options)

@@ -55,6 +55,7 @@ from slopedist.streaming.config import (
 )
 from slopedist.streaming.loop import run_frames
 from slopedist.streaming.pipeline import build_odometry
+from slopedist.streaming.step import RecordColumns
 from slopedist.streaming.tracks import TRACKS_NAME
 
 _log = logging.getLogger(__name__)
@@ -210,6 +211,8 @@ class RunOptions:
             (``--reference``; :data:`~slopedist.estimators.references.DEFAULT_REFERENCE`, the
             nearest face, by default); None: each method's own point.
         decode_ahead: frames decoded ahead in a thread (0: all in the loop's thread).
+        columns: the columns of ``records.csv`` (``--columns``; :class:`~slopedist.streaming.
+            step.RecordColumns`).
         other_inputs: further files the run reads through ``detector`` or ``depth`` (a model,
             a depth folder), which no output may replace.
     """
@@ -240,6 +243,7 @@ class RunOptions:
     vehicle_classes: tuple[str, ...] = DEFAULT_VEHICLE_CLASSES
     reference: ReferencePoint | None = DEFAULT_REFERENCE
     decode_ahead: int = DEFAULT_AHEAD
+    columns: RecordColumns = RecordColumns.DEFAULT
     other_inputs: tuple[Path, ...] = ()
 
     def input_paths(self) -> list[Path | Intrinsics | None]:
@@ -271,6 +275,13 @@ class _OpenedRun:
     dropped_boxes: DroppedBoxes = field(default_factory=DroppedBoxes)
 
 
+NO_BOXES = (
+    "no boxes: give a box file (--boxes FILE) or an ONNX detector (--detector MODEL.onnx; "
+    "export one yourself in two commands: docs/detectors.md)"
+)
+"""The error of a run given neither boxes nor a detector."""
+
+
 def boxes_or_detector(
     inputs: RunOptions, dropped: DroppedBoxes | None = None
 ) -> tuple[BoxTable, Detector | None]:
@@ -280,7 +291,9 @@ def boxes_or_detector(
         return read_box_file(inputs.boxes, inputs.score, dropped), None
     if inputs.detector is not None and inputs.boxes is None:
         return BoxTable.empty(), inputs.detector()
-    raise ConfigurationError("give the boxes as a file (--boxes) or a detector (--detector)")
+    if inputs.boxes is not None:
+        raise ConfigurationError("give the boxes as a file (--boxes) or a detector, not both")
+    raise ConfigurationError(NO_BOXES)
 
 
 def open_run(inputs: RunOptions) -> _OpenedRun:
@@ -397,6 +410,7 @@ def run_config(options: RunOptions, opened: _OpenedRun, stop: StopFlag) -> RunCo
         stop=stop,
         decode_ahead=options.decode_ahead,
         snapshots=options.snapshots,
+        columns=options.columns,
     )
 
 

@@ -15,7 +15,8 @@ import math
 import sys
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 
 from slopedist.core import geometry as geo
 from slopedist.core.errors import ConfigurationError, DataMismatchError
+from slopedist.core.suggest import did_you_mean
 from slopedist.estimators.base import (
     EstimateStatus,
     Estimator,
@@ -34,7 +36,12 @@ from slopedist.estimators.base import (
     settle_states,
 )
 from slopedist.estimators.references import at_reference
-from slopedist.io.detections.boxes import DEFAULT_VEHICLE_CLASSES, BoxTable, concat_boxes
+from slopedist.io.detections.boxes import (
+    DEFAULT_VEHICLE_CLASSES,
+    NO_TRACK,
+    BoxTable,
+    concat_boxes,
+)
 from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.io.formatting import STDOUT_PATH, CsvStreamWriter
 from slopedist.odometry.base import (
@@ -525,12 +532,90 @@ RECORD_FIELDS = (
     "reason",
     "cut",
 )
-"""Columns of the per-target records CSV, in order; method-specific extras follow.
+"""Columns of the full per-target records (:attr:`RecordColumns.ALL`), in order; the method's
+extra columns follow.
 
 ``status`` is ``ok``, ``upper_bound`` (``distance_m`` is a bound the true distance does not
 exceed; ``reason`` says why) or ``missing`` (no distance; ``reason`` says why); ``cut`` names
 the image edges that cut the box (``bottom``, ``left+bottom``, ...; empty when none or when
 the image size is unknown)."""
+
+DEFAULT_RECORD_FIELDS = (
+    "frame",
+    "timestamp_s",
+    "track_id",
+    "class",
+    "left",
+    "top",
+    "right",
+    "bottom",
+    "distance_m",
+    "sigma_m",
+    "reference",
+    "status",
+    "reason",
+    "speed_mps",
+    "ttc_s",
+)
+"""Columns of ``records.csv`` by default (:attr:`RecordColumns.DEFAULT`), in order: what a
+user acts on; ``gt_distance_m`` follows when the boxes carry a truth. ``sigma_m``,
+``speed_mps`` and ``ttc_s`` are empty for a method that states none. The schema table of
+``docs/outputs.md`` lists them."""
+
+OWN_TRACK_KEY = "track_uid"
+"""The estimates' column of a method's own track number (``ours``'s tracker)."""
+METHOD_TRACK_COLUMN = "method_track_uid"
+"""What the full records call :data:`OWN_TRACK_KEY`: the method's internal track number, which
+starts anew when its tracker loses a vehicle (``track_id`` is the one to follow)."""
+
+
+class RecordColumns(str, Enum):
+    """Which columns the per-target records have (``--columns``)."""
+
+    DEFAULT = "default"
+    """:data:`DEFAULT_RECORD_FIELDS`: what a user acts on."""
+    ALL = "all"
+    """:data:`RECORD_FIELDS` and every extra column of the method (its diagnostics)."""
+
+
+def parse_columns(value: str | RecordColumns) -> RecordColumns:
+    """``value`` as :class:`RecordColumns`.
+
+    Raises:
+        ConfigurationError: neither ``default`` nor ``all``.
+    """
+    try:
+        return RecordColumns(getattr(value, "value", value))
+    except ValueError:
+        names = [c.value for c in RecordColumns]
+        raise ConfigurationError(
+            f"unknown record columns '{value}'{did_you_mean(str(value), names)} (choose from "
+            f"{', '.join(names)})"
+        ) from None
+
+
+def user_track_ids(boxes: BoxTable, est: FrameEstimates) -> NDArray[np.int64]:
+    """The track a user follows for each box: the box's own track id when it carries one
+    (from the box file or the user's tracker), else the method's own track (``ours``), else
+    :data:`~slopedist.io.detections.boxes.NO_TRACK`."""
+    ids = np.array(boxes.track_id, dtype=np.int64)
+    own = np.asarray(est.extra.get(OWN_TRACK_KEY, np.full(len(ids), np.nan)), dtype=float)
+    unknown = (ids == NO_TRACK) & np.isfinite(own)
+    ids[unknown] = own[unknown].astype(np.int64)
+    return ids
+
+
+def with_user_track_ids(boxes: BoxTable, est: FrameEstimates) -> BoxTable:
+    """``boxes`` with the track ids of :func:`user_track_ids` (what ``tracks.csv`` and the
+    overlay name the vehicles by)."""
+    return replace(boxes, track_id=user_track_ids(boxes, est))
+
+
+def record_fields(columns: RecordColumns, truth: bool) -> tuple[str, ...]:
+    """The header of records of ``columns`` (the full set: before the method's extras), with
+    ``gt_distance_m`` when the boxes carry a truth."""
+    base = DEFAULT_RECORD_FIELDS if columns is RecordColumns.DEFAULT else RECORD_FIELDS
+    return (*base, CSV_TRUTH_COLUMN) if truth else base
 
 
 def iter_records(
@@ -538,49 +623,69 @@ def iter_records(
     timestamps_s: float | Iterable[float] | NDArray[np.float64],
     est: FrameEstimates,
     method: str,
+    columns: RecordColumns = RecordColumns.ALL,
 ) -> Iterator[dict[str, Any]]:
-    """One dict per target (``RECORD_FIELDS`` plus extras), angles in degrees.
+    """One dict per target, angles in degrees: :data:`RECORD_FIELDS` plus the method's extras
+    (:attr:`RecordColumns.ALL`; its own track as :data:`METHOD_TRACK_COLUMN`) or
+    :data:`DEFAULT_RECORD_FIELDS`. ``track_id`` is :func:`user_track_ids`'s.
 
     ``timestamps_s`` is the timestamp of the boxes' frame (seconds), or an array indexed by
     each box's frame number.
     """
     row_t = _row_timestamps(boxes, timestamps_s)
+    track = user_track_ids(boxes, est)
     for i in range(len(boxes)):
-        has_distance = est.status[i] != EstimateStatus.MISSING.value
-        row: dict[str, Any] = {
-            "frame": int(boxes.frame[i]),
-            "timestamp_s": float(row_t[i]),
-            "track_id": int(boxes.track_id[i]),
-            "class": boxes.cls[i],
-            "score": float(boxes.score[i]),
-            "left": float(boxes.boxes[i, 0]),
-            "top": float(boxes.boxes[i, 1]),
-            "right": float(boxes.boxes[i, 2]),
-            "bottom": float(boxes.boxes[i, 3]),
-            "method": method,
-            "theta_deg": math.degrees(est.theta_rad[i]),
-            "theta_adj_deg": math.degrees(est.theta_adj_rad[i]),
-            "delta_y_px": float(est.delta_y_px[i]),
-            "v_px": float(est.v_px[i]),
-            "distance_m": float(est.distance_m[i]) if has_distance else math.nan,
-            "reference": est.reference[i],
-            "status": est.status[i],
-            "reason": est.reason[i],
-            "cut": est.cut[i],
-        }
-        for key, values in est.extra.items():
-            row[key] = float(values[i])
-        yield row
+        row = _full_record(boxes, est, i, float(row_t[i]), method)
+        row["track_id"] = int(track[i])
+        if columns is RecordColumns.DEFAULT:
+            yield {k: row.get(k, math.nan) for k in DEFAULT_RECORD_FIELDS}
+        else:
+            yield row
+
+
+def _full_record(
+    boxes: BoxTable, est: FrameEstimates, i: int, t_s: float, method: str
+) -> dict[str, Any]:
+    """Record ``i`` of a frame with every column (:attr:`RecordColumns.ALL`)."""
+    has_distance = est.status[i] != EstimateStatus.MISSING.value
+    row: dict[str, Any] = {
+        "frame": int(boxes.frame[i]),
+        "timestamp_s": t_s,
+        "track_id": int(boxes.track_id[i]),
+        "class": boxes.cls[i],
+        "score": float(boxes.score[i]),
+        "left": float(boxes.boxes[i, 0]),
+        "top": float(boxes.boxes[i, 1]),
+        "right": float(boxes.boxes[i, 2]),
+        "bottom": float(boxes.boxes[i, 3]),
+        "method": method,
+        "theta_deg": math.degrees(est.theta_rad[i]),
+        "theta_adj_deg": math.degrees(est.theta_adj_rad[i]),
+        "delta_y_px": float(est.delta_y_px[i]),
+        "v_px": float(est.v_px[i]),
+        "distance_m": float(est.distance_m[i]) if has_distance else math.nan,
+        "reference": est.reference[i],
+        "status": est.status[i],
+        "reason": est.reason[i],
+        "cut": est.cut[i],
+    }
+    for key, values in est.extra.items():
+        row[METHOD_TRACK_COLUMN if key == OWN_TRACK_KEY else key] = float(values[i])
+    return row
 
 
 def frame_records(
-    boxes: BoxTable, timestamp_s: float, est: FrameEstimates, method: str
+    boxes: BoxTable,
+    timestamp_s: float,
+    est: FrameEstimates,
+    method: str,
+    columns: RecordColumns = RecordColumns.ALL,
 ) -> list[dict[str, Any]]:
-    """The records of one frame as ``records.csv`` has them (:func:`iter_records`), with the
-    ground-truth distance (:data:`~slopedist.io.detections.readers.CSV_TRUTH_COLUMN`, metres)
-    when the boxes carry it: what ``slopedist run`` writes and
-    :meth:`slopedist.FrameResult.to_records` gives."""
-    rows = list(iter_records(boxes, timestamp_s, est, method))
+    """The records of one frame as ``records.csv`` has them (:func:`iter_records`, of
+    ``columns``), with the ground-truth distance
+    (:data:`~slopedist.io.detections.readers.CSV_TRUTH_COLUMN`, metres) when the boxes carry
+    it: what ``slopedist run`` writes and :meth:`slopedist.FrameResult.to_records` gives."""
+    rows = list(iter_records(boxes, timestamp_s, est, method, columns))
     truth = boxes.extra.get(CSV_TRUTH_COLUMN)
     if truth is not None:
         for row, g in zip(rows, truth, strict=True):
@@ -618,8 +723,11 @@ def open_records(path: str | Path | None, fields: Sequence[str] | None = None) -
     return CsvStreamWriter.open(path, fields)
 
 
-def close_records(writer: CsvStreamWriter) -> None:
-    """Close a records CSV, writing the header alone if no record was written."""
+def close_records(
+    writer: CsvStreamWriter, columns: RecordColumns = RecordColumns.ALL, truth: bool = False
+) -> None:
+    """Close a records CSV, writing the header alone (:func:`record_fields` of ``columns``) if
+    no record was written."""
     if writer.fields is None:
-        writer.write_header(RECORD_FIELDS)
+        writer.write_header(record_fields(columns, truth))
     writer.close()

@@ -21,7 +21,7 @@ import numpy as np
 from slopedist.core.errors import ConfigurationError, InputFileError
 from slopedist.core.limits import MAX_INDEX, MAX_RECORD_MAGNITUDE
 from slopedist.core.textfiles import CsvRows, number_cell, read_json
-from slopedist.estimators import ESTIMATORS, native_reference
+from slopedist.estimators import ESTIMATORS, native_reference, takes_ours_options
 from slopedist.estimators.base import EstimateStatus, ReferencePoint
 from slopedist.estimators.references import CENTRE_COLUMN, NEAREST_FACE_COLUMN, to_reference
 from slopedist.evaluation.metrics import (
@@ -137,6 +137,22 @@ def _run_summary(folder: Path) -> dict[str, Any]:
     return data
 
 
+def _summary_method(folder: Path, records: Path) -> str:
+    """The method of a run whose records do not name it (the default columns): its
+    ``run.json``'s.
+
+    Raises:
+        InputFileError: no ``run.json`` names one.
+    """
+    method = _run_summary(folder).get("method")
+    if not isinstance(method, str) or not method:
+        raise InputFileError(
+            records,
+            "the records have no method column and no run.json beside them names the method",
+        )
+    return method
+
+
 def run_sequence_name(folder: Path) -> str:
     """Sequence a run folder belongs to: ``run.json``'s ``"sequence"`` when present, else the
     folder name (runs of different methods on one sequence share the name there)."""
@@ -176,6 +192,7 @@ class _RunReader:
     truth_found: bool = False
     theta_truth: set[str] = field(default_factory=set)
     references: dict[str, set[str]] = field(default_factory=dict)
+    prior_extent: set[str] = field(default_factory=set)
 
     def read_records(self, folder: Path, seq: str) -> list[str]:
         """Add a folder's records and its methods' scored sets; returns its methods.
@@ -184,12 +201,13 @@ class _RunReader:
             ConfigurationError: a method of this folder already has records for ``seq``.
         """
         path = folder / "records.csv"
-        header, rows, lines = read_csv(path, ("frame", "method", "distance_m", "status", "reason"))
+        header, rows, lines = read_csv(path, ("frame", "distance_m", "status", "reason"))
         truth_col = next((c for c in TRUTH_COLUMNS if c in header), None)
         self.truth_found |= truth_col is not None
+        run_method = "" if "method" in header else _summary_method(folder, path)
         by_method: dict[str, list[tuple[float, float, str, float]]] = {}
         for lineno, row in zip(lines, rows):
-            method = row["method"]
+            method = row.get("method") or run_method
             if self.methods and method not in self.methods:
                 continue
             reason = record_reason(row["status"], row["reason"], path, lineno)
@@ -197,6 +215,7 @@ class _RunReader:
             wanted = self.reference if self.reference is not None else scored_at(truth_col, method)
             if wanted is not None:
                 d = _at_reference(d, row, path, lineno, wanted)
+                self._note_prior_extent(method, row, header, wanted)
             g = _float(row[truth_col], path, lineno, truth_col) if truth_col else math.nan
             sigma = _float(row.get(SIGMA_COLUMN, ""), path, lineno, SIGMA_COLUMN)
             by_method.setdefault(method, []).append((d, g, reason, sigma))
@@ -227,6 +246,15 @@ class _RunReader:
                 )
             seq_sets[method] = _scored_set(vals)
         return list(by_method)
+
+    def _note_prior_extent(
+        self, method: str, row: dict[str, str], header: list[str], wanted: ReferencePoint
+    ) -> None:
+        """Remember a method whose distances were moved to ``wanted`` with the class's length
+        prior because its records lack its own extent (``ours``'s, in the full columns only)."""
+        moved = row.get("reference", "") not in ("", wanted.value)
+        if moved and CENTRE_COLUMN not in header and takes_ours_options(method):
+            self.prior_extent.add(method)
 
     def _note_reference(self, method: str, reference: str) -> None:
         """Remember the point of the vehicle a method's distances refer to (the truth's
@@ -421,6 +449,17 @@ def _notes(truth_found: bool, reference: ReferencePoint | None) -> list[str]:
     ]
 
 
+def _prior_extent_note(methods: set[str]) -> list[str]:
+    """A line for the methods moved to the truth's point with a length prior (else none)."""
+    if not methods:
+        return []
+    return [
+        f"{', '.join(sorted(methods))}: moved to the truth's point with half the class's "
+        f"length, the records lacking the method's own extent ({CENTRE_COLUMN}); run with "
+        "--columns all to score with it."
+    ]
+
+
 REFERENCE_WORDS = {
     ReferencePoint.CENTRE.value: "the vehicle's centre",
     ReferencePoint.NEAREST_FACE.value: "the vehicle's nearest face (the gap)",
@@ -501,6 +540,7 @@ def run_report_data(
         notes=[
             *_reference_note(references),
             *_notes(reader.truth_found, reader.reference),
+            *_prior_extent_note(reader.prior_extent),
             *partial,
         ],
         warnings=partial,
