@@ -100,6 +100,10 @@ class OursConfig:
             (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`; a class-blind
             detector's vans and trucks are a size error the track cannot average). Without
             ``generic_classes`` it does nothing.
+        adapt_contact_trust: scale the target-gradient prior's and the horizon jitter's
+            variances (KITTI's) by how rough the drive's road is against KITTI's, read from the
+            ego's own gradient history (:mod:`~slopedist.estimators.ours.road_roughness`): on a
+            flat road the ground contact is trusted more, on a rough one less.
     """
 
     box_sigma_px: float = 0.31
@@ -112,6 +116,7 @@ class OursConfig:
     reference: str = "centre"
     generic_classes: tuple[str, ...] = ()
     generic_sigma_only: bool = False
+    adapt_contact_trust: bool = False
 
     def __post_init__(self) -> None:
         positive = ("box_sigma_px", "gradient_sigma_rad", "height_sigma_m", "mount_sigma_rad")

@@ -70,6 +70,7 @@ from slopedist.estimators.ours.config import (
 )
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
+from slopedist.estimators.ours.road_roughness import RoadRoughness
 from slopedist.estimators.ours.records import (
     CalibrationInUse,
     DistanceFilterResult,
@@ -125,12 +126,16 @@ class FrameHorizon(NamedTuple):
         calib: the camera mount in use.
         measured: whether the frame's θ was measured (a frame without a rotation, or with an
             odometry jump, has none).
+        gradient_sigma_rad: the target-gradient prior's spread for this frame
+            (``gradient_sigma_rad``, scaled by the drive's road roughness with
+            ``adapt_contact_trust``).
     """
 
     theta_rad: float
     jitter_rad: float
     calib: CalibrationInUse
     measured: bool
+    gradient_sigma_rad: float
 
 
 _BOX_NOISE_PRIOR_COUNT = 200
@@ -203,6 +208,7 @@ class OursEstimator(Estimator):
         )
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
+        self._roughness = RoadRoughness() if config.adapt_contact_trust else None
         self.reset()
 
     def reset(self) -> None:
@@ -213,6 +219,8 @@ class OursEstimator(Estimator):
         self._border.reset()
         self._d2_sum = 0.0
         self._d2_count = 0
+        if self._roughness is not None:
+            self._roughness.reset()
 
     @property
     def box_sigma_px(self) -> float:
@@ -253,7 +261,7 @@ class OursEstimator(Estimator):
         # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
         reasons = table_box_problems(frame.boxes, self._border.known_size)
         good = np.flatnonzero(reasons == "")
-        horizon = self._frame_horizon(frame.theta_rad)
+        horizon = self._frame_horizon(frame.theta_rad, frame.timestamp_s)
         self._drop_stale_tracks(frame.timestamp_s)  # before association: the same whether or
         # not the caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
@@ -311,7 +319,7 @@ class OursEstimator(Estimator):
             uid,
             horizon.theta_rad,
             horizon.calib,
-            self.config.gradient_sigma_rad,
+            horizon.gradient_sigma_rad,
         )
         if size_after is not None:
             out = out._replace(**size_learning.size_columns(size_after, targets.classes.height_m))
@@ -320,14 +328,22 @@ class OursEstimator(Estimator):
             values.update(self._calibration_columns(good.size))
         return values
 
-    def _frame_horizon(self, theta_rad: float) -> FrameHorizon:
-        """The horizon of a frame whose ego gradient is ``theta_rad`` (NaN: unknown)."""
+    def _frame_horizon(self, theta_rad: float, time_s: float) -> FrameHorizon:
+        """The horizon of a frame at ``time_s`` whose ego gradient is ``theta_rad`` (NaN:
+        unknown); with ``adapt_contact_trust`` the frame's θ joins the drive's roughness first
+        and the jitter and target-gradient spread are scaled by it."""
         calib = self._calibration_in_use()
         measured = math.isfinite(theta_rad)
         theta = (float(theta_rad) if measured else self._theta_rest) + calib.horizon_offset_rad
         abl = self.ablation
         jitter = abl.theta_sigma_rad if measured else abl.no_rotation_theta_sigma_rad
-        return FrameHorizon(theta, jitter, calib, measured)
+        gradient_sigma = self.config.gradient_sigma_rad
+        if self._roughness is not None:
+            if measured:
+                self._roughness.update(time_s, float(theta_rad) - self._theta_rest)
+                jitter *= math.sqrt(self._roughness.scale)
+            gradient_sigma *= math.sqrt(self._roughness.scale)
+        return FrameHorizon(theta, jitter, calib, measured, gradient_sigma)
 
     def _calibration_in_use(self) -> CalibrationInUse:
         """The self-calibration's mount when self-calibrating, else the configured one."""
@@ -409,7 +425,7 @@ class OursEstimator(Estimator):
         if not abl.use_ground_contact:
             return None
         alpha, alpha_var = filters.contact_gradient_prior(
-            abl.gradient_feedback, self.config.gradient_sigma_rad, match
+            abl.gradient_feedback, horizon.gradient_sigma_rad, match
         )
         return frame_cues.ground_contact_cue(
             abl,
@@ -485,7 +501,7 @@ class OursEstimator(Estimator):
     ) -> TargetGradient:
         """:func:`~slopedist.estimators.ours.track_filters.target_gradient` of the frame."""
         return filters.target_gradient(
-            self.config.gradient_sigma_rad,
+            horizon.gradient_sigma_rad,
             self.camera,
             targets,
             match,
