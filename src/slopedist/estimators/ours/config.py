@@ -100,10 +100,6 @@ class OursConfig:
             (:func:`~slopedist.estimators.ours.vehicle_types.sigma_log_var`; a class-blind
             detector's vans and trucks are a size error the track cannot average). Without
             ``generic_classes`` it does nothing.
-        adapt_contact_trust: scale the target-gradient prior's and the horizon jitter's
-            variances (KITTI's) by how rough the drive's road is against KITTI's, read from the
-            ego's own gradient history (:mod:`~slopedist.estimators.ours.road_roughness`): on a
-            flat road the ground contact is trusted more, on a rough one less.
     """
 
     box_sigma_px: float = 0.31
@@ -116,7 +112,6 @@ class OursConfig:
     reference: str = "centre"
     generic_classes: tuple[str, ...] = ()
     generic_sigma_only: bool = False
-    adapt_contact_trust: bool = False
 
     def __post_init__(self) -> None:
         positive = ("box_sigma_px", "gradient_sigma_rad", "height_sigma_m", "mount_sigma_rad")
@@ -156,6 +151,11 @@ class OursAblation:
         motion_model: filter the distance over time (constant velocity; speed and TTC).
         yaw_memory: carry each track's heading belief over frames (tempered evidence).
         self_calibrate: estimate θ0 and h online (``ours-selfcal`` sets it).
+        adapt_contact_trust: scale the target-gradient prior's and the horizon jitter's
+            variances (KITTI's) by how rough the drive's road is against KITTI's, read from the
+            ego's own gradient history (:mod:`~slopedist.estimators.ours.road_roughness`): on a
+            flat road the ground contact is trusted more, on a rough one less (not kept: on KITTI
+            the ego's road does not tell the targets' contact scatter; docs/detector_boxes.md).
         adapt_box_noise: estimate the box-edge noise online from the second differences of the
             tracks' box edges (10 Hz tracks are smooth, so what is left is detector noise),
             with ``box_sigma_px`` as its prior.
@@ -237,6 +237,7 @@ class OursAblation:
     yaw_memory: bool = False
     self_calibrate: bool = False
     adapt_box_noise: bool = False
+    adapt_contact_trust: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

@@ -70,7 +70,6 @@ from slopedist.estimators.ours.config import (
 )
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
-from slopedist.estimators.ours.road_roughness import RoadRoughness
 from slopedist.estimators.ours.records import (
     CalibrationInUse,
     DistanceFilterResult,
@@ -81,6 +80,7 @@ from slopedist.estimators.ours.records import (
     TargetGradient,
     TrackMatch,
 )
+from slopedist.estimators.ours.road_roughness import RoadRoughness
 from slopedist.estimators.ours.selfcal import (
     Calibration,
     SelfCalibrator,
@@ -208,7 +208,7 @@ class OursEstimator(Estimator):
         )
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
-        self._roughness = RoadRoughness() if config.adapt_contact_trust else None
+        self._roughness = RoadRoughness() if abl.adapt_contact_trust else None
         self.reset()
 
     def reset(self) -> None:
@@ -261,7 +261,7 @@ class OursEstimator(Estimator):
         # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
         reasons = table_box_problems(frame.boxes, self._border.known_size)
         good = np.flatnonzero(reasons == "")
-        horizon = self._frame_horizon(frame.theta_rad, frame.timestamp_s)
+        horizon = self._frame_horizon(frame.theta_rad, frame.timestamp_s if n else None)
         self._drop_stale_tracks(frame.timestamp_s)  # before association: the same whether or
         # not the caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
@@ -328,10 +328,11 @@ class OursEstimator(Estimator):
             values.update(self._calibration_columns(good.size))
         return values
 
-    def _frame_horizon(self, theta_rad: float, time_s: float) -> FrameHorizon:
+    def _frame_horizon(self, theta_rad: float, time_s: float | None) -> FrameHorizon:
         """The horizon of a frame at ``time_s`` whose ego gradient is ``theta_rad`` (NaN:
         unknown); with ``adapt_contact_trust`` the frame's θ joins the drive's roughness first
-        and the jitter and target-gradient spread are scaled by it."""
+        (unless ``time_s`` is None: a frame without boxes, which a batch run skips) and the
+        jitter and target-gradient spread are scaled by it."""
         calib = self._calibration_in_use()
         measured = math.isfinite(theta_rad)
         theta = (float(theta_rad) if measured else self._theta_rest) + calib.horizon_offset_rad
@@ -339,7 +340,7 @@ class OursEstimator(Estimator):
         jitter = abl.theta_sigma_rad if measured else abl.no_rotation_theta_sigma_rad
         gradient_sigma = self.config.gradient_sigma_rad
         if self._roughness is not None:
-            if measured:
+            if measured and time_s is not None:
                 self._roughness.update(time_s, float(theta_rad) - self._theta_rest)
                 jitter *= math.sqrt(self._roughness.scale)
             gradient_sigma *= math.sqrt(self._roughness.scale)
