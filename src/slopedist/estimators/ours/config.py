@@ -156,6 +156,9 @@ class OursAblation:
             ego's own gradient history (:mod:`~slopedist.estimators.ours.road_roughness`): on a
             flat road the ground contact is trusted more, on a rough one less (not kept: on KITTI
             the ego's road does not tell the targets' contact scatter; docs/detector_boxes.md).
+        learn_contact_angle: scale the target-gradient prior's and the mount's variances by the
+            drive's ground-contact angle error, read from each track's cues as its distance
+            changes (:mod:`~slopedist.estimators.ours.contact_angle`).
         adapt_box_noise: estimate the box-edge noise online from the second differences of the
             tracks' box edges (10 Hz tracks are smooth, so what is left is detector noise),
             with ``box_sigma_px`` as its prior.
@@ -238,6 +241,7 @@ class OursAblation:
     self_calibrate: bool = False
     adapt_box_noise: bool = False
     adapt_contact_trust: bool = False
+    learn_contact_angle: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

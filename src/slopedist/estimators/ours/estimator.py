@@ -68,6 +68,7 @@ from slopedist.estimators.ours.config import (
     configs_of,
     size_evidence_time,
 )
+from slopedist.estimators.ours.contact_angle import ContactAngleEvidence
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
 from slopedist.estimators.ours.records import (
@@ -209,6 +210,10 @@ class OursEstimator(Estimator):
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
         self._roughness = RoadRoughness() if abl.adapt_contact_trust else None
+        self._contact_angle = None
+        if abl.learn_contact_angle:
+            prior = math.hypot(config.gradient_sigma_rad, config.mount_sigma_rad)
+            self._contact_angle = ContactAngleEvidence(prior, config.max_age_s)
         self.reset()
 
     def reset(self) -> None:
@@ -221,6 +226,8 @@ class OursEstimator(Estimator):
         self._d2_count = 0
         if self._roughness is not None:
             self._roughness.reset()
+        if self._contact_angle is not None:
+            self._contact_angle.reset()
 
     @property
     def box_sigma_px(self) -> float:
@@ -305,6 +312,8 @@ class OursEstimator(Estimator):
         state = FrameState(targets, match, size, fused, distance)
         size_after = self._learn_sizes(state, size_before)
         uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
+        if self._contact_angle is not None:
+            self._feed_contact_angle(state, gradient, uid, horizon)
         if self._recorder is not None:
             self._recorder.record(good, state, gradient, uid)
         if abl.self_calibrate and horizon.measured:  # not a θ it assumed
@@ -344,6 +353,10 @@ class OursEstimator(Estimator):
                 self._roughness.update(time_s, float(theta_rad) - self._theta_rest)
                 jitter *= math.sqrt(self._roughness.scale)
             gradient_sigma *= math.sqrt(self._roughness.scale)
+        if self._contact_angle is not None:
+            root = math.sqrt(self._contact_angle.scale)
+            gradient_sigma *= root
+            calib = calib._replace(horizon_offset_sigma_rad=calib.horizon_offset_sigma_rad * root)
         return FrameHorizon(theta, jitter, calib, measured, gradient_sigma)
 
     def _calibration_in_use(self) -> CalibrationInUse:
@@ -596,6 +609,34 @@ class OursEstimator(Estimator):
         shape_gap = frame_cues.shape_gap(targets, state.size_cues)
         self.selfcal.update(
             uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
+        )
+
+    def _feed_contact_angle(
+        self,
+        state: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+        horizon: FrameHorizon,
+    ) -> None:
+        """Give the contact-angle evidence the inverse contact-point distances of the size
+        cues and of the ground contact (under the frame's horizon) of the boxes the border
+        does not cut at the top or bottom (of a frame with a measured θ only)."""
+        assert self._contact_angle is not None
+        if not horizon.measured:
+            return
+        targets, fused = state.targets, state.fused
+        cam = self.camera
+        h = horizon.calib.height_m
+        v = cam.c_y - cam.f * math.tan(horizon.theta_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv_size = 1.0 / (gradient.size_distance_m - fused.half_extent_m)
+            inv_contact = (targets.boxes_px[:, 3] - v) / (cam.f * h)
+        usable = (inv_size > 0) & (inv_contact > 0)
+        cuts = targets.border_cuts
+        if cuts is not None:
+            usable &= ~cuts.top & ~cuts.bottom
+        self._contact_angle.add(
+            uid, np.where(usable, inv_size, np.nan), inv_contact, targets.time_s, h
         )
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
