@@ -159,6 +159,9 @@ class OursAblation:
         learn_contact_angle: scale the target-gradient prior's and the mount's variances by the
             drive's ground-contact angle error, read from each track's cues as its distance
             changes (:mod:`~slopedist.estimators.ours.contact_angle`).
+        learn_horizon_jitter: estimate the horizon jitter (``theta_sigma_rad`` its prior)
+            online from the second differences of the measured θ
+            (:class:`~slopedist.estimators.ours.road_roughness.HorizonJitter`).
         adapt_box_noise: estimate the box-edge noise online from the second differences of the
             tracks' box edges (10 Hz tracks are smooth, so what is left is detector noise),
             with ``box_sigma_px`` as its prior.
@@ -242,6 +245,7 @@ class OursAblation:
     adapt_box_noise: bool = False
     adapt_contact_trust: bool = False
     learn_contact_angle: bool = False
+    learn_horizon_jitter: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

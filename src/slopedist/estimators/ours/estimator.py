@@ -81,7 +81,7 @@ from slopedist.estimators.ours.records import (
     TargetGradient,
     TrackMatch,
 )
-from slopedist.estimators.ours.road_roughness import RoadRoughness
+from slopedist.estimators.ours.road_roughness import HorizonJitter, RoadRoughness
 from slopedist.estimators.ours.selfcal import (
     Calibration,
     SelfCalibrator,
@@ -210,6 +210,7 @@ class OursEstimator(Estimator):
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
         self._roughness = RoadRoughness() if abl.adapt_contact_trust else None
+        self._jitter = HorizonJitter(abl.theta_sigma_rad) if abl.learn_horizon_jitter else None
         self._contact_angle = None
         if abl.learn_contact_angle:
             prior = math.hypot(config.gradient_sigma_rad, config.mount_sigma_rad)
@@ -228,6 +229,8 @@ class OursEstimator(Estimator):
             self._roughness.reset()
         if self._contact_angle is not None:
             self._contact_angle.reset()
+        if self._jitter is not None:
+            self._jitter.reset()
 
     @property
     def box_sigma_px(self) -> float:
@@ -348,6 +351,10 @@ class OursEstimator(Estimator):
         abl = self.ablation
         jitter = abl.theta_sigma_rad if measured else abl.no_rotation_theta_sigma_rad
         gradient_sigma = self.config.gradient_sigma_rad
+        if self._jitter is not None and measured:
+            if time_s is not None:
+                self._jitter.update(time_s, float(theta_rad))
+            jitter = self._jitter.sigma_rad
         if self._roughness is not None:
             if measured and time_s is not None:
                 self._roughness.update(time_s, float(theta_rad) - self._theta_rest)

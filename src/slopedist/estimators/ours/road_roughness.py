@@ -1,5 +1,5 @@
-"""How rough the drive's road is, read from the ego's own gradient history (option
-``adapt_contact_trust``).
+"""What the ego's own gradient history tells of the drive: how rough its road is
+(experimental setting ``adapt_contact_trust``) and how noisy its θ is (``learn_horizon_jitter``).
 
 The ground contact's trust is set by the target-gradient prior (``gradient_sigma_rad``) and the
 horizon jitter (``theta_sigma_rad``), both KITTI's statistics. The targets drive the road the
@@ -70,3 +70,51 @@ class RoadRoughness:
         """The variance scale ``r`` (1: KITTI's roughness)."""
         r = (PRIOR_WEIGHT + self._sum) / (PRIOR_WEIGHT + self._weight)
         return min(max(r, MIN_SCALE), MAX_SCALE)
+
+
+JITTER_PRIOR_COUNT = 3.0
+"""Weight of the configured horizon jitter in its online estimate, in second differences."""
+
+
+class HorizonJitter:
+    """The ego gradient θ's per-frame noise, estimated online (experimental setting
+    ``learn_horizon_jitter``).
+
+    The second difference ``θ_k − 2θ_{k−1} + θ_{k−2}`` of three evenly spaced frames has
+    variance ``6σ²`` for a white noise σ (a real pitch motion only adds to it, so the estimate
+    errs wide); pooled with :data:`JITTER_PRIOR_COUNT` pseudo-observations of the configured
+    jitter. Only frames at most ``max_gap_s`` apart and evenly spaced (within 1 ms) count.
+
+    Args:
+        prior_rad: the configured jitter (rad).
+        max_gap_s: the largest frame spacing a second difference spans, seconds.
+    """
+
+    def __init__(self, prior_rad: float, max_gap_s: float = 0.2) -> None:
+        self._prior2 = prior_rad**2
+        self._max_gap_s = max_gap_s
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the drive."""
+        self._last: list[tuple[float, float]] = []
+        self._sum = 0.0
+        self._count = 0
+
+    def update(self, time_s: float, theta_rad: float) -> None:
+        """A frame's measured θ (rad) at ``time_s`` (s)."""
+        self._last = [*self._last[-2:], (time_s, theta_rad)]
+        if len(self._last) < 3:
+            return
+        (t0, a), (t1, b), (t2, c) = self._last
+        dt1, dt2 = t1 - t0, t2 - t1
+        if 0.0 < dt1 <= self._max_gap_s and abs(dt2 - dt1) <= 1e-3:
+            d2 = c - 2.0 * b + a
+            self._sum += d2 * d2 / 6.0
+            self._count += 1
+
+    @property
+    def sigma_rad(self) -> float:
+        """The jitter's estimate (rad)."""
+        n0 = JITTER_PRIOR_COUNT
+        return math.sqrt((n0 * self._prior2 + self._sum) / (n0 + self._count))
