@@ -124,6 +124,8 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
             "gradient_feedback": True,
             "adapt_box_noise": True,
             "adapt_contact_trust": True,
+            "learn_contact_angle": True,
+            "learn_horizon_jitter": True,
         },
     ):
         batch = estimate_sequence(OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track)
@@ -165,6 +167,7 @@ ABLATION_LIKE = [
     {"atypical_height_weight": 0.1},
     {"adapt_box_noise": True, "censor_border_cuts": False},
     {"adapt_contact_trust": True},
+    {"learn_contact_angle": True, "learn_horizon_jitter": True},
 ]
 
 

@@ -136,6 +136,6 @@ def track_intercepts(rows: FloatArray, cam_height_m: float) -> tuple[FloatArray,
         duration = rows[:, 7] - rows[:, 6]
         n_eff = np.clip(duration / CORRELATION_TIME_S + 1.0, 1.0, n)
         var_a = resid * (1.0 / n + mx * mx / cxx) * (n / n_eff)
-    bad = (n < MIN_FRAMES) | ~(cxx > 0)
+    bad = (n < MIN_FRAMES) | ~(cxx > 1e-9 * sxx)  # no spread of distance (to rounding)
     h = cam_height_m
     return np.where(bad, np.nan, a * h), np.where(bad, np.nan, var_a * h * h)
