@@ -35,6 +35,10 @@ CORRELATION_TIME_S = 0.5
 MIN_FRAMES = 5
 """A track tells its intercept from this many frames on."""
 
+MEMORY_S = 10.0
+"""The closed tracks' evidence fades with this time constant, seconds: the road changes (a
+crest or sag curve passes in about this time at urban speeds)."""
+
 PRIOR_LOG_SIGMA = 1.0
 """Spread of the prior on log σ_δ about the configured spread (a factor e either way)."""
 
@@ -65,6 +69,7 @@ class ContactAngleEvidence:
         """Forget the drive."""
         self._tracks: dict[int, FloatArray] = {}
         self._closed = np.zeros(self._grid_v.shape)
+        self._closed_time_s = float("nan")
         self._scale = 1.0
 
     @property
@@ -91,6 +96,9 @@ class ContactAngleEvidence:
                 sums = self._tracks[key] = np.array([0.0, 0, 0, 0, 0, 0, time_s, time_s])
             sums[:6] += (1.0, x, y, x * x, x * y, y * y)
             sums[7] = time_s
+        if self._closed_time_s == self._closed_time_s:  # not NaN: fade since the last frame
+            self._closed *= np.exp(-max(time_s - self._closed_time_s, 0.0) / MEMORY_S)
+        self._closed_time_s = time_s
         self._close_stale(time_s, cam_height_m)
         self._renew(cam_height_m)
 
