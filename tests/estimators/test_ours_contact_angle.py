@@ -34,22 +34,17 @@ def test_the_intercept_tells_the_angle_apart_from_the_size_deviation() -> None:
 
 def test_exact_contacts_lower_the_scale_and_biased_ones_raise_it() -> None:
     rng = np.random.default_rng(3)
+    n = 12  # vehicles seen together for 8 s
     for delta_sigma, low in ((0.0, True), (math.radians(2.0), False)):
         evidence = ContactAngleEvidence(math.radians(1.0), 1.0)
-        for track in range(12):
-            z0, speed = rng.uniform(15, 60), rng.uniform(-8, 4)
-            delta, dev = rng.normal(0, delta_sigma), rng.normal(0, 0.07)
-            for k in range(80):
-                t = 10.0 * track + 0.1 * k
-                z = max(z0 + speed * 0.1 * k, 5.0)
-                noise = rng.normal(0, 2e-4, 2)
-                evidence.add(
-                    np.array([track]),
-                    np.array([(1 - dev) / z + noise[0]]),
-                    np.array([1 / z + delta / H + noise[1]]),
-                    t,
-                    H,
-                )
+        z0, speed = rng.uniform(15, 60, n), rng.uniform(-8, 4, n)
+        delta, dev = rng.normal(0, delta_sigma, n), rng.normal(0, 0.07, n)
+        for k in range(80):
+            z = np.maximum(z0 + speed * 0.1 * k, 5.0)
+            noise = rng.normal(0, 2e-4, (2, n))
+            inv_size = (1 - dev) / z + noise[0]
+            inv_contact = 1 / z + delta / H + noise[1]
+            evidence.add(np.arange(n), inv_size, inv_contact, 0.1 * k, H)
         assert (evidence.scale < 0.1) if low else (evidence.scale > 2.0)
 
 
