@@ -448,7 +448,7 @@ class OursEstimator(Estimator):
         alpha, alpha_var = filters.contact_gradient_prior(
             abl.gradient_feedback, horizon.gradient_sigma_rad, match
         )
-        return frame_cues.ground_contact_cue(
+        ground = frame_cues.ground_contact_cue(
             abl,
             self.camera,
             targets,
@@ -458,6 +458,26 @@ class OursEstimator(Estimator):
             horizon.theta_rad,
             horizon.jitter_rad,
             horizon.calib,
+        )
+        if self._contact_angle is None or self._contact_angle.scale >= 1.0:
+            return ground
+        # a contact trusted more than configured only where the height cue agrees with it
+        alpha, alpha_var = filters.contact_gradient_prior(
+            abl.gradient_feedback, self.config.gradient_sigma_rad, match
+        )
+        wide = frame_cues.ground_contact_cue(
+            abl,
+            self.camera,
+            targets,
+            [],
+            alpha,
+            alpha_var,
+            horizon.theta_rad,
+            horizon.jitter_rad,
+            self._calibration_in_use(),
+        )
+        return frame_cues.consistent_contact(
+            targets, size, ground, wide, abl.consistency_gate_sigma
         )
 
     def _censor_occluded(
