@@ -32,7 +32,7 @@ def test_the_intercept_tells_the_angle_apart_from_the_size_deviation() -> None:
     assert np.isnan(d[0])
 
 
-def test_exact_contacts_lower_the_scale_and_biased_ones_raise_it() -> None:
+def test_exact_contacts_lower_the_scale_and_biased_ones_keep_it() -> None:
     rng = np.random.default_rng(3)
     n = 12  # vehicles seen together for 8 s
     for delta_sigma, low in ((0.0, True), (math.radians(2.0), False)):
@@ -45,7 +45,7 @@ def test_exact_contacts_lower_the_scale_and_biased_ones_raise_it() -> None:
             inv_size = (1 - dev) / z + noise[0]
             inv_contact = 1 / z + delta / H + noise[1]
             evidence.add(np.arange(n), inv_size, inv_contact, 0.1 * k, H)
-        assert (evidence.scale < 0.1) if low else (evidence.scale > 2.0)
+        assert (evidence.scale < 0.1) if low else (evidence.scale == 1.0)
 
 
 def test_the_horizon_jitter_follows_the_white_noise_of_theta() -> None:

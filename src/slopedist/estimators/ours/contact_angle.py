@@ -74,7 +74,7 @@ class ContactAngleEvidence:
 
     @property
     def scale(self) -> float:
-        """The posterior mean of the angle-error variance over the configured one."""
+        """The posterior mean of the angle-error variance over the configured one, at most 1."""
         return self._scale
 
     def add(
@@ -115,7 +115,10 @@ class ContactAngleEvidence:
             rows = np.array(list(self._tracks.values()))
             log_post = log_post + self._log_likelihood(rows, cam_height_m)
         w = np.exp(log_post - log_post.max())
-        self._scale = float(np.sum(w * self._grid_v) / np.sum(w) / self._v0)
+        # at most 1: a size cue whose error changes with distance (a box that grows as its
+        # vehicle nears) reads as an intercept too, so a larger spread is no evidence against
+        # the contact; a smaller one is
+        self._scale = min(float(np.sum(w * self._grid_v) / np.sum(w) / self._v0), 1.0)
 
     def _log_likelihood(self, rows: FloatArray, cam_height_m: float) -> FloatArray:
         """Summed log-likelihood over the grid of the tracks ``rows`` (their sums)."""
