@@ -16,8 +16,12 @@ variance (from the track's own residuals, counted once per :data:`CORRELATION_TI
 pitch mode's correlation); the drive's angle-error variance ``V`` is the posterior mean on a
 grid, under ``δ̂ᵢ ~ N(0, V + sᵢ²)`` and a log-normal prior about the configured spread
 (``gradient_sigma_rad² + mount_sigma_rad²``, log σ :data:`PRIOR_LOG_SIGMA`). The ratio of the
-two is the scale of the contact's per-vehicle angle variances. Causal: a frame's cues use the
-tracks as they were before it.
+two, at most 1 (a size cue whose error changes with distance, e.g. a box that grows as its
+vehicle nears, reads as an intercept too, so only a smaller spread is evidence), is the scale of
+the contact's per-vehicle angle variances; the estimator uses the tighter contact only for a
+target whose height cue agrees with it (:func:`~slopedist.estimators.ours.frame_cues.
+consistent_contact`). A closed track's evidence fades over :data:`MEMORY_S`. Causal: a frame's
+cues use the tracks as they were before it.
 
 Metres, seconds, radians.
 """
