@@ -123,6 +123,9 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
             "yaw_memory": True,
             "gradient_feedback": True,
             "adapt_box_noise": True,
+            "adapt_contact_trust": True,
+            "learn_contact_angle": True,
+            "learn_horizon_jitter": True,
         },
     ):
         batch = estimate_sequence(OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track)
@@ -163,6 +166,8 @@ ABLATION_LIKE = [
     {"gradient_feedback": True, "yaw_memory": True},
     {"atypical_height_weight": 0.1},
     {"adapt_box_noise": True, "censor_border_cuts": False},
+    {"adapt_contact_trust": True},
+    {"learn_contact_angle": True, "learn_horizon_jitter": True},
 ]
 
 

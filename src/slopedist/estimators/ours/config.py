@@ -151,6 +151,17 @@ class OursAblation:
         motion_model: filter the distance over time (constant velocity; speed and TTC).
         yaw_memory: carry each track's heading belief over frames (tempered evidence).
         self_calibrate: estimate θ0 and h online (``ours-selfcal`` sets it).
+        adapt_contact_trust: scale the target-gradient prior's and the horizon jitter's
+            variances (KITTI's) by how rough the drive's road is against KITTI's, read from the
+            ego's own gradient history (:mod:`~slopedist.estimators.ours.road_roughness`): on a
+            flat road the ground contact is trusted more, on a rough one less (not kept: on KITTI
+            the ego's road does not tell the targets' contact scatter; docs/detector_boxes.md).
+        learn_contact_angle: scale the target-gradient prior's and the mount's variances by the
+            drive's ground-contact angle error, read from each track's cues as its distance
+            changes (:mod:`~slopedist.estimators.ours.contact_angle`).
+        learn_horizon_jitter: estimate the horizon jitter (``theta_sigma_rad`` its prior)
+            online from the second differences of the measured θ
+            (:class:`~slopedist.estimators.ours.road_roughness.HorizonJitter`).
         adapt_box_noise: estimate the box-edge noise online from the second differences of the
             tracks' box edges (10 Hz tracks are smooth, so what is left is detector noise),
             with ``box_sigma_px`` as its prior.
@@ -232,6 +243,9 @@ class OursAblation:
     yaw_memory: bool = False
     self_calibrate: bool = False
     adapt_box_noise: bool = False
+    adapt_contact_trust: bool = False
+    learn_contact_angle: bool = False
+    learn_horizon_jitter: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

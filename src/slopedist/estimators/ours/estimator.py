@@ -70,6 +70,7 @@ from slopedist.estimators.ours.config import (
     configs_of,
     size_evidence_time,
 )
+from slopedist.estimators.ours.contact_angle import ContactAngleEvidence
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
 from slopedist.estimators.ours.records import (
@@ -82,6 +83,7 @@ from slopedist.estimators.ours.records import (
     TargetGradient,
     TrackMatch,
 )
+from slopedist.estimators.ours.road_roughness import HorizonJitter, RoadRoughness
 from slopedist.estimators.ours.selfcal import (
     Calibration,
     SelfCalibrator,
@@ -128,12 +130,16 @@ class FrameHorizon(NamedTuple):
         calib: the camera mount in use.
         measured: whether the frame's θ was measured (a frame without a rotation, or with an
             odometry jump, has none).
+        gradient_sigma_rad: the target-gradient prior's spread for this frame
+            (``gradient_sigma_rad``, scaled by the drive's road roughness with
+            ``adapt_contact_trust``).
     """
 
     theta_rad: float
     jitter_rad: float
     calib: CalibrationInUse
     measured: bool
+    gradient_sigma_rad: float
 
 
 _BOX_NOISE_PRIOR_COUNT = 200
@@ -206,6 +212,12 @@ class OursEstimator(Estimator):
         )
         self._reference = ReferencePoint(config.reference)  # one of REFERENCES (OursConfig)
         self._border = ImageBorder(camera)
+        self._roughness = RoadRoughness() if abl.adapt_contact_trust else None
+        self._jitter = HorizonJitter(abl.theta_sigma_rad) if abl.learn_horizon_jitter else None
+        self._contact_angle = None
+        if abl.learn_contact_angle:
+            prior = math.hypot(config.gradient_sigma_rad, config.mount_sigma_rad)
+            self._contact_angle = ContactAngleEvidence(prior, config.max_age_s)
         self.reset()
 
     def reset(self) -> None:
@@ -216,6 +228,12 @@ class OursEstimator(Estimator):
         self._border.reset()
         self._d2_sum = 0.0
         self._d2_count = 0
+        if self._roughness is not None:
+            self._roughness.reset()
+        if self._contact_angle is not None:
+            self._contact_angle.reset()
+        if self._jitter is not None:
+            self._jitter.reset()
 
     @property
     def box_sigma_px(self) -> float:
@@ -256,7 +274,7 @@ class OursEstimator(Estimator):
         # the reasons of unusable_box_reasons(frame, needs_rotation=False, camera)
         reasons = table_box_problems(frame.boxes, self._border.known_size)
         good = np.flatnonzero(reasons == "")
-        horizon = self._frame_horizon(frame.theta_rad)
+        horizon = self._frame_horizon(frame.theta_rad, frame.timestamp_s if n else None)
         self._drop_stale_tracks(frame.timestamp_s)  # before association: the same whether or
         # not the caller also passes the frames with no boxes
         values: dict[str, FloatArray] = {}
@@ -300,6 +318,8 @@ class OursEstimator(Estimator):
         state = FrameState(targets, match, size, fused, distance)
         size_after = self._learn_sizes(state, size_before)
         uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
+        if self._contact_angle is not None:
+            self._feed_contact_angle(state, gradient, uid, horizon)
         if self._recorder is not None:
             self._recorder.record(good, state, gradient, uid)
         if abl.self_calibrate and horizon.measured:  # not a θ it assumed
@@ -314,7 +334,7 @@ class OursEstimator(Estimator):
             uid,
             horizon.theta_rad,
             horizon.calib,
-            self.config.gradient_sigma_rad,
+            horizon.gradient_sigma_rad,
         )
         if size_after is not None:
             out = out._replace(**size_learning.size_columns(size_after, targets.classes.height_m))
@@ -323,14 +343,31 @@ class OursEstimator(Estimator):
             values.update(self._calibration_columns(good.size))
         return values
 
-    def _frame_horizon(self, theta_rad: float) -> FrameHorizon:
-        """The horizon of a frame whose ego gradient is ``theta_rad`` (NaN: unknown)."""
+    def _frame_horizon(self, theta_rad: float, time_s: float | None) -> FrameHorizon:
+        """The horizon of a frame at ``time_s`` whose ego gradient is ``theta_rad`` (NaN:
+        unknown); with ``adapt_contact_trust`` the frame's θ joins the drive's roughness first
+        (unless ``time_s`` is None: a frame without boxes, which a batch run skips) and the
+        jitter and target-gradient spread are scaled by it."""
         calib = self._calibration_in_use()
         measured = math.isfinite(theta_rad)
         theta = (float(theta_rad) if measured else self._theta_rest) + calib.horizon_offset_rad
         abl = self.ablation
         jitter = abl.theta_sigma_rad if measured else abl.no_rotation_theta_sigma_rad
-        return FrameHorizon(theta, jitter, calib, measured)
+        gradient_sigma = self.config.gradient_sigma_rad
+        if self._jitter is not None and measured:
+            if time_s is not None:
+                self._jitter.update(time_s, float(theta_rad))
+            jitter = self._jitter.sigma_rad
+        if self._roughness is not None:
+            if measured and time_s is not None:
+                self._roughness.update(time_s, float(theta_rad) - self._theta_rest)
+                jitter *= math.sqrt(self._roughness.scale)
+            gradient_sigma *= math.sqrt(self._roughness.scale)
+        if self._contact_angle is not None:
+            root = math.sqrt(self._contact_angle.scale)
+            gradient_sigma *= root
+            calib = calib._replace(horizon_offset_sigma_rad=calib.horizon_offset_sigma_rad * root)
+        return FrameHorizon(theta, jitter, calib, measured, gradient_sigma)
 
     def _calibration_in_use(self) -> CalibrationInUse:
         """The self-calibration's mount when self-calibrating, else the configured one."""
@@ -413,9 +450,9 @@ class OursEstimator(Estimator):
         if not abl.use_ground_contact:
             return None
         alpha, alpha_var = filters.contact_gradient_prior(
-            abl.gradient_feedback, self.config.gradient_sigma_rad, match
+            abl.gradient_feedback, horizon.gradient_sigma_rad, match
         )
-        return frame_cues.ground_contact_cue(
+        ground = frame_cues.ground_contact_cue(
             abl,
             self.camera,
             targets,
@@ -425,6 +462,26 @@ class OursEstimator(Estimator):
             horizon.theta_rad,
             horizon.jitter_rad,
             horizon.calib,
+        )
+        if self._contact_angle is None or self._contact_angle.scale >= 1.0:
+            return ground
+        # a contact trusted more than configured only where the height cue agrees with it
+        alpha, alpha_var = filters.contact_gradient_prior(
+            abl.gradient_feedback, self.config.gradient_sigma_rad, match
+        )
+        wide = frame_cues.ground_contact_cue(
+            abl,
+            self.camera,
+            targets,
+            [],
+            alpha,
+            alpha_var,
+            horizon.theta_rad,
+            horizon.jitter_rad,
+            self._calibration_in_use(),
+        )
+        return frame_cues.consistent_contact(
+            targets, size, ground, wide, abl.consistency_gate_sigma
         )
 
     def _censor_occluded(
@@ -489,7 +546,7 @@ class OursEstimator(Estimator):
     ) -> TargetGradient:
         """:func:`~slopedist.estimators.ours.track_filters.target_gradient` of the frame."""
         return filters.target_gradient(
-            self.config.gradient_sigma_rad,
+            horizon.gradient_sigma_rad,
             self.camera,
             targets,
             match,
@@ -583,6 +640,34 @@ class OursEstimator(Estimator):
         shape_gap = frame_cues.shape_gap(targets, state.size_cues)
         self.selfcal.update(
             uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
+        )
+
+    def _feed_contact_angle(
+        self,
+        state: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+        horizon: FrameHorizon,
+    ) -> None:
+        """Give the contact-angle evidence the inverse contact-point distances of the size
+        cues and of the ground contact (under the frame's horizon) of the boxes the border
+        does not cut at the top or bottom (of a frame with a measured θ only)."""
+        assert self._contact_angle is not None
+        if not horizon.measured:
+            return
+        targets, fused = state.targets, state.fused
+        cam = self.camera
+        h = horizon.calib.height_m
+        v = cam.c_y - cam.f * math.tan(horizon.theta_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv_size = 1.0 / (gradient.size_distance_m - fused.half_extent_m)
+            inv_contact = (targets.boxes_px[:, 3] - v) / (cam.f * h)
+        usable = (inv_size > 0) & (inv_contact > 0)
+        cuts = targets.border_cuts
+        if cuts is not None:
+            usable &= ~cuts.top & ~cuts.bottom
+        self._contact_angle.add(
+            uid, np.where(usable, inv_size, np.nan), inv_contact, targets.time_s, h
         )
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:

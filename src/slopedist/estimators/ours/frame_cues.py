@@ -169,6 +169,23 @@ def ground_contact_cue(
     return ground
 
 
+def consistent_contact(
+    targets: FrameTargets, size: SizeCues, tight: LogCue, wide: LogCue, gate_sigma: float
+) -> LogCue:
+    """``tight`` (a ground contact trusted more than configured) where it agrees with the
+    height cue within ``gate_sigma`` standard deviations of their difference at the heading
+    that reconciles them best, else ``wide`` (the configured trust): a target whose road
+    departs from what the drive has shown so far keeps the configured prior."""
+    hyp = targets.classes.hypotheses
+    height = size.height
+    var = _total_var(height, hyp.log_sigma_height) + tight.var
+    with np.errstate(invalid="ignore"):
+        z = np.abs(height.mean - tight.mean) / np.sqrt(var)
+    z_best = np.nanmin(np.where(np.isfinite(z), z, np.inf), axis=1, keepdims=True)
+    off = ~(z_best <= gate_sigma)
+    return LogCue(*(np.where(off, w, t) for t, w in zip(tight, wide, strict=True)))
+
+
 class ContactRowNoise(NamedTuple):
     """The variance of a box's bottom row relative to the horizon the ground-contact cue
     assumes, px², split as the fusion needs it.
