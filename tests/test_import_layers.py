@@ -2,8 +2,9 @@
 
 Layers, low to high (a module's layer is that of its longest matching prefix):
 
-0. ``core.errors``, ``core.geometry``, ``core.limits``, ``core.textfiles`` — pure equations, the
-   exception hierarchy, the bounds on input and strict text reading;
+0. ``core.errors``, ``core.geometry``, ``core.limits``, ``core.textfiles``, ``core.rectangles``
+   — pure equations, the exception hierarchy, the bounds on input, strict text reading and
+   rectangle queries;
 1. ``core.camera``;
 2. ``io``, ``odometry`` — inputs (frames, boxes, depth, logs, KITTI), outputs and rotation sources;
 3. ``estimators``, ``synthetic`` — the methods and the synthetic world they are tested on;
