@@ -97,16 +97,20 @@ def test_hidden_sides_of_crowded_boxes_match_testing_every_pair(
     """Hundreds of boxes crowding the image on a coarse grid (equal edges, boxes on top of each
     other, a few inverted): the sweep gives the flags of testing every pair."""
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(occlusion._DENSE_MAX_BOXES + 1, 400))
+    n = int(rng.integers(occlusion._DENSE_MAX_BOXES + 1, 700))
     x, y = rng.integers(0, 600 // step, n) * step, rng.integers(100 // step, 250 // step, n) * step
     w, h = rng.integers(-1, 200 // step, n) * step, rng.integers(0, 120 // step, n) * step
     b = np.stack([x, y, x + w, y + h], axis=1).astype(float)
     lo, hi = b[:, :2] - tol, b[:, 2:] + tol
-    cut_w, cut_h = occlusion.hidden_sides(b, tol)
     dense_w, dense_h = occlusion._hidden_sides_dense(b, lo, hi)
-    assert cut_w.tolist() == dense_w.tolist()
-    assert cut_h.tolist() == dense_h.tolist()
-    assert cut_w.any() and cut_h.any()
+    for cut_w, cut_h in (
+        occlusion.hidden_sides(b, tol),
+        occlusion._hidden_sides_pairs(b, lo, hi),
+        occlusion._hidden_sides_sweep(b, lo, hi),
+    ):
+        assert cut_w.tolist() == dense_w.tolist()
+        assert cut_h.tolist() == dense_h.tolist()
+    assert dense_w.any() and dense_h.any()
 
 
 def test_censored_cue_variance() -> None:

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from slopedist.core.rectangles import contains_point, meets_segment
+from slopedist.io.detections.boxes import overlapping_pairs
 
 FloatArray = NDArray[np.float64]
 
@@ -41,11 +42,40 @@ def hidden_sides(
     hi = b[:, 2:] + tol_px
     if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all() or tol_px < 0:
         return _hidden_sides_dense(b, lo, hi)
+    if b.shape[0] <= _PAIRS_MAX_BOXES:
+        return _hidden_sides_pairs(b, lo, hi)
     return _hidden_sides_sweep(b, lo, hi)
 
 
 _DENSE_MAX_BOXES = 48
 """Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
+
+_PAIRS_MAX_BOXES = 400
+"""Up to this many boxes the overlapping pairs are listed and tested; beyond, where a crowded
+image has too many of them, the sweep answers per box."""
+
+
+def _hidden_sides_pairs(
+    b: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`hidden_sides` over the list of the pairs of boxes ``b[i]`` and widened boxes
+    ``(lo, hi)[j]`` that overlap (:func:`overlapping_pairs`: ``O(n log n)`` plus their number),
+    with ``j`` nearer."""
+    i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))
+    nearer = b[j, 3] > b[i, 3]
+    i, j = i[nearer], j[nearer]
+    cut = np.zeros((b.shape[0], 2), dtype=bool)
+    if not i.size:
+        return cut[:, 0], cut[:, 1]
+    lo_j, hi_j = lo[j], hi[j]
+    bi = b[i]
+    on = (
+        ((bi[:, :2] >= lo_j) & (bi[:, :2] <= hi_j))  # left / top edge of i on j
+        | ((bi[:, 2:] >= lo_j) & (bi[:, 2:] <= hi_j))
+    )  # right / bottom edge of i on j
+    cut[i[on[:, 0]], 0] = True
+    cut[i[on[:, 1]], 1] = True
+    return cut[:, 0], cut[:, 1]
 
 
 def _hidden_sides_dense(
