@@ -125,14 +125,14 @@ def _iou_candidates(
     number of boxes); the pairs and values are the same as from the full matrix. Two boxes
     with an IoU of ``t`` overlap by at least ``t`` of the wider one's width and of the taller
     one's height, so boxes shrunk about their centres to ``1 − t`` of their size still overlap:
-    the pairs are looked for among such shrunk boxes (to ``1.05 − t``: a margin far beyond the
+    the pairs are looked for among such shrunk boxes (to ``1.01 − t``: a margin far beyond the
     rounding of pixel coordinates).
     """
     if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
         iou = iou_matrix(boxes, tracks)
         bi, ti = np.nonzero(iou >= min_iou)
         return bi, ti, iou[bi, ti]
-    scale = 1.05 - min_iou
+    scale = 1.01 - min_iou
     if scale < 1.0:
         bi, ti = overlapping_pairs(_shrunk(boxes, scale), _shrunk(tracks, scale))
     else:
