@@ -11,16 +11,19 @@ not counted (as in the paper's comparison). Two workloads:
    number of vehicles per frame, to show the fixed per-frame cost and the cost per extra target.
 3. Scaling: the same traffic at 10, 100 and 1000 vehicles per frame (``--targets``: any
    counts, e.g. ``--targets 300,3000``), with track ids and without (id-less boxes are
-   associated by IoU), the per-target cost over that at the smallest count, and the peak memory
-   the estimator allocates over a run (``tracemalloc``, a run of its own). The scene keeps its
-   size, so at 1000 vehicles the boxes crowd the image: the overlapping box pairs per frame
-   (which the occlusion check and the IoU association visit) are printed too.
+   associated by IoU; ``--association ids`` or ``iou`` for one of them): the median wall and
+   CPU time per frame over ``--repeats`` runs, each over the cost at the previous count, and
+   the peak memory the estimator allocates over a run (``tracemalloc``, a run of its own).
+   The scene keeps its size, so at 1000 vehicles the boxes crowd the image: the overlapping
+   box pairs per frame are printed too (the occlusion check and the IoU association are built
+   not to visit them all).
 
 Usage::
 
     python benchmarks/ours_speed.py [--data ../shared/data/kitti_tracking] [--repeats 3]
                                     [--scaling-frames 40] [--targets 10,100,1000]
                                     [--skip kitti,simulated]
+                                    [--association ids,iou]
 """
 
 from __future__ import annotations
@@ -164,38 +167,60 @@ def peak_memory_mb(method: str, camera: Camera, frames: list[FrameInput]) -> flo
     return peak / 1e6
 
 
-def scaling(repeats: int, n_frames: int, counts: Sequence[int]) -> None:
+def run_costs(
+    method: str, camera: Camera, frames: list[FrameInput], repeats: int
+) -> tuple[float, float]:
+    """Median over ``repeats`` runs of the estimator over ``frames``: (wall, CPU) seconds."""
+    wall, cpu = [], []
+    for _ in range(repeats):
+        est = make_estimator(method, camera)
+        est.reset()
+        w0, c0 = time.perf_counter(), time.process_time()
+        for fr in frames:
+            est.estimate(fr)
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return float(np.median(wall)), float(np.median(cpu))
+
+
+def scaling(repeats: int, n_frames: int, counts: Sequence[int], associations: list[str]) -> None:
     listed = ", ".join(str(n) for n in counts)
-    print(f"3. Scaling: ours per target at {listed} vehicles per frame ({n_frames} frames)")
+    print(f"3. Scaling: ours per frame at {listed} vehicles per frame ({n_frames} frames,")
+    print(f"   median of {repeats} runs; ÷ previous: ms/frame over that at the previous N)")
     cam = Camera(721.5, 609.6, 172.9, 1.65, 0.0)
     rows = []
     for with_ids in (True, False):
-        base = math.nan
+        if ("ids" if with_ids else "iou") not in associations:
+            continue
+        previous = (math.nan, math.nan)
         for n in counts:
             frames, n_boxes = traffic_frames(cam, n, n_frames, with_ids)
-            sec = cpu_time("ours", cam, frames, repeats)
-            per_target_us = 1e6 * sec / n_boxes
-            base = per_target_us if n == counts[0] else base
+            wall, cpu = (1e3 * sec / len(frames) for sec in run_costs("ours", cam, frames, repeats))
             rows.append(
                 [
                     "track ids" if with_ids else "IoU (no ids)",
                     n,
                     n_boxes / len(frames),
                     overlapping_pairs_per_frame(frames),
-                    1e3 * sec / len(frames),
-                    per_target_us,
-                    per_target_us / base,
+                    wall,
+                    cpu,
+                    1e3 * cpu / (n_boxes / len(frames)),
+                    wall / previous[0],
+                    cpu / previous[1],
                     peak_memory_mb("ours", cam, frames),
                 ]
             )
+            previous = (wall, cpu)
     header = [
         "association",
         "N",
         "targets/frame",
         "overlapping pairs/frame",
-        "ms/frame",
-        "us/target",
-        f"us/target ÷ at N={counts[0]}",
+        "wall ms/frame",
+        "CPU ms/frame",
+        "CPU us/target",
+        "wall ÷ previous",
+        "CPU ÷ previous",
         "peak MB",
     ]
     print(format_table(header, rows))
@@ -212,6 +237,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--skip", default="", help="sections to skip, comma-separated: kitti, simulated"
     )
+    ap.add_argument(
+        "--association",
+        default="ids,iou",
+        help="scaling runs with track ids (ids) and id-less boxes associated by IoU (iou)",
+    )
     args = ap.parse_args(argv)
     skip = {s.strip() for s in args.skip.split(",") if s.strip()}
     counts = [int(n) for n in args.targets.split(",")]
@@ -224,7 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     if "simulated" not in skip:
         simulated(args.repeats)
         print()
-    scaling(args.repeats, args.scaling_frames, counts)
+    associations = [a.strip() for a in args.association.split(",")]
+    scaling(args.repeats, args.scaling_frames, counts, associations)
     return 0
 
 

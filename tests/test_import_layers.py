@@ -2,9 +2,9 @@
 
 Layers, low to high (a module's layer is that of its longest matching prefix):
 
-0. ``core.errors``, ``core.geometry``, ``core.limits``, ``core.suggest``, ``core.textfiles`` —
-   pure equations, the exception hierarchy, the bounds on input, strict text reading and the
-   "did you mean" of a mistyped name;
+0. ``core.errors``, ``core.geometry``, ``core.limits``, ``core.rectangles``, ``core.suggest``,
+   ``core.textfiles`` — pure equations, the exception hierarchy, the bounds on input, rectangle
+   queries, strict text reading and the "did you mean" of a mistyped name;
 1. ``core.camera``;
 2. ``io``, ``odometry`` — inputs (frames, boxes, depth, logs, KITTI), outputs and rotation sources;
 3. ``estimators``, ``synthetic`` — the methods and the synthetic world they are tested on;

@@ -89,6 +89,30 @@ def test_hidden_sides_of_many_boxes_match_a_brute_force_loop(seed: int, tol: flo
     assert (cut_w.tolist(), cut_h.tolist()) == _brute_force(b, tol)
 
 
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**31), st.sampled_from([0.0, 0.5, 1.5]), st.sampled_from([1, 10]))
+def test_hidden_sides_of_crowded_boxes_match_testing_every_pair(
+    seed: int, tol: float, step: int
+) -> None:
+    """Hundreds of boxes crowding the image on a coarse grid (equal edges, boxes on top of each
+    other, a few inverted): the sweep gives the flags of testing every pair."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(occlusion._DENSE_MAX_BOXES + 1, 700))
+    x, y = rng.integers(0, 600 // step, n) * step, rng.integers(100 // step, 250 // step, n) * step
+    w, h = rng.integers(-1, 200 // step, n) * step, rng.integers(0, 120 // step, n) * step
+    b = np.stack([x, y, x + w, y + h], axis=1).astype(float)
+    lo, hi = b[:, :2] - tol, b[:, 2:] + tol
+    dense_w, dense_h = occlusion._hidden_sides_dense(b, lo, hi)
+    for cut_w, cut_h in (
+        occlusion.hidden_sides(b, tol),
+        occlusion._hidden_sides_pairs(b, lo, hi),
+        occlusion._hidden_sides_sweep(b, lo, hi),
+    ):
+        assert cut_w.tolist() == dense_w.tolist()
+        assert cut_h.tolist() == dense_h.tolist()
+    assert dense_w.any() and dense_h.any()
+
+
 def test_censored_cue_variance() -> None:
     # a cue 0.5 (log) farther than the reference, noise 0.01 + 0.01: 3σ test → 0.25 − 0.18
     ux = occlusion.unexplained_excess(math.log(30.0) + 0.5, 0.01, math.log(30.0), 0.01, 3.0)

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from slopedist.estimators.ours import association
 from slopedist.estimators.ours.association import associate
 from slopedist.estimators.ours.tracks import Tracks, TrackUpdate
+from slopedist.io.detections.boxes import iou_matrix
 
 
 def id_less_tracks(boxes: np.ndarray) -> Tracks:
@@ -60,3 +61,36 @@ def test_association_of_many_boxes_equals_the_full_iou_matrix(seed: int, min_iou
         dense = associate(tracks, boxes, ids, min_iou)
     assert sparse.tolist() == dense.tolist()
     assert np.count_nonzero(sparse >= 0) > n // 2
+
+
+def _greedy_by_hand(boxes: np.ndarray, tracks: np.ndarray, min_iou: float) -> dict[int, int]:
+    """Greedy matching over the full IoU matrix, best pair first, ties row-major."""
+    iou = iou_matrix(boxes, tracks)
+    pairs = sorted(
+        (-iou[b, t], b, t)
+        for b in range(len(boxes))
+        for t in range(len(tracks))
+        if iou[b, t] >= min_iou
+    )
+    matched: dict[int, int] = {}
+    for _, b, t in pairs:
+        if b not in matched and t not in matched.values():
+            matched[b] = t
+    return matched
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**31), st.sampled_from([0.1, 0.3, 0.5, 0.75]))
+def test_matching_crowded_boxes_in_stages_of_iou_equals_one_greedy_pass(
+    seed: int, min_iou: float
+) -> None:
+    """Hundreds of boxes on top of each other, matched in stages of falling IoU: the matches of
+    one greedy pass over the full matrix, equal IoUs included."""
+    rng = np.random.default_rng(seed)
+    m = 300
+    x, y = rng.integers(0, 300, m) * 1.0, rng.integers(0, 60, m) * 1.0
+    w, h = rng.integers(10, 80, m) * 1.0, rng.integers(8, 40, m) * 1.0
+    tracks = np.stack([x, y, x + w, y + h], axis=1)
+    boxes = tracks[rng.integers(0, m, 280)] + rng.integers(-3, 4, (280, 4))
+    b, t = association.greedy_iou_matches(boxes, tracks, min_iou)
+    assert dict(zip(b.tolist(), t.tolist(), strict=True)) == _greedy_by_hand(boxes, tracks, min_iou)

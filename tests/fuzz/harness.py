@@ -9,9 +9,13 @@ case ends in exactly one outcome:
 - ``same_output``: exit code 0 with the output of the unmutated input (the same records:
   status, reason and distance of every row): the mutation changed nothing that is read
   (line ends, a byte-order mark, a field a command does not use);
-- ``ok``: exit code 0 with another output, and every row marked ``ok`` has a finite distance
-  in ``(0, MAX_PLAUSIBLE_M]`` and a box that meets the corpus' images — per-item states cover
-  everything else;
+- ``states``: exit code 0 with another output, in which every row that differs from the
+  unmutated input's is not ``ok``: per-item states cover what changed;
+- ``ok``: exit code 0 with ``ok`` rows that the unmutated input does not give (another
+  distance, or a row it does not have), each with a finite distance in ``(0, MAX_PLAUSIBLE_M]``
+  and a box that meets the corpus' images: the mutation may have changed what the input says
+  (a box, a timestamp), or the answer is silently wrong — the cases to read one by one (the
+  unmutated corpus' own run counts here too);
 - ``bad_ok``: exit code 0 but an ``ok`` row with a non-finite, negative or implausible
   distance, or with a box wholly outside the images;
 - ``numpy_warning``: a numpy ``RuntimeWarning`` reached the user (before a clean error or
@@ -20,7 +24,7 @@ case ends in exactly one outcome:
 - ``traceback``: an exception escaped :func:`slopedist.cli.main`;
 - ``hang``: the case ran longer than :data:`CASE_TIMEOUT_S`.
 
-Only the first three are allowed. Used by ``tests/fuzz/test_fuzz_cli.py`` (a fast hypothesis
+Only the first four are allowed. Used by ``tests/fuzz/test_fuzz_cli.py`` (a fast hypothesis
 profile) and ``benchmarks/fuzz_inputs.py`` (the long profile, with counts per outcome).
 """
 
@@ -46,11 +50,12 @@ MAX_PLAUSIBLE_M = 1000.0
 CASE_TIMEOUT_S = 60
 """A case running longer than this is a hang."""
 
-ALLOWED = frozenset({"clean_error", "same_output", "ok"})
+ALLOWED = frozenset({"clean_error", "same_output", "states", "ok"})
 """Outcomes that are not defects."""
 
 OUTCOMES = (
     "same_output",
+    "states",
     "ok",
     "clean_error",
     "bad_ok",
@@ -64,7 +69,20 @@ OUTCOMES = (
 IMAGE_SIZE_PX = (1242, 375)
 """The corpus' frames (the KITTI camera of ``slopedist simulate``)."""
 
-NASTY_NUMBERS = ("nan", "NaN", "inf", "-inf", "1e308", "-1e308", "1e23", "-1", "0", "", "1e-300")
+NASTY_NUMBERS = (
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "1e23",
+    "-1",
+    "0",
+    "",
+    "1e-300",
+    "1e-320",
+)
 
 
 # --------------------------------------------------------------------------------- the corpus
@@ -318,6 +336,45 @@ def far_box(data: bytes, rng: random.Random) -> bytes:
     return b"\n".join([*lines, b",".join(fields)]) + b"\n"
 
 
+def principal_row(data: bytes, rng: random.Random) -> bytes:
+    """The principal point's row ``c_y`` of a KITTI calib file's ``P2:`` line set to −1, 0 or
+    1e-320 (a calibration of no image: checked against the image only when a size is known)."""
+    lines = data.split(b"\n")
+    for i, line in enumerate(lines):
+        tokens = line.split()
+        if tokens[:1] == [b"P2:"] and len(tokens) == 13:
+            tokens[7] = rng.choice([b"-1", b"0", b"1e-320"])  # P2 row 1, column 2
+            lines[i] = b" ".join(tokens)
+    return b"\n".join(lines)
+
+
+def saturated_depth(data: bytes, rng: random.Random) -> bytes:
+    """A 16-bit depth PNG with every pixel 65535 (255.996 m in KITTI's units: beyond any valid
+    depth, never to be capped into one)."""
+    import cv2
+    import numpy as np
+
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if image is None or image.dtype != np.uint16:
+        return data
+    ok, png = cv2.imencode(".png", np.full_like(image, 65535))
+    return png.tobytes() if ok else data
+
+
+def tiny_value(data: bytes, rng: random.Random) -> bytes:
+    """One ``key = number`` value of a TOML file (a scenario) set to 1e-300 (a wheelbase, a
+    length that makes a vehicle vanish)."""
+    import re
+
+    spans = [
+        m.span(1) for m in re.finditer(rb"^\s*\w+\s*=\s*(-?[\d.]+(?:[eE][-+]?\d+)?)", data, re.M)
+    ]
+    if not spans:
+        return data
+    a, b = rng.choice(spans)
+    return data[:a] + b"1e-300" + data[b:]
+
+
 MUTATIONS: dict[str, Mutation] = {
     f.__name__: f
     for f in (
@@ -338,6 +395,9 @@ MUTATIONS: dict[str, Mutation] = {
         truncate_half,
         shuffle_lines,
         far_box,
+        principal_row,
+        saturated_depth,
+        tiny_value,
     )
 }
 
@@ -542,9 +602,14 @@ def run_case(corpus: Corpus, case: Case, mutation: str, seed: int, work: Path) -
     if mutation == UNMUTATED:
         corpus.outputs.mkdir(parents=True, exist_ok=True)
         (corpus.outputs / f"{case.name}.json").write_text(json.dumps(records), encoding="utf-8")
-    elif records == unmutated_records(corpus, case, work.parent / f"{work.name}-unmutated"):
+        return Outcome(case.name, mutation, "ok", "")
+    unmutated = unmutated_records(corpus, case, work.parent / f"{work.name}-unmutated")
+    if records == unmutated:
         return Outcome(case.name, mutation, "same_output", "")
-    return Outcome(case.name, mutation, "ok", "")
+    changed = changed_ok_rows(records, unmutated)
+    if changed:
+        return Outcome(case.name, mutation, "ok", changed[0])
+    return Outcome(case.name, mutation, "states", "")
 
 
 def _run(argv: list[str]) -> tuple[int | Outcome, str, list[str]]:
@@ -607,6 +672,19 @@ def output_records(out: Path, root: Path) -> list[list[str]]:
     if not rows:
         rows = [[str(p.relative_to(out))] for p in sorted(out.rglob("*")) if p.is_file()]
     return rows
+
+
+def changed_ok_rows(records: list[list[str]], unmutated: list[list[str]]) -> list[str]:
+    """Rows of ``records`` (:func:`output_records`) marked ``ok`` that the unmutated records
+    do not hold as they are (the same file, frame and track, ``ok``, the same distance)."""
+    before = {tuple(r[:3]): r for r in unmutated if len(r) == 6}
+    changed = []
+    for r in records:
+        if len(r) == 6 and r[3] == "ok" and before.get(tuple(r[:3])) != r:
+            was = before.get(tuple(r[:3]))
+            then = f"{was[3]} {was[5]}" if was else "no row"
+            changed.append(f"{r[0]} frame {r[1]} track {r[2]}: ok {r[5]} m (unmutated: {then})")
+    return changed
 
 
 def bad_ok_rows(out: Path) -> list[str]:

@@ -52,21 +52,63 @@ def associate(
     if has_id.all():
         return rows
     free_boxes = np.flatnonzero(~has_id)
-    free_tracks = np.flatnonzero(tracks.box_track_id < 0)
+    free_tracks = np.flatnonzero(tracks.box_track_id < 0)  # id-less tracks are never taken by an id
     if free_boxes.size and free_tracks.size:
         ref = tracks.last_box_px.T if predicted is None else predicted
-        bi, ti, iou = _iou_candidates(boxes[free_boxes], ref[free_tracks], min_iou)
-        order = np.argsort(-iou, kind="stable")
-        taken_b: set[int] = set()
-        used: set[int] = set()  # id-less tracks are never taken by an id
-        for o in order.tolist():
-            b, t = int(bi[o]), int(free_tracks[ti[o]])
-            if b in taken_b or t in used:
-                continue
-            rows[free_boxes[b]] = t
-            taken_b.add(b)
-            used.add(t)
+        b, t = greedy_iou_matches(boxes[free_boxes], ref[free_tracks], min_iou)
+        rows[free_boxes[b]] = free_tracks[t]
     return rows
+
+
+def greedy_iou_matches(
+    boxes: FloatArray, tracks: FloatArray, min_iou: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Pairs ``(box, track)`` of boxes ``(N, 4)`` and tracks' boxes ``(T, 4)`` matched one to
+    one by IoU ≥ ``min_iou``, greedily: best pair first, equal IoUs in row-major order.
+
+    Many boxes are matched in stages of falling IoU (:data:`_IOU_STAGES`, then ``min_iou``):
+    greedy matching takes the pairs in order of falling IoU, so every pair above a stage's level
+    is decided before any below it, and the next stage needs only the boxes and tracks left
+    over. In a crowded image a box overlaps hundreds of others by an IoU of 0.3 but few by 0.9,
+    so no stage looks at many pairs: the same matches as one greedy pass over all of them.
+    """
+    n, m = boxes.shape[0], tracks.shape[0]
+    levels = [min_iou]
+    if n * m > _DENSE_MAX_PAIRS:
+        levels = [level for level in _IOU_STAGES if level > min_iou] + levels
+    free_b, free_t = np.arange(n), np.arange(m)
+    matched_b, matched_t = [free_b[:0]], [free_t[:0]]
+    for level in levels:
+        bi, ti, iou = _iou_candidates(boxes[free_b], tracks[free_t], level)
+        b, t = _greedy(bi, ti, iou)
+        matched_b.append(free_b[b])
+        matched_t.append(free_t[t])
+        free_b, free_t = np.delete(free_b, b), np.delete(free_t, t)
+        if not (free_b.size and free_t.size):
+            break
+    return np.concatenate(matched_b), np.concatenate(matched_t)
+
+
+_IOU_STAGES = (0.9, 0.7, 0.5)
+"""IoU levels, falling, at which :func:`greedy_iou_matches` of many boxes is cut into stages."""
+
+
+def _greedy(
+    bi: NDArray[np.intp], ti: NDArray[np.intp], iou: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Greedy one-to-one matching of the candidate pairs ``(bi, ti)`` (row-major) by falling
+    ``iou``, equal values in the order given: the matched pairs' indices."""
+    taken_b: set[int] = set()
+    taken_t: set[int] = set()
+    pairs: list[tuple[int, int]] = []
+    for o in np.argsort(-iou, kind="stable").tolist():
+        b, t = int(bi[o]), int(ti[o])
+        if b not in taken_b and t not in taken_t:
+            taken_b.add(b)
+            taken_t.add(t)
+            pairs.append((b, t))
+    matched = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+    return matched[:, 0], matched[:, 1]
 
 
 _DENSE_MAX_PAIRS = 2048
@@ -80,17 +122,31 @@ def _iou_candidates(
 
     With ``min_iou > 0`` only overlapping boxes can qualify, so for many boxes the IoU is
     computed for the overlapping pairs only (:func:`overlapping_pairs`: near linear in the
-    number of boxes); the pairs and values are the same as from the full matrix.
+    number of boxes); the pairs and values are the same as from the full matrix. Two boxes
+    with an IoU of ``t`` overlap by at least ``t`` of the wider one's width and of the taller
+    one's height, so boxes shrunk about their centres to ``1 − t`` of their size still overlap:
+    the pairs are looked for among such shrunk boxes (to ``1.01 − t``: a margin far beyond the
+    rounding of pixel coordinates).
     """
     if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
         iou = iou_matrix(boxes, tracks)
         bi, ti = np.nonzero(iou >= min_iou)
         return bi, ti, iou[bi, ti]
-    bi, ti = overlapping_pairs(boxes, tracks)
+    scale = 1.01 - min_iou
+    if scale < 1.0:
+        bi, ti = overlapping_pairs(_shrunk(boxes, scale), _shrunk(tracks, scale))
+    else:
+        bi, ti = overlapping_pairs(boxes, tracks)
     iou = pair_iou(boxes, tracks, bi, ti)
     keep = np.flatnonzero(iou >= min_iou)
     keep = keep[np.lexsort((ti[keep], bi[keep]))]  # row-major, as np.nonzero gives them
     return bi[keep], ti[keep], iou[keep]
+
+
+def _shrunk(boxes: FloatArray, scale: float) -> FloatArray:
+    """Boxes ``(N, 4)`` shrunk about their centres to ``scale`` of their width and height."""
+    inset = (0.5 * (1.0 - scale)) * (boxes[:, 2:] - boxes[:, :2])
+    return np.concatenate([boxes[:, :2] + inset, boxes[:, 2:] - inset], axis=1)
 
 
 def turn_boxes(

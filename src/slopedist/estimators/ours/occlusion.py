@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from slopedist.core.rectangles import contains_point, meets_segment
 from slopedist.io.detections.boxes import overlapping_pairs
 
 FloatArray = NDArray[np.float64]
@@ -39,10 +40,28 @@ def hidden_sides(
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     lo = b[:, :2] - tol_px  # each box's extent (columns, rows), widened by tol
     hi = b[:, 2:] + tol_px
-    # pairs (i, j) whose boxes overlap or touch (both axes), with j nearer (its bottom lower)
-    if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all():
+    if b.shape[0] <= _DENSE_MAX_BOXES or not np.isfinite(b).all() or tol_px < 0:
         return _hidden_sides_dense(b, lo, hi)
-    i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))  # O(n log n + pairs)
+    if b.shape[0] <= _PAIRS_MAX_BOXES:
+        return _hidden_sides_pairs(b, lo, hi)
+    return _hidden_sides_sweep(b, lo, hi)
+
+
+_DENSE_MAX_BOXES = 48
+"""Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
+
+_PAIRS_MAX_BOXES = 400
+"""Up to this many boxes the overlapping pairs are listed and tested; beyond, where a crowded
+image has too many of them, the sweep answers per box."""
+
+
+def _hidden_sides_pairs(
+    b: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`hidden_sides` over the list of the pairs of boxes ``b[i]`` and widened boxes
+    ``(lo, hi)[j]`` that overlap (:func:`overlapping_pairs`: ``O(n log n)`` plus their number),
+    with ``j`` nearer."""
+    i, j = overlapping_pairs(b, np.concatenate([lo, hi], axis=1))
     nearer = b[j, 3] > b[i, 3]
     i, j = i[nearer], j[nearer]
     cut = np.zeros((b.shape[0], 2), dtype=bool)
@@ -57,10 +76,6 @@ def hidden_sides(
     cut[i[on[:, 0]], 0] = True
     cut[i[on[:, 1]], 1] = True
     return cut[:, 0], cut[:, 1]
-
-
-_DENSE_MAX_BOXES = 48
-"""Up to this many boxes every pair is tested at once (cheaper than sorting for a few)."""
 
 
 def _hidden_sides_dense(
@@ -81,6 +96,30 @@ def _hidden_sides_dense(
     on &= near[..., None]
     cut = np.logical_or.reduce(on, axis=1)
     return cut[:, 0], cut[:, 1]
+
+
+def _hidden_sides_sweep(
+    b: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """:func:`hidden_sides` for many finite boxes (widened by a ``tol_px ≥ 0``) in
+    ``O(n log² n)``, whatever the number of overlapping pairs, with the answers of
+    :func:`_hidden_sides_dense`.
+
+    A nearer box ``j`` reaches box ``i`` when ``i``'s bottom row lies between the widened top of
+    ``j`` and ``j``'s own bottom (``lo_j < b_i < b_j``: nearer, and the rows overlap) and the
+    columns overlap. Then ``i``'s height may be cut (its bottom edge lies on ``j``), and its
+    width when its left edge (``lo_j ≤ l_i < hi_j``) or its right edge (``lo_j < r_i ≤ hi_j``)
+    lies within ``j``'s columns: queries of the points ``(l_i, b_i)``, ``(r_i, b_i)`` and of the
+    bottom edge ``(l_i, r_i) × {b_i}`` against the rectangles ``(lo_j, hi_j) × (lo_j, b_j)``.
+    """
+    rect_x = (lo[:, 0], hi[:, 0])
+    rect_y = (lo[:, 1], b[:, 3])
+    bottom = b[:, 3]
+    proper = (b[:, 2] > b[:, 0]) & (b[:, 3] > b[:, 1])
+    left_on = contains_point(rect_x, rect_y, b[:, 0], bottom, "lower")
+    right_on = contains_point(rect_x, rect_y, b[:, 2], bottom, "upper")
+    height_cut = meets_segment(rect_x, rect_y, (b[:, 0], b[:, 2]), bottom)
+    return proper & (left_on | right_on), proper & height_cut
 
 
 def unexplained_excess(
