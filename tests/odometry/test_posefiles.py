@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,22 @@ def test_kitti_pose_bad_field(tmp_path: Path) -> None:
     path.write_text("1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 x 0 0 1 0\n")
     with pytest.raises(InputFileError, match=r"poses.txt, line 2, field 't1'"):
         read_kitti_poses(path)
+
+
+@pytest.mark.parametrize("position", ["1e308", "-2e8", "inf"])
+def test_a_position_beyond_any_map_is_one_error_not_a_numpy_warning(
+    tmp_path: Path, position: str
+) -> None:
+    """A translation replaced by a huge number overflowed in the step check (a RuntimeWarning
+    from numpy reached the user) before it was refused or read."""
+    path = tmp_path / "poses.txt"
+    lines = [f"1 0 0 {0.5 * k} 0 1 0 0 0 0 1 {0.8 * k}" for k in range(6)]
+    lines[3] = f"1 0 0 {position} 0 1 0 0 0 0 1 2.4"
+    path.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputFileError, match=r"line 4, field 't0"):
+            read_kitti_poses(path)
 
 
 def test_kitti_pose_not_a_rotation(tmp_path: Path) -> None:

@@ -19,6 +19,10 @@ MAX_FRAME_INTERVAL_S = 10.0
 seconds: a car moves 100+ m in it, so frames that far apart share no view and give no look-back
 of a second; timestamps in milli-, micro- or nanoseconds read as seconds do (33 s at 30 Hz)."""
 
+MAX_ABS_POSITION_M = 1e8
+"""Largest magnitude of a position in a pose file, metres (twice Earth's circumference; map
+coordinates such as UTM stay below 1e7 m)."""
+
 MAX_ABS_PIXEL = 1e6
 """Largest magnitude of a box coordinate, pixels; beyond it a value is not a pixel of any
 camera image."""

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from slopedist.core.camera import read_kitti_calib
 from slopedist.core.errors import InputFileError
 from slopedist.core.geometry import not_rotations, rotation_angle_rad
-from slopedist.core.limits import MAX_FRAME_INTERVAL_S
+from slopedist.core.limits import MAX_ABS_POSITION_M, MAX_FRAME_INTERVAL_S
 from slopedist.core.textfiles import numbered_lines
 from slopedist.odometry.base import RotationTrack
 from slopedist.odometry.jumps import (
@@ -156,6 +156,27 @@ MAX_IMPOSSIBLE_SHARE = 0.05
 :data:`MAX_IMPOSSIBLE_STEPS`): more is not one drive in order."""
 
 
+def _check_positions(
+    path: str | Path, positions_m: NDArray[np.float64], lines: NDArray[np.int64], field: str
+) -> None:
+    """Refuse a position that is not finite or beyond :data:`MAX_ABS_POSITION_M`.
+
+    Raises:
+        InputFileError: naming the first such line and ``field``.
+    """
+    ok = np.isfinite(positions_m) & (np.abs(positions_m) <= MAX_ABS_POSITION_M)
+    bad = np.flatnonzero(~ok.all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        raise InputFileError(
+            path,
+            f"a position must be a finite number of metres within ±{MAX_ABS_POSITION_M:g}, got "
+            + " ".join(f"{v:g}" for v in positions_m[k]),
+            line=int(lines[k]),
+            field=field,
+        )
+
+
 def check_pose_order(
     path: str | Path,
     timestamps_s: ArrayLike,
@@ -176,6 +197,7 @@ def check_pose_order(
         InputFileError: naming the first such line and its field (``fields``: the rotation's
             and the position's names).
     """
+    _check_positions(path, positions_m, lines, fields[1])
     t = np.asarray(timestamps_s, dtype=float)
     bad = impossible_steps(t, R, positions_m)
     n = int(bad.sum())
