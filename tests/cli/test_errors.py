@@ -153,6 +153,7 @@ def test_eval_with_every_detection_filtered_out(
         (["run", "frames", "--columns", "al"], "; did you mean 'all'?"),
         (["estimate", "--reference", "nearest-face"], "; did you mean 'nearest_face'?"),
         (["rn"], "No such command 'rn'; did you mean 'run'?"),
+        (["run", "frames", "--ours-option", "box_sigma=1"], "did you mean 'box_sigma_px'?"),
         (
             ["eval", "kitti-trackin"],
             "No such command 'kitti-trackin'; did you mean 'kitti-tracking'?",

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from slopedist.core.errors import ConfigurationError
+from slopedist.core.suggest import close_match, did_you_mean
 from slopedist.core.textfiles import parse_bool
 from slopedist.estimators.base import ReferencePoint
 from slopedist.estimators.ours import filter as kf
@@ -352,8 +353,9 @@ def configs_of(
     """
     unknown = sorted(set(options) - set(USER_OPTIONS) - set(EXPERIMENTAL_OPTIONS))
     if unknown:
+        hint = did_you_mean(unknown[0], [*USER_OPTIONS, *EXPERIMENTAL_OPTIONS])
         raise ConfigurationError(
-            f"unknown option(s) for method 'ours': {', '.join(unknown)} "
+            f"unknown option(s) for method 'ours': {', '.join(unknown)}{hint} "
             f"(known: {', '.join(sorted(USER_OPTIONS))}; experimental: "
             f"{', '.join(sorted(EXPERIMENTAL_OPTIONS))})"
         )
@@ -454,8 +456,10 @@ def parse_option(text: str) -> tuple[str, bool | float | None]:
         raise ConfigurationError(f"'{key}' is not set as KEY=VALUE: use {OWN_OPTIONS[key]}")
     parser = _OPTION_PARSERS.get(_KINDS.get(key, ""))
     if parser is None:
+        match = close_match(key, [*user_options(), *experimental_options()])
+        hint = f" (did you mean '{match}'?)" if match else ""
         raise ConfigurationError(
-            f"'{key}' is not an ours option settable here; choose from "
+            f"'{key}' is not an ours option settable here{hint}; choose from "
             f"{', '.join(user_options())} (experimental, for the benchmarks: "
             f"{', '.join(experimental_options())})"
         )
