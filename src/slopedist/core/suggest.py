@@ -26,3 +26,14 @@ def did_you_mean(value: str, choices: Iterable[str]) -> str:
     """
     match = close_match(value, choices)
     return f"; did you mean '{match}'?" if match is not None else ""
+
+
+def unknown_choice(what: str, value: str, choices: Iterable[str]) -> str:
+    """The message for a ``value`` of ``what`` that is none of ``choices``, with the closest.
+
+    Example:
+        >>> unknown_choice("method", "our", ["flat", "ours"])
+        "unknown method 'our'; did you mean 'ours'? (choose from flat, ours)"
+    """
+    names = list(choices)
+    return f"unknown {what} '{value}'{did_you_mean(value, names)} (choose from {', '.join(names)})"

@@ -20,7 +20,7 @@ from typing import Any
 from slopedist.core import geometry as geo
 from slopedist.core.camera import Camera
 from slopedist.core.errors import ConfigurationError
-from slopedist.core.suggest import did_you_mean
+from slopedist.core.suggest import unknown_choice
 from slopedist.estimators.base import (
     Estimator,
     FrameEstimates,
@@ -275,10 +275,7 @@ class EstimatorConfig:
 def _method_name(name: str | Method) -> str:
     value = str(getattr(name, "value", name))
     if value not in ESTIMATORS:
-        raise ConfigurationError(
-            f"unknown method '{name}'{did_you_mean(value, available_methods())} (choose from "
-            f"{', '.join(available_methods())})"
-        )
+        raise ConfigurationError(unknown_choice("method", value, available_methods()))
     return value
 
 

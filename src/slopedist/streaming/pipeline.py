@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from slopedist.core.camera import KITTI_CAMERA_HEIGHT_M, Camera
 from slopedist.core.errors import ConfigurationError, DataMismatchError
-from slopedist.core.suggest import did_you_mean
+from slopedist.core.suggest import unknown_choice
 from slopedist.estimators import DEFAULT_METHOD, Estimator, make_estimator
 from slopedist.estimators.base import (
     EstimateStatus,
@@ -352,10 +352,7 @@ class Pipeline:
         **method_options: Any,
     ) -> None:
         if odometry not in ODOMETRY_CHOICES:
-            raise ConfigurationError(
-                f"unknown odometry '{odometry}'{did_you_mean(odometry, ODOMETRY_CHOICES)} "
-                f"(choose from {', '.join(ODOMETRY_CHOICES)})"
-            )
+            raise ConfigurationError(unknown_choice("odometry", odometry, ODOMETRY_CHOICES))
         calibration = pipeline_calibration(calib, height_m, mount_angle_deg, image_size)
         options = dict(method_options)
         estimator = make_estimator(method, calibration.camera, **options)  # the options checked

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from slopedist.core import geometry as geo
 from slopedist.core.errors import ConfigurationError, DataMismatchError
-from slopedist.core.suggest import did_you_mean
+from slopedist.core.suggest import unknown_choice
 from slopedist.estimators.base import (
     EstimateStatus,
     Estimator,
@@ -588,10 +588,7 @@ def parse_columns(value: str | RecordColumns) -> RecordColumns:
         return RecordColumns(getattr(value, "value", value))
     except ValueError:
         names = [c.value for c in RecordColumns]
-        raise ConfigurationError(
-            f"unknown record columns '{value}'{did_you_mean(str(value), names)} (choose from "
-            f"{', '.join(names)})"
-        ) from None
+        raise ConfigurationError(unknown_choice("record columns", str(value), names)) from None
 
 
 def user_track_ids(boxes: BoxTable, est: FrameEstimates) -> NDArray[np.int64]:
