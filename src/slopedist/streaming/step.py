@@ -560,7 +560,7 @@ DEFAULT_RECORD_FIELDS = (
 """Columns of ``records.csv`` by default (:attr:`RecordColumns.DEFAULT`), in order: what a
 user acts on; ``gt_distance_m`` follows when the boxes carry a truth. ``sigma_m``,
 ``speed_mps`` and ``ttc_s`` are empty for a method that states none. The schema table of
-``docs/outputs.md`` lists them."""
+``docs/usage.md`` ("Columns of ``records.csv``") lists them."""
 
 OWN_TRACK_KEY = "track_uid"
 """The estimates' column of a method's own track number (``ours``'s tracker)."""
