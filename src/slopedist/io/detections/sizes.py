@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.core.errors import InputFileError
+from slopedist.core.textfiles import number_cell
 
 SIZE_COLUMNS = ("height_m", "width_m", "length_m")
 """Box columns of the vehicle's height, width and length, metres (NaN = unknown)."""
@@ -80,16 +81,13 @@ def size_sigma_value(path: str | Path, line: int, field: str, token: str) -> flo
 
 
 def _number(path: str | Path, line: int, field: str, token: str) -> float:
-    """A float field, NaN when empty; infinities refused."""
-    tok = token.strip()
-    if not tok:
-        return math.nan
-    try:
-        value = float(tok)
-    except ValueError:
-        raise InputFileError(path, f"'{tok}' is not a number", line=line, field=field) from None
+    """A float field (:func:`~slopedist.core.textfiles.number_cell`: NaN when empty);
+    infinities refused."""
+    value = number_cell(token.strip(), path, line, field)
     if math.isinf(value):
-        raise InputFileError(path, f"'{tok}' is not a finite number", line=line, field=field)
+        raise InputFileError(
+            path, f"'{token.strip()}' is not a finite number", line=line, field=field
+        )
     return value
 
 

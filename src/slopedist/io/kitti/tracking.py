@@ -10,7 +10,7 @@ Frame k has timestamp ``k × 0.1 s``; camera 2 (``P2``) is the camera of the lab
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 from pathlib import Path
 
@@ -162,16 +162,7 @@ class KittiTrackingSequence:
             )
         reader = read_pointrcnn if source is BoxSource.POINTRCNN else read_rrc
         table = reader(path, min_score)
-        if sizes:
-            return table
-        return BoxTable(
-            table.frame,
-            table.boxes,
-            table.track_id,
-            table.score,
-            table.cls,
-            without_sizes(table.extra),
-        )
+        return table if sizes else replace(table, extra=without_sizes(table.extra))
 
 
 def load_sequence(
