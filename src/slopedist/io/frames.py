@@ -321,11 +321,11 @@ def check_calibration(camera: Camera, width: int, height: int, where: str = "fra
             f"{where}: images are {width}×{height} px but the calibration is for "
             f"{camera.image_width}×{camera.image_height} px"
         )
+    hint = resolution_hint(camera, width, height)
     for name, c, size, offset in (
         ("c_x", camera.c_x, width, MAX_PRINCIPAL_POINT_OFFSET[0]),
         ("c_y", camera.c_y, height, MAX_PRINCIPAL_POINT_OFFSET[1]),
     ):
-        hint = resolution_hint(camera, width, height)
         if not 0.0 <= c <= size:
             raise DataMismatchError(
                 f"{where}: the calibration's principal point {name} = {c:.1f} px lies outside "
