@@ -209,7 +209,7 @@ def _label_sizes(labels: BoxTable) -> BoxTable:
     """``labels`` with their dimensions (``dims_hwl``) as the size columns."""
     dims = np.asarray(labels.extra["dims_hwl"], dtype=float).reshape(-1, 3)
     extra = {**labels.extra, **{c: dims[:, k] for k, c in enumerate(SIZE_COLUMNS)}}
-    return BoxTable(labels.frame, labels.boxes, labels.track_id, labels.score, labels.cls, extra)
+    return replace(labels, extra=extra)
 
 
 def _with_size_sigma(boxes: BoxTable, cfg: KittiEvalConfig) -> BoxTable:
@@ -217,8 +217,7 @@ def _with_size_sigma(boxes: BoxTable, cfg: KittiEvalConfig) -> BoxTable:
     if cfg.box_size_sigma_pct is None:
         return boxes
     sigma = np.full(len(boxes), float(cfg.box_size_sigma_pct))
-    extra = {**boxes.extra, SIZE_SIGMA_COLUMN: sigma}
-    return BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls, extra)
+    return replace(boxes, extra={**boxes.extra, SIZE_SIGMA_COLUMN: sigma})
 
 
 @dataclass
@@ -381,8 +380,7 @@ def _boxes_with_truth(
     truth = np.full(len(boxes), np.nan)
     truth[det_rows] = gt.extra["z"][gt_rows]
     extra = {**boxes.extra, "row": np.arange(len(boxes)), TRUTH_COLUMN: truth}
-    boxes = BoxTable(boxes.frame, boxes.boxes, boxes.track_id, boxes.score, boxes.cls, extra)
-    return gt, boxes, det_rows, gt_rows
+    return gt, replace(boxes, extra=extra), det_rows, gt_rows
 
 
 def _depth_for(
