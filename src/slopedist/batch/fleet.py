@@ -51,7 +51,7 @@ from slopedist.evaluation.metrics import (
 )
 from slopedist.io.detections.readers import CSV_TRUTH_COLUMN
 from slopedist.io.formatting import write_csv
-from slopedist.streaming.config import RECORDS_NAME, SUMMARY_NAME
+from slopedist.streaming.config import RECORDS_NAME, SUMMARY_NAME, summary_method
 
 DATASET_NAME = "records.parquet"
 FLEET_DIR = "fleet"
@@ -146,7 +146,7 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
         if pa.types.is_null(column.type):
             table = table.set_column(i, column.name, table.column(i).cast(pa.float64()))
     if "method" not in table.column_names:  # the default columns: the drive's method
-        method = _summary_method(read_json(out_dir / drive / SUMMARY_NAME, "run summary"))
+        method = summary_method(read_json(out_dir / drive / SUMMARY_NAME, "run summary"))
         table = table.append_column("method", pa.array([method] * table.num_rows, pa.string()))
     metadata = {PARTITION_STAMP_KEY: json.dumps(stamp, sort_keys=True).encode()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
@@ -156,13 +156,6 @@ def write_partition(out_dir: Path, drive: str, refresh: bool = True) -> Path:
         pa.parquet.write_table(table, fh)
     os.replace(tmp, target)
     return target
-
-
-def _summary_method(summary: Any) -> str:
-    """The method a drive's ``run.json`` names (its records' own ``method`` column is only in
-    the full set of columns); empty when it names none."""
-    method = summary.get("method") if isinstance(summary, dict) else None
-    return method if isinstance(method, str) else ""
 
 
 def records_dataset(out_dir: str | Path) -> Any:
@@ -235,7 +228,7 @@ def _read_pairs(folder: Path) -> dict[str, dict[str, Any]]:
     path = folder / RECORDS_NAME
     out: dict[str, dict[str, Any]] = {}
     for line, row in CsvRows(path, "run records"):
-        base = row.get("method") or _summary_method(summary)
+        base = row.get("method") or summary_method(summary)
         acc = out.setdefault(fleet_method(summary, base), {"base": base, "d": [], "g": [], "r": []})
         for key, column in (("d", "distance_m"), ("g", CSV_TRUTH_COLUMN), *_EXTENT_CELLS):
             value = number_cell(row.get(column), path, line, column, MAX_RECORD_MAGNITUDE)

@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 from slopedist.core.errors import SlopedistError
 from slopedist.estimators.base import ReferencePoint
@@ -28,6 +29,13 @@ FRAMES_NAME = "frames.csv"
 SUMMARY_NAME = "run.json"
 MCAP_NAME = "run.mcap"
 TRAJECTORY_NAME = "trajectory.tum"
+
+
+def summary_method(summary: Any) -> str:
+    """The method a run's summary (``run.json``, parsed) names; empty when it names none (the
+    records of the default columns do not name it: their run's summary does)."""
+    method = summary.get("method") if isinstance(summary, dict) else None
+    return method if isinstance(method, str) else ""
 
 
 SNAPSHOT_QUALITY = 92

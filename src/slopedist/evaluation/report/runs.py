@@ -41,6 +41,7 @@ from slopedist.evaluation.report.data import (
     SourceKind,
     default_title,
 )
+from slopedist.streaming.config import summary_method
 from slopedist.streaming.tracks import TRACKS_NAME, read_tracks
 
 TRUTH_COLUMNS = ("gt_distance_m", "gt_z_m", "true_distance_m", "truth_z_m")
@@ -144,8 +145,8 @@ def _summary_method(folder: Path, records: Path) -> str:
     Raises:
         InputFileError: no ``run.json`` names one.
     """
-    method = _run_summary(folder).get("method")
-    if not isinstance(method, str) or not method:
+    method = summary_method(_run_summary(folder))
+    if not method:
         raise InputFileError(
             records,
             "the records have no method column and no run.json beside them names the method",
