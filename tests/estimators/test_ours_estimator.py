@@ -126,6 +126,7 @@ def test_streaming_equals_batch_with_empty_frames_and_gaps() -> None:
             "adapt_contact_trust": True,
             "learn_contact_angle": True,
             "learn_horizon_jitter": True,
+            "learn_contact_spread": True,
         },
     ):
         batch = estimate_sequence(OursEstimator(CAM, **opts), boxes, sim.timestamps_s, track)
@@ -168,6 +169,7 @@ ABLATION_LIKE = [
     {"adapt_box_noise": True, "censor_border_cuts": False},
     {"adapt_contact_trust": True},
     {"learn_contact_angle": True, "learn_horizon_jitter": True},
+    {"learn_contact_spread": True},
 ]
 
 

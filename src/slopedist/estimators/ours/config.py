@@ -160,6 +160,11 @@ class OursAblation:
         learn_contact_angle: scale the target-gradient prior's and the mount's variances by the
             drive's ground-contact angle error, read from each track's cues as its distance
             changes (:mod:`~slopedist.estimators.ours.contact_angle`).
+        learn_contact_spread: read each target twice, with the ground contact at the drive's
+            own angle spread (from how the gap between all its targets' cues depends on their
+            distance) and at the configured one, and mix the two by how well each explains the
+            target's cues and how often it explained the drive's recent targets
+            (:mod:`~slopedist.estimators.ours.contact_spread`).
         learn_horizon_jitter: estimate the horizon jitter (``theta_sigma_rad`` its prior)
             online from the second differences of the measured θ
             (:class:`~slopedist.estimators.ours.road_roughness.HorizonJitter`).
@@ -247,6 +252,7 @@ class OursAblation:
     adapt_contact_trust: bool = False
     learn_contact_angle: bool = False
     learn_horizon_jitter: bool = False
+    learn_contact_spread: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

@@ -71,8 +71,10 @@ from slopedist.estimators.ours.config import (
     size_evidence_time,
 )
 from slopedist.estimators.ours.contact_angle import ContactAngleEvidence
+from slopedist.estimators.ours.contact_spread import ContactSpread, mix_readings, tight_weights
 from slopedist.estimators.ours.fusion import LogCue
 from slopedist.estimators.ours.outputs import EXTRA_COLUMNS
+from slopedist.estimators.ours.priors import resolve_prior
 from slopedist.estimators.ours.records import (
     CalibrationInUse,
     DistanceFilterResult,
@@ -218,6 +220,17 @@ class OursEstimator(Estimator):
         if abl.learn_contact_angle:
             prior = math.hypot(config.gradient_sigma_rad, config.mount_sigma_rad)
             self._contact_angle = ContactAngleEvidence(prior, config.max_age_s)
+        self._contact_spread = None
+        if abl.learn_contact_spread:
+            car = resolve_prior("Car", abl.priors)
+            self._contact_spread = ContactSpread(
+                math.sqrt(
+                    config.gradient_sigma_rad**2
+                    + config.mount_sigma_rad**2
+                    + abl.theta_sigma_rad**2
+                ),
+                car.height_sigma_m / car.height_m,
+            )
         self.reset()
 
     def reset(self) -> None:
@@ -232,6 +245,9 @@ class OursEstimator(Estimator):
             self._roughness.reset()
         if self._contact_angle is not None:
             self._contact_angle.reset()
+        if self._contact_spread is not None:
+            self._contact_spread.reset()
+        self._last_frame_s = math.nan
         if self._jitter is not None:
             self._jitter.reset()
 
@@ -312,6 +328,8 @@ class OursEstimator(Estimator):
         size = self._censor_occluded(targets, size, ground)
         odd = self._odd_check.carried(match, targets)  # the tracks' odd-object evidence
         fused = self._fuse_hypotheses(targets, match, size, ground, odd)
+        if self._contact_spread is not None and ground is not None:
+            fused = self._mix_contact_readings(targets, match, size, odd, fused, horizon)
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
         odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
         gradient = self._target_gradient(targets, match, fused, distance, horizon)
@@ -320,6 +338,8 @@ class OursEstimator(Estimator):
         uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
         if self._contact_angle is not None:
             self._feed_contact_angle(state, gradient, uid, horizon)
+        if self._contact_spread is not None:
+            self._feed_contact_spread(state, gradient, uid, horizon)
         if self._recorder is not None:
             self._recorder.record(good, state, gradient, uid)
         if abl.self_calibrate and horizon.measured:  # not a θ it assumed
@@ -363,6 +383,11 @@ class OursEstimator(Estimator):
                 self._roughness.update(time_s, float(theta_rad) - self._theta_rest)
                 jitter *= math.sqrt(self._roughness.scale)
             gradient_sigma *= math.sqrt(self._roughness.scale)
+        if self._contact_spread is not None:
+            root = math.sqrt(self._contact_spread.scale)
+            jitter *= root
+            gradient_sigma *= root
+            calib = calib._replace(horizon_offset_sigma_rad=calib.horizon_offset_sigma_rad * root)
         if self._contact_angle is not None:
             root = math.sqrt(self._contact_angle.scale)
             gradient_sigma *= root
@@ -466,23 +491,56 @@ class OursEstimator(Estimator):
         if self._contact_angle is None or self._contact_angle.scale >= 1.0:
             return ground
         # a contact trusted more than configured only where the height cue agrees with it
+        wide = self._configured_contact_cue(targets, match, horizon.theta_rad, horizon.jitter_rad)
+        return frame_cues.consistent_contact(
+            targets, size, ground, wide, abl.consistency_gate_sigma
+        )
+
+    def _configured_contact_cue(
+        self, targets: FrameTargets, match: TrackMatch, theta_rad: float, jitter_rad: float
+    ) -> LogCue:
+        """The ground-contact cue with the configured trust (target gradient and mount
+        spreads as configured, horizon jitter ``jitter_rad``), without bounds."""
+        abl = self.ablation
         alpha, alpha_var = filters.contact_gradient_prior(
             abl.gradient_feedback, self.config.gradient_sigma_rad, match
         )
-        wide = frame_cues.ground_contact_cue(
+        return frame_cues.ground_contact_cue(
             abl,
             self.camera,
             targets,
             [],
             alpha,
             alpha_var,
-            horizon.theta_rad,
-            horizon.jitter_rad,
+            theta_rad,
+            jitter_rad,
             self._calibration_in_use(),
         )
-        return frame_cues.consistent_contact(
-            targets, size, ground, wide, abl.consistency_gate_sigma
-        )
+
+    def _mix_contact_readings(
+        self,
+        targets: FrameTargets,
+        match: TrackMatch,
+        size: SizeCues,
+        odd: FloatArray | None,
+        tight: FusedCues,
+        horizon: FrameHorizon,
+    ) -> FusedCues:
+        """``tight`` (the cues read with the drive's contact spread) mixed with the cues read
+        with the configured contact (``learn_contact_spread``), and the tight reading's
+        posterior weights given to the drive's share."""
+        spread = self._contact_spread
+        if spread is None or spread.scale >= 1.0:  # the two readings are one
+            return tight
+        abl = self.ablation
+        jitter = abl.theta_sigma_rad if horizon.measured else abl.no_rotation_theta_sigma_rad
+        wide_cue = self._configured_contact_cue(targets, match, horizon.theta_rad, jitter)
+        wide = self._fuse_hypotheses(targets, match, size, wide_cue, odd)
+        weight = tight_weights(tight, wide, spread.tight_share)
+        frame_s = targets.time_s - self._last_frame_s
+        self._last_frame_s = targets.time_s
+        spread.add_posterior(weight, targets.time_s, frame_s if frame_s == frame_s else 1.0)
+        return mix_readings(tight, wide, weight)
 
     def _censor_occluded(
         self, targets: FrameTargets, size: SizeCues, ground: LogCue | None
@@ -642,6 +700,24 @@ class OursEstimator(Estimator):
             uid, targets.boxes_px[:, 3], np.full(n, v_cfg), np.full(n, theta_cfg), near, shape_gap
         )
 
+    def _inverse_distances(
+        self, state: FrameState, gradient: TargetGradient, horizon: FrameHorizon
+    ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+        """Each target's inverse distance to its contact point by its size cues and by its
+        ground contact under the frame's horizon (1/m), and which targets give both (positive,
+        the box not cut at the top or bottom by the border)."""
+        targets, fused = state.targets, state.fused
+        cam = self.camera
+        v = cam.c_y - cam.f * math.tan(horizon.theta_rad)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv_size = 1.0 / (gradient.size_distance_m - fused.half_extent_m)
+            inv_contact = (targets.boxes_px[:, 3] - v) / (cam.f * horizon.calib.height_m)
+        usable = (inv_size > 0) & (inv_contact > 0)
+        cuts = targets.border_cuts
+        if cuts is not None:
+            usable &= ~cuts.top & ~cuts.bottom
+        return inv_size, inv_contact, usable
+
     def _feed_contact_angle(
         self,
         state: FrameState,
@@ -650,25 +726,37 @@ class OursEstimator(Estimator):
         horizon: FrameHorizon,
     ) -> None:
         """Give the contact-angle evidence the inverse contact-point distances of the size
-        cues and of the ground contact (under the frame's horizon) of the boxes the border
-        does not cut at the top or bottom (of a frame with a measured θ only)."""
-        assert self._contact_angle is not None
-        if not horizon.measured:
+        cues and of the ground contact of the usable boxes (:meth:`_inverse_distances`; of a
+        frame with a measured θ only)."""
+        if self._contact_angle is None or not horizon.measured:
             return
-        targets, fused = state.targets, state.fused
-        cam = self.camera
-        h = horizon.calib.height_m
-        v = cam.c_y - cam.f * math.tan(horizon.theta_rad)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv_size = 1.0 / (gradient.size_distance_m - fused.half_extent_m)
-            inv_contact = (targets.boxes_px[:, 3] - v) / (cam.f * h)
-        usable = (inv_size > 0) & (inv_contact > 0)
-        cuts = targets.border_cuts
-        if cuts is not None:
-            usable &= ~cuts.top & ~cuts.bottom
+        inv_size, inv_contact, usable = self._inverse_distances(state, gradient, horizon)
         self._contact_angle.add(
-            uid, np.where(usable, inv_size, np.nan), inv_contact, targets.time_s, h
+            uid,
+            np.where(usable, inv_size, np.nan),
+            inv_contact,
+            state.targets.time_s,
+            horizon.calib.height_m,
         )
+
+    def _feed_contact_spread(
+        self,
+        state: FrameState,
+        gradient: TargetGradient,
+        uid: NDArray[np.int64],
+        horizon: FrameHorizon,
+    ) -> None:
+        """Give the contact spread each usable target's cue gap in angle units and its
+        ``(h/z)²`` (:meth:`_inverse_distances`, and no nearer box may cut it; of a frame with
+        a measured θ only)."""
+        if self._contact_spread is None or not horizon.measured:
+            return
+        inv_size, inv_contact, usable = self._inverse_distances(state, gradient, horizon)
+        if state.size_cues.hidden is not None:
+            usable &= ~state.size_cues.hidden
+        h = horizon.calib.height_m
+        gap = np.where(usable, h * (inv_contact - inv_size), np.nan)
+        self._contact_spread.add_gaps(uid, gap, (h * inv_size) ** 2, state.targets.time_s)
 
     def _calibration_columns(self, n: int) -> dict[str, FloatArray]:
         """The self-calibration in use, as columns of ``n`` boxes."""
