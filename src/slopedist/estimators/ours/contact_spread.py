@@ -11,7 +11,8 @@ angle units,
 
 has the mean square ``E[a²] = V + S·x`` over the drive's targets, ``x = (h/z)²``: ``V`` the
 contact's angle variance (rad²), ``S`` the size cues' relative variance. Near targets tell
-``S``, far ones ``V``. The posterior mean of ``V`` on a grid of ``(V, S)`` — a prior on ``S``
+``S``, far ones ``V``. The posterior geometric mean of ``V`` (``exp E[log V]``: a scale's
+central value, which a long upper tail does not pull up) on a grid of ``(V, S)`` — a prior on ``S``
 about the class's published height spread (log σ :data:`PRIOR_LOG_SIGMA_S`), a nearly flat one
 on ``V`` (log σ :data:`PRIOR_LOG_SIGMA_V` about the configured spread, so that a flat road is
 not held at the configured one) — over the configured contact variance, at most 1, is the scale
@@ -25,7 +26,8 @@ each explains the target's cues (the marginal likelihood over its heading and si
 and by the share of the drive's recent targets that the tight reading explained better
 (:attr:`ContactSpread.tight_share`, an online EM estimate over :data:`SHARE_MEMORY_S`, in
 [:data:`MIN_SHARE`, 1 − :data:`MIN_SHARE`]); the measurement is the mixture of the two
-(:func:`mix_readings`). Causal: a frame's cues use the evidence of the frames before it.
+(:func:`mix_readings`), and so is its ground contact (what per-track size learning reads).
+Causal: a frame's cues use the evidence of the frames before it.
 
 Metres, seconds, radians; log distances ``ℓ = log(Z / 1 m)``.
 """
@@ -108,7 +110,8 @@ class ContactSpread:
 
     @property
     def scale(self) -> float:
-        """The posterior mean of the contact's angle variance over the configured one, ≤ 1."""
+        """The posterior geometric mean of the contact's angle variance over the configured
+        one, at most 1."""
         return self._scale
 
     @property
@@ -172,7 +175,8 @@ class ContactSpread:
             n * np.log(total) + self._sum_a2[used] / total, axis=-1
         )
         w = np.exp(log_post - log_post.max())
-        self._scale = min(float(np.sum(w * self._grid_v) / np.sum(w)) / self._v0, 1.0)
+        log_v = float(np.sum(w * np.log(self._grid_v)) / np.sum(w))
+        self._scale = min(math.exp(log_v) / self._v0, 1.0)
 
 
 def _fade(elapsed_s: float, memory_s: float) -> float:
@@ -190,13 +194,22 @@ def tight_weights(tight: FusedCues, wide: FusedCues, tight_share: float) -> Floa
 
 
 def mix_readings(tight: FusedCues, wide: FusedCues, weight: FloatArray) -> FusedCues:
-    """The tight reading with its measurement replaced by the mixture of both readings'
-    (``weight`` ``(n,)`` the tight one's): the mixture's mean and variance, and the weighted
-    white variance."""
-    a, b = tight.measurement, wide.measurement
+    """The tight reading with its measurement and its ground contact replaced by the mixtures
+    of both readings' (``weight`` ``(n,)`` the tight one's; :func:`mix_cues`)."""
+    ground = tight.ground
+    if ground is not None and wide.ground is not None:
+        ground = mix_cues(ground, wide.ground, weight)
+    return tight._replace(
+        measurement=mix_cues(tight.measurement, wide.measurement, weight), ground=ground
+    )
+
+
+def mix_cues(a: LogCue, b: LogCue, weight: FloatArray) -> LogCue:
+    """The mixture of the cues ``a`` (weight ``weight``) and ``b``: its mean and variance, the
+    weighted white variance and ``a``'s log-likelihood."""
     w = weight
     mean = w * a.mean + (1.0 - w) * b.mean
     spread = a.mean - b.mean
     var = w * a.var + (1.0 - w) * b.var + w * (1.0 - w) * spread * spread
     white = w * a.var_white + (1.0 - w) * b.var_white
-    return tight._replace(measurement=LogCue(mean, var, white, a.loglik))
+    return LogCue(mean, var, white, a.loglik)
