@@ -69,6 +69,8 @@ def test_meets_segment_equals_testing_every_pair(
         for s in range(n_seg)
     ]
     assert got.tolist() == want
+    held = contains_point(rx, ry, sx[0], sy, "lower")  # the caller's own answer, reused
+    assert meets_segment(rx, ry, sx, sy, start_held=held).tolist() == want
 
 
 def test_by_hand() -> None:

@@ -56,21 +56,26 @@ def meets_segment(
     rect_y: tuple[FloatArray, FloatArray],
     seg_x: tuple[FloatArray, FloatArray],
     sy: FloatArray,
+    start_held: BoolArray | None = None,
 ) -> BoolArray:
     """Per horizontal segment ``x_lo < x < x_hi`` at ``y = sy``, whether it meets the open
     interior ``(x_lo, x_hi) × (y_lo, y_hi)`` of some rectangle.
 
     Two open x ranges meet when the rectangle starts inside the segment (``s_lo ≤ x_lo < s_hi``)
-    or the segment starts inside the rectangle (``x_lo < s_lo < x_hi``). Rectangles with
-    ``x_hi ≤ x_lo`` and segments with ``s_hi ≤ s_lo`` meet nothing.
+    or the segment starts inside the rectangle (``x_lo ≤ s_lo < x_hi``; ``x_lo = s_lo`` is in
+    both). Rectangles with ``x_hi ≤ x_lo`` and segments with ``s_hi ≤ s_lo`` meet nothing.
+
+    ``start_held``: the second half if the caller has it already, i.e.
+    ``contains_point(rect_x, rect_y, seg_x[0], sy, "lower")``; None computes it.
     """
     wide = seg_x[1] > seg_x[0]
     proper = np.flatnonzero(rect_x[1] > rect_x[0])
     rx = (rect_x[0][proper], rect_x[1][proper])
     ry = (rect_y[0][proper], rect_y[1][proper])
-    inside = contains_point(rx, ry, seg_x[0], sy, "neither")
+    if start_held is None:
+        start_held = contains_point(rx, ry, seg_x[0], sy, "lower")
     starts = _starts_in_segment(rx[0], ry, seg_x, sy)
-    return wide & (inside | starts)
+    return wide & (start_held | starts)
 
 
 def _starts_in_segment(

@@ -118,7 +118,7 @@ def _hidden_sides_sweep(
     proper = (b[:, 2] > b[:, 0]) & (b[:, 3] > b[:, 1])
     left_on = contains_point(rect_x, rect_y, b[:, 0], bottom, "lower")
     right_on = contains_point(rect_x, rect_y, b[:, 2], bottom, "upper")
-    height_cut = meets_segment(rect_x, rect_y, (b[:, 0], b[:, 2]), bottom)
+    height_cut = meets_segment(rect_x, rect_y, (b[:, 0], b[:, 2]), bottom, start_held=left_on)
     return proper & (left_on | right_on), proper & height_cut
 
 
