@@ -98,11 +98,11 @@ def _greedy(
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Greedy one-to-one matching of the candidate pairs ``(bi, ti)`` (row-major) by falling
     ``iou``, equal values in the order given: the matched pairs' indices."""
+    order = np.argsort(-iou, kind="stable")
     taken_b: set[int] = set()
     taken_t: set[int] = set()
     pairs: list[tuple[int, int]] = []
-    for o in np.argsort(-iou, kind="stable").tolist():
-        b, t = int(bi[o]), int(ti[o])
+    for b, t in zip(bi[order].tolist(), ti[order].tolist(), strict=True):
         if b not in taken_b and t not in taken_t:
             taken_b.add(b)
             taken_t.add(t)
