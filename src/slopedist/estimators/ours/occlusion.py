@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from slopedist.core.rectangles import contains_point, meets_segment
+from slopedist.core.rectangles import contains_edges, meets_segment
 from slopedist.io.detections.boxes import overlapping_pairs
 
 FloatArray = NDArray[np.float64]
@@ -116,8 +116,7 @@ def _hidden_sides_sweep(
     rect_y = (lo[:, 1], b[:, 3])
     bottom = b[:, 3]
     proper = (b[:, 2] > b[:, 0]) & (b[:, 3] > b[:, 1])
-    left_on = contains_point(rect_x, rect_y, b[:, 0], bottom, "lower")
-    right_on = contains_point(rect_x, rect_y, b[:, 2], bottom, "upper")
+    left_on, right_on = contains_edges(rect_x, rect_y, b[:, 0], b[:, 2], bottom)
     height_cut = meets_segment(rect_x, rect_y, (b[:, 0], b[:, 2]), bottom, start_held=left_on)
     return proper & (left_on | right_on), proper & height_cut
 
