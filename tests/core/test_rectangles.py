@@ -9,7 +9,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from slopedist.core.rectangles import contains_point, meets_segment
+from slopedist.core.rectangles import contains_edges, contains_point, meets_segment
 
 
 def _grid(rng: np.random.Generator, n: int, span: int) -> tuple[np.ndarray, np.ndarray]:
@@ -52,6 +52,28 @@ def test_contains_point_equals_testing_every_pair(
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**31), st.integers(0, 90), st.integers(0, 90), st.sampled_from([4, 12, 60]))
+def test_contains_edges_equals_testing_every_pair(
+    seed: int, n_rect: int, n_point: int, span: int
+) -> None:
+    """Left ends closed below, right ends closed above, in one tree; many shared x values."""
+    rng = np.random.default_rng(seed)
+    rx, ry = _grid(rng, n_rect, span), _grid(rng, n_rect, span)
+    left, right = _grid(rng, n_point, span)
+    py = rng.integers(0, span, n_point).astype(float)
+    got_left, got_right = contains_edges(rx, ry, left, right, py)
+    for got, px, closed in ((got_left, left, "lower"), (got_right, right, "upper")):
+        want = [
+            any(
+                _in(rx[0][r], rx[1][r], px[p], closed) and ry[0][r] < py[p] < ry[1][r]
+                for r in range(n_rect)
+            )
+            for p in range(n_point)
+        ]
+        assert got.tolist() == want
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31), st.integers(0, 90), st.integers(0, 90), st.sampled_from([4, 12, 60]))
 def test_meets_segment_equals_testing_every_pair(
     seed: int, n_rect: int, n_seg: int, span: int
 ) -> None:
@@ -69,6 +91,8 @@ def test_meets_segment_equals_testing_every_pair(
         for s in range(n_seg)
     ]
     assert got.tolist() == want
+    held = contains_point(rx, ry, sx[0], sy, "lower")  # the caller's own answer, reused
+    assert meets_segment(rx, ry, sx, sy, start_held=held).tolist() == want
 
 
 def test_by_hand() -> None:

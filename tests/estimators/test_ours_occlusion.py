@@ -95,7 +95,8 @@ def test_hidden_sides_of_crowded_boxes_match_testing_every_pair(
     seed: int, tol: float, step: int
 ) -> None:
     """Hundreds of boxes crowding the image on a coarse grid (equal edges, boxes on top of each
-    other, a few inverted): the sweep gives the flags of testing every pair."""
+    other, a few inverted): the sweep gives the flags of testing every pair, whether the cuts
+    are found among the neighbours in column order or by the segment trees."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(occlusion._DENSE_MAX_BOXES + 1, 700))
     x, y = rng.integers(0, 600 // step, n) * step, rng.integers(100 // step, 250 // step, n) * step
@@ -111,6 +112,26 @@ def test_hidden_sides_of_crowded_boxes_match_testing_every_pair(
         assert cut_w.tolist() == dense_w.tolist()
         assert cut_h.tolist() == dense_h.tolist()
     assert dense_w.any() and dense_h.any()
+    for neighbours in (0, 1):  # every box left to the trees; most of them
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(occlusion, "_WITNESS_NEIGHBOURS", neighbours)
+            cut_w, cut_h = occlusion._hidden_sides_sweep(b, lo, hi)
+        assert (cut_w.tolist(), cut_h.tolist()) == (dense_w.tolist(), dense_h.tolist())
+
+
+def test_witnessed_cuts_are_cuts_and_leave_few_in_a_crowd() -> None:
+    """In a crowd nearly every box is cut by one of its neighbours in column order; the cuts
+    found there are cuts (a subset of the flags)."""
+    rng = np.random.default_rng(3)
+    n = 1000
+    x, y = rng.uniform(0, 200, n), rng.uniform(100, 130, n)
+    w, h = rng.uniform(20, 40, n), rng.uniform(15, 30, n)
+    b = np.stack([x, y, x + w, y + h], axis=1)
+    lo, hi = b[:, :2] - 1.5, b[:, 2:] + 1.5
+    seen_w, seen_h = occlusion._witnessed_cuts(b, lo, hi)
+    dense_w, dense_h = occlusion._hidden_sides_dense(b, lo, hi)
+    assert not (seen_w & ~dense_w).any() and not (seen_h & ~dense_h).any()
+    assert np.count_nonzero(dense_w & ~seen_w) < n // 20
 
 
 def test_censored_cue_variance() -> None:

@@ -42,13 +42,53 @@ def contains_point(
     # the points in a rectangle's x range are xs[start:stop]
     start = np.searchsorted(xs, rect_x[0], side="left" if closed_x == "lower" else "right")
     stop = np.searchsorted(xs, rect_x[1], side="right" if closed_x == "upper" else "left")
-    size = _leaves(px.shape[0])
+    return _held(order, start, stop, rect_y, py)
+
+
+def contains_edges(
+    rect_x: tuple[FloatArray, FloatArray],
+    rect_y: tuple[FloatArray, FloatArray],
+    left_x: FloatArray,
+    right_x: FloatArray,
+    py: FloatArray,
+) -> tuple[BoolArray, BoolArray]:
+    """:func:`contains_point` of the points ``(left_x, py)`` with ``closed_x="lower"`` and of
+    the points ``(right_x, py)`` with ``closed_x="upper"`` (all ``(P,)``), in one tree.
+
+    Sorted by x, with a right point before a left one at the same x, the points a rectangle
+    holds are those between the two places that fall after the right points and before the
+    left points at ``x_lo`` and at ``x_hi``: ``x_lo ≤ left_x < x_hi`` and ``x_lo < right_x ≤
+    x_hi``.
+    """
+    n = left_x.shape[0]
+    px = np.concatenate([right_x, left_x])
+    order = np.lexsort((np.arange(2 * n) >= n, px))  # by x, right points first
+    xs_right, xs_left = np.sort(right_x), np.sort(left_x)
+
+    def place(x: FloatArray) -> IntArray:
+        """Where x falls: after the right points at x, before the left points."""
+        return np.searchsorted(xs_right, x, side="right") + np.searchsorted(xs_left, x, "left")
+
+    held = _held(order, place(rect_x[0]), place(rect_x[1]), rect_y, np.concatenate([py, py]))
+    return held[n:], held[:n]
+
+
+def _held(
+    order: NDArray[np.intp],
+    start: IntArray,
+    stop: IntArray,
+    rect_y: tuple[FloatArray, FloatArray],
+    py: FloatArray,
+) -> BoolArray:
+    """Per point, whether a rectangle whose x range holds the sorted points
+    ``order[start:stop]`` has ``y_lo < py < y_hi``: the segment tree over the points."""
+    size = _leaves(py.shape[0])
     rect, rect_node = _covering_nodes(start, stop, size)
-    at, point_node = _ancestors(px.shape[0], size)
+    at, point_node = _ancestors(py.shape[0], size)
     point = order[at]
     (y_lo, y_hi, y), span = _ranks(rect_y[0], rect_y[1], py)
     hit = _stabbed(rect_node, y_lo[rect], y_hi[rect], point_node, y[point], span)
-    return np.bincount(point[hit], minlength=px.shape[0]) > 0
+    return np.bincount(point[hit], minlength=py.shape[0]) > 0
 
 
 def meets_segment(
@@ -56,21 +96,26 @@ def meets_segment(
     rect_y: tuple[FloatArray, FloatArray],
     seg_x: tuple[FloatArray, FloatArray],
     sy: FloatArray,
+    start_held: BoolArray | None = None,
 ) -> BoolArray:
     """Per horizontal segment ``x_lo < x < x_hi`` at ``y = sy``, whether it meets the open
     interior ``(x_lo, x_hi) × (y_lo, y_hi)`` of some rectangle.
 
     Two open x ranges meet when the rectangle starts inside the segment (``s_lo ≤ x_lo < s_hi``)
-    or the segment starts inside the rectangle (``x_lo < s_lo < x_hi``). Rectangles with
-    ``x_hi ≤ x_lo`` and segments with ``s_hi ≤ s_lo`` meet nothing.
+    or the segment starts inside the rectangle (``x_lo ≤ s_lo < x_hi``; ``x_lo = s_lo`` is in
+    both). Rectangles with ``x_hi ≤ x_lo`` and segments with ``s_hi ≤ s_lo`` meet nothing.
+
+    ``start_held``: the second half if the caller has it already, i.e.
+    ``contains_point(rect_x, rect_y, seg_x[0], sy, "lower")``; None computes it.
     """
     wide = seg_x[1] > seg_x[0]
     proper = np.flatnonzero(rect_x[1] > rect_x[0])
     rx = (rect_x[0][proper], rect_x[1][proper])
     ry = (rect_y[0][proper], rect_y[1][proper])
-    inside = contains_point(rx, ry, seg_x[0], sy, "neither")
+    if start_held is None:
+        start_held = contains_point(rx, ry, seg_x[0], sy, "lower")
     starts = _starts_in_segment(rx[0], ry, seg_x, sy)
-    return wide & (inside | starts)
+    return wide & (start_held | starts)
 
 
 def _starts_in_segment(

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.tracks import Tracks
-from slopedist.io.detections.boxes import iou_matrix, overlapping_pairs, pair_iou
+from slopedist.io.detections.boxes import iou_matrix, pair_iou
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -69,8 +69,12 @@ def greedy_iou_matches(
     Many boxes are matched in stages of falling IoU (:data:`_IOU_STAGES`, then ``min_iou``):
     greedy matching takes the pairs in order of falling IoU, so every pair above a stage's level
     is decided before any below it, and the next stage needs only the boxes and tracks left
-    over. In a crowded image a box overlaps hundreds of others by an IoU of 0.3 but few by 0.9,
-    so no stage looks at many pairs: the same matches as one greedy pass over all of them.
+    over. At each stage a box is compared with its :data:`GATE_TRACKS` nearest tracks left
+    over (:func:`nearest_tracks`). Where no box has more tracks than that within its reach at
+    ``min_iou`` (every realistic image), these are the matches of one greedy pass over all
+    pairs. In a crowd of near-duplicate boxes (hundreds on top of each other) the gate bounds
+    the work per box, and a box whose nearest tracks all went to better pairs may start a new
+    track where the full matching would have given it a farther one.
     """
     n, m = boxes.shape[0], tracks.shape[0]
     levels = [min_iou]
@@ -98,11 +102,11 @@ def _greedy(
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Greedy one-to-one matching of the candidate pairs ``(bi, ti)`` (row-major) by falling
     ``iou``, equal values in the order given: the matched pairs' indices."""
+    order = np.argsort(-iou, kind="stable")
     taken_b: set[int] = set()
     taken_t: set[int] = set()
     pairs: list[tuple[int, int]] = []
-    for o in np.argsort(-iou, kind="stable").tolist():
-        b, t = int(bi[o]), int(ti[o])
+    for b, t in zip(bi[order].tolist(), ti[order].tolist(), strict=True):
         if b not in taken_b and t not in taken_t:
             taken_b.add(b)
             taken_t.add(t)
@@ -120,33 +124,62 @@ def _iou_candidates(
 ) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
     """The (box, track) pairs with IoU ≥ ``min_iou``, row-major, and their IoU.
 
-    With ``min_iou > 0`` only overlapping boxes can qualify, so for many boxes the IoU is
-    computed for the overlapping pairs only (:func:`overlapping_pairs`: near linear in the
-    number of boxes); the pairs and values are the same as from the full matrix. Two boxes
-    with an IoU of ``t`` overlap by at least ``t`` of the wider one's width and of the taller
-    one's height, so boxes shrunk about their centres to ``1 − t`` of their size still overlap:
-    the pairs are looked for among such shrunk boxes (to ``1.01 − t``: a margin far beyond the
-    rounding of pixel coordinates).
+    For a few boxes (or ``min_iou ≤ 0``) all of them, from the full matrix. For many, only
+    among each box's :data:`GATE_TRACKS` nearest tracks (:func:`nearest_tracks`): the same
+    pairs wherever no box has more tracks than that within reach of an IoU of ``min_iou``, and
+    at most that many pairs per box in a crowd of near-duplicate boxes, where listing them all
+    would cost the square of the crowd.
     """
     if boxes.shape[0] * tracks.shape[0] <= _DENSE_MAX_PAIRS or not min_iou > 0:
         iou = iou_matrix(boxes, tracks)
         bi, ti = np.nonzero(iou >= min_iou)
         return bi, ti, iou[bi, ti]
-    scale = 1.01 - min_iou
-    if scale < 1.0:
-        bi, ti = overlapping_pairs(_shrunk(boxes, scale), _shrunk(tracks, scale))
-    else:
-        bi, ti = overlapping_pairs(boxes, tracks)
+    bi, ti = nearest_tracks(boxes, tracks, min_iou, GATE_TRACKS)
     iou = pair_iou(boxes, tracks, bi, ti)
     keep = np.flatnonzero(iou >= min_iou)
     keep = keep[np.lexsort((ti[keep], bi[keep]))]  # row-major, as np.nonzero gives them
     return bi[keep], ti[keep], iou[keep]
 
 
-def _shrunk(boxes: FloatArray, scale: float) -> FloatArray:
-    """Boxes ``(N, 4)`` shrunk about their centres to ``scale`` of their width and height."""
-    inset = (0.5 * (1.0 - scale)) * (boxes[:, 2:] - boxes[:, :2])
-    return np.concatenate([boxes[:, :2] + inset, boxes[:, 2:] - inset], axis=1)
+GATE_TRACKS = 8
+"""At most this many tracks each box is compared with at a stage of :func:`greedy_iou_matches`
+of many boxes: its nearest ones (:func:`nearest_tracks`)."""
+
+
+def nearest_tracks(
+    boxes: FloatArray, tracks: FloatArray, min_iou: float, k: int
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Pairs ``(box, track)`` of boxes ``(N, 4)`` and tracks' boxes ``(T, 4)`` (pixels): each
+    box's ``k`` nearest tracks among those within its reach, box by box, nearest first.
+
+    The distance of two boxes is the largest difference of their left, top, right and bottom
+    edges (pixels). Boxes with an IoU of ``t > 0`` overlap by at least ``t`` of the wider one's
+    width, which is at most ``1/t`` of either's: their edges differ by at most
+    ``(1 − t)/t·max(w, h)`` of the box's width ``w`` and height ``h``, its reach at
+    ``t = min_iou``. A box with at most ``k`` tracks within reach is paired with all of them,
+    so with every track of an IoU ≥ ``min_iou``. Boxes that are not finite with right > left
+    and bottom > top have an IoU of 0 with every box and are paired with none.
+    """
+    ib, it = _usable(boxes), _usable(tracks)
+    k = min(k, it.size)
+    if not (ib.size and k):
+        return ib[:0], it[:0]
+    from scipy.spatial import cKDTree  # here: 0.15 s of imports, needed only for many boxes
+
+    b = boxes[ib]
+    reach = (1.0 - min_iou) / min_iou * np.maximum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1])
+    reach *= 1.0 + 1e-9  # rounding of the edges' differences
+    tree = cKDTree(tracks[it])
+    dist, near = tree.query(b, k=k, p=np.inf, distance_upper_bound=float(reach.max()))
+    dist, near = dist.reshape(-1, k), near.reshape(-1, k)
+    row, col = np.nonzero(dist <= reach[:, None])
+    return ib[row], it[near[row, col]]
+
+
+def _usable(boxes: FloatArray) -> NDArray[np.intp]:
+    """Indices of the finite boxes ``(N, 4)`` with right > left and bottom > top."""
+    ok = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0]) & (boxes[:, 3] > boxes[:, 1])
+    return np.flatnonzero(ok)
 
 
 def turn_boxes(
