@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.tracks import Tracks
-from slopedist.io.detections.boxes import iou_matrix, pair_iou
+from slopedist.io.detections.boxes import iou_matrix, pair_iou, proper_box_rows
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -160,7 +160,7 @@ def nearest_tracks(
     so with every track of an IoU ≥ ``min_iou``. Boxes that are not finite with right > left
     and bottom > top have an IoU of 0 with every box and are paired with none.
     """
-    ib, it = _usable(boxes), _usable(tracks)
+    ib, it = proper_box_rows(boxes), proper_box_rows(tracks)
     k = min(k, it.size)
     if not (ib.size and k):
         return ib[:0], it[:0]
@@ -174,12 +174,6 @@ def nearest_tracks(
     dist, near = dist.reshape(-1, k), near.reshape(-1, k)
     row, col = np.nonzero(dist <= reach[:, None])
     return ib[row], it[near[row, col]]
-
-
-def _usable(boxes: FloatArray) -> NDArray[np.intp]:
-    """Indices of the finite boxes ``(N, 4)`` with right > left and bottom > top."""
-    ok = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0]) & (boxes[:, 3] > boxes[:, 1])
-    return np.flatnonzero(ok)
 
 
 def turn_boxes(

@@ -187,7 +187,7 @@ def overlapping_pairs(
     """
     a = np.asarray(boxes_a, dtype=float).reshape(-1, 4)
     b = np.asarray(boxes_b, dtype=float).reshape(-1, 4)
-    ia, ib = _proper(a), _proper(b)
+    ia, ib = proper_box_rows(a), proper_box_rows(b)
     a, b = a[ia], b[ib]
     # a pair overlaps in columns iff the later-starting box starts before the other ends:
     # b starts within [left_a, right_a), or a starts within (left_b, right_b)
@@ -198,7 +198,7 @@ def overlapping_pairs(
     return ia[i[rows]], ib[j[rows]]
 
 
-def _proper(boxes: NDArray[np.float64]) -> NDArray[np.intp]:
+def proper_box_rows(boxes: NDArray[np.float64]) -> NDArray[np.intp]:
     """Indices of the finite boxes with right > left and bottom > top."""
     ok = np.isfinite(boxes).all(axis=1) & (boxes[:, 2] > boxes[:, 0]) & (boxes[:, 3] > boxes[:, 1])
     return np.flatnonzero(ok)
