@@ -56,10 +56,10 @@ def test_the_tight_share_follows_the_targets_posterior_within_its_bounds() -> No
     spread = ContactSpread(CONFIGURED_RAD, 0.085)
     assert spread.tight_share == 0.5  # no target yet: even
     for k in range(100):
-        spread.add_posterior(np.ones(5), 0.1 * k, 0.1)
+        spread.add_posterior(np.ones(5), 0.1 * k)
     assert spread.tight_share == pytest.approx(1.0 - MIN_SHARE)
     for k in range(100, 200):
-        spread.add_posterior(np.zeros(5), 0.1 * k, 0.1)
+        spread.add_posterior(np.zeros(5), 0.1 * k)
     assert spread.tight_share == pytest.approx(MIN_SHARE)
 
 

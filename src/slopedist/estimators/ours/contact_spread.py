@@ -140,13 +140,18 @@ class ContactSpread:
             np.add.at(self._sum_x, b, weight * x[ok])
         self._renew()
 
-    def add_posterior(self, tight_weight: FloatArray, time_s: float, frame_s: float) -> None:
-        """A frame's targets' posterior weights of the tight reading; ``frame_s`` the time
-        since the previous frame (each target counts ``frame_s / CORRELATION_TIME_S``, at
-        most 1)."""
-        fade = _fade(time_s - self._share_time_s, SHARE_MEMORY_S)
+    def add_posterior(self, tight_weight: FloatArray, time_s: float) -> None:
+        """A frame's targets' posterior weights of the tight reading at ``time_s``: each target
+        counts the time since the previous such frame over :data:`CORRELATION_TIME_S`, at most
+        1 (1 in the first frame)."""
+        elapsed_s = time_s - self._share_time_s
+        fade = _fade(elapsed_s, SHARE_MEMORY_S)
         self._share_time_s = time_s
-        each = float(np.clip(frame_s / CORRELATION_TIME_S, 0.0, 1.0))
+        each = (
+            float(np.clip(elapsed_s / CORRELATION_TIME_S, 0.0, 1.0))
+            if elapsed_s == elapsed_s
+            else 1.0
+        )
         self._share_sum = self._share_sum * fade + each * float(np.sum(tight_weight))
         self._share_count = self._share_count * fade + each * tight_weight.shape[0]
 

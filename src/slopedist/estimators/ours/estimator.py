@@ -247,7 +247,6 @@ class OursEstimator(Estimator):
             self._contact_angle.reset()
         if self._contact_spread is not None:
             self._contact_spread.reset()
-        self._last_frame_s = math.nan
         if self._jitter is not None:
             self._jitter.reset()
 
@@ -537,9 +536,7 @@ class OursEstimator(Estimator):
         wide_cue = self._configured_contact_cue(targets, match, horizon.theta_rad, jitter)
         wide = self._fuse_hypotheses(targets, match, size, wide_cue, odd)
         weight = tight_weights(tight, wide, spread.tight_share)
-        frame_s = targets.time_s - self._last_frame_s
-        self._last_frame_s = targets.time_s
-        spread.add_posterior(weight, targets.time_s, frame_s if frame_s == frame_s else 1.0)
+        spread.add_posterior(weight, targets.time_s)
         return mix_readings(tight, wide, weight)
 
     def _censor_occluded(
