@@ -24,6 +24,23 @@ def _in(lo: float, hi: float, x: float, closed: str) -> bool:
     )
 
 
+def _held_by_some(
+    rx: tuple[np.ndarray, np.ndarray],
+    ry: tuple[np.ndarray, np.ndarray],
+    px: np.ndarray,
+    py: np.ndarray,
+    closed: Literal["lower", "upper", "neither"],
+) -> list[bool]:
+    """Per point, whether some rectangle holds it, testing every pair."""
+    return [
+        any(
+            _in(rx[0][r], rx[1][r], px[p], closed) and ry[0][r] < py[p] < ry[1][r]
+            for r in range(rx[0].shape[0])
+        )
+        for p in range(px.shape[0])
+    ]
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     st.integers(0, 2**31),
@@ -40,14 +57,7 @@ def test_contains_point_equals_testing_every_pair(
     px, py = rng.integers(-1, span + 1, n_point).astype(float), rng.integers(0, span, n_point)
     py = py.astype(float)
     got = contains_point(rx, ry, px, py, closed)
-    want = [
-        any(
-            _in(rx[0][r], rx[1][r], px[p], closed) and ry[0][r] < py[p] < ry[1][r]
-            for r in range(n_rect)
-        )
-        for p in range(n_point)
-    ]
-    assert got.tolist() == want
+    assert got.tolist() == _held_by_some(rx, ry, px, py, closed)
 
 
 @settings(max_examples=60, deadline=None)
@@ -61,15 +71,8 @@ def test_contains_edges_equals_testing_every_pair(
     left, right = _grid(rng, n_point, span)
     py = rng.integers(0, span, n_point).astype(float)
     got_left, got_right = contains_edges(rx, ry, left, right, py)
-    for got, px, closed in ((got_left, left, "lower"), (got_right, right, "upper")):
-        want = [
-            any(
-                _in(rx[0][r], rx[1][r], px[p], closed) and ry[0][r] < py[p] < ry[1][r]
-                for r in range(n_rect)
-            )
-            for p in range(n_point)
-        ]
-        assert got.tolist() == want
+    assert got_left.tolist() == _held_by_some(rx, ry, left, py, "lower")
+    assert got_right.tolist() == _held_by_some(rx, ry, right, py, "upper")
 
 
 @settings(max_examples=60, deadline=None)
