@@ -165,6 +165,9 @@ class OursAblation:
             distance) and at the configured one, and mix the two by how well each explains the
             target's cues and how often it explained the drive's recent targets
             (:mod:`~slopedist.estimators.ours.contact_spread`).
+        learn_odd_share: learn the drive's share of odd-object boxes (``odd_object_weight``
+            its prior) online from the targets' posterior odd probabilities
+            (:class:`~slopedist.estimators.ours.odd_objects.OddShare`).
         learn_horizon_jitter: estimate the horizon jitter (``theta_sigma_rad`` its prior)
             online from the second differences of the measured θ
             (:class:`~slopedist.estimators.ours.road_roughness.HorizonJitter`).
@@ -253,6 +256,7 @@ class OursAblation:
     learn_contact_angle: bool = False
     learn_horizon_jitter: bool = False
     learn_contact_spread: bool = False
+    learn_odd_share: bool = False
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

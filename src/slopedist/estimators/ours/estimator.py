@@ -209,6 +209,9 @@ class OursEstimator(Estimator):
             generic if config.generic_sigma_only else (),
         )
         self._odd_check = odd_objects.OddObjectCheck.of(config, abl, headings.size)
+        self._odd_share = None
+        if abl.learn_odd_share and self._odd_check.odd_mode is not None:
+            self._odd_share = odd_objects.OddShare(self._odd_check.prior_log_odds)
         self._fixed_calib = CalibrationInUse(
             0.0, config.mount_sigma_rad, camera.height_m, config.height_sigma_m
         )
@@ -247,6 +250,8 @@ class OursEstimator(Estimator):
             self._contact_angle.reset()
         if self._contact_spread is not None:
             self._contact_spread.reset()
+        if self._odd_share is not None:
+            self._odd_share.reset()
         if self._jitter is not None:
             self._jitter.reset()
 
@@ -330,11 +335,15 @@ class OursEstimator(Estimator):
         if self._contact_spread is not None and ground is not None:
             fused = self._mix_contact_readings(targets, match, size, odd, fused, horizon)
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
-        odd = self._odd_check.after_frame(odd, fused.odd_size_prob, match, distance)
+        odd = self._odd_check.after_frame(
+            odd, fused.odd_size_prob, match, distance, self._odd_log_odds_offset()
+        )
         gradient = self._target_gradient(targets, match, fused, distance, horizon)
         state = FrameState(targets, match, size, fused, distance)
         size_after = self._learn_sizes(state, size_before)
         uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
+        if self._odd_share is not None and fused.odd_size_prob is not None:
+            self._odd_share.update(fused.odd_size_prob, targets.time_s)
         if self._contact_angle is not None:
             self._feed_contact_angle(state, gradient, uid, horizon)
         if self._contact_spread is not None:
@@ -565,11 +574,16 @@ class OursEstimator(Estimator):
             targets,
             size,
             ground,
-            self._odd_check.prior(log_prior, odd_evidence),
+            self._odd_check.prior(log_prior, odd_evidence, self._odd_log_odds_offset()),
             self._hypotheses.spreads(targets),
             abl.consistency_gate_sigma,
             size.height.camera_lever if abl.road_bend_sigma else None,
         )
+
+    def _odd_log_odds_offset(self) -> float:
+        """The drive's learned odd-object log odds over the configured ones
+        (``learn_odd_share``; 0 without): the same through a frame, learned after it."""
+        return self._odd_share.log_odds_offset if self._odd_share is not None else 0.0
 
     def _filter_distance(
         self, match: TrackMatch, measurement: LogCue, R_now: FloatArray | None

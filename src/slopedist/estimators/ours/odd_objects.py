@@ -20,6 +20,7 @@ Pure functions of arrays; per-target arrays are ``(n,)``, per-hypothesis ones ``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,11 +138,14 @@ class OddObjectCheck:
             return None
         return carried_evidence(match)
 
-    def prior(self, log_prior: FloatArray, evidence: FloatArray | None) -> FloatArray:
-        """:func:`with_evidence` (``log_prior`` itself without evidence)."""
+    def prior(
+        self, log_prior: FloatArray, evidence: FloatArray | None, offset: float = 0.0
+    ) -> FloatArray:
+        """:func:`with_evidence` (``log_prior`` itself without evidence); ``offset``: the
+        drive's learned log odds over the configured ones (:class:`OddShare`)."""
         if evidence is None or self.odd_mode is None:
             return log_prior
-        return with_evidence(log_prior, evidence, self.odd_mode, self.n_headings)
+        return with_evidence(log_prior, evidence + offset, self.odd_mode, self.n_headings)
 
     def after_frame(
         self,
@@ -149,6 +153,7 @@ class OddObjectCheck:
         odd_prob: FloatArray | None,
         match: TrackMatch,
         distance: DistanceFilterResult,
+        offset: float = 0.0,
     ) -> FloatArray | None:
         """``(n,)`` the tracks' evidence after this frame (None without ``evidence``): its
         log-likelihood ratio (:func:`frame_log_ratio` of the odd mode's posterior probability
@@ -157,6 +162,72 @@ class OddObjectCheck:
         if evidence is None or odd_prob is None:
             return None
         weight = evidence_weight(match.elapsed_s, match.continued, self.evidence_time_s)
-        ratio = frame_log_ratio(odd_prob, self.prior_log_odds + evidence)
+        ratio = frame_log_ratio(odd_prob, self.prior_log_odds + offset + evidence)
         restarted = match.continued & ~distance.continued
         return updated_evidence(evidence, ratio, weight, restarted)
+
+
+class OddShare:
+    """The drive's share of odd-object boxes, learned online (experimental
+    ``learn_odd_share``).
+
+    The odd mode's prior weight (``odd_object_weight``) is the share of boxes whose size is not
+    their class's. That share is the box source's as much as the traffic's: a box source that
+    fits vehicles loosely (LiDAR clusters, a class-blind detector's van called ``car``) has
+    many. The drive's share is the mean posterior odd probability ``pᵢ`` of its recent targets
+    (one EM step per frame), ``(n₀·w₀ + Σ cᵢ·pᵢ)/(n₀ + Σ cᵢ)``: ``n₀`` = :data:`PRIOR_COUNT`
+    pseudo-observations of the configured weight ``w₀``; each target counts
+    ``cᵢ = min(1, dt/τ)`` (``dt`` the time since the previous frame, ``τ`` =
+    :data:`CORRELATION_TIME_S`: closer frames share their errors), and the sums fade over
+    :data:`MEMORY_S`. It is causal: a frame's prior is the share of the frames before it.
+    """
+
+    def __init__(self, prior_log_odds: float) -> None:
+        """``prior_log_odds``: the configured weight's log odds (:attr:`OddObjectCheck.
+        prior_log_odds`)."""
+        self._log_odds0 = prior_log_odds
+        self._w0 = 1.0 / (1.0 + math.exp(-prior_log_odds))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the drive."""
+        self._sum = 0.0
+        self._count = 0.0
+        self._time_s = math.nan
+
+    @property
+    def share(self) -> float:
+        """The drive's odd share so far (at most :data:`MAX_SHARE`)."""
+        return min((PRIOR_COUNT * self._w0 + self._sum) / (PRIOR_COUNT + self._count), MAX_SHARE)
+
+    @property
+    def log_odds_offset(self) -> float:
+        """The learned share's log odds minus the configured weight's (nats)."""
+        s = self.share
+        return math.log(s) - math.log1p(-s) - self._log_odds0
+
+    def update(self, odd_prob: FloatArray, time_s: float) -> None:
+        """Add a frame's targets' posterior odd probabilities ``(n,)`` (NaN: no size cue) at
+        ``time_s`` (s)."""
+        p = odd_prob[np.isfinite(odd_prob)]
+        elapsed_s = time_s - self._time_s
+        self._time_s = time_s
+        fade, each = 1.0, 1.0
+        if elapsed_s == elapsed_s:  # not the first frame
+            fade = math.exp(-max(elapsed_s, 0.0) / MEMORY_S)
+            each = min(max(elapsed_s / CORRELATION_TIME_S, 0.0), 1.0)
+        self._sum = self._sum * fade + each * float(np.sum(p))
+        self._count = self._count * fade + each * p.size
+
+
+PRIOR_COUNT = 60.0
+"""Weight of the configured share, in target observations (about 30 s of two targets)."""
+
+CORRELATION_TIME_S = 0.5
+"""A target's frames closer than this share their errors (as the contact spread's)."""
+
+MEMORY_S = 10.0
+"""The share's evidence fades with this time constant, seconds."""
+
+MAX_SHARE = 0.5
+"""The share stays below this: a box's size stays more often its class's than not."""
