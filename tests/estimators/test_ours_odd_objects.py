@@ -17,6 +17,10 @@ from slopedist.estimators.ours.fusion import ModeSpreads, SizeMode
 from slopedist.estimators.ours.odd_objects import (
     MAX_EVIDENCE,
     MAX_LOG_ODDS,
+    MAX_SHARE,
+    MEMORY_S,
+    PRIOR_COUNT,
+    OddShare,
     frame_log_ratio,
     updated_evidence,
     with_evidence,
@@ -147,3 +151,72 @@ def test_bad_odd_object_options_fail_clearly(options: dict) -> None:
         OursEstimator(CAM, **options)
     with pytest.raises(ConfigurationError, match="sum below 1"):
         OursEstimator(CAM, atypical_height_weight=0.5, odd_object_weight=0.5)
+
+
+def test_the_odd_share_by_hand() -> None:
+    """The drive's odd share: the configured weight before any target; then
+    ``(n₀·w₀ + Σ c·p)/(n₀ + Σ c)`` with each target counting ``min(1, dt/τ)`` and the sums
+    fading over the memory; NaN posteriors (no size cue) count nothing; bounded above."""
+    w0 = 0.028
+    share = OddShare(math.log(w0) - math.log1p(-w0))
+    assert share.share == pytest.approx(w0) and share.log_odds_offset == pytest.approx(0.0)
+    share.update(np.array([1.0, 1.0, np.nan]), 0.0)  # the first frame counts each target once
+    n0 = PRIOR_COUNT
+    assert share.share == pytest.approx((n0 * w0 + 2.0) / (n0 + 2.0))
+    share.update(np.array([0.5]), 0.25)  # half a correlation time later: half a target each
+    fade = math.exp(-0.25 / MEMORY_S)
+    expected = (n0 * w0 + 2.0 * fade + 0.5 * 0.5) / (n0 + 2.0 * fade + 0.5)
+    assert share.share == pytest.approx(expected)
+    s = share.share
+    assert share.log_odds_offset == pytest.approx(math.log(s / (1 - s)) - math.log(w0 / (1 - w0)))
+    for k in range(1, 400):  # a drive of nothing but odd objects
+        share.update(np.ones(4), 0.25 + 0.1 * k)
+    assert share.share == MAX_SHARE
+    share.reset()
+    assert share.share == pytest.approx(w0)
+
+
+def _blocks_then_one_more(est: OursEstimator, n_frames: int) -> FrameEstimates:
+    """Three low blocks called ``Car`` (10, 14 and 18 m ahead) for ``n_frames`` frames at
+    10 Hz on a flat road, then a fourth (12 m) joins them: that frame's estimates."""
+    z_m = [10.0, 14.0, 18.0, 12.0]
+    x_m = [0.5, -3.0, 3.5, 4.0]
+    boxes = np.array(
+        [
+            project_box(CAM.f, CAM.c_x, CAM.c_y, CAM.height_m, x, z, 0.0, BLOCK)
+            for x, z in zip(x_m, z_m)
+        ]
+    )
+    out = None
+    for k in range(n_frames + 1):
+        n = 3 if k < n_frames else 4
+        table = BoxTable.build(
+            np.full(n, k), boxes[:n], np.arange(n), classes=np.array(["Car"] * n, dtype=object)
+        )
+        out = est.estimate(FrameInput(k, 0.1 * k, 0.0, table, R_world_cam=np.eye(3)))
+    assert out is not None
+    return out
+
+
+def test_a_drive_of_odd_boxes_raises_the_odd_share_for_its_next_target() -> None:
+    """After 10 s of low blocks called ``Car`` the drive's learned odd share is far above the
+    configured 2.8 %: a fourth block is read as odd from its first frame, and its distance is
+    nearer its ground contact's than without the setting (which takes its size at the class's
+    word until its own track's evidence builds up)."""
+    fixed = _blocks_then_one_more(OursEstimator(CAM), 100)
+    learned = _blocks_then_one_more(OursEstimator(CAM, learn_odd_share=True), 100)
+    assert learned.extra["odd_size_prob"][3] > fixed.extra["odd_size_prob"][3] + 0.1
+    face = 12.0 - BLOCK[2] / 2
+    err_fixed = abs(fixed.extra["distance_nearest_face_m"][3] / face - 1)
+    err_learned = abs(learned.extra["distance_nearest_face_m"][3] / face - 1)
+    assert err_learned < 0.7 * err_fixed
+
+
+def test_a_drive_of_cars_keeps_the_odd_share_low() -> None:
+    """Cars of their class's size: the learned share falls below the configured weight and
+    the distances are the fixed weight's."""
+    est = OursEstimator(CAM, learn_odd_share=True)
+    outs = _drive(est, CAR, 18.0, 100)
+    assert est._odd_share is not None and est._odd_share.share < 0.028
+    strict = _drive(OursEstimator(CAM), CAR, 18.0, 100)
+    assert outs[-1].distance_m[0] == pytest.approx(strict[-1].distance_m[0], rel=1e-3)
