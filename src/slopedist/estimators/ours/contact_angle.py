@@ -31,10 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from slopedist.estimators.ours.recent_share import CORRELATION_TIME_S
 
-CORRELATION_TIME_S = 0.5
-"""Frames closer than this share their errors (a car body's pitch mode is 1–1.5 Hz)."""
+FloatArray = NDArray[np.float64]
 
 MIN_FRAMES = 5
 """A track tells its intercept from this many frames on."""

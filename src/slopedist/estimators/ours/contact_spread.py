@@ -40,12 +40,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from slopedist.estimators.ours.fusion import LogCue
+from slopedist.estimators.ours.recent_share import CORRELATION_TIME_S, RecentShare, fade
 from slopedist.estimators.ours.records import FusedCues
 
 FloatArray = NDArray[np.float64]
-
-CORRELATION_TIME_S = 0.5
-"""A track's frames closer than this share their errors (a car body's pitch mode is 1–1.5 Hz)."""
 
 MEMORY_S = 2.0
 """The spread's evidence fades with this time constant, seconds (a crest or sag passes in a
@@ -104,9 +102,7 @@ class ContactSpread:
         self._last_seen_s: dict[int, float] = {}
         self._gap_time_s = math.nan
         self._scale = 1.0
-        self._share_time_s = math.nan
-        self._share_sum = 0.0
-        self._share_count = 0.0
+        self._tight = RecentShare(0.5, 1.0, SHARE_MEMORY_S)
 
     @property
     def scale(self) -> float:
@@ -118,18 +114,17 @@ class ContactSpread:
     def tight_share(self) -> float:
         """The share of the drive's recent targets the tight reading explained better: the
         running mean of their posterior weights, one pseudo-target at ½."""
-        share = (self._share_sum + 0.5) / (self._share_count + 1.0)
-        return float(np.clip(share, MIN_SHARE, 1.0 - MIN_SHARE))
+        return float(np.clip(self._tight.share, MIN_SHARE, 1.0 - MIN_SHARE))
 
     def add_gaps(
         self, uid: NDArray[np.int64], gap_rad: FloatArray, x: FloatArray, time_s: float
     ) -> None:
         """A frame's targets: track uids, gaps ``a`` (rad; NaN: not usable) and ``x = (h/z)²``,
         then the scale renewed."""
-        fade = _fade(time_s - self._gap_time_s, MEMORY_S)
-        self._count *= fade
-        self._sum_a2 *= fade
-        self._sum_x *= fade
+        left = fade(time_s - self._gap_time_s, MEMORY_S)
+        self._count *= left
+        self._sum_a2 *= left
+        self._sum_x *= left
         self._gap_time_s = time_s
         ok = np.isfinite(gap_rad) & np.isfinite(x) & (x > 0)
         weight = np.array([self._weight(int(u), time_s) for u in uid[ok].tolist()])
@@ -141,19 +136,9 @@ class ContactSpread:
         self._renew()
 
     def add_posterior(self, tight_weight: FloatArray, time_s: float) -> None:
-        """A frame's targets' posterior weights of the tight reading at ``time_s``: each target
-        counts the time since the previous such frame over :data:`CORRELATION_TIME_S`, at most
-        1 (1 in the first frame)."""
-        elapsed_s = time_s - self._share_time_s
-        fade = _fade(elapsed_s, SHARE_MEMORY_S)
-        self._share_time_s = time_s
-        each = (
-            float(np.clip(elapsed_s / CORRELATION_TIME_S, 0.0, 1.0))
-            if elapsed_s == elapsed_s
-            else 1.0
-        )
-        self._share_sum = self._share_sum * fade + each * float(np.sum(tight_weight))
-        self._share_count = self._share_count * fade + each * tight_weight.shape[0]
+        """A frame's targets' posterior weights of the tight reading at ``time_s``
+        (:meth:`~slopedist.estimators.ours.recent_share.RecentShare.add`)."""
+        self._tight.add(tight_weight, time_s)
 
     def _weight(self, uid: int, time_s: float) -> float:
         """How much of an independent observation a track's gap of this frame is: the time
@@ -182,11 +167,6 @@ class ContactSpread:
         w = np.exp(log_post - log_post.max())
         log_v = float(np.sum(w * np.log(self._grid_v)) / np.sum(w))
         self._scale = min(math.exp(log_v) / self._v0, 1.0)
-
-
-def _fade(elapsed_s: float, memory_s: float) -> float:
-    """How much of the evidence is left after ``elapsed_s`` (NaN: none before: 1)."""
-    return math.exp(-max(elapsed_s, 0.0) / memory_s) if elapsed_s == elapsed_s else 1.0
 
 
 def tight_weights(tight: FusedCues, wide: FusedCues, tight_share: float) -> FloatArray:

@@ -32,6 +32,7 @@ from slopedist.estimators.ours.config import (
     carries_state,
     size_evidence_time,
 )
+from slopedist.estimators.ours.recent_share import RecentShare
 from slopedist.estimators.ours.records import DistanceFilterResult, FrameTargets, TrackMatch
 from slopedist.estimators.ours.size_learning import evidence_weight
 
@@ -174,31 +175,26 @@ class OddShare:
     The odd mode's prior weight (``odd_object_weight``) is the share of boxes whose size is not
     their class's. That share is the box source's as much as the traffic's: a box source that
     fits vehicles loosely (LiDAR clusters, a class-blind detector's van called ``car``) has
-    many. The drive's share is the mean posterior odd probability ``pᵢ`` of its recent targets
-    (one EM step per frame), ``(n₀·w₀ + Σ cᵢ·pᵢ)/(n₀ + Σ cᵢ)``: ``n₀`` = :data:`PRIOR_COUNT`
-    pseudo-observations of the configured weight ``w₀``; each target counts
-    ``cᵢ = min(1, dt/τ)`` (``dt`` the time since the previous frame, ``τ`` =
-    :data:`CORRELATION_TIME_S`: closer frames share their errors), and the sums fade over
-    :data:`MEMORY_S`. It is causal: a frame's prior is the share of the frames before it.
+    many. The drive's share is the running mean posterior odd probability of its recent
+    targets (:class:`~slopedist.estimators.ours.recent_share.RecentShare`: :data:`PRIOR_COUNT`
+    pseudo-observations of the configured weight, fading over :data:`MEMORY_S`), at most
+    :data:`MAX_SHARE`. It is causal: a frame's prior is the share of the frames before it.
     """
 
     def __init__(self, prior_log_odds: float) -> None:
         """``prior_log_odds``: the configured weight's log odds (:attr:`OddObjectCheck.
         prior_log_odds`)."""
         self._log_odds0 = prior_log_odds
-        self._w0 = 1.0 / (1.0 + math.exp(-prior_log_odds))
-        self.reset()
+        self._odd = RecentShare(1.0 / (1.0 + math.exp(-prior_log_odds)), PRIOR_COUNT, MEMORY_S)
 
     def reset(self) -> None:
         """Forget the drive."""
-        self._sum = 0.0
-        self._count = 0.0
-        self._time_s = math.nan
+        self._odd.reset()
 
     @property
     def share(self) -> float:
         """The drive's odd share so far (at most :data:`MAX_SHARE`)."""
-        return min((PRIOR_COUNT * self._w0 + self._sum) / (PRIOR_COUNT + self._count), MAX_SHARE)
+        return min(self._odd.share, MAX_SHARE)
 
     @property
     def log_odds_offset(self) -> float:
@@ -209,22 +205,11 @@ class OddShare:
     def update(self, odd_prob: FloatArray, time_s: float) -> None:
         """Add a frame's targets' posterior odd probabilities ``(n,)`` (NaN: no size cue) at
         ``time_s`` (s)."""
-        p = odd_prob[np.isfinite(odd_prob)]
-        elapsed_s = time_s - self._time_s
-        self._time_s = time_s
-        fade, each = 1.0, 1.0
-        if elapsed_s == elapsed_s:  # not the first frame
-            fade = math.exp(-max(elapsed_s, 0.0) / MEMORY_S)
-            each = min(max(elapsed_s / CORRELATION_TIME_S, 0.0), 1.0)
-        self._sum = self._sum * fade + each * float(np.sum(p))
-        self._count = self._count * fade + each * p.size
+        self._odd.add(odd_prob[np.isfinite(odd_prob)], time_s)
 
 
 PRIOR_COUNT = 60.0
 """Weight of the configured share, in target observations (about 30 s of two targets)."""
-
-CORRELATION_TIME_S = 0.5
-"""A target's frames closer than this share their errors (as the contact spread's)."""
 
 MEMORY_S = 10.0
 """The share's evidence fades with this time constant, seconds."""
