@@ -1,4 +1,5 @@
-"""Shared fixtures: the real KITTI data in ../shared/data (skipped when absent)."""
+"""Shared fixtures: the real KITTI data in ../shared/data (skipped when absent); hypothesis
+without deadlines (no test is timed: a loaded machine must not fail one)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile("untimed", deadline=None)
+settings.load_profile("untimed")
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
