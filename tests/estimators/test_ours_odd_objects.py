@@ -201,10 +201,10 @@ def _blocks_then_one_more(est: OursEstimator, n_frames: int) -> FrameEstimates:
 def test_a_drive_of_odd_boxes_raises_the_odd_share_for_its_next_target() -> None:
     """After 10 s of low blocks called ``Car`` the drive's learned odd share is far above the
     configured 2.8 %: a fourth block is read as odd from its first frame, and its distance is
-    nearer its ground contact's than without the setting (which takes its size at the class's
+    nearer its ground contact's than with the fixed weight (which takes its size at the class's
     word until its own track's evidence builds up)."""
-    fixed = _blocks_then_one_more(OursEstimator(CAM), 100)
-    learned = _blocks_then_one_more(OursEstimator(CAM, learn_odd_share=True), 100)
+    fixed = _blocks_then_one_more(OursEstimator(CAM, learn_odd_share=False), 100)
+    learned = _blocks_then_one_more(OursEstimator(CAM), 100)
     assert learned.extra["odd_size_prob"][3] > fixed.extra["odd_size_prob"][3] + 0.1
     face = 12.0 - BLOCK[2] / 2
     err_fixed = abs(fixed.extra["distance_nearest_face_m"][3] / face - 1)
@@ -216,8 +216,8 @@ def test_a_drive_of_cars_keeps_the_odd_share_low() -> None:
     """Cars of their class's size: the learned share falls below the configured weight (a
     block joining after 10 s is read as odd a little less readily than with the fixed weight)
     and the cars' distances are the fixed weight's."""
-    learned = OursEstimator(CAM, learn_odd_share=True)
-    fixed = OursEstimator(CAM)
+    learned = OursEstimator(CAM)
+    fixed = OursEstimator(CAM, learn_odd_share=False)
     outs, strict = _drive(learned, CAR, 18.0, 100), _drive(fixed, CAR, 18.0, 100)
     assert outs[-1].distance_m[0] == pytest.approx(strict[-1].distance_m[0], rel=1e-3)
     box = project_box(CAM.f, CAM.c_x, CAM.c_y, CAM.height_m, -3.0, 12.0, 0.0, BLOCK)

@@ -167,7 +167,9 @@ class OursAblation:
             (:mod:`~slopedist.estimators.ours.contact_spread`).
         learn_odd_share: learn the drive's share of odd-object boxes (``odd_object_weight``
             its prior) online from the targets' posterior odd probabilities
-            (:class:`~slopedist.estimators.ours.odd_objects.OddShare`).
+            (:class:`~slopedist.estimators.ours.odd_objects.OddShare`): a box source whose
+            boxes fit their vehicles loosely is read as such after a few seconds. False keeps
+            the share at ``odd_object_weight``.
         learn_horizon_jitter: estimate the horizon jitter (``theta_sigma_rad`` its prior)
             online from the second differences of the measured θ
             (:class:`~slopedist.estimators.ours.road_roughness.HorizonJitter`).
@@ -256,7 +258,7 @@ class OursAblation:
     learn_contact_angle: bool = False
     learn_horizon_jitter: bool = False
     learn_contact_spread: bool = False
-    learn_odd_share: bool = False
+    learn_odd_share: bool = True
     censor_border_cuts: bool = True
     occlusion_aware: bool = True
     road_bend_sigma: bool = True

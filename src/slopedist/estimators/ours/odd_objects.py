@@ -12,7 +12,8 @@ and prior odds), summed with the weight
 ``min(1, dt/τ)`` (:func:`~slopedist.estimators.ours.size_learning.evidence_weight`: consecutive
 frames share the target road's gradient error, so only one frame per τ seconds is independent
 evidence; τ the size-learning time, 4 s from the gradient priors). That sum is added to the
-odd mode's log prior in the next frame.
+odd mode's log prior in the next frame; that log prior is the drive's share of odd boxes so far
+(:class:`OddShare`), the configured weight before its first target.
 
 Pure functions of arrays; per-target arrays are ``(n,)``, per-hypothesis ones ``(n, M·K)``
 (``M`` size modes × ``K`` headings, mode-major). Log-likelihoods are natural logarithms.
@@ -169,8 +170,8 @@ class OddObjectCheck:
 
 
 class OddShare:
-    """The drive's share of odd-object boxes, learned online (experimental
-    ``learn_odd_share``).
+    """The drive's share of odd-object boxes, learned online (``learn_odd_share``, on by
+    default).
 
     The odd mode's prior weight (``odd_object_weight``) is the share of boxes whose size is not
     their class's. That share is the box source's as much as the traffic's: a box source that
