@@ -176,9 +176,13 @@ def test_the_odd_share_by_hand() -> None:
     assert share.share == pytest.approx(w0)
 
 
-def _blocks_then_one_more(est: OursEstimator, n_frames: int) -> FrameEstimates:
+def _blocks_then_one_more(
+    est: OursEstimator, n_frames: int, sized_first: bool = False, sized_last: bool = False
+) -> FrameEstimates:
     """Three low blocks called ``Car`` (10, 14 and 18 m ahead) for ``n_frames`` frames at
-    10 Hz on a flat road, then a fourth (12 m) joins them: that frame's estimates."""
+    10 Hz on a flat road, then a fourth (12 m) joins them: that frame's estimates.
+    ``sized_first`` / ``sized_last``: the detector gives the first three's / the fourth's
+    size (the block's, σ 10 %)."""
     z_m = [10.0, 14.0, 18.0, 12.0]
     x_m = [0.5, -3.0, 3.5, 4.0]
     boxes = np.array(
@@ -187,11 +191,20 @@ def _blocks_then_one_more(est: OursEstimator, n_frames: int) -> FrameEstimates:
             for x, z in zip(x_m, z_m)
         ]
     )
+    told = np.array([sized_first] * 3 + [sized_last])
+    sizes = {
+        name: np.where(told, BLOCK[k], np.nan)
+        for k, name in enumerate(("height_m", "width_m", "length_m"))
+    }
     out = None
     for k in range(n_frames + 1):
         n = 3 if k < n_frames else 4
         table = BoxTable.build(
-            np.full(n, k), boxes[:n], np.arange(n), classes=np.array(["Car"] * n, dtype=object)
+            np.full(n, k),
+            boxes[:n],
+            np.arange(n),
+            classes=np.array(["Car"] * n, dtype=object),
+            **{name: v[:n] for name, v in sizes.items()},
         )
         out = est.estimate(FrameInput(k, 0.1 * k, 0.0, table, R_world_cam=np.eye(3)))
     assert out is not None
@@ -229,3 +242,19 @@ def test_a_drive_of_cars_keeps_the_odd_share_low() -> None:
         for est in (learned, fixed)
     ]
     assert joined[0] < joined[1]
+
+
+def test_a_box_whose_detector_gives_its_size_keeps_the_configured_odd_weight() -> None:
+    """The drive's share says how often the class prior fails its boxes; a box with its
+    detector's size is not read with the class prior, so it neither takes the share nor adds
+    to it: after 10 s of blocks a sized block is read as with the fixed weight, and 10 s of
+    sized blocks leave the share at the configured weight for the next block."""
+    for sized_first, sized_last in ((False, True), (True, False)):
+        learned = _blocks_then_one_more(OursEstimator(CAM), 100, sized_first, sized_last)
+        fixed = _blocks_then_one_more(
+            OursEstimator(CAM, learn_odd_share=False), 100, sized_first, sized_last
+        )
+        assert learned.extra["odd_size_prob"][3] == pytest.approx(fixed.extra["odd_size_prob"][3])
+        assert learned.distance_m[3] == pytest.approx(fixed.distance_m[3], rel=1e-9)
+    unsized = _blocks_then_one_more(OursEstimator(CAM), 100)
+    assert unsized.extra["odd_size_prob"][3] > fixed.extra["odd_size_prob"][3] + 0.1

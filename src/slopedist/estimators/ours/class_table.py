@@ -79,6 +79,8 @@ class TargetClasses(NamedTuple):
         type_moments: ``(n, T, 3)`` the vehicle types of a class read as generic for σ only
             (:func:`~slopedist.estimators.ours.vehicle_types.type_moments`; a class as given:
             one type, itself), or None when no target's class is.
+        sized: ``(n,)`` the targets whose size the detector gives (a known dimension), or None
+            when no target's is.
     """
 
     height_m: FloatArray
@@ -88,6 +90,7 @@ class TargetClasses(NamedTuple):
     generic: NDArray[np.bool_]
     type_log_weight: FloatArray | None
     type_moments: FloatArray | None = None
+    sized: NDArray[np.bool_] | None = None
 
 
 DetectorSizes = tuple[FloatArray, FloatArray]
@@ -187,6 +190,7 @@ class ClassTable:
             generic,
             type_log_weight,
             moments,
+            sized,
         )
 
     def _with_sizes(

@@ -141,10 +141,11 @@ class OddObjectCheck:
         return carried_evidence(match)
 
     def prior(
-        self, log_prior: FloatArray, evidence: FloatArray | None, offset: float = 0.0
+        self, log_prior: FloatArray, evidence: FloatArray | None, offset: float | FloatArray = 0.0
     ) -> FloatArray:
         """:func:`with_evidence` (``log_prior`` itself without evidence); ``offset``: the
-        drive's learned log odds over the configured ones (:class:`OddShare`)."""
+        drive's learned log odds over the configured ones (:class:`OddShare`), one for every
+        target or ``(n,)``."""
         if evidence is None or self.odd_mode is None:
             return log_prior
         return with_evidence(log_prior, evidence + offset, self.odd_mode, self.n_headings)
@@ -155,7 +156,7 @@ class OddObjectCheck:
         odd_prob: FloatArray | None,
         match: TrackMatch,
         distance: DistanceFilterResult,
-        offset: float = 0.0,
+        offset: float | FloatArray = 0.0,
     ) -> FloatArray | None:
         """``(n,)`` the tracks' evidence after this frame (None without ``evidence``): its
         log-likelihood ratio (:func:`frame_log_ratio` of the odd mode's posterior probability
