@@ -244,17 +244,20 @@ def test_a_drive_of_cars_keeps_the_odd_share_low() -> None:
     assert joined[0] < joined[1]
 
 
-def test_a_box_whose_detector_gives_its_size_keeps_the_configured_odd_weight() -> None:
-    """The drive's share says how often the class prior fails its boxes; a box with its
-    detector's size is not read with the class prior, so it neither takes the share nor adds
-    to it: after 10 s of blocks a sized block is read as with the fixed weight, and 10 s of
-    sized blocks leave the share at the configured weight for the next block."""
-    for sized_first, sized_last in ((False, True), (True, False)):
+def test_a_box_whose_detector_gives_its_size_has_no_odd_mode() -> None:
+    """A size the detector measured is that vehicle's: its box is never read as an odd object
+    (whatever the odd-object weight or the drive's share), and it neither takes the drive's
+    share nor adds to it: 10 s of sized blocks leave the share at the configured weight for
+    the next block, which 10 s of unsized blocks raise."""
+    for sized_first, sized_last in ((False, True), (True, True)):
         learned = _blocks_then_one_more(OursEstimator(CAM), 100, sized_first, sized_last)
-        fixed = _blocks_then_one_more(
-            OursEstimator(CAM, learn_odd_share=False), 100, sized_first, sized_last
+        without = _blocks_then_one_more(
+            OursEstimator(CAM, odd_object_weight=0.0), 100, sized_first, sized_last
         )
-        assert learned.extra["odd_size_prob"][3] == pytest.approx(fixed.extra["odd_size_prob"][3])
-        assert learned.distance_m[3] == pytest.approx(fixed.distance_m[3], rel=1e-9)
-    unsized = _blocks_then_one_more(OursEstimator(CAM), 100)
-    assert unsized.extra["odd_size_prob"][3] > fixed.extra["odd_size_prob"][3] + 0.1
+        assert learned.extra["odd_size_prob"][3] < 1e-9
+        assert learned.distance_m[3] == pytest.approx(without.distance_m[3], rel=1e-9)
+    after_sized = _blocks_then_one_more(OursEstimator(CAM), 100, True, False)
+    fixed = _blocks_then_one_more(OursEstimator(CAM, learn_odd_share=False), 100, True, False)
+    assert after_sized.extra["odd_size_prob"][3] == pytest.approx(fixed.extra["odd_size_prob"][3])
+    after_unsized = _blocks_then_one_more(OursEstimator(CAM), 100)
+    assert after_unsized.extra["odd_size_prob"][3] > fixed.extra["odd_size_prob"][3] + 0.1

@@ -335,15 +335,16 @@ class OursEstimator(Estimator):
         if self._contact_spread is not None and ground is not None:
             fused = self._mix_contact_readings(targets, match, size, odd, fused, horizon)
         distance = self._filter_distance(match, fused.measurement, frame.R_world_cam)
+        odd_prob = odd_objects.of_class_priors(fused.odd_size_prob, targets.classes.sized)
         odd = self._odd_check.after_frame(
-            odd, fused.odd_size_prob, match, distance, self._odd_log_odds_offset(targets)
+            odd, odd_prob, match, distance, self._odd_log_odds_offset()
         )
         gradient = self._target_gradient(targets, match, fused, distance, horizon)
         state = FrameState(targets, match, size, fused, distance)
         size_after = self._learn_sizes(state, size_before)
         uid = self._update_tracks(state, gradient, frame.R_world_cam, size_after, odd)
-        if self._odd_share is not None and fused.odd_size_prob is not None:
-            self._learn_odd_share(targets, fused.odd_size_prob)
+        if self._odd_share is not None and odd_prob is not None:
+            self._odd_share.update(odd_prob, targets.time_s)
         if self._contact_angle is not None:
             self._feed_contact_angle(state, gradient, uid, horizon)
         if self._contact_spread is not None:
@@ -574,30 +575,16 @@ class OursEstimator(Estimator):
             targets,
             size,
             ground,
-            self._odd_check.prior(log_prior, odd_evidence, self._odd_log_odds_offset(targets)),
+            self._odd_check.prior(log_prior, odd_evidence, self._odd_log_odds_offset()),
             self._hypotheses.spreads(targets),
             abl.consistency_gate_sigma,
             size.height.camera_lever if abl.road_bend_sigma else None,
         )
 
-    def _odd_log_odds_offset(self, targets: FrameTargets) -> float | FloatArray:
+    def _odd_log_odds_offset(self) -> float:
         """The drive's learned odd-object log odds over the configured ones
-        (``learn_odd_share``; 0 without): the same through a frame, learned after it. A
-        target whose size the detector gives keeps the configured odds: the share is how
-        often the class prior fails this drive's boxes, and its size is not the prior's."""
-        if self._odd_share is None:
-            return 0.0
-        offset = self._odd_share.log_odds_offset
-        sized = targets.classes.sized
-        return offset if sized is None else np.where(sized, 0.0, offset)
-
-    def _learn_odd_share(self, targets: FrameTargets, odd_prob: FloatArray) -> None:
-        """Count this frame's targets read with their class prior in the drive's odd share
-        (``learn_odd_share``); the ones whose size the detector gives do not count."""
-        assert self._odd_share is not None
-        sized = targets.classes.sized
-        counted = odd_prob if sized is None else np.where(sized, np.nan, odd_prob)
-        self._odd_share.update(counted, targets.time_s)
+        (``learn_odd_share``; 0 without): the same through a frame, learned after it."""
+        return self._odd_share.log_odds_offset if self._odd_share is not None else 0.0
 
     def _filter_distance(
         self, match: TrackMatch, measurement: LogCue, R_now: FloatArray | None

@@ -24,6 +24,7 @@ from slopedist.estimators.ours.config import OursAblation
 from slopedist.estimators.ours.fusion import LogCue, ModeSpreads
 from slopedist.estimators.ours.priors import yaw_grid, yaw_prior_weights
 from slopedist.estimators.ours.records import FrameTargets, FusedCues, SizeCues, TrackMatch
+from slopedist.estimators.ours.vehicle_types import NOT_THIS_TYPE_LOG_WEIGHT
 
 FloatArray = NDArray[np.float64]
 
@@ -74,7 +75,12 @@ class Hypotheses:
         if type_weight is not None:
             n_types = type_weight.shape[1]
             return np.tile(log_heading_prior, n_types) + np.repeat(type_weight, k, axis=1)
-        return np.tile(log_heading_prior, len(self.size_modes)) + self._log_mode
+        log_prior = np.tile(log_heading_prior, len(self.size_modes)) + self._log_mode
+        sized = targets.classes.sized
+        if sized is not None and len(self.size_modes) > 1:
+            # a size the detector measured is that vehicle's: no atypical or odd mode
+            log_prior[sized, k:] = NOT_THIS_TYPE_LOG_WEIGHT
+        return log_prior
 
 
 def fuse_hypotheses(

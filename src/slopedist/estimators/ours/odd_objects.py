@@ -101,6 +101,18 @@ def updated_evidence(
     return np.where(ok, total, np.where(restarted, 0.0, evidence))
 
 
+def of_class_priors(
+    odd_prob: FloatArray | None, sized: NDArray[np.bool_] | None
+) -> FloatArray | None:
+    """``(n,)`` the odd-object posterior ``odd_prob`` of the targets read with their class
+    prior, NaN for those whose size the detector gives (``sized``; None: none): a measured size
+    has no odd-object mode (:meth:`~slopedist.estimators.ours.hypotheses.Hypotheses.log_prior`),
+    so such a frame is no evidence of one for its track nor for the drive's share."""
+    if odd_prob is None or sized is None:
+        return odd_prob
+    return np.where(sized, np.nan, odd_prob)
+
+
 @dataclass(frozen=True)
 class OddObjectCheck:
     """The per-track odd-object check of an estimator's options (:meth:`of`); it does
@@ -141,11 +153,10 @@ class OddObjectCheck:
         return carried_evidence(match)
 
     def prior(
-        self, log_prior: FloatArray, evidence: FloatArray | None, offset: float | FloatArray = 0.0
+        self, log_prior: FloatArray, evidence: FloatArray | None, offset: float = 0.0
     ) -> FloatArray:
         """:func:`with_evidence` (``log_prior`` itself without evidence); ``offset``: the
-        drive's learned log odds over the configured ones (:class:`OddShare`), one for every
-        target or ``(n,)``."""
+        drive's learned log odds over the configured ones (:class:`OddShare`)."""
         if evidence is None or self.odd_mode is None:
             return log_prior
         return with_evidence(log_prior, evidence + offset, self.odd_mode, self.n_headings)
@@ -156,7 +167,7 @@ class OddObjectCheck:
         odd_prob: FloatArray | None,
         match: TrackMatch,
         distance: DistanceFilterResult,
-        offset: float | FloatArray = 0.0,
+        offset: float = 0.0,
     ) -> FloatArray | None:
         """``(n,)`` the tracks' evidence after this frame (None without ``evidence``): its
         log-likelihood ratio (:func:`frame_log_ratio` of the odd mode's posterior probability
