@@ -209,7 +209,9 @@ class OursAblation:
             disagree with the ground contact by more than the class's spread explains, the
             posterior moves to it and the fusion follows the ground contact (record column
             ``odd_size_prob``; :class:`~slopedist.estimators.ours.fusion.SizeMode`). Not used
-            for a generic class (whose vehicle-type mixture covers odd vehicles).
+            for a generic class (whose vehicle-type mixture covers odd vehicles), nor for a box
+            whose detector gives its size (a measured size is the vehicle's; nor is
+            ``atypical_height_weight``).
         odd_object_log_sigma: the relative spread (of the logarithm) of an odd object's height
             and width: 0.5, objects from 0.5 m to 4 m tall (a block to a truck) read as ±2σ
             about the class's size (physical, not fitted).
