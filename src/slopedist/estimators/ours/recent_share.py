@@ -1,6 +1,6 @@
 """A share a drive's recent targets show, learned online: the running mean of their posterior
-weights (one EM step a frame), the weights of experimental settings that learn from the drive
-(``learn_contact_spread``'s tight reading, ``learn_odd_share``'s odd objects).
+weights (one EM step a frame): the odd-object share (``learn_odd_share``) and the experimental
+``learn_contact_spread``'s tight-reading share.
 
 The share is ``(n₀·w₀ + Σ cᵢ·wᵢ)/(n₀ + Σ cᵢ)``: ``n₀`` pseudo-targets of the prior share ``w₀``,
 each frame's targets' posterior weights ``wᵢ`` counting ``cᵢ = min(1, dt/τ)`` each (``dt`` the
